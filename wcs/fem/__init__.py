@@ -1,0 +1,1 @@
+"""Finite elements with scikit-fem: parameter-affine pieces, constraints, stresses."""

@@ -1,0 +1,82 @@
+"""Nodal linear constraints a · u(node) = c eliminated by a change of basis.
+
+u = T w + U0 c: `T` spans the free directions (a Dirichlet component removes
+one axis, a roller `u · n = c` removes the normal and keeps the tangent, two
+independent constraints fix the node), `U0` maps the prescribed values `c`
+to the displacement they impose. Both depend only on geometry, so the
+reduced operators Tᵀ K T stay affine in the data and keep one pattern.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+
+@dataclass(frozen=True)
+class Constraint:
+    nodes: np.ndarray        # (k,) node ids
+    directions: np.ndarray   # (k, ncomp) unit vectors a
+    value: int               # index of the prescribed value c in the value vector
+
+
+@dataclass(frozen=True)
+class Elimination:
+    T: sp.csr_matrix         # (ndof, nfree)
+    U0: sp.csr_matrix        # (ndof, nvalues)
+    fixed_dofs: np.ndarray   # dofs with no free direction left (for reporting)
+
+    def expand(self, w: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return self.T @ w + self.U0 @ values
+
+
+def eliminate(nnodes: int, ncomp: int, constraints: list[Constraint], nvalues: int) -> Elimination:
+    """Build T and U0 for constraints on the node-interleaved dofs (dof = ncomp·node + comp)."""
+    rows_of: dict[int, list[tuple[np.ndarray, int]]] = {}
+    for c in constraints:
+        for node, a in zip(c.nodes.tolist(), c.directions):
+            rows_of.setdefault(node, []).append((np.asarray(a, float), c.value))
+
+    T_rows, T_cols, T_vals = [], [], []
+    U_rows, U_cols, U_vals = [], [], []
+    fixed = []
+    ncols = 0
+    constrained = np.zeros(nnodes, bool)
+    for node in sorted(rows_of):
+        constrained[node] = True
+        A = np.array([a for a, _ in rows_of[node]])
+        idx = [v for _, v in rows_of[node]]
+        _, s, vt = np.linalg.svd(A)
+        rank = int(np.sum(s > 1e-8 * s[0]))
+        pinv = np.linalg.pinv(A, rcond=1e-8)           # u_c = A⁺ c (consistent data: exact)
+        for comp in range(ncomp):
+            for j, v in enumerate(idx):
+                if pinv[comp, j] != 0.0:
+                    U_rows.append(ncomp * node + comp); U_cols.append(v); U_vals.append(pinv[comp, j])
+        free = vt[rank:]                                 # orthonormal free directions
+        for t in free:
+            for comp in range(ncomp):
+                if t[comp] != 0.0:
+                    T_rows.append(ncomp * node + comp); T_cols.append(ncols); T_vals.append(t[comp])
+            ncols += 1
+        if rank == ncomp:
+            fixed.extend(ncomp * node + np.arange(ncomp))
+    # unconstrained nodes: identity columns, in dof order after the constrained ones' columns
+    free_nodes = np.flatnonzero(~constrained)
+    dofs = (ncomp * free_nodes[:, None] + np.arange(ncomp)).ravel()
+    T_rows.extend(dofs.tolist()); T_cols.extend(range(ncols, ncols + dofs.size)); T_vals.extend([1.0] * dofs.size)
+    ncols += dofs.size
+    ndof = ncomp * nnodes
+    T = sp.csr_matrix((T_vals, (T_rows, T_cols)), shape=(ndof, ncols))
+    T = _order_columns_by_dof(T)
+    U0 = sp.csr_matrix((U_vals, (U_rows, U_cols)), shape=(ndof, nvalues))
+    return Elimination(T=T, U0=U0, fixed_dofs=np.array(sorted(fixed), dtype=np.int64))
+
+
+def _order_columns_by_dof(T: sp.csr_matrix) -> sp.csr_matrix:
+    """Number the free unknowns in the order of their first dof: keeps the reduced matrix banded like K."""
+    Tc = T.tocsc()
+    Tc.sort_indices()
+    first = Tc.indices[Tc.indptr[:-1]]            # every column has at least one entry
+    return sp.csr_matrix(Tc[:, np.argsort(first, kind="stable")])

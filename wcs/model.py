@@ -1,0 +1,294 @@
+"""The forward model of a scene: pieces assembled once per mesh, then one
+thermal solve and one elastic solve per data set.
+
+`Model(scene, smesh)` reads only the *structure* of the scene (which regions,
+loads, supports exist); `Model.solve(scene_x)` reads the *numbers* of a scene
+with the data set applied and combines the pieces (architecture.md, idea 1).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import linalg
+from .errors import StudyError
+from .fem import forms
+from .fem.affine import AffineOperator
+from .fem.constraints import Constraint, Elimination, eliminate
+from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
+from .materials import plane_lame, thermal_beta
+from .scene.meshdata import SceneMesh
+
+
+@dataclass
+class Coefficients:
+    """The numbers of one data set, laid out like the model's pieces."""
+    lam: np.ndarray            # (nregions,) λ entering the 2D stiffness (λ* in plane stress)
+    mu: np.ndarray             # (nregions,)
+    beta: np.ndarray           # (nregions,) thermal stress coefficient
+    kappa: np.ndarray          # (nregions,) conductivity (thermal scenes)
+    source: np.ndarray         # (nregions,) heat source W
+    body_force: np.ndarray     # (nregions, 2)
+    pressure: dict             # boundary -> p
+    traction: dict             # boundary -> (tx, ty)
+    support_values: np.ndarray # values of the elastic constraints, model order
+    temperature_values: np.ndarray
+    reference: float
+
+
+@dataclass
+class State:
+    """A solved data set: nodal fields and cell-wise stresses."""
+    u: np.ndarray              # (2 nnodes,) node-interleaved displacement
+    T: np.ndarray | None       # (nnodes,) temperature, None without a thermal step
+    stress: np.ndarray         # (4, ncells) xx, yy, zz, xy
+    coefficients: Coefficients
+    iterations: int = 1
+    contact: object | None = None
+    timings: dict = field(default_factory=dict)
+
+
+def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
+    """(2 nnodes, 3): x-translation, y-translation, rotation about the nodes' centroid."""
+    R = np.zeros((2 * nnodes, 3))
+    c = p[:, nodes].mean(axis=1)
+    R[2 * nodes, 0] = 1.0
+    R[2 * nodes + 1, 1] = 1.0
+    R[2 * nodes, 2] = -(p[1, nodes] - c[1])
+    R[2 * nodes + 1, 2] = p[0, nodes] - c[0]
+    return R
+
+
+def nodal_normals(mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes of a boundary facet set and their outward unit normals (length-weighted average)."""
+    from .scene.selectors import facet_normals
+    nodes, inverse = np.unique(mesh.facets[:, facets], return_inverse=True)
+    n = facet_normals(mesh, facets)                                 # (2, nf) unit
+    lengths = np.linalg.norm(np.diff(mesh.p[:, mesh.facets[:, facets]], axis=1)[:, 0], axis=0)
+    acc = np.zeros((2, nodes.size))
+    inverse = inverse.reshape(2, -1)
+    for k in range(2):
+        np.add.at(acc, (slice(None), inverse[k]), n * lengths)
+    return nodes, acc / np.linalg.norm(acc, axis=0)
+
+
+class Model:
+    def __init__(self, scene: dict, smesh: SceneMesh):
+        self.scene = scene
+        self.smesh = smesh
+        self.plane = scene.get("plane", "strain")
+        mesh = smesh.mesh
+        self.nnodes = mesh.p.shape[1]
+        self.region_cells = [np.flatnonzero(smesh.cell_region == j) for j in range(len(smesh.regions))]
+        self.region_material = self._region_materials(scene)
+        self.targets = self._name_targets()
+
+        # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j
+        pieces = []
+        for cells in self.region_cells:
+            pieces.extend(forms.elastic_pieces(mesh, cells))
+        self.K = AffineOperator(pieces)
+        self.support_keys, constraints = self._support_constraints(scene)
+        self.elim: Elimination = eliminate(self.nnodes, 2, constraints, len(self.support_keys))
+        self.Kr = self.K.transformed(self.elim.T)
+        self.free_modes = self._free_rigid_modes(constraints)
+
+        self.pressure_vectors = {}
+        self.traction_vectors = {}
+        for name, load in (scene.get("loads") or {}).items():
+            facets = smesh.boundaries[name]
+            if "pressure" in load:
+                self.pressure_vectors[name] = forms.pressure_vector(mesh, facets)
+            else:
+                self.traction_vectors[name] = forms.traction_vectors(mesh, facets)
+        self.body_force_vectors = np.array([forms.body_force_vectors(mesh, c) for c in self.region_cells])
+
+        self.thermal = scene.get("thermal") is not None
+        if self.thermal:
+            self._init_thermal(scene)
+
+        self.G = strain_operator(mesh.p, mesh.t)
+        _, self.cell_area = gradient_operator(mesh.p, mesh.t)
+        self._factor = None
+        self._heat_factor = None
+
+    # ---- structure -----------------------------------------------------------------
+    def _region_materials(self, scene) -> list[str]:
+        mats = []
+        for body, region in self.smesh.regions:
+            for r in scene["bodies"][body]["regions"]:
+                if r.get("name") == region:
+                    mats.append(r["material"])
+                    break
+            else:  # default-named regions: body_i
+                i = int(region.rsplit("_", 1)[1])
+                mats.append(scene["bodies"][body]["regions"][i]["material"])
+        return mats
+
+    def _name_targets(self) -> dict[str, list[int]]:
+        """Body or region name -> region indices (for body forces and heat sources)."""
+        targets: dict[str, list[int]] = {}
+        for j, (body, region) in enumerate(self.smesh.regions):
+            targets.setdefault(body, []).append(j)
+            if region != body:
+                targets.setdefault(region, []).append(j)
+        return targets
+
+    def _support_constraints(self, scene) -> tuple[list[tuple[str, str]], list[Constraint]]:
+        keys, constraints = [], []
+        mesh = self.smesh.mesh
+        for name, sup in (scene.get("supports") or {}).items():
+            facets = self.smesh.boundaries[name]
+            if "u" in sup:
+                nodes = np.unique(mesh.facets[:, facets])
+                for comp, value in enumerate(sup["u"]):
+                    if value is None:
+                        continue
+                    a = np.zeros((nodes.size, 2))
+                    a[:, comp] = 1.0
+                    constraints.append(Constraint(nodes, a, len(keys)))
+                    keys.append((name, f"u.{comp}"))
+            else:
+                nodes, normals = nodal_normals(mesh, facets)
+                constraints.append(Constraint(nodes, normals.T, len(keys)))
+                keys.append((name, "normal"))
+        return keys, constraints
+
+    def _free_rigid_modes(self, constraints: list[Constraint]) -> dict[str, np.ndarray]:
+        """Per body: the rigid motions no support stops, as (2 nnodes, k) columns (k = 0 when held)."""
+        node_body = self.smesh.node_body
+        rows = {n: [] for n in range(len(self.smesh.bodies))}
+        for c in constraints:
+            for node, a in zip(c.nodes, c.directions):
+                rows[node_body[node]].append((node, a))
+        p = self.smesh.mesh.p
+        free = {}
+        for b, name in enumerate(self.smesh.bodies):
+            nodes = np.flatnonzero(node_body == b)
+            R = rigid_modes(p, nodes, self.nnodes)
+            if rows[b]:
+                A = np.array([[a @ R[2 * n:2 * n + 2, k] for k in range(3)] for n, a in rows[b]])
+                _, s, vt = np.linalg.svd(A)
+                rank = int(np.sum(s > 1e-10 * max(s[0], 1e-300)))
+                z = vt[rank:].T
+            else:
+                z = np.eye(3)
+            free[name] = R @ z
+        return free
+
+    def _init_thermal(self, scene):
+        mesh = self.smesh.mesh
+        # contacts conduct perfectly: coincident nodes of different bodies share one temperature
+        _, first, heat_of_node = np.unique(np.round(mesh.p.T, 12), axis=0, return_index=True, return_inverse=True)
+        heat_of_node = heat_of_node.ravel()
+        nheat = first.size
+        self.P = sp.csr_matrix((np.ones(self.nnodes), (np.arange(self.nnodes), heat_of_node)),
+                               shape=(self.nnodes, nheat))
+        Pt = self.P.T.tocsr()
+        self.H = AffineOperator([Pt @ forms.conduction_piece(mesh, c) @ self.P for c in self.region_cells])
+        self.temperature_keys = list((scene["thermal"].get("temperature") or {}).keys())
+        constraints = []
+        for k, name in enumerate(self.temperature_keys):
+            nodes = np.unique(heat_of_node[mesh.facets[:, self.smesh.boundaries[name]]])
+            constraints.append(Constraint(nodes, np.ones((nodes.size, 1)), k))
+        self.heat_elim = eliminate(nheat, 1, constraints, len(self.temperature_keys))
+        self.Hr = self.H.transformed(self.heat_elim.T)
+        self.source_vectors = np.array([Pt @ forms.source_vector(mesh, c) for c in self.region_cells])
+        self.coupling = [forms.coupling_piece(mesh, c) for c in self.region_cells]
+
+    # ---- numbers of a data set -------------------------------------------------------
+    def coefficients(self, scene: dict) -> Coefficients:
+        mats = scene["materials"]
+        nr = len(self.region_cells)
+        lam, mu, beta, kappa = (np.zeros(nr) for _ in range(4))
+        body_force = np.zeros((nr, 2))
+        for j, m in enumerate(self.region_material):
+            lam[j], mu[j] = plane_lame(mats[m], self.plane)
+            beta[j] = thermal_beta(mats[m], self.plane)
+            kappa[j] = float(mats[m].get("conductivity") or 0.0)
+            body_force[j, 1] -= float(mats[m].get("density_weight") or 0.0)
+        for name, force in (scene.get("body_forces") or {}).items():
+            for j in self.targets[name]:
+                body_force[j] += np.asarray(force, float)
+        source = np.zeros(nr)
+        thermal = scene.get("thermal") or {}
+        for name, w in (thermal.get("sources") or {}).items():
+            for j in self.targets[name]:
+                source[j] += float(w)
+        loads = scene.get("loads") or {}
+        supports = scene.get("supports") or {}
+        values = np.array([supports[b]["normal"] if key == "normal" else supports[b]["u"][int(key[2])]
+                           for b, key in self.support_keys], dtype=float)
+        temps = np.array([thermal["temperature"][b] for b in getattr(self, "temperature_keys", [])], float)
+        return Coefficients(
+            lam=lam, mu=mu, beta=beta, kappa=kappa, source=source, body_force=body_force,
+            pressure={b: float(loads[b]["pressure"]) for b in self.pressure_vectors},
+            traction={b: np.asarray(loads[b]["traction"], float) for b in self.traction_vectors},
+            support_values=values, temperature_values=temps,
+            reference=float(thermal.get("reference", 0.0) or 0.0),
+        )
+
+    def stiffness_coefficients(self, c: Coefficients) -> np.ndarray:
+        return np.column_stack([c.lam, c.mu]).ravel()
+
+    def mechanical_load(self, c: Coefficients, T: np.ndarray | None) -> np.ndarray:
+        f = np.einsum("ji,jid->d", c.body_force, self.body_force_vectors)
+        for b, v in self.pressure_vectors.items():
+            f += c.pressure[b] * v
+        for b, v in self.traction_vectors.items():
+            f += c.traction[b] @ v
+        if T is not None:
+            dT = T - c.reference
+            for j, B in enumerate(self.coupling):
+                if c.beta[j] != 0.0:
+                    f += c.beta[j] * (B @ dT)
+        return f
+
+    # ---- solves ------------------------------------------------------------------------
+    def solve_heat(self, c: Coefficients) -> np.ndarray:
+        Kh = self.H(c.kappa)
+        Kr = self.Hr(c.kappa)
+        Th0 = self.heat_elim.U0 @ c.temperature_values
+        q = self.source_vectors.T @ c.source
+        rhs = self.heat_elim.T.T @ (q - Kh @ Th0)
+        self._heat_factor = _refactor(self._heat_factor, Kr)
+        w = self._heat_factor.solve(rhs)
+        return self.P @ (self.heat_elim.T @ w + Th0)
+
+    def solve(self, scene: dict) -> State:
+        c = self.coefficients(scene)
+        T = self.solve_heat(c) if self.thermal else None
+        floating = {b: m for b, m in self.free_modes.items() if m.shape[1]}
+        if floating and not self.scene.get("contacts"):
+            body, modes = next(iter(floating.items()))
+            raise StudyError(f"body '{body}' is not held: {_describe_modes(modes)} are free "
+                             "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
+        if self.scene.get("contacts"):
+            raise StudyError("contact problems arrive with the contact solver (issue 3); "
+                             "this scene has contacts", path="scene.contacts")
+        kc = self.stiffness_coefficients(c)
+        K = self.K(kc)
+        Kr = self.Kr(kc)
+        u0 = self.elim.U0 @ c.support_values
+        f = self.mechanical_load(c, T)
+        rhs = self.elim.T.T @ (f - K @ u0)
+        self._factor = _refactor(self._factor, Kr)
+        u = self.elim.T @ self._factor.solve(rhs) + u0
+        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c)
+
+    def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
+        reg = self.smesh.cell_region
+        strain = (self.G @ u).reshape(3, -1)
+        dT = cell_mean(self.smesh.mesh.t, T) - c.reference if T is not None else np.zeros(reg.size)
+        return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
+
+
+def _refactor(factor, A):
+    return linalg.factorize(A) if factor is None else factor.refactor(A)
+
+
+def _describe_modes(modes: np.ndarray) -> str:
+    k = modes.shape[1]
+    return {1: "one rigid motion", 2: "two rigid motions", 3: "all three rigid motions (x, y, rotation)"}[k]

@@ -1,0 +1,1 @@
+"""Scenes: geometry shapes -> gmsh -> a mesh with named bodies, regions and boundaries."""
