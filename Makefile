@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
-STUDY  ?= studies/two-blocks-demo.yaml
+STUDY  ?= studies/heated-plate.yaml
 
 .PHONY: run test validate bench clean
 

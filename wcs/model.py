@@ -20,6 +20,7 @@ from .fem.constraints import Constraint, Elimination, eliminate
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
 from .scene.meshdata import SceneMesh
+from .scene.selectors import nodal_normals
 
 
 @dataclass
@@ -59,19 +60,6 @@ def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
     R[2 * nodes, 2] = -(p[1, nodes] - c[1])
     R[2 * nodes + 1, 2] = p[0, nodes] - c[0]
     return R
-
-
-def nodal_normals(mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes of a boundary facet set and their outward unit normals (length-weighted average)."""
-    from .scene.selectors import facet_normals
-    nodes, inverse = np.unique(mesh.facets[:, facets], return_inverse=True)
-    n = facet_normals(mesh, facets)                                 # (2, nf) unit
-    lengths = np.linalg.norm(np.diff(mesh.p[:, mesh.facets[:, facets]], axis=1)[:, 0], axis=0)
-    acc = np.zeros((2, nodes.size))
-    inverse = inverse.reshape(2, -1)
-    for k in range(2):
-        np.add.at(acc, (slice(None), inverse[k]), n * lengths)
-    return nodes, acc / np.linalg.norm(acc, axis=0)
 
 
 class Model:
@@ -152,7 +140,7 @@ class Model:
                     keys.append((name, f"u.{comp}"))
             else:
                 nodes, normals = nodal_normals(mesh, facets)
-                constraints.append(Constraint(nodes, normals.T, len(keys)))
+                constraints.append(Constraint(nodes, normals, len(keys)))
                 keys.append((name, "normal"))
         return keys, constraints
 

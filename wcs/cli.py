@@ -1,0 +1,138 @@
+"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import StudyError
+
+
+def _fmt(v) -> str:
+    return f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v)
+
+
+def summary(study, ev) -> str:
+    """What the study will do, in the words of the study file."""
+    scene, sm = study.scene, ev.smesh
+    mesh = sm.mesh
+    lines = [f"study {study.name}  ({study.file})",
+             f"  model: {scene.get('dimension', 2)}D plane {scene.get('plane', 'strain')}, P1 triangles, "
+             f"{mesh.p.shape[1]} nodes, {mesh.t.shape[1]} cells, "
+             f"{'thermal step + ' if scene.get('thermal') else ''}elasticity"
+             f"{' with contact' if scene.get('contacts') else ''}"]
+    lines.append("  bodies:")
+    for b, name in enumerate(sm.bodies):
+        regs = [(j, r) for j, (bb, r) in enumerate(sm.regions) if bb == name]
+        desc = ", ".join(f"{r} [{ev.model.region_material[j]}, {int(np.sum(sm.cell_region == j))} cells]" for j, r in regs)
+        held = ev.model.free_modes[name].shape[1]
+        lines.append(f"    {name}: {desc}" + ("" if held == 0 else f"  (held by contact only: {held} rigid modes free)"))
+    lines.append("  boundaries:")
+    for name, facets in sm.boundaries.items():
+        lines.append(f"    {name}: {len(facets)} edges")
+    for key, label in (("supports", "supports"), ("loads", "loads"), ("body_forces", "body forces")):
+        for name, v in (scene.get(key) or {}).items():
+            lines.append(f"  {label[:-1] if label.endswith('s') else label} {name}: {v}")
+    for name, c in (scene.get("contacts") or {}).items():
+        fr = c.get("friction") or {}
+        lines.append(f"  contact {name}: slave {c['slave']} / master {c['master']}, "
+                     + (f"Tresca g = {_fmt(fr['slip_limit'])}" if "slip_limit" in fr else
+                        f"Coulomb F = {_fmt(fr['coefficient'])}" if "coefficient" in fr else "frictionless"))
+    if scene.get("thermal"):
+        th = scene["thermal"]
+        lines.append(f"  thermal: T0 = {th.get('reference')}, temperature on {list((th.get('temperature') or {}))}, "
+                     f"sources {th.get('sources') or {}}")
+    p = study.parameters
+    lines.append(f"  parameters ({len(p.names)}):")
+    nominal = study.nominal()
+    for n, lo, hi, x0 in zip(p.names, p.lower, p.upper, nominal):
+        lines.append(f"    {n}: [{_fmt(lo)}, {_fmt(hi)}]  nominal {_fmt(x0)}")
+    lines.append("  criteria:")
+    for c in ev.criteria:
+        lim = study.limits.get(c.name)
+        lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
+                     + (f", limit {_fmt(lim)}" if lim is not None else ""))
+    s = study.search
+    lines.append(f"  search: {s.get('method')}, budget {s.get('budget')} solves; solver: {study.solver.get('method')}")
+    lines.append(f"  output: {study.output}")
+    return "\n".join(lines)
+
+
+def cmd_check(args) -> int:
+    from .evaluation import Evaluator
+    from .study import load_study
+    study = load_study(args.study)
+    ev = Evaluator(study)
+    print(summary(study, ev))
+    print("ok")
+    return 0
+
+
+def cmd_solve(args) -> int:
+    from .evaluation import Evaluator
+    from .results import solve_dataset, write_netcdf, write_vtu
+    from .study import load_study
+    study = load_study(args.study)
+    t0 = time.perf_counter()
+    ev = Evaluator(study)
+    res = ev.evaluate(study.nominal())
+    if res.status != 0:
+        print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
+        return 2 if res.status == 3 else 1
+    out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
+    ds = solve_dataset(study, ev, res)
+    write_netcdf(ds, out)
+    vtu = write_vtu(ds, out.with_suffix(".vtu"))
+    if not args.quiet:
+        m = ev.smesh.mesh
+        print(f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns")
+        print(f"  mesh {ev.timings['mesh']:.2f} s, assembly {ev.timings['assembly']:.2f} s, "
+              f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s")
+        for name, v in res.phi.items():
+            print(f"  {name} = {v:.6g}")
+        print(f"  wrote {out} and {vtu}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="wcs", description="Worst-scenario analysis of contact problems of elastic bodies.")
+    ap.add_argument("--version", action="version", version=f"wcs {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True)
+    def add(name, func, help):
+        p = sub.add_parser(name, help=help)
+        p.add_argument("study", help="study file (YAML)")
+        p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+        p.add_argument("--verbose", action="store_true", help="print tracebacks of internal errors")
+        p.set_defaults(func=func)
+        return p
+    add("check", cmd_check, "validate a study and print what it will do")
+    add("solve", cmd_solve, "one forward solve at the nominal data").add_argument(
+        "-o", "--output", help="results file (.nc); a .vtu is written beside it")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except StudyError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 1
+    except Exception as e:  # noqa: BLE001 - the last line of defence: one line, not a traceback
+        if getattr(args, "verbose", False):
+            traceback.print_exc()
+        print(f"error: internal failure ({type(e).__name__}: {e}); rerun with --verbose for details",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,88 @@
+"""One forward evaluation of a study at a data vector x: Φ(x) and the fields.
+
+`Evaluator(study)` meshes the scene and assembles the model once;
+`evaluate(x)` applies the data set, solves, and measures the criteria.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .criteria import build_criteria
+from .errors import SolveError, StudyError
+from .model import Model, State
+from .scene.mesher import build_mesh
+
+# status codes of an evaluation (the `status` variable of the results file)
+STATUS = {
+    0: "solved",
+    1: "contact solver did not converge",
+    2: "Coulomb fixed point did not converge",
+    3: "solvability violated: a floating body is not balanced",
+    4: "domain decomposition failed (fell back or stopped)",
+    5: "other failure",
+}
+
+
+@dataclass
+class Evaluation:
+    x: np.ndarray
+    phi: dict
+    status: int
+    message: str
+    iterations: int
+    wall_time: float
+    state: State | None = None
+    evaluator: "Evaluator | None" = field(default=None, repr=False)
+    _fields: object = field(default=None, repr=False)
+
+    @property
+    def fields(self):
+        """xarray.Dataset of the solution fields (built on first access)."""
+        if self._fields is None and self.state is not None:
+            from .fields import fields_dataset
+            self._fields = fields_dataset(self.evaluator.model, self.state)
+        return self._fields
+
+
+class Evaluator:
+    def __init__(self, study):
+        t0 = time.perf_counter()
+        self.study = study
+        self.smesh = build_mesh(study.scene)
+        t1 = time.perf_counter()
+        self.model = Model(study.scene, self.smesh)
+        self.criteria = build_criteria(study.criteria, study.scene, self.smesh)
+        t2 = time.perf_counter()
+        self.timings = {"mesh": t1 - t0, "assembly": t2 - t1}
+
+    def evaluate(self, x) -> Evaluation:
+        from .study import scene_with
+        t0 = time.perf_counter()
+        x = self._vector(x)
+        scene = scene_with(self.study, x)
+        nan = {c.name: float("nan") for c in self.criteria}
+        try:
+            state = self.model.solve(scene)
+        except SolveError as e:
+            return Evaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
+        phi = {c.name: c.value(self.model, state) for c in self.criteria}
+        return Evaluation(x, phi, 0, "solved", state.iterations, time.perf_counter() - t0,
+                          state=state, evaluator=self)
+
+    def _vector(self, x) -> np.ndarray:
+        params = self.study.parameters
+        if isinstance(x, dict):
+            v = self.study.nominal().copy()
+            for name, value in x.items():
+                if name not in params.names:
+                    raise StudyError(f"unknown parameter {name!r}", path="evaluate")
+                v[params.names.index(name)] = value
+            return v
+        v = np.asarray(x, dtype=float)
+        if v.shape != (len(params.names),):
+            raise StudyError(f"expected a vector of {len(params.names)} parameters, got shape {v.shape}",
+                             path="evaluate")
+        return v

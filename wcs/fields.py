@@ -1,0 +1,33 @@
+"""The solution fields of one evaluation as an xarray.Dataset (study-format.md §4)."""
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .fem.stress import COMPONENTS, principal, shear_intensity, von_mises
+
+
+def fields_dataset(model, state) -> xr.Dataset:
+    mesh = model.smesh.mesh
+    s = state.stress
+    data = {
+        "coords": (("node", "dim"), mesh.p.T.copy(), {"units": "m", "long_name": "node coordinates"}),
+        "cells": (("cell", "vertex"), mesh.t.T.astype(np.int64), {"long_name": "triangle vertices (0-based)"}),
+        "cell_body": (("cell",), model.smesh.cell_body.astype(np.int32), {"long_name": "body index"}),
+        "cell_region": (("cell",), model.smesh.cell_region.astype(np.int32), {"long_name": "region index"}),
+        "displacement": (("node", "dim"), state.u.reshape(-1, 2), {"units": "m", "long_name": "displacement"}),
+        "stress": (("cell", "component"), s.T.copy(), {"units": "Pa", "long_name": "Cauchy stress"}),
+        "von_mises": (("cell",), von_mises(s), {"units": "Pa", "long_name": "von Mises stress"}),
+        "principal_stress": (("cell", "principal"), principal(s),
+                             {"units": "Pa", "long_name": "in-plane principal stresses, largest first"}),
+        "shear_stress_intensity": (("cell",), shear_intensity(s),
+                                   {"units": "Pa^2", "long_name": "shear stress intensity I2^2"}),
+    }
+    if state.T is not None:
+        data["temperature"] = (("node",), state.T, {"units": "K", "long_name": "temperature"})
+    if state.contact is not None:
+        data.update(state.contact.fields())
+    ds = xr.Dataset(data, coords={"dim": ["x", "y"], "component": list(COMPONENTS), "principal": [1, 2],
+                                  "body": model.smesh.bodies,
+                                  "region": [r for _, r in model.smesh.regions]})
+    return ds
