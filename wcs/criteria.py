@@ -105,6 +105,8 @@ def _direction(smesh, spec: dict, sel: Selection, path: str) -> np.ndarray:
     if spec.get("point") is not None:
         X = np.asarray(spec["point"], float)
         facets = np.flatnonzero(mesh.f2t[1] == -1)
+        owners = smesh.cell_body[sel.index] if sel.kind == "cells" else smesh.cell_body[mesh.f2t[0, sel.index]]
+        facets = facets[np.isin(smesh.cell_body[mesh.f2t[0, facets]], owners)]   # the ROI's own body
         mid = mesh.p[:, mesh.facets[:, facets]].mean(axis=1)
         nearest = facets[np.argmin(np.hypot(mid[0] - X[0], mid[1] - X[1]))]
         return facet_normals(mesh, np.array([nearest]))[0]

@@ -21,8 +21,9 @@ STATUS = {
     1: "contact solver did not converge",
     2: "Coulomb fixed point did not converge",
     3: "solvability violated: a floating body is not balanced",
-    4: "domain decomposition failed (fell back or stopped)",
-    5: "other failure",
+    4: "singular system or factorization failed",
+    5: "domain decomposition failed",
+    6: "other failure",
 }
 
 
@@ -53,7 +54,7 @@ class Evaluator:
         self.study = study
         self.smesh = build_mesh(study.scene)
         t1 = time.perf_counter()
-        self.model = Model(study.scene, self.smesh)
+        self.model = Model(study.scene, self.smesh, study.solver)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh)
         t2 = time.perf_counter()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1}

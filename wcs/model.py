@@ -13,7 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import linalg
-from .errors import StudyError
+from .contact.zone import ContactState, build_zone
+from .errors import SolveError, StudyError
 from .fem import forms
 from .fem.affine import AffineOperator
 from .fem.constraints import Constraint, Elimination, eliminate
@@ -63,7 +64,8 @@ def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
 
 
 class Model:
-    def __init__(self, scene: dict, smesh: SceneMesh):
+    def __init__(self, scene: dict, smesh: SceneMesh, options: dict | None = None):
+        self.options = options or {}
         self.scene = scene
         self.smesh = smesh
         self.plane = scene.get("plane", "strain")
@@ -96,6 +98,14 @@ class Model:
         self.thermal = scene.get("thermal") is not None
         if self.thermal:
             self._init_thermal(scene)
+
+        self.zone = build_zone(scene, smesh)
+        if self.zone is not None:
+            T = self.elim.T
+            self.Bn_r, self.Bt_r = (self.zone.Bn @ T).tocsr(), (self.zone.Bt @ T).tocsr()
+            self.floating = [(b, m) for b, m in self.free_modes.items() if m.shape[1]]
+            self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
+        self._warm = None
 
         self.G = strain_operator(mesh.p, mesh.t)
         _, self.cell_area = gradient_operator(mesh.p, mesh.t)
@@ -249,28 +259,72 @@ class Model:
         c = self.coefficients(scene)
         T = self.solve_heat(c) if self.thermal else None
         floating = {b: m for b, m in self.free_modes.items() if m.shape[1]}
-        if floating and not self.scene.get("contacts"):
+        if floating and self.zone is None:
             body, modes = next(iter(floating.items()))
             raise StudyError(f"body '{body}' is not held: {_describe_modes(modes)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
-        if self.scene.get("contacts"):
-            raise StudyError("contact problems arrive with the contact solver (issue 3); "
-                             "this scene has contacts", path="scene.contacts")
         kc = self.stiffness_coefficients(c)
         K = self.K(kc)
         Kr = self.Kr(kc)
         u0 = self.elim.U0 @ c.support_values
         f = self.mechanical_load(c, T)
         rhs = self.elim.T.T @ (f - K @ u0)
-        self._factor = _refactor(self._factor, Kr)
-        u = self.elim.T @ self._factor.solve(rhs) + u0
-        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c)
+        if self.zone is None:
+            self._factor = _refactor(self._factor, Kr)
+            u = self.elim.T @ self._factor.solve(rhs) + u0
+            return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c)
+        u, contact, iterations = self._solve_contact(scene, Kr, rhs, u0)
+        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
+                     iterations=iterations, contact=contact)
+
+    def _solve_contact(self, scene, Kr, rhs, u0):
+        from .contact.solver import CONVERGED, UNSOLVABLE, solve_contact
+        z = self.zone
+        g, F = z.friction(scene)
+        d = z.gap - z.Bn @ u0
+        tol = float(self.options.get("tolerance", 1e-8))
+        max_iter = int(self.options.get("max_iterations", 200))
+        res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=F if F.any() else None,
+                            R=self.R_r, tol=tol, max_iter=max_iter, warm=self._warm)
+        if res.status == UNSOLVABLE:
+            raise SolveError(self._unbalanced_message(res, rhs), status=3)
+        if res.status != CONVERGED:
+            raise SolveError(res.message, status=res.status)
+        self._warm = res
+        u = self.elim.T @ res.u + u0
+        state = ContactState(z, res.lam_n, res.lam_t, z.gap - z.Bn @ u, z.Bt @ u, res.active)
+        return u, state, res.iterations
+
+    def _unbalanced_message(self, res, rhs) -> str:
+        """Name the floating body whose rigid motion the load can drive, and the load."""
+        alpha = np.asarray(res.alpha, float)
+        k, best, share = 0, None, -1.0
+        for body, modes in self.floating:
+            a = alpha[k:k + modes.shape[1]]
+            if np.abs(a).sum() > share:
+                share, best, a_best, m_best = np.abs(a).sum(), body, a, modes
+            k += modes.shape[1]
+        v = m_best @ a_best
+        work = float(rhs @ (self.elim.T.T @ v))
+        nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(best))
+        force = np.array([rhs_full_component(self, rhs, nodes, i) for i in range(2)])
+        return (f"body '{best}' is held only by contact and its load is not balanced: "
+                f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
+                f"and contact do not resist (load work {work:.3g} > friction work); "
+                f"solvability S(w) <= j(w) fails (physics.md §2)")
+
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
         reg = self.smesh.cell_region
         strain = (self.G @ u).reshape(3, -1)
         dT = cell_mean(self.smesh.mesh.t, T) - c.reference if T is not None else np.zeros(reg.size)
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
+
+
+def rhs_full_component(model, rhs, nodes, i) -> float:
+    """Resultant of the reduced load on a set of nodes in direction i."""
+    f = model.elim.T @ rhs
+    return float(f[2 * nodes + i].sum())
 
 
 def _refactor(factor, A):

@@ -1,0 +1,101 @@
+"""The command line as a user runs it: exit codes, messages, files.
+
+Bad input must exit 2 with a message naming the file and the key path, and
+never print a traceback."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import xarray as xr
+
+from bad_studies import CASES, broken, demo_doc, write_study
+from wcs.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+
+
+def run_cli(args, capsys):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("case_id,mutate,fragment", CASES, ids=[c[0] for c in CASES])
+def test_check_rejects_bad_input(case_id, mutate, fragment, tmp_path, capsys):
+    path = write_study(broken(mutate), tmp_path)
+    code, out, err = run_cli(["check", path], capsys)
+    assert code == 2, (out, err)
+    assert "Traceback" not in err + out
+    assert fragment in err and path.name in err
+
+
+def _mesh_level_cases():
+    """Faults only the mesh can reveal: they still exit 2 with the key path."""
+    def nothing_selected(doc):
+        doc["scene"]["boundaries"]["pad_top"] = {"body": "pad", "segment": [[5.0, 5.0], [6.0, 5.0]]}
+    def overlapping_bodies(doc):
+        doc["scene"]["bodies"]["pad"]["regions"][0]["shape"] = {"rectangle": [0.5, 0.8, 1.5, 1.5]}
+    def roi_selects_nothing(doc):
+        doc["scene"]["regions_of_interest"]["under_pad"] = {"box": [5.0, 5.0, 6.0, 6.0]}
+    return [("boundary selects no edge", nothing_selected, "scene.boundaries.pad_top"),
+            ("bodies overlap", overlapping_bodies, "scene.bodies"),
+            ("region of interest selects nothing", roi_selects_nothing, "scene.regions_of_interest.under_pad")]
+
+
+@pytest.mark.parametrize("case_id,mutate,fragment", _mesh_level_cases(), ids=[c[0] for c in _mesh_level_cases()])
+def test_check_rejects_mesh_level_faults(case_id, mutate, fragment, tmp_path, capsys):
+    path = write_study(broken(mutate), tmp_path)
+    code, out, err = run_cli(["check", path], capsys)
+    assert code == 2, (out, err)
+    assert fragment in err and "Traceback" not in err
+
+
+def test_unheld_body_without_contact_is_bad_input(tmp_path, capsys):
+    doc = demo_doc()
+    for key in ("contacts", "thermal"):
+        doc["scene"].pop(key)
+    doc["uncertain"].pop("contacts.interface.friction.slip_limit")
+    doc["scene"]["supports"].pop("pad_left")
+    code, out, err = run_cli(["solve", write_study(doc, tmp_path), "-o", tmp_path / "o.nc"], capsys)
+    assert code == 2 and "scene.bodies.pad" in err and "not held" in err
+
+
+def test_check_prints_summary(capsys):
+    code, out, err = run_cli(["check", ROOT.parent / "shared" / "examples" / "two-blocks-demo.yaml"
+                              if (ROOT.parent / "shared").exists() else STUDIES / "two-blocks-demo.yaml"], capsys)
+    assert code == 0, err
+    for word in ("bodies:", "base:", "pad:", "base_bottom:", "edges", "contact interface", "Tresca",
+                 "parameters (9)", "slip_limit[5]", "criteria:", "settlement", "limit 4e+12"):
+        assert word in out, word
+
+
+def test_solve_writes_netcdf_and_vtu(tmp_path, capsys):
+    out = tmp_path / "plate.nc"
+    code, text, err = run_cli(["solve", STUDIES / "heated-plate.yaml", "-o", out], capsys)
+    assert code == 0, err
+    ds = xr.open_dataset(out, engine="h5netcdf")
+    for var in ("coords", "cells", "displacement", "temperature", "stress", "von_mises",
+                "principal_stress", "shear_stress_intensity", "x", "phi", "param_lower", "param_upper"):
+        assert var in ds, var
+    assert list(ds["criterion"].values) == ["heave", "shear", "temperature"]
+    for attr in ("study", "study_yaml", "study_sha256", "wcs_version", "created", "solver",
+                 "mesh_nodes", "mesh_cells", "Conventions"):
+        assert attr in ds.attrs, attr
+    assert ds.attrs["mesh_nodes"] == ds.sizes["node"]
+    import meshio
+    m = meshio.read(out.with_suffix(".vtu"))
+    assert m.points.shape[0] == ds.sizes["node"] and "von_mises" in m.cell_data
+
+
+def test_console_script_exit_status_and_no_traceback(tmp_path):
+    """The installed `wcs` entry point itself (a subprocess, as a user runs it)."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("study: x\nscene: {dimension: 2, bodies: {}}\nbogus_key: 1\n")
+    wcs = Path(sys.executable).with_name("wcs")
+    proc = subprocess.run([str(wcs), "check", str(bad)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert "bad.yaml" in proc.stderr and "Traceback" not in proc.stderr
+    proc = subprocess.run([str(wcs), "check", str(tmp_path / "missing.yaml")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "missing.yaml" in proc.stderr and "Traceback" not in proc.stderr

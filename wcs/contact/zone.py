@@ -1,0 +1,142 @@
+"""The contact zone of a scene: every contact's node pairs stacked into one set
+of jump operators, with the friction data read per data set.
+
+Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
+is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import xarray as xr
+
+from ..scene.meshdata import SceneMesh
+from .pairs import ContactPairs, normal_jump_matrix, pair_contact, tangent_jump_matrix
+
+
+def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Normalised arc length s ∈ [0, 1] of `nodes` along the chain of `facets`
+    (from the end with the smaller (x, y); a closed chain starts at its smallest node)."""
+    edges = mesh.facets[:, facets].T
+    ids, inv = np.unique(edges, return_inverse=True)
+    inv = inv.reshape(-1, 2)
+    n = ids.size
+    adj = [[] for _ in range(n)]
+    for k, (a, b) in enumerate(inv):
+        adj[a].append((b, k))
+        adj[b].append((a, k))
+    ends = [i for i in range(n) if len(adj[i]) == 1]
+    key = lambda i: tuple(mesh.p[:, ids[i]])  # noqa: E731
+    start = min(ends, key=key) if ends else min(range(n), key=key)
+    s = np.full(n, np.nan)
+    s[start] = 0.0
+    seen_edges = np.zeros(len(inv), bool)
+    stack = [start]
+    while stack:                                   # walk the chain (a forest walk if it branches)
+        i = stack.pop()
+        for j, k in adj[i]:
+            if not seen_edges[k]:
+                seen_edges[k] = True
+                if np.isnan(s[j]):
+                    s[j] = s[i] + np.linalg.norm(mesh.p[:, ids[j]] - mesh.p[:, ids[i]])
+                    stack.append(j)
+    s = np.nan_to_num(s) / max(np.nanmax(s), 1e-300)
+    return s[np.searchsorted(ids, nodes)]
+
+
+@dataclass
+class ContactZone:
+    names: list[str]             # contact names
+    pairs: list[ContactPairs]
+    contact_of_node: np.ndarray  # (m,) index into names
+    Bn: sp.csr_matrix            # (m, ndof)
+    Bt: sp.csr_matrix
+    gap: np.ndarray              # (m,) initial gaps
+    weight: np.ndarray           # (m,) tributary lengths
+    arc: np.ndarray              # (m,) normalised position along its contact's slave side
+    coords: np.ndarray           # (m, 2)
+
+    @property
+    def nodes(self) -> np.ndarray:
+        return np.concatenate([p.slave for p in self.pairs])
+
+    def friction(self, scene: dict) -> tuple[np.ndarray, np.ndarray]:
+        """(g, F) per contact node: the Tresca slip limit (a profile along the side is
+        interpolated linearly in arc length) and the Coulomb coefficient."""
+        g = np.zeros(self.gap.size)
+        F = np.zeros(self.gap.size)
+        for k, name in enumerate(self.names):
+            fr = (scene["contacts"][name].get("friction") or {})
+            rows = self.contact_of_node == k
+            if fr.get("slip_limit_profile") is not None:
+                prof = np.asarray(fr["slip_limit_profile"], float)
+                g[rows] = np.interp(self.arc[rows], np.linspace(0, 1, prof.size), prof)
+            elif fr.get("slip_limit") is not None:
+                g[rows] = float(fr["slip_limit"])
+            if fr.get("coefficient") is not None:
+                F[rows] = float(fr["coefficient"])
+        return g, F
+
+
+def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
+    contacts = scene.get("contacts") or {}
+    if not contacts:
+        return None
+    mesh = smesh.mesh
+    nn = mesh.p.shape[1]
+    names, pairs, owner, arcs = [], [], [], []
+    for k, (name, spec) in enumerate(contacts.items()):
+        pr = pair_contact(smesh, spec, f"scene.contacts.{name}")
+        names.append(name)
+        pairs.append(pr)
+        owner.append(np.full(len(pr), k))
+        arcs.append(arc_coordinate(mesh, smesh.boundaries[spec["slave"]], pr.slave))
+    slaves = np.concatenate([p.slave for p in pairs])
+    return ContactZone(
+        names=names, pairs=pairs, contact_of_node=np.concatenate(owner),
+        Bn=sp.vstack([normal_jump_matrix(p, nn) for p in pairs]).tocsr(),
+        Bt=sp.vstack([tangent_jump_matrix(p, nn) for p in pairs]).tocsr(),
+        gap=np.concatenate([p.gap for p in pairs]), weight=np.concatenate([p.weight for p in pairs]),
+        arc=np.concatenate(arcs), coords=mesh.p[:, slaves].T.copy(),
+    )
+
+
+@dataclass
+class ContactState:
+    """Contact tractions of a solution on the slave nodes (study-format.md §4)."""
+    zone: ContactZone
+    force_n: np.ndarray      # λn ≥ 0, nodal normal force [N/m]
+    force_t: np.ndarray      # λt
+    gap: np.ndarray          # deformed gap ≥ 0 where open
+    slip: np.ndarray         # relative tangential displacement
+    status: np.ndarray | None = None
+
+    @property
+    def nodes(self):
+        return self.zone.nodes
+
+    @property
+    def weight(self):
+        return self.zone.weight
+
+    @property
+    def pressure(self):
+        return self.force_n / self.zone.weight
+
+    @property
+    def shear(self):
+        return self.force_t / self.zone.weight
+
+    def fields(self) -> dict:
+        z = self.zone
+        return {
+            "contact_coords": (("contact_node", "dim"), z.coords, {"units": "m"}),
+            "contact_pair": (("contact_node",), np.array([z.names[k] for k in z.contact_of_node], dtype=object),
+                             {"long_name": "contact name"}),
+            "contact_pressure": (("contact_node",), self.pressure, {"units": "Pa", "long_name": "contact pressure -tau_n"}),
+            "contact_gap": (("contact_node",), self.gap, {"units": "m", "long_name": "normal gap (>= 0 open)"}),
+            "contact_slip": (("contact_node",), self.slip, {"units": "m", "long_name": "relative tangential displacement"}),
+            "contact_shear": (("contact_node",), self.shear, {"units": "Pa", "long_name": "tangential traction tau_t"}),
+        }
