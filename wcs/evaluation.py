@@ -55,15 +55,16 @@ class Evaluator:
         self.smesh = build_mesh(study.scene)
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver)
-        self.criteria = build_criteria(study.criteria, study.scene, self.smesh)
+        self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1}
 
-    def evaluate(self, x) -> Evaluation:
-        from .study import scene_with
+    def evaluate(self, values) -> Evaluation:
+        """Solve at a parameter vector or a mapping {dotted path: value} (others nominal)."""
+        from .study import parameter_vector, scene_with
         t0 = time.perf_counter()
-        x = self._vector(x)
-        scene = scene_with(self.study, x)
+        x = parameter_vector(self.study, values)
+        scene = scene_with(self.study, values)
         nan = {c.name: float("nan") for c in self.criteria}
         try:
             state = self.model.solve(scene)
@@ -72,18 +73,3 @@ class Evaluator:
         phi = {c.name: c.value(self.model, state) for c in self.criteria}
         return Evaluation(x, phi, 0, "solved", state.iterations, time.perf_counter() - t0,
                           state=state, evaluator=self)
-
-    def _vector(self, x) -> np.ndarray:
-        params = self.study.parameters
-        if isinstance(x, dict):
-            v = self.study.nominal().copy()
-            for name, value in x.items():
-                if name not in params.names:
-                    raise StudyError(f"unknown parameter {name!r}", path="evaluate")
-                v[params.names.index(name)] = value
-            return v
-        v = np.asarray(x, dtype=float)
-        if v.shape != (len(params.names),):
-            raise StudyError(f"expected a vector of {len(params.names)} parameters, got shape {v.shape}",
-                             path="evaluate")
-        return v

@@ -1,18 +1,29 @@
 """Sparse direct factorizations with reusable analysis.
 
-`factorize(A)` returns a `Factor` with `.solve(b)` (b of shape (n,) or (n, k))
+`factorize(A)` returns a factor with `.solve(b)` (b of shape (n,) or (n, k))
 and `.refactor(A_new)` for a matrix with the same sparsity pattern (the
 symbolic analysis is reused where the backend allows it).
 
-Backends: PARDISO through pypardiso (MKL, fast; x86_64 wheels) and scipy's
-SuperLU tuned for symmetric matrices (portable fallback). `WCS_SOLVER=superlu`
-forces the fallback.
+`factorize(A, spd=True, block=S)` additionally makes `.inverse_block()` return
+the dense block `(A⁻¹)[S, S]` for a small index set `S` (the contact DOFs).
+PARDISO gets it from the Schur complement `A_SS − A_SI A_II⁻¹ A_IS`, which it
+computes during the numeric factorization at about the cost of the
+factorization itself; `(A⁻¹)_SS` is the inverse of that Schur complement.
+Solving with `|S|` right-hand sides instead costs about `|S|` solves (measured
+at 1.1e5 DOFs: 6 s for 302 columns against 0.07 s for refactor + Schur).
+
+Backends: PARDISO (MKL, called through ctypes with the library pypardiso
+locates; x86_64 wheels) and scipy's SuperLU tuned for symmetric matrices
+(portable fallback). `WCS_SOLVER=superlu` forces the fallback.
 """
 from __future__ import annotations
 
+import ctypes
+import functools
 import os
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -22,82 +33,152 @@ except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
     _pardiso = None
 
 
+class FactorizationError(RuntimeError):
+    """The backend could not factor the matrix (singular, not positive definite, ...)."""
+
+
 def backend() -> str:
     if os.environ.get("WCS_SOLVER", "").lower() == "superlu" or _pardiso is None:
         return "superlu"
     return "pardiso"
 
 
+def _csr(A) -> sp.csr_matrix:
+    A = sp.csr_matrix(A, dtype=np.float64)
+    A.sum_duplicates()
+    A.sort_indices()
+    return A
+
+
 class SuperLUFactor:
+    """SuperLU with a symmetric ordering; `inverse_block` by solving with the unit columns of `block`."""
+
     name = "superlu"
 
-    def __init__(self, A: sp.spmatrix):
+    def __init__(self, A: sp.spmatrix, *, spd: bool = False, block=None):
+        self.block = None if block is None else np.asarray(block)
         self.refactor(A)
 
     def refactor(self, A: sp.spmatrix) -> "SuperLUFactor":
-        A = sp.csc_matrix(A)
+        A = sp.csc_matrix(A, dtype=np.float64)
         self.n = A.shape[0]
-        self._lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                             options={"SymmetricMode": True})
+        try:
+            self._lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                 options={"SymmetricMode": True})
+        except RuntimeError as exc:  # "Factor is exactly singular"
+            raise FactorizationError(str(exc)) from exc
         return self
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(np.asarray(b, dtype=float))
 
+    def inverse_block(self) -> np.ndarray:
+        E = np.zeros((self.n, len(self.block)))
+        E[self.block, np.arange(len(self.block))] = 1.0
+        return self.solve(E)[self.block]
+
+
+@functools.cache
+def _mkl_pardiso():
+    """The `pardiso` entry point of the mkl_rt library that pypardiso locates."""
+    return _pardiso.PyPardisoSolver()._mkl_pardiso
+
 
 class PardisoFactor:
-    """PARDISO with the phases called directly: analysis once, numeric refactor per matrix."""
+    """MKL PARDISO with its phases called directly: analysis once, numeric refactor per matrix.
+
+    `spd=True` uses the Cholesky path (mtype 2, upper triangle passed); otherwise
+    the nonsymmetric LU (mtype 11). With `block`, the numeric phase also returns
+    the dense Schur complement on `block` (iparm[35] = 2 keeps the full factor
+    for solves).
+    """
 
     name = "pardiso"
 
-    def __init__(self, A: sp.spmatrix, mtype: int = 11):
-        self._s = _pardiso.PyPardisoSolver(mtype=mtype)
-        self._s.set_statistical_info_off()
-        A = self._prep(A)
+    def __init__(self, A: sp.spmatrix, *, spd: bool = False, block=None):
+        self._lib = _mkl_pardiso()
+        self.mtype = 2 if spd else 11
+        self.block = None if block is None else np.asarray(block)
+        A = _csr(A)
+        self.n = A.shape[0]
+        rows = np.repeat(np.arange(self.n), np.diff(A.indptr))
+        self._keep = A.indices >= rows if spd else np.ones(A.nnz, dtype=bool)  # upper triangle for mtype 2
+        self._ia = np.r_[0, np.cumsum(np.bincount(rows[self._keep], minlength=self.n))].astype(np.int32)
+        self._ja = A.indices[self._keep].astype(np.int32)
         self._pattern = (A.indptr.copy(), A.indices.copy())
-        self._s._check_A(A) if hasattr(self._s, "_check_A") else None
-        self._s.set_phase(12)  # analysis + numeric factorization
-        self._s._call_pardiso(A, np.zeros((A.shape[0], 1)))
-        self._A = A
+        self._pt = np.zeros(64, dtype=np.int64)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        self._iparm[[0, 1, 9, 17, 34]] = [1, 2, 8 if spd else 13, -1, 1]  # custom, METIS, pivot eps, nnz, 0-based
+        if not spd:
+            self._iparm[[10, 12]] = 1  # scaling and matching for the nonsymmetric path
+        self._perm = np.zeros(self.n, dtype=np.int32)
+        if self.block is not None:
+            self._iparm[35] = 2
+            self._perm[self.block] = 1
+        self._set_matrix(A)
+        self._schur = np.zeros(0 if self.block is None else len(self.block) ** 2)
+        self._call(12, np.zeros(1), self._schur if self.block is not None else np.zeros(1), 1)
 
-    @staticmethod
-    def _prep(A):
-        A = sp.csr_matrix(A, dtype=np.float64)
-        A.sort_indices()
-        return A
+    def _set_matrix(self, A: sp.csr_matrix) -> None:
+        self._a = np.ascontiguousarray(A.data[self._keep])
+
+    def _call(self, phase: int, b: np.ndarray, x: np.ndarray, nrhs: int) -> None:
+        err = ctypes.c_int32(0)
+        i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
+        one = ctypes.byref(ctypes.c_int32(1))
+        self._lib(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), one, one,
+                  ctypes.byref(ctypes.c_int32(self.mtype)), ctypes.byref(ctypes.c_int32(phase)),
+                  ctypes.byref(ctypes.c_int32(self.n)), self._a.ctypes.data_as(f64),
+                  self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
+                  self._perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(nrhs)),
+                  self._iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
+                  b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+        if err.value != 0:
+            raise FactorizationError(f"PARDISO phase {phase} failed with error {err.value}")
 
     def refactor(self, A: sp.spmatrix) -> "PardisoFactor":
-        A = self._prep(A)
-        same = (A.indptr.shape == self._pattern[0].shape and A.indices.shape == self._pattern[1].shape
-                and np.array_equal(A.indptr, self._pattern[0]) and np.array_equal(A.indices, self._pattern[1]))
-        self._s.set_phase(22 if same else 12)
-        if not same:
-            self._pattern = (A.indptr.copy(), A.indices.copy())
-        self._s._call_pardiso(A, np.zeros((A.shape[0], 1)))
-        self._A = A
+        A = _csr(A)
+        same = np.array_equal(A.indptr, self._pattern[0]) and np.array_equal(A.indices, self._pattern[1])
+        if not same:  # new pattern: start over with a fresh analysis
+            self._call(-1, np.zeros(1), np.zeros(1), 1)
+            self.__init__(A, spd=self.mtype == 2, block=self.block)
+            return self
+        self._set_matrix(A)
+        self._call(22, np.zeros(1), self._schur if self.block is not None else np.zeros(1), 1)
         return self
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=np.float64)
-        one = b.ndim == 1
         B = np.asfortranarray(b.reshape(b.shape[0], -1))
-        self._s.set_phase(33)
-        x = self._s._call_pardiso(self._A, B)
-        return x.ravel() if one else x
+        X = np.zeros_like(B, order="F")
+        self._call(33, B, X, B.shape[1])
+        return X.ravel() if b.ndim == 1 else np.ascontiguousarray(X)
+
+    def inverse_block(self) -> np.ndarray:
+        """(A⁻¹)_SS as the inverse of the Schur complement on S (PARDISO orders it by increasing index)."""
+        k = len(self.block)
+        S = self._schur.reshape(k, k)
+        Z = sla.cho_solve(sla.cho_factor(S), np.eye(k)) if self.mtype == 2 else np.linalg.inv(S)
+        rank = np.argsort(np.argsort(self.block))
+        return Z[np.ix_(rank, rank)]
 
     def __del__(self):  # release PARDISO's memory
         try:
-            self._s.free_memory(everything=True)
+            self._call(-1, np.zeros(1), np.zeros(1), 1)
         except Exception:  # noqa: BLE001
             pass
 
 
-def factorize(A: sp.spmatrix, kind: str | None = None):
-    """Factor a square sparse matrix; `kind` overrides the backend choice."""
+def factorize(A: sp.spmatrix, kind: str | None = None, *, spd: bool = False, block=None):
+    """Factor a square sparse matrix; `kind` overrides the backend choice.
+
+    spd:   A is symmetric positive definite (Cholesky where the backend has it).
+    block: indices S for which `.inverse_block()` returns the dense (A⁻¹)_SS.
+    """
     kind = kind or backend()
     if kind == "pardiso":
-        return PardisoFactor(A)
-    return SuperLUFactor(A)
+        return PardisoFactor(A, spd=spd, block=block)
+    return SuperLUFactor(A, spd=spd, block=block)
 
 
 def solve(A: sp.spmatrix, b: np.ndarray) -> np.ndarray:

@@ -1,0 +1,252 @@
+"""The study loader: every broken rule gives one clear StudyError; good studies load."""
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from bad_studies import CASES, DEMO, broken, demo_doc, write_study
+from wcs.errors import StudyError
+from wcs.study import CONFIGS, get_path, load_study, scene_with, set_path
+
+SLIP = "contacts.interface.friction.slip_limit"
+
+
+@pytest.mark.parametrize("mutate, fragment", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_broken_study_names_file_and_key_path(tmp_path, mutate, fragment):
+    path = write_study(broken(mutate), tmp_path, "broken-study.yaml")
+    with pytest.raises(StudyError) as info:
+        load_study(path)
+    message = str(info.value)
+    assert "broken-study.yaml" in message
+    assert fragment in message
+
+
+def test_case_ids_are_unique():
+    ids = [c[0] for c in CASES]
+    assert len(ids) == len(set(ids))
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return load_study(DEMO)
+
+
+def test_demo_loads(demo):
+    assert demo.name == "two-blocks-demo"
+    assert demo.output == "results/two-blocks-demo.nc"
+    assert demo.scene["plane"] == "strain"
+    assert demo.scene["bodies"]["pad"]["regions"][0]["name"] == "pad_0"
+    assert demo.scene["bodies"]["pad"]["regions"][0]["shape"] == {"rectangle": [0.5, 1.0, 1.5, 1.5]}
+    assert demo.sha256 == hashlib.sha256(demo.text.encode()).hexdigest()
+    assert demo.text == DEMO.read_text()
+    assert demo.search == {"method": "auto", "sample": {"design": "lhs", "n": 32, "seed": 7},
+                           "budget": 200, "local": {"starts": 3}}
+    assert demo.solver["dd"] == {"subdomains": 8} and demo.solver["fallback"] is True
+    assert demo.limits == {"shear": 4.0e12}
+    assert demo.sweep is None
+    assert demo.criteria[0]["point"] == [1.0, 1.0] and "point" not in demo.criteria[1]
+
+
+def test_parameters_in_file_order_with_profile_expanded(demo):
+    names = ["materials.rubber.E", "materials.rubber.nu", "loads.pad_top.pressure"]
+    names += [f"{SLIP}[{i}]" for i in range(6)]
+    assert demo.parameters.names == names
+    assert len(demo.parameters) == 9
+    np.testing.assert_array_equal(demo.parameters.lower, [0.8e7, 0.40, 1.5e6] + [0.5e5] * 6)
+    np.testing.assert_array_equal(demo.parameters.upper, [1.2e7, 0.48, 2.5e6] + [1.5e5] * 6)
+    assert demo.uncertain[3] == {"path": SLIP, "lower": 0.5e5, "upper": 1.5e5, "lipschitz": 2.0e5, "points": 6}
+
+
+def test_nominal_is_the_scene(demo):
+    np.testing.assert_array_equal(demo.nominal(), [1.0e7, 0.45, 2.0e6] + [1.0e5] * 6)
+
+
+def test_scene_with_vector_applies_every_parameter(demo):
+    x = demo.parameters.lower.copy()
+    x[3:] = np.linspace(0.5e5, 1.0e5, 6)
+    scene = scene_with(demo, x)
+    assert scene["materials"]["rubber"]["E"] == 0.8e7
+    assert scene["loads"]["pad_top"]["pressure"] == 1.5e6
+    friction = scene["contacts"]["interface"]["friction"]
+    assert friction["slip_limit_profile"] == list(x[3:])
+    assert friction["slip_limit"] == pytest.approx(np.mean(x[3:]))
+    assert demo.scene["materials"]["rubber"]["E"] == 1.0e7  # the study's scene is untouched
+
+
+def test_scene_with_round_trip(demo):
+    scene = scene_with(demo, demo.nominal())
+    assert np.array_equal([get_path(scene, p) for p in demo.parameters.names[:3]], demo.nominal()[:3])
+    del scene["contacts"]["interface"]["friction"]["slip_limit_profile"]
+    assert scene == demo.scene
+
+
+def test_scene_with_mapping(demo):
+    scene = scene_with(demo, {"materials.rubber.nu": 0.41, f"{SLIP}[2]": 0.6e5,
+                              "materials.steel.E": 2.0e11})
+    assert scene["materials"]["rubber"]["nu"] == 0.41
+    assert scene["materials"]["rubber"]["E"] == 1.0e7
+    assert scene["materials"]["steel"]["E"] == 2.0e11
+    assert scene["contacts"]["interface"]["friction"]["slip_limit_profile"][1:3] == [1.0e5, 0.6e5]
+    whole = scene_with(demo, {SLIP: 0.7e5})
+    assert whole["contacts"]["interface"]["friction"]["slip_limit_profile"] == [0.7e5] * 6
+
+
+def test_scene_with_rejects_unknown_names_and_wrong_length(demo):
+    with pytest.raises(StudyError, match="materials.rubber.G"):
+        scene_with(demo, {"materials.rubber.G": 1.0})
+    with pytest.raises(ValueError):
+        scene_with(demo, np.zeros(3))
+
+
+def test_get_and_set_path():
+    scene = {"loads": {"top": {"traction": [1.0, 2.0]}}}
+    assert get_path(scene, "loads.top.traction.1") == 2.0
+    set_path(scene, "loads.top.traction.0", 5.0)
+    assert scene["loads"]["top"]["traction"] == [5.0, 2.0]
+    with pytest.raises(KeyError, match="did you mean 'top'"):
+        get_path(scene, "loads.tp.pressure")
+
+
+def test_unknown_key_hint(tmp_path):
+    doc = demo_doc()
+    doc["serach"] = doc.pop("search")
+    with pytest.raises(StudyError, match="did you mean 'search'"):
+        load_study(write_study(doc, tmp_path))
+
+
+def test_unknown_name_hint(tmp_path):
+    doc = demo_doc()
+    doc["scene"]["bodies"]["pad"]["regions"][0]["material"] = "rubbr"
+    with pytest.raises(StudyError, match="did you mean 'rubber'"):
+        load_study(write_study(doc, tmp_path))
+
+
+def test_yaml_syntax_error_has_line(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("study: x\nscene:\n  dimension: [2\n  plane: strain\n")
+    with pytest.raises(StudyError, match=r"bad\.yaml.*line \d+"):
+        load_study(path)
+
+
+def test_duplicate_key_is_an_error(tmp_path):
+    path = tmp_path / "dup.yaml"
+    path.write_text(DEMO.read_text().replace("  budget: 200", "  budget: 200\n  budget: 100"))
+    with pytest.raises(StudyError, match=r"line \d+, column \d+: duplicate key 'budget'"):
+        load_study(path)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(StudyError, match="not found"):
+        load_study(tmp_path / "nothing.yaml")
+
+
+def test_not_a_mapping(tmp_path):
+    path = tmp_path / "list.yaml"
+    path.write_text("- 1\n- 2\n")
+    with pytest.raises(StudyError, match="list.yaml"):
+        load_study(path)
+
+
+def test_exponent_without_dot_is_a_number(tmp_path):
+    path = tmp_path / "exp.yaml"
+    path.write_text(DEMO.read_text().replace("{E: 1.0e7,", "{E: 1e7,"))
+    assert load_study(path).scene["materials"]["rubber"]["E"] == 1.0e7
+
+
+def _scene_file_study(tmp_path, materials="materials-implants.yaml"):
+    doc = demo_doc()
+    scene = doc["scene"]
+    scene["materials"] = materials
+    for body, material in (("base", "cocrmo"), ("pad", "uhmwpe")):
+        scene["bodies"][body]["regions"][0]["material"] = material
+    del scene["thermal"]
+    write_study(scene, tmp_path, "scene.yaml")
+    doc["scene"] = "scene.yaml"
+    doc["uncertain"] = {"materials.uhmwpe.E": [3.0e8, 4.0e8], SLIP: doc["uncertain"][SLIP]}
+    return write_study(doc, tmp_path)
+
+
+def test_scene_file_and_material_library_from_configs(tmp_path):
+    study = load_study(_scene_file_study(tmp_path))
+    assert study.scene["materials"]["uhmwpe"] == {"E": 3.4e8, "nu": 0.4}
+    assert study.parameters.names[0] == "materials.uhmwpe.E"
+    assert study.text.count("\n---\n") == 2
+    assert "scene.yaml" in study.text and "materials-implants.yaml" in study.text
+    assert "cocrmo:" in study.text
+    assert study.sha256 == hashlib.sha256(study.text.encode()).hexdigest()
+
+
+def test_material_library_next_to_the_scene_wins(tmp_path):
+    (tmp_path / "materials-implants.yaml").write_text("uhmwpe: {E: 3.5e8, nu: 0.4}\ncocrmo: {E: 2e11, nu: 0.3}\n")
+    study = load_study(_scene_file_study(tmp_path))
+    assert study.scene["materials"]["uhmwpe"]["E"] == 3.5e8
+
+
+def test_errors_in_scene_file_name_that_file(tmp_path):
+    study = _scene_file_study(tmp_path)
+    scene = yaml.safe_load((tmp_path / "scene.yaml").read_text())
+    scene["bodies"]["pad"]["regions"][0]["material"] = "gum"
+    write_study(scene, tmp_path, "scene.yaml")
+    with pytest.raises(StudyError) as info:
+        load_study(study)
+    assert info.value.file.endswith("scene.yaml")
+    assert info.value.path == "bodies.pad.regions.0.material"
+
+
+def test_errors_in_material_library_name_that_file(tmp_path):
+    (tmp_path / "lib.yaml").write_text("uhmwpe: {E: 3.4e8, nu: 0.7}\ncocrmo: {E: 2e11, nu: 0.3}\n")
+    with pytest.raises(StudyError) as info:
+        load_study(_scene_file_study(tmp_path, materials="lib.yaml"))
+    assert info.value.file.endswith("lib.yaml")
+    assert info.value.path == "uhmwpe.nu"
+
+
+@pytest.mark.parametrize("library", sorted(p.name for p in CONFIGS.glob("materials-*.yaml")))
+def test_material_libraries_in_configs_load(tmp_path, library):
+    materials = yaml.safe_load((CONFIGS / library).read_text())
+    doc = demo_doc()
+    doc["scene"]["materials"] = library
+    first = next(iter(materials))
+    for body in ("base", "pad"):
+        doc["scene"]["bodies"][body]["regions"][0]["material"] = first
+    del doc["scene"]["thermal"]
+    doc["uncertain"] = {}
+    study = load_study(write_study(doc, tmp_path))
+    assert set(study.scene["materials"]) == set(materials)
+
+
+def test_lame_material_with_lame_box(tmp_path):
+    doc = demo_doc()
+    doc["scene"]["materials"]["rubber"] = {"lambda": 3.1e7, "mu": 3.4e6, "conductivity": 0.2}
+    del doc["uncertain"]["materials.rubber.E"], doc["uncertain"]["materials.rubber.nu"]
+    doc["uncertain"]["materials.rubber.mu"] = [3.0e6, 4.0e6]
+    study = load_study(write_study(doc, tmp_path))
+    assert study.parameters.names[-1] == "materials.rubber.mu"
+    assert any("rubber" in note and "expansion" in note for note in study.notes)
+
+
+def test_defaults_when_optional_blocks_are_absent(tmp_path):
+    doc = demo_doc()
+    for key in ("study", "search", "solver", "output", "limits", "criteria", "uncertain"):
+        del doc[key]
+    del doc["scene"]["plane"]
+    study = load_study(write_study(doc, tmp_path, "plain.yaml"))
+    assert study.name == "plain" and study.output == "results/plain.nc"
+    assert study.scene["plane"] == "strain"
+    assert study.search["sample"] == {"design": "lhs", "n": 32, "seed": 0}
+    assert study.solver["tolerance"] == 1e-8 and study.solver["max_iterations"] == 200
+    assert len(study.parameters) == 0 and study.nominal().shape == (0,)
+
+
+def test_sweep_and_named_regions(tmp_path):
+    doc = demo_doc()
+    doc["sweep"] = {"grid": {"loads.pad_top.pressure": [1e6, 2e6], "materials.steel.E": [2e11]}}
+    doc["scene"]["bodies"]["pad"]["regions"][0]["name"] = "pad"
+    doc["scene"]["body_forces"]["pad"] = [0.0, -1.0e4]
+    study = load_study(write_study(doc, tmp_path))
+    assert study.sweep == doc["sweep"]
+    assert study.scene["bodies"]["pad"]["regions"][0]["name"] == "pad"
+    assert math.isclose(study.scene["body_forces"]["pad"][1], -1.0e4)

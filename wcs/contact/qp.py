@@ -1,0 +1,66 @@
+r"""Reference contact solver: the same problem as a convex program in cvxpy (Clarabel).
+
+    minimise ½ uᵀKu − fᵀu + Σ w_i g_i s_i
+    subject to  Bn u ≤ d          (dual λn)
+                Bt u ≤ s          (dual μ⁺)
+               −Bt u ≤ s          (dual μ⁻)
+
+The epigraph variables s ≥ |Bt u| make the friction multiplier recoverable:
+stationarity in u gives K u + Bnᵀλn + Btᵀ(μ⁺ − μ⁻) = f, so λt = μ⁺ − μ⁻,
+and stationarity in s gives μ⁺ + μ⁻ = gw, hence |λt| ≤ gw — the sign
+conventions of `wcs.contact.solver`. K may be singular (floating bodies):
+`psd_wrap` skips cvxpy's eigenvalue check; an unbalanced load makes the
+program unbounded, reported as UNSOLVABLE. Coulomb by the same fixed point
+g ← F p as the Newton solver, started from the frictionless pressure.
+Meant as a small-mesh reference and the "generic tool" baseline.
+"""
+from __future__ import annotations
+
+import time
+
+import cvxpy as cp
+import numpy as np
+
+from .solver import (CONVERGED, FIXED_POINT_NOT_CONVERGED, SINGULAR, UNSOLVABLE, ContactResult)
+
+
+def _tresca_qp(K, f, Bn, Bt, d, gw, tol):
+    """One Tresca problem; returns (u, λn, λt, cvxpy status).
+
+    Solved for v = u / a with a = max|f| / mean diag K (a displacement scale), so that
+    the objective is O(1): Clarabel's absolute gap tolerance then means a relative one
+    (unscaled, u ~ 1e-3 lost three digits). Multipliers scale back as λ = a μ.
+    """
+    n, m = K.shape[0], Bn.shape[0]
+    a = max(np.abs(f).max(), 1e-300) / K.diagonal().mean()
+    v, s = cp.Variable(n), cp.Variable(m)
+    cons = [Bn @ v <= d / a, Bt @ v <= s, -Bt @ v <= s]
+    obj = 0.5 * cp.quad_form(v, cp.psd_wrap(K)) - (f / a) @ v + (gw / a) @ s
+    prob = cp.Problem(cp.Minimize(obj), cons)
+    prob.solve(solver=cp.CLARABEL, tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=tol)
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        return None, None, None, prob.status
+    return a * v.value, a * cons[0].dual_value, a * (cons[1].dual_value - cons[2].dual_value), prob.status
+
+
+def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,
+                     tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+    """Tresca (g) or Coulomb (F) contact through cvxpy + Clarabel. R is accepted for API symmetry
+    (the convex program needs no rigid modes; unbalanced loads show up as unboundedness)."""
+    t0 = time.perf_counter()
+    m = Bn.shape[0]
+    w = np.asarray(w, dtype=float)
+    gw = np.zeros(m) if (F is not None or g is None) else np.asarray(g, dtype=float) * w
+    u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, gw, tol)
+    fp, fp_ok = 0, F is None
+    while F is not None and u is not None and fp < max_fp_iter and not fp_ok:
+        p_old = ln / w
+        u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, np.asarray(F) * np.maximum(ln, 0.0), tol)
+        fp += 1
+        fp_ok = u is not None and np.linalg.norm(ln / w - p_old) <= tol_fp * max(np.linalg.norm(ln / w), 1e-300)
+    timings = {"total": time.perf_counter() - t0}
+    if u is None:
+        code = UNSOLVABLE if st in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) else SINGULAR
+        return ContactResult(None, None, None, code, f"cvxpy status {st}", timings=timings)
+    status, msg = (CONVERGED, st) if fp_ok else (FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged")
+    return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=fp, timings=timings)

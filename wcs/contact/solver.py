@@ -1,0 +1,314 @@
+r"""Node-to-node contact with Tresca or Coulomb friction: condensed semismooth Newton.
+
+Problem (Dirichlet conditions already eliminated)::
+
+    minimise  ½ uᵀKu − fᵀu + Σ_i w_i g_i |(Bt u)_i|   subject to  Bn u ≤ d.
+
+Sign conventions. Multipliers λ = (λn, λt) enter the equilibrium as
+
+    K u + Bnᵀ λn + Btᵀ λt = f,
+
+so λn ≥ 0 is the nodal force pressing the bodies apart, λn ⊥ (d − Bn u) ≥ 0,
+and λt is the subgradient of the friction energy: |λt_i| ≤ g_i w_i, and
+λt_i = +g_i w_i sign((Bt u)_i) where the node slips ((Bt u)_i ≠ 0). The
+friction force acting on the slipping body is −Btᵀλt, i.e. it opposes the
+slip. Pressure p = λn / w, shear τ = λt / w.
+
+Method. With a generalized inverse K⁺ and C = [Bn; Bt], u = K⁺(f − Cᵀλ) + Rα,
+so the contact displacements are affine in (λ, α):
+
+    r(λ, α) = C u − [d; 0] = q − Wλ + Gᵀα,   W = C K⁺ Cᵀ,  q = C K⁺ f − [d; 0],  Gᵀ = C R,
+
+with the equilibrium of the rigid modes G λ = e, e = Rᵀ f. The conditions of
+Hüeber–Stadler–Wohlmuth, C_n = λn − max(0, λn + c_n r_n) = 0 and
+C_t = max(gw, |λt + c_t r_t|) λt − gw (λt + c_t r_t) = 0, are in 2D (scalar
+tangent) the projection equations
+
+    Φ(λ, α) = λ − Π_B(λ + c ⊙ r(λ, α)) = 0,   B = {λn ≥ 0, |λt| ≤ gw},
+
+i.e. the optimality conditions of the dual box-constrained QP
+min ½λᵀWλ − qᵀλ over B with Gλ = e. Semismooth Newton on Φ is the
+primal–dual active set method: components with λ + c r inside the box are
+free (contact closed / stick: r_i = 0), the others are fixed at the bound
+they project to (open: λn = 0; slip: λt = ±gw). The step is globalized
+by a nonmonotone Armijo search on ψ = ½‖Φ‖² + ½‖Gλ − e‖² (the Newton
+direction is a descent direction of ψ) and bounded by `max_iter`.
+The constants c = 1 / diag(W) turn displacements into forces node by node.
+
+The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
+which PARDISO returns as the inverse of the Schur complement of K on S
+during the numeric factorization (see `wcs.linalg`); a re-solve on the same
+pattern costs a numeric refactor, two solves and small dense algebra.
+
+Floating bodies (R given, KR = 0): K⁺ = (K + Σ_{j∈P} k_j e_j e_jᵀ)⁻¹ with P
+a set of r DOFs on which R is nonsingular (pivoted QR of Rᵀ). It is an exact
+generalized inverse, K K⁺ K = K: for b = Kx, x' = K⁺b satisfies
+K x' + D x' = b, hence R_Pᵀ D_P x'_P = Rᵀ b = 0, x'_P = 0 and K x' = b; the
+spring sizes k_j only set the conditioning, not the answer.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.optimize as sopt
+import scipy.sparse as sp
+
+from wcs import linalg
+
+CONVERGED = 0
+NEWTON_NOT_CONVERGED = 1
+FIXED_POINT_NOT_CONVERGED = 2
+UNSOLVABLE = 3
+SINGULAR = 4
+
+OPEN, STICK, SLIP = 0, 1, 2
+
+
+@dataclass
+class ContactResult:
+    """Solution and diagnostics. `active`: per node OPEN (0), STICK (1) or SLIP (2)."""
+
+    u: np.ndarray | None
+    lam_n: np.ndarray | None
+    lam_t: np.ndarray | None
+    status: int
+    message: str
+    iterations: int = 0
+    fixed_point_iterations: int = 0
+    active: np.ndarray | None = None
+    factor: "ContactFactor | None" = None
+    alpha: np.ndarray | None = None  # rigid amplitudes; for UNSOLVABLE the unbalanced direction
+    timings: dict = field(default_factory=dict)
+
+
+@dataclass
+class ContactFactor:
+    """A factor of K (or its regularization) with the Delassus data of one K."""
+
+    factor: object
+    K_data: np.ndarray  # values of the factored K, to skip refactoring an unchanged K
+    pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
+    S: np.ndarray       # contact DOFs (columns of C)
+    W: np.ndarray
+
+
+def pinned_dofs(R: np.ndarray) -> np.ndarray:
+    """r DOFs on which the rows of R form a well-conditioned r×r block (pivoted QR of Rᵀ)."""
+    _, _, piv = sla.qr(R.T, mode="economic", pivoting=True)
+    return np.sort(piv[: R.shape[1]])
+
+
+def regularize(K: sp.spmatrix, pinned: np.ndarray) -> sp.csr_matrix:
+    """K + Σ_{j∈pinned} K_jj e_j e_jᵀ: same pattern, and its inverse is a generalized inverse of K."""
+    K = sp.csr_matrix(K, dtype=float, copy=True)
+    K.sum_duplicates()
+    K.sort_indices()
+    if len(pinned):
+        diag = K.diagonal()
+        scale = np.where(diag[pinned] > 0, diag[pinned], 1.0)
+        K = (K + sp.csr_matrix((scale, (pinned, pinned)), shape=K.shape)).tocsr()
+        K.sort_indices()
+    return K
+
+
+def delassus(factor, C_S: np.ndarray) -> np.ndarray:
+    """W = C K⁺ Cᵀ = C_S (K⁺)_SS C_Sᵀ from the dense inverse block on the contact DOFs."""
+    Z = factor.inverse_block()
+    W = C_S @ Z @ C_S.T
+    return 0.5 * (W + W.T)
+
+
+def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> ContactFactor:
+    """Factor K (regularized when R is given) with the block on the contact DOFs; reuse the analysis."""
+    S = np.unique(C.indices)
+    pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
+    Kr = regularize(K, pinned)
+    C_S = C[:, S].toarray()
+    if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
+        if reuse.K_data.shape == Kr.data.shape and np.array_equal(reuse.K_data, Kr.data):
+            return reuse
+        f = reuse.factor.refactor(Kr)
+    else:
+        f = linalg.factorize(Kr, spd=True, block=S)
+    return ContactFactor(factor=f, K_data=Kr.data.copy(), pinned=pinned, S=S, W=delassus(f, C_S))
+
+
+def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
+    """max fᵀRα − Σ gw|Bt Rα| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r.
+
+    The problem is solvable only if this maximum is 0 (physics.md §2: S(v) ≤ j(v)).
+    Linear program in (α, s) with s ≥ |Bt Rα|. Returns (value, α).
+    """
+    r, m = R.shape[1], Bn.shape[0]
+    BnR, BtR, e = Bn @ R, Bt @ R, R.T @ f
+    I = np.eye(m)
+    A_ub = np.block([[BnR, np.zeros((m, m))], [BtR, -I], [-BtR, -I]])
+    res = sopt.linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
+                       bounds=[(-1, 1)] * r + [(0, None)] * m, method="highs")
+    return -res.fun, res.x[:r]
+
+
+def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None):
+    """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_[lo,hi](λ + c ⊙ r) = 0, Gλ = e.
+
+    free0: the free set of the first step instead of the one predicted from λ
+    (the cold start: all closed and stuck, i.e. the glued problem).
+    Returns (λ, α, free, iterations, converged).
+    """
+    c = 1.0 / np.where(np.diag(W) > 0, np.diag(W), 1.0)
+    force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
+
+    def residuals(lam, alpha):
+        z = lam + c * (q - W @ lam + G.T @ alpha)
+        return z, lam - np.clip(z, lo, hi), G @ lam - e
+
+    def merit(lam, alpha):
+        _, phi, eq = residuals(lam, alpha)
+        return 0.5 * (phi @ phi + eq @ eq)
+
+    history = []
+    for it in range(max_iter + 1):
+        z, phi, eq = residuals(lam, alpha)
+        free = (z > lo) & (z < hi) if (it > 0 or free0 is None) else free0
+        scale = max(force, np.abs(lam).max(initial=0.0))
+        if max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale:
+            return lam, alpha, free, it, True
+        if it == max_iter:
+            return lam, alpha, free, it, False
+        lam_new, alpha_new = _newton_point(W, q, G, e, free, np.clip(z, lo, hi))
+        d_lam, d_alpha = lam_new - lam, alpha_new - alpha
+        history = (history + [0.5 * (phi @ phi + eq @ eq)])[-5:]
+        t = 1.0
+        while merit(lam + t * d_lam, alpha + t * d_alpha) > max(history) * (1 - 1e-4 * t) and t > 1e-3:
+            t *= 0.5
+        lam, alpha = lam + t * d_lam, alpha + t * d_alpha
+    raise AssertionError("unreachable")
+
+
+def _newton_point(W, q, G, e, free, fixed_values):
+    """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α)."""
+    F = np.flatnonzero(free)
+    lam = np.where(free, 0.0, fixed_values)
+    r = G.shape[0]
+    M = np.block([[W[np.ix_(F, F)], -G[:, F].T], [G[:, F], np.zeros((r, r))]])
+    rhs = np.r_[q[F] - W[F] @ lam, e - G @ lam]
+    try:
+        x = np.linalg.solve(M, rhs)
+        if not np.all(np.isfinite(x)):
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:  # rank-deficient face (e.g. a rigid mode free to slide): min-norm
+        x = np.linalg.lstsq(M, rhs, rcond=None)[0]
+    lam[F] = x[: len(F)]
+    return lam, x[len(F):]
+
+
+def _first_free_set(warm, gw):
+    """Free set of the first Newton step: the warm result's active set, else all closed and stuck.
+
+    Predicting it from the warm multipliers instead (λ + c r with the new data) marks most
+    stuck nodes as slipping, since the old λ leaves slips ~ the data change; the warm set
+    is usually exact and converges in one step. Open nodes (where Tresca friction still
+    acts) stick if their old |λt| was below the bound.
+    """
+    if warm is None or warm.active is None:
+        return np.r_[np.ones(len(gw), dtype=bool), gw > 0]
+    open_ = warm.active == OPEN
+    stick = (warm.active == STICK) | (open_ & (np.abs(warm.lam_t) < gw))
+    return np.r_[~open_, stick & (gw > 0)]
+
+
+def _states(free, m, gw):
+    """Node states from the final free set: open / stick / slip."""
+    closed, stick = free[:m], free[m:] & (gw > 0)
+    return np.where(~closed, OPEN, np.where(stick, STICK, SLIP))
+
+
+def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
+                  warm: ContactResult | None = None, factor: ContactFactor | None = None,
+                  tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+    """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
+
+    warm:   a previous result on the same mesh; its multipliers start the Newton
+            iteration and its factor is refactored (same pattern) unless `factor` is given.
+            The factor object is updated in place.
+    Coulomb: slip limit g + F p (both may be given: contacts of either law in one zone);
+            fixed point over Tresca problems started from the all-stick (glued) solution
+            — which also holds a floating body that only friction keeps in place — or
+            from the warm pressures, until ‖Δp‖ ≤ tol_fp ‖p‖ (at most max_fp_iter solves).
+    """
+    t0 = time.perf_counter()
+    timings = {}
+    m = Bn.shape[0]
+    f, d, w = (np.asarray(a, dtype=float) for a in (f, d, w))
+    C = sp.vstack([Bn, Bt]).tocsr()
+    R = None if R is None else np.asarray(R, dtype=float).reshape(len(f), -1)
+    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
+    coulomb = bool(np.any(Fc > 0))
+    gw_fixed = np.zeros(m) if g is None else np.asarray(g, dtype=float) * w
+    gw = gw_fixed
+    if coulomb:
+        warm_p = warm is not None and warm.lam_n is not None
+        gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
+
+    if R is not None and not coulomb:
+        value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
+        timings["solvability"] = time.perf_counter() - t0
+        if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
+            return ContactResult(None, None, None, UNSOLVABLE,
+                                 f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
+                                 f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
+                                 alpha=alpha, timings=timings)
+
+    t = time.perf_counter()
+    try:
+        cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None))
+        u0 = cf.factor.solve(f)
+    except linalg.FactorizationError as exc:
+        return ContactResult(None, None, None, SINGULAR, f"factorization failed: {exc}", timings=timings)
+    timings["factor"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    W = cf.W
+    q = C @ u0 - np.r_[d, np.zeros(m)]
+    G = (C @ R).T if R is not None else np.zeros((0, 2 * m))
+    e = R.T @ f if R is not None else np.zeros(0)
+    lam = np.zeros(2 * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
+    alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
+    lo = np.r_[np.zeros(m), -gw]
+    hi = np.r_[np.full(m, np.inf), gw]
+    lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter,
+                                          _first_free_set(warm, gw))
+    fp_iters, fp_ok = 0, True
+    if coulomb:
+        fp_ok = False
+        while ok and fp_iters < max_fp_iter and not fp_ok:
+            p_old = lam[:m] / w
+            gw = gw_fixed + Fc * lam[:m]
+            lo[m:], hi[m:] = -gw, gw
+            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter)
+            iters += k
+            fp_iters += 1
+            p = lam[:m] / w
+            fp_ok = np.linalg.norm(p - p_old) <= tol_fp * max(np.linalg.norm(p), 1e-300)
+    timings["newton"] = time.perf_counter() - t
+
+    if not ok and coulomb and R is not None:     # friction F p may be too weak to hold a floating body
+        value, a = unbalanced_rigid_motion(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R)
+        if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
+            return ContactResult(None, None, None, UNSOLVABLE,
+                                 f"unbalanced load on a floating body held by Coulomb friction: "
+                                 f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
+                                 f"{np.array2string(a, precision=4)}", iterations=iters,
+                                 fixed_point_iterations=fp_iters, alpha=a, timings=timings)
+    u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
+    status, message = CONVERGED, "converged"
+    if not ok:
+        status, message = NEWTON_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
+    elif not fp_ok:
+        status, message = FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
+    timings["total"] = time.perf_counter() - t0
+    return ContactResult(u, lam[:m], lam[m:], status, message, iters, fp_iters, _states(free, m, gw), cf,
+                         alpha if R is not None else None, timings)

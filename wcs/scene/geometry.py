@@ -1,0 +1,117 @@
+"""Shapes of study files -> OpenCASCADE surfaces in the current gmsh model.
+
+A shape is one of
+
+    {rectangle: [x0, y0, x1, y1]}
+    {polygon: [[x, y], ...]}
+    {disc: {center: [x, y], radius: r}}
+
+with optional, recursive ``minus: [shape, ...]`` (cut by the union of the
+listed shapes) and ``intersect: [shape, ...]`` (intersected with each listed
+shape in turn).  ``intersect`` is applied before ``minus`` (they commute).
+
+Everything here works on the gmsh model that is current when it is called;
+``wcs.scene.mesher`` owns the gmsh session.
+"""
+from __future__ import annotations
+
+import math
+
+import gmsh
+
+from ..errors import StudyError
+
+DimTags = list[tuple[int, int]]
+
+SHAPE_KINDS = ("rectangle", "polygon", "disc")
+SHAPE_MODIFIERS = ("minus", "intersect")
+
+
+def _number_list(value, n: int | None, path: str, what: str) -> list[float]:
+    try:
+        out = [float(v) for v in value]
+    except (TypeError, ValueError):
+        raise StudyError(f"{what} must be a list of numbers, got {value!r}", path=path) from None
+    if n is not None and len(out) != n:
+        raise StudyError(f"{what} must have {n} numbers, got {len(out)}", path=path)
+    if not all(math.isfinite(v) for v in out):
+        raise StudyError(f"{what} must be finite numbers, got {value!r}", path=path)
+    return out
+
+
+def _primitive(shape: dict, path: str) -> DimTags:
+    occ = gmsh.model.occ
+    kinds = [k for k in SHAPE_KINDS if shape.get(k) is not None]
+    if len(kinds) != 1:
+        raise StudyError(
+            f"a shape needs exactly one of {', '.join(SHAPE_KINDS)}; got keys {sorted(shape)}",
+            path=path)
+    kind = kinds[0]
+    spec = shape[kind]
+    if kind == "rectangle":
+        x0, y0, x1, y1 = _number_list(spec, 4, f"{path}.rectangle", "rectangle")
+        if not (x1 > x0 and y1 > y0):
+            raise StudyError(f"rectangle [x0, y0, x1, y1] needs x0 < x1 and y0 < y1, got {spec}",
+                             path=f"{path}.rectangle")
+        return [(2, occ.addRectangle(x0, y0, 0.0, x1 - x0, y1 - y0))]
+    if kind == "disc":
+        if not isinstance(spec, dict) or "center" not in spec or "radius" not in spec:
+            raise StudyError("disc needs {center: [x, y], radius: r}", path=f"{path}.disc")
+        cx, cy = _number_list(spec["center"], 2, f"{path}.disc.center", "center")
+        (r,) = _number_list([spec["radius"]], 1, f"{path}.disc.radius", "radius")
+        if r <= 0:
+            raise StudyError(f"disc radius must be > 0, got {r}", path=f"{path}.disc.radius")
+        return [(2, occ.addDisk(cx, cy, 0.0, r, r))]
+    # polygon
+    try:
+        pts = [_number_list(p, 2, f"{path}.polygon.{i}", "polygon vertex") for i, p in enumerate(spec)]
+    except TypeError:
+        raise StudyError("polygon must be a list of [x, y] points", path=f"{path}.polygon") from None
+    if len(pts) >= 2 and pts[0] == pts[-1]:
+        pts = pts[:-1]                              # tolerate a closed ring
+    if len(pts) < 3:
+        raise StudyError("polygon needs at least 3 distinct vertices", path=f"{path}.polygon")
+    area2 = sum(pts[i][0] * pts[i - 1][1] - pts[i - 1][0] * pts[i][1] for i in range(len(pts)))
+    if abs(area2) == 0.0:
+        raise StudyError("polygon has zero area", path=f"{path}.polygon")
+    ptags = [occ.addPoint(x, y, 0.0) for x, y in pts]
+    ltags = [occ.addLine(ptags[i], ptags[(i + 1) % len(ptags)]) for i in range(len(ptags))]
+    loop = occ.addCurveLoop(ltags)
+    return [(2, occ.addPlaneSurface([loop]))]
+
+
+def make_shape(shape: dict, path: str) -> DimTags:
+    """Create ``shape`` in the current OCC model; return its surfaces (dim 2 dimtags).
+
+    Raises StudyError (with ``path``) on a malformed or empty shape.
+    """
+    if not isinstance(shape, dict):
+        raise StudyError(f"a shape must be a mapping, got {shape!r}", path=path)
+    occ = gmsh.model.occ
+    out = _primitive(shape, path)
+    for i, sub in enumerate(_shape_list(shape.get("intersect"), f"{path}.intersect")):
+        tool = make_shape(sub, f"{path}.intersect.{i}")
+        out, _ = occ.intersect(out, tool, removeObject=True, removeTool=True)
+        out = [dt for dt in out if dt[0] == 2]
+        if not out:
+            raise StudyError("the intersection is empty", path=f"{path}.intersect.{i}")
+    minus = _shape_list(shape.get("minus"), f"{path}.minus")
+    if minus:
+        tools: DimTags = []
+        for i, sub in enumerate(minus):
+            tools += make_shape(sub, f"{path}.minus.{i}")
+        out, _ = occ.cut(out, tools, removeObject=True, removeTool=True)
+        out = [dt for dt in out if dt[0] == 2]
+        if not out:
+            raise StudyError("the shape is empty after `minus`", path=path)
+    return out
+
+
+def _shape_list(value, path: str) -> list:
+    if value is None:
+        return []
+    if isinstance(value, dict):                    # a single shape is accepted too
+        return [value]
+    if not isinstance(value, list):
+        raise StudyError(f"expected a list of shapes, got {value!r}", path=path)
+    return value

@@ -1,0 +1,332 @@
+"""Scene dict (study-format §2) -> gmsh (OpenCASCADE) -> :class:`SceneMesh`.
+
+``build_mesh(scene)`` takes the ``scene:`` block of a study, already validated
+by the loader, and returns one ``skfem.MeshTri`` holding every body.
+
+How it is done
+--------------
+* Every region shape of every body is created with the OCC kernel
+  (``wcs.scene.geometry``), then ALL surfaces go through one ``occ.fragment``:
+  the result is a conforming partition, each curve shared by two pieces is
+  meshed once, so regions of one body share nodes and touching bodies have
+  matching nodes on their common curves.
+* Ownership of fragment pieces: inside a body a piece belongs to the LAST
+  region (scene order) whose shape covers it.  A piece covered by two bodies
+  is an overlap -> ``StudyError`` at ``scene.bodies.<later body>``.  A region
+  left with no piece (empty shape, or completely covered by later regions) ->
+  ``StudyError`` at ``scene.bodies.<body>.regions.<i>[.shape]``.
+* Sizes: a ``gmsh.model.mesh.setSizeCallback`` returns
+  ``min(lc_gmsh, size, min_r (size_r + grading * dist_r(x)))`` where ``r``
+  runs over ``mesh.refine`` entries, ``dist_r`` is the distance to the
+  refine selector's geometric set (0 inside a box/disc/polygon; for
+  ``boundary: NAME`` the distance to that boundary's segment / circle / box;
+  refinement is purely geometric, a ``body:`` key is ignored), and ``grading`` (``mesh.grading``, default 0.5) lets
+  the size grow linearly away from the refined zone instead of jumping.
+  ``lc_gmsh`` carries ``Mesh.MeshSizeFromCurvature = 24`` (elements per 2π
+  of arc): a full circle always gets >= 24 segments however coarse ``size``.
+  Without ``mesh.size`` the size is 1/20 of the scene's bounding-box diagonal.
+* Determinism: one gmsh session per build (initialize/finalize, or a fresh
+  model if the caller already runs gmsh, with our options restored after),
+  ``General.NumThreads = 1``, Frontal-Delaunay (``Mesh.Algorithm = 6``), no
+  config files, no randomness on our side; nodes and cells are numbered from
+  gmsh's own (deterministic) order.
+* Output numbering: cells are grouped by body, then region, then gmsh surface;
+  nodes are grouped by body (each body has its own copy of nodes on curves
+  shared with another body), then gmsh node order.  Nodes not used by any
+  cell are dropped.  Cells are counter-clockwise.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+
+import gmsh
+import numpy as np
+import skfem
+
+from ..errors import StudyError
+from . import selectors
+from .geometry import make_shape
+from .meshdata import SceneMesh
+
+CURVATURE_ELEMENTS = 24         # Mesh.MeshSizeFromCurvature: elements per 2*pi of arc
+DEFAULT_GRADING = 0.5           # size growth per unit distance away from a refine zone
+ALGORITHM_2D = 6                # Frontal-Delaunay
+
+_lock = threading.Lock()        # gmsh is a process-wide singleton
+
+
+def region_names(scene: dict) -> list[tuple[str, str]]:
+    """(body, region name) in scene order; default name ``<body>_<i>`` (0-based i)."""
+    out = []
+    for body, bspec in (scene.get("bodies") or {}).items():
+        for i, reg in enumerate(bspec.get("regions") or []):
+            out.append((body, reg.get("name") or f"{body}_{i}"))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# sizes
+
+
+def _scalar_distance(spec: dict, path: str):
+    """A fast scalar ``d(x, y)`` for the size callback (called ~1e5 times)."""
+    kind = selectors._kind(spec, ("box", "disc", "polygon", "segment", "circle"), path)
+    val = spec[kind]
+    p = f"{path}.{kind}"
+    hypot = math.hypot
+    if kind == "box":
+        x0, y0, x1, y1 = (float(v) for v in selectors._box(val, p))
+
+        def d(x, y):
+            dx = max(x0 - x, x - x1, 0.0)
+            dy = max(y0 - y, y - y1, 0.0)
+            return hypot(dx, dy)
+        return d
+    if kind in ("disc", "circle"):
+        c, r = selectors._circle(val, p)
+        cx, cy = float(c[0]), float(c[1])
+        if kind == "disc":
+            return lambda x, y: max(hypot(x - cx, y - cy) - r, 0.0)
+        return lambda x, y: abs(hypot(x - cx, y - cy) - r)
+    if kind == "segment":
+        a, b = selectors._segment(val, p)
+        ax, ay, dx, dy = float(a[0]), float(a[1]), float(b[0] - a[0]), float(b[1] - a[1])
+        dd = dx * dx + dy * dy
+
+        def d(x, y):
+            s = min(max(((x - ax) * dx + (y - ay) * dy) / dd, 0.0), 1.0)
+            return hypot(x - ax - s * dx, y - ay - s * dy)
+        return d
+    pts = selectors._polygon(val, p)
+    return lambda x, y: float(selectors.dist_polygon(x, y, pts))
+
+
+def _size_function(scene: dict, bbox_diag: float):
+    mspec = scene.get("mesh") or {}
+    size = mspec.get("size")
+    size = float(size) if size is not None else bbox_diag / 20.0
+    if not (size > 0 and math.isfinite(size)):
+        raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
+    grading = float(mspec.get("grading", DEFAULT_GRADING))
+    if not grading >= 0:
+        raise StudyError(f"grading must be >= 0, got {grading}", path="scene.mesh.grading")
+    refs = []
+    for i, ref in enumerate(mspec.get("refine") or []):
+        path = f"scene.mesh.refine.{i}"
+        if not isinstance(ref, dict) or "size" not in ref:
+            raise StudyError("a refine entry needs a region selector and `size`", path=path)
+        s = float(ref["size"])
+        if not (s > 0 and math.isfinite(s)):
+            raise StudyError(f"size must be > 0, got {s}", path=f"{path}.size")
+        sel = {k: v for k, v in ref.items() if k not in ("size", "body") and v is not None}
+        if "boundary" in sel:
+            name = sel["boundary"]
+            bspec = (scene.get("boundaries") or {}).get(name)
+            if bspec is None:
+                raise StudyError(f"unknown boundary {name!r}", path=f"{path}.boundary")
+            gsel = {k: v for k, v in bspec.items() if k != "body" and v is not None}
+            d = _scalar_distance(gsel, f"scene.boundaries.{name}")
+        else:
+            d = _scalar_distance(sel, path)
+        refs.append((s, d))
+
+    def callback(dim, tag, x, y, z, lc):
+        h = min(lc, size)
+        for s, d in refs:
+            if s < h:
+                h = min(h, s + grading * d(x, y))
+        return h
+    return size, callback
+
+
+# ---------------------------------------------------------------------------
+# gmsh session
+
+
+_OPTIONS = {
+    "General.Terminal": 0,
+    "General.Verbosity": 0,
+    "General.NumThreads": 1,
+    "Mesh.MaxNumThreads1D": 1,
+    "Mesh.MaxNumThreads2D": 1,
+    "Mesh.Algorithm": ALGORITHM_2D,
+    "Mesh.ElementOrder": 1,
+    "Mesh.RecombineAll": 0,
+    "Mesh.MeshSizeFromPoints": 0,
+    "Mesh.MeshSizeFromParametricPoints": 0,
+    "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
+    "Mesh.MeshSizeExtendFromBoundary": 1,
+    "Mesh.MeshSizeMin": 0.0,
+    "Mesh.MeshSizeMax": 1e22,
+    "Mesh.MeshSizeFactor": 1.0,
+    "Mesh.SaveAll": 0,
+}
+
+
+class _Session:
+    """A private gmsh session: initialise (or a fresh model if gmsh is already
+    running), set our options, and undo all of it on exit."""
+
+    counter = 0
+
+    def __enter__(self):
+        _lock.acquire()
+        try:
+            self.own = not gmsh.isInitialized()
+            if self.own:
+                gmsh.initialize(readConfigFiles=False, run=False, interruptible=False)
+                self.saved = {}
+            else:
+                self.saved = {k: gmsh.option.getNumber(k) for k in _OPTIONS}
+                self.prev_model = gmsh.model.getCurrent()
+            _Session.counter += 1
+            gmsh.model.add(f"wcs_scene_{_Session.counter}")
+            for k, v in _OPTIONS.items():
+                gmsh.option.setNumber(k, v)
+        except BaseException:
+            _lock.release()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            if self.own:
+                gmsh.finalize()
+            else:
+                try:
+                    gmsh.model.mesh.removeSizeCallback()
+                except Exception:
+                    pass
+                gmsh.model.remove()
+                for k, v in self.saved.items():
+                    gmsh.option.setNumber(k, v)
+                if self.prev_model:
+                    try:
+                        gmsh.model.setCurrent(self.prev_model)
+                    except Exception:
+                        pass
+        finally:
+            _lock.release()
+        return False
+
+
+# ---------------------------------------------------------------------------
+# build
+
+
+def _area(tag: int) -> float:
+    return float(gmsh.model.occ.getMass(2, tag))
+
+
+def build_mesh(scene: dict) -> SceneMesh:
+    """Mesh a validated scene dict (study-format §2) into a :class:`SceneMesh`.
+
+    ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
+    the sorted facet indices its selector picks (an empty selection raises
+    ``StudyError`` at ``scene.boundaries.<name>``).
+    """
+    bodies_spec = scene.get("bodies") or {}
+    if not bodies_spec:
+        raise StudyError("the scene has no bodies", path="scene.bodies")
+    bodies = list(bodies_spec)
+    regions = region_names(scene)
+
+    with _Session():
+        occ = gmsh.model.occ
+        # -- shapes: one entry (body index, region index, surfaces) per region
+        inputs: list[tuple[int, int, list]] = []
+        r = 0
+        for b, body in enumerate(bodies):
+            regs = bodies_spec[body].get("regions") or []
+            if not regs:
+                raise StudyError("a body needs at least one region", path=f"scene.bodies.{body}.regions")
+            for i, reg in enumerate(regs):
+                path = f"scene.bodies.{body}.regions.{i}.shape"
+                if not isinstance(reg, dict) or "shape" not in reg:
+                    raise StudyError("a region needs a `shape`", path=f"scene.bodies.{body}.regions.{i}")
+                inputs.append((b, r, make_shape(reg["shape"], path)))
+                r += 1
+
+        # -- one fragment of everything -> conforming pieces
+        flat = [(k, dt) for k, (_, _, dts) in enumerate(inputs) for dt in dts]
+        if len(flat) > 1:
+            alldt = [dt for _, dt in flat]
+            _, outmap = occ.fragment(alldt[:1], alldt[1:])
+        else:
+            outmap = [[flat[0][1]]]
+        occ.synchronize()
+        covered: dict[int, list[int]] = {}          # piece tag -> input (region) indices
+        for (k, _), pieces in zip(flat, outmap):
+            for dim, tag in pieces:
+                if dim == 2:
+                    lst = covered.setdefault(tag, [])
+                    if k not in lst:
+                        lst.append(k)
+
+        owner: dict[int, tuple[int, int]] = {}      # piece tag -> (body, region)
+        for tag in sorted(covered):
+            ks = sorted(covered[tag])
+            bs = sorted({inputs[k][0] for k in ks})
+            if len(bs) > 1:
+                raise StudyError(
+                    f"body {bodies[bs[1]]!r} overlaps body {bodies[bs[0]]!r} "
+                    f"(common area {_area(tag):.6g}); bodies may touch but not overlap",
+                    path=f"scene.bodies.{bodies[bs[1]]}")
+            owner[tag] = (bs[0], max(inputs[k][1] for k in ks))
+        used = set(rg for _, rg in owner.values())
+        for k, (b, rg, _) in enumerate(inputs):
+            if rg not in used:
+                i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
+                raise StudyError(
+                    f"region {regions[rg][1]!r} has no area left (empty shape, or covered by "
+                    f"later regions of the body)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
+
+        # -- sizes and meshing
+        xmin, ymin, _, xmax, ymax, _ = gmsh.model.getBoundingBox(-1, -1)
+        size, callback = _size_function(scene, math.hypot(xmax - xmin, ymax - ymin))
+        gmsh.model.mesh.setSizeCallback(callback)
+        gmsh.model.mesh.generate(2)
+
+        # -- extract
+        ntags, coords, _ = gmsh.model.mesh.getNodes()
+        ntags = np.asarray(ntags, dtype=np.int64)
+        xy = np.asarray(coords, dtype=float).reshape(-1, 3)[:, :2]
+        lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
+        lookup[ntags] = np.arange(ntags.size)
+        tris, cb, cr = [], [], []
+        for tag in sorted(owner, key=lambda t: (owner[t], t)):
+            _, nt = gmsh.model.mesh.getElementsByType(2, tag)
+            tri = lookup[np.asarray(nt, dtype=np.int64)].reshape(-1, 3)
+            tris.append(tri)
+            cb.append(np.full(len(tri), owner[tag][0], dtype=np.int64))
+            cr.append(np.full(len(tri), owner[tag][1], dtype=np.int64))
+        gmsh.model.mesh.removeSizeCallback()
+
+    tri = np.concatenate(tris)
+    cell_body = np.concatenate(cb)
+    cell_region = np.concatenate(cr)
+    if (tri < 0).any():
+        raise RuntimeError("gmsh returned a cell with an unknown node")
+
+    # -- one copy of each node per body, unused nodes dropped, compact numbering
+    nn = xy.shape[0]
+    key = cell_body[:, None] * nn + tri
+    uniq, inv = np.unique(key.ravel(), return_inverse=True)
+    t = inv.reshape(-1, 3).T.astype(np.int64)
+    p = np.ascontiguousarray(xy[uniq % nn].T)
+
+    # -- counter-clockwise cells
+    d1 = p[:, t[1]] - p[:, t[0]]
+    d2 = p[:, t[2]] - p[:, t[0]]
+    cw = d1[0] * d2[1] - d1[1] * d2[0] < 0
+    t[1, cw], t[2, cw] = t[2, cw], t[1, cw].copy()
+
+    mesh = skfem.MeshTri(p, np.ascontiguousarray(t), sort_t=False)
+    sm = SceneMesh(mesh=mesh, bodies=bodies, regions=regions,
+                   cell_body=cell_body, cell_region=cell_region, boundaries={})
+    bnd = {}
+    for name, spec in (scene.get("boundaries") or {}).items():
+        bnd[name] = selectors.select_boundary(sm, spec, f"scene.boundaries.{name}")
+    return dataclasses.replace(sm, boundaries=bnd)

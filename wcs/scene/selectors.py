@@ -1,0 +1,345 @@
+"""Geometric selectors over a meshed scene, and boundary geometry helpers.
+
+Pure functions over a :class:`~wcs.scene.meshdata.SceneMesh` (or a bare
+``skfem.MeshTri`` for the helpers).  Vectors are returned as ROWS: an array of
+``n`` normals has shape ``(n, 2)``.
+
+Boundary selectors (choose boundary facets, i.e. facets with exactly one
+adjacent cell -- after the node duplication of the mesher that includes the
+curves where two bodies touch):
+
+* ``segment: [[x0, y0], [x1, y1]]`` -- both end nodes of the facet lie on the
+  segment,
+* ``circle: {center: [x, y], radius: r}`` -- both end nodes lie on the circle,
+* ``box: [x0, y0, x1, y1]`` -- both end nodes lie in the (closed) box,
+
+each with an optional ``body: NAME`` keeping only facets of that body.
+"Lie on" uses the tolerance ``REL_TOL * h`` with ``h`` the facet's length (plus
+a tiny absolute tolerance relative to the scene size), so it follows the local
+mesh size and is insensitive to round-off but never picks a facet that only
+touches the curve at one end.
+
+Region selectors (choose cells by centroid, or facets):
+
+* ``box: [x0, y0, x1, y1]``, ``disc: {center, radius}``, ``polygon: [[x, y], ...]``
+  -- cells whose centroid is inside (closed sets, same tolerance idea),
+* ``boundary: NAME`` -- the facets of the named boundary (a facet selection),
+* ``region: NAME`` -- the cells of a named region (extension),
+* ``body: NAME`` alone -- all cells of that body; with any of the above it
+  restricts the selection to that body.
+
+A selector that selects nothing raises :class:`wcs.errors.StudyError` naming
+the caller's key path.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import StudyError
+
+REL_TOL = 1e-3          # "on the curve": distance <= REL_TOL * facet length (+ ABS_TOL * scene size)
+ABS_TOL = 1e-12
+
+BOUNDARY_KINDS = ("segment", "circle", "box")
+REGION_KINDS = ("box", "disc", "polygon", "boundary", "region")
+
+
+@dataclass(frozen=True, eq=False)
+class Selection:
+    """A set of mesh entities: cells (indices into ``mesh.t`` columns) or facets
+    (indices into ``mesh.facets`` columns), sorted and unique."""
+
+    kind: str               # "cells" | "facets"
+    index: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.index.size)
+
+
+# ---------------------------------------------------------------------------
+# helpers on a bare mesh
+
+
+def boundary_facets(mesh) -> np.ndarray:
+    """Sorted indices of facets with exactly one adjacent cell."""
+    return np.nonzero(mesh.f2t[1] == -1)[0].astype(np.int64)
+
+
+def facet_lengths(mesh, facets) -> np.ndarray:
+    """(n,) lengths of the given facets."""
+    f = mesh.facets[:, np.asarray(facets, dtype=np.int64)]
+    d = mesh.p[:, f[1]] - mesh.p[:, f[0]]
+    return np.hypot(d[0], d[1])
+
+
+def facet_normals(mesh, facets) -> np.ndarray:
+    """(n, 2) outward unit normals of boundary facets, outward w.r.t. the owning cell
+    (``mesh.f2t[0]``; for an interior facet that is the first adjacent cell)."""
+    facets = np.asarray(facets, dtype=np.int64)
+    a, b = mesh.facets[0, facets], mesh.facets[1, facets]
+    pa, pb = mesh.p[:, a], mesh.p[:, b]
+    d = pb - pa
+    n = np.vstack([d[1], -d[0]])
+    n /= np.hypot(n[0], n[1])
+    cell = mesh.t[:, mesh.f2t[0, facets]]
+    # the vertex of the owning cell that is not on the facet
+    other = np.where((cell[0] != a) & (cell[0] != b), cell[0],
+                     np.where((cell[1] != a) & (cell[1] != b), cell[1], cell[2]))
+    flip = np.einsum("ij,ij->j", mesh.p[:, other] - pa, n) > 0.0
+    n[:, flip] *= -1.0
+    return n.T.copy()
+
+
+def nodal_normals(mesh, facets) -> tuple[np.ndarray, np.ndarray]:
+    """Outward unit normals at the nodes of a set of boundary facets.
+
+    Length-weighted average of the outward normals of the (one or two) facets
+    of the set adjacent to each node, normalised.  Returns ``(nodes, normals)``
+    with ``nodes`` sorted unique node ids and ``normals`` of shape (k, 2).
+    """
+    facets = np.asarray(facets, dtype=np.int64)
+    nodes, inv = np.unique(mesh.facets[:, facets], return_inverse=True)
+    inv = inv.reshape(2, -1)
+    w = facet_normals(mesh, facets) * facet_lengths(mesh, facets)[:, None]
+    acc = np.zeros((nodes.size, 2))
+    for k in range(2):
+        acc[:, 0] += np.bincount(inv[k], weights=w[:, 0], minlength=nodes.size)
+        acc[:, 1] += np.bincount(inv[k], weights=w[:, 1], minlength=nodes.size)
+    acc /= np.hypot(acc[:, 0], acc[:, 1])[:, None]
+    return nodes, acc
+
+
+def cell_centroids(mesh) -> np.ndarray:
+    """(2, ncells) centroids."""
+    return mesh.p[:, mesh.t].mean(axis=1)
+
+
+def facet_body(sm, facets) -> np.ndarray:
+    """Body index of the (first) cell owning each facet."""
+    return sm.cell_body[sm.mesh.f2t[0, np.asarray(facets, dtype=np.int64)]]
+
+
+# ---------------------------------------------------------------------------
+# point predicates / distances (vectorised over x, y arrays)
+
+
+def _floats(value, n, path, what):
+    try:
+        out = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise StudyError(f"{what} must be numbers, got {value!r}", path=path) from None
+    if n is not None and out.shape != (n,):
+        raise StudyError(f"{what} must be {n} numbers, got {value!r}", path=path)
+    if not np.all(np.isfinite(out)):
+        raise StudyError(f"{what} must be finite, got {value!r}", path=path)
+    return out
+
+
+def _box(spec, path):
+    x0, y0, x1, y1 = _floats(spec, 4, path, "box [x0, y0, x1, y1]")
+    if x1 < x0 or y1 < y0:
+        raise StudyError(f"box [x0, y0, x1, y1] needs x0 <= x1 and y0 <= y1, got {spec}", path=path)
+    return x0, y0, x1, y1
+
+
+def _circle(spec, path):
+    if not isinstance(spec, dict) or "center" not in spec or "radius" not in spec:
+        raise StudyError("expected {center: [x, y], radius: r}", path=path)
+    c = _floats(spec["center"], 2, f"{path}.center", "center")
+    r = float(_floats([spec["radius"]], 1, f"{path}.radius", "radius")[0])
+    if r <= 0:
+        raise StudyError(f"radius must be > 0, got {r}", path=f"{path}.radius")
+    return c, r
+
+
+def _segment(spec, path):
+    try:
+        a = _floats(spec[0], 2, f"{path}.0", "segment end")
+        b = _floats(spec[1], 2, f"{path}.1", "segment end")
+        if len(spec) != 2:
+            raise IndexError
+    except (IndexError, TypeError, KeyError):
+        raise StudyError("segment must be [[x0, y0], [x1, y1]]", path=path) from None
+    if np.all(a == b):
+        raise StudyError("segment has zero length", path=path)
+    return a, b
+
+
+def _polygon(spec, path):
+    try:
+        pts = np.array([_floats(p, 2, f"{path}.{i}", "polygon vertex") for i, p in enumerate(spec)])
+    except TypeError:
+        raise StudyError("polygon must be a list of [x, y] points", path=path) from None
+    if len(pts) < 3:
+        raise StudyError("polygon needs at least 3 vertices", path=path)
+    return pts
+
+
+def dist_segment(x, y, a, b):
+    """Distance of points (x, y) to the segment ab."""
+    d = b - a
+    s = np.clip(((x - a[0]) * d[0] + (y - a[1]) * d[1]) / (d @ d), 0.0, 1.0)
+    return np.hypot(x - a[0] - s * d[0], y - a[1] - s * d[1])
+
+
+def dist_box(x, y, box):
+    """Distance to the closed box (0 inside)."""
+    x0, y0, x1, y1 = box
+    dx = np.maximum(np.maximum(x0 - x, x - x1), 0.0)
+    dy = np.maximum(np.maximum(y0 - y, y - y1), 0.0)
+    return np.hypot(dx, dy)
+
+
+def inside_polygon(x, y, pts) -> np.ndarray:
+    """Even-odd point-in-polygon test, vectorised over points."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    inside = np.zeros(np.broadcast(x, y).shape, dtype=bool)
+    n = len(pts)
+    for i in range(n):
+        (xa, ya), (xb, yb) = pts[i - 1], pts[i]
+        crosses = (ya > y) != (yb > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = xa + (y - ya) * (xb - xa) / (yb - ya)
+        inside ^= crosses & (x < xc)
+    return inside
+
+
+def dist_polygon(x, y, pts):
+    """Distance to the closed polygon area (0 inside)."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    d = np.full(np.broadcast(x, y).shape, np.inf)
+    for i in range(len(pts)):
+        d = np.minimum(d, dist_segment(x, y, pts[i - 1], pts[i]))
+    return np.where(inside_polygon(x, y, pts), 0.0, d)
+
+
+def distance_function(spec: dict, path: str, kinds=("box", "disc", "polygon", "segment", "circle")):
+    """A vectorised ``d(x, y)``: distance to the geometric set of a selector.
+
+    Region kinds (box, disc, polygon) are filled sets (distance 0 inside);
+    boundary kinds (segment, circle) are curves.  Used for mesh refinement.
+    """
+    kind = _kind(spec, kinds, path)
+    val = spec[kind]
+    p = f"{path}.{kind}"
+    if kind == "box":
+        box = _box(val, p)
+        return lambda x, y: dist_box(x, y, box)
+    if kind == "disc":
+        c, r = _circle(val, p)
+        return lambda x, y: np.maximum(np.hypot(x - c[0], y - c[1]) - r, 0.0)
+    if kind == "circle":
+        c, r = _circle(val, p)
+        return lambda x, y: np.abs(np.hypot(x - c[0], y - c[1]) - r)
+    if kind == "segment":
+        a, b = _segment(val, p)
+        return lambda x, y: dist_segment(x, y, a, b)
+    pts = _polygon(val, p)
+    return lambda x, y: dist_polygon(x, y, pts)
+
+
+def _kind(spec, kinds, path):
+    if not isinstance(spec, dict):
+        raise StudyError(f"a selector must be a mapping, got {spec!r}", path=path)
+    found = [k for k in kinds if spec.get(k) is not None]
+    if len(found) != 1:
+        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got keys {sorted(spec)}",
+                         path=path)
+    return found[0]
+
+
+def _body_index(sm, spec, path):
+    if spec.get("body") is None:
+        return None
+    try:
+        return sm.bodies.index(spec["body"])
+    except ValueError:
+        raise StudyError(f"unknown body {spec['body']!r} (bodies: {', '.join(sm.bodies)})",
+                         path=f"{path}.body") from None
+
+
+def _scene_scale(mesh) -> float:
+    ext = mesh.p.max(axis=1) - mesh.p.min(axis=1)
+    return float(np.hypot(*ext)) or 1.0
+
+
+# ---------------------------------------------------------------------------
+# selectors
+
+
+def select_boundary(sm, spec: dict, path: str, *, allow_empty: bool = False) -> np.ndarray:
+    """Sorted indices into ``sm.mesh.facets`` of the boundary facets chosen by a
+    boundary selector (segment / circle / box, optional body)."""
+    mesh = sm.mesh
+    kind = _kind(spec, BOUNDARY_KINDS, path)
+    body = _body_index(sm, spec, path)
+    bf = boundary_facets(mesh)
+    if body is not None:
+        bf = bf[facet_body(sm, bf) == body]
+    a, b = mesh.facets[0, bf], mesh.facets[1, bf]
+    xa, ya, xb, yb = mesh.p[0, a], mesh.p[1, a], mesh.p[0, b], mesh.p[1, b]
+    tol = REL_TOL * np.hypot(xb - xa, yb - ya) + ABS_TOL * _scene_scale(mesh)
+    val = spec[kind]
+    p = f"{path}.{kind}"
+    if kind == "segment":
+        s0, s1 = _segment(val, p)
+        ok = (dist_segment(xa, ya, s0, s1) <= tol) & (dist_segment(xb, yb, s0, s1) <= tol)
+    elif kind == "circle":
+        c, r = _circle(val, p)
+        ok = ((np.abs(np.hypot(xa - c[0], ya - c[1]) - r) <= tol)
+              & (np.abs(np.hypot(xb - c[0], yb - c[1]) - r) <= tol))
+    else:
+        box = _box(val, p)
+        ok = (dist_box(xa, ya, box) <= tol) & (dist_box(xb, yb, box) <= tol)
+    out = np.sort(bf[ok])
+    if out.size == 0 and not allow_empty:
+        where = f" of body {spec['body']!r}" if body is not None else ""
+        raise StudyError(f"the {kind} selector selects no boundary edge{where}", path=path)
+    return out
+
+
+def select_region(sm, spec: dict, path: str, *, allow_empty: bool = False) -> Selection:
+    """Cells (by centroid) or facets chosen by a region selector.
+
+    ``box`` / ``disc`` / ``polygon`` / ``region`` / lone ``body`` -> cells;
+    ``boundary: NAME`` -> the facets of ``sm.boundaries[NAME]``.
+    """
+    mesh = sm.mesh
+    if isinstance(spec, dict) and set(spec) <= {"body"} and spec.get("body") is not None:
+        body = _body_index(sm, spec, path)
+        sel = Selection("cells", np.nonzero(sm.cell_body == body)[0].astype(np.int64))
+        return _nonempty(sel, spec, path, allow_empty)
+    kind = _kind(spec, REGION_KINDS, path)
+    body = _body_index(sm, spec, path)
+    val = spec[kind]
+    p = f"{path}.{kind}"
+    if kind == "boundary":
+        if val not in sm.boundaries:
+            raise StudyError(f"unknown boundary {val!r} (boundaries: {', '.join(sm.boundaries)})",
+                             path=p)
+        f = np.asarray(sm.boundaries[val], dtype=np.int64)
+        if body is not None:
+            f = f[facet_body(sm, f) == body]
+        return _nonempty(Selection("facets", np.sort(f)), spec, path, allow_empty)
+    if kind == "region":
+        idx = [i for i, (_, r) in enumerate(sm.regions) if r == val]
+        if not idx:
+            raise StudyError(f"unknown region {val!r}", path=p)
+        mask = np.isin(sm.cell_region, idx)
+    else:
+        c = cell_centroids(mesh)
+        tol = ABS_TOL * _scene_scale(mesh)
+        mask = distance_function({kind: val}, path, ("box", "disc", "polygon"))(c[0], c[1]) <= tol
+    if body is not None:
+        mask &= sm.cell_body == body
+    return _nonempty(Selection("cells", np.nonzero(mask)[0].astype(np.int64)), spec, path, allow_empty)
+
+
+def _nonempty(sel, spec, path, allow_empty):
+    if len(sel) == 0 and not allow_empty:
+        raise StudyError(f"the selector {spec!r} selects no mesh {sel.kind[:-1]}", path=path)
+    return sel

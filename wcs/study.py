@@ -1,0 +1,986 @@
+"""Study files: load and validate them, and address the numbers of a scene by dotted path.
+
+`load_study(path)` reads a study file (study-format.md §2), checks it with typed
+models and cross-reference rules, and returns a `Study` whose `scene` is plain
+dicts and lists in the YAML shape, resolved: scene and material files inlined,
+region names and defaults filled in. Every bad input raises `StudyError` naming
+the file, the dotted key path and the fault.
+
+Dotted paths are relative to the scene (`materials.rubber.E`,
+`loads.pad_top.traction.1`, ...). `get_path` / `set_path` read and write them.
+
+A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
+{range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
+`<path>[points-1]`: values of g at equally spaced points along the contact.
+`scene_with` stores them as `friction.slip_limit_profile: [g0, ...]` and sets
+`friction.slip_limit` to their mean. The slope bound |g[i+1] - g[i]| <= C*ds
+needs the contact length (ds = length / (points - 1)), so it is only stored here.
+"""
+from __future__ import annotations
+
+import copy
+import difflib
+import hashlib
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional
+
+import numpy as np
+import yaml
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from .errors import StudyError
+
+REPO = Path(__file__).resolve().parent.parent
+CONFIGS = REPO / "configs"
+
+# ---------------------------------------------------------------- reading YAML
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate keys and reads `1e7` as a number (as YAML 1.2 does)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                if key_node.value in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"duplicate key '{key_node.value}'", key_node.start_mark)
+                seen.add(key_node.value)
+        return super().construct_mapping(node, deep)
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def _read_yaml(path: Path) -> tuple[Any, str]:
+    """The parsed content and the text of a YAML file; StudyError if unreadable or not YAML."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise StudyError("file not found", file=str(path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise StudyError(f"cannot read the file: {exc}", file=str(path)) from None
+    try:
+        return yaml.load(text, Loader=_Loader), text
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise StudyError(f"YAML syntax error{where}: {exc.problem or exc.context}",
+                         file=str(path)) from None
+    except yaml.YAMLError as exc:
+        raise StudyError(f"YAML syntax error: {exc}", file=str(path)) from None
+
+
+def _locate(name: str, src: _Source, key: str) -> Path:
+    """A file named at `key`: relative to the referencing file's folder, else in <repo>/configs/."""
+    places = (src.file.parent / name, CONFIGS / name)
+    for candidate in places:
+        if candidate.is_file():
+            return candidate
+    raise src.error((key,), f"file '{name}' not found (looked for {places[0]} and {places[1]})")
+
+
+# ---------------------------------------------------------------- errors
+
+
+def _did_you_mean(word: str, choices) -> str:
+    choices = sorted(str(c) for c in choices)
+    close = difflib.get_close_matches(str(word), choices, n=1)
+    if close:
+        return f" (did you mean '{close[0]}'?)"
+    return f" (expected one of: {', '.join(choices)})" if choices else ""
+
+
+def _fault(err: dict) -> str:
+    """A pydantic error in plain words, with the offending value when it is short."""
+    if err["type"] == "missing":
+        return "required key is missing"
+    message = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    message = re.sub(r"^(List|Dictionary) should have (.*) after validation", r"must have \2", message)
+    message = re.sub(r" or instance of \w+$", "", message)
+    value = err.get("input")
+    if err["type"] != "unknown_key" and isinstance(value, (bool, int, float, str, type(None))):
+        message += f" (got {value!r})"
+    return message
+
+
+@dataclass(frozen=True)
+class _Source:
+    """Where a piece of input lives: the file to name and the key path of the piece in it."""
+
+    file: Path
+    prefix: tuple = ()
+
+    def error(self, path, message: str) -> StudyError:
+        keys = self.prefix + tuple(path)
+        return StudyError(message, file=str(self.file), path=".".join(map(str, keys)) or None)
+
+    def validate(self, schema: TypeAdapter, data, path=()):
+        """`data` checked and converted by `schema`; the first fault as a StudyError."""
+        try:
+            return schema.validate_python(data)
+        except ValidationError as exc:
+            errors = exc.errors()
+            first = errors[0]
+            loc = [k for k in first["loc"] if k != "[key]"]
+            if first["type"] == "unknown_key":
+                loc.append(first["ctx"]["key"])
+            more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+            raise self.error(tuple(path) + tuple(loc), _fault(first) + more) from None
+
+
+# ---------------------------------------------------------------- typed models
+
+# Physical ranges, shared by the models and by the boxes of uncertain data.
+_ANY: dict = {}
+_POSITIVE = {"gt": 0}
+_NONNEGATIVE = {"ge": 0}
+_POISSON = {"gt": -1, "lt": 0.5}
+_KELVIN = {"gt": 0}
+
+_CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+def _valid_name(name: str) -> str:
+    if not name or re.search(r"[.\s\[\]]", name):
+        raise ValueError("a name may not contain dots, spaces or brackets")
+    return name
+
+
+Name = Annotated[str, AfterValidator(_valid_name)]
+Point = Annotated[list[float], Field(min_length=2, max_length=2)]
+Corners = Annotated[list[float], Field(min_length=4, max_length=4)]
+
+
+def _ordered(corners: list[float], strict: bool) -> list[float]:
+    x0, y0, x1, y1 = corners
+    if (x0 >= x1 or y0 >= y1) if strict else (x0 > x1 or y0 > y1):
+        relation = "<" if strict else "<="
+        raise ValueError(f"corners must be [x0, y0, x1, y1] with x0 {relation} x1 and y0 {relation} y1")
+    return corners
+
+
+Rectangle = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=True))]
+BoxCorners = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=False))]
+
+
+def _has_area(points: list[list[float]]) -> list[list[float]]:
+    xs, ys = np.array(points).T
+    if np.dot(xs, np.roll(ys, -1)) == np.dot(ys, np.roll(xs, -1)):
+        raise ValueError("the polygon has zero area")
+    return points
+
+
+Polygon = Annotated[list[Point], Field(min_length=3), AfterValidator(_has_area)]
+
+
+def _has_length(ends: list[list[float]]) -> list[list[float]]:
+    if ends[0] == ends[1]:
+        raise ValueError("the segment's two ends coincide")
+    return ends
+
+
+Segment = Annotated[list[Point], Field(min_length=2, max_length=2), AfterValidator(_has_length)]
+
+
+def _nonzero(direction: list[float]) -> list[float]:
+    if direction == [0, 0]:
+        raise ValueError("the direction must not be [0, 0]")
+    return direction
+
+
+Direction = Annotated[Point, AfterValidator(_nonzero)]
+
+
+def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
+    given = [k for k in keys if getattr(model, k) is not None]
+    if len(given) != 1:
+        found = f"got {', '.join(given)}" if given else "got none"
+        raise ValueError(f"give exactly one of {', '.join(keys)} ({found})")
+
+
+class _Strict(BaseModel):
+    """A mapping with a fixed set of keys; an unknown key is an error with a hint."""
+
+    model_config = _CONFIG
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data):
+        if isinstance(data, dict):
+            allowed = [f.alias or name for name, f in cls.model_fields.items()]
+            for key in data:
+                if key not in allowed:
+                    raise PydanticCustomError(
+                        "unknown_key", "unknown key '{key}'{hint}",
+                        {"key": str(key), "hint": _did_you_mean(key, allowed)})
+        return data
+
+
+class Material(_Strict):
+    E: Optional[float] = Field(None, **_POSITIVE)
+    nu: Optional[float] = Field(None, **_POISSON)
+    lam: Optional[float] = Field(None, alias="lambda")
+    mu: Optional[float] = Field(None, **_POSITIVE)
+    conductivity: Optional[float] = Field(None, **_POSITIVE)
+    expansion: Optional[float] = None
+    density_weight: Optional[float] = Field(None, **_NONNEGATIVE)
+
+    @model_validator(mode="after")
+    def _one_elastic_pair(self):
+        engineering = {"E": self.E, "nu": self.nu}
+        lame = {"lambda": self.lam, "mu": self.mu}
+        uses = [pair for pair in (engineering, lame) if any(v is not None for v in pair.values())]
+        if len(uses) != 1:
+            raise ValueError("give the elastic constants as E, nu or as lambda, mu (exactly one pair)")
+        missing = [k for k, v in uses[0].items() if v is None]
+        if missing:
+            raise ValueError(f"'{missing[0]}' is missing: {' and '.join(uses[0])} go together")
+        if self.lam is not None and self.lam + self.mu <= 0:
+            raise ValueError("lambda + mu must be > 0 (positive bulk modulus)")
+        return self
+
+
+class Disc(_Strict):
+    center: Point
+    radius: float = Field(**_POSITIVE)
+
+
+class Shape(_Strict):
+    rectangle: Optional[Rectangle] = None
+    polygon: Optional[Polygon] = None
+    disc: Optional[Disc] = None
+    minus: Optional[list[Shape]] = None
+    intersect: Optional[list[Shape]] = None
+
+    @model_validator(mode="after")
+    def _one_primitive(self):
+        _exactly_one(self, ("rectangle", "polygon", "disc"))
+        return self
+
+
+class Region(_Strict):
+    material: str
+    shape: Optional[Shape] = None          # required unless the scene's mesh is a file
+    name: Optional[Name] = None
+
+
+class Body(_Strict):
+    regions: Annotated[list[Region], Field(min_length=1)]
+
+
+class Boundary(_Strict):
+    body: Optional[str] = None
+    segment: Optional[Segment] = None
+    circle: Optional[Disc] = None
+    box: Optional[BoxCorners] = None
+
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("segment", "circle", "box"))
+        return self
+
+
+class Support(_Strict):
+    u: Optional[Annotated[list[Optional[float]], Field(min_length=2, max_length=2)]] = None
+    normal: Optional[float] = None
+
+    @model_validator(mode="after")
+    def _holds_something(self):
+        _exactly_one(self, ("u", "normal"))
+        if self.u is not None and all(c is None for c in self.u):
+            raise ValueError("u: [null, null] holds nothing; give at least one component")
+        return self
+
+
+class Load(_Strict):
+    pressure: Optional[float] = None
+    traction: Optional[Point] = None
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        _exactly_one(self, ("pressure", "traction"))
+        return self
+
+
+class Friction(_Strict):
+    slip_limit: Optional[float] = Field(None, **_NONNEGATIVE)
+    coefficient: Optional[float] = Field(None, **_NONNEGATIVE)
+
+    @model_validator(mode="after")
+    def _one_law(self):
+        _exactly_one(self, ("slip_limit", "coefficient"))
+        return self
+
+
+class Contact(_Strict):
+    slave: str
+    master: str
+    friction: Optional[Friction] = None
+
+
+class Thermal(_Strict):
+    reference: float = Field(**_KELVIN)
+    temperature: Annotated[dict[str, Annotated[float, Field(**_KELVIN)]], Field(min_length=1)]
+    sources: dict[str, float] = {}
+
+
+class RegionSelector(_Strict):
+    box: Optional[Rectangle] = None
+    disc: Optional[Disc] = None
+    polygon: Optional[Polygon] = None
+    boundary: Optional[str] = None
+
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("box", "disc", "polygon", "boundary"))
+        return self
+
+
+class RegionOfInterest(RegionSelector):
+    body: Optional[str] = None
+
+
+class Refinement(RegionSelector):
+    size: float = Field(**_POSITIVE)
+
+
+class Mesh(_Strict):
+    size: Optional[float] = Field(None, **_POSITIVE)
+    grading: Optional[float] = Field(None, **_NONNEGATIVE)
+    refine: list[Refinement] = []
+    file: Optional[str] = None             # a mesh file (gmsh .msh, ...) instead of shapes
+
+    @model_validator(mode="after")
+    def _size_or_file(self):
+        if self.file is None and self.size is None:
+            raise ValueError("give `size` (the target element size) or `file` (a mesh file)")
+        if self.file is not None and (self.size is not None or self.refine or self.grading is not None):
+            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading` and `refine`")
+        return self
+
+
+class Scene(_Strict):
+    dimension: int = 2
+    plane: Literal["strain", "stress"] = "strain"
+    mesh: Mesh
+    materials: Annotated[dict[Name, Material], Field(min_length=1)]
+    bodies: Annotated[dict[Name, Body], Field(min_length=1)]
+    boundaries: dict[Name, Boundary] = {}
+    supports: dict[str, Support] = {}
+    loads: dict[str, Load] = {}
+    body_forces: dict[str, Point] = {}
+    contacts: dict[Name, Contact] = {}
+    thermal: Optional[Thermal] = None
+    regions_of_interest: dict[Name, RegionOfInterest] = {}
+
+    @field_validator("dimension")
+    @classmethod
+    def _two_dimensional(cls, dimension):
+        if dimension != 2:
+            raise ValueError("only dimension 2 is supported")
+        return dimension
+
+
+CriterionKind = Literal["mean_temperature", "mean_normal_displacement",
+                        "shear_stress_intensity", "contact_pressure", "von_mises"]
+
+
+class Criterion(_Strict):
+    name: Name
+    kind: CriterionKind
+    regions: Annotated[list[str], Field(min_length=1)]
+    point: Optional[Point] = None
+    direction: Optional[Direction] = None
+
+    @model_validator(mode="after")
+    def _point_only_for_displacement(self):
+        if self.kind != "mean_normal_displacement":
+            for key in ("point", "direction"):
+                if getattr(self, key) is not None:
+                    raise ValueError(f"'{key}' applies only to kind mean_normal_displacement")
+        return self
+
+
+class SampleDesign(_Strict):
+    design: Literal["lhs", "sobol", "vertices", "grid"] = "lhs"
+    n: int = Field(32, ge=1)
+    seed: int = Field(0, ge=0)
+
+
+class LocalSearch(_Strict):
+    starts: int = Field(3, ge=1)
+
+
+class Search(_Strict):
+    method: Literal["auto", "sample", "local", "global"] = "auto"
+    sample: SampleDesign = Field(default_factory=SampleDesign)
+    budget: int = Field(200, ge=1)
+    local: LocalSearch = Field(default_factory=LocalSearch)
+
+
+class DomainDecomposition(_Strict):
+    subdomains: int = Field(8, ge=1)
+
+
+class Solver(_Strict):
+    method: Literal["auto", "monolithic", "dd", "qp"] = "auto"
+    tolerance: float = Field(1e-8, **_POSITIVE)
+    max_iterations: int = Field(200, ge=1)
+    dd: DomainDecomposition = Field(default_factory=DomainDecomposition)
+    fallback: bool = True
+
+
+class Sweep(_Strict):
+    grid: Annotated[dict[str, Annotated[list[float], Field(min_length=1)]], Field(min_length=1)]
+
+
+class StudyFile(_Strict):
+    study: Optional[Name] = None
+    scene: Any = Field(description="inline mapping, or a file name relative to the study file")
+    uncertain: dict[str, Any] = {}
+    criteria: list[Criterion] = []
+    limits: dict[str, float] = {}
+    search: Search = Field(default_factory=Search)
+    solver: Solver = Field(default_factory=Solver)
+    sweep: Optional[Sweep] = None
+    output: Optional[str] = None
+
+    @field_validator("scene")
+    @classmethod
+    def _mapping_or_file(cls, scene):
+        if not isinstance(scene, (dict, str)):
+            raise ValueError("must be a mapping (the scene) or the name of a scene file")
+        return scene
+
+
+class Profile(_Strict):
+    range: Point
+    lipschitz: float = Field(**_POSITIVE)
+    points: int = Field(ge=2)
+
+
+_STUDY = TypeAdapter(StudyFile)
+_SCENE = TypeAdapter(Scene)
+_PROFILE = TypeAdapter(Profile)
+_BOX = TypeAdapter(Point, config=_CONFIG)
+_LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
+
+
+def _dump(model) -> Any:
+    if isinstance(model, BaseModel):
+        return model.model_dump(by_alias=True, exclude_none=True)
+    return {k: _dump(v) for k, v in model.items()}
+
+
+# ---------------------------------------------------------------- the scene
+
+
+def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path, str]]]:
+    """The validated scene, where it lives, and the extra files it came from."""
+    extra = []
+    src = _Source(study_src.file, ("scene",))
+    if isinstance(raw, str):
+        path = _locate(raw, study_src, "scene")
+        raw, text = _read_yaml(path)
+        src = _Source(path)
+        extra.append((path, text))
+    if isinstance(raw, dict) and isinstance(raw.get("materials"), str):
+        raw = dict(raw)
+        raw["materials"], library = _load_materials(raw["materials"], src)
+        extra.append(library)
+    scene = _dump(src.validate(_SCENE, raw))
+    if "file" in scene["mesh"]:                # regions come from the file's physical groups
+        from .scene.meshfile import prepare_scene
+        scene["mesh"]["notes"] = prepare_scene(scene, src.file.parent, src.error)  # popped by load_study
+    else:
+        _require_shapes(scene, src)
+    _name_regions(scene)
+    return scene, src, extra
+
+
+def _require_shapes(scene: dict, src: _Source) -> None:
+    for body, spec in scene["bodies"].items():
+        for i, region in enumerate(spec["regions"]):
+            if "shape" not in region:
+                raise src.error(("bodies", body, "regions", i, "shape"),
+                                "required key is missing (a region needs a shape unless the "
+                                "scene's mesh is a file: `mesh: {file: ...}`)")
+
+
+def _load_materials(name: str, src: _Source) -> tuple[dict, tuple[Path, str]]:
+    path = _locate(name, src, "materials")
+    raw, text = _read_yaml(path)
+    materials = _dump(_Source(path).validate(_LIBRARY, raw))
+    return materials, (path, text)
+
+
+def _name_regions(scene: dict) -> None:
+    for body, spec in scene["bodies"].items():
+        for i, region in enumerate(spec["regions"]):
+            region.setdefault("name", f"{body}_{i}")
+
+
+def _region_names(scene: dict) -> list[str]:
+    return [r["name"] for spec in scene["bodies"].values() for r in spec["regions"]]
+
+
+def _require(name: str, known, what: str, src: _Source, path) -> None:
+    if name not in known:
+        raise src.error(path, f"unknown {what} '{name}'{_did_you_mean(name, known)}")
+
+
+def _check_regions(scene: dict, src: _Source) -> None:
+    """Materials exist; region names are unique and differ from other bodies' names."""
+    seen = set()
+    for body, spec in scene["bodies"].items():
+        for i, region in enumerate(spec["regions"]):
+            path = ("bodies", body, "regions", i)
+            _require(region["material"], scene["materials"], "material", src, path + ("material",))
+            name = region["name"]
+            if name in seen:
+                raise src.error(path + ("name",), f"region name '{name}' is used twice")
+            own_name = name == body and len(spec["regions"]) == 1
+            if name in scene["bodies"] and not own_name:
+                raise src.error(path + ("name",), f"region name '{name}' is also a body's name")
+            seen.add(name)
+
+
+def _check_references(scene: dict, src: _Source) -> None:
+    """Every boundary, body and region a scene key refers to exists."""
+    bodies, boundaries = scene["bodies"], scene["boundaries"]
+    parts = set(bodies) | set(_region_names(scene))
+    for name, spec in boundaries.items():
+        if "body" in spec:
+            _require(spec["body"], bodies, "body", src, ("boundaries", name, "body"))
+    for block in ("supports", "loads"):
+        for name in scene[block]:
+            _require(name, boundaries, "boundary", src, (block, name))
+    for name in scene["body_forces"]:
+        _require(name, parts, "body or region", src, ("body_forces", name))
+    for i, refinement in enumerate(scene["mesh"]["refine"]):
+        if "boundary" in refinement:
+            _require(refinement["boundary"], boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
+    for name, roi in scene["regions_of_interest"].items():
+        path = ("regions_of_interest", name)
+        if "boundary" in roi:
+            _require(roi["boundary"], boundaries, "boundary", src, path + ("boundary",))
+        if "body" in roi:
+            _require(roi["body"], bodies, "body", src, path + ("body",))
+
+
+def _check_contacts(scene: dict, src: _Source) -> None:
+    """Both sides of a contact are boundaries, of two different bodies when they say which."""
+    boundaries = scene["boundaries"]
+    for name, contact in scene["contacts"].items():
+        path = ("contacts", name)
+        for side in ("slave", "master"):
+            _require(contact[side], boundaries, "boundary", src, path + (side,))
+        slave, master = boundaries[contact["slave"]], boundaries[contact["master"]]
+        if contact["slave"] == contact["master"]:
+            raise src.error(path + ("master",), "slave and master are the same boundary")
+        if "body" in slave and slave.get("body") == master.get("body"):
+            raise src.error(path + ("master",),
+                            f"slave and master both belong to body '{slave['body']}'; "
+                            "a contact joins two different bodies")
+
+
+def _check_thermal(scene: dict, src: _Source) -> list[str]:
+    """Thermal references exist and used materials conduct; notes on materials without expansion."""
+    thermal = scene.get("thermal")
+    if thermal is None:
+        return []
+    for name in thermal["temperature"]:
+        _require(name, scene["boundaries"], "boundary", src, ("thermal", "temperature", name))
+    parts = set(scene["bodies"]) | set(_region_names(scene))
+    for name in thermal["sources"]:
+        _require(name, parts, "body or region", src, ("thermal", "sources", name))
+    used = dict.fromkeys(r["material"] for b in scene["bodies"].values() for r in b["regions"])
+    notes = []
+    for name in used:
+        material = scene["materials"][name]
+        if "conductivity" not in material:
+            raise src.error(("materials", name),
+                            "needs 'conductivity' because the scene has a thermal block")
+        if "expansion" not in material:
+            notes.append(f"material '{name}' has no 'expansion': no thermal strain in it")
+    return notes
+
+
+# ---------------------------------------------------------------- dotted paths
+
+
+def get_path(scene: dict, path: str):
+    """The value at a dotted path of the scene; KeyError (with a hint) if there is none."""
+    node = scene
+    keys = path.split(".")
+    for depth, key in enumerate(keys):
+        node = _child(node, key, ".".join(keys[:depth]) or "the scene")
+    return node
+
+
+def set_path(scene: dict, path: str, value) -> None:
+    """Put `value` at a dotted path of the scene (in place); KeyError if its parent is missing."""
+    parent, _, key = path.rpartition(".")
+    node = get_path(scene, parent) if parent else scene
+    if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+        node[int(key)] = value
+    elif isinstance(node, dict):
+        node[key] = value
+    else:
+        raise KeyError(f"cannot set '{key}' under '{parent}'")
+
+
+def _child(node, key: str, where: str):
+    if isinstance(node, dict):
+        if key in node:
+            return node[key]
+        raise KeyError(f"no '{key}' under '{where}'{_did_you_mean(key, node)}")
+    if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+        return node[int(key)]
+    raise KeyError(f"no '{key}' under '{where}'")
+
+
+# What can be uncertain (or swept), each with its physical range.
+# `<i>` is a vector component (0 or 1), any other `<...>` a name.
+_ADDRESSES = {
+    "materials.<m>.E": _POSITIVE,
+    "materials.<m>.nu": _POISSON,
+    "materials.<m>.lambda": _ANY,  # lambda + mu > 0 is checked on the pair
+    "materials.<m>.mu": _POSITIVE,
+    "materials.<m>.conductivity": _POSITIVE,
+    "materials.<m>.expansion": _ANY,
+    "materials.<m>.density_weight": _NONNEGATIVE,
+    "loads.<boundary>.pressure": _ANY,
+    "loads.<boundary>.traction.<i>": _ANY,
+    "body_forces.<body or region>.<i>": _ANY,
+    "supports.<boundary>.u.<i>": _ANY,
+    "supports.<boundary>.normal": _ANY,
+    "contacts.<c>.friction.slip_limit": _NONNEGATIVE,
+    "contacts.<c>.friction.coefficient": _NONNEGATIVE,
+    "thermal.reference": _KELVIN,
+    "thermal.temperature.<boundary>": _KELVIN,
+    "thermal.sources.<body or region>": _ANY,
+}
+_PROFILE_ADDRESS = "contacts.<c>.friction.slip_limit"
+
+
+def _address(path: str) -> str | None:
+    """The `_ADDRESSES` pattern a dotted path matches, or None."""
+    keys = path.split(".")
+    for pattern in _ADDRESSES:
+        parts = pattern.split(".")
+        if len(parts) == len(keys) and all(map(_matches, parts, keys)):
+            return pattern
+    return None
+
+
+def _matches(part: str, key: str) -> bool:
+    if part == "<i>":
+        return key.isdigit()
+    return part.startswith("<") or part == key
+
+
+def _in_range(value: float, bounds: dict) -> bool:
+    return ((value > bounds["gt"]) if "gt" in bounds else True) and \
+        ((value >= bounds["ge"]) if "ge" in bounds else True) and \
+        ((value < bounds["lt"]) if "lt" in bounds else True)
+
+
+def _range_text(bounds: dict) -> str:
+    words = {"gt": ">", "ge": ">=", "lt": "<"}
+    return " and ".join(f"{words[k]} {v}" for k, v in bounds.items())
+
+
+def _nominal_number(scene: dict, path: str, src: _Source, where) -> float:
+    """The scene's number at an addressable path, or a StudyError at `where`."""
+    if _address(path) is None:
+        forms = ", ".join(_ADDRESSES)
+        raise src.error(where, f"'{path}' is not a number that can vary; these can: {forms}")
+    try:
+        value = get_path(scene, path)
+    except KeyError as exc:
+        raise src.error(where, f"the scene has no number at '{path}': {exc.args[0]}") from None
+    if value is None:
+        raise src.error(where, f"'{path}' is null in the scene (a free component), not a number")
+    return value
+
+
+def _check_values(path: str, values, src: _Source, where) -> None:
+    bounds = _ADDRESSES[_address(path)]
+    for value in values:
+        if not _in_range(value, bounds):
+            raise src.error(where, f"{value!r} is outside the physical range of '{path}' "
+                                   f"({_range_text(bounds)})")
+
+
+# ---------------------------------------------------------------- uncertain data, sweep
+
+
+def _parse_uncertain(doc: dict, scene: dict, src: _Source) -> list[dict]:
+    """The boxes of `uncertain:` in file order, each checked against the scene."""
+    entries = [_parse_box(path, spec, scene, src) for path, spec in doc.items()]
+    _check_bulk_modulus(entries, scene, src)
+    return entries
+
+
+def _parse_box(path: str, spec, scene: dict, src: _Source) -> dict:
+    where = ("uncertain", path)
+    nominal = _nominal_number(scene, path, src, where)
+    if isinstance(spec, dict):
+        if _address(path) != _PROFILE_ADDRESS:
+            raise src.error(where, "a {range, lipschitz, points} profile is only allowed "
+                                   f"on {_PROFILE_ADDRESS}")
+        profile = src.validate(_PROFILE, spec, where)
+        entry = {"path": path, "lower": profile.range[0], "upper": profile.range[1],
+                 "lipschitz": profile.lipschitz, "points": profile.points}
+    elif isinstance(spec, list):
+        lower, upper = src.validate(_BOX, spec, where)
+        entry = {"path": path, "lower": lower, "upper": upper}
+    else:
+        raise src.error(where, "must be [lower, upper] or {range: [lower, upper], lipschitz, points}")
+    if entry["lower"] > entry["upper"]:
+        raise src.error(where, f"lower bound {entry['lower']} is above upper bound {entry['upper']}")
+    _check_values(path, (entry["lower"], entry["upper"]), src, where)
+    if not entry["lower"] <= nominal <= entry["upper"]:
+        raise src.error(where, f"the scene's value {nominal} lies outside the box "
+                               f"[{entry['lower']}, {entry['upper']}]")
+    return entry
+
+
+def _check_bulk_modulus(entries: list[dict], scene: dict, src: _Source) -> None:
+    """Lame boxes keep lambda + mu > 0 at their lowest corner."""
+    lowest = {e["path"]: e["lower"] for e in entries}
+    for name, material in scene["materials"].items():
+        if "lambda" not in material:
+            continue
+        lam_path, mu_path = f"materials.{name}.lambda", f"materials.{name}.mu"
+        if lowest.get(lam_path, material["lambda"]) + lowest.get(mu_path, material["mu"]) <= 0:
+            where = lam_path if lam_path in lowest else mu_path
+            raise src.error(("uncertain", where), "the box allows lambda + mu <= 0 "
+                                                  "(the bulk modulus must stay positive)")
+
+
+def _check_sweep(sweep: dict | None, scene: dict, src: _Source) -> None:
+    for path, values in (sweep or {}).get("grid", {}).items():
+        where = ("sweep", "grid", path)
+        _nominal_number(scene, path, src, where)
+        _check_values(path, values, src, where)
+
+
+# ---------------------------------------------------------------- criteria, limits
+
+
+def _check_criteria(criteria: list[dict], scene: dict, src: _Source) -> None:
+    names = set()
+    for i, criterion in enumerate(criteria):
+        if criterion["name"] in names:
+            raise src.error(("criteria", i, "name"), f"criterion name '{criterion['name']}' is used twice")
+        names.add(criterion["name"])
+        for j, roi in enumerate(criterion["regions"]):
+            _require(roi, scene["regions_of_interest"], "region of interest", src,
+                     ("criteria", i, "regions", j))
+        if criterion["kind"] == "mean_temperature" and "thermal" not in scene:
+            raise src.error(("criteria", i, "kind"), "mean_temperature needs a thermal block in the scene")
+        if criterion["kind"] == "contact_pressure" and not scene["contacts"]:
+            raise src.error(("criteria", i, "kind"), "contact_pressure needs a contact in the scene")
+
+
+def _check_limits(limits: dict, criteria: list[dict], src: _Source) -> None:
+    names = [c["name"] for c in criteria]
+    for name in limits:
+        _require(name, names, "criterion", src, ("limits", name))
+
+
+# ---------------------------------------------------------------- the study
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """The uncertain numbers as one vector: names (dotted paths) and the box."""
+
+    names: list[str]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+
+def _parameters(uncertain: list[dict]) -> Parameters:
+    names, lower, upper = [], [], []
+    for entry in uncertain:
+        if "points" in entry:
+            names += [f"{entry['path']}[{i}]" for i in range(entry["points"])]
+        else:
+            names.append(entry["path"])
+        count = entry.get("points", 1)
+        lower += [entry["lower"]] * count
+        upper += [entry["upper"]] * count
+    return Parameters(names, np.array(lower, dtype=float), np.array(upper, dtype=float))
+
+
+@dataclass
+class Study:
+    """A validated study. `scene` is resolved plain data in the YAML shape."""
+
+    name: str
+    file: Path
+    text: str
+    sha256: str
+    scene: dict
+    uncertain: list[dict]
+    criteria: list[dict]
+    limits: dict
+    search: dict
+    solver: dict
+    sweep: dict | None
+    output: str
+    parameters: Parameters
+    notes: list[str]
+    _evaluator: Any = field(default=None, repr=False, compare=False)
+
+    def evaluate(self, values):
+        """One forward solve at a data vector (or {dotted path: value}); the mesh and the
+        assembled model are built on the first call and reused."""
+        from .evaluation import Evaluator
+        if self._evaluator is None:
+            self._evaluator = Evaluator(self)
+        return self._evaluator.evaluate(values)
+
+    def nominal(self) -> np.ndarray:
+        """The scene's own values in parameter order (a profile repeats the constant value)."""
+        values = []
+        for entry in self.uncertain:
+            values += [get_path(self.scene, entry["path"])] * entry.get("points", 1)
+        return np.array(values, dtype=float)
+
+
+def _recorded_text(file: Path, text: str, extra: list[tuple[Path, str]]) -> str:
+    """The study text followed by each file it pulled in, as further YAML documents."""
+    for path, more in extra:
+        name = os.path.relpath(path, file.parent)
+        text = f"{text.rstrip()}\n---\n# {name}\n{more}"
+    return text
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file; StudyError names the file, key path and fault."""
+    file = Path(path)
+    doc, text = _read_yaml(file)
+    src = _Source(file)
+    if not isinstance(doc, dict):
+        got = "an empty file" if doc is None else type(doc).__name__
+        raise src.error((), f"a study file is a mapping of keys (got {got})")
+    top = src.validate(_STUDY, doc)
+    scene, scene_src, extra = _load_scene(top.scene, src)
+    _check_regions(scene, scene_src)
+    _check_references(scene, scene_src)
+    _check_contacts(scene, scene_src)
+    notes = scene["mesh"].pop("notes", []) + _check_thermal(scene, scene_src)
+    uncertain = _parse_uncertain(top.uncertain, scene, src)
+    criteria = [_dump(c) for c in top.criteria]
+    _check_criteria(criteria, scene, src)
+    _check_limits(top.limits, criteria, src)
+    sweep = _dump(top.sweep) if top.sweep else None
+    _check_sweep(sweep, scene, src)
+    name = top.study or file.stem
+    text = _recorded_text(file, text, extra)
+    return Study(
+        name=name, file=file, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(),
+        scene=scene, uncertain=uncertain, criteria=criteria, limits=dict(top.limits),
+        search=_dump(top.search), solver=_dump(top.solver), sweep=sweep,
+        output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
+    )
+
+
+# ---------------------------------------------------------------- applying data
+
+
+def scene_with(study: Study, values) -> dict:
+    """A deep copy of the scene with data applied.
+
+    `values` is a vector in the order of `study.parameters`, or a mapping from
+    dotted path to value: a parameter name (`...slip_limit[2]`), an uncertain
+    path (a profile takes one value for all points or a list of `points`
+    values), or any other addressable number of the scene (e.g. a sweep path).
+    Parameters a mapping leaves out keep their nominal value.
+    """
+    if isinstance(values, Mapping):
+        x, others = _split_mapping(study, values)
+    else:
+        x, others = np.asarray(values, dtype=float), {}
+    if x.shape != (len(study.parameters),):
+        raise ValueError(f"expected {len(study.parameters)} values, got shape {x.shape}")
+    scene = copy.deepcopy(study.scene)
+    slices = _entry_slices(study)
+    for entry in study.uncertain:
+        _apply(scene, entry, x[slices[entry["path"]]])
+    for path, value in others.items():
+        set_path(scene, path, value)
+    return scene
+
+
+def _apply(scene: dict, entry: dict, chunk: np.ndarray) -> None:
+    if "points" in entry:
+        set_path(scene, entry["path"] + "_profile", [float(v) for v in chunk])
+        set_path(scene, entry["path"], float(np.mean(chunk)))
+    else:
+        set_path(scene, entry["path"], float(chunk[0]))
+
+
+def parameter_vector(study: Study, values) -> np.ndarray:
+    """The parameter vector of a data set given as a vector or a mapping (nominal where absent)."""
+    if isinstance(values, Mapping):
+        return _split_mapping(study, values)[0]
+    x = np.asarray(values, dtype=float)
+    if x.shape != (len(study.parameters),):
+        raise StudyError(f"expected a vector of {len(study.parameters)} parameters "
+                         f"({', '.join(study.parameters.names)}), got shape {x.shape}", file=str(study.file))
+    return x
+
+
+def _split_mapping(study: Study, values: Mapping) -> tuple[np.ndarray, dict]:
+    """The parameter vector (nominal where not given) and the other addressed numbers."""
+    x = study.nominal()
+    index = {name: i for i, name in enumerate(study.parameters.names)}
+    slices = _entry_slices(study)
+    others = {}
+    src = _Source(study.file)
+    for path, value in values.items():
+        if path in index:
+            x[index[path]] = value
+        elif path in slices:
+            x[slices[path]] = value
+        else:
+            _nominal_number(study.scene, path, src, ("values", path))
+            others[path] = float(value)
+    return x, others
+
+
+def _entry_slices(study: Study) -> dict[str, slice]:
+    slices, start = {}, 0
+    for entry in study.uncertain:
+        count = entry.get("points", 1)
+        slices[entry["path"]] = slice(start, start + count)
+        start += count
+    return slices
