@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import StudyError
 from .fem.stress import shear_intensity, von_mises
-from .scene.selectors import Selection, facet_lengths, facet_normals, select_region
+from .scene.selectors import Selection, distance_function, facet_lengths, facet_normals, select_region
 
 UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
          "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
@@ -27,6 +27,7 @@ class Criterion:
     selections: list[Selection]
     functionals: list[np.ndarray] | None     # linear kinds: one ℓ_r per region of interest
     measures: np.ndarray                      # meas G_r
+    contact_masks: list[np.ndarray] | None = None   # contact_pressure: contact nodes inside G_r
 
     @property
     def units(self) -> str:
@@ -41,14 +42,14 @@ class Criterion:
             density = shear_intensity(state.stress) if self.kind == "shear_stress_intensity" else von_mises(state.stress)
             return np.array([_cell_mean(model, sel, density) for sel in self.selections])
         if self.kind == "contact_pressure":
-            return np.array([_contact_mean(model, state, sel) for sel in self.selections])
+            return np.array([_contact_mean(state, mask) for mask in self.contact_masks])
         raise ValueError(self.kind)
 
     def value(self, model, state) -> float:
         return float(np.max(self.region_values(model, state)))
 
 
-def build_criteria(study_criteria: list[dict], scene: dict, smesh) -> list[Criterion]:
+def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) -> list[Criterion]:
     rois = scene.get("regions_of_interest") or {}
     out = []
     for k, spec in enumerate(study_criteria):
@@ -65,7 +66,10 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh) -> list[Crite
                 ell = np.zeros(2 * nodal.size)
                 ell[0::2], ell[1::2] = nodal * d[0], nodal * d[1]
                 functionals.append(ell)
-        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures))
+        masks = None
+        if spec["kind"] == "contact_pressure":
+            masks = [_contact_nodes_in(scene, zone, r, f"scene.regions_of_interest.{r}") for r in spec["regions"]]
+        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures, masks))
     return out
 
 
@@ -123,16 +127,23 @@ def _cell_mean(model, sel: Selection, density: np.ndarray) -> float:
     return float(a @ density[cells] / a.sum())
 
 
-def _contact_mean(model, state, sel: Selection) -> float:
-    """Mean contact pressure over the contact nodes inside G_r: transmitted force / length."""
+def _contact_nodes_in(scene: dict, zone, roi: str, path: str) -> np.ndarray:
+    """Contact (slave) nodes lying in a region of interest, tested on the ROI's geometry:
+    a ROI on either side of the contact catches the same nodes, matching or not."""
+    spec = dict(scene["regions_of_interest"][roi])
+    spec.pop("body", None)
+    if "boundary" in spec:
+        spec = {k: v for k, v in scene["boundaries"][spec["boundary"]].items() if k != "body"}
+    x, y = zone.coords.T
+    scale = max(np.ptp(zone.coords, axis=0).max(), 1e-300)
+    mask = distance_function(spec, path)(x, y) <= 1e-6 * scale + 1e-3 * zone.weight
+    if not mask.any():
+        raise StudyError(f"region of interest '{roi}' holds no contact node: a contact pressure "
+                         "criterion needs a region next to a contact", path=path)
+    return mask
+
+
+def _contact_mean(state, mask: np.ndarray) -> float:
+    """Mean contact pressure over the contact nodes in G_r: transmitted force / length."""
     c = state.contact
-    if c is None:
-        return 0.0
-    mesh = model.smesh.mesh
-    if sel.kind == "facets":
-        inside = np.isin(c.nodes, mesh.facets[:, sel.index])
-    else:
-        inside = np.isin(c.nodes, mesh.t[:, sel.index])
-    if not inside.any():
-        return 0.0
-    return float(c.force_n[inside].sum() / c.weight[inside].sum())
+    return float(c.force_n[mask].sum() / c.weight[mask].sum())
