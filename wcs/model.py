@@ -16,7 +16,7 @@ from . import linalg
 from .contact.zone import ContactState, build_zone
 from .errors import SolveError, StudyError
 from .fem import forms
-from .fem.affine import AffineOperator
+from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from .fem.constraints import Constraint, Elimination, eliminate
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
@@ -75,14 +75,11 @@ class Model:
         self.region_material = self._region_materials(scene)
         self.targets = self._name_targets()
 
-        # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j
-        pieces = []
-        for cells in self.region_cells:
-            pieces.extend(forms.elastic_pieces(mesh, cells))
-        self.K = AffineOperator(pieces)
+        # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j over regions j
+        self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cell_matrices(mesh.p, mesh.t), smesh.cell_region)
         self.support_keys, constraints = self._support_constraints(scene)
         self.elim: Elimination = eliminate(self.nnodes, 2, constraints, len(self.support_keys))
-        self.Kr = self.K.transformed(self.elim.T)
+        self.Tt = self.elim.T.T.tocsr()
         self.free_modes = self._free_rigid_modes(constraints)
 
         self.pressure_vectors = {}
@@ -185,14 +182,15 @@ class Model:
         self.P = sp.csr_matrix((np.ones(self.nnodes), (np.arange(self.nnodes), heat_of_node)),
                                shape=(self.nnodes, nheat))
         Pt = self.P.T.tocsr()
-        self.H = AffineOperator([Pt @ forms.conduction_piece(mesh, c) @ self.P for c in self.region_cells])
+        t_heat = heat_of_node[mesh.t]
+        self.H = CellAffineOperator(t_heat, nheat, conduction_cell_matrices(mesh.p, mesh.t), self.smesh.cell_region)
         self.temperature_keys = list((scene["thermal"].get("temperature") or {}).keys())
         constraints = []
         for k, name in enumerate(self.temperature_keys):
             nodes = np.unique(heat_of_node[mesh.facets[:, self.smesh.boundaries[name]]])
             constraints.append(Constraint(nodes, np.ones((nodes.size, 1)), k))
         self.heat_elim = eliminate(nheat, 1, constraints, len(self.temperature_keys))
-        self.Hr = self.H.transformed(self.heat_elim.T)
+        self.heat_Tt = self.heat_elim.T.T.tocsr()
         self.source_vectors = np.array([Pt @ forms.source_vector(mesh, c) for c in self.region_cells])
         self.coupling = [forms.coupling_piece(mesh, c) for c in self.region_cells]
 
@@ -229,7 +227,7 @@ class Model:
         )
 
     def stiffness_coefficients(self, c: Coefficients) -> np.ndarray:
-        return np.column_stack([c.lam, c.mu]).ravel()
+        return np.column_stack([c.lam, c.mu])
 
     def mechanical_load(self, c: Coefficients, T: np.ndarray | None) -> np.ndarray:
         f = np.einsum("ji,jid->d", c.body_force, self.body_force_vectors)
@@ -247,10 +245,10 @@ class Model:
     # ---- solves ------------------------------------------------------------------------
     def solve_heat(self, c: Coefficients) -> np.ndarray:
         Kh = self.H(c.kappa)
-        Kr = self.Hr(c.kappa)
+        Kr = self.heat_Tt @ Kh @ self.heat_elim.T
         Th0 = self.heat_elim.U0 @ c.temperature_values
         q = self.source_vectors.T @ c.source
-        rhs = self.heat_elim.T.T @ (q - Kh @ Th0)
+        rhs = self.heat_Tt @ (q - Kh @ Th0)
         self._heat_factor = _refactor(self._heat_factor, Kr)
         w = self._heat_factor.solve(rhs)
         return self.P @ (self.heat_elim.T @ w + Th0)
@@ -265,10 +263,10 @@ class Model:
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
         kc = self.stiffness_coefficients(c)
         K = self.K(kc)
-        Kr = self.Kr(kc)
+        Kr = self.Tt @ K @ self.elim.T
         u0 = self.elim.U0 @ c.support_values
         f = self.mechanical_load(c, T)
-        rhs = self.elim.T.T @ (f - K @ u0)
+        rhs = self.Tt @ (f - K @ u0)
         if self.zone is None:
             self._factor = _refactor(self._factor, Kr)
             u = self.elim.T @ self._factor.solve(rhs) + u0

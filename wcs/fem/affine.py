@@ -1,67 +1,73 @@
-"""Parameter-affine sparse operators: K(c) = Σ_k c_k K_k on one fixed pattern.
+"""Parameter-affine P1 operators: K(c) = Σ_cells c[group(cell)] · K_cell, assembled once.
 
-Every piece is assembled once; a new coefficient vector costs one pass over
-the nonzeros (no quadrature), and every combination shares one CSR pattern so
-a sparse factorization can reuse its symbolic analysis.
+The cell matrices of every piece are computed once (P1: exact, one point);
+a new coefficient table costs one weighted scatter into a fixed pattern
+(O(cells), no quadrature), and every K(c) has the same CSR pattern so a
+sparse factorization reuses its symbolic analysis (architecture.md, idea 1).
+
+Vector fields use 2×2 node blocks (dof = 2·node + component, scikit-fem's
+order for ElementVector(ElementTriP1)): the pattern is built on node pairs
+(9 per cell) and expanded through a block-sparse (BSR) matrix.
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
+from .stress import gradient_operator
 
-class AffineOperator:
-    def __init__(self, pieces: list[sp.spmatrix]):
-        if not pieces:
-            raise ValueError("an affine operator needs at least one piece")
-        shape = pieces[0].shape
-        csr = [sp.csr_matrix(p) for p in pieces]
-        for p in csr:
-            p.sum_duplicates()
-            p.sort_indices()
-        pattern = sum(abs(p) for p in csr).tocsr()
-        pattern.sort_indices()
-        pattern.data[:] = 0.0
-        keys = self._keys(pattern)
-        self.shape = shape
-        self.pattern = pattern
-        self.positions = [np.searchsorted(keys, self._keys(p)) for p in csr]
-        self.values = [p.data.copy() for p in csr]
 
-    @staticmethod
-    def _keys(m: sp.csr_matrix) -> np.ndarray:
-        rows = np.repeat(np.arange(m.shape[0], dtype=np.int64), np.diff(m.indptr))
-        return rows * m.shape[1] + m.indices
+def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(2, ncells, 3, 3, 2, 2): the λ-piece |T| div φ_a div φ_b and the μ-piece
+    |T| 2 e(φ_a) : e(φ_b), by node pair (a, b) and components (i, j)."""
+    (dx, dy), area = gradient_operator(p, t)
+    g = np.stack([dx, dy], axis=-1)                           # (nc, 3, 2): ∇N_a
+    lam = area[:, None, None, None, None] * g[:, :, None, :, None] * g[:, None, :, None, :]
+    # 2 e(φ_ai):e(φ_bj) = δ_ij ∇N_a·∇N_b + ∂_j N_a ∂_i N_b
+    dot = np.einsum("eak,ebk->eab", g, g)
+    mu = dot[:, :, :, None, None] * np.eye(2) + g[:, :, None, None, :] * g[:, None, :, :, None]
+    return np.stack([lam, area[:, None, None, None, None] * mu])
 
-    def __len__(self) -> int:
-        return len(self.values)
 
-    def data(self, coefficients) -> np.ndarray:
-        out = np.zeros(self.pattern.nnz)
-        for c, pos, val in zip(coefficients, self.positions, self.values):
-            if c != 0.0:
-                _scatter_add(out, pos, c * val)
-        return out
+def conduction_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(1, ncells, 3, 3, 1, 1): |T| ∇N_a · ∇N_b."""
+    (dx, dy), area = gradient_operator(p, t)
+    k = area[:, None, None] * (dx[:, :, None] * dx[:, None, :] + dy[:, :, None] * dy[:, None, :])
+    return k[None, :, :, :, None, None]
+
+
+class CellAffineOperator:
+    """K(c) = Σ_k Σ_cells c[group(cell), k] · local[k, cell]."""
+
+    def __init__(self, t: np.ndarray, nnodes: int, local: np.ndarray, group: np.ndarray):
+        self.local = local                                    # (npieces, nc, 3, 3, b, b)
+        self.group = np.asarray(group)
+        self.block = local.shape[-1]
+        nc = t.shape[1]
+        rows = np.repeat(t.T, 3, axis=1).ravel().astype(np.int64)   # (nc·9,) node a
+        cols = np.tile(t.T, (1, 3)).ravel().astype(np.int64)        # node b
+        nodes = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nnodes, nnodes))
+        nodes.sum_duplicates()                                 # sorted node-pair pattern
+        keys = np.repeat(np.arange(nnodes, dtype=np.int64), np.diff(nodes.indptr)) * nnodes + nodes.indices
+        self.position = np.searchsorted(keys, rows * nnodes + cols)
+        self.indptr, self.indices = nodes.indptr, nodes.indices
+        self.nblocks = nodes.nnz
+        self.shape = (self.block * nnodes,) * 2
+        self.ncells = nc
+
+    @property
+    def npieces(self) -> int:
+        return self.local.shape[0]
 
     def __call__(self, coefficients) -> sp.csr_matrix:
-        if len(coefficients) != len(self.values):
-            raise ValueError(f"expected {len(self.values)} coefficients, got {len(coefficients)}")
-        m = self.pattern.copy()
-        m.data = self.data(coefficients)
-        return m
-
-    def transformed(self, T: sp.spmatrix) -> "AffineOperator":
-        """The operator Tᵀ K(c) T (for eliminated constraints), again affine."""
-        Tt = sp.csr_matrix(T.T)
-        return AffineOperator([(Tt @ self.piece(k) @ T) for k in range(len(self))])
-
-    def piece(self, k: int) -> sp.csr_matrix:
-        m = self.pattern.copy()
-        m.data = np.zeros(m.nnz)
-        m.data[self.positions[k]] = self.values[k]
-        return m
-
-
-def _scatter_add(out: np.ndarray, pos: np.ndarray, val: np.ndarray) -> None:
-    # positions within one piece are unique (the piece had its duplicates summed)
-    out[pos] += val
+        """`coefficients`: (ngroups, npieces) — e.g. per region (λ, μ)."""
+        c = np.asarray(coefficients, dtype=float).reshape(-1, self.npieces)[self.group]   # (nc, npieces)
+        b = self.block
+        cell = np.einsum("ek,keabij->eabij", c, self.local).reshape(-1, b, b)
+        data = np.empty((self.nblocks, b, b))
+        for i in range(b):
+            for j in range(b):
+                data[:, i, j] = np.bincount(self.position, weights=cell[:, i, j], minlength=self.nblocks)
+        K = sp.bsr_matrix((data, self.indices, self.indptr), shape=self.shape).tocsr()
+        K.sort_indices()
+        return K

@@ -1,35 +1,18 @@
-"""The weak forms, written as the math reads (P1 triangles, scikit-fem).
+"""Load and coupling forms, written as the math reads (P1 triangles, scikit-fem).
 
-Each form is one parameter-free piece; the data (λ, μ, κ, β, loads) multiply
-the assembled pieces later (see `affine.py`).
+Each form is one parameter-free piece; the data (β, loads, sources) multiply
+the assembled pieces later. The stiffness and conduction operators are in
+`affine.py` (cell matrices in closed form, verified against scikit-fem).
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTriP1, ElementVector, FacetBasis, LinearForm, asm
-from skfem.helpers import ddot, div, dot, grad, sym_grad
+from skfem.helpers import div, dot
 
 SCALAR = ElementTriP1()
 VECTOR = ElementVector(ElementTriP1())
-
-
-@BilinearForm
-def div_div(u, v, w):
-    """λ-piece of a(u, v): div u div v."""
-    return div(u) * div(v)
-
-
-@BilinearForm
-def strain_strain(u, v, w):
-    """μ-piece of a(u, v): 2 e(u) : e(v)."""
-    return 2.0 * ddot(sym_grad(u), sym_grad(v))
-
-
-@BilinearForm
-def conduction(t, s, w):
-    """κ-piece of the heat operator: ∇T · ∇s."""
-    return dot(grad(t), grad(s))
 
 
 @BilinearForm
@@ -62,16 +45,6 @@ def region_basis(mesh, element, cells: np.ndarray, intorder: int = 2) -> Basis:
 
 def facet_basis(mesh, element, facets: np.ndarray, intorder: int = 2) -> FacetBasis:
     return FacetBasis(mesh, element, facets=facets, intorder=intorder)
-
-
-def elastic_pieces(mesh, cells: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """(Kλ, Kμ) of one region: a = λ Kλ + μ Kμ there. P1 strains are constant: 1 point is exact."""
-    b = region_basis(mesh, VECTOR, cells, intorder=1)
-    return asm(div_div, b).tocsr(), asm(strain_strain, b).tocsr()
-
-
-def conduction_piece(mesh, cells: np.ndarray) -> sp.csr_matrix:
-    return asm(conduction, region_basis(mesh, SCALAR, cells, intorder=1)).tocsr()
 
 
 def coupling_piece(mesh, cells: np.ndarray) -> sp.csr_matrix:
