@@ -96,6 +96,9 @@ class Model:
         if self.thermal:
             self._init_thermal(scene)
 
+        if self.options.get("method") == "dd":
+            raise StudyError("the domain decomposition solver is not available in this version; "
+                             "use monolithic (or auto) or qp", path="solver.method")
         self.zone = build_zone(scene, smesh)
         if self.zone is not None:
             T = self.elim.T
@@ -276,14 +279,19 @@ class Model:
                      iterations=iterations, contact=contact)
 
     def _solve_contact(self, scene, Kr, rhs, u0):
+        from .contact.qp import solve_contact_qp
         from .contact.solver import CONVERGED, UNSOLVABLE, solve_contact
         z = self.zone
         g, F = z.friction(scene)
         d = z.gap - z.Bn @ u0
         tol = float(self.options.get("tolerance", 1e-8))
         max_iter = int(self.options.get("max_iterations", 200))
-        res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=F if F.any() else None,
-                            R=self.R_r, tol=tol, max_iter=max_iter, warm=self._warm)
+        Fc = F if F.any() else None
+        if self.options.get("method") == "qp":
+            res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
+        else:
+            res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
+                                R=self.R_r, tol=tol, max_iter=max_iter, warm=self._warm)
         if res.status == UNSOLVABLE:
             raise SolveError(self._unbalanced_message(res, rhs), status=3)
         if res.status != CONVERGED:

@@ -10,8 +10,9 @@ stationarity in u gives K u + Bnᵀλn + Btᵀ(μ⁺ − μ⁻) = f, so λt = μ
 and stationarity in s gives μ⁺ + μ⁻ = gw, hence |λt| ≤ gw — the sign
 conventions of `wcs.contact.solver`. K may be singular (floating bodies):
 `psd_wrap` skips cvxpy's eigenvalue check; an unbalanced load makes the
-program unbounded, reported as UNSOLVABLE. Coulomb by the same fixed point
-g ← F p as the Newton solver, started from the frictionless pressure.
+program unbounded, reported as UNSOLVABLE. Coulomb (slip limit g + F p) by the
+same fixed point as the Newton solver, started from a stuck state (a slip limit
+far above any load, the convex stand-in for the Newton solver's glued start).
 Meant as a small-mesh reference and the "generic tool" baseline.
 """
 from __future__ import annotations
@@ -50,12 +51,15 @@ def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,
     t0 = time.perf_counter()
     m = Bn.shape[0]
     w = np.asarray(w, dtype=float)
-    gw = np.zeros(m) if (F is not None or g is None) else np.asarray(g, dtype=float) * w
-    u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, gw, tol)
-    fp, fp_ok = 0, F is None
-    while F is not None and u is not None and fp < max_fp_iter and not fp_ok:
+    gw_fixed = np.zeros(m) if g is None else np.asarray(g, dtype=float) * w
+    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
+    coulomb = bool(np.any(Fc > 0))
+    stuck = gw_fixed + np.abs(f).sum() if coulomb else gw_fixed
+    u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, stuck, tol)
+    fp, fp_ok = 0, not coulomb
+    while coulomb and u is not None and fp < max_fp_iter and not fp_ok:
         p_old = ln / w
-        u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, np.asarray(F) * np.maximum(ln, 0.0), tol)
+        u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, gw_fixed + Fc * np.maximum(ln, 0.0), tol)
         fp += 1
         fp_ok = u is not None and np.linalg.norm(ln / w - p_old) <= tol_fp * max(np.linalg.norm(ln / w), 1e-300)
     timings = {"total": time.perf_counter() - t0}

@@ -225,11 +225,15 @@ def build_mesh(scene: dict) -> SceneMesh:
 
     ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
     the sorted facet indices its selector picks (an empty selection raises
-    ``StudyError`` at ``scene.boundaries.<name>``).
+    ``StudyError`` at ``scene.boundaries.<name>``).  A scene with
+    ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``).
     """
     bodies_spec = scene.get("bodies") or {}
     if not bodies_spec:
         raise StudyError("the scene has no bodies", path="scene.bodies")
+    if (scene.get("mesh") or {}).get("file"):       # the user's own mesh (wcs.scene.meshfile)
+        from .meshfile import read_mesh_file
+        return read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file")
     bodies = list(bodies_spec)
     regions = region_names(scene)
 
