@@ -10,4 +10,10 @@ def load_study(path):
     return _load(path)
 
 
-__all__ = ["StudyError", "SolveError", "load_study", "__version__"]
+def run(study, output=None, resume=False, progress=None, **kwargs):
+    """The whole worst-scenario study -> xarray.Dataset (study-format.md §3, §4); see wcs.runner.run."""
+    from .runner import run as _run
+    return _run(study, output=output, resume=resume, progress=progress, **kwargs)
+
+
+__all__ = ["StudyError", "SolveError", "load_study", "run", "__version__"]

@@ -99,6 +99,21 @@ def cmd_solve(args) -> int:
     return 0
 
 
+def cmd_run(args) -> int:
+    from .runner import cmd_run as run
+    return run(args)
+
+
+def cmd_sweep(args) -> int:
+    from .runner import cmd_sweep as sweep
+    return sweep(args)
+
+
+def cmd_report(args) -> int:
+    from .report import cmd_report as report
+    return report(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wcs", description="Worst-scenario analysis of contact problems of elastic bodies.")
     ap.add_argument("--version", action="version", version=f"wcs {__version__}")
@@ -111,8 +126,22 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
     add("check", cmd_check, "validate a study and print what it will do")
-    add("solve", cmd_solve, "one forward solve at the nominal data").add_argument(
-        "-o", "--output", help="results file (.nc); a .vtu is written beside it")
+    p = add("solve", cmd_solve, "one forward solve at the nominal data (or a worst case of a run)")
+    p.add_argument("-o", "--output", help="results file (.nc); a .vtu is written beside it")
+    p.add_argument("--worst", nargs=2, metavar=("RUN.nc", "CRITERION"),
+                   help="solve the worst data set of CRITERION found by a run instead of the nominal one")
+    p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")
+    p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
+    p.add_argument("--fail-on-limit", action="store_true", help="exit 3 when a worst value breaks its limit")
+    p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")
+    p.add_argument("-o", "--output", help="results file (.nc)")
+    p = sub.add_parser("report", help="an HTML repository-safety report of a results file")
+    p.add_argument("results", help="results file (.nc) of `wcs run` or `wcs sweep`")
+    p.add_argument("-o", "--output", help="report file (.html); default: beside the results file")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--verbose", action="store_true")
+    p.set_defaults(func=cmd_report)
     return ap
 
 

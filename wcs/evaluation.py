@@ -36,6 +36,8 @@ class Evaluation:
     iterations: int
     wall_time: float
     state: State | None = None
+    grad: dict | None = None          # criterion -> dΦ/dx (physical units), when asked for
+    nonsmooth: bool = False           # an active-set change or a switch of the max within reach
     evaluator: "Evaluator | None" = field(default=None, repr=False)
     _fields: object = field(default=None, repr=False)
 
@@ -59,8 +61,9 @@ class Evaluator:
         t2 = time.perf_counter()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1}
 
-    def evaluate(self, values) -> Evaluation:
-        """Solve at a parameter vector or a mapping {dotted path: value} (others nominal)."""
+    def evaluate(self, values, gradients: bool = False) -> Evaluation:
+        """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
+        with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
         from .study import parameter_vector, scene_with
         t0 = time.perf_counter()
         x = parameter_vector(self.study, values)
@@ -71,5 +74,9 @@ class Evaluator:
         except SolveError as e:
             return Evaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
         phi = {c.name: c.value(self.model, state) for c in self.criteria}
+        grad, nonsmooth = None, False
+        if gradients:
+            from .sensitivity import gradients as adjoint
+            grad, nonsmooth = adjoint(self, state, x)
         return Evaluation(x, phi, 0, "solved", state.iterations, time.perf_counter() - t0,
-                          state=state, evaluator=self)
+                          state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)

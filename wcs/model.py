@@ -38,6 +38,8 @@ class Coefficients:
     support_values: np.ndarray # values of the elastic constraints, model order
     temperature_values: np.ndarray
     reference: float
+    slip: np.ndarray = field(default_factory=lambda: np.zeros(0))      # Tresca slip limit per contact node
+    coulomb: np.ndarray = field(default_factory=lambda: np.zeros(0))   # Coulomb coefficient per contact node
 
 
 @dataclass
@@ -50,6 +52,11 @@ class State:
     iterations: int = 1
     contact: object | None = None
     timings: dict = field(default_factory=dict)
+    # what the adjoint needs from the solve (valid until the model solves again)
+    w: np.ndarray | None = None            # reduced displacement unknowns
+    theta: np.ndarray | None = None        # temperature on the heat nodes
+    factor: object | None = None           # factorization of the reduced stiffness (no contact)
+    raw: object | None = None              # the ContactResult (contact)
 
 
 def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
@@ -111,6 +118,7 @@ class Model:
         _, self.cell_area = gradient_operator(mesh.p, mesh.t)
         self._factor = None
         self._heat_factor = None
+        self._theta = None
 
     # ---- structure -----------------------------------------------------------------
     def _region_materials(self, scene) -> list[str]:
@@ -221,12 +229,14 @@ class Model:
         values = np.array([supports[b]["normal"] if key == "normal" else supports[b]["u"][int(key[2])]
                            for b, key in self.support_keys], dtype=float)
         temps = np.array([thermal["temperature"][b] for b in getattr(self, "temperature_keys", [])], float)
+        slip, coulomb = self.zone.friction(scene) if self.zone is not None else (np.zeros(0), np.zeros(0))
         return Coefficients(
             lam=lam, mu=mu, beta=beta, kappa=kappa, source=source, body_force=body_force,
             pressure={b: float(loads[b]["pressure"]) for b in self.pressure_vectors},
             traction={b: np.asarray(loads[b]["traction"], float) for b in self.traction_vectors},
             support_values=values, temperature_values=temps,
             reference=float(thermal.get("reference", 0.0) or 0.0),
+            slip=slip, coulomb=coulomb,
         )
 
     def stiffness_coefficients(self, c: Coefficients) -> np.ndarray:
@@ -254,7 +264,8 @@ class Model:
         rhs = self.heat_Tt @ (q - Kh @ Th0)
         self._heat_factor = _refactor(self._heat_factor, Kr)
         w = self._heat_factor.solve(rhs)
-        return self.P @ (self.heat_elim.T @ w + Th0)
+        self._theta = self.heat_elim.T @ w + Th0
+        return self.P @ self._theta
 
     def solve(self, scene: dict) -> State:
         c = self.coefficients(scene)
@@ -270,19 +281,22 @@ class Model:
         u0 = self.elim.U0 @ c.support_values
         f = self.mechanical_load(c, T)
         rhs = self.Tt @ (f - K @ u0)
+        theta = self._theta
         if self.zone is None:
             self._factor = _refactor(self._factor, Kr)
-            u = self.elim.T @ self._factor.solve(rhs) + u0
-            return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c)
-        u, contact, iterations = self._solve_contact(scene, Kr, rhs, u0)
+            w = self._factor.solve(rhs)
+            u = self.elim.T @ w + u0
+            return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
+                         w=w, theta=theta, factor=self._factor)
+        u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0)
         return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
-                     iterations=iterations, contact=contact)
+                     iterations=iterations, contact=contact, w=res.u, theta=theta, raw=res)
 
-    def _solve_contact(self, scene, Kr, rhs, u0):
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0):
         from .contact.qp import solve_contact_qp
         from .contact.solver import CONVERGED, UNSOLVABLE, solve_contact
         z = self.zone
-        g, F = z.friction(scene)
+        g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
         tol = float(self.options.get("tolerance", 1e-8))
         max_iter = int(self.options.get("max_iterations", 200))
@@ -291,7 +305,8 @@ class Model:
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
-                                R=self.R_r, tol=tol, max_iter=max_iter, warm=self._warm)
+                                R=self.R_r, tol=tol, max_iter=max_iter, warm=self._warm, tol_fp=tol,
+                                max_fp_iter=int(self.options.get("max_fixed_point_iterations", 100)))
         if res.status == UNSOLVABLE:
             raise SolveError(self._unbalanced_message(res, rhs), status=3)
         if res.status != CONVERGED:
@@ -299,7 +314,7 @@ class Model:
         self._warm = res
         u = self.elim.T @ res.u + u0
         state = ContactState(z, res.lam_n, res.lam_t, z.gap - z.Bn @ u, z.Bt @ u, res.active)
-        return u, state, res.iterations
+        return u, state, res.iterations, res
 
     def _unbalanced_message(self, res, rhs) -> str:
         """Name the floating body whose rigid motion the load can drive, and the load."""

@@ -106,3 +106,170 @@ def write_vtu(ds: xr.Dataset, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     mesh.write(path)
     return path
+
+
+# ---------------------------------------------------------------- the results file of a run or sweep
+
+# units of each addressable number (study.py `_ADDRESSES`), by the last key of its path
+_PARAM_UNITS = {
+    "E": "Pa", "nu": "1", "lambda": "Pa", "mu": "Pa", "conductivity": "W m-1 K-1", "expansion": "K-1",
+    "density_weight": "N m-3", "pressure": "Pa", "traction": "Pa", "u": "m", "normal": "m",
+    "slip_limit": "Pa", "coefficient": "1", "reference": "K", "temperature": "K", "sources": "W m-3",
+}
+_BODY_FORCE_UNITS = "N m-3"
+
+CERTIFICATES = "corner-kkt: KKT sign pattern holds at a vertex; local-kkt: KKT conditions hold at a " \
+               "local maximum; heuristic: best value found, no optimality proof; grid: maximum over a sweep grid"
+
+
+def parameter_units(path: str) -> str:
+    keys = [k for k in path.split("[")[0].split(".") if not k.isdigit()]
+    if keys and keys[0] == "body_forces":
+        return _BODY_FORCE_UNITS
+    return _PARAM_UNITS.get(keys[-1], "1") if keys else "1"
+
+
+def _flag_meanings(table: dict) -> str:
+    words = []
+    for _, v in sorted(table.items()):
+        w = "".join(ch if ch.isalnum() else "_" for ch in v)
+        while "__" in w:
+            w = w.replace("__", "_")
+        words.append(w.strip("_"))
+    return " ".join(words)
+
+
+def status_attrs() -> dict:
+    from .evaluation import STATUS
+    return {"long_name": "evaluation status (0 solved)",
+            "flag_values": np.array(sorted(STATUS), dtype=np.int32),
+            "flag_meanings": _flag_meanings(STATUS),
+            "codes": "; ".join(f"{k}: {v}" for k, v in sorted(STATUS.items()))}
+
+
+def _criterion_units(evaluator) -> dict:
+    return {c.name: getattr(c, "units", "1") for c in evaluator.criteria}
+
+
+# fields stored per criterion (leading `criterion` dim) and fields stored once (geometry)
+_GEOMETRY = ("coords", "cells", "cell_body", "cell_region", "contact_coords", "contact_pair")
+
+
+def worst_field_variables(criteria: list[str], fields: dict) -> dict:
+    """`worst_<field>` (criterion, ...) for every solution field, plus the mesh variables once.
+
+    `fields`: criterion -> xarray.Dataset of its worst case (None where no data set was solved).
+    """
+    template = next((f for f in fields.values() if f is not None), None)
+    if template is None:
+        return {}
+    out = {}
+    for name in _GEOMETRY:
+        if name in template:
+            v = template[name]
+            out[name] = xr.Variable(v.dims, v.values, v.attrs)
+    for name, v in template.data_vars.items():
+        if name in _GEOMETRY:
+            continue
+        stack = []
+        for c in criteria:
+            f = fields.get(c)
+            stack.append(f[name].values if f is not None and name in f else np.full(v.shape, np.nan))
+        attrs = dict(v.attrs)
+        attrs["long_name"] = f"{attrs.get('long_name', name)} in the worst case of each criterion"
+        out[f"worst_{name}"] = xr.Variable(("criterion",) + v.dims, np.stack(stack).astype(v.dtype), attrs)
+    return out
+
+
+def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certificate: dict,
+                notes: dict | None = None, worst_fields: dict | None = None, attrs: dict | None = None,
+                sweep_paths: list[str] | None = None) -> xr.Dataset:
+    """The results file of `wcs run` / `wcs sweep` (study-format.md §4).
+
+    records: one dict per evaluation, in order, with x, phi (array in criterion order), status,
+    message, stage, iterations, wall_time, grad ((criterion, param) array or None), nonsmooth,
+    and for sweeps `sweep` (values of the swept paths).
+    worst: criterion -> (value, x, eval index); certificate: criterion -> string.
+    """
+    names = list(study.parameters.names)
+    lower = np.asarray(study.parameters.lower, float)
+    upper = np.asarray(study.parameters.upper, float)
+    crit = [c.name for c in evaluator.criteria]
+    units = _criterion_units(evaluator)
+    n, p, k = len(records), len(names), len(crit)
+
+    def col(key, dtype, shape=()):
+        if n == 0:
+            return np.zeros((0,) + shape, dtype=dtype)
+        return np.array([r[key] for r in records], dtype=dtype).reshape((n,) + shape)
+
+    grad = np.full((n, k, p), np.nan)
+    for i, r in enumerate(records):
+        if r.get("grad") is not None:
+            grad[i] = r["grad"]
+    nan = float("nan")
+    limits = np.array([float(study.limits.get(c, nan)) for c in crit])
+    wv = np.array([worst[c][0] if c in worst else nan for c in crit], float)
+    wx = np.stack([worst[c][1] if c in worst else np.full(p, nan) for c in crit]) if k else np.zeros((0, p))
+    we = np.array([worst[c][2] if c in worst else -1 for c in crit], dtype=np.int32)
+    unit_text = ", ".join(f"{c}: {units[c]}" for c in crit)
+
+    data = {
+        "param_lower": (("param",), lower, {"long_name": "lower bound of the box U_ad"}),
+        "param_upper": (("param",), upper, {"long_name": "upper bound of the box U_ad"}),
+        "param_units": (("param",), np.array([parameter_units(s) for s in names], dtype=object),
+                        {"long_name": "units of each parameter"}),
+        "x": (("eval", "param"), col("x", float, (p,)),
+              {"long_name": "evaluated data set, in evaluation order (physical units, see param_units)",
+               "valid_min": float(lower.min()) if p else 0.0, "valid_max": float(upper.max()) if p else 0.0,
+               "ancillary_variables": "param_lower param_upper param_units",
+               "comment": "valid_min/valid_max span all parameters; the box of each parameter is "
+                          "param_lower/param_upper"}),
+        "phi": (("eval", "criterion"), col("phi", float, (k,)),
+                {"long_name": "criterion values (NaN where the evaluation failed)", "units": unit_text}),
+        "status": (("eval",), col("status", np.int32), status_attrs()),
+        "message": (("eval",), np.array([str(r["message"]) for r in records], dtype=object),
+                    {"long_name": "solver message of the evaluation"}),
+        "stage": (("eval",), np.array([str(r["stage"]) for r in records], dtype=object),
+                  {"long_name": "search stage that asked for the evaluation"}),
+        "wall_time": (("eval",), col("wall_time", float), {"long_name": "wall time of the evaluation", "units": "s"}),
+        "iterations": (("eval",), col("iterations", np.int32),
+                       {"long_name": "solver iterations: semismooth Newton iterations of the contact solve "
+                                     "(0 for a model without contact: one direct sparse solve)"}),
+        "grad": (("eval", "criterion", "param"), grad,
+                 {"long_name": "gradient dPhi/dx of each criterion (adjoint, on the active set of the evaluation); "
+                               "NaN where not computed", "units": "criterion units per parameter units"}),
+        "nonsmooth": (("eval",), col("nonsmooth", np.int8),
+                      {"long_name": "the active set (or the max over regions) changes within reach of the data set",
+                       "flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "smooth nonsmooth"}),
+        "worst_value": (("criterion",), wv, {"long_name": "maximum of each criterion found", "units": unit_text}),
+        "worst_x": (("criterion", "param"), wx, {"long_name": "data set attaining worst_value"}),
+        "worst_eval": (("criterion",), we, {"long_name": "index (eval) of the evaluation attaining worst_value; "
+                                                         "-1 if none succeeded"}),
+        "limit": (("criterion",), limits, {"long_name": "limit of each criterion (NaN where none)", "units": unit_text}),
+        "margin": (("criterion",), limits - wv, {"long_name": "limit - worst_value (negative: limit broken)",
+                                                  "units": unit_text}),
+        "certificate": (("criterion",), np.array([certificate.get(c, "heuristic") for c in crit], dtype=object),
+                        {"long_name": "how the worst value is certified", "flag_meanings_text": CERTIFICATES}),
+        "certificate_note": (("criterion",), np.array([(notes or {}).get(c, "") for c in crit], dtype=object),
+                             {"long_name": "search notes per criterion"}),
+    }
+    coords = {"param": np.array(names, dtype=object), "criterion": np.array(crit, dtype=object),
+              "eval": np.arange(n, dtype=np.int32)}
+    if sweep_paths is not None:
+        data["sweep_value"] = (("eval", "sweep_path"), col("sweep", float, (len(sweep_paths),)),
+                               {"long_name": "value of each swept path"})
+        coords["sweep_path"] = np.array(sweep_paths, dtype=object)
+    ds = xr.Dataset(data, coords=coords)
+    ds["param"].attrs["long_name"] = "dotted path of each uncertain number"
+    ds["criterion"].attrs["long_name"] = "criterion name (all maximised)"
+    ds["eval"].attrs["long_name"] = "evaluation index, in evaluation order"
+    for name, v in worst_field_variables(crit, worst_fields or {}).items():
+        ds[name] = v
+    if worst_fields:
+        template = next((f for f in worst_fields.values() if f is not None), None)
+        if template is not None:
+            ds = ds.assign_coords({c: template[c].values for c in template.coords if c not in ds.coords})
+    ds.attrs.update(provenance(study, evaluator))
+    ds.attrs.update(attrs or {})
+    return ds

@@ -859,13 +859,14 @@ class Study:
     notes: list[str]
     _evaluator: Any = field(default=None, repr=False, compare=False)
 
-    def evaluate(self, values):
+    def evaluate(self, values, gradients: bool = False):
         """One forward solve at a data vector (or {dotted path: value}); the mesh and the
-        assembled model are built on the first call and reused."""
+        assembled model are built on the first call and reused. With `gradients`, the
+        evaluation also carries dΦ/dx of every criterion (adjoint)."""
         from .evaluation import Evaluator
         if self._evaluator is None:
             self._evaluator = Evaluator(self)
-        return self._evaluator.evaluate(values)
+        return self._evaluator.evaluate(values, gradients=gradients)
 
     def nominal(self) -> np.ndarray:
         """The scene's own values in parameter order (a profile repeats the constant value)."""

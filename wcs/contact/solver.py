@@ -82,6 +82,8 @@ class ContactResult:
     factor: "ContactFactor | None" = None
     alpha: np.ndarray | None = None  # rigid amplitudes; for UNSOLVABLE the unbalanced direction
     timings: dict = field(default_factory=dict)
+    free: np.ndarray | None = None   # (2m,) final Newton free set: closed normals, stuck tangents
+    gw: np.ndarray | None = None     # (m,) final slip bounds g·w (+ F·λn for Coulomb)
 
 
 @dataclass
@@ -311,4 +313,4 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         status, message = FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
     timings["total"] = time.perf_counter() - t0
     return ContactResult(u, lam[:m], lam[m:], status, message, iters, fp_iters, _states(free, m, gw), cf,
-                         alpha if R is not None else None, timings)
+                         alpha if R is not None else None, timings, free=free, gw=gw)

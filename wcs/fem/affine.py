@@ -41,6 +41,7 @@ class CellAffineOperator:
 
     def __init__(self, t: np.ndarray, nnodes: int, local: np.ndarray, group: np.ndarray):
         self.local = local                                    # (npieces, nc, 3, 3, b, b)
+        self._t = np.asarray(t)
         self.group = np.asarray(group)
         self.block = local.shape[-1]
         nc = t.shape[1]
@@ -71,3 +72,15 @@ class CellAffineOperator:
         K = sp.bsr_matrix((data, self.indices, self.indptr), shape=self.shape).tocsr()
         K.sort_indices()
         return K
+
+    def sensitivities(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(ngroups, npieces): Σ over the cells of each group of a_cellᵀ K^k_cell b_cell, i.e.
+        the derivative of aᵀ K(c) b with respect to each coefficient (K is affine in c)."""
+        bl = self.block
+        t = self._t
+        ae = np.asarray(a).reshape(-1, bl)[t.T]              # (nc, 3, b)
+        be = np.asarray(b).reshape(-1, bl)[t.T]
+        per_cell = np.einsum("keabij,eai,ebj->ek", self.local, ae, be)
+        ngroups = int(self.group.max()) + 1
+        return np.array([np.bincount(self.group, weights=per_cell[:, k], minlength=ngroups)
+                         for k in range(self.npieces)]).T

@@ -1,0 +1,351 @@
+"""Read a results file (study-format.md §4) into one plain structure for the report.
+
+Accepts the file of `wcs run` and `wcs sweep` (evaluations along `eval`, worst-case
+fields under a `worst_` prefix with a leading `criterion` dimension) and the file of
+`wcs solve` (one evaluation, its fields unprefixed). Every optional piece (thermal,
+contact, worst-case fields, limits, failures, provenance) may be absent.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..errors import StudyError
+
+KIND_UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
+              "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
+KIND_LABEL = {"mean_temperature": "mean temperature (Φ1/Φ2)",
+              "mean_normal_displacement": "mean normal displacement (Φ3/Φ4)",
+              "shear_stress_intensity": "shear stress intensity I₂² (Φ5)",
+              "contact_pressure": "contact pressure (Φ6)",
+              "von_mises": "von Mises stress"}
+DEFAULT_STATUS = {0: "solved", 1: "contact solver did not converge",
+                  2: "Coulomb fixed point did not converge",
+                  3: "solvability violated: a floating body is not balanced",
+                  4: "singular system or factorization failed", 5: "domain decomposition failed",
+                  6: "other failure"}
+FIELD_NAMES = ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity",
+               "temperature", "contact_coords", "contact_pair", "contact_pressure", "contact_gap",
+               "contact_slip", "contact_shear")
+
+
+@dataclass
+class Criterion:
+    name: str
+    kind: str          # "" when unknown
+    units: str
+    regions: list[str]
+    limit: float       # NaN: none
+    worst: float       # NaN: every evaluation failed
+    worst_x: np.ndarray
+    certificate: str
+    worst_eval: int | None = None   # index into the evaluations, when found
+
+
+@dataclass
+class Mesh:
+    coords: np.ndarray     # (node, 2)
+    cells: np.ndarray      # (cell, 3)
+    cell_body: np.ndarray | None
+    cell_region: np.ndarray | None
+    bodies: list[str]
+    regions: list[str]
+
+
+@dataclass
+class Contact:
+    pair: str
+    coords: np.ndarray      # (n, 2) ordered along the contact
+    arc: np.ndarray         # (n,) arc length [m]
+    order: np.ndarray       # indices into the contact nodes of the file
+
+
+@dataclass
+class Fields:
+    """The solution fields of one case (plain arrays; absent ones are None)."""
+    displacement: np.ndarray | None = None
+    stress: np.ndarray | None = None
+    von_mises: np.ndarray | None = None
+    principal_stress: np.ndarray | None = None
+    shear_stress_intensity: np.ndarray | None = None
+    temperature: np.ndarray | None = None
+    contact: dict = field(default_factory=dict)   # name -> (contact_node,) array
+    contact_coords: np.ndarray | None = None
+    contact_pair: np.ndarray | None = None
+
+
+@dataclass
+class Results:
+    kind: str                      # "run", "sweep" or "solve"
+    study: str
+    attrs: dict
+    study_yaml: str
+    study_doc: dict                # the study's first YAML document (may be {})
+    scene: dict                    # the scene (may be {})
+    params: list[str]
+    lower: np.ndarray
+    upper: np.ndarray
+    x: np.ndarray                  # (eval, param)
+    phi: np.ndarray                # (eval, criterion)
+    status: np.ndarray             # (eval,) int
+    stage: list[str]
+    wall_time: np.ndarray
+    iterations: np.ndarray
+    status_meanings: dict
+    criteria: list[Criterion]
+    mesh: Mesh | None
+    worst_fields: list[Fields | None]   # one per criterion
+    iterations_doc: str = ""
+
+    @property
+    def n_eval(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def failed(self) -> np.ndarray:
+        return self.status != 0
+
+
+def _text(v) -> str:
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace")
+    return str(v)
+
+
+def _attr_scalar(v):
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray) and v.size == 1:
+        return v.reshape(()).item()
+    return v
+
+
+def split_yaml(text: str) -> tuple[dict, dict]:
+    """The study document and the files pulled in ({relative name: document})."""
+    import yaml
+    parts = text.split("\n---\n")
+    try:
+        first = yaml.safe_load(parts[0]) or {}
+    except yaml.YAMLError:
+        first = {}
+    extra = {}
+    for part in parts[1:]:
+        head = part.lstrip().splitlines()[0] if part.strip() else ""
+        name = head[1:].strip() if head.startswith("#") else ""
+        try:
+            extra[name] = yaml.safe_load(part)
+        except yaml.YAMLError:
+            pass
+    return (first if isinstance(first, dict) else {}), extra
+
+
+def _scene(doc: dict, extra: dict) -> dict:
+    scene = doc.get("scene")
+    if isinstance(scene, dict):
+        return scene
+    if isinstance(scene, str):
+        base = Path(scene).name
+        for name, d in extra.items():
+            if isinstance(d, dict) and (name == scene or Path(name).name == base):
+                return d.get("scene", d) if isinstance(d.get("scene", d), dict) else {}
+    return {}
+
+
+def status_meanings(var: xr.DataArray | None) -> dict:
+    out = dict(DEFAULT_STATUS)
+    if var is None:
+        return out
+    values = var.attrs.get("flag_values")
+    meanings = var.attrs.get("flag_meanings")
+    if values is not None and meanings is not None:
+        words = _text(meanings).split()
+        values = np.atleast_1d(np.asarray(values)).tolist()
+        if len(words) == len(values):
+            out.update({int(v): w.replace("_", " ") for v, w in zip(values, words)})
+    return out
+
+
+def order_along(points: np.ndarray) -> np.ndarray:
+    """An order of points along an open curve: start at an end, walk to the nearest neighbour."""
+    n = len(points)
+    if n <= 2:
+        return np.arange(n)
+    c = points.mean(axis=0)
+    d2c = np.linalg.norm(points - c, axis=1)
+    start = int(np.argmax(d2c))
+    # the end of the curve: farthest from the point farthest from the centroid
+    start = int(np.argmax(np.linalg.norm(points - points[start], axis=1)))
+    seen = np.zeros(n, bool)
+    order = [start]
+    seen[start] = True
+    for _ in range(n - 1):
+        d = np.linalg.norm(points - points[order[-1]], axis=1)
+        d[seen] = np.inf
+        k = int(np.argmin(d))
+        order.append(k)
+        seen[k] = True
+    return np.array(order)
+
+
+def _get(ds: xr.Dataset, name: str):
+    return ds[name] if name in ds.variables else None
+
+
+def load(path: str | Path) -> Results:
+    """Open a results file; StudyError (exit 2) when it is missing or not a wcs results file."""
+    path = Path(path)
+    if not path.exists():
+        raise StudyError(f"{path}: no such results file")
+    if path.is_dir():
+        raise StudyError(f"{path}: is a directory, not a results file")
+    try:
+        ds = xr.open_dataset(path, engine="h5netcdf")
+    except Exception:  # noqa: BLE001 - try the other engine before giving up
+        try:
+            ds = xr.open_dataset(path)
+        except Exception as e:  # noqa: BLE001
+            first = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise StudyError(f"{path}: not a NetCDF results file ({first})") from None
+    with ds:
+        ds.load()
+    return from_dataset(ds, str(path))
+
+
+def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
+    missing = [v for v in ("phi", "param") if v not in ds.variables]
+    if missing:
+        raise StudyError(f"{where}: not a wcs results file (no {', '.join(missing)}; "
+                         f"expected the layout of study-format.md §4)")
+    attrs = {k: _attr_scalar(v) for k, v in ds.attrs.items()}
+    study_yaml = _text(attrs.get("study_yaml", ""))
+    doc, extra = split_yaml(study_yaml) if study_yaml else ({}, {})
+    scene = _scene(doc, extra)
+
+    params = [_text(p) for p in ds["param"].values.tolist()]
+    nparam = len(params)
+    lower = ds["param_lower"].values.astype(float) if "param_lower" in ds else np.full(nparam, np.nan)
+    upper = ds["param_upper"].values.astype(float) if "param_upper" in ds else np.full(nparam, np.nan)
+
+    names = [_text(c) for c in ds["criterion"].values.tolist()] if "criterion" in ds.coords else \
+        [f"criterion {i}" for i in range(ds["phi"].shape[-1])]
+    ncrit = len(names)
+    phi_var = ds["phi"]
+    is_run = "eval" in phi_var.dims
+    if is_run:
+        phi = phi_var.transpose("eval", ...).values.astype(float).reshape(-1, ncrit)
+        n = phi.shape[0]
+        x = ds["x"].transpose("eval", "param").values.astype(float) if "x" in ds else np.full((n, nparam), np.nan)
+        status = ds["status"].values.astype(int).reshape(n) if "status" in ds else np.zeros(n, int)
+        stage = [_text(s) for s in ds["stage"].values.tolist()] if "stage" in ds else ["—"] * n
+        wall = ds["wall_time"].values.astype(float).reshape(n) if "wall_time" in ds else np.full(n, np.nan)
+        iters = ds["iterations"].values.astype(float).reshape(n) if "iterations" in ds else np.full(n, np.nan)
+    else:
+        phi = phi_var.values.astype(float).reshape(1, ncrit)
+        x = ds["x"].values.astype(float).reshape(1, nparam) if "x" in ds else np.full((1, nparam), np.nan)
+        status = np.array([int(ds["status"].values)]) if "status" in ds else np.zeros(1, int)
+        stage = ["nominal solve"]
+        wall = np.array([float(ds["wall_time"].values)]) if "wall_time" in ds else np.full(1, np.nan)
+        iters = np.array([float(ds["iterations"].values)]) if "iterations" in ds else np.full(1, np.nan)
+    kind = "solve" if not is_run else ("sweep" if stage and all(s == "sweep" for s in stage) else "run")
+
+    # criteria: kind and units from the file, else from the study text
+    specs = {c.get("name"): c for c in doc.get("criteria", []) if isinstance(c, dict)}
+    yaml_limits = doc.get("limits") or {}
+    unit_attr = {}
+    for piece in _text(phi_var.attrs.get("units", "")).split(","):
+        if ":" in piece:
+            k, v = piece.split(":", 1)
+            unit_attr[k.strip()] = v.strip()
+    kinds_var = _get(ds, "criterion_kind")
+    units_var = _get(ds, "criterion_units")
+    limit = ds["limit"].values.astype(float) if "limit" in ds else \
+        np.array([float(yaml_limits.get(n, np.nan)) for n in names])
+    ok = status == 0
+    if "worst_value" in ds:
+        worst = ds["worst_value"].values.astype(float).reshape(ncrit)
+    else:
+        worst = np.array([np.nanmax(phi[ok, j]) if np.isfinite(phi[ok, j]).any() else np.nan
+                          for j in range(ncrit)])
+    cert_var = _get(ds, "certificate")
+    criteria = []
+    for j, name in enumerate(names):
+        spec = specs.get(name, {})
+        kind_j = _text(kinds_var.values[j]) if kinds_var is not None else spec.get("kind", "")
+        units = _text(units_var.values[j]) if units_var is not None else \
+            unit_attr.get(name) or KIND_UNITS.get(kind_j, "")
+        col = np.where(ok, phi[:, j], np.nan)
+        worst_eval = None
+        if np.isfinite(worst[j]) and np.isfinite(col).any():
+            hit = np.flatnonzero(col == worst[j])
+            worst_eval = int(hit[0]) if hit.size else int(np.nanargmax(col))
+        if "worst_x" in ds:
+            wx = ds["worst_x"].transpose("criterion", "param").values.astype(float)[j]
+        elif worst_eval is not None:
+            wx = x[worst_eval]
+        else:
+            wx = np.full(nparam, np.nan)
+        if cert_var is not None:
+            cert = _text(cert_var.values[j]) if cert_var.ndim else _text(cert_var.values)
+        else:
+            cert = {"solve": "none (a single solve)", "sweep": "none (a grid sweep)"}.get(kind, "—")
+        criteria.append(Criterion(name, kind_j, units, list(spec.get("regions", [])), float(limit[j]),
+                                  float(worst[j]), wx, cert, worst_eval))
+
+    mesh = None
+    if "coords" in ds and "cells" in ds:
+        bodies = [_text(b) for b in ds["body"].values.tolist()] if "body" in ds.coords else []
+        regions = [_text(r) for r in ds["region"].values.tolist()] if "region" in ds.coords else []
+        coords = ds["coords"].values.astype(float)
+        mesh = Mesh(coords[:, :2], ds["cells"].values.astype(np.int64),
+                    ds["cell_body"].values.astype(int) if "cell_body" in ds else None,
+                    ds["cell_region"].values.astype(int) if "cell_region" in ds else None,
+                    bodies, regions)
+
+    worst_fields: list[Fields | None] = []
+    for j, name in enumerate(names):
+        worst_fields.append(_fields(ds, j, name, prefixed=is_run))
+
+    return Results(kind=kind, study=_text(attrs.get("study", doc.get("study", "unnamed study"))),
+                   attrs=attrs, study_yaml=study_yaml, study_doc=doc, scene=scene, params=params,
+                   lower=lower, upper=upper, x=x, phi=phi, status=status, stage=stage,
+                   wall_time=wall, iterations=iters, status_meanings=status_meanings(_get(ds, "status")),
+                   criteria=criteria, mesh=mesh, worst_fields=worst_fields,
+                   iterations_doc=_text(ds["iterations"].attrs.get("long_name", "")) if "iterations" in ds else "")
+
+
+def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:
+    """The fields at the worst case of criterion j: `worst_<f>` (criterion, ...) in a run
+    file, the unprefixed fields of a solve file (the same case for every criterion)."""
+    def pick(f):
+        v = _get(ds, f"worst_{f}")
+        if v is not None:
+            return (v.isel(criterion=j) if "criterion" in v.dims else v).values
+        if prefixed and f not in ("contact_coords", "contact_pair"):
+            return None       # a run file without worst-case fields
+        v = _get(ds, f)       # a solve file; or contact geometry stored once
+        return None if v is None or "eval" in v.dims else v.values
+    out = Fields()
+    found = False
+    for f in ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity", "temperature"):
+        v = pick(f)
+        if v is not None:
+            setattr(out, f, np.asarray(v, float))
+            found = True
+    cc = pick("contact_coords")
+    cp = pick("contact_pair")
+    if cc is not None and cp is not None:
+        out.contact_coords = np.asarray(cc, float)
+        out.contact_pair = np.array([_text(p) for p in np.asarray(cp).tolist()])
+        for f in ("contact_pressure", "contact_gap", "contact_slip", "contact_shear"):
+            v = pick(f)
+            if v is not None:
+                out.contact[f] = np.asarray(v, float)
+        found = True
+    if not found:
+        return None
+    if out.displacement is not None and not np.isfinite(out.displacement).any():
+        return None            # a placeholder for a criterion whose every evaluation failed
+    return out

@@ -1,0 +1,373 @@
+"""The report as one self-contained HTML page (inline CSS, images as data: URIs)."""
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import math
+import re
+import sys
+import traceback
+
+import numpy as np
+
+from . import plots
+from .data import KIND_LABEL, Results
+
+SECTIONS = [
+    ("summary", "Summary"),
+    ("limits", "Limits"),
+    ("scene", "The scene and mesh"),
+    ("worst-data", "Worst data set per criterion"),
+    ("worst-fields", "Deformed shape and stresses at the worst case"),
+    ("contact", "Contact pressure and slip"),
+    ("criteria-vs-parameters", "Criteria against the parameters"),
+    ("best-so-far", "Best so far against solves"),
+    ("failures", "Failures"),
+    ("provenance", "Provenance"),
+]
+
+CSS = """
+body{font-family:-apple-system,'Segoe UI',Roboto,'DejaVu Sans',Arial,sans-serif;margin:0;color:#1b1f24;background:#fff;line-height:1.4}
+main{max-width:1240px;margin:0 auto;padding:16px 28px 48px}
+header{background:#1f3a5f;color:#fff;padding:18px 28px}
+header h1{margin:0 0 4px;font-size:24px}
+header p{margin:0;opacity:.85}
+nav{background:#eef2f7;padding:8px 28px;font-size:13px;border-bottom:1px solid #d0d7de}
+nav a{margin-right:14px;color:#1f3a5f;text-decoration:none}
+h2{border-bottom:2px solid #1f3a5f;padding-bottom:3px;margin-top:34px;font-size:19px}
+h3{font-size:15px;margin:18px 0 6px}
+table{border-collapse:collapse;margin:8px 0 14px;font-size:13px}
+th,td{border:1px solid #d0d7de;padding:4px 8px;text-align:left;vertical-align:middle}
+th{background:#f3f5f8}
+td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
+.pass{background:#dff5e3;color:#11612a;font-weight:bold}
+.fail{background:#d1242f;color:#fff;font-weight:bold}
+.none{color:#57606a}
+.verdict{display:inline-block;font-size:22px;font-weight:bold;padding:6px 18px;border-radius:6px;margin:6px 0}
+.verdict.pass{border:2px solid #11612a}
+.verdict.fail{border:2px solid #82071e}
+.verdict.none{background:#eef2f7;border:2px solid #8c959f}
+.bar{position:relative;width:160px;height:12px;background:#e6ebf1;border:1px solid #aab4bf;border-radius:2px}
+.bar .mark{position:absolute;top:-3px;width:4px;height:16px;margin-left:-2px;background:#1f3a5f}
+.bar .mark.bound{background:#d1242f}
+.atbound{color:#d1242f;font-weight:bold}
+img{max-width:100%;height:auto;border:1px solid #e1e4e8;margin:6px 0}
+.note{color:#57606a;font-size:13px}
+.warn{background:#fff8c5;border:1px solid #d4a72c;padding:6px 10px;font-size:13px}
+details{margin:8px 0}
+summary{cursor:pointer;color:#1f3a5f;font-weight:bold}
+pre{background:#f6f8fa;border:1px solid #d0d7de;padding:10px;font-size:12px;overflow-x:auto;white-space:pre}
+dl.kv{display:grid;grid-template-columns:max-content auto;gap:2px 16px;font-size:13px}
+dl.kv dt{font-weight:bold}
+dl.kv dd{margin:0;font-family:monospace;word-break:break-all}
+"""
+
+SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+PARAM_UNITS = [
+    (r"^materials\.[^.]+\.(E|lambda|mu)$", "Pa"), (r"^materials\.[^.]+\.nu$", "–"),
+    (r"^materials\.[^.]+\.density_weight$", "N/m³"), (r"^materials\.[^.]+\.expansion$", "1/K"),
+    (r"^materials\.[^.]+\.conductivity$", "W/(m·K)"), (r"^loads\.[^.]+\.(pressure|traction)", "Pa"),
+    (r"^body_forces\.", "N/m³"), (r"^supports\.[^.]+\.(u|normal)", "m"),
+    (r"friction\.slip_limit", "Pa"), (r"friction\.coefficient", "–"),
+    (r"^thermal\.(temperature|reference)", "K"), (r"^thermal\.sources", "W/m³"),
+]
+
+
+def param_units(path: str) -> str:
+    for pattern, u in PARAM_UNITS:
+        if re.search(pattern, path):
+            return u
+    return "–"
+
+
+def number(v, units: str = "", digits: int = 4) -> str:
+    """A number for people: 4 significant digits, ×10ⁿ for large and small ones, units."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "—"
+    v = float(v)
+    u = plots.unit_label(units) if units and units != "–" else ""
+    if v == 0:
+        s = "0"
+    else:
+        e = math.floor(math.log10(abs(v)))
+        if -3 <= e < 5:
+            s = f"{v:.{max(digits - 1 - e, 0)}f}" if e < digits else f"{v:.0f}"
+        else:
+            m = v / 10 ** e
+            if round(abs(m), digits - 1) >= 10:
+                m, e = m / 10, e + 1
+            s = f"{m:.{digits - 1}f} × 10{str(e).translate(SUPERSCRIPT)}"
+    s = s.replace("-", "−")
+    out = f"{s} {u}".strip()
+    if units == "K":
+        out += f" ({v - 273.15:.1f} °C)"
+    return out
+
+
+def esc(s) -> str:
+    return html.escape(str(s))
+
+
+def img(data: bytes, alt: str) -> str:
+    return f'<img alt="{esc(alt)}" src="data:image/png;base64,{base64.b64encode(data).decode()}">'
+
+
+class Report:
+    def __init__(self, res: Results, source: str = "", strict: bool = False):
+        self.res = res
+        self.source = source
+        self.strict = strict
+        self.units = [param_units(p) for p in res.params]
+        self.problems: list[str] = []
+
+    # ------------------------------------------------------------ helpers
+    def guarded(self, sid: str, title: str, build) -> str:
+        try:
+            body = build()
+        except Exception as e:  # noqa: BLE001 - one broken figure must not lose the whole report
+            if self.strict:
+                raise
+            self.problems.append(f"{sid}: {type(e).__name__}: {e}")
+            print(f"warning: report section {sid!r} could not be drawn: {type(e).__name__}: {e}", file=sys.stderr)
+            body = (f'<p class="warn report-error">This section could not be drawn: '
+                    f'{esc(type(e).__name__)}: {esc(e)}</p>'
+                    f'<details><summary>details</summary><pre>{esc(traceback.format_exc())}</pre></details>')
+        return f'<section id="{sid}">\n<h2>{esc(title)}</h2>\n{body}\n</section>\n'
+
+    def verdicts(self):
+        out = []
+        for c in self.res.criteria:
+            if not math.isfinite(c.limit):
+                out.append("none")
+            elif not math.isfinite(c.worst):
+                out.append("unknown")
+            else:
+                out.append("fail" if c.worst > c.limit else "pass")
+        return out
+
+    # ------------------------------------------------------------ sections
+    def summary(self) -> str:
+        r, a = self.res, self.res.attrs
+        v = self.verdicts()
+        n_fail = int(r.failed.sum())
+        if "fail" in v:
+            broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
+            verdict, cls, why = "FAIL", "fail", f"broken limit: {', '.join(broken)}"
+        elif "pass" in v and "unknown" not in v:
+            verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit"
+        elif "unknown" in v:
+            verdict, cls, why = "INCOMPLETE", "none", "no worst value for a criterion with a limit (every evaluation failed)"
+        else:
+            verdict, cls, why = "NO LIMITS", "none", "the study sets no limits; worst values are reported only"
+        what = {"run": "worst-scenario search", "sweep": "grid sweep", "solve": "single forward solve (nominal data)"}[r.kind]
+        rows = [("study", esc(r.study)), ("results file", esc(self.source) or "—"),
+                ("created", esc(a.get("created", "—"))), ("kind", what),
+                ("evaluations", f"{r.n_eval} ({n_fail} failed)"),
+                ("parameters", f"{len(r.params)} uncertain numbers"),
+                ("criteria", ", ".join(esc(c.name) for c in r.criteria))]
+        body = (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
+                f'<p>{esc(why)}.</p>'
+                + _kv(rows))
+        if r.kind != "run":
+            body += ('<p class="note">This file is not a worst-scenario search: the values below are the '
+                     'largest found among its evaluations, not a certified maximum over the box.</p>')
+        return body
+
+    def limits(self) -> str:
+        r = self.res
+        rows = []
+        for c, v in zip(r.criteria, self.verdicts()):
+            margin = c.limit - c.worst if math.isfinite(c.limit) and math.isfinite(c.worst) else float("nan")
+            pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
+            label = {"pass": "PASS", "fail": "FAIL", "none": "no limit", "unknown": "unknown"}[v]
+            cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
+            rows.append(
+                f'<tr data-criterion="{esc(c.name)}"><td>{esc(c.name)}</td>'
+                f'<td>{esc(KIND_LABEL.get(c.kind, c.kind or "—"))}</td>'
+                f'<td>{esc(plots.unit_label(c.units))}</td>'
+                f'<td class="num">{number(c.worst, c.units)}</td>'
+                f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
+                f'<td class="num">{number(margin, c.units) if math.isfinite(margin) else "—"}</td>'
+                f'<td class="num">{f"{pct:+.1f} %" if math.isfinite(pct) else "—"}</td>'
+                f'<td class="{cls} verdict-cell">{label}</td><td>{esc(c.certificate)}</td></tr>')
+        return ('<table id="limits-table"><tr><th>criterion</th><th>kind</th><th>units</th><th>worst value</th>'
+                '<th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
+                '<th>certificate</th></tr>' + "".join(rows) + "</table>"
+                '<p class="note">Every criterion is a maximum over its regions of interest; a limit is broken '
+                'when the worst value exceeds it (negative margin). Certificate: <b>corner-kkt</b> — the '
+                'maximiser is a vertex of the box satisfying the KKT sign conditions; <b>local-kkt</b> — a '
+                'local maximum satisfying the first-order conditions; <b>heuristic</b> — the best value '
+                'found, no optimality proof.</p>')
+
+    def scene(self) -> str:
+        r = self.res
+        if r.mesh is None:
+            return '<p class="note">The results file holds no mesh.</p>'
+        a = r.attrs
+        rois = r.scene.get("regions_of_interest") or {}
+        text = (f'<p>{r.mesh.coords.shape[0]} nodes, {r.mesh.cells.shape[0]} triangles'
+                f'{", plane " + esc(a["plane"]) if "plane" in a else ""}; '
+                f'bodies: {", ".join(esc(b) for b in r.mesh.bodies) or "—"}; '
+                f'regions: {", ".join(esc(x) for x in r.mesh.regions) or "—"}; '
+                f'regions of interest: {", ".join(esc(x) for x in rois) or "—"}.</p>')
+        return text + img(plots.scene_figure(r), "scene and mesh")
+
+    def worst_data(self) -> str:
+        r = self.res
+        out = []
+        for c in r.criteria:
+            if not np.isfinite(c.worst_x).any():
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">No data set: every evaluation failed.</p>')
+                continue
+            rows = []
+            for k, p in enumerate(r.params):
+                lo, hi, x = r.lower[k], r.upper[k], c.worst_x[k]
+                w = hi - lo
+                t = (x - lo) / w if w > 0 else 0.5
+                tol = 1e-9 * max(abs(w), abs(hi), abs(lo), 1e-300)
+                at = "lower" if abs(x - lo) <= tol else "upper" if abs(x - hi) <= tol else ""
+                u = self.units[k]
+                rows.append(
+                    f'<tr><td><code>{esc(p)}</code></td><td class="num">{number(lo, u)}</td>'
+                    f'<td class="num">{number(hi, u)}</td>'
+                    f'<td class="num{" atbound" if at else ""}">{number(x, u)}</td>'
+                    f'<td><div class="bar" title="{100 * t:.0f} % of the box"><div class="mark{" bound" if at else ""}" '
+                    f'style="left:{100 * min(max(t, 0), 1):.1f}%"></div></div></td>'
+                    f'<td>{"● at " + at + " bound" if at else ""}</td></tr>')
+            out.append(
+                f'<h3>{esc(c.name)}: worst value {number(c.worst, c.units)}</h3>'
+                '<table class="worst-x"><tr><th>parameter</th><th>lower</th><th>upper</th><th>worst data set</th>'
+                '<th>position in the box</th><th></th></tr>' + "".join(rows) + "</table>")
+        return "".join(out)
+
+    def worst_fields(self) -> str:
+        r = self.res
+        if r.mesh is None or all(f is None for f in r.worst_fields):
+            return '<p class="note">The results file holds no fields of the worst cases.</p>'
+        out = []
+        done = {}
+        for j, c in enumerate(r.criteria):
+            f = r.worst_fields[j]
+            if f is None:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">No fields (no successful evaluation).</p>')
+                continue
+            key = "solve" if r.kind == "solve" else tuple(np.round(c.worst_x, 14))
+            if key in done:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">Same data set as the worst case of '
+                           f'{esc(done[key])}: see above.</p>')
+                continue
+            done[key] = c.name
+            data, mag = plots.worst_case_figure(r, j)
+            label = "the nominal data" if r.kind == "solve" else f"the worst case of {esc(c.name)}"
+            extra = []
+            if f.von_mises is not None:
+                extra.append(f"max von Mises {number(float(np.nanmax(f.von_mises)), 'Pa')}")
+            if f.principal_stress is not None:
+                extra.append(f"σ₁ max {number(float(np.nanmax(f.principal_stress[:, 0])), 'Pa')}, "
+                             f"σ₂ min {number(float(np.nanmin(f.principal_stress[:, -1])), 'Pa')}")
+            if f.displacement is not None:
+                extra.append(f"max |u| {number(float(np.nanmax(np.linalg.norm(f.displacement, axis=1))), 'm')}")
+            if f.temperature is not None:
+                extra.append(f"temperature {number(float(np.nanmin(f.temperature)), 'K')} … "
+                             f"{number(float(np.nanmax(f.temperature)), 'K')}")
+            out.append(f'<h3>{esc(c.name)}: {label}</h3>'
+                       f'<p>Displacements magnified × {mag:g}. {"; ".join(extra)}.</p>'
+                       + img(data, f"worst case of {c.name}"))
+        return "".join(out)
+
+    def contact(self) -> str:
+        data = plots.contact_figure(self.res)
+        if data is None:
+            return '<p class="note">No contact in this study (or no contact fields in the file).</p>'
+        pairs = [c.pair for c in plots.contacts_of(self.res)]
+        return (f'<p>Along each contact ({", ".join(esc(p) for p in pairs)}), on the slave nodes, at the worst '
+                'case of each criterion: the contact pressure −τₙ (zero where the contact opens) and the relative '
+                'tangential displacement (slip).</p>' + img(data, "contact pressure and slip"))
+
+    def scatter(self) -> str:
+        r = self.res
+        if r.n_eval < 2:
+            return f'<p class="note">Only {r.n_eval} evaluation in this file: nothing to plot.</p>'
+        out = ['<p>Each point is one evaluation; the shaded band is the box; ★ the worst; '
+               '× at the bottom a failed evaluation (no value); dashed red: the limit.</p>']
+        for j, c in enumerate(r.criteria):
+            out.append(f"<h3>{esc(c.name)} [{esc(plots.unit_label(c.units))}]</h3>"
+                       + img(plots.scatter_figure(r, j, self.units), f"{c.name} against the parameters"))
+        return "".join(out)
+
+    def best(self) -> str:
+        r = self.res
+        if r.n_eval < 2:
+            return f'<p class="note">Only {r.n_eval} evaluation in this file: nothing to plot.</p>'
+        return ("<p>The largest value found after each forward solve (black), and every evaluation "
+                "coloured by the search stage that asked for it.</p>" + img(plots.best_so_far_figure(r), "best so far"))
+
+    def failures(self) -> str:
+        r = self.res
+        codes, counts = np.unique(r.status, return_counts=True)
+        rows = "".join(f'<tr><td class="num">{int(c)}</td><td>{esc(r.status_meanings.get(int(c), "unknown code"))}</td>'
+                       f'<td class="num">{int(n)}</td></tr>' for c, n in zip(codes, counts))
+        n_fail = int(r.failed.sum())
+        body = (f'<p>{n_fail} of {r.n_eval} evaluations failed.</p>'
+                '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
+        if n_fail:
+            body += ('<p>Where in the box they happened (each evaluation a line over the parameters scaled to '
+                     'the box; grey: solved):</p>' + img(plots.failures_figure(r), "failures in the box"))
+            idx = np.flatnonzero(r.failed)[:50]
+            head = "".join(f"<th>{esc(plots._short(p))}</th>" for p in r.params)
+            trs = "".join(f'<tr><td class="num">{i}</td><td>{esc(r.stage[i])}</td><td class="num">{r.status[i]}</td>'
+                          + "".join(f'<td class="num">{number(v, u)}</td>' for v, u in zip(r.x[i], self.units))
+                          + "</tr>" for i in idx)
+            body += (f'<details><summary>the failed data sets{" (first 50)" if n_fail > 50 else ""}</summary>'
+                     f'<div style="overflow-x:auto"><table><tr><th>eval</th><th>stage</th><th>status</th>{head}</tr>'
+                     f'{trs}</table></div></details>')
+        return body
+
+    def provenance(self) -> str:
+        r, a = self.res, self.res.attrs
+        wt = r.wall_time[np.isfinite(r.wall_time)]
+        it = r.iterations[np.isfinite(r.iterations)]
+        rows = [("study", a.get("study", r.study)), ("study_sha256", a.get("study_sha256", "—")),
+                ("wcs_version", a.get("wcs_version", "—")), ("git_commit", a.get("git_commit", "—")),
+                ("seed", a.get("seed", "—")), ("solver", a.get("solver", "—")),
+                ("plane", a.get("plane", "—")),
+                ("mesh", f'{a.get("mesh_nodes", "—")} nodes, {a.get("mesh_cells", "—")} cells'),
+                ("created", a.get("created", "—")),
+                ("compute", f"{wt.sum():.1f} s in {len(wt)} evaluations" + (
+                    f" ({np.median(wt):.2f} s median)" if len(wt) else "")),
+                ("solver iterations", (f"{int(it.min())}–{int(it.max())} per evaluation" if len(it) else "—")
+                 + (f" ({r.iterations_doc})" if r.iterations_doc else "")),
+                ("results file", self.source or "—"),
+                ("report generated", _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))]
+        body = _kv([(k, esc(v)) for k, v in rows])
+        if r.study_yaml:
+            body += (f'<details><summary>the study file as loaded ({len(r.study_yaml.splitlines())} lines, '
+                     f'sha256 {esc(str(a.get("study_sha256", ""))[:12])}…)</summary><pre>{esc(r.study_yaml)}</pre></details>')
+        else:
+            body += '<p class="note">The results file does not record the study text.</p>'
+        return body
+
+    # ------------------------------------------------------------ page
+    def render(self) -> str:
+        r = self.res
+        builders = {"summary": self.summary, "limits": self.limits, "scene": self.scene,
+                    "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
+                    "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
+                    "failures": self.failures, "provenance": self.provenance}
+        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)
+        nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in SECTIONS)
+        return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+                f"<title>wcs report: {esc(r.study)}</title><style>{CSS}</style></head><body>"
+                f"<header><h1>Worst-scenario report: {esc(r.study)}</h1>"
+                f"<p>wcs {esc(r.attrs.get('wcs_version', ''))} · {esc(r.attrs.get('created', ''))}</p></header>"
+                f"<nav>{nav}</nav><main>{sections}</main></body></html>\n")
+
+
+def _kv(rows) -> str:
+    return '<dl class="kv">' + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in rows) + "</dl>"
+
+
+def render(res: Results, source: str = "", strict: bool = False) -> str:
+    return Report(res, source, strict).render()

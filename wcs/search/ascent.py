@@ -1,0 +1,210 @@
+"""Projected local ascent: a trust-region SQP loop of our own, driven by the runner.
+
+scipy's optimisers call the objective themselves; ours must instead *yield*
+the points it wants solved (the runner evaluates them in parallel, from its
+store on resume). So the outer loop is written here and only the cheap inner
+problems go to scipy. For each run (criterion c, start z) in scaled
+coordinates, with f = Φ_c(z), g = dΦ_c/dz and B ≻ 0 approximating −∇²Φ_c:
+
+    step      d = argmax  g·d − ½ dᵀB d   s.t.  z + d ∈ P,  ‖d‖∞ ≤ Δ
+              (a small QP on the box + linear constraints A x ≤ b; SLSQP, no solves)
+    predicted π = g·d − ½ dᵀB d > 0,   actual α = Φ_c(z + d) − f   (one solve)
+    ratio     ρ = α / π: accept when ρ > 0.1; Δ ← 2Δ (≤ 1) when ρ > 0.75 and
+              the step reached the trust-region boundary, Δ ← Δ/4 when ρ < 0.25
+    curvature damped BFGS (Powell) on s = d, y = g − g_new, keeps B ≻ 0
+    stop      KKT: Frank–Wolfe gap(z, g) ≤ tol·scale;  Δ < 1e-9;  max_iter;  budget
+
+This is a projected quasi-Newton ascent: from B = ‖g‖·I the first step is the
+projected steepest ascent clipped to the trust region; near a non-degenerate
+maximum it becomes an SQP/Newton step. The trust region replaces a line
+search (a failed or worse trial shrinks Δ), so a failed evaluation is just a
+rejected step. All runs advance in lockstep: one batch holds one trial per run.
+
+Gradients: `Outcome.grad` when present. When missing at the current point
+(an evaluation asked without gradients, a failed adjoint, a criterion
+without one), the point is asked again with gradients if it never was, and
+otherwise dΦ/dz is taken by forward differences in z with step h = 1e-6
+(inward at a bound; one solve per parameter, charged to the budget; an FD
+point may violate A x ≤ b by at most h — it is always inside the box).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+FD_STEP = 1e-6
+
+
+@dataclass
+class Run:
+    c: str
+    z: np.ndarray
+    f: float
+    g: np.ndarray | None
+    delta: float = 0.5
+    B: np.ndarray | None = None
+    done: str = ""
+    iterations: int = 0
+
+
+def ascend(archive, starts, tol: float, max_iter: int = 40):
+    """Local ascents of criteria from records: starts = [(criterion, Record), …]. Returns the runs."""
+    runs = [Run(c, r.z.copy(), r.phi[c], r.grad.get(c)) for c, r in starts if r is not None and r.ok[c]]
+    space = archive.space
+    while True:
+        active = [r for r in runs if not r.done]
+        yield from _ensure_gradients(archive, active)
+        for r in active:
+            if r.g is None:
+                rec = archive.find(r.z)
+                r.g = rec.grad.get(r.c) if rec is not None else None
+            if r.g is None:
+                r.done = "no gradient"
+            elif space.gap(r.z, r.g) <= tol * archive.scale(r.c):
+                r.done = "kkt"
+            elif r.iterations >= max_iter:
+                r.done = "iterations"
+        active = [r for r in active if not r.done]
+        trials = []
+        for r in active:
+            if r.B is None:
+                r.B = max(np.linalg.norm(r.g), 1e-300) * np.eye(space.n)
+            d, pred = _step(space, r.z, r.g, r.B, r.delta)
+            if pred <= 1e-14 * archive.scale(r.c):
+                r.done = "no predicted gain"
+            else:
+                trials.append((r, d, pred))
+        if not trials or archive.remaining == 0:
+            for r, _, _ in trials:
+                r.done = "budget"
+            return runs
+        recs = yield from archive.ask([r.z + d for r, d, _ in trials], "local", gradients=True)
+        for (r, d, pred), rec in zip(trials, recs):
+            r.iterations += 1
+            if rec is None:
+                r.done = "budget"
+                continue
+            s = rec.z - r.z
+            f_new = rec.phi[r.c] if rec.ok[r.c] else -np.inf
+            g_new = rec.grad.get(r.c)
+            if g_new is not None:
+                _bfgs(r.B, s, r.g - g_new)
+            rho = (f_new - r.f) / pred
+            if rho > 0.1 and f_new > r.f:
+                r.z, r.f, r.g = rec.z.copy(), f_new, g_new
+            if rho > 0.75 and np.max(np.abs(d)) >= 0.9 * r.delta:
+                r.delta = min(2.0 * r.delta, 1.0)
+            elif rho < 0.25:
+                r.delta = 0.25 * np.max(np.abs(d))
+            if r.delta < 1e-9:
+                r.done = "trust region collapsed"
+        if archive.exhausted:
+            for r in runs:
+                r.done = r.done or "budget"
+            return runs
+
+
+def _step(space, z, g, B, delta):
+    """The trust-region QP: (d, predicted gain)."""
+    s = max(np.max(np.abs(g)), 1e-300)
+    gh, Bh = g / s, B / s
+    lo, hi = np.maximum(-delta, -z), np.minimum(delta, 1.0 - z)
+    cons = []
+    if space.A is not None:
+        cons = [{"type": "ineq", "fun": lambda d: space.b - space.A @ (z + d), "jac": lambda d: -space.A}]
+    # start from the clipped steepest-ascent step (feasible for the box; SLSQP repairs the rest)
+    d0 = np.clip(gh * delta, lo, hi)
+    if space.A is not None and not space.feasible(z + d0):
+        d0 = np.zeros_like(z)
+    res = minimize(lambda d: -gh @ d + 0.5 * d @ Bh @ d, d0, jac=lambda d: -gh + Bh @ d,
+                   method="SLSQP", bounds=list(zip(lo, hi)), constraints=cons,
+                   options={"ftol": 1e-14, "maxiter": 200})
+    d = np.clip(res.x, lo, hi)
+    zt = space.repair(z + d)            # snaps to bounds, removes round-off violations
+    d = zt - z
+    return d, float(g @ d - 0.5 * d @ B @ d)
+
+
+def _bfgs(B, s, y):
+    """Damped BFGS update (Powell) of B ≈ −∇²Φ in place; skipped for tiny steps."""
+    Bs = B @ s
+    sBs = float(s @ Bs)
+    if sBs <= 1e-300 or np.linalg.norm(s) < 1e-14:
+        return
+    sy = float(s @ y)
+    if sy < 0.2 * sBs:
+        theta = 0.8 * sBs / (sBs - sy)
+        y = theta * y + (1 - theta) * Bs
+        sy = float(s @ y)
+    B += np.outer(y, y) / sy - np.outer(Bs, Bs) / sBs
+
+
+def _ensure_gradients(archive, runs):
+    """Give every run a gradient at its point: ask again with gradients, else finite differences."""
+    need = [r for r in runs if r.g is None]
+    if not need:
+        return
+    again = [r.z for r in need if not (archive.find(r.z) and archive.find(r.z).asked_gradients)]
+    if again:
+        yield from archive.ask(again, "gradient", gradients=True)
+    pending = []
+    for r in need:
+        rec = archive.find(r.z)
+        if rec is not None and rec.grad.get(r.c) is None and rec.ok[r.c]:
+            pending.append(rec)
+    yield from finite_differences(archive, pending)
+
+
+def finite_differences(archive, recs):
+    """Forward differences in z at the records (all criteria at once); stored as rec.grad."""
+    space, recs = archive.space, _unique(recs)
+    h = FD_STEP
+    points, plan = [], []
+    for rec in recs:
+        steps = []
+        for i in range(space.n):
+            if space.width[i] == 0:
+                steps.append(None)
+                continue
+            e = np.zeros(space.n)
+            e[i] = h
+            zi = rec.z + e if rec.z[i] + h <= 1.0 and space.feasible(rec.z + e) else rec.z - e
+            if zi[i] < 0:
+                zi = rec.z + e
+            steps.append(zi)
+            points.append(zi)
+        plan.append(steps)
+    if not points:
+        return
+    if len(points) > archive.remaining:
+        return
+    space_key = {space.key(p): p for p in points}
+    outs = yield from archive.ask(list(space_key.values()), "fd", gradients=False, exact=True)
+    got = {space.key(p): o for p, o in zip(space_key.values(), outs)}
+    for rec, steps in zip(recs, plan):
+        for c in archive.criteria:
+            if rec.grad.get(c) is not None or not rec.ok[c]:
+                continue
+            g = np.zeros(space.n)
+            for i, zi in enumerate(steps):
+                if zi is None:
+                    continue
+                o = got.get(space.key(zi))
+                if o is None or not o.ok[c]:
+                    g = None
+                    break
+                g[i] = (o.phi[c] - rec.phi[c]) / (o.z[i] - rec.z[i])
+            if g is not None:
+                rec.grad[c] = g
+                rec.fd.add(c)
+
+
+def _unique(recs):
+    seen, out = set(), []
+    for r in recs:
+        if id(r) not in seen:
+            seen.add(id(r))
+            out.append(r)
+    return out

@@ -1,0 +1,273 @@
+r"""Adjoint gradients of the criteria with respect to the data (architecture.md, idea 3).
+
+On a fixed active set the discrete problem is linear in the data, so each
+criterion needs one adjoint solve with the factorization of the forward solve.
+
+Forward (reduced unknowns w, full u = T w + U0 c_U; heat unknowns θ = T_h w_T + U0_h c_T):
+
+    heat:     T_hᵀ [K_h(κ) θ − q(W)] = 0
+    elastic:  Tᵀ [K(λ, μ) u − f(c, Pθ)] + Cᵀ λ = 0,       C = [B_n; B_t] (reduced)
+    contact:  per component, an equality C_i u = d_i (closed normal / stuck tangent)
+              or a fixed multiplier λ_t,i − s_i F_i λ_n,i = s_i g_i w_i (slip; λ_n,i = 0 open).
+
+With K⁺ the generalized inverse the contact solver factored and R the rigid modes of
+floating bodies, u = K⁺(f − Cᵀλ) + Rα and the multipliers solve a small system
+N [λ; α] = [d_A − C_A K⁺ f; h; Rᵀ f] (equalities A, fixed rows B, equilibrium of the
+rigid modes). For Φ with partials φ_w = ∂Φ/∂w, φ_λ = ∂Φ/∂λ:
+
+    Nᵀ μ = [φ_λ − C K⁺ φ_w; Rᵀ φ_w],      z = K⁺(φ_w − C_Aᵀ μ_A) + R μ_R,
+
+and dΦ = z · δf_eff + μ_A · δd_A + μ_B · (δh − δN y) + explicit partials, where
+δf_eff = Tᵀ(δf − δK u − K U0 δc_U) is the change of the effective load. Without
+contact z = K⁻¹ φ_w. The heat step adds one more adjoint solve with the load
+∂Φ/∂θ + Pᵀ Σ_j β_j B_jᵀ (T z). All of it yields ∂Φ/∂c for the flat coefficient
+vector c (moduli per region, loads, support values, temperatures, slip limits per
+contact node, …); the chain rule to the parameters x uses ∂c/∂x, taken by central
+differences of the cheap map x → scene → coefficients (no solves).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .model import Coefficients
+
+FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
+          "support_values", "temperature_values", "reference", "slip", "coulomb")
+REL_TOL = 1e-7       # "within reach" for the non-smoothness flags, relative
+
+
+def flatten(c: Coefficients) -> tuple[np.ndarray, dict[str, slice]]:
+    """The coefficients as one vector and the slice of each field."""
+    parts, slices, k = [], {}, 0
+    for name in FIELDS:
+        v = getattr(c, name)
+        if isinstance(v, dict):
+            v = np.concatenate([np.atleast_1d(np.asarray(v[b], float)) for b in sorted(v)]) if v else np.zeros(0)
+        v = np.atleast_1d(np.asarray(v, float)).ravel()
+        parts.append(v)
+        slices[name] = slice(k, k + v.size)
+        k += v.size
+    return np.concatenate(parts), slices
+
+
+def coefficient_jacobian(study, model, x: np.ndarray) -> np.ndarray:
+    """∂c/∂x (ncoef, nparam) by central differences of x → scene → coefficients.
+    The map is affine in most data and smooth (E, ν → λ, μ, β) in the rest; a step of
+    1e-6 of the box width leaves an error ~1e-12 relative."""
+    from .study import scene_with
+    lo, hi = study.parameters.lower, study.parameters.upper
+    cols = []
+    for k in range(x.size):
+        h = 1e-6 * max(hi[k] - lo[k], abs(x[k]), 1e-300)
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        cp = flatten(model.coefficients(scene_with(study, xp)))[0]
+        cm = flatten(model.coefficients(scene_with(study, xm)))[0]
+        cols.append((cp - cm) / (2 * h))
+    return np.column_stack(cols) if cols else np.zeros((0, 0))
+
+
+@dataclass
+class Partials:
+    """Explicit partial derivatives of one criterion at a solution."""
+    u: np.ndarray | None = None          # ∂Φ/∂u (full dofs)
+    theta: np.ndarray | None = None      # ∂Φ/∂θ (heat nodes)
+    lam_n: np.ndarray | None = None      # ∂Φ/∂λ_n (contact nodes)
+    coef: dict | None = None             # field -> ∂Φ/∂c (explicit dependence, e.g. of stresses)
+
+
+def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
+    """Partials of Φ = max_r Φ_r at the maximising region; flags a near-tie between regions."""
+    values = criterion.region_values(model, state)
+    r = int(np.argmax(values))
+    others = np.delete(values, r)
+    tie = others.size > 0 and np.max(others) >= values[r] - REL_TOL * max(abs(values[r]), 1e-300)
+    kind = criterion.kind
+    if kind == "mean_temperature":
+        return Partials(theta=model.P.T @ criterion.functionals[r]), tie
+    if kind == "mean_normal_displacement":
+        return Partials(u=criterion.functionals[r].copy()), tie
+    if kind == "contact_pressure":
+        mask = criterion.contact_masks[r]
+        dn = np.where(mask, 1.0 / state.contact.weight[mask].sum(), 0.0)
+        return Partials(lam_n=dn), tie
+    return _stress_partials(criterion, model, state, r), tie
+
+
+def _stress_partials(criterion, model, state, r: int) -> Partials:
+    """Φ = Σ_c a_c ψ(τ_c) / Σ a_c with ψ = I₂² (or von Mises); τ = D(λ, μ) e − β ΔT m."""
+    from .fem.stress import shear_intensity
+    sm, mesh = model.smesh, model.smesh.mesh
+    sel = criterion.selections[r]
+    cells = sel.index if sel.kind == "cells" else np.unique(mesh.f2t[0, sel.index])
+    weight = np.zeros(mesh.t.shape[1])
+    weight[cells] = model.cell_area[cells] / model.cell_area[cells].sum()
+    s = state.stress
+    xx, yy, zz, xy = s
+    dI = (2.0 / 3.0) * np.array([2 * xx - yy - zz, 2 * yy - xx - zz, 2 * zz - xx - yy, 3 * xy])
+    dI[3] *= 2.0                                              # ∂I₂²/∂τ_xy = 4 τ_xy
+    if criterion.kind == "von_mises":
+        vm = np.sqrt(1.5 * shear_intensity(s))
+        dI = dI * np.where(vm > 0, 0.75 / np.where(vm > 0, vm, 1.0), 0.0)
+    d = dI * weight                                            # ∂Φ/∂τ per cell, (4, nc)
+    c = state.coefficients
+    reg = sm.cell_region
+    lam, mu, beta = c.lam[reg], c.mu[reg], c.beta[reg]
+    strain = (model.G @ state.u).reshape(3, -1)
+    exx, eyy, gxy = strain
+    dz = d[2] if model.plane == "strain" else np.zeros_like(d[2])
+    trace_load = d[0] + d[1] + dz                              # ∂Φ/∂(λ tr − βΔT) along m
+    de = np.array([(lam + 2 * mu) * d[0] + lam * (d[1] + dz),
+                   lam * (d[0] + dz) + (lam + 2 * mu) * d[1],
+                   mu * d[3]])
+    nr = len(model.region_cells)
+    per_region = lambda v: np.bincount(reg, weights=v, minlength=nr)   # noqa: E731
+    dT = (np.zeros(reg.size) if state.T is None
+          else state.T[mesh.t].mean(axis=0) - c.reference)
+    coef = {"lam": per_region(trace_load * (exx + eyy)),
+            "mu": per_region(2 * exx * d[0] + 2 * eyy * d[1] + gxy * d[3]),
+            "beta": per_region(-dT * trace_load),
+            "reference": np.array([np.sum(beta * trace_load)])}
+    theta = None
+    if state.T is not None:
+        nodal = np.zeros(mesh.p.shape[1])
+        for k in range(3):
+            np.add.at(nodal, mesh.t[k], -beta * trace_load / 3.0)
+        theta = model.P.T @ nodal
+    return Partials(u=model.G.T @ de.ravel(), theta=theta, coef=coef)
+
+
+def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None):
+    """(z, μ, s) of the module docstring on the final active set; None when N is singular."""
+    res = state.raw
+    cf, m = res.factor, res.lam_n.size
+    C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
+    R = model.R_r
+    r = 0 if R is None else R.shape[1]
+    free = res.free
+    slip = state.contact.slip
+    s = np.sign(slip)
+    Kp_phi = cf.factor.solve(phi_w)
+    g_lam = -(C @ Kp_phi)
+    if phi_lam_n is not None:
+        g_lam[:m] += phi_lam_n
+    g = np.r_[g_lam, R.T @ phi_w] if r else g_lam
+    N = np.zeros((2 * m + r, 2 * m + r))
+    CR = C @ R if r else np.zeros((2 * m, 0))
+    A = np.flatnonzero(free)
+    B = np.flatnonzero(~free)
+    N[np.ix_(A, np.arange(2 * m))] = -cf.W[A]
+    if r:
+        N[np.ix_(A, 2 * m + np.arange(r))] = CR[A]
+        N[2 * m:, :2 * m] = CR.T
+    N[B, B] = 1.0
+    tang = B[B >= m]
+    N[tang, tang - m] = -s[tang - m] * res_coulomb(model, state)[tang - m]
+    try:
+        mu = np.linalg.solve(N.T, g)
+    except np.linalg.LinAlgError:
+        return None
+    z = cf.factor.solve(phi_w - C[A].T @ mu[A])
+    if r:
+        z = z + R @ mu[2 * m:]
+    return z, mu, s
+
+
+def res_coulomb(model, state) -> np.ndarray:
+    return np.asarray(state.coefficients.coulomb, float)
+
+
+def contact_nonsmooth(state) -> bool:
+    """An active-set change within reach: weakly active normals or tangents at the switch."""
+    res, c = state.raw, state.contact
+    m = res.lam_n.size
+    if m == 0:
+        return False
+    fs = max(np.abs(res.lam_n).max(), 1e-300)
+    us = max(np.abs(c.gap).max(), np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
+    closed, stick = res.free[:m], res.free[m:]
+    weak_closed = closed & (res.lam_n <= REL_TOL * fs)
+    weak_open = ~closed & (np.abs(c.gap) <= REL_TOL * us)
+    gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
+    weak_stick = stick & (gw > 0) & (np.abs(res.lam_t) >= (1 - REL_TOL) * gw)
+    weak_slip = ~stick & (gw > 0) & (np.abs(c.slip) <= REL_TOL * us)
+    return bool(np.any(weak_closed | weak_open | weak_stick | weak_slip))
+
+
+def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
+    """dΦ/dc (flat, `flatten` order) by the adjoint; None where the active-set system is singular."""
+    c = state.coefficients
+    flat, sl = flatten(c)
+    grad = np.zeros_like(flat)
+    for name, v in (P.coef or {}).items():
+        grad[sl[name]] += v
+    T, Tt = model.elim.T, model.Tt
+    phi_u = np.zeros(T.shape[0]) if P.u is None else P.u
+    phi_w = Tt @ phi_u
+    mu = s = None
+    if state.raw is None:
+        z = state.factor.solve(phi_w)
+    else:
+        out = _contact_adjoint(model, state, phi_w, P.lam_n)
+        if out is None:
+            return None
+        z, mu, s = out
+    Z = T @ z
+    u = state.u
+    K = model.K(model.stiffness_coefficients(c))
+    sK = model.K.sensitivities(Z, u)
+    grad[sl["lam"]] -= sK[:, 0]
+    grad[sl["mu"]] -= sK[:, 1]
+    grad[sl["body_force"]] += (model.body_force_vectors @ Z).ravel()
+    grad[sl["pressure"]] += [model.pressure_vectors[b] @ Z for b in sorted(model.pressure_vectors)]
+    grad[sl["traction"]] += np.concatenate([model.traction_vectors[b] @ Z for b in sorted(model.traction_vectors)]
+                                           ) if model.traction_vectors else np.zeros(0)
+    U0 = model.elim.U0.tocsc()
+    KU0 = (K @ U0).tocsc()
+    g_sup = -(KU0.T @ Z) + U0.T @ phi_u
+    if mu is not None:
+        m = state.raw.lam_n.size
+        A = np.flatnonzero(state.raw.free[:m])                      # closed normals carry d
+        g_sup += -(model.zone.Bn[A] @ U0).T @ mu[A]
+        tang = np.flatnonzero(~state.raw.free[m:])
+        w = model.zone.weight
+        grad[sl["slip"].start + tang] += mu[m + tang] * s[tang] * w[tang]
+        grad[sl["coulomb"].start + tang] += mu[m + tang] * s[tang] * state.raw.lam_n[tang]
+    grad[sl["support_values"]] += g_sup
+    if model.thermal:
+        dT = state.T - c.reference
+        coupled = np.zeros(model.nnodes)
+        for j, Bj in enumerate(model.coupling):
+            BtZ = Bj.T @ Z
+            grad[sl["beta"].start + j] += BtZ @ dT
+            grad[sl["reference"]] -= c.beta[j] * BtZ.sum()
+            coupled += c.beta[j] * BtZ
+        load = model.P.T @ coupled + (0.0 if P.theta is None else P.theta)
+        zeta = model._heat_factor.solve(model.heat_Tt @ load)
+        Zh = model.heat_elim.T @ zeta
+        grad[sl["kappa"]] -= model.H.sensitivities(Zh, state.theta)[:, 0]
+        grad[sl["source"]] += model.source_vectors @ Zh
+        U0h = model.heat_elim.U0.tocsc()
+        Kh = model.H(c.kappa)
+        grad[sl["temperature_values"]] += -((Kh @ U0h).T @ Zh) + U0h.T @ load
+    return grad
+
+
+def gradients(evaluator, state, x: np.ndarray) -> tuple[dict[str, np.ndarray | None], bool]:
+    """dΦ/dx for every criterion at the solution `state` of data set x, and whether the
+    point is non-smooth (an active-set change or a switch of the maximising region nearby)."""
+    model = evaluator.model
+    J = coefficient_jacobian(evaluator.study, model, x)
+    nonsmooth = state.raw is not None and contact_nonsmooth(state)
+    out = {}
+    for crit in evaluator.criteria:
+        P, tie = criterion_partials(crit, model, state)
+        nonsmooth |= tie
+        gc = coefficient_gradient(model, state, P)
+        out[crit.name] = None if gc is None else J.T @ gc
+        nonsmooth |= gc is None
+    return out, bool(nonsmooth)
