@@ -54,7 +54,9 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
     out = []
     for k, spec in enumerate(study_criteria):
         path = f"criteria.{k}"
-        sels = [select_region(smesh, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
+        contact = spec["kind"] == "contact_pressure"        # only the contact nodes in G_r matter
+        sels = [select_region(smesh, rois[r], f"scene.regions_of_interest.{r}", allow_empty=contact)
+                for r in spec["regions"]]
         functionals, measures = None, np.array([_measure(smesh.mesh, s) for s in sels])
         if spec["kind"] == "mean_temperature":
             functionals = [_mean_weights(smesh.mesh, s) for s in sels]
