@@ -179,10 +179,17 @@ def test_coulomb_fixed_point():
     assert stop.status == cs.FIXED_POINT_NOT_CONVERGED and stop.fixed_point_iterations == 2
 
 
-def test_newton_iteration_limit():
+def test_iteration_limit_falls_back_then_ends_with_a_status():
     P = two_blocks(10)
-    r = cs.solve_contact(*args(P), g=np.full(len(P["w"]), 0.006), max_iter=1)
-    assert r.status == cs.NEWTON_NOT_CONVERGED and r.iterations == 1
+    g = np.full(len(P["w"]), 0.006)
+    full = cs.solve_contact(*args(P), g=g)
+    # one Newton step, then the dual QP and a capped polish: still the right answer
+    capped = cs.solve_contact(*args(P), g=g, max_iter=1)
+    assert capped.status == cs.CONVERGED and rel(capped.u, full.u) < 1e-8
+    # an unreachable tolerance: the solve ends, with the status saying so
+    r = cs.solve_contact(*args(P), g=g, tol=0.0, max_iter=3)
+    assert r.status == cs.NEWTON_NOT_CONVERGED and r.iterations <= 2 * 3 + 1
+
 
 
 def test_warm_resolve_new_stiffness():

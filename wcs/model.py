@@ -18,6 +18,7 @@ from .errors import SolveError, StudyError
 from .fem import forms
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from .fem.constraints import Constraint, Elimination, eliminate
+from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
 from .scene.meshdata import SceneMesh
@@ -85,7 +86,11 @@ class Model:
         # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j over regions j
         self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cell_matrices(mesh.p, mesh.t), smesh.cell_region)
         self.support_keys, constraints = self._support_constraints(scene)
-        self.elim: Elimination = eliminate(self.nnodes, 2, constraints, len(self.support_keys))
+        # glued interfaces (mortar): slave DOFs eliminated on top of the nodal constraints
+        supported = np.unique(np.concatenate([c.nodes for c in constraints])) if constraints else ()
+        self.glue = build_glue(scene, smesh, supported)
+        self.elim: Elimination = glue_elimination(
+            eliminate(self.nnodes, 2, constraints, len(self.support_keys)), self.glue, self.nnodes, 2)
         self.Tt = self.elim.T.T.tocsr()
         self.free_modes = self._free_rigid_modes(constraints)
 
@@ -171,11 +176,13 @@ class Model:
                 rows[node_body[node]].append((node, a))
         p = self.smesh.mesh.p
         free = {}
-        for b, name in enumerate(self.smesh.bodies):
-            nodes = np.flatnonzero(node_body == b)
+        for cluster in glued_clusters(len(self.smesh.bodies), self.glue):   # glued bodies move together
+            b, name = cluster[0], self.smesh.bodies[cluster[0]]
+            nodes = np.flatnonzero(np.isin(node_body, cluster))
             R = rigid_modes(p, nodes, self.nnodes)
-            if rows[b]:
-                A = np.array([[a @ R[2 * n:2 * n + 2, k] for k in range(3)] for n, a in rows[b]])
+            held = [r for bb in cluster for r in rows[bb]]
+            if held:
+                A = np.array([[a @ R[2 * n:2 * n + 2, k] for k in range(3)] for n, a in held])
                 _, s, vt = np.linalg.svd(A)
                 rank = int(np.sum(s > 1e-10 * max(s[0], 1e-300)))
                 z = vt[rank:].T
@@ -201,6 +208,10 @@ class Model:
             nodes = np.unique(heat_of_node[mesh.facets[:, self.smesh.boundaries[name]]])
             constraints.append(Constraint(nodes, np.ones((nodes.size, 1)), k))
         self.heat_elim = eliminate(nheat, 1, constraints, len(self.temperature_keys))
+        if self.glue:                   # glued interfaces conduct: the temperature is glued too
+            fixed = np.unique(np.concatenate([c.nodes for c in constraints])) if constraints else ()
+            self.heat_elim = heat_glue_elimination(
+                self.heat_elim, glue_heat(self.glue, heat_of_node, nheat), nheat, fixed)
         self.heat_Tt = self.heat_elim.T.T.tocsr()
         self.source_vectors = np.array([Pt @ forms.source_vector(mesh, c) for c in self.region_cells])
         self.coupling = [forms.coupling_piece(mesh, c) for c in self.region_cells]
@@ -318,6 +329,10 @@ class Model:
 
     def _unbalanced_message(self, res, rhs) -> str:
         """Name the floating body whose rigid motion the load can drive, and the load."""
+        if res.alpha is None:                     # the QP reference reports unboundedness only
+            names = ", ".join(f"'{b}'" for b, _ in self.floating)
+            return (f"the load on the floating bodies {names} is not balanced by contact and friction "
+                    f"({res.message}); solvability S(w) <= j(w) fails (physics.md §2)")
         alpha = np.asarray(res.alpha, float)
         k, best, share = 0, None, -1.0
         for body, modes in self.floating:

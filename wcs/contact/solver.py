@@ -153,8 +153,17 @@ def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     return -res.fun, res.x[:r]
 
 
-def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None):
+def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True):
     """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_[lo,hi](λ + c ⊙ r) = 0, Gλ = e.
+
+    Full (undamped) steps: each step solves the active-set system of the predicted
+    free set exactly, so the iteration ends when a free set reproduces itself. The
+    iteration is deterministic, so a free set seen before without convergence means a
+    cycle; then (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
+    with Gλ = e is solved by an interior-point method and Newton restarts from it to
+    polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖² — stalled on
+    floating bodies: its short first step leaves the rigid amplitudes α at zero and the
+    next prediction opens every contact.)
 
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
@@ -163,31 +172,63 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None):
     c = 1.0 / np.where(np.diag(W) > 0, np.diag(W), 1.0)
     force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
-    def residuals(lam, alpha):
+    def check(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
-        return z, lam - np.clip(z, lo, hi), G @ lam - e
-
-    def merit(lam, alpha):
-        _, phi, eq = residuals(lam, alpha)
-        return 0.5 * (phi @ phi + eq @ eq)
-
-    history = []
-    for it in range(max_iter + 1):
-        z, phi, eq = residuals(lam, alpha)
-        free = (z > lo) & (z < hi) if (it > 0 or free0 is None) else free0
+        phi, eq = lam - np.clip(z, lo, hi), G @ lam - e
         scale = max(force, np.abs(lam).max(initial=0.0))
-        if max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale:
+        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
+        return z, ok
+
+    seen = set()
+    for it in range(max_iter + 1):
+        z, ok = check(lam, alpha)
+        free = (z > lo) & (z < hi) if (it > 0 or free0 is None) else free0
+        if ok:
             return lam, alpha, free, it, True
-        if it == max_iter:
-            return lam, alpha, free, it, False
-        lam_new, alpha_new = _newton_point(W, q, G, e, free, np.clip(z, lo, hi))
-        d_lam, d_alpha = lam_new - lam, alpha_new - alpha
-        history = (history + [0.5 * (phi @ phi + eq @ eq)])[-5:]
-        t = 1.0
-        while merit(lam + t * d_lam, alpha + t * d_alpha) > max(history) * (1 - 1e-4 * t) and t > 1e-3:
-            t *= 0.5
-        lam, alpha = lam + t * d_lam, alpha + t * d_alpha
-    raise AssertionError("unreachable")
+        key = free.tobytes()
+        if it == max_iter or key in seen:
+            break
+        seen.add(key)
+        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi))
+    if not fallback:
+        return lam, alpha, free, it, False
+    qp = _dual_qp(W, q, G, e, lo, hi, force)
+    if qp is None:
+        return lam, alpha, free, it, False
+    lam2, alpha2, free2, k, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False)
+    return lam2, alpha2, free2, it + k, ok
+
+
+def _dual_qp(W, q, G, e, lo, hi, force):
+    """The condensed dual problem as a dense convex QP (Clarabel): (λ, α), or None.
+
+    Scaled to O(1) data: λ = s μ with the force scale s, objective divided by s²·max|W|.
+    The equality's dual y (∇f + Gᵀy = 0 in the scaled problem) gives α = −s·max|W|·y
+    (the solver's convention Wλ − q = Gᵀα on free components)."""
+    import cvxpy as cp
+    n, s, wmax = W.shape[0], force, np.abs(W).max()
+    mu = cp.Variable(n)
+    cons = []
+    flo, fhi = np.flatnonzero(np.isfinite(lo)), np.flatnonzero(np.isfinite(hi))
+    if flo.size:
+        cons.append(mu[flo] >= lo[flo] / s)
+    if fhi.size:
+        cons.append(mu[fhi] <= hi[fhi] / s)
+    eq = None
+    if G.shape[0]:
+        eq = G @ mu == e / s
+        cons.append(eq)
+    Wn = W / wmax
+    prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(mu, cp.psd_wrap(0.5 * (Wn + Wn.T)))
+                                  - (q / (s * wmax)) @ mu), cons)
+    try:
+        prob.solve(solver=cp.CLARABEL)
+    except cp.SolverError:
+        return None
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        return None
+    alpha = np.zeros(G.shape[0]) if eq is None else -s * wmax * np.asarray(eq.dual_value, float)
+    return mu.value * s, alpha
 
 
 def _newton_point(W, q, G, e, free, fixed_values):
