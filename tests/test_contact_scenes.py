@@ -124,7 +124,8 @@ def test_large_slip_limit_is_glued(tmp_path):
         doc["criteria"] = [{"name": "shift", "kind": "mean_normal_displacement", "regions": ["pad_top"]}]
     _, stick = solve("tresca-pad", tmp_path, sticky)
     _, glue = solve("tresca-pad", tmp_path, glued)
-    assert np.all(stick.state.contact.gap <= 1e-14)             # nothing opened: same discrete problem
+    # nothing opened (round-off relative to the displacements): the same discrete problem
+    assert np.all(stick.state.contact.gap <= 1e-10 * np.abs(stick.state.u).max())
     key = lambda p: [tuple(np.round(q, 9)) for q in p.T]        # noqa: E731
     index = {k: i for i, k in enumerate(key(glue.evaluator.smesh.mesh.p))}
     nodes = [index[k] for k in key(stick.evaluator.smesh.mesh.p)]

@@ -74,6 +74,9 @@ def cmd_check(args) -> int:
 
 
 def cmd_solve(args) -> int:
+    if getattr(args, "worst", None):
+        from .runner import solve_worst
+        return solve_worst(args)
     from .evaluation import Evaluator
     from .results import solve_dataset, write_netcdf, write_vtu
     from .study import load_study

@@ -48,7 +48,7 @@ class Progress:
         if self.mode == "quiet":
             return
         if self.mode == "verbose":
-            phi = " ".join(f"{c}={_g(record['phi'][c])}" for c in self.criteria)
+            phi = " ".join(f"{c}={_g(float(v))}" for c, v in zip(self.criteria, record["phi"]))
             src = " (stored)" if record.get("from_store") else ""
             tail = "" if record["status"] == 0 else f"  status {record['status']}: {record['message']}"
             print(f"[{done}/{self.total}] {record['stage']:<7} {phi}  {record['wall_time']:.3g} s{src}{tail}",

@@ -123,10 +123,15 @@ CERTIFICATES = "corner-kkt: KKT sign pattern holds at a vertex; local-kkt: KKT c
 
 
 def parameter_units(path: str) -> str:
-    keys = [k for k in path.split("[")[0].split(".") if not k.isdigit()]
-    if keys and keys[0] == "body_forces":
+    """Units of an addressable number (its dotted path, `[i]` of a profile ignored)."""
+    from .study import _address
+    pattern = _address(path.split("[")[0])
+    if pattern is None:
+        return "1"
+    if pattern.startswith("body_forces"):
         return _BODY_FORCE_UNITS
-    return _PARAM_UNITS.get(keys[-1], "1") if keys else "1"
+    field = [k for k in pattern.split(".") if not k.startswith("<")][-1]
+    return _PARAM_UNITS.get(field, "1")
 
 
 def _flag_meanings(table: dict) -> str:
@@ -183,7 +188,7 @@ def worst_field_variables(criteria: list[str], fields: dict) -> dict:
 
 def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certificate: dict,
                 notes: dict | None = None, worst_fields: dict | None = None, attrs: dict | None = None,
-                sweep_paths: list[str] | None = None) -> xr.Dataset:
+                sweep_paths: list[str] | None = None, provenance_attrs: dict | None = None) -> xr.Dataset:
     """The results file of `wcs run` / `wcs sweep` (study-format.md §4).
 
     records: one dict per evaluation, in order, with x, phi (array in criterion order), status,
@@ -270,6 +275,6 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
         template = next((f for f in worst_fields.values() if f is not None), None)
         if template is not None:
             ds = ds.assign_coords({c: template[c].values for c in template.coords if c not in ds.coords})
-    ds.attrs.update(provenance(study, evaluator))
+    ds.attrs.update(provenance_attrs or provenance(study, evaluator))
     ds.attrs.update(attrs or {})
     return ds

@@ -19,10 +19,11 @@ readable file of the evaluations up to its last rewrite.
 Resume: the strategy is deterministic given its seed and the outcomes it is
 sent, so `--resume` runs it again from the start and answers every point the
 store holds (same exact bits, same study hash) from the store; only new
-points are solved. The contact solver's warm start is restored from the store
-before the first new solve, so a resumed run gives the same bits as an
-uninterrupted one. Fields of the worst case of each criterion are re-solved
-from a cold start at the end (deterministic, whatever the history).
+points are solved. An evaluation does not depend on what was solved before it
+(the contact solver always starts from the nominal data's state, see
+`Model.solve`), so a resumed run gives the same bits as an uninterrupted one,
+and so does a run spread over MPI ranks. Fields of the worst case of each
+criterion are re-solved at the end.
 
 `evaluate_batch(points, gradients)` is the one place evaluations happen: the
 seam where parallel workers (MPI) plug in.
@@ -45,7 +46,7 @@ from .search import Batch, Outcome, Problem, Worst
 from .store import Store, key, store_path
 
 OTHER_FAILURE = 6            # wcs.evaluation.STATUS: "other failure"
-WRITE_OVERHEAD = 0.05        # NetCDF rewrites take at most this share of the run's wall time
+WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
 
 
 # ---------------------------------------------------------------- the search problem
@@ -103,36 +104,6 @@ def get_strategy(name: str):
     return STRATEGIES[name]
 
 
-# ---------------------------------------------------------------- solver warm start
-
-
-def _warm_snapshot(model) -> dict:
-    """The contact solver's state after a solve (what the next solve starts from)."""
-    w = getattr(model, "_warm", None)
-    if w is None or getattr(w, "lam_n", None) is None:
-        return {}
-    out = {"warm_lam_n": np.asarray(w.lam_n), "warm_lam_t": np.asarray(w.lam_t),
-           "warm_status": np.int64(w.status)}
-    for name in ("u", "active", "alpha"):
-        v = getattr(w, name, None)
-        if v is not None:
-            out[f"warm_{name}"] = np.asarray(v)
-    return out
-
-
-def _restore_warm(model, record: dict | None) -> None:
-    if not hasattr(model, "_warm"):
-        return
-    if record is None or "warm_lam_n" not in record:
-        model._warm = None
-        return
-    from .contact.solver import ContactResult
-    model._warm = ContactResult(
-        u=record.get("warm_u"), lam_n=record["warm_lam_n"], lam_t=record["warm_lam_t"],
-        status=int(record["warm_status"]), message="", active=record.get("warm_active"),
-        alpha=record.get("warm_alpha"))
-
-
 # ---------------------------------------------------------------- the runner
 
 
@@ -157,10 +128,10 @@ class Runner:
         self.stats = {"solved": 0, "from_store": 0, "solve_time": 0.0, "write_time": 0.0, "writes": 0,
                       "field_solves": 0}
         self.created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+        from .results import provenance
+        self._provenance = provenance(study, self.evaluator)
         self._last_write_end = 0.0
         self._last_write_cost = 0.0
-        self._chain = None                     # key of the last solved row (the solver's warm start)
-        self._warm_key = None                  # key of the state the model holds now
         try:
             self._has_gradients = "gradients" in inspect.signature(self.evaluator.evaluate).parameters
         except (TypeError, ValueError):
@@ -232,12 +203,11 @@ class Runner:
         return rec
 
     @staticmethod
-    def _to_store(rec: dict, warm: dict) -> dict:
+    def _to_store(rec: dict) -> dict:
         out = {k: np.asarray(v) for k, v in rec.items()
                if k not in ("grad", "stage", "from_store") and v is not None}
         if rec.get("grad") is not None:
             out["grad"] = rec["grad"]
-        out.update(warm)
         return out
 
     def _from_store(self, stored: dict, stage: str) -> dict:
@@ -255,8 +225,6 @@ class Runner:
         self.records.append(rec)
         self.memo.setdefault(k, row)
         if rec["status"] == 0:
-            if ev is not None or rec.get("from_store"):
-                self._chain = k
             for j, c in enumerate(self.criteria):
                 v = rec["phi"][j]
                 if math.isfinite(v) and (c not in self.best or v > self.best[c]):
@@ -289,9 +257,6 @@ class Runner:
         def flush():
             if not pending:
                 return
-            if self._warm_key != self._chain:
-                _restore_warm(self.evaluator.model, self.store.get(self._chain) if (self.store and self._chain) else None)
-                self._warm_key = self._chain
             batch = list(pending)
             pending.clear()
 
@@ -300,11 +265,8 @@ class Runner:
                 rec = self._record_from_evaluation(ev, stage, gradients, sv)
                 self.stats["solved"] += 1
                 self.stats["solve_time"] += rec["wall_time"]
-                warm = _warm_snapshot(self.evaluator.model) if ev.status == 0 else {}
-                if ev.status == 0:
-                    self._warm_key = k
                 if self.store is not None:
-                    self.store.put(k, self._to_store(rec, warm))
+                    self.store.put(k, self._to_store(rec))
                 self._append(k, rec, ev)
                 rows.append(len(self.records) - 1)
 
@@ -354,7 +316,6 @@ class Runner:
         gen = factory(problem, search, np.random.default_rng(seed))
         if self.progress is not None:
             self.progress.start(budget, self.criteria)
-        self._write()
         result = None
         try:
             batch = next(gen)
@@ -385,7 +346,6 @@ class Runner:
         points = [dict(zip(paths, map(float, c))) for c in combos]
         if self.progress is not None:
             self.progress.start(len(points), self.criteria)
-        self._write()
         try:
             self.answer(points, "sweep", False, None, sweeps=[list(map(float, c)) for c in combos])
         finally:
@@ -423,9 +383,8 @@ class Runner:
         return self._write(force=True)
 
     def _worst_fields(self, worst: dict) -> dict:
-        """Fields of each criterion's worst case, re-solved from a cold start (deterministic)."""
+        """Fields of each criterion's worst case, re-solved (an evaluation does not depend on history)."""
         fields, by_key = {}, {}
-        model = self.evaluator.model
         for c in self.criteria:
             if c not in worst:
                 fields[c] = None
@@ -433,9 +392,6 @@ class Runner:
             rec = self.records[worst[c][2]]
             k = key(self.study.sha256, rec["x"], rec.get("sweep"))
             if k not in by_key:
-                if hasattr(model, "_warm"):
-                    model._warm = None
-                self._warm_key = None
                 point = rec["x"]
                 if rec.get("sweep") is not None:
                     point = self._sweep_mapping(rec)
@@ -478,7 +434,8 @@ class Runner:
         if self.kind == "sweep":
             attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in (self.study.sweep or {})["grid"].items())
         return run_dataset(self.study, self.evaluator, self.records, worst=worst, certificate=certificate,
-                           notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=sweep_paths)
+                           notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=sweep_paths,
+                           provenance_attrs=self._provenance)
 
     def _maybe_write(self) -> None:
         now = time.perf_counter()

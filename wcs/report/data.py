@@ -43,6 +43,7 @@ class Criterion:
     worst_x: np.ndarray
     certificate: str
     worst_eval: int | None = None   # index into the evaluations, when found
+    certificate_note: str = ""
 
 
 @dataclass
@@ -99,6 +100,8 @@ class Results:
     mesh: Mesh | None
     worst_fields: list[Fields | None]   # one per criterion
     iterations_doc: str = ""
+    param_units: list[str] | None = None    # from the file, when it records them
+    messages: list[str] | None = None       # per evaluation, when recorded
 
     @property
     def n_eval(self) -> int:
@@ -250,6 +253,8 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
         wall = np.array([float(ds["wall_time"].values)]) if "wall_time" in ds else np.full(1, np.nan)
         iters = np.array([float(ds["iterations"].values)]) if "iterations" in ds else np.full(1, np.nan)
     kind = "solve" if not is_run else ("sweep" if stage and all(s == "sweep" for s in stage) else "run")
+    if is_run and _text(attrs.get("kind", "")) in ("run", "sweep"):
+        kind = _text(attrs["kind"])
 
     # criteria: kind and units from the file, else from the study text
     specs = {c.get("name"): c for c in doc.get("criteria", []) if isinstance(c, dict)}
@@ -278,7 +283,10 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
             unit_attr.get(name) or KIND_UNITS.get(kind_j, "")
         col = np.where(ok, phi[:, j], np.nan)
         worst_eval = None
-        if np.isfinite(worst[j]) and np.isfinite(col).any():
+        if is_run and "worst_eval" in ds and "criterion" in ds["worst_eval"].dims:
+            w = int(ds["worst_eval"].values[j])
+            worst_eval = w if 0 <= w < len(col) else None
+        elif np.isfinite(worst[j]) and np.isfinite(col).any():
             hit = np.flatnonzero(col == worst[j])
             worst_eval = int(hit[0]) if hit.size else int(np.nanargmax(col))
         if "worst_x" in ds:
@@ -291,8 +299,10 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
             cert = _text(cert_var.values[j]) if cert_var.ndim else _text(cert_var.values)
         else:
             cert = {"solve": "none (a single solve)", "sweep": "none (a grid sweep)"}.get(kind, "—")
+        note = _text(ds["certificate_note"].values[j]) if "certificate_note" in ds and \
+            "criterion" in ds["certificate_note"].dims else ""
         criteria.append(Criterion(name, kind_j, units, list(spec.get("regions", [])), float(limit[j]),
-                                  float(worst[j]), wx, cert, worst_eval))
+                                  float(worst[j]), wx, cert, worst_eval, note))
 
     mesh = None
     if "coords" in ds and "cells" in ds:
@@ -313,7 +323,10 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    lower=lower, upper=upper, x=x, phi=phi, status=status, stage=stage,
                    wall_time=wall, iterations=iters, status_meanings=status_meanings(_get(ds, "status")),
                    criteria=criteria, mesh=mesh, worst_fields=worst_fields,
-                   iterations_doc=_text(ds["iterations"].attrs.get("long_name", "")) if "iterations" in ds else "")
+                   iterations_doc=_text(ds["iterations"].attrs.get("long_name", "")) if "iterations" in ds else "",
+                   param_units=[_text(u) for u in ds["param_units"].values.tolist()] if "param_units" in ds else None,
+                   messages=[_text(m) for m in ds["message"].values.tolist()]
+                   if is_run and "message" in ds and ds["message"].dims == ("eval",) else None)
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:

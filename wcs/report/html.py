@@ -119,7 +119,8 @@ class Report:
         self.res = res
         self.source = source
         self.strict = strict
-        self.units = [param_units(p) for p in res.params]
+        self.units = [u if u else param_units(p) for u, p in
+                      zip(res.param_units or [""] * len(res.params), res.params)]
         self.problems: list[str] = []
 
     # ------------------------------------------------------------ helpers
@@ -170,6 +171,9 @@ class Report:
         body = (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
                 f'<p>{esc(why)}.</p>'
                 + _kv(rows))
+        if str(a.get("complete", "yes")) == "no":
+            body += ('<p class="warn">The run did not finish (the file was written as it ran): the worst '
+                     'values are the best found so far.</p>')
         if r.kind != "run":
             body += ('<p class="note">This file is not a worst-scenario search: the values below are the '
                      'largest found among its evaluations, not a certified maximum over the box.</p>')
@@ -190,8 +194,9 @@ class Report:
                 f'<td class="num">{number(c.worst, c.units)}</td>'
                 f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
                 f'<td class="num">{number(margin, c.units) if math.isfinite(margin) else "—"}</td>'
-                f'<td class="num">{f"{pct:+.1f} %" if math.isfinite(pct) else "—"}</td>'
-                f'<td class="{cls} verdict-cell">{label}</td><td>{esc(c.certificate)}</td></tr>')
+                f'<td class="num">{f"{pct:+.1f} %".replace("-", "−") if math.isfinite(pct) else "—"}</td>'
+                f'<td class="{cls} verdict-cell">{label}</td><td>{esc(c.certificate)}'
+                f'{"<br><span class=note>" + esc(c.certificate_note) + "</span>" if c.certificate_note else ""}</td></tr>')
         return ('<table id="limits-table"><tr><th>criterion</th><th>kind</th><th>units</th><th>worst value</th>'
                 '<th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
                 '<th>certificate</th></tr>' + "".join(rows) + "</table>"
@@ -199,7 +204,7 @@ class Report:
                 'when the worst value exceeds it (negative margin). Certificate: <b>corner-kkt</b> — the '
                 'maximiser is a vertex of the box satisfying the KKT sign conditions; <b>local-kkt</b> — a '
                 'local maximum satisfying the first-order conditions; <b>heuristic</b> — the best value '
-                'found, no optimality proof.</p>')
+                'found, no optimality proof; <b>grid</b> — the maximum over a sweep grid.</p>')
 
     def scene(self) -> str:
         r = self.res
@@ -317,7 +322,10 @@ class Report:
                      'the box; grey: solved):</p>' + img(plots.failures_figure(r), "failures in the box"))
             idx = np.flatnonzero(r.failed)[:50]
             head = "".join(f"<th>{esc(plots._short(p))}</th>" for p in r.params)
+            msg = r.messages or [""] * r.n_eval
+            head = "<th>message</th>" + head
             trs = "".join(f'<tr><td class="num">{i}</td><td>{esc(r.stage[i])}</td><td class="num">{r.status[i]}</td>'
+                          f'<td>{esc(msg[i])}</td>'
                           + "".join(f'<td class="num">{number(v, u)}</td>' for v, u in zip(r.x[i], self.units))
                           + "</tr>" for i in idx)
             body += (f'<details><summary>the failed data sets{" (first 50)" if n_fail > 50 else ""}</summary>'
@@ -328,13 +336,15 @@ class Report:
     def provenance(self) -> str:
         r, a = self.res, self.res.attrs
         wt = r.wall_time[np.isfinite(r.wall_time)]
-        it = r.iterations[np.isfinite(r.iterations)]
+        it = r.iterations[np.isfinite(r.iterations) & ~r.failed]
         rows = [("study", a.get("study", r.study)), ("study_sha256", a.get("study_sha256", "—")),
                 ("wcs_version", a.get("wcs_version", "—")), ("git_commit", a.get("git_commit", "—")),
                 ("seed", a.get("seed", "—")), ("solver", a.get("solver", "—")),
                 ("plane", a.get("plane", "—")),
                 ("mesh", f'{a.get("mesh_nodes", "—")} nodes, {a.get("mesh_cells", "—")} cells'),
                 ("created", a.get("created", "—")),
+                ("search", f'{a.get("search_method", "—")}, budget {a.get("budget", "—")}, gradients '
+                           f'{a.get("gradients", "—")}, complete: {a.get("complete", "—")}'),
                 ("compute", f"{wt.sum():.1f} s in {len(wt)} evaluations" + (
                     f" ({np.median(wt):.2f} s median)" if len(wt) else "")),
                 ("solver iterations", (f"{int(it.min())}–{int(it.max())} per evaluation" if len(it) else "—")

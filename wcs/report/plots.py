@@ -5,6 +5,7 @@ import io
 import math
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -23,9 +24,9 @@ CONTACT_COLORS = ["#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17bec
 ROI_COLOR = "#000000"
 
 
-def png(fig) -> bytes:
+def png(fig, tight: bool = True) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight" if tight else None)
     plt.close(fig)
     return buf.getvalue()
 
@@ -255,8 +256,8 @@ def magnification(mesh: Mesh, u: np.ndarray) -> float:
 
 
 def worst_case_figure(res: Results, j: int) -> tuple[bytes, float]:
-    """Deformed mesh with von Mises, principal stress directions (zoomed on the
-    criterion's regions of interest), and the temperature when there is one."""
+    """Deformed mesh with von Mises; von Mises and principal stress directions zoomed on
+    the criterion's regions of interest; the temperature when there is one."""
     mesh, f = res.mesh, res.worst_fields[j]
     crit = res.criteria[j]
     u = f.displacement if f.displacement is not None else np.zeros_like(mesh.coords)
@@ -265,42 +266,56 @@ def worst_case_figure(res: Results, j: int) -> tuple[bytes, float]:
     pd = mesh.coords + mag * u
     tri = Triangulation(pd[:, 0], pd[:, 1], mesh.cells)
     box = roi_box(res, crit.regions or list((res.scene.get("regions_of_interest") or {}).keys()))
-    panels = ["vm", "dir"] + (["T"] if f.temperature is not None else [])
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 4.8), squeeze=False)
-    axes = axes[0]
-    edges, _ = boundary_edges(mesh)
-    # (a) von Mises on the deformed mesh
-    ax = axes[0]
     vm = f.von_mises
     if vm is None and f.stress is not None:
         s = f.stress
-        vm = np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2) + 3 * s[:, 3] ** 2)
-    ax.add_collection(LineCollection(mesh.coords[edges], colors="0.6", linewidths=0.6, linestyles=":"))
-    if vm is not None:
-        sc, su = stress_scale(vm)
-        pc = ax.tripcolor(tri, facecolors=vm * sc, cmap="viridis", edgecolors="none")
-        fig.colorbar(pc, ax=ax, shrink=0.85, label=f"von Mises stress [{su}]")
+        vm = np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
+                     + 3 * s[:, 3] ** 2)
+    panels = ["deformed"] + (["vm-zoom"] if box is not None and vm is not None else []) + ["directions"] \
+        + (["T"] if f.temperature is not None else [])
+    if len(panels) == 4:
+        fig, axes = plt.subplots(2, 2, figsize=(11.0, 9.4))
+        axes = axes.ravel()
     else:
-        ax.triplot(tri, color="0.3", lw=0.2)
-    ax.add_collection(LineCollection(pd[edges], colors="k", linewidths=0.5))
-    ax.autoscale_view()
-    _axes_m(ax, f"deformed shape (displacement × {mag:g}), von Mises")
-    # (b) principal stress directions in the zoom
-    ax = axes[1]
-    ax.tripcolor(tri0, facecolors=np.zeros(len(mesh.cells)), cmap="Greys", vmin=0, vmax=5, edgecolors="none")
-    ax.add_collection(LineCollection(mesh.coords[edges], colors="k", linewidths=0.6))
+        fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.5), squeeze=False)
+        axes = axes[0]
+    edges, _ = boundary_edges(mesh)
     lo, hi = mesh.coords.min(axis=0), mesh.coords.max(axis=0)
     view = box if box is not None else (lo[0], hi[0], lo[1], hi[1])
-    if f.stress is not None:
-        _principal_crosses(ax, mesh, f.stress, view)
-    _axes_m(ax, "principal stress directions" + (" (zoom)" if box is not None else ""))
-    _zoom(ax, view)
-    # (c) temperature
-    if "T" in panels:
-        ax = axes[2]
-        pc = ax.tripcolor(tri0, f.temperature, shading="gouraud", cmap="inferno")
-        fig.colorbar(pc, ax=ax, shrink=0.85, label="temperature [K]")
-        _axes_m(ax, "temperature")
+    cent = mesh.coords[mesh.cells].mean(axis=1)
+    for ax, panel in zip(axes, panels):
+        if panel == "deformed":
+            ax.add_collection(LineCollection(mesh.coords[edges], colors="0.55", linewidths=0.6, linestyles=":"))
+            if vm is not None:
+                sc, su = stress_scale(vm)
+                top = float(np.nanpercentile(vm, 99.5))
+                pc = ax.tripcolor(tri, facecolors=vm * sc, cmap="viridis", edgecolors="none", vmin=0, vmax=top * sc)
+                fig.colorbar(pc, ax=ax, shrink=0.85, extend="max" if np.nanmax(vm) > top else "neither",
+                             label=f"von Mises stress [{su}]")
+            else:
+                ax.triplot(tri, color="0.3", lw=0.2)
+            ax.add_collection(LineCollection(pd[edges], colors="k", linewidths=0.5))
+            ax.autoscale_view()
+            _axes_m(ax, f"deformed shape (displacement × {mag:g}), von Mises")
+        elif panel == "vm-zoom":
+            inview = (cent[:, 0] >= view[0]) & (cent[:, 0] <= view[1]) & (cent[:, 1] >= view[2]) & (cent[:, 1] <= view[3])
+            sc, su = stress_scale(vm[inview] if inview.any() else vm)
+            top = float(np.nanmax(vm[inview])) if inview.any() else float(np.nanmax(vm))
+            pc = ax.tripcolor(tri0, facecolors=vm * sc, cmap="viridis", edgecolors="none", vmin=0, vmax=top * sc)
+            fig.colorbar(pc, ax=ax, shrink=0.85, label=f"von Mises stress [{su}]")
+            ax.add_collection(LineCollection(mesh.coords[edges], colors="w", linewidths=0.8))
+            _axes_m(ax, "von Mises near the regions of interest (undeformed)")
+            _zoom(ax, view)
+        elif panel == "directions":
+            ax.add_collection(LineCollection(mesh.coords[edges], colors="k", linewidths=0.8))
+            if f.stress is not None:
+                _principal_crosses(ax, mesh, f.stress, view)
+            _axes_m(ax, "principal stress directions" + (" (zoom)" if box is not None else ""))
+            _zoom(ax, view)
+        else:
+            pc = ax.tripcolor(tri0, f.temperature, shading="gouraud", cmap="inferno")
+            fig.colorbar(pc, ax=ax, shrink=0.85, label="temperature [K]")
+            _axes_m(ax, "temperature")
     fig.tight_layout()
     return png(fig), mag
 
@@ -416,30 +431,34 @@ def scatter_figure(res: Results, j: int, units: list[str]) -> bytes:
             ax.axvspan(lo, hi, color="0.93", zorder=0)
         ax.set_xlabel(_short(res.params[k]) + f" [{units[k]}]", fontsize=7)
         ax.tick_params(labelsize=6)
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(4))
+        ax.yaxis.set_major_locator(matplotlib.ticker.MaxNLocator(5))
         ax.xaxis.get_offset_text().set_fontsize(6)
         ax.yaxis.get_offset_text().set_fontsize(6)
         if k % ncol == 0:
             ax.set_ylabel(f"{crit.name} [{unit_label(crit.units)}]", fontsize=8)
-    _limit_line(axes.flat[0], crit.limit, y[good], all_axes=list(axes.flat[:n]))
+    note = _limit_line(axes.flat[0], crit.limit, y[good], all_axes=list(axes.flat[:n]))
     handles, labels = axes.flat[0].get_legend_handles_labels()
     if np.isfinite(crit.limit):
         handles.append(matplotlib.lines.Line2D([], [], color="#d62728", ls="--"))
-        labels.append(f"limit {crit.limit:.4g}")
+        labels.append(f"limit {crit.limit:.4g} {unit_label(crit.units)}" + (f" ({note})" if note else ""))
     fig.legend(handles, labels, loc="upper center", ncol=len(labels), frameon=False, bbox_to_anchor=(0.5, 1.0))
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.35 / (1.85 * nrow + 0.3)))
-    return png(fig)
+    height = 1.85 * nrow + 0.3           # fixed margins: tight_layout is slow on a big grid
+    fig.subplots_adjust(left=0.75 / (2.15 * ncol), right=0.99, bottom=0.5 / height, top=1 - 0.4 / height,
+                        wspace=0.12, hspace=0.55)
+    return png(fig, tight=False)
 
 
 def _short(path: str) -> str:
-    parts = path.split(".")
-    return ".".join(parts[-2:]) if len(parts) > 2 else path
+    """A dotted path without its section (and `friction.`): `fault_west.slip_limit[0]`."""
+    parts = [p for p in path.split(".") if p != "friction"]
+    return ".".join(parts[1:]) if len(parts) > 2 else path
 
 
-def _limit_line(ax, limit, values, all_axes=None):
+def _limit_line(ax, limit, values, all_axes=None) -> str:
     """The limit as a dashed line when it is near the data; otherwise a note of where it is."""
     if not np.isfinite(limit):
-        return
-    axes = all_axes or [ax]
+        return ""
     finite = values[np.isfinite(values)]
     if finite.size:
         lo, hi = float(finite.min()), float(finite.max())
@@ -447,13 +466,11 @@ def _limit_line(ax, limit, values, all_axes=None):
         near = lo - 1.5 * span <= limit <= hi + 1.5 * span
     else:
         near = True
-    for a in axes:
-        if near:
+    if near:
+        for a in all_axes or [ax]:
             a.axhline(limit, color="#d62728", ls="--", lw=1)
-    if not near:
-        where = "above" if finite.size and limit > finite.max() else "below"
-        axes[0].text(0.02, 0.97 if where == "above" else 0.03, f"limit {limit:.3g} ({where}, off scale)",
-                     transform=axes[0].transAxes, fontsize=6, color="#d62728", va="top" if where == "above" else "bottom")
+        return ""
+    return "above the plotted range" if limit > finite.max() else "below the plotted range"
 
 
 def best_so_far_figure(res: Results) -> bytes:
@@ -476,9 +493,9 @@ def best_so_far_figure(res: Results) -> bytes:
             ax.plot(idx[res.failed], np.zeros(res.failed.sum()), "x", color="#d62728", ms=5, clip_on=False,
                     transform=matplotlib.transforms.blended_transform_factory(ax.transData, ax.transAxes),
                     label="failed")
-        _limit_line(ax, crit.limit, y)
+        note = _limit_line(ax, crit.limit, y)
         if np.isfinite(crit.limit):
-            ax.plot([], [], color="#d62728", ls="--", label="limit")
+            ax.plot([], [], color="#d62728", ls="--", label=f"limit {crit.limit:.3g}" + (f"\n({note})" if note else ""))
         ax.set_xlabel("forward solves")
         ax.set_ylabel(f"{crit.name} [{unit_label(crit.units)}]")
         ax.set_title(crit.name)
@@ -514,6 +531,6 @@ def failures_figure(res: Results) -> bytes:
     ax.set_yticklabels(["lower", "mid", "upper"])
     ax.set_ylabel("position in the box [–]")
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.45), ncol=2, frameon=False)
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.01), ncol=3, frameon=False)
     fig.tight_layout()
     return png(fig)

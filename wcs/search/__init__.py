@@ -61,3 +61,6 @@ class Worst:
     value: dict[str, float]
     certificate: dict[str, str]      # "corner-kkt" | "local-kkt" | "heuristic"
     notes: dict[str, str] = field(default_factory=dict)
+
+
+from .registry import STRATEGIES  # noqa: E402  (strategies import the dataclasses above)

@@ -50,7 +50,17 @@ class Run:
 
 
 def ascend(archive, starts, tol: float, max_iter: int = 40):
-    """Local ascents of criteria from records: starts = [(criterion, Record), …]. Returns the runs."""
+    """Local ascents of criteria from records: starts = [(criterion, Record), …]. Returns the runs
+    (and notes, per criterion, why each stopped)."""
+    runs = yield from _ascend(archive, starts, tol, max_iter)
+    for c in archive.criteria:
+        why = [f"{r.done} after {r.iterations} steps" for r in runs if r.c == c]
+        if why:
+            archive.note("local ascent: " + ", ".join(why), c)
+    return runs
+
+
+def _ascend(archive, starts, tol, max_iter):
     runs = [Run(c, r.z.copy(), r.phi[c], r.grad.get(c)) for c, r in starts if r is not None and r.ok[c]]
     space = archive.space
     while True:
@@ -107,24 +117,46 @@ def ascend(archive, starts, tol: float, max_iter: int = 40):
 
 
 def _step(space, z, g, B, delta):
-    """The trust-region QP: (d, predicted gain)."""
-    s = max(np.max(np.abs(g)), 1e-300)
-    gh, Bh = g / s, B / s
+    """The trust-region QP: (d, predicted gain).
+
+    The Newton step B⁻¹g when it is feasible; otherwise SLSQP on the model in
+    variables scaled by the step length r = min(Δ, ‖B⁻¹g‖∞) (so the QP is O(1)
+    whatever the size of g), started from the clipped Newton step; compared
+    with the Cauchy step along the clipped gradient and the better taken."""
     lo, hi = np.maximum(-delta, -z), np.minimum(delta, 1.0 - z)
+
+    def gain(d):
+        return float(g @ d - 0.5 * d @ B @ d)
+
+    def finish(d):
+        zt = space.repair(z + np.clip(d, lo, hi))    # snaps to bounds, removes round-off violations
+        return zt - z
+
+    dn = np.linalg.solve(B, g)
+    if np.all(dn >= lo) and np.all(dn <= hi) and space.feasible(z + dn, 0.0):
+        d = finish(dn)
+        return d, gain(d)
+    candidates = []
+    p = np.clip(g * delta / max(np.max(np.abs(g)), 1e-300), lo, hi)     # Cauchy step on the box
+    if space.feasible(z + p, 0.0) and g @ p > 0:
+        t = min(1.0, (g @ p) / max(p @ B @ p, 1e-300))
+        candidates.append(finish(t * p))
+    r = max(min(delta, np.max(np.abs(dn))), 1e-12)
+    gs = max(np.max(np.abs(g)), 1e-300)
+    gh, Bh = g / gs, B * (r / gs)
+    u0 = np.clip(dn, lo, hi) / r
+    if space.A is not None and not space.feasible(z + r * u0):
+        u0 = np.zeros_like(z)
     cons = []
     if space.A is not None:
-        cons = [{"type": "ineq", "fun": lambda d: space.b - space.A @ (z + d), "jac": lambda d: -space.A}]
-    # start from the clipped steepest-ascent step (feasible for the box; SLSQP repairs the rest)
-    d0 = np.clip(gh * delta, lo, hi)
-    if space.A is not None and not space.feasible(z + d0):
-        d0 = np.zeros_like(z)
-    res = minimize(lambda d: -gh @ d + 0.5 * d @ Bh @ d, d0, jac=lambda d: -gh + Bh @ d,
-                   method="SLSQP", bounds=list(zip(lo, hi)), constraints=cons,
-                   options={"ftol": 1e-14, "maxiter": 200})
-    d = np.clip(res.x, lo, hi)
-    zt = space.repair(z + d)            # snaps to bounds, removes round-off violations
-    d = zt - z
-    return d, float(g @ d - 0.5 * d @ B @ d)
+        cons = [{"type": "ineq", "fun": lambda u: space.b - space.A @ (z + r * u),
+                 "jac": lambda u: -r * space.A}]
+    res = minimize(lambda u: -gh @ u + 0.5 * u @ Bh @ u, u0, jac=lambda u: -gh + Bh @ u,
+                   method="SLSQP", bounds=list(zip(lo / r, hi / r)), constraints=cons,
+                   options={"ftol": 1e-15, "maxiter": 200})
+    candidates.append(finish(r * res.x))
+    d = max(candidates, key=gain)
+    return d, gain(d)
 
 
 def _bfgs(B, s, y):

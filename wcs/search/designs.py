@@ -28,7 +28,7 @@ DESIGNS = ("lhs", "sobol", "vertices", "grid")
 
 def design(name: str, space, n: int, rng: np.random.Generator, cap: int | None = None):
     """(points (N, dim) in z, note) for design `name` with about `n` points, at most `cap`."""
-    cap = n if cap is None else cap
+    cap = np.iinfo(np.int64).max if cap is None else cap
     n = max(0, min(n, cap))
     if n == 0:
         return np.zeros((0, space.n)), ""

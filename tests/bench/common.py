@@ -1,0 +1,64 @@
+"""Shared helpers of the benchmarks: timing as median and spread over repeats, and tables
+and charts under results/bench/ stamped with the commit and the machine."""
+from __future__ import annotations
+
+import csv
+import os
+import platform
+import statistics
+import subprocess
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "results" / "bench"
+STUDIES = ROOT / "studies"
+
+
+def stamp() -> str:
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                                text=True, timeout=5).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"wcs {commit} | {cpu} | {os.cpu_count()} cores | {time.strftime('%Y-%m-%d %H:%M')}"
+
+
+def measure(f, repeat: int = 3):
+    """(median seconds, relative spread (max-min)/median, last result)."""
+    times, out = [], None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t)
+    med = statistics.median(times)
+    return med, (max(times) - min(times)) / med if med > 0 else 0.0, out
+
+
+def write_table(name: str, header: list[str], rows: list[list]) -> Path:
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{name}.csv"
+    with path.open("w", newline="") as fh:
+        fh.write(f"# {stamp()}\n")
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+def save_figure(fig, name: str) -> Path:
+    OUT.mkdir(parents=True, exist_ok=True)
+    fig.text(0.99, 0.005, stamp(), ha="right", va="bottom", fontsize=6, color="0.4")
+    path = OUT / f"{name}.png"
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return path

@@ -1,0 +1,105 @@
+"""`auto`: gradient-sign corners, KKT flips, local ascent, a sample as safeguard.
+
+Most criteria of linear elasticity are monotone in each datum over U_ad, so
+the worst case sits at a vertex that the signs of dΦ/dx point to. The
+steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve:
+
+1. Centre + safeguard (one batch): the centre of U_ad and a Latin hypercube
+   of s points, s = min(2n + 1, sample.n) unless `safeguard` is given (0
+   turns it off), and at most (budget − 1)/2. If some criterion has shown
+   no variation at all (equal values, zero gradients: e.g. contact pressure
+   where contact is open), up to two more hypercubes of s points are drawn.
+2. Corners (one batch per round, up to 4 rounds): for each criterion not yet
+   certified, v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
+   also from the centre when its gradient has an opposite sign somewhere) — the gradient-sign corner on a box, an LP vertex
+   under A x ≤ b. New vertices of all criteria are evaluated together.
+   Rounds 2–4 are the KKT check and flip: at a vertex, KKT means
+   ∂Φ/∂z_i ≥ 0 where z_i = 1 and ≤ 0 where z_i = 0, i.e. the Frank–Wolfe gap
+   max_{z'∈P} g·(z' − z) is 0; a violated sign moves the vertex (the LP vertex
+   of the new gradient flips exactly the violators). A criterion whose
+   proposed vertex was already evaluated (the signs flip back and forth: a
+   maximum inside, or a non-smooth point) leaves the corner phase.
+3. Local ascent (ascent.py) from the best point of every criterion still
+   uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
+4. Stop as soon as every criterion is certified; the budget caps it all.
+Every outcome updates every criterion's best. Certificates: archive.py.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .archive import Archive, settings
+from .ascent import ascend
+from .designs import lhs
+
+CORNER_ROUNDS = 4
+FLAT_RETRIES = 2
+
+
+def auto(problem, config, rng):
+    cfg = settings(config)
+    tol = cfg["kkt_tol"]
+    archive = Archive(problem, cfg["budget"])
+    space = archive.space
+    n = space.n
+
+    # 1. centre + safeguard sample
+    s = cfg["safeguard"]
+    s = min(2 * n + 1, cfg["n"]) if s is None else int(s)
+    s = max(0, min(s, (archive.remaining - 1) // 2))
+    centre = space.centre()
+    yield from archive.ask([centre, *lhs(space, s, rng)], "sample")
+    for _ in range(FLAT_RETRIES):
+        flat = [c for c in archive.criteria if archive.flat(c)]
+        if not flat or s == 0 or archive.remaining < 2 * s:
+            break
+        archive.note(f"no variation seen of {', '.join(flat)}: {s} more samples")
+        yield from archive.ask(list(lhs(space, s, rng)), "sample")
+
+    # 2. gradient-sign corners, KKT check and flips
+    open_ = [c for c in archive.criteria if not archive.certified(c, tol)]
+    for round_ in range(CORNER_ROUNDS):
+        if not open_ or archive.remaining == 0:
+            break
+        proposals, stuck = [], []
+        for c in open_:
+            best = archive.best_record(c)
+            froms = [best] + ([archive.find(centre)] if round_ == 0 and _disagree(best, archive.find(centre), c) else [])
+            new = [v for v in _vertices(space, c, froms) if archive.find(v) is None]
+            proposals += new
+            if not new:
+                stuck.append(c)
+        if not proposals:
+            break
+        yield from archive.ask(proposals, "corner")
+        open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
+
+    # 3. local ascent where the corners did not certify
+    rest = [c for c in archive.criteria if not archive.certified(c, tol)]
+    if rest and archive.remaining:
+        yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol)
+    return archive.worst(tol)
+
+
+def _disagree(a, b, c) -> bool:
+    """Whether the gradients of c at records a and b point opposite ways in some datum."""
+    ga = a.grad.get(c) if a is not None else None
+    gb = b.grad.get(c) if b is not None else None
+    if ga is None or gb is None:
+        return gb is not None
+    return bool(np.any(np.sign(ga) * np.sign(gb) < 0))
+
+
+def _vertices(space, c, records):
+    """Gradient-sign (LP) vertices of criterion c from the given records."""
+    out = []
+    for rec in records:
+        if rec is None or not rec.ok[c]:
+            continue
+        g = rec.grad.get(c)
+        if g is None or not np.any(g):
+            continue
+        v = space.lp_vertex(g, rec.z)
+        if not any(np.array_equal(v, w) for w in out):
+            out.append(v)
+    return out
