@@ -70,7 +70,7 @@ def admissible(M: np.ndarray, Tloc: sp.csr_matrix, rtol: float = 1e-10) -> np.nd
         return np.zeros((Tloc.shape[1], 0))
     E = M - Tloc @ (Tloc.T @ M)
     s_ref = max(np.linalg.norm(M, 2), 1e-300)
-    _, s, vt = np.linalg.svd(E, full_matrices=True)
+    _, s, vt = np.linalg.svd(E, full_matrices=False)     # M has ≤ 3 columns and many rows
     rank = int(np.sum(s > rtol * s_ref))
     Z = Tloc.T @ (M @ vt[rank:].T)
     return _orth(Z)
@@ -95,6 +95,19 @@ def null_space(C: np.ndarray, Z: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
     return _orth(Z @ vt[rank:].T)
 
 
+def independent_rows(C: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
+    """Rows of C forming a basis of its row space (pivoted QR of Cᵀ), ascending.
+
+    Glue rows can be dependent (e.g. a contact node on a roller support), which
+    would make the saddle-point matrices singular."""
+    if C.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    C = C[:, np.flatnonzero(np.abs(C).sum(axis=0))]      # the few columns the rows touch
+    _, r, piv = sla.qr(C.T, mode="economic", pivoting=True)
+    d = np.abs(np.diag(r))
+    return np.sort(piv[: int(np.sum(d > rtol * max(d.max(initial=0.0), 1e-300)))])
+
+
 def _spd_factor(A: sp.spmatrix):
     return linalg.factorize(sp.csr_matrix(A), spd=True)
 
@@ -105,6 +118,7 @@ class _KKT:
     def __init__(self, A: sp.spmatrix, C: sp.spmatrix):
         self.n = A.shape[0]
         m = C.shape[0]
+        C = C * float(np.abs(A.diagonal()).mean())      # same scale as A: keeps the LU accurate
         K = sp.bmat([[A, C.T], [C, sp.csr_matrix((m, m))]], format="csc")
         try:
             self.lu = spla.splu(K)
@@ -224,10 +238,11 @@ class PairUnit(Unit):
 
     kind = "pair"
 
-    def __init__(self, index, subdomains, dofs, op, Tloc, Z_halves, rho, rows, Bn, Bt, R_int):
+    def __init__(self, index, subdomains, dofs, op, Tloc, comp_modes, rho, rows, Bn, Bt):
+        Z_halves = np.hstack(comp_modes) if comp_modes else np.zeros((dofs.size, 0))
         super().__init__(index, subdomains, dofs, op, Tloc, Z_halves, rho)
         self.rows, self.Bn, self.Bt = rows, Bn.tocsr(), Bt.tocsr()
-        self.R_int_full = R_int          # (ndofs, k) modes vanishing on B
+        self.comp_modes = comp_modes     # per facet-connected component: its admissible rigid modes
         self.Z_halves = Z_halves
         self.warm = None
         self.result = None
@@ -236,15 +251,17 @@ class PairUnit(Unit):
         super().set_interface(is_interface, position)
         if self.B.size and (abs(self.Bn[:, self.B]).sum() or abs(self.Bt[:, self.B]).sum()):
             raise SetupError("a contact node lies on a subdomain interface (partition bug)")
-        R_int = self.R_int_full[self.I] if self.R_int_full.shape[1] else np.zeros((self.I.size, 0))
-        self.R_int = R_int if R_int.shape[1] else None
+        onB = np.zeros(self.dofs.size, bool)
+        onB[self.B] = True
+        free = [Zc for Zc in self.comp_modes if Zc.shape[1] and not np.any(np.abs(Zc[onB]) > 0)]
+        self.R_int = np.hstack(free)[self.I] if free else None
         # glue: normal only ([21, (4.35)]) unless that leaves an interior mode free
         Cn = self.Bn.toarray()
         full = self.R_int is not None and null_space(Cn[:, self.I], self.R_int).shape[1] > 0
         self.glue = "normal+tangential" if full else "normal"
         C = sp.vstack([self.Bn, self.Bt]).tocsr() if full else self.Bn
-        self.C = C
-        self.Z = null_space(C.toarray(), self.Z_halves)
+        self.C = C[independent_rows(C.toarray())]
+        self.Z = null_space(self.C.toarray(), self.Z_halves)
 
     def _factor_dirichlet(self):
         I = self.I

@@ -4,9 +4,9 @@ Rule ([21, §4]; physics.md §4: ``Γ ∩ Γ_c = ∅``):
 
 1. **Contact bands.** For every contact side (the slave nodes and the master
    nodes of a contact), the cells touching a side node form a band; every
-   band is grown by whole layers of neighbouring cells (node adjacency) of
-   its own body until it holds ``pair_size`` × (mean cells per subdomain)
-   cells. Since every cell around a contact node lies in its band, contact
+   band is grown to the cells of its body whose centroid lies within
+   ``δ = pair_size · H`` of the side (H = (area/subdomains)^½, the mean
+   subdomain diameter): a band of even thickness, also on graded meshes. Since every cell around a contact node lies in its band, contact
    nodes are interior to one subdomain: interfaces never cut a contact side.
 2. **Pairs.** Bands of one body that share a node are merged (otherwise their
    common nodes would be interface DOFs seen by no linear subdomain, and
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -130,13 +131,11 @@ def partition(mesh, cell_body: np.ndarray, sides: list[tuple[int, int, np.ndarra
     sides:     (contact index, body index, side nodes) for both sides of every contact
     floating:  bodies with free rigid modes (kept whole in their cluster)
     subdomains: total number of subdomains aimed at (pairs' halves included)
-    pair_size: band size in units of the mean subdomain cell count
+    pair_size: band thickness in units of the mean subdomain diameter
     """
     t, p = mesh.t, mesh.p
     nc, nn = t.shape[1], p.shape[1]
     inc = node_cell_incidence(t, nn)
-    cell_adj = (inc.T @ inc).tocsr()                 # cells sharing a node
-    target = pair_size * nc / max(subdomains, 1)
 
     # 1. a band per contact side; a floating body's band is the whole body
     bands, band_body = [], []
@@ -146,23 +145,23 @@ def partition(mesh, cell_body: np.ndarray, sides: list[tuple[int, int, np.ndarra
         band_body.append(b)
     nb = len(bands)
 
-    # grow all bands layer by layer (lower band index claims a contested cell first)
+    # grow every band to the cells of its body within distance δ of its side (nearest side
+    # claims a contested cell; ties to the lower band index): a band of even thickness
+    # δ = pair_size · H, H = (area / subdomains)^½ the mean subdomain diameter
+    centroid = p[:, t].mean(axis=1).T
+    e1, e2 = p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]
+    area = 0.5 * np.abs(e1[0] * e2[1] - e1[1] * e2[0])
+    delta = pair_size * np.sqrt(area.sum() / max(subdomains, 1))
     owner = -np.ones(nc, dtype=np.int64)
+    best = np.full(nc, np.inf)
     for k in range(nb):
-        owner[bands[k] & (owner < 0)] = k
-    while True:
-        grew = False
-        for k in range(nb):
-            mine = owner == k
-            if mine.sum() >= target:
-                continue
-            ring = (cell_adj @ mine.astype(float)) > 0
-            new = ring & (owner < 0) & (cell_body == band_body[k])
-            if new.any():
-                owner[new] = k
-                grew = True
-        if not grew:
-            break
+        dist, _ = cKDTree(p[:, sides[k][2]].T).query(centroid)
+        take = (bands[k] | ((dist <= delta) & (cell_body == band_body[k]))) & (dist < best)
+        if band_body[k] in floating:
+            take = bands[k] & (owner < 0)
+        owner[take], best[take] = k, dist[take]
+    for k in range(nb):                               # the cells at a side node are never given away
+        owner[bands[k] & ~np.isin(owner, [j for j in range(nb) if band_body[j] == band_body[k]])] = k
 
     # 2. merge bands of one body sharing a node; clusters through contacts
     uf = _UnionFind(nb)
@@ -198,7 +197,6 @@ def partition(mesh, cell_body: np.ndarray, sides: list[tuple[int, int, np.ndarra
     counts = np.bincount(cell_body[rest], minlength=nbodies)
     left = max(subdomains - len(body), int(np.count_nonzero(counts)))
     share = _apportion(counts, left)
-    centroid = p[:, t].mean(axis=1).T
     for b in range(nbodies):
         cells = np.flatnonzero(rest & (cell_body == b))
         if cells.size == 0:

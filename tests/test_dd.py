@@ -1,0 +1,153 @@
+"""The domain decomposition solver (wcs.dd) against the monolithic solver, on the
+validation scenes with floating subdomains; its partition rule; its local operators;
+its failure status."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import yaml
+
+import wcs
+from wcs.dd import solver as dds
+from wcs.dd.partition import rcb
+from wcs.model import Model
+from wcs.scene.mesher import build_mesh
+
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+
+def build(name, tmp_path, edit=None):
+    src = STUDIES / name
+    doc = yaml.safe_load(src.read_text())
+    if edit:
+        edit(doc)
+    for f in src.parent.glob("materials*.yaml"):
+        (tmp_path / f.name).write_text(f.read_text())
+    path = tmp_path / src.name
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    study = wcs.load_study(path)
+    return study, Model(study.scene, build_mesh(study.scene), {"method": "monolithic"})
+
+
+def reduced_system(model, scene):
+    c = model.coefficients(scene)
+    K = model.K(model.stiffness_coefficients(c))
+    Kr = model.Tt @ K @ model.elim.T
+    u0 = model.elim.U0 @ c.support_values
+    T = model.solve_heat(c) if model.thermal else None
+    rhs = model.Tt @ (model.mechanical_load(c, T) - K @ u0)
+    return Kr, rhs, u0
+
+
+def dd_vs_monolithic(study, model, options):
+    mono = model.solve(study.scene)
+    Kr, rhs, u0 = reduced_system(model, study.scene)
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, options)
+    assert res.status == dds.CONVERGED, res.message
+    rel = lambda a, b: np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)  # noqa: E731
+    return res, mono, rel(res.u, mono.u), rel(res.lam_n, mono.contact.force_n), \
+        rel(res.lam_t, mono.contact.force_t) if np.any(mono.contact.force_t) else np.linalg.norm(res.lam_t)
+
+
+def _small_pad(doc):
+    doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.05}]}
+
+
+def _frictionless_pad(doc):
+    _small_pad(doc)
+    doc["scene"]["contacts"]["interface"].pop("friction")
+    doc["scene"]["loads"]["pad_top"] = {"traction": [0.0, -1.0e6]}
+    doc["scene"]["boundaries"]["pad_left"] = {"body": "pad", "segment": [[0.5, 1.0], [0.5, 1.5]]}
+    doc["scene"]["supports"]["pad_left"] = {"u": [0.0, None]}
+    doc["uncertain"] = {"loads.pad_top.traction.1": [-2.0e6, -0.5e6]}
+    doc["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["interface"]}]
+
+
+OPTS = {"tolerance": 1e-10, "max_iterations": 300, "dd": {"subdomains": 8}}
+
+
+@pytest.mark.parametrize("name,edit,law", [
+    ("validation/contact-patch.yaml", None, "frictionless"),
+    ("validation/tresca-pad.yaml", _frictionless_pad, "frictionless"),
+    ("validation/tresca-pad.yaml", _small_pad, "tresca"),
+], ids=["patch", "pad-frictionless", "pad-tresca"])
+def test_dd_agrees_with_monolithic(name, edit, law, tmp_path):
+    study, model = build(name, tmp_path, edit)
+    res, mono, eu, en, et = dd_vs_monolithic(study, model, OPTS)
+    info = res.info
+    assert info["floating_units"] >= 1                       # floating subdomains present: coarse space used
+    assert info["coarse"]["pcg1"] >= 3 and info["pairs"] >= 1
+    assert eu <= 1e-6 and en <= 1e-6 and et <= 1e-6, (eu, en, et)
+    if law == "tresca":
+        assert np.any(res.info["active"] == 2) and np.any(res.info["active"] == 1)   # partial slip
+    np.testing.assert_array_equal(res.info["active"], mono.contact.status)
+
+
+def test_local_matrices_sum_to_the_global_one_and_kernels(tmp_path):
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    dec = dds.decomposition(model, OPTS)
+    c = model.coefficients(study.scene)
+    kc = model.stiffness_coefficients(c)
+    Kr, _, _ = reduced_system(model, study.scene)
+    n = Kr.shape[0]
+    total = sp.csr_matrix((n, n))
+    for u in dec.units:
+        u.assemble(kc)
+        P = sp.csr_matrix((np.ones(u.dofs.size), (u.dofs, np.arange(u.dofs.size))), shape=(n, u.dofs.size))
+        total = total + P @ u.A @ P.T
+        if u.kind == "linear" and u.Z.shape[1]:
+            assert np.abs(u.A @ u.Z).max() <= 1e-8 * abs(u.A).max()
+        # Neumann solve is a generalized inverse of the Schur complement: S S† S = S
+        E = np.eye(u.B.size)
+        S = u.apply_S(E)
+        assert np.abs(S - S.T).max() <= 1e-8 * np.abs(S).max()
+        assert np.abs(S @ u.neumann(S) - S).max() <= 1e-7 * np.abs(S).max()
+    assert abs(total - Kr).max() <= 1e-12 * abs(Kr).max()
+
+
+def test_partition_rule_and_determinism(tmp_path):
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    a = dds.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
+    b = dds.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
+    np.testing.assert_array_equal(a.part.subdomain, b.part.subdomain)
+    part = a.part
+    t = model.smesh.mesh.t
+    # every contact node lies in cells of exactly one subdomain (Γ ∩ Γ_c = ∅), and the
+    # two sides of the contact are in one pair
+    for k, body, nodes in dds.contact_sides(model):
+        cells = np.flatnonzero(np.isin(t, nodes).any(axis=0))
+        subs = np.unique(part.subdomain[cells])
+        assert subs.size == 1
+        assert any(subs[0] in p and k in ks for p, ks in zip(part.pairs, part.pair_contacts))
+    # the floating pad is not split; subdomain count as asked
+    pad = model.smesh.bodies.index("pad")
+    assert np.unique(part.subdomain[model.smesh.cell_body == pad]).size == 1
+    assert part.nsub == 8
+    lab = rcb(np.random.default_rng(0).random((1000, 2)), 5)
+    assert np.bincount(lab).min() >= 199
+
+
+def test_divergence_gives_a_status_not_a_hang(tmp_path):
+    """The seed's plain iteration (ω = 1) on the pad: the pair (steel band + floating rubber pad)
+    is stiffer than the linear rest, 2β² > 1 — it must stop with DIVERGED/STAGNATED and say why."""
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    Kr, rhs, u0 = reduced_system(model, study.scene)
+    opts = {"tolerance": 1e-10, "max_iterations": 50, "dd": {"subdomains": 4, "relaxation": 1.0}}
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts)
+    assert res.status in (dds.DIVERGED, dds.STAGNATED)
+    assert res.u is None and "contraction" in res.message and res.info["successive"] < 50
+    assert res.info["history"]["q"][-1] > 1
+
+
+def test_thermal_step_by_decomposition(tmp_path):
+    def small(doc):
+        doc["scene"]["mesh"]["size"] = 8.0
+        doc["scene"]["mesh"]["refine"] = [{"disc": {"center": [0.0, 0.0], "radius": 6.0}, "size": 1.5}]
+    study, model = build("tunnel-thermal.yaml", tmp_path, small)
+    c = model.coefficients(study.scene)
+    T_mono = model.solve_heat(c)
+    T, info, status, msg = dds.solve_heat_dd(model, c, {"tolerance": 1e-10, "dd": {"subdomains": 8}})
+    assert status == dds.CONVERGED, msg
+    assert np.linalg.norm(T - T_mono) <= 1e-6 * np.linalg.norm(T_mono)
+    assert info["coarse"] >= 1

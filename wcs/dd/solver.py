@@ -1,0 +1,526 @@
+r"""The seed's domain decomposition contact solver [21, §4–7] (dd-algorithm.md).
+
+Interface equation [21, (4.32)] for the trace U of the solution on the
+subdomain interfaces Γ (reduced DOFs shared by two or more units):
+
+    S0 U + S_con(U) = F,   S0 = Σ_{s∈T} R_sᵀ S_s R_s,   S_con(U) = Σ_p R_pᵀ S_p(R_p U).
+
+1. Auxiliary problem (4.35)–(4.48): every pair glued (bilateral, no friction),
+   S U⁰ = F⁰, S = S0 + Σ_p R_pᵀ S⁰_p R_p, by PCG1 with the balancing
+   Neumann–Neumann preconditioner (5.9)–(5.14) and the coarse space of the
+   kernels of floating subdomains and pairs, injections D_u (5.5)–(5.8).
+2. Successive approximations (4.37), (6.1): S0 U^k = F − S_con(U^{k−1}), each by
+   PCG2 with the reduced preconditioner (6.7) (injections oD_u (6.4)–(6.6): the
+   ρ-weights over linear subdomains only, so 1 next to a pair), warm started
+   from U^{k−1}; S_con by one local contact solve per pair.
+3. Monitoring ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
+   contraction estimate q_k = ‖ΔU^k‖/‖ΔU^{k−1}‖ gives the a-posteriori bound
+   q/(1−q)‖ΔU^k‖ (Theorem 7.1: contraction 2β² < 1); q_k ≥ 1 for `patience`
+   steps is divergence (or stagnation), and a run whose predicted number of
+   steps exceeds the budget stops early. Relaxation U^k ← ω U^k + (1−ω) U^{k−1}
+   (fixed ω, or Aitken's dynamic ω) is the cheap cure; a failed run returns a
+   status and message for the caller to fall back to the monolithic solver.
+
+Entry points: `solve_dd` (elasticity with contact, on the model's reduced
+system) and `solve_heat_dd` (the thermal step: the same decomposition, all
+subdomains linear). Options (the study's `solver` mapping; `dd` sub-mapping):
+`tolerance`, `max_iterations` (budget of successive approximations), and in
+`dd`: `subdomains` (8), `pair_size` (1.0), `relaxation` (1.0 or "aitken"),
+`pcg_tolerance` (tolerance of PCG1, default max(tolerance, 1e-8): U⁰ only starts
+the successive approximations), `pcg_max_iterations`
+(500), `patience` (8: divergence when ‖ΔU‖ did not decrease over that many
+steps), `inner_tolerance` (PCG2 floor, default tolerance/10) and `forcing`
+(0.1: PCG2 stops at forcing × the last relative increment — inexact inner
+solves), `contact_tolerance` (local contact solves, default 1e-10).
+"""
+from __future__ import annotations
+
+import time
+import weakref
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from wcs.contact.solver import CONVERGED as CONTACT_CONVERGED
+from wcs.fem.affine import CellAffineOperator
+
+from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
+from .partition import Partition, facet_components, partition
+from .pcg import Coarse, CoarseSingular, pcg
+
+CONVERGED = 0
+DIVERGED = 5
+STAGNATED = 6
+BUDGET = 7
+LOCAL_FAILED = 8
+SETUP_FAILED = 9
+STATUS_NAMES = {CONVERGED: "converged", DIVERGED: "diverged", STAGNATED: "stagnated",
+                BUDGET: "budget exhausted", LOCAL_FAILED: "local solve failed", SETUP_FAILED: "setup failed"}
+
+
+class DDResult(NamedTuple):
+    """What `solve_dd` returns; unpacks as (u, lam_n, lam_t, info, status, message)."""
+    u: np.ndarray | None           # (2 nnodes,) full displacement (None on failure)
+    lam_n: np.ndarray | None       # (m,) normal contact forces, zone row order
+    lam_t: np.ndarray | None       # (m,) tangential contact forces
+    info: dict                     # iteration counts, history, active set, timings, sizes
+    status: int
+    message: str
+
+
+# ---- structure -------------------------------------------------------------------------------
+def dofs_of_nodes(T: sp.spmatrix, ncomp: int):
+    """(node_of_dof, csr node -> dofs) for an elimination whose columns live on one node each."""
+    Tc = sp.csc_matrix(T)
+    Tc.sort_indices()
+    node_of_dof = Tc.indices[Tc.indptr[:-1]] // ncomp
+    nn = T.shape[0] // ncomp
+    M = sp.csr_matrix((np.ones(node_of_dof.size), (node_of_dof, np.arange(node_of_dof.size))),
+                      shape=(nn, node_of_dof.size))
+    M.sort_indices()
+    return node_of_dof, M
+
+
+def _local_pieces(t_nodes, cells, ncomp, T, node_dofs, local, group, p, components):
+    """Local nodes, DOFs, elimination block, affine operator and per-component admissible modes."""
+    nodes = np.unique(t_nodes[:, cells])
+    dofs = np.unique(node_dofs[nodes].indices)
+    rows = (ncomp * nodes[:, None] + np.arange(ncomp)).ravel()
+    Tloc = sp.csr_matrix(T[rows][:, dofs])
+    lt = np.searchsorted(nodes, t_nodes[:, cells])
+    op = CellAffineOperator(lt, nodes.size, local[:, cells], group[cells])
+    modes = []
+    for comp in components:
+        cn = np.unique(t_nodes[:, comp])
+        M = np.zeros((rows.size, 1 if ncomp == 1 else 3))
+        pos = (ncomp * np.searchsorted(nodes, cn)[:, None] + np.arange(ncomp)).ravel()
+        M[pos] = rigid_basis(p, cn, ncomp)
+        modes.append(admissible(M, Tloc))
+    return nodes, dofs, Tloc, op, modes
+
+
+def _interface(units, ndof):
+    count = np.zeros(ndof, dtype=np.int64)
+    for u in units:
+        count[u.dofs] += 1
+    is_if = count >= 2
+    position = np.cumsum(is_if) - 1
+    for u in units:
+        u.set_interface(is_if, position)
+    return int(is_if.sum())
+
+
+@dataclass
+class Decomposition:
+    """Structure of a decomposition: partition and units (built once per model)."""
+    part: Partition
+    units: list                 # Unit / PairUnit, pairs first
+    nif: int                    # interface size
+    ndof: int
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def pairs(self):
+        return [u for u in self.units if u.kind == "pair"]
+
+    @property
+    def linear(self):
+        return [u for u in self.units if u.kind == "linear"]
+
+
+def contact_sides(model) -> list[tuple[int, int, np.ndarray]]:
+    """(contact, body, side nodes) for the slave and master sides of every contact."""
+    nb = model.smesh.node_body
+    sides = []
+    for k, pr in enumerate(model.zone.pairs):
+        master = np.unique(pr.master_nodes[pr.master_weights > 0])
+        sides.append((k, int(nb[pr.slave[0]]), pr.slave))
+        sides.append((k, int(nb[master[0]]), master))
+    return sides
+
+
+def build_decomposition(model, dd: dict) -> Decomposition:
+    """Partition the model's mesh and build the units of the elastic problem."""
+    t0 = time.perf_counter()
+    smesh, mesh = model.smesh, model.smesh.mesh
+    floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
+    part = partition(mesh, smesh.cell_body, contact_sides(model), floating,
+                     int(dd.get("subdomains", 8)), float(dd.get("pair_size", 1.0)))
+    T = model.elim.T
+    _, node_dofs = dofs_of_nodes(T, 2)
+    Bn, Bt = model.Bn_r, model.Bt_r
+    contact_of_row = model.zone.contact_of_node
+    units = []
+    for q, (subs, contacts) in enumerate(zip(part.pairs, part.pair_contacts)):
+        cells = np.flatnonzero(np.isin(part.subdomain, subs))
+        comps = [c for s in subs for c in facet_components(part.cells(s), mesh.f2t)]
+        nodes, dofs, Tloc, op, modes = _local_pieces(mesh.t, cells, 2, T, node_dofs, model.K.local,
+                                                     smesh.cell_region, mesh.p, comps)
+        rows = np.flatnonzero(np.isin(contact_of_row, contacts))
+        outside = np.setdiff1d(np.unique(Bn[rows].indices), dofs)
+        if outside.size:
+            raise SetupError("contact rows reach outside their pair (partition bug)")
+        units.append(PairUnit(len(units), subs, dofs, op, Tloc, modes, None, rows,
+                              Bn[rows][:, dofs], Bt[rows][:, dofs]))
+    for s in part.linear:
+        cells = part.cells(s)
+        comps = facet_components(cells, mesh.f2t)
+        nodes, dofs, Tloc, op, modes = _local_pieces(mesh.t, cells, 2, T, node_dofs, model.K.local,
+                                                     smesh.cell_region, mesh.p, comps)
+        Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
+        units.append(Unit(len(units), (s,), dofs, op, Tloc, Z, None))
+    nif = _interface(units, T.shape[1])
+    return Decomposition(part, units, nif, T.shape[1], {"setup": time.perf_counter() - t0})
+
+
+# ---- weights, loads and global operators ---------------------------------------------------------
+def stiffness_measure(lam: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """Young-modulus-like ρ per region: μ(3λ+2μ)/(λ+μ)."""
+    return mu * (3 * lam + 2 * mu) / np.maximum(lam + mu, 1e-300)
+
+
+def injections(units, nif: int, rho: np.ndarray) -> list[np.ndarray]:
+    """D_u on the interface DOFs of each unit: ρ_u / Σ_{t ∋ m} ρ_t ([21, (5.5)–(5.7)]).
+
+    Σ_u R_uᵀ D_u R_u = I ([21, (5.8)]) on the interface DOFs the units cover."""
+    total = np.zeros(nif)
+    for u, r in zip(units, rho):
+        total[u.gamma] += r
+    return [r / total[u.gamma] for u, r in zip(units, rho)]
+
+
+class InterfaceOperator:
+    """S = Σ_u R_uᵀ S_u R_u over `units` (linear uses of each unit) with the balancing
+    Neumann–Neumann preconditioner M⁻¹ = (I − P) Σ_u R_uᵀ D_u S_u† D_u R_u ([21, (5.14)])."""
+
+    def __init__(self, units, nif: int, weights: list[np.ndarray]):
+        self.units, self.nif, self.weights = units, nif, weights
+        self.applications = 0
+        Zs = [(u.gamma, w[:, None] * u.Z[u.B]) for u, w in zip(units, weights) if u.Z.shape[1] and u.B.size]
+        k = sum(z.shape[1] for _, z in Zs)
+        Z = np.zeros((nif, k))
+        j = 0
+        for g, z in Zs:
+            Z[g, j:j + z.shape[1]] = z
+            j += z.shape[1]
+        self.coarse = Coarse(_orth(Z), self.apply)
+
+    def apply(self, U: np.ndarray) -> np.ndarray:
+        self.applications += 1
+        out = np.zeros((self.nif,) + U.shape[1:])
+        for u in self.units:                       # independent local Dirichlet solves
+            out[u.gamma] += u.apply_S(U[u.gamma])
+        return out
+
+    def precondition(self, H: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(H)
+        for u, w in zip(self.units, self.weights):  # independent local Neumann solves
+            out[u.gamma] += w * u.neumann(w * H[u.gamma])
+        return self.coarse.project_out(out)
+
+    def load(self) -> np.ndarray:
+        F = np.zeros(self.nif)
+        for u in self.units:
+            F[u.gamma] += u.condensed_load()
+        return F
+
+
+# ---- the elastic contact solve ------------------------------------------------------------------
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _dd_options(options: dict) -> dict:
+    dd = dict((options or {}).get("dd") or {})
+    tol = float((options or {}).get("tolerance", 1e-8))
+    return {
+        "subdomains": int(dd.get("subdomains", 8)),
+        "pair_size": float(dd.get("pair_size", 0.5)),
+        "relaxation": dd.get("relaxation", "aitken"),
+        "tolerance": tol,
+        "max_iterations": int((options or {}).get("max_iterations", 200)),
+        "pcg_tolerance": float(dd.get("pcg_tolerance", max(tol, 1e-8))),
+        "pcg_max_iterations": int(dd.get("pcg_max_iterations", 500)),
+        "inner_tolerance": float(dd.get("inner_tolerance", tol / 10)),
+        "contact_tolerance": float(dd.get("contact_tolerance", 1e-10)),
+        "patience": int(dd.get("patience", 8)),
+        "forcing": float(dd.get("forcing", 0.1)),
+    }
+
+
+def decomposition(model, options: dict) -> Decomposition:
+    """The model's decomposition for these options (built once, cached on the model)."""
+    o = _dd_options(options)
+    key = (o["subdomains"], o["pair_size"])
+    per_model = _CACHE.setdefault(model, {})
+    if key not in per_model:
+        per_model[key] = build_decomposition(model, o)
+    return per_model[key]
+
+
+def _fail(info, status, message):
+    info["status_name"] = STATUS_NAMES[status]
+    return DDResult(None, None, None, info, status, message)
+
+
+def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: dict | None = None,
+             *, coefficients=None) -> DDResult:
+    """Solve the model's reduced contact problem (Kr, rhs, u = T w + u0) by the DD method.
+
+    Same inputs as `Model._solve_contact`: Kr = Tᵀ K T, rhs = Tᵀ (f − K u0), u0 the lifted
+    support values. The local matrices are assembled per unit from the scene's
+    coefficients (`coefficients`: a `Coefficients` already computed, else from `scene`);
+    Kr itself is only used to size and check. Returns a `DDResult`
+    (u_full, lam_n, lam_t, info, status, message); lam_n, lam_t in the zone's row order
+    (ContactState(zone, lam_n, lam_t, gap − Bn u, Bt u, info["active"])).
+    """
+    o = _dd_options(options)
+    t0 = time.perf_counter()
+    info: dict = {"method": "dd", "options": o}
+    try:
+        dec = decomposition(model, options)
+    except (SetupError, CoarseSingular) as exc:
+        return _fail(info, SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
+    z = model.zone
+    c = coefficients if coefficients is not None else model.coefficients(scene)
+    g, F = z.friction(scene)
+    d = z.gap - z.Bn @ u0
+    kc = model.stiffness_coefficients(c)
+    rho_region = stiffness_measure(c.lam, c.mu)
+    info.update(_sizes(dec))
+    t = time.perf_counter()
+    try:
+        for u in dec.units:
+            u.assemble(kc)
+    except Exception as exc:  # noqa: BLE001 - a local factorization failed: report, let the caller fall back
+        return _fail(info, SETUP_FAILED, f"a local factorization failed: {exc}")
+    rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
+    D = injections(dec.units, dec.nif, rho)
+    for u, w in zip(dec.units, D):
+        f = rhs[u.dofs].copy()
+        f[u.B] *= w
+        u.set_load(f)
+    lin = dec.linear
+    oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
+    try:
+        S = InterfaceOperator(dec.units, dec.nif, D)
+        S0 = InterfaceOperator(lin, dec.nif, oD)
+    except CoarseSingular as exc:
+        return _fail(info, SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
+                                         f"(a group of them floats between pairs): {exc}")
+    info["coarse"] = {"pcg1": S.coarse.size, "pcg2": S0.coarse.size}
+    info["timings"] = {"setup": dec.timings["setup"], "assemble": time.perf_counter() - t}
+
+    # 1. auxiliary problem: PCG1
+    t = time.perf_counter()
+    F0 = S.load()
+    r1 = pcg(S.apply, S.precondition, F0, np.zeros(dec.nif), tol=o["pcg_tolerance"],
+             max_iter=o["pcg_max_iterations"], coarse=S.coarse)
+    info["pcg1"] = r1.iterations
+    info["pcg1_residuals"] = r1.residuals
+    info["timings"]["pcg1"] = time.perf_counter() - t
+    info["pcg1_converged"] = r1.converged      # U⁰ is only the start of the successive approximations
+
+    # 2. successive approximations: PCG2
+    t = time.perf_counter()
+    Fl = S0.load()
+    loop = _successive(dec, S0, Fl, r1.x, d, g, F, z.weight, o, info)
+    info["timings"]["successive"] = time.perf_counter() - t
+    status, message, U = loop
+    if status != CONVERGED:
+        return _fail(info, status, message)
+
+    # 3. the solution: interior values of every unit from U
+    w = np.zeros(dec.ndof)
+    m = z.gap.size
+    lam_n, lam_t, active = np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64)
+    for u in dec.units:
+        if u.kind == "pair":
+            _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows],
+                                    _coulomb(F, u.rows), o["contact_tolerance"], 200)
+            if res.status != CONTACT_CONVERGED:
+                return _fail(info, LOCAL_FAILED, f"final contact solve of pair {u.index}: {res.message}")
+            lam_n[u.rows], lam_t[u.rows], active[u.rows] = res.lam_n, res.lam_t, res.active
+        else:
+            loc = u.interior(U[u.gamma])
+        w[u.dofs] = loc
+    info["active"] = active
+    info["w"] = w
+    info["timings"]["total"] = time.perf_counter() - t0
+    info["status_name"] = STATUS_NAMES[CONVERGED]
+    u_full = model.elim.T @ w + u0
+    return DDResult(u_full, lam_n, lam_t, info, CONVERGED, message)
+
+
+def _coulomb(F, rows):
+    Fr = F[rows]
+    return Fr if Fr.any() else None
+
+
+def _sizes(dec: Decomposition) -> dict:
+    return {"subdomains": dec.part.nsub, "pairs": len(dec.part.pairs), "units": len(dec.units),
+            "linear_subdomains": len(dec.part.linear), "interface_dofs": dec.nif,
+            "floating_units": int(sum(1 for u in dec.units if u.kind == "linear" and u.Z.shape[1])),
+            "glue": [u.glue for u in dec.pairs]}
+
+
+def _unit_rho(model, u, rho_region, part) -> float:
+    """Area-weighted mean stiffness measure over the unit's cells."""
+    cells = np.flatnonzero(np.isin(part.subdomain, u.subdomains))
+    a = model.cell_area[cells]
+    return float((rho_region[model.smesh.cell_region[cells]] * a).sum() / a.sum())
+
+
+def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info):
+    """S0 U^k = F − S_con(U^{k−1}) with monitoring; returns (status, message, U)."""
+    pairs = dec.pairs
+    tol, budget, patience = o["tolerance"], o["max_iterations"], o["patience"]
+    relax = o["relaxation"]
+    aitken = isinstance(relax, str) and relax.lower() == "aitken"
+    omega = 1.0 if aitken else float(relax)
+
+    def s_con(U):
+        out = np.zeros(dec.nif)
+        for p in pairs:                              # independent local contact solves
+            r, _, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
+                                  o["contact_tolerance"], 200)
+            if res.status != CONTACT_CONVERGED:
+                return None, f"contact solve of pair {p.index}: {res.message}"
+            out[p.gamma] += r
+        return out, ""
+
+    U, SU = U0.copy(), S0.apply(U0)
+    hist = {"dU": [], "U": [], "q": [], "omega": [], "pcg2": [], "estimate": []}
+    info["history"] = hist
+    info["successive"] = 0
+    info["pcg2"] = 0
+    prev_step = None          # unrelaxed update r_{k−1} (Aitken)
+    first = None
+    for k in range(1, budget + 1):
+        rc, msg = s_con(U)
+        if rc is None:
+            return LOCAL_FAILED, msg, U
+        b = F - rc
+        # inexact inner solves: a fraction (forcing) of the last relative increment, at least inner_tolerance
+        eta = o["inner_tolerance"]
+        if hist["dU"]:
+            eta = max(eta, o["forcing"] * hist["dU"][-1] / max(hist["U"][-1], 1e-300))
+        r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
+                 coarse=S0.coarse, reference=max(np.linalg.norm(F), np.linalg.norm(b)))
+        info["successive"] = k
+        info["pcg2"] += r2.iterations
+        hist["pcg2"].append(r2.iterations)
+        step, Sstep = r2.x - U, r2.Sx - SU
+        if aitken and prev_step is not None:
+            dr = step - prev_step
+            den = float(dr @ dr)
+            if den > 0:
+                omega = float(np.clip(-omega * (prev_step @ dr) / den, 0.02, 2.0))
+        prev_step = step
+        hist["omega"].append(omega)
+        dU, SdU = omega * step, omega * Sstep
+        U, SU = U + dU, SU + SdU
+        n_dU = float(np.sqrt(abs(dU @ SdU)))
+        n_U = float(np.sqrt(abs(U @ SU)))
+        hist["dU"].append(n_dU)
+        hist["U"].append(n_U)
+        if not np.isfinite(n_dU) or not np.isfinite(n_U):
+            return DIVERGED, f"successive approximations diverged (non-finite iterate at step {k})", U
+        q = n_dU / hist["dU"][-2] if len(hist["dU"]) > 1 and hist["dU"][-2] > 0 else np.nan
+        hist["q"].append(q)
+        est = q / (1 - q) * n_dU / max(n_U, 1e-300) if np.isfinite(q) and q < 1 else np.inf
+        hist["estimate"].append(est)
+        if n_dU <= tol * n_U:
+            info["contraction"] = _mean_q(hist["q"])
+            return CONVERGED, f"converged in {k} successive approximations ({info['pcg2']} PCG2 iterations, " \
+                              f"{info['pcg1']} PCG1)", U
+        if not r2.converged:
+            return BUDGET, f"PCG2 did not converge in {r2.iterations} iterations at step {k}", U
+        first = n_dU if first is None else first
+        qbar = _mean_q(hist["q"][-patience:])
+        info["contraction"] = qbar
+        if k > patience and n_dU >= hist["dU"][-1 - patience]:     # no net decrease in `patience` steps
+            kind = DIVERGED if n_dU > first else STAGNATED
+            return kind, (f"successive approximations {STATUS_NAMES[kind]} at step {k}: contraction estimate "
+                          f"q = {qbar:.3g} ≥ 1 over the last {patience} steps (‖ΔU‖/‖U‖ = {n_dU / max(n_U, 1e-300):.3g}); "
+                          f"[21, Cor. 7.1] needs q = 2β² < 1 — try relaxation or larger pairs"), U
+        rate = (n_dU / hist["dU"][0]) ** (1.0 / (k - 1)) if k > 1 and hist["dU"][0] > 0 else np.nan
+        if np.isfinite(rate) and rate < 1 and k >= 10:       # overall rate: Aitken's q_k fluctuate
+            need = np.log(tol * n_U / n_dU) / np.log(rate)
+            if k + need > budget:
+                return STAGNATED, (f"successive approximations stagnating at step {k}: mean contraction "
+                                   f"{rate:.4f} needs ~{need:.0f} more steps to reach {tol:g}, "
+                                   f"beyond the budget of {budget}"), U
+    return BUDGET, (f"successive approximations did not reach {tol:g} in {budget} steps "
+                    f"(‖ΔU‖/‖U‖ = {hist['dU'][-1] / max(hist['U'][-1], 1e-300):.3g})"), U
+
+
+def _mean_q(qs) -> float:
+    qs = [q for q in qs if np.isfinite(q) and q > 0]
+    return float(np.exp(np.mean(np.log(qs)))) if qs else float("nan")
+
+
+# ---- the thermal step -------------------------------------------------------------------------
+def build_heat_decomposition(model, dd: dict) -> Decomposition:
+    """Units of the heat equation: every subdomain of the elastic partition, all linear
+    (contacts conduct perfectly: both sides share the heat nodes, which become interface DOFs)."""
+    mech = decomposition(model, dd)
+    smesh, mesh = model.smesh, model.smesh.mesh
+    heat_of_node = model.P.indices                       # P: one entry per row
+    th = heat_of_node[mesh.t]
+    T = model.heat_elim.T
+    _, node_dofs = dofs_of_nodes(T, 1)
+    units = []
+    for s in range(mech.part.nsub):
+        cells = mech.part.cells(s)
+        comps = facet_components(cells, mesh.f2t)
+        _, dofs, Tloc, op, modes = _local_pieces(th, cells, 1, T, node_dofs, model.H.local,
+                                                 smesh.cell_region, mesh.p, comps)
+        Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
+        units.append(Unit(s, (s,), dofs, op, Tloc, Z, None))
+    nif = _interface(units, T.shape[1])
+    return Decomposition(mech.part, units, nif, T.shape[1])
+
+
+def solve_heat_dd(model, c, options: dict | None = None):
+    """The thermal step by the same decomposition (the linear case: PCG1 only).
+
+    c: the model's `Coefficients`. Returns (T nodal (nnodes,), info, status, message),
+    the same temperature as `Model.solve_heat(c)`.
+    """
+    o = _dd_options(options)
+    per_model = _CACHE.setdefault(model, {})
+    key = ("heat", o["subdomains"], o["pair_size"])
+    if key not in per_model:
+        per_model[key] = build_heat_decomposition(model, options)
+    dec = per_model[key]
+    Kh = model.H(c.kappa)
+    Th0 = model.heat_elim.U0 @ c.temperature_values
+    q = model.source_vectors.T @ c.source
+    rhs = model.heat_Tt @ (q - Kh @ Th0)
+    for u in dec.units:
+        u.assemble(c.kappa)
+    kreg = np.asarray(c.kappa, float)
+    rho = [_unit_rho(model, u, kreg, dec.part) for u in dec.units]
+    D = injections(dec.units, dec.nif, rho)
+    for u, w in zip(dec.units, D):
+        f = rhs[u.dofs].copy()
+        f[u.B] *= w
+        u.set_load(f)
+    info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif}
+    try:
+        S = InterfaceOperator(dec.units, dec.nif, D)
+    except CoarseSingular as exc:
+        return None, info, SETUP_FAILED, f"thermal interface operator singular: {exc}"
+    info["coarse"] = S.coarse.size
+    r = pcg(S.apply, S.precondition, S.load(), np.zeros(dec.nif), tol=o["pcg_tolerance"],
+            max_iter=o["pcg_max_iterations"], coarse=S.coarse)
+    info["pcg1"] = r.iterations
+    if not r.converged:
+        return None, info, BUDGET, f"thermal PCG did not converge in {r.iterations} iterations"
+    w = np.zeros(dec.ndof)
+    for u in dec.units:
+        w[u.dofs] = u.interior(r.x[u.gamma])
+    theta = model.heat_elim.T @ w + Th0
+    return model.P @ theta, info, CONVERGED, f"converged in {r.iterations} PCG iterations"
