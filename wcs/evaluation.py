@@ -70,7 +70,7 @@ class Evaluator:
         scene = scene_with(self.study, values)
         nan = {c.name: float("nan") for c in self.criteria}
         try:
-            state = self.model.solve(scene)
+            state = self.model.solve(scene, adjoint=gradients)
         except SolveError as e:
             return Evaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
         phi = {c.name: c.value(self.model, state) for c in self.criteria}
@@ -78,5 +78,6 @@ class Evaluator:
         if gradients:
             from .sensitivity import gradients as adjoint
             grad, nonsmooth = adjoint(self, state, x)
-        return Evaluation(x, phi, 0, "solved", state.iterations, time.perf_counter() - t0,
+        message = "solved" if state.solver in ("direct", "monolithic", "dd") else f"solved ({state.solver})"
+        return Evaluation(x, phi, 0, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)

@@ -52,6 +52,7 @@ class State:
     stress: np.ndarray         # (4, ncells) xx, yy, zz, xy
     coefficients: Coefficients
     iterations: int = 1
+    solver: str = "direct"                 # what actually solved it (e.g. "dd", "monolithic after dd stagnated")
     contact: object | None = None
     timings: dict = field(default_factory=dict)
     # what the adjoint needs from the solve (valid until the model solves again)
@@ -110,9 +111,6 @@ class Model:
         if self.thermal:
             self._init_thermal(scene)
 
-        if self.options.get("method") == "dd":
-            raise StudyError("the domain decomposition solver is not available in this version; "
-                             "use monolithic (or auto) or qp", path="solver.method")
         self.zone = build_zone(scene, smesh)
         if self.zone is not None:
             T = self.elim.T
@@ -282,20 +280,20 @@ class Model:
         self._theta = self.heat_elim.T @ w + Th0
         return self.P @ self._theta
 
-    def solve(self, scene: dict) -> State:
+    def solve(self, scene: dict, adjoint: bool = False) -> State:
         """Solve one data set. A contact solve starts from the contact state at the nominal
         data (solved once, on first use), never from the previous data set: the answer for a
         data set is then the same whatever was solved before it — in another order, after a
         resume, on another MPI rank — to the last bit."""
         nominal = scene is self.scene
-        if self.zone is not None and not self._anchor_tried and not nominal:
+        if self.zone is not None and not self._anchor_tried and not nominal and self.options.get("method") != "dd":
             try:
                 self.solve(self.scene)
             except SolveError:
                 pass                   # no anchor: every solve starts cold (still deterministic)
         self._anchor_tried = True
         c = self.coefficients(scene)
-        T = self.solve_heat(c) if self.thermal else None
+        T = self._heat(c, adjoint) if self.thermal else None
         floating = {b: m for b, m in self.free_modes.items() if m.shape[1]}
         if floating and self.zone is None:
             body, modes = next(iter(floating.items()))
@@ -314,11 +312,42 @@ class Model:
             u = self.elim.T @ w + u0
             return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
                          w=w, theta=theta, factor=self._factor)
-        u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0, nominal)
-        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
+        used, warm = "monolithic", None
+        if self.options.get("method") == "dd":
+            dd = self._solve_dd(scene, c, Kr, rhs, u0)
+            if dd.status == 0 and not adjoint:
+                z = self.zone
+                contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
+                return State(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c), coefficients=c,
+                             iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact,
+                             theta=theta)
+            if dd.status == 0:          # the adjoint needs the monolithic factorization: start from dd
+                from .contact.solver import ContactResult
+                warm = ContactResult(None, dd.lam_n, dd.lam_t, 0, "", active=dd.info.get("active"))
+                used = "dd, polished by monolithic for the adjoint"
+            elif self.options.get("fallback", True):
+                used = f"monolithic after dd {dd.message}"
+            else:
+                raise SolveError(f"domain decomposition: {dd.message}", status=5)
+        u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0, nominal, warm)
+        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c, solver=used,
                      iterations=iterations, contact=contact, w=res.u, theta=theta, raw=res)
 
-    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool):
+    def _solve_dd(self, scene, c, Kr, rhs, u0):
+        from .dd.solver import solve_dd
+        return solve_dd(self, scene, Kr, rhs, u0, self.options, coefficients=c)
+
+    def _heat(self, c: Coefficients, adjoint: bool) -> np.ndarray:
+        """The thermal step: by the decomposition when the study asks for dd (the adjoint
+        needs the direct factorization), else directly."""
+        if self.options.get("method") == "dd" and not adjoint:
+            from .dd.solver import solve_heat_dd
+            T, _, status, _ = solve_heat_dd(self, c, self.options)
+            if status == 0:
+                return T
+        return self.solve_heat(c)
+
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None):
         from .contact.qp import solve_contact_qp
         from .contact.solver import CONVERGED, UNSOLVABLE, solve_contact
         z = self.zone
@@ -331,7 +360,7 @@ class Model:
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
-                                R=self.R_r, tol=tol, max_iter=max_iter, warm=self._anchor,
+                                R=self.R_r, tol=tol, max_iter=max_iter, warm=warm or self._anchor,
                                 factor=self._contact_factor, tol_fp=tol,
                                 max_fp_iter=int(self.options.get("max_fixed_point_iterations", 100)))
         if res.status == UNSOLVABLE:

@@ -278,14 +278,27 @@ class Shape(_Strict):
         return self
 
 
+class RegionMesh(_Strict):
+    size: float = Field(**_POSITIVE)       # target element size inside the region
+
+
 class Region(_Strict):
     material: str
     shape: Optional[Shape] = None          # required unless the scene's mesh is a file
     name: Optional[Name] = None
+    mesh: Optional[RegionMesh] = None
+
+
+class BodyMesh(_Strict):
+    """A body's own mesh sizes: the body is meshed on its own (nodes on curves it shares
+    with other bodies do not match theirs: contacts and glue there use mortar)."""
+    size: Optional[float] = Field(None, **_POSITIVE)
+    refine: list["Refinement"] = []
 
 
 class Body(_Strict):
     regions: Annotated[list[Region], Field(min_length=1)]
+    mesh: Optional[BodyMesh] = None
 
 
 class Boundary(_Strict):
@@ -336,6 +349,14 @@ class Contact(_Strict):
     slave: str
     master: str
     friction: Optional[Friction] = None
+    # node-to-node (paired nodes) | mortar (dual mortar) | auto: node-to-node when the sides match
+    discretization: Literal["auto", "node-to-node", "mortar"] = "auto"
+
+
+class Glue(_Strict):
+    """Two sides of different bodies tied together (mortar: the slave side follows the master)."""
+    slave: str
+    master: str
 
 
 class Thermal(_Strict):
@@ -364,6 +385,10 @@ class Refinement(RegionSelector):
     size: float = Field(**_POSITIVE)
 
 
+BodyMesh.model_rebuild()
+Body.model_rebuild()
+
+
 class Mesh(_Strict):
     size: Optional[float] = Field(None, **_POSITIVE)
     grading: Optional[float] = Field(None, **_NONNEGATIVE)
@@ -390,6 +415,7 @@ class Scene(_Strict):
     loads: dict[str, Load] = {}
     body_forces: dict[str, Point] = {}
     contacts: dict[Name, Contact] = {}
+    glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
     regions_of_interest: dict[Name, RegionOfInterest] = {}
 
@@ -440,6 +466,9 @@ class Search(_Strict):
 
 class DomainDecomposition(_Strict):
     subdomains: int = Field(8, ge=1)
+    pair_size: float = Field(0.5, gt=0)                  # band around a contact side, in subdomain widths H
+    relaxation: Literal["aitken"] | Annotated[float, Field(gt=0, le=2)] = "aitken"   # or ω (1 = the seed)
+    patience: int = Field(8, ge=1)                       # steps with contraction q ≥ 1 before "stagnated"
 
 
 class Solver(_Strict):
@@ -580,6 +609,19 @@ def _check_references(scene: dict, src: _Source) -> None:
     for i, refinement in enumerate(scene["mesh"]["refine"]):
         if "boundary" in refinement:
             _require(refinement["boundary"], boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
+    for body, spec in bodies.items():
+        for i, refinement in enumerate((spec.get("mesh") or {}).get("refine", [])):
+            if "boundary" in refinement:
+                _require(refinement["boundary"], boundaries, "boundary", src,
+                         ("bodies", body, "mesh", "refine", i, "boundary"))
+        if "file" in scene["mesh"]:
+            if "mesh" in spec:
+                raise src.error(("bodies", body, "mesh"), "the scene's mesh is a file: a body "
+                                "cannot have its own mesh sizes")
+            for i, region in enumerate(spec["regions"]):
+                if "mesh" in region:
+                    raise src.error(("bodies", body, "regions", i, "mesh"), "the scene's mesh is a "
+                                    "file: a region cannot have its own mesh size")
     for name, roi in scene["regions_of_interest"].items():
         path = ("regions_of_interest", name)
         if "boundary" in roi:
@@ -589,10 +631,22 @@ def _check_references(scene: dict, src: _Source) -> None:
 
 
 def _check_contacts(scene: dict, src: _Source) -> None:
-    """Both sides of a contact are boundaries, of two different bodies when they say which."""
+    """Both sides of a contact (or a glued interface) are boundaries, of two different
+    bodies when they say which; a side is not both contact and glue."""
     boundaries = scene["boundaries"]
+    glued = {}
+    for name, glue in scene.get("glue", {}).items():
+        for side in ("slave", "master"):
+            glued.setdefault(glue[side], name)
     for name, contact in scene["contacts"].items():
-        path = ("contacts", name)
+        for side in ("slave", "master"):
+            if contact[side] in glued:
+                raise src.error(("contacts", name, side), f"boundary '{contact[side]}' is glued "
+                                f"(glue '{glued[contact[side]]}'); a side is either in contact or glued")
+    blocks = [("contacts", n, c) for n, c in scene["contacts"].items()]
+    blocks += [("glue", n, g) for n, g in scene.get("glue", {}).items()]
+    for block, name, contact in blocks:
+        path = (block, name)
         for side in ("slave", "master"):
             _require(contact[side], boundaries, "boundary", src, path + (side,))
         slave, master = boundaries[contact["slave"]], boundaries[contact["master"]]
@@ -601,7 +655,7 @@ def _check_contacts(scene: dict, src: _Source) -> None:
         if "body" in slave and slave.get("body") == master.get("body"):
             raise src.error(path + ("master",),
                             f"slave and master both belong to body '{slave['body']}'; "
-                            "a contact joins two different bodies")
+                            f"a {'contact' if block == 'contacts' else 'glue'} joins two different bodies")
 
 
 def _check_thermal(scene: dict, src: _Source) -> list[str]:

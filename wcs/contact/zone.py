@@ -12,8 +12,11 @@ import numpy as np
 import scipy.sparse as sp
 import xarray as xr
 
+from ..errors import StudyError
 from ..scene.meshdata import SceneMesh
 from .pairs import ContactPairs, normal_jump_matrix, pair_contact, tangent_jump_matrix
+
+DISCRETIZATIONS = ("auto", "node-to-node", "mortar")
 
 
 def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -49,7 +52,7 @@ def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
 @dataclass
 class ContactZone:
     names: list[str]             # contact names
-    pairs: list[ContactPairs]
+    pairs: list[ContactPairs]    # ContactPairs (node-to-node) or mortar.MortarPairs, per contact
     contact_of_node: np.ndarray  # (m,) index into names
     Bn: sp.csr_matrix            # (m, ndof)
     Bt: sp.csr_matrix
@@ -57,6 +60,7 @@ class ContactZone:
     weight: np.ndarray           # (m,) tributary lengths
     arc: np.ndarray              # (m,) normalised position along its contact's slave side
     coords: np.ndarray           # (m, 2)
+    discretization: list[str] | None = None   # per contact: "node-to-node" or "mortar"
 
     @property
     def nodes(self) -> np.ndarray:
@@ -80,26 +84,56 @@ class ContactZone:
         return g, F
 
 
+def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
+    """The discretization a contact uses: its `discretization` key, `auto` (the default)
+    meaning node-to-node when the two sides match (mortar.sides_match), mortar otherwise."""
+    from .mortar import sides_match
+    kind = spec.get("discretization") or "auto"
+    if kind not in DISCRETIZATIONS:
+        raise StudyError(f"unknown discretization {kind!r} (one of {', '.join(DISCRETIZATIONS)})",
+                         path=f"{path}.discretization")
+    if kind != "auto":
+        return kind
+    for side in ("slave", "master"):
+        if spec.get(side) not in smesh.boundaries:
+            raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
+    match = sides_match(smesh.mesh, smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]], path)
+    return "node-to-node" if match else "mortar"
+
+
+def _rows(pr, nn: int):
+    """(Bn, Bt) of one contact's pairs, node-to-node or mortar."""
+    if getattr(pr, "discretization", "node-to-node") == "mortar":
+        from .mortar import directional_rows
+        return directional_rows(pr.C, pr.normal, nn), directional_rows(pr.C, pr.tangent, nn)
+    return normal_jump_matrix(pr, nn), tangent_jump_matrix(pr, nn)
+
+
 def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
     contacts = scene.get("contacts") or {}
     if not contacts:
         return None
+    from .mortar import mortar_contact
     mesh = smesh.mesh
     nn = mesh.p.shape[1]
-    names, pairs, owner, arcs = [], [], [], []
+    names, pairs, owner, arcs, kinds = [], [], [], [], []
     for k, (name, spec) in enumerate(contacts.items()):
-        pr = pair_contact(smesh, spec, f"scene.contacts.{name}")
+        path = f"scene.contacts.{name}"
+        kind = contact_discretization(smesh, spec, path)
+        pr = mortar_contact(smesh, spec, path) if kind == "mortar" else pair_contact(smesh, spec, path)
         names.append(name)
         pairs.append(pr)
+        kinds.append(kind)
         owner.append(np.full(len(pr), k))
         arcs.append(arc_coordinate(mesh, smesh.boundaries[spec["slave"]], pr.slave))
     slaves = np.concatenate([p.slave for p in pairs])
+    rows = [_rows(p, nn) for p in pairs]
     return ContactZone(
         names=names, pairs=pairs, contact_of_node=np.concatenate(owner),
-        Bn=sp.vstack([normal_jump_matrix(p, nn) for p in pairs]).tocsr(),
-        Bt=sp.vstack([tangent_jump_matrix(p, nn) for p in pairs]).tocsr(),
+        Bn=sp.vstack([r[0] for r in rows]).tocsr(),
+        Bt=sp.vstack([r[1] for r in rows]).tocsr(),
         gap=np.concatenate([p.gap for p in pairs]), weight=np.concatenate([p.weight for p in pairs]),
-        arc=np.concatenate(arcs), coords=mesh.p[:, slaves].T.copy(),
+        arc=np.concatenate(arcs), coords=mesh.p[:, slaves].T.copy(), discretization=kinds,
     )
 
 

@@ -295,6 +295,9 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
             u.assemble(kc)
     except Exception as exc:  # noqa: BLE001 - a local factorization failed: report, let the caller fall back
         return _fail(info, SETUP_FAILED, f"a local factorization failed: {exc}")
+    for u in dec.units:            # each solve starts afresh: the answer must not depend on history
+        if hasattr(u, "warm"):
+            u.warm = None
     rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
     D = injections(dec.units, dec.nif, rho)
     for u, w in zip(dec.units, D):

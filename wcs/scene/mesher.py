@@ -103,18 +103,10 @@ def _scalar_distance(spec: dict, path: str):
     return lambda x, y: float(selectors.dist_polygon(x, y, pts))
 
 
-def _size_function(scene: dict, bbox_diag: float):
-    mspec = scene.get("mesh") or {}
-    size = mspec.get("size")
-    size = float(size) if size is not None else bbox_diag / 20.0
-    if not (size > 0 and math.isfinite(size)):
-        raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
-    grading = float(mspec.get("grading", DEFAULT_GRADING))
-    if not grading >= 0:
-        raise StudyError(f"grading must be >= 0, got {grading}", path="scene.mesh.grading")
+def _refinements(scene: dict, entries, path0: str, grading_path: str):
     refs = []
-    for i, ref in enumerate(mspec.get("refine") or []):
-        path = f"scene.mesh.refine.{i}"
+    for i, ref in enumerate(entries or []):
+        path = f"{path0}.{i}"
         if not isinstance(ref, dict) or "size" not in ref:
             raise StudyError("a refine entry needs a region selector and `size`", path=path)
         s = float(ref["size"])
@@ -131,14 +123,52 @@ def _size_function(scene: dict, bbox_diag: float):
         else:
             d = _scalar_distance(sel, path)
         refs.append((s, d))
+    return refs
+
+
+def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entity_size=None):
+    """The size callback. ``body``: a body meshed on its own (its ``mesh: {size, refine}``
+    overrides / adds to the scene's). ``entity_size``: {(dim, tag): size} of entities
+    inside regions with their own ``mesh: {size}``."""
+    mspec = scene.get("mesh") or {}
+    size = mspec.get("size")
+    size = float(size) if size is not None else bbox_diag / 20.0
+    if not (size > 0 and math.isfinite(size)):
+        raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
+    grading = float(mspec.get("grading", DEFAULT_GRADING))
+    if not grading >= 0:
+        raise StudyError(f"grading must be >= 0, got {grading}", path="scene.mesh.grading")
+    refs = _refinements(scene, mspec.get("refine"), "scene.mesh.refine", "scene.mesh.grading")
+    if body is not None:
+        bmesh = (scene["bodies"][body].get("mesh") or {})
+        if bmesh.get("size") is not None:
+            size = float(bmesh["size"])
+        refs += _refinements(scene, bmesh.get("refine"), f"scene.bodies.{body}.mesh.refine", "")
+    entity_size = entity_size or {}
 
     def callback(dim, tag, x, y, z, lc):
-        h = min(lc, size)
+        h = min(lc, size, entity_size.get((dim, tag), size))
         for s, d in refs:
             if s < h:
                 h = min(h, s + grading * d(x, y))
         return h
     return size, callback
+
+
+def _region_entity_sizes(scene: dict, owner: dict, regions_flat: list) -> dict:
+    """{(dim, tag): size} for the surfaces of regions with ``mesh: {size}`` and their
+    boundary curves / points (the smallest size of the surfaces around them)."""
+    sizes = {}
+    for tag, (_, rg) in owner.items():
+        rs = regions_flat[rg].get("mesh") if isinstance(regions_flat[rg], dict) else None
+        if rs and rs.get("size") is not None:
+            s = float(rs["size"])
+            sizes[(2, tag)] = s
+            for dim, t in gmsh.model.getBoundary([(2, tag)], combined=False, oriented=False, recursive=False):
+                sizes[(1, abs(t))] = min(sizes.get((1, abs(t)), s), s)
+                for _, pt in gmsh.model.getBoundary([(1, abs(t))], combined=False, oriented=False):
+                    sizes[(0, abs(pt))] = min(sizes.get((0, abs(pt)), s), s)
+    return sizes
 
 
 # ---------------------------------------------------------------------------
@@ -220,6 +250,59 @@ def _area(tag: int) -> float:
     return float(gmsh.model.occ.getMass(2, tag))
 
 
+def _extract(owner: dict, offset: int = 0):
+    """Nodes (k, 2) and, per owned surface in (body, region, tag) order, its cells (global
+    numbering = offset + gmsh node order), body and region indices."""
+    ntags, coords, _ = gmsh.model.mesh.getNodes()
+    ntags = np.asarray(ntags, dtype=np.int64)
+    xy = np.asarray(coords, dtype=float).reshape(-1, 3)[:, :2]
+    lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
+    lookup[ntags] = np.arange(ntags.size)
+    tris, cb, cr = [], [], []
+    for tag in sorted(owner, key=lambda t: (owner[t], t)):
+        _, nt = gmsh.model.mesh.getElementsByType(2, tag)
+        tri = lookup[np.asarray(nt, dtype=np.int64)].reshape(-1, 3)
+        tris.append(np.where(tri >= 0, tri + offset, -1))
+        cb.append(np.full(len(tri), owner[tag][0], dtype=np.int64))
+        cr.append(np.full(len(tri), owner[tag][1], dtype=np.int64))
+    return xy, tris, cb, cr
+
+
+def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
+    """Mesh each body in its own gmsh model (its regions fragmented together, so regions of
+    a body stay conforming); returns the concatenation, bodies in scene order."""
+    occ = gmsh.model.occ
+    base = gmsh.model.getCurrent()
+    xys, tris, cbs, crs = [], [], [], []
+    offset = 0
+    for b, body in enumerate(bodies):
+        gmsh.model.add(f"{base}_body{b}")
+        mine = [(rg, make_shape(regions_flat[rg]["shape"], f"scene.bodies.{body}.regions.{i}.shape"))
+                for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
+        flat = [(rg, dt) for rg, dts in mine for dt in dts]
+        if len(flat) > 1:
+            alldt = [dt for _, dt in flat]
+            _, outmap = occ.fragment(alldt[:1], alldt[1:])
+        else:
+            outmap = [[flat[0][1]]]
+        occ.synchronize()
+        owner = {}
+        for (rg, _), pieces in zip(flat, outmap):
+            for dim, tag in pieces:
+                if dim == 2:
+                    owner[tag] = (b, max(owner.get(tag, (b, -1))[1], rg))
+        _, callback = _size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat))
+        gmsh.model.mesh.setSizeCallback(callback)
+        gmsh.model.mesh.generate(2)
+        xy, t, c1, c2 = _extract(owner, offset)
+        gmsh.model.mesh.removeSizeCallback()
+        gmsh.model.remove()
+        gmsh.model.setCurrent(base)
+        offset += xy.shape[0]
+        xys.append(xy); tris += t; cbs += c1; crs += c2
+    return np.concatenate(xys), tris, cbs, crs
+
+
 def build_mesh(scene: dict) -> SceneMesh:
     """Mesh a validated scene dict (study-format §2) into a :class:`SceneMesh`.
 
@@ -289,24 +372,19 @@ def build_mesh(scene: dict) -> SceneMesh:
 
         # -- sizes and meshing
         xmin, ymin, _, xmax, ymax, _ = gmsh.model.getBoundingBox(-1, -1)
-        size, callback = _size_function(scene, math.hypot(xmax - xmin, ymax - ymin))
-        gmsh.model.mesh.setSizeCallback(callback)
-        gmsh.model.mesh.generate(2)
-
-        # -- extract
-        ntags, coords, _ = gmsh.model.mesh.getNodes()
-        ntags = np.asarray(ntags, dtype=np.int64)
-        xy = np.asarray(coords, dtype=float).reshape(-1, 3)[:, :2]
-        lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
-        lookup[ntags] = np.arange(ntags.size)
-        tris, cb, cr = [], [], []
-        for tag in sorted(owner, key=lambda t: (owner[t], t)):
-            _, nt = gmsh.model.mesh.getElementsByType(2, tag)
-            tri = lookup[np.asarray(nt, dtype=np.int64)].reshape(-1, 3)
-            tris.append(tri)
-            cb.append(np.full(len(tri), owner[tag][0], dtype=np.int64))
-            cr.append(np.full(len(tri), owner[tag][1], dtype=np.int64))
-        gmsh.model.mesh.removeSizeCallback()
+        diag = math.hypot(xmax - xmin, ymax - ymin)
+        regions_flat = [reg for body in bodies for reg in bodies_spec[body].get("regions") or []]
+        if not any(bodies_spec[body].get("mesh") for body in bodies):
+            size, callback = _size_function(scene, diag, None,
+                                            _region_entity_sizes(scene, owner, regions_flat))
+            gmsh.model.mesh.setSizeCallback(callback)
+            gmsh.model.mesh.generate(2)
+            xy, tris, cb, cr = _extract(owner)
+            gmsh.model.mesh.removeSizeCallback()
+        else:
+            # bodies with their own sizes: every body meshed in a model of its own, so
+            # curves shared with other bodies are NOT shared meshes (nonmatching sides)
+            xy, tris, cb, cr = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag)
 
     tri = np.concatenate(tris)
     cell_body = np.concatenate(cb)

@@ -1,0 +1,58 @@
+"""`solver.method: dd` through the model: agreement with monolithic, the fallback when the
+successive approximations fail, and answers that do not depend on the evaluation order."""
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+import wcs
+
+VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
+
+
+def study(tmp_path, name, solver, edit=None):
+    doc = yaml.safe_load((VALIDATION / f"{name}.yaml").read_text())
+    if edit:
+        edit(doc)
+    doc["solver"] = solver
+    path = tmp_path / f"{name}-{solver['method']}-{solver.get('fallback', True)}.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return wcs.load_study(path)
+
+
+def small_pad(doc):
+    doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.04}]}
+
+
+def test_dd_agrees_with_monolithic_through_the_model(tmp_path):
+    mono = study(tmp_path, "contact-patch", {"method": "monolithic", "tolerance": 1e-10})
+    dd = study(tmp_path, "contact-patch", {"method": "dd", "tolerance": 1e-10, "dd": {"subdomains": 6}})
+    a, b = mono.evaluate(mono.nominal()), dd.evaluate(dd.nominal())
+    assert b.status == 0 and b.state.solver == "dd" and b.iterations >= 1
+    assert np.linalg.norm(a.state.u - b.state.u) <= 1e-6 * np.linalg.norm(a.state.u)
+    assert np.linalg.norm(a.state.contact.force_n - b.state.contact.force_n) <= 1e-6 * np.linalg.norm(a.state.contact.force_n)
+
+
+def test_failing_successive_approximations_fall_back_and_say_so(tmp_path):
+    # Tresca pad: the contraction estimate of the successive approximations stays ≥ 1
+    dd = study(tmp_path, "tresca-pad", {"method": "dd", "dd": {"subdomains": 6}}, small_pad)
+    ev = dd.evaluate(dd.nominal())
+    assert ev.status == 0 and "monolithic after dd" in ev.message and "contraction" in ev.message
+    mono = study(tmp_path, "tresca-pad", {"method": "monolithic"}, small_pad)
+    ref = mono.evaluate(mono.nominal())
+    assert np.linalg.norm(ev.state.u - ref.state.u) <= 1e-10 * np.linalg.norm(ref.state.u)
+    strict = study(tmp_path, "tresca-pad", {"method": "dd", "fallback": False, "dd": {"subdomains": 6}}, small_pad)
+    failed = strict.evaluate(strict.nominal())
+    assert failed.status == 5 and "domain decomposition" in failed.message
+    assert np.isnan(list(failed.phi.values())).all()
+
+
+def test_dd_answers_do_not_depend_on_the_order(tmp_path):
+    s = study(tmp_path, "contact-patch", {"method": "dd", "dd": {"subdomains": 6}})
+    x1 = s.nominal()
+    x2 = x1.copy()
+    x2[0] *= 1.3
+    first = s.evaluate(x1).state.u.copy()
+    s.evaluate(x2)
+    again = s.evaluate(x1).state.u
+    assert np.array_equal(first, again)

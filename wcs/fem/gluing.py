@@ -1,0 +1,187 @@
+r"""Glued interfaces between bodies meshed independently: dual mortar elimination.
+
+A scene's ``glue: {NAME: {slave: BOUNDARY, master: BOUNDARY}}`` ties the two
+sides: the weak continuity ``∫ ψ_j [u] ds = 0`` for every dual multiplier ψ_j
+of the slave side ([33] with the dual basis of [101]; `wcs.contact.mortar`)
+reads, after division by D_jj, ``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the
+slave DOFs are functions of the master DOFs and are eliminated.
+
+It composes with the nodal constraint elimination (`wcs.fem.constraints`):
+with ``u = P v`` (``P``: identity on the kept DOFs, the mortar rows on the
+slave DOFs; glue chains — a slave side that is another glue's master — are
+resolved by repeated substitution) and the nodal elimination
+``u = T w + U0 c`` built on all nodes (slave nodes carry no support), the
+composition is ``u = (P T) w + (P U0) c``, the identity columns of the slave
+DOFs dropped. Slave nodes that carry a support keep their support and are
+left out of the glue (their dual function merged into the neighbour's,
+`mortar.mortar_integrals(exclude=...)`). On matching sides ``D⁻¹M`` is the
+identity on coincident nodes: the glue is exactly a node-to-node tie.
+
+The same rows glue the temperature (scalar) across the interface
+(`glue_heat`), so heat flows through glued interfaces as through a body.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.mortar import MortarIntegrals, mortar_integrals
+from ..errors import StudyError
+from .constraints import Elimination
+
+
+@dataclass(frozen=True)
+class Glue:
+    name: str
+    slave_body: int
+    master_bodies: tuple          # a master side may run along several bodies
+    rows: MortarIntegrals
+
+
+def build_glue(scene: dict, smesh, supported_nodes=()) -> list[Glue]:
+    """The mortar rows of every ``glue`` entry of the scene, in scene order.
+
+    Slave nodes with a support are excluded (they keep the support). A slave node
+    already glued by an earlier entry (a crosspoint where slave sides of several
+    glues meet) is excluded from the later ones: its value comes from the first,
+    the later glues see it as a known neighbour (substitution resolves the chain)."""
+    out = []
+    nb = smesh.node_body
+    taken = set(np.asarray(supported_nodes, dtype=np.int64).tolist())
+    for name, spec in (scene.get("glue") or {}).items():
+        path = f"scene.glue.{name}"
+        for side in ("slave", "master"):
+            if spec.get(side) not in smesh.boundaries:
+                raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
+        sf, mf = smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]]
+        mi = mortar_integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
+        if mi.slave.size == 0:
+            raise StudyError("the glued sides do not face each other (no slave edge projects "
+                             "onto the master side)", path=path)
+        sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])
+        mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])
+        if sb.size != 1:
+            raise StudyError("the slave side of a glue must lie on one body", path=f"{path}.slave")
+        if sb[0] in mb:
+            raise StudyError("slave and master of a glue belong to the same body", path=f"{path}.master")
+        taken.update(mi.slave.tolist())
+        out.append(Glue(name, int(sb[0]), tuple(int(b) for b in mb), mi))
+    return out
+
+
+def substitution(glues: list[Glue], nnodes: int, ncomp: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """(P, slave DOFs): u = P u with P[:, slave DOFs] = 0 (the slave DOFs expressed in kept DOFs)."""
+    ndof = ncomp * nnodes
+    if not glues:
+        return sp.identity(ndof, format="csr"), np.zeros(0, dtype=np.int64)
+    slave_nodes = np.concatenate([g.rows.slave for g in glues])
+    slave_dofs = (ncomp * slave_nodes[:, None] + np.arange(ncomp)).ravel()
+    keep = np.ones(ndof, bool)
+    keep[slave_dofs] = False
+    r, c, v = [np.flatnonzero(keep)], [np.flatnonzero(keep)], [np.ones(int(keep.sum()))]
+    for g in glues:
+        C = g.rows.C.tocoo()
+        off = C.col != g.rows.slave[C.row]                   # u_j = −Σ_{k≠j} C_jk u_k
+        row_node, col_node, val = g.rows.slave[C.row[off]], C.col[off], -C.data[off]
+        for k in range(ncomp):
+            r.append(ncomp * row_node + k); c.append(ncomp * col_node + k); v.append(val)
+    P0 = sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(ndof, ndof))
+    P = P0
+    for _ in range(len(glues) + 1):
+        if P[:, slave_dofs].nnz == 0:
+            return P.tocsr(), np.sort(slave_dofs)
+        P = (P0 @ P).tocsr()
+        P.eliminate_zeros()
+    raise StudyError("the glued interfaces form a cycle (a slave side depends on itself through "
+                     "other glues); make one side of the cycle a master", path="scene.glue")
+
+
+def glue_elimination(elim: Elimination, glues: list[Glue], nnodes: int, ncomp: int) -> Elimination:
+    """Compose a nodal-constraint elimination with the glue substitution (see the module doc)."""
+    if not glues:
+        return elim
+    P, slave_dofs = substitution(glues, nnodes, ncomp)
+    T = (P @ elim.T).tocsc()
+    T.eliminate_zeros()
+    used = np.diff(T.indptr) > 0
+    T = sp.csr_matrix(T[:, np.flatnonzero(used)])
+    U0 = sp.csr_matrix(P @ elim.U0)
+    return Elimination(T=T, U0=U0, fixed_dofs=elim.fixed_dofs)
+
+
+def glue_heat(glues: list[Glue], heat_of_node: np.ndarray, nheat: int) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """Scalar glue rows on the heat nodes (coincident nodes already merged): per slave heat
+    node ``(h, heat nodes k, coefficients a)`` meaning ``θ_h = Σ a_k θ_k``. Rows already
+    satisfied by the merge (the slave coincides with its master) are left out."""
+    out = []
+    for g in glues:
+        C = g.rows.C.tocsr()
+        for j in range(C.shape[0]):
+            lo, hi = C.indptr[j], C.indptr[j + 1]
+            cols, vals = heat_of_node[C.indices[lo:hi]], C.data[lo:hi]
+            h = heat_of_node[g.rows.slave[j]]
+            acc = np.zeros(0)
+            keys, inv = np.unique(cols, return_inverse=True)
+            acc = np.bincount(inv, vals, keys.size)
+            self_coef = acc[keys == h].sum()
+            others = keys != h
+            if abs(self_coef) < 1e-10 or not np.any(np.abs(acc[others]) > 1e-14):
+                continue
+            out.append((int(h), keys[others], -acc[others] / self_coef))
+    return out
+
+
+def heat_glue_elimination(elim: Elimination, rows, nheat: int, constrained=()) -> Elimination:
+    """Compose the heat nodes' elimination with the scalar glue rows of `glue_heat`
+    (rows of a slave heat node with a prescribed temperature are left out)."""
+    fixed = set(np.asarray(constrained, dtype=np.int64).tolist())
+    rows = [r for r in rows if r[0] not in fixed]
+    if not rows:
+        return elim
+    slaves = np.array([h for h, _, _ in rows], dtype=np.int64)
+    if np.unique(slaves).size != slaves.size:     # a heat node glued twice: keep the first row
+        _, first = np.unique(slaves, return_index=True)
+        rows = [rows[i] for i in sorted(first)]
+        slaves = slaves[sorted(first)]
+    keep = np.ones(nheat, bool)
+    keep[slaves] = False
+    r, c, v = [np.flatnonzero(keep)], [np.flatnonzero(keep)], [np.ones(int(keep.sum()))]
+    for h, ks, a in rows:
+        r.append(np.full(ks.size, h)); c.append(ks); v.append(a)
+    P0 = sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(nheat, nheat))
+    P = P0
+    for _ in range(len(rows) + 1):
+        if P[:, slaves].nnz == 0:
+            break
+        P = (P0 @ P).tocsr()
+        P.eliminate_zeros()
+    else:
+        raise StudyError("the glued interfaces form a cycle", path="scene.glue")
+    T = (P @ elim.T).tocsc()
+    T.eliminate_zeros()
+    used = np.diff(T.indptr) > 0
+    return Elimination(T=sp.csr_matrix(T[:, np.flatnonzero(used)]), U0=sp.csr_matrix(P @ elim.U0),
+                       fixed_dofs=elim.fixed_dofs)
+
+
+def glued_clusters(nbodies: int, glues: list[Glue]) -> list[list[int]]:
+    """Bodies joined by glue, as sorted groups (each body in exactly one group), ordered
+    by their first body."""
+    parent = list(range(nbodies))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    for g in glues:
+        for m in g.master_bodies:
+            a, b = find(g.slave_body), find(m)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    groups: dict[int, list[int]] = {}
+    for i in range(nbodies):
+        groups.setdefault(find(i), []).append(i)
+    return [groups[k] for k in sorted(groups)]
