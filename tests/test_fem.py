@@ -149,3 +149,21 @@ def test_roller_elimination_on_inclined_direction():
     assert np.isclose(u[:2] @ n[0], 0.3)
     assert el.T.shape == (4, 3)
     assert np.allclose((el.T.T @ el.T).toarray(), np.eye(3))
+
+
+def test_reduction_keeps_one_pattern_whatever_the_data():
+    """Tᵀ K T by a sparse product drops entries that vanish for some data; the reduction
+    keeps the structural pattern, so the factorization's ordering never changes."""
+    from wcs.fem.constraints import Reduction
+    m, region = two_region(6)
+    op = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)
+    nodes = m.boundary_nodes()
+    n = np.tile([0.6, 0.8], (nodes.size, 1))
+    el = eliminate(m.p.shape[1], 2, [Constraint(nodes[:5], n[:5], 0)], 1)
+    red = Reduction(op([[1.0, 1.0], [1.0, 1.0]]), el.T)
+    for coeffs in ([[2.0, 1.0], [3.0, 0.5]], [[0.0, 1.0], [0.0, 1.0]]):
+        K = op(coeffs)
+        Kr = red(K)
+        direct = el.T.T @ K @ el.T
+        assert abs(Kr - direct).max() <= 1e-12 * abs(direct).max()
+        assert np.array_equal(Kr.indptr, red.pattern.indptr) and np.array_equal(Kr.indices, red.pattern.indices)

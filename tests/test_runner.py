@@ -175,9 +175,18 @@ def test_kill_9_then_resume(tresca, tmp_path):
     script.write_text(textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(HERE)!r})
+        import functools
+        import time
+        import wcs.evaluation
         import wcs.runner
         from test_runner import tiny
         wcs.runner.get_strategy = lambda name: tiny
+        solve = wcs.evaluation.Evaluator.evaluate
+        @functools.wraps(solve)           # keeps the signature: the runner asks for gradients by it
+        def slow(self, *a, **k):          # 0.2 s per evaluation: the kill lands mid-run, not after it
+            time.sleep(0.2)
+            return solve(self, *a, **k)
+        wcs.evaluation.Evaluator.evaluate = slow
         from wcs.cli import main
         sys.exit(main(sys.argv[1:]))
     """))

@@ -91,23 +91,6 @@ class SuperLUFactor:
         return self.solve(E)[self.block]
 
 
-def _pattern_keys(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
-    return np.repeat(np.arange(len(indptr) - 1, dtype=np.int64), np.diff(indptr)) * n + indices
-
-
-def _onto_pattern(A: sp.csr_matrix, indptr: np.ndarray, indices: np.ndarray) -> tuple[sp.csr_matrix, bool]:
-    """A written on a larger sorted pattern (explicit zeros added), if its entries all lie in it."""
-    n = A.shape[1]
-    keys = _pattern_keys(indptr, indices, n)
-    mine = _pattern_keys(A.indptr, A.indices, n)
-    pos = np.searchsorted(keys, mine)
-    if A.nnz > keys.size or np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != mine):
-        return A, False
-    data = np.zeros(keys.size)
-    data[pos] = A.data
-    return sp.csr_matrix((data, indices, indptr), shape=A.shape), True
-
-
 @functools.cache
 def _mkl_pardiso():
     """The `pardiso` entry point of the mkl_rt library that pypardiso locates."""
@@ -150,7 +133,7 @@ class PardisoFactor:
         self._call(12, np.zeros(1), self._schur if self.block is not None else np.zeros(1), 1)
 
     def _set_matrix(self, A: sp.csr_matrix) -> None:
-        self._a = np.ascontiguousarray(A.data[self._keep])
+        self._a = np.ascontiguousarray(A.data[self._keep], dtype=np.float64)
 
     def _call(self, phase: int, b: np.ndarray, x: np.ndarray, nrhs: int) -> None:
         err = ctypes.c_int32(0)
@@ -169,8 +152,6 @@ class PardisoFactor:
     def refactor(self, A: sp.spmatrix) -> "PardisoFactor":
         A = _csr(A)
         same = np.array_equal(A.indptr, self._pattern[0]) and np.array_equal(A.indices, self._pattern[1])
-        if not same:   # sparse products drop exact zeros: a sub-pattern keeps the analysis
-            A, same = _onto_pattern(A, *self._pattern)
         if not same:  # new pattern: start over with a fresh analysis
             self._call(-1, np.zeros(1), np.zeros(1), 1)
             self.__init__(A, spd=self.mtype == 2, block=self.block)

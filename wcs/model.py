@@ -18,7 +18,7 @@ from .contact.zone import ContactState, build_zone
 from .errors import SolveError, StudyError
 from .fem import forms
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
-from .fem.constraints import Constraint, Elimination, eliminate
+from .fem.constraints import Constraint, Elimination, Reduction, eliminate
 from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
@@ -95,6 +95,7 @@ class Model:
         self.elim: Elimination = glue_elimination(
             eliminate(self.nnodes, 2, constraints, len(self.support_keys)), self.glue, self.nnodes, 2)
         self.Tt = self.elim.T.T.tocsr()
+        self.reduce = Reduction(self.K(np.ones((len(smesh.regions), 2))), self.elim.T)
         self.free_modes = self._free_rigid_modes(constraints)
 
         self.pressure_vectors = {}
@@ -191,6 +192,8 @@ class Model:
             else:
                 z = np.eye(3)
             free[name] = R @ z
+            for other in cluster[1:]:          # a glued cluster's modes are listed once, under its first body
+                free[self.smesh.bodies[other]] = np.zeros((2 * self.nnodes, 0))
         return free
 
     def _init_thermal(self, scene):
@@ -215,6 +218,7 @@ class Model:
             self.heat_elim = heat_glue_elimination(
                 self.heat_elim, glue_heat(self.glue, heat_of_node, nheat), nheat, fixed)
         self.heat_Tt = self.heat_elim.T.T.tocsr()
+        self.reduce_heat = Reduction(self.H(np.ones(len(self.region_cells))), self.heat_elim.T)
         self.source_vectors = np.array([Pt @ forms.source_vector(mesh, c) for c in self.region_cells])
         self.coupling = [forms.coupling_piece(mesh, c) for c in self.region_cells]
 
@@ -271,7 +275,7 @@ class Model:
     # ---- solves ------------------------------------------------------------------------
     def solve_heat(self, c: Coefficients) -> np.ndarray:
         Kh = self.H(c.kappa)
-        Kr = self.heat_Tt @ Kh @ self.heat_elim.T
+        Kr = self.reduce_heat(Kh)
         Th0 = self.heat_elim.U0 @ c.temperature_values
         q = self.source_vectors.T @ c.source
         rhs = self.heat_Tt @ (q - Kh @ Th0)
@@ -301,7 +305,7 @@ class Model:
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
         kc = self.stiffness_coefficients(c)
         K = self.K(kc)
-        Kr = self.Tt @ K @ self.elim.T
+        Kr = self.reduce(K)
         u0 = self.elim.U0 @ c.support_values
         f = self.mechanical_load(c, T)
         rhs = self.Tt @ (f - K @ u0)

@@ -112,12 +112,15 @@ class Runner:
 
     def __init__(self, study, output=None, resume=False, progress=None, kind="run", evaluator=None):
         from .evaluation import Evaluator
+        from .parallel import rank, world
+        self.comm = world()
+        self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
         self.study = study
         self.kind = kind
         self.evaluator = evaluator or Evaluator(study)
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
-        self.progress = progress
+        self.progress = progress if self.root else None
         self.output = None if output is False else Path(output or study.output)
         self.records: list[dict] = []
         self.memo: dict[str, int] = {}         # key -> row of its first evaluation in this run
@@ -138,9 +141,18 @@ class Runner:
             self._has_gradients = False
         self.store = None
         if self.output is not None:
-            if resume:
-                self._check_resumable()
-            self.store = Store(store_path(self.output), study.sha256, kind=kind, fresh=not resume)
+            from .parallel import agree
+            error = None
+            if self.root:
+                try:
+                    if resume:
+                        self._check_resumable()
+                    self.store = Store(store_path(self.output), study.sha256, kind=kind, fresh=not resume)
+                except StudyError as e:
+                    error = e
+            agree(self.comm, error)                # every rank raises, or every rank goes on
+            if not self.root:                      # the others read the store rank 0 prepared
+                self.store = Store(store_path(self.output), study.sha256, kind=kind, fresh=False)
 
     def _check_resumable(self) -> None:
         if not self.output.exists():
@@ -260,17 +272,26 @@ class Runner:
             batch = list(pending)
             pending.clear()
 
-            def done(i, ev):
+            def done(i, ev, rec=None):
                 k, _, sv = batch[i]
-                rec = self._record_from_evaluation(ev, stage, gradients, sv)
+                rec = rec or self._record_from_evaluation(ev, stage, gradients, sv)
                 self.stats["solved"] += 1
                 self.stats["solve_time"] += rec["wall_time"]
-                if self.store is not None:
+                if self.store is not None and self.root:
                     self.store.put(k, self._to_store(rec))
                 self._append(k, rec, ev)
                 rows.append(len(self.records) - 1)
 
-            self.evaluate_batch([p for _, p, _ in batch], gradients, done)
+            if self.comm is None:
+                self.evaluate_batch([p for _, p, _ in batch], gradients, done)
+                return
+            # MPI: rank r solves points r, r+N, ...; all ranks then append every record in batch order
+            size, me = self.comm.size, self.comm.rank
+            mine = [(i, self._record_from_evaluation(self._evaluate_one(batch[i][1], gradients), stage,
+                                                     gradients, batch[i][2]))
+                    for i in range(me, len(batch), size)]
+            for i, rec in sorted((r for part in self.comm.allgather(mine) for r in part), key=lambda t: t[0]):
+                done(i, None, rec)
 
         used = len(self.records)
         for i, p in enumerate(points):
@@ -378,7 +399,7 @@ class Runner:
                 certificate[c] = "heuristic"
             if isinstance(result, Worst) and c in result.notes:
                 notes[c] = str(result.notes[c])
-        fields = self._worst_fields(worst)
+        fields = self._worst_fields(worst) if self.root else {c: None for c in self.criteria}
         self.final = (worst, certificate, notes, fields, sweep_paths)
         return self._write(force=True)
 
@@ -438,6 +459,8 @@ class Runner:
                            provenance_attrs=self._provenance)
 
     def _maybe_write(self) -> None:
+        if not self.root:
+            return
         now = time.perf_counter()
         if now - self._last_write_end >= self._last_write_cost / WRITE_OVERHEAD:
             self._write()
@@ -446,7 +469,7 @@ class Runner:
         from .results import write_netcdf
         t0 = time.perf_counter()
         ds = self.dataset()
-        if self.output is not None:
+        if self.output is not None and self.root:
             write_netcdf(ds, self.output)
         t1 = time.perf_counter()
         self._last_write_cost = t1 - t0
@@ -485,6 +508,11 @@ def sweep(study, output=None, resume=False, progress=None) -> xr.Dataset:
     return Runner(study, output, resume, progress, kind="sweep").sweep()
 
 
+def _is_root() -> bool:
+    from .parallel import rank, world
+    return rank(world()) == 0
+
+
 def _finish_command(args, study, ds, out: Path) -> int:
     from .progress import limits_broken, summary_table
     n, failed = int(ds.sizes.get("eval", 0)), int(ds.attrs.get("failed_evaluations", 0))
@@ -505,7 +533,7 @@ def cmd_run(args) -> int:
     study = load_study(args.study)
     out = Path(args.output or study.output)
     ds = run(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args))
-    return _finish_command(args, study, ds, out)
+    return _finish_command(args, study, ds, out) if _is_root() else 0
 
 
 def cmd_sweep(args) -> int:
@@ -514,7 +542,7 @@ def cmd_sweep(args) -> int:
     study = load_study(args.study)
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-sweep.nc"))
     ds = sweep(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args))
-    return _finish_command(args, study, ds, out)
+    return _finish_command(args, study, ds, out) if _is_root() else 0
 
 
 def solve_worst(args) -> int:

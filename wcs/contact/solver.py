@@ -104,15 +104,22 @@ def pinned_dofs(R: np.ndarray) -> np.ndarray:
 
 
 def regularize(K: sp.spmatrix, pinned: np.ndarray) -> sp.csr_matrix:
-    """K + Σ_{j∈pinned} K_jj e_j e_jᵀ: same pattern, and its inverse is a generalized inverse of K."""
+    """K + Σ_{j∈pinned} K_jj e_j e_jᵀ on K's own pattern (added in place on the diagonal: a
+    sparse sum would drop entries that happen to be zero and change the pattern — and with it
+    the factorization's ordering — from one data set to the next). Its inverse is a
+    generalized inverse of K."""
     K = sp.csr_matrix(K, dtype=float, copy=True)
     K.sum_duplicates()
     K.sort_indices()
     if len(pinned):
-        diag = K.diagonal()
-        scale = np.where(diag[pinned] > 0, diag[pinned], 1.0)
-        K = (K + sp.csr_matrix((scale, (pinned, pinned)), shape=K.shape)).tocsr()
-        K.sort_indices()
+        rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+        diag = np.flatnonzero(rows == K.indices)
+        position = np.full(K.shape[0], -1)
+        position[rows[diag]] = diag
+        where = position[pinned]
+        if np.any(where < 0):
+            raise ValueError("a pinned dof has no diagonal entry in K")
+        K.data[where] += np.where(K.data[where] > 0, K.data[where], 1.0)
     return K
 
 

@@ -80,3 +80,45 @@ def _order_columns_by_dof(T: sp.csr_matrix) -> sp.csr_matrix:
     Tc.sort_indices()
     first = Tc.indices[Tc.indptr[:-1]]            # every column has at least one entry
     return sp.csr_matrix(Tc[:, np.argsort(first, kind="stable")])
+
+
+class Reduction:
+    """Tᵀ K T on one structural pattern, as a fixed linear map of K's values.
+
+    A sparse product drops entries that happen to vanish for some data, so its
+    pattern — and a factorization's ordering — would depend on the data. Here the
+    pattern is built once from the structure of K and T, and Kr.data = M @ K.data
+    (each entry K_kl contributes T_ki T_lj to Kr_ij; a row of T has at most two
+    entries, so M has at most four per entry of K)."""
+
+    def __init__(self, K: sp.csr_matrix, T: sp.csr_matrix):
+        K = sp.csr_matrix(K)
+        K.sort_indices()
+        T = sp.csr_matrix(T)
+        T.sort_indices()
+        self.K_indptr, self.K_indices = K.indptr.copy(), K.indices.copy()
+        k = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+        l = K.indices
+        start, count = T.indptr[:-1], np.diff(T.indptr)
+        nk, nl = count[k], count[l]
+        rep = nk * nl
+        e = np.repeat(np.arange(K.nnz), rep)
+        r = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+        a = start[k][e] + r // nl[e]
+        b = start[l][e] + r % nl[e]
+        i, j, val = T.indices[a], T.indices[b], T.data[a] * T.data[b]
+        n = T.shape[1]
+        keys = i.astype(np.int64) * n + j
+        uniq = np.unique(keys)
+        self.pattern = sp.csr_matrix((np.zeros(uniq.size), (uniq // n, uniq % n)), shape=(n, n))
+        self.pattern.sort_indices()
+        self.M = sp.csr_matrix((val, (np.searchsorted(uniq, keys), e)), shape=(uniq.size, K.nnz))
+
+    def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        K = sp.csr_matrix(K)
+        K.sort_indices()
+        if not (np.array_equal(K.indptr, self.K_indptr) and np.array_equal(K.indices, self.K_indices)):
+            raise ValueError("K does not have the structural pattern the reduction was built for")
+        Kr = self.pattern.copy()
+        Kr.data = self.M @ K.data
+        return Kr

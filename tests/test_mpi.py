@@ -1,0 +1,32 @@
+"""`mpiexec -n 2 wcs run`: the same results file as the serial run, bit for bit."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+STUDY = Path(__file__).resolve().parents[1] / "studies" / "validation" / "stacked-layers.yaml"
+BIN = Path(sys.executable).parent
+
+
+def test_two_ranks_give_the_serial_results_bitwise(tmp_path):
+    mpiexec = BIN / "mpiexec"
+    if not mpiexec.exists():
+        pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    shutil.copy(STUDY, tmp_path / "study.yaml")
+    run = lambda *cmd: subprocess.run([*cmd], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)  # noqa: E731
+    serial = run(str(BIN / "wcs"), "run", "study.yaml", "-o", "serial.nc", "--quiet")
+    assert serial.returncode == 0, serial.stderr
+    parallel = run(str(mpiexec), "-n", "2", str(BIN / "wcs"), "run", "study.yaml", "-o", "mpi.nc", "--quiet")
+    assert parallel.returncode == 0, parallel.stderr + parallel.stdout
+    a = xr.open_dataset(tmp_path / "serial.nc", engine="h5netcdf")
+    b = xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf")
+    assert a.sizes["eval"] == b.sizes["eval"] >= 10
+    for v in ("x", "phi", "grad", "status", "worst_value", "worst_x", "worst_displacement",
+              "worst_stress", "worst_contact_pressure"):
+        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
