@@ -203,3 +203,13 @@ def test_warm_resolve_new_stiffness():
     assert warm.status == cs.CONVERGED and warm.factor.factor is r0.factor.factor  # analysis reused
     assert rel(warm.u, cold.u) < 1e-10  # both converge to the exact KKT point: round-off only
     assert warm.iterations < cold.iterations
+
+
+def test_reported_state_is_that_of_the_answer_when_the_start_already_solves_it():
+    """Contact open everywhere: λ = 0 solves the problem at once; the reported state must say
+    'open', not echo the all-closed starting set (the adjoint and the non-smoothness flag read it)."""
+    P = two_blocks(6)
+    K, f, Bn, Bt, d, w = args(P)
+    r = cs.solve_contact(K, f, Bn, Bt, d + 1.0, w)          # a gap far larger than any displacement
+    assert r.status == cs.CONVERGED and np.all(r.lam_n == 0)
+    assert not r.free[: len(w)].any() and np.all(r.active == cs.OPEN)

@@ -189,9 +189,10 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     seen = set()
     for it in range(max_iter + 1):
         z, ok = check(lam, alpha)
-        free = (z > lo) & (z < hi) if (it > 0 or free0 is None) else free0
-        if ok:
-            return lam, alpha, free, it, True
+        predicted = (z > lo) & (z < hi)
+        if ok:          # the state of the answer itself, never the prescribed starting set
+            return lam, alpha, predicted, it, True
+        free = predicted if (it > 0 or free0 is None) else free0
         key = free.tobytes()
         if it == max_iter or key in seen:
             break

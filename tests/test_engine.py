@@ -1,0 +1,95 @@
+"""The worst-scenario engine on real studies (issue 4 acceptance).
+
+Known answers: for monotone studies the maximum of the criterion over all 2^n
+vertices of the box (exhaustive enumeration); for the cooled layer the closed
+form of its interior maximum and a dense grid of FE solves; the budget is 40
+forward solves for 4–6 parameters."""
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import wcs
+
+ROOT = Path(__file__).resolve().parents[1]
+VALIDATION = ROOT / "studies" / "validation"
+
+
+def vertex_maxima(study):
+    lo, hi = study.parameters.lower, study.parameters.upper
+    best = {}
+    for corner in itertools.product(*zip(lo, hi)):
+        ev = study.evaluate(np.array(corner))
+        assert ev.status == 0, ev.message
+        for c, v in ev.phi.items():
+            best[c] = max(best.get(c, -np.inf), v)
+    return best
+
+
+def run_auto(path, tmp_path):
+    study = wcs.load_study(path)
+    ds = wcs.run(study, tmp_path / f"{path.stem}.nc")
+    assert ds.sizes["eval"] <= 40 and int(ds.attrs["budget"]) == 40
+    return study, ds
+
+
+@pytest.mark.parametrize("path", [ROOT / "studies" / "heated-plate.yaml", VALIDATION / "stacked-layers.yaml"],
+                         ids=["heated-plate", "stacked-layers"])
+def test_monotone_studies_reach_the_vertex_maximum_within_40_solves(path, tmp_path):
+    study, ds = run_auto(path, tmp_path)
+    known = vertex_maxima(wcs.load_study(path))
+    for c in known:
+        found = float(ds["worst_value"].sel(criterion=c))
+        assert abs(found - known[c]) <= 1e-4 * abs(known[c]), (c, found, known[c])
+        assert str(ds["certificate"].sel(criterion=c).values) == "corner-kkt"
+    # the gradients did the work: fewer solves than the 2^n vertices
+    assert ds.sizes["eval"] < 2 ** len(study.parameters)
+
+
+def cooled_layer_settlement(nu, E, p, alpha=5.0e-5, dT=60.0, h=1.0):
+    return h * (1 + nu) / (1 - nu) * (alpha * dT + p / E * (1 - 2 * nu))
+
+
+def test_interior_maximum_against_closed_form_and_dense_grid(tmp_path):
+    path = VALIDATION / "cooled-layer.yaml"
+    study, ds = run_auto(path, tmp_path)
+    found = float(ds["worst_value"].sel(criterion="settlement"))
+    x = ds["worst_x"].sel(criterion="settlement").values
+    names = study.parameters.names
+    E_lo, p_hi = study.parameters.lower[names.index("materials.polymer.E")], \
+        study.parameters.upper[names.index("loads.top.pressure")]
+    nu_star = 1 - np.sqrt(1 - 5.0e-5 * 60.0 * E_lo / p_hi)            # interior optimum at E low, p high
+    exact = cooled_layer_settlement(nu_star, E_lo, p_hi)
+    assert 0.05 < nu_star < 0.45
+    assert abs(found - exact) <= 1e-3 * exact
+    assert abs(x[names.index("materials.polymer.nu")] - nu_star) <= 0.02
+    # a dense grid of FE solves over ν at the worst E and p agrees with the closed form (P1 is exact)
+    grid = wcs.load_study(path)
+    values = []
+    for nu in np.linspace(0.05, 0.45, 161):
+        point = {"materials.polymer.nu": nu, "materials.polymer.E": E_lo, "loads.top.pressure": p_hi}
+        values.append(grid.evaluate(point).phi["settlement"])
+    assert max(values) <= found * (1 + 1e-6)                           # nothing on the grid beats it
+    assert abs(max(values) - exact) <= 1e-4 * exact
+    assert str(ds["certificate"].sel(criterion="settlement").values) == "local-kkt"
+
+
+def test_flat_region_is_escaped_within_40_solves(tmp_path):
+    path = VALIDATION / "gap-closing.yaml"
+    study = wcs.load_study(path)
+    centre = 0.5 * (study.parameters.lower + study.parameters.upper)
+    at_centre = study.evaluate(centre, gradients=True)
+    assert at_centre.phi["pressure"] == 0.0 and not np.any(at_centre.grad["pressure"])   # the trap
+    study, ds = run_auto(path, tmp_path)
+    known = vertex_maxima(wcs.load_study(path))["pressure"]
+    found = float(ds["worst_value"].sel(criterion="pressure"))
+    assert known > 0 and abs(found - known) <= 1e-4 * known
+
+
+def test_same_study_twice_is_bitwise_identical(tmp_path):
+    path = VALIDATION / "stacked-layers.yaml"
+    a = wcs.run(wcs.load_study(path), tmp_path / "a.nc")
+    b = wcs.run(wcs.load_study(path), tmp_path / "b.nc")
+    for v in ("x", "phi", "grad", "worst_value", "worst_x", "worst_displacement", "worst_contact_pressure"):
+        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
