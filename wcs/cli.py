@@ -78,7 +78,7 @@ def cmd_solve(args) -> int:
         from .runner import solve_worst
         return solve_worst(args)
     from .evaluation import Evaluator
-    from .results import solve_dataset, write_netcdf, write_vtu
+    from .results import write_solution
     from .study import load_study
     study = load_study(args.study)
     t0 = time.perf_counter()
@@ -88,9 +88,7 @@ def cmd_solve(args) -> int:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if res.status == 3 else 1
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
-    ds = solve_dataset(study, ev, res)
-    write_netcdf(ds, out)
-    vtu = write_vtu(ds, out.with_suffix(".vtu"))
+    out, vtu = write_solution(study, ev, res, out)
     if not args.quiet:
         m = ev.smesh.mesh
         print(f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns")

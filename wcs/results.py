@@ -278,3 +278,11 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     ds.attrs.update(provenance_attrs or provenance(study, evaluator))
     ds.attrs.update(attrs or {})
     return ds
+
+
+def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:
+    """The files of one solved scenario: OUT.nc (fields, data set, criteria) and OUT.vtu."""
+    ds = solve_dataset(study, evaluator, evaluation)
+    ds.attrs.update({k: str(v) for k, v in attrs.items()})
+    out = write_netcdf(ds, out)
+    return out, write_vtu(ds, Path(out).with_suffix(".vtu"))

@@ -204,7 +204,7 @@ class Runner:
         grad = None
         g = getattr(ev, "grad", None)
         if ok and gradients and g:
-            grad = np.stack([np.asarray(g[c], float) if c in g else np.full(len(self.names), np.nan)
+            grad = np.stack([np.asarray(g[c], float) if g.get(c) is not None else np.full(len(self.names), np.nan)
                              for c in self.criteria])
         rec = {"x": np.asarray(ev.x, float).copy(), "phi": phi, "status": int(ev.status),
                "message": str(ev.message), "iterations": int(ev.iterations or 0),
@@ -548,7 +548,7 @@ def cmd_sweep(args) -> int:
 def solve_worst(args) -> int:
     """`wcs solve STUDY --worst RUN.nc CRITERION`: the worst data set of a criterion as one scenario."""
     from .evaluation import Evaluator
-    from .results import solve_dataset, write_netcdf, write_vtu
+    from .results import write_solution
     from .study import load_study
     study = load_study(args.study)
     run_file, criterion = args.worst
@@ -587,10 +587,7 @@ def solve_worst(args) -> int:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
     out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
-    ds = solve_dataset(study, ev, res)
-    ds.attrs["worst_of"] = f"{run_file}: criterion {criterion}"
-    write_netcdf(ds, out)
-    vtu = write_vtu(ds, out.with_suffix(".vtu"))
+    out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
     if not getattr(args, "quiet", False):
         print(f"{study.name}: worst case of {criterion} from {run_file}, solved in "
               f"{time.perf_counter() - t0:.2f} s")
