@@ -294,9 +294,10 @@ def mortar_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Mo
     gap[np.abs(gap) <= 1e-12 * h] = 0.0
     # master nodes / coefficients, padded
     Cm = mi.C.tolil()
+    masters = set(mi.master.tolist())
     mn, mw = [], []
     for j, (cols, vals) in enumerate(zip(Cm.rows, Cm.data)):
-        pairs = [(c, -v) for c, v in zip(cols, vals) if c != mi.slave[j] and c in set(mi.master.tolist())]
+        pairs = [(c, -v) for c, v in zip(cols, vals) if c != mi.slave[j] and c in masters]
         mn.append([c for c, _ in pairs])
         mw.append([v for _, v in pairs])
     k = max(1, max(len(r) for r in mn))

@@ -97,7 +97,10 @@ def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
     for side in ("slave", "master"):
         if spec.get(side) not in smesh.boundaries:
             raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
-    match = sides_match(smesh.mesh, smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]], path)
+    try:
+        match = sides_match(smesh.mesh, smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]], path)
+    except StudyError:              # node-to-node pairing impossible: let mortar try (and report)
+        match = False
     return "node-to-node" if match else "mortar"
 
 

@@ -88,8 +88,9 @@ class Reduction:
     A sparse product drops entries that happen to vanish for some data, so its
     pattern — and a factorization's ordering — would depend on the data. Here the
     pattern is built once from the structure of K and T, and Kr.data = M @ K.data
-    (each entry K_kl contributes T_ki T_lj to Kr_ij; a row of T has at most two
-    entries, so M has at most four per entry of K)."""
+    (each entry K_kl contributes T_ki T_lj to Kr_ij: M has nnz(T_k) · nnz(T_l)
+    entries per entry of K — up to four for supports, more where mortar gluing ties a
+    slave dof to several master dofs)."""
 
     def __init__(self, K: sp.csr_matrix, T: sp.csr_matrix):
         K = sp.csr_matrix(K)

@@ -19,6 +19,18 @@ identity on coincident nodes: the glue is exactly a node-to-node tie.
 
 The same rows glue the temperature (scalar) across the interface
 (`glue_heat`), so heat flows through glued interfaces as through a body.
+
+For the DD solver (wcs/dd): with glue, ``model.elim.T`` has rows that couple
+the slave DOFs of one body to master DOFs of another (and to the neighbouring
+excluded slave nodes); a reduced unknown may therefore live on two bodies. A
+partition that keeps each glued interface (slave side + the master nodes its
+rows reach: ``Glue.rows.C`` / ``Glue.rows.master``) inside one subdomain, or
+that treats the reduced master DOFs as interface DOFs shared by the glued
+subdomains, works with T unchanged; ``glued_clusters`` gives the bodies that
+move together (their rigid modes are joint). For mortar CONTACT the rows are
+generic (``Bn``/``Bt``) but may reach more than two master nodes and with
+negative coefficients: find a contact's master nodes with
+``pairs.master`` (MortarPairs) or ``master_weights != 0`` — not ``> 0``.
 """
 from __future__ import annotations
 

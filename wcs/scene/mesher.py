@@ -25,6 +25,15 @@ How it is done
   ``lc_gmsh`` carries ``Mesh.MeshSizeFromCurvature = 24`` (elements per 2π
   of arc): a full circle always gets >= 24 segments however coarse ``size``.
   Without ``mesh.size`` the size is 1/20 of the scene's bounding-box diagonal.
+* Per-body and per-region sizes: ``bodies.<b>.mesh: {size, refine}`` and
+  ``regions[i].mesh: {size}``.  A region size applies to its surfaces and the
+  curves / points around them (smallest size of the adjacent regions), so
+  regions stay conforming.  If ANY body has its own ``mesh:``, every body is
+  meshed in a gmsh model of its own after the global fragment (which still
+  decides ownership and overlaps): the body's regions are fragmented together,
+  its size is ``bodies.<b>.mesh.size`` (else ``scene.mesh.size``) with the
+  scene's and the body's ``refine`` entries, and curves shared with other
+  bodies are meshed once per body -- nonmatching sides (mortar contact / glue).
 * Determinism: one gmsh session per build (initialize/finalize, or a fresh
   model if the caller already runs gmsh, with our options restored after),
   ``General.NumThreads = 1``, Frontal-Delaunay (``Mesh.Algorithm = 6``), no
