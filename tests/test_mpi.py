@@ -30,3 +30,23 @@ def test_two_ranks_give_the_serial_results_bitwise(tmp_path):
     for v in ("x", "phi", "grad", "status", "worst_value", "worst_x", "worst_displacement",
               "worst_stress", "worst_contact_pressure"):
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
+
+
+def test_dd_study_on_two_ranks_spreads_the_subdomains_and_matches_serial(tmp_path):
+    """solver.method dd under mpiexec: each evaluation's subdomains are split over the ranks."""
+    import yaml
+    doc = yaml.safe_load((STUDY.parent / "contact-patch.yaml").read_text())
+    doc["solver"] = {"method": "dd", "dd": {"subdomains": 6}}
+    doc["search"] = {"method": "auto", "budget": 8}
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(doc))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    run = lambda *cmd: subprocess.run([*cmd], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)  # noqa: E731
+    serial = run(str(BIN / "wcs"), "run", "study.yaml", "-o", "serial.nc", "--quiet")
+    assert serial.returncode == 0, serial.stderr
+    parallel = run(str(BIN / "mpiexec"), "-n", "2", str(BIN / "wcs"), "run", "study.yaml", "-o", "mpi.nc", "--quiet")
+    assert parallel.returncode == 0, parallel.stderr + parallel.stdout
+    a = xr.open_dataset(tmp_path / "serial.nc", engine="h5netcdf")
+    b = xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf")
+    assert "dd" in a.attrs["solver"]
+    for v in ("x", "phi", "status", "worst_value", "worst_x", "worst_displacement"):
+        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v

@@ -43,8 +43,8 @@ def test_seed_data_in_the_tunnel():
     scene = study.scene
     assert scene["plane"] == "strain"
     assert scene["materials"]["rock"] == {"E": 5.2e9, "nu": 0.18, "density_weight": 2.45e4}
-    assert scene["supports"]["left"]["u"][0] == -2.5e-2
-    assert study.sweep["grid"]["supports.left.u.0"] == [-2.5e-2, -1.0e-1, -2.0e-1]
+    assert scene["supports"]["right"]["u"][0] == -2.5e-2          # pushes 2.5 cm into the rock
+    assert study.sweep["grid"]["supports.right.u.0"] == [-2.5e-2, -1.0e-1, -2.0e-1]
     assert {c["friction"]["slip_limit"] for c in scene["contacts"].values()} == {1.0e6}
     assert any(e.get("points", 0) >= 6 for e in study.uncertain)
 

@@ -118,6 +118,7 @@ class Model:
             self.Bn_r, self.Bt_r = (self.zone.Bn @ T).tocsr(), (self.zone.Bt @ T).tocsr()
             self.floating = [(b, m) for b, m in self.free_modes.items() if m.shape[1]]
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
+        self.comm = None               # MPI communicator the DD solver spreads its subdomains over
         self._anchor = None            # contact state at the nominal data: every solve starts from it
         self._anchor_tried = False
         self._contact_factor = None    # the latest factorization (reused with its analysis)
@@ -339,14 +340,14 @@ class Model:
 
     def _solve_dd(self, scene, c, Kr, rhs, u0):
         from .dd.solver import solve_dd
-        return solve_dd(self, scene, Kr, rhs, u0, self.options, coefficients=c)
+        return solve_dd(self, scene, Kr, rhs, u0, self.options, coefficients=c, comm=self.comm)
 
     def _heat(self, c: Coefficients, adjoint: bool) -> np.ndarray:
         """The thermal step: by the decomposition when the study asks for dd (the adjoint
         needs the direct factorization), else directly."""
         if self.options.get("method") == "dd" and not adjoint:
             from .dd.solver import solve_heat_dd
-            T, _, status, _ = solve_heat_dd(self, c, self.options)
+            T, _, status, _ = solve_heat_dd(self, c, self.options, comm=self.comm)
             if status == 0:
                 return T
         return self.solve_heat(c)

@@ -38,3 +38,17 @@ def agree(comm, error: Exception | None) -> None:
             error = StudyError(fault, file=file, path=path) if study_error else RuntimeError(fault)
     if error is not None:
         raise error
+
+
+def batch_groups(comm, npoints: int):
+    """Split the ranks for one batch of `npoints` evaluations when there are fewer points
+    than ranks: g = min(npoints, size) groups, rank r in group r mod g; group c evaluates
+    points c, c + g, ... and its ranks share each evaluation's DD solve
+    (`solve_dd(..., comm=sub)`). Returns (sub, color, g); only sub.rank == 0 of each group
+    should contribute records to the batch gather. Collective on `comm` (comm.Split):
+    free the sub-communicator with `sub.Free()` after the batch."""
+    if comm is None:
+        return None, 0, 1
+    g = max(1, min(int(npoints), comm.size))
+    color = comm.rank % g
+    return comm.Split(color, comm.rank), color, g

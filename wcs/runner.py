@@ -118,6 +118,11 @@ class Runner:
         self.study = study
         self.kind = kind
         self.evaluator = evaluator or Evaluator(study)
+        # MPI: with the DD solver every evaluation is spread over all ranks (its subdomains);
+        # otherwise each rank solves its share of a batch (evaluation-level parallelism)
+        self.split_batches = self.comm is not None and study.solver.get("method") != "dd"
+        if self.comm is not None and not self.split_batches:
+            self.evaluator.model.comm = self.comm
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
         self.progress = progress if self.root else None
@@ -282,7 +287,7 @@ class Runner:
                 self._append(k, rec, ev)
                 rows.append(len(self.records) - 1)
 
-            if self.comm is None:
+            if not self.split_batches:        # serial, or every rank takes part in every (DD) solve
                 self.evaluate_batch([p for _, p, _ in batch], gradients, done)
                 return
             # MPI: rank r solves points r, r+N, ...; all ranks then append every record in batch order
@@ -399,7 +404,9 @@ class Runner:
                 certificate[c] = "heuristic"
             if isinstance(result, Worst) and c in result.notes:
                 notes[c] = str(result.notes[c])
-        fields = self._worst_fields(worst) if self.root else {c: None for c in self.criteria}
+        # a DD solve spread over the ranks is collective: then every rank re-solves the worst cases
+        solves_here = self.root or (self.comm is not None and not self.split_batches)
+        fields = self._worst_fields(worst) if solves_here else {c: None for c in self.criteria}
         self.final = (worst, certificate, notes, fields, sweep_paths)
         return self._write(force=True)
 

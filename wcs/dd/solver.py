@@ -31,7 +31,15 @@ the successive approximations), `pcg_max_iterations`
 (500), `patience` (8: divergence when ‖ΔU‖ did not decrease over that many
 steps), `inner_tolerance` (PCG2 floor, default tolerance/10) and `forcing`
 (0.1: PCG2 stops at forcing × the last relative increment — inexact inner
-solves), `contact_tolerance` (local contact solves, default 1e-10).
+solves), `contact_tolerance` (local contact solves, default 1e-10);
+`relaxation: anderson` with `anderson` (history, 5), `mixing` (β, 1.0) and
+`anderson_restart` (0: never; else clear the history when the residual grows by
+that factor) — measured worse than Aitken on the off-centre pad, converges on the
+tunnel with β = 0.1 where Aitken stagnates (results/bench/dd_iterations_nonlinear.csv).
+
+MPI: `solve_dd(..., comm=)` / `solve_heat_dd(..., comm=)` distribute the units over
+the communicator's ranks (team.py: deterministic gathers summed in unit order, so
+the result is bitwise the serial one).
 """
 from __future__ import annotations
 
@@ -49,6 +57,7 @@ from wcs.fem.affine import CellAffineOperator
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
 from .pcg import Coarse, CoarseSingular, pcg
+from .team import Team
 
 CONVERGED = 0
 DIVERGED = 5
@@ -193,10 +202,15 @@ def injections(units, nif: int, rho: np.ndarray) -> list[np.ndarray]:
 
 class InterfaceOperator:
     """S = Σ_u R_uᵀ S_u R_u over `units` (linear uses of each unit) with the balancing
-    Neumann–Neumann preconditioner M⁻¹ = (I − P) Σ_u R_uᵀ D_u S_u† D_u R_u ([21, (5.14)])."""
+    Neumann–Neumann preconditioner M⁻¹ = (I − P) Σ_u R_uᵀ D_u S_u† D_u R_u ([21, (5.14)]).
 
-    def __init__(self, units, nif: int, weights: list[np.ndarray]):
+    `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
+    each rank solves its own units' local problems, the pieces are summed in unit order."""
+
+    def __init__(self, units, nif: int, weights: list[np.ndarray], team: Team | None = None):
         self.units, self.nif, self.weights = units, nif, weights
+        self.team = team if team is not None else Team(None, units)
+        self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
         self.applications = 0
         Zs = [(u.gamma, w[:, None] * u.Z[u.B]) for u, w in zip(units, weights) if u.Z.shape[1] and u.B.size]
         k = sum(z.shape[1] for _, z in Zs)
@@ -205,26 +219,36 @@ class InterfaceOperator:
         for g, z in Zs:
             Z[g, j:j + z.shape[1]] = z
             j += z.shape[1]
-        self.coarse = Coarse(_orth(Z), self.apply)
+        Z = _orth(Z)
+        tm = self.team.timings
+        t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
+        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
+        tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
 
     def apply(self, U: np.ndarray) -> np.ndarray:
         self.applications += 1
-        out = np.zeros((self.nif,) + U.shape[1:])
-        for u in self.units:                       # independent local Dirichlet solves
-            out[u.gamma] += u.apply_S(U[u.gamma])
-        return out
+        tm = self.team.timings
+        t = time.perf_counter()
+        pieces = {u.index: u.apply_S(U[u.gamma]) for u, _ in self.mine}    # local Dirichlet solves
+        tm["dirichlet"] += time.perf_counter() - t
+        return self.team.sum(self.units, pieces, self.nif, U.shape[1:])
 
     def precondition(self, H: np.ndarray) -> np.ndarray:
-        out = np.zeros_like(H)
-        for u, w in zip(self.units, self.weights):  # independent local Neumann solves
-            out[u.gamma] += w * u.neumann(w * H[u.gamma])
-        return self.coarse.project_out(out)
+        tm = self.team.timings
+        t = time.perf_counter()
+        pieces = {u.index: w * u.neumann(w * H[u.gamma]) for u, w in self.mine}   # local Neumann solves
+        tm["neumann"] += time.perf_counter() - t
+        out = self.team.sum(self.units, pieces, self.nif, H.shape[1:])
+        t = time.perf_counter()
+        out = self.coarse.project_out(out)
+        tm["coarse"] += time.perf_counter() - t
+        return out
 
     def load(self) -> np.ndarray:
-        F = np.zeros(self.nif)
-        for u in self.units:
-            F[u.gamma] += u.condensed_load()
-        return F
+        t = time.perf_counter()
+        pieces = {u.index: u.condensed_load() for u, _ in self.mine}
+        self.team.timings["dirichlet"] += time.perf_counter() - t
+        return self.team.sum(self.units, pieces, self.nif)
 
 
 # ---- the elastic contact solve ------------------------------------------------------------------
@@ -246,6 +270,9 @@ def _dd_options(options: dict) -> dict:
         "contact_tolerance": float(dd.get("contact_tolerance", 1e-10)),
         "patience": int(dd.get("patience", 8)),
         "forcing": float(dd.get("forcing", 0.1)),
+        "anderson": int(dd.get("anderson", 5)),
+        "anderson_restart": float(dd.get("anderson_restart", 0.0)),
+        "mixing": float(dd.get("mixing", 1.0)),
     }
 
 
@@ -265,7 +292,7 @@ def _fail(info, status, message):
 
 
 def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: dict | None = None,
-             *, coefficients=None) -> DDResult:
+             *, coefficients=None, comm=None) -> DDResult:
     """Solve the model's reduced contact problem (Kr, rhs, u = T w + u0) by the DD method.
 
     Same inputs as `Model._solve_contact`: Kr = Tᵀ K T, rhs = Tᵀ (f − K u0), u0 the lifted
@@ -274,6 +301,11 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     Kr itself is only used to size and check. Returns a `DDResult`
     (u_full, lam_n, lam_t, info, status, message); lam_n, lam_t in the zone's row order
     (ContactState(zone, lam_n, lam_t, gap − Bn u, Bt u, info["active"])).
+
+    comm: an MPI communicator (mpi4py) whose ranks share this one solve — every rank calls
+    `solve_dd` with the same arguments; the units are distributed over the ranks (`Team`),
+    every rank returns the same result, bitwise equal to the serial one (comm=None).
+    info["ranks"]: per-rank timings (assemble, dirichlet, neumann, coarse, contact, comm).
     """
     o = _dd_options(options)
     t0 = time.perf_counter()
@@ -282,6 +314,9 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
+    team = Team(comm, dec.units)
+    tm = team.timings
+    info["nranks"] = team.size
     z = model.zone
     c = coefficients if coefficients is not None else model.coefficients(scene)
     g, F = z.friction(scene)
@@ -290,25 +325,31 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     rho_region = stiffness_measure(c.lam, c.mu)
     info.update(_sizes(dec))
     t = time.perf_counter()
+    error = None
     try:
-        for u in dec.units:
+        for u in team.local(dec.units):      # a rank factors its own units only
             u.assemble(kc)
     except Exception as exc:  # noqa: BLE001 - a local factorization failed: report, let the caller fall back
-        return _fail(info, SETUP_FAILED, f"a local factorization failed: {exc}")
+        error = f"a local factorization failed: {exc}"
+    tm["assemble"] += time.perf_counter() - t
+    error = team.first_error(error)
+    if error:
+        return _fail(info, SETUP_FAILED, error)
     for u in dec.units:            # each solve starts afresh: the answer must not depend on history
         if hasattr(u, "warm"):
             u.warm = None
     rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
     D = injections(dec.units, dec.nif, rho)
     for u, w in zip(dec.units, D):
-        f = rhs[u.dofs].copy()
-        f[u.B] *= w
-        u.set_load(f)
+        if team.mine(u):
+            f = rhs[u.dofs].copy()
+            f[u.B] *= w
+            u.set_load(f)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D)
-        S0 = InterfaceOperator(lin, dec.nif, oD)
+        S = InterfaceOperator(dec.units, dec.nif, D, team)
+        S0 = InterfaceOperator(lin, dec.nif, oD, team)
     except CoarseSingular as exc:
         return _fail(info, SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
                                          f"(a group of them floats between pairs): {exc}")
@@ -328,30 +369,47 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     # 2. successive approximations: PCG2
     t = time.perf_counter()
     Fl = S0.load()
-    loop = _successive(dec, S0, Fl, r1.x, d, g, F, z.weight, o, info)
+    status, message, U = _successive(dec, S0, Fl, r1.x, d, g, F, z.weight, o, info, team)
     info["timings"]["successive"] = time.perf_counter() - t
-    status, message, U = loop
     if status != CONVERGED:
+        info["ranks"] = team.report()
         return _fail(info, status, message)
 
-    # 3. the solution: interior values of every unit from U
+    # 3. the solution: interior values of every unit from U (own units, then gathered)
+    t = time.perf_counter()
+    mine, error = [], None
+    for u in team.local(dec.units):
+        if u.kind == "pair":
+            tc = time.perf_counter()
+            _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows],
+                                    _coulomb(F, u.rows), o["contact_tolerance"], 200)
+            tm["contact"] += time.perf_counter() - tc
+            if res.status != CONTACT_CONVERGED:
+                error = error or f"final contact solve of pair {u.index}: {res.message}"
+                continue
+            mine.append((u.index, loc, res.lam_n, res.lam_t, res.active))
+        else:
+            mine.append((u.index, u.interior(U[u.gamma]), None, None, None))
+    parts = team.allgather((error, mine))
+    error = next((e for e, _ in parts if e), None)
+    gathered = {i: rest for _, piece in parts for i, *rest in piece}
+    if error:
+        info["ranks"] = team.report()
+        return _fail(info, LOCAL_FAILED, error)
     w = np.zeros(dec.ndof)
     m = z.gap.size
     lam_n, lam_t, active = np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64)
-    for u in dec.units:
+    for u in dec.units:                          # unit order, as the serial loop
+        loc, ln, lt, act = gathered[u.index]
         if u.kind == "pair":
-            _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows],
-                                    _coulomb(F, u.rows), o["contact_tolerance"], 200)
-            if res.status != CONTACT_CONVERGED:
-                return _fail(info, LOCAL_FAILED, f"final contact solve of pair {u.index}: {res.message}")
-            lam_n[u.rows], lam_t[u.rows], active[u.rows] = res.lam_n, res.lam_t, res.active
-        else:
-            loc = u.interior(U[u.gamma])
+            lam_n[u.rows], lam_t[u.rows], active[u.rows] = ln, lt, act
         w[u.dofs] = loc
+    info["timings"]["solution"] = time.perf_counter() - t
     info["active"] = active
     info["w"] = w
     info["timings"]["total"] = time.perf_counter() - t0
     info["status_name"] = STATUS_NAMES[CONVERGED]
+    info["ranks"] = team.report()
     u_full = model.elim.T @ w + u0
     return DDResult(u_full, lam_n, lam_t, info, CONVERGED, message)
 
@@ -375,23 +433,39 @@ def _unit_rho(model, u, rho_region, part) -> float:
     return float((rho_region[model.smesh.cell_region[cells]] * a).sum() / a.sum())
 
 
-def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info):
-    """S0 U^k = F − S_con(U^{k−1}) with monitoring; returns (status, message, U)."""
+def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
+    """S0 U^k = F − S_con(U^{k−1}) with monitoring; returns (status, message, U).
+
+    The map T(U) = S0⁻¹(F − S_con(U)) is evaluated by PCG2 warm started from U (inexact:
+    see `_inner_tolerance`); the fixed-point residual f = T(U) − U. Update: plain/fixed
+    relaxation U ← U + ω f, Aitken's dynamic ω, or Anderson acceleration ("anderson",
+    history `anderson` steps, least squares in the S0 energy inner product; the history
+    is cleared when the residual grows)."""
+    team = team if team is not None else Team(None, dec.units)
     pairs = dec.pairs
     tol, budget, patience = o["tolerance"], o["max_iterations"], o["patience"]
     relax = o["relaxation"]
-    aitken = isinstance(relax, str) and relax.lower() == "aitken"
-    omega = 1.0 if aitken else float(relax)
+    mode = relax.lower() if isinstance(relax, str) else "fixed"
+    aitken, anderson = mode == "aitken", mode == "anderson"
+    omega = 1.0 if isinstance(relax, str) else float(relax)
+    tm = team.timings
 
     def s_con(U):
-        out = np.zeros(dec.nif)
-        for p in pairs:                              # independent local contact solves
+        t = time.perf_counter()
+        pieces, error = {}, None
+        for p in team.local(pairs):                  # independent local contact solves
             r, _, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
                                   o["contact_tolerance"], 200)
             if res.status != CONTACT_CONVERGED:
-                return None, f"contact solve of pair {p.index}: {res.message}"
-            out[p.gamma] += r
-        return out, ""
+                error = error or f"contact solve of pair {p.index}: {res.message}"
+                r = np.zeros(p.gamma.size)
+            pieces[p.index] = r
+        tm["contact"] += time.perf_counter() - t
+        if team.comm is not None:
+            error = team.first_error(error)
+        if error:
+            return None, error
+        return team.sum(pairs, pieces, dec.nif), ""
 
     U, SU = U0.copy(), S0.apply(U0)
     hist = {"dU": [], "U": [], "q": [], "omega": [], "pcg2": [], "estimate": []}
@@ -400,32 +474,57 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info):
     info["pcg2"] = 0
     prev_step = None          # unrelaxed update r_{k−1} (Aitken)
     first = None
+    Fnorm = np.linalg.norm(F)
+    acc = []                  # Anderson: (f, Sf, g, Sg) of previous steps
+    beta = o["mixing"]
     for k in range(1, budget + 1):
         rc, msg = s_con(U)
         if rc is None:
             return LOCAL_FAILED, msg, U
         b = F - rc
-        # inexact inner solves: a fraction (forcing) of the last relative increment, at least inner_tolerance
-        eta = o["inner_tolerance"]
-        if hist["dU"]:
-            eta = max(eta, o["forcing"] * hist["dU"][-1] / max(hist["U"][-1], 1e-300))
+        eta = _inner_tolerance(o, hist)
         r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
-                 coarse=S0.coarse, reference=max(np.linalg.norm(F), np.linalg.norm(b)))
+                 coarse=S0.coarse, reference=max(Fnorm, np.linalg.norm(b)))
         info["successive"] = k
         info["pcg2"] += r2.iterations
         hist["pcg2"].append(r2.iterations)
         step, Sstep = r2.x - U, r2.Sx - SU
-        if aitken and prev_step is not None:
-            dr = step - prev_step
-            den = float(dr @ dr)
-            if den > 0:
-                omega = float(np.clip(-omega * (prev_step @ dr) / den, 0.02, 2.0))
-        prev_step = step
-        hist["omega"].append(omega)
-        dU, SdU = omega * step, omega * Sstep
-        U, SU = U + dU, SU + SdU
-        n_dU = float(np.sqrt(abs(dU @ SdU)))
-        n_U = float(np.sqrt(abs(U @ SU)))
+        if anderson:
+            n_step = float(np.sqrt(abs(step @ Sstep)))
+            if acc and o["anderson_restart"] and n_step > o["anderson_restart"] * hist["dU"][-1]:
+                acc = []                                    # residual grew a lot: restart the history
+            gk, Sgk = U + beta * step, SU + beta * Sstep     # mixing β: damped map U + β(T(U) − U)
+            if acc:
+                # g = U + βf: the Anderson update U − ΔU γ + β(f − ΔF γ), ΔG = ΔU + βΔF
+                dF = np.stack([step - a[0] for a in acc], axis=1)
+                SdF = np.stack([Sstep - a[1] for a in acc], axis=1)
+                dG = np.stack([gk - a[2] for a in acc], axis=1)
+                SdG = np.stack([Sgk - a[3] for a in acc], axis=1)
+                G = 0.5 * (dF.T @ SdF + SdF.T @ dF)
+                G += 1e-12 * max(np.trace(G), 1e-300) * np.eye(G.shape[0])
+                gamma = np.linalg.lstsq(G, SdF.T @ step, rcond=1e-12)[0]
+                Unew, SUnew = gk - dG @ gamma, Sgk - SdG @ gamma
+            else:
+                Unew, SUnew = gk.copy(), Sgk.copy()
+            acc.append((step, Sstep, gk, Sgk))
+            acc = acc[-o["anderson"]:]
+            hist["omega"].append(float("nan"))
+            dU, SdU = Unew - U, SUnew - SU
+            U, SU = Unew, SUnew
+            n_dU = n_step                                   # the fixed-point residual ‖T(U) − U‖_S0
+            n_U = float(np.sqrt(abs(r2.x @ r2.Sx)))
+        else:
+            if aitken and prev_step is not None:
+                dr = step - prev_step
+                den = float(dr @ dr)
+                if den > 0:
+                    omega = float(np.clip(-omega * (prev_step @ dr) / den, 0.02, 2.0))
+            prev_step = step
+            hist["omega"].append(omega)
+            dU, SdU = omega * step, omega * Sstep
+            U, SU = U + dU, SU + SdU
+            n_dU = float(np.sqrt(abs(dU @ SdU)))
+            n_U = float(np.sqrt(abs(U @ SU)))
         hist["dU"].append(n_dU)
         hist["U"].append(n_U)
         if not np.isfinite(n_dU) or not np.isfinite(n_U):
@@ -435,6 +534,8 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info):
         est = q / (1 - q) * n_dU / max(n_U, 1e-300) if np.isfinite(q) and q < 1 else np.inf
         hist["estimate"].append(est)
         if n_dU <= tol * n_U:
+            if anderson:                  # T(U) − U is within tolerance at the evaluated U: keep T(U)
+                U, SU = r2.x, r2.Sx
             info["contraction"] = _mean_q(hist["q"])
             return CONVERGED, f"converged in {k} successive approximations ({info['pcg2']} PCG2 iterations, " \
                               f"{info['pcg1']} PCG1)", U
@@ -457,6 +558,16 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info):
                                    f"beyond the budget of {budget}"), U
     return BUDGET, (f"successive approximations did not reach {tol:g} in {budget} steps "
                     f"(‖ΔU‖/‖U‖ = {hist['dU'][-1] / max(hist['U'][-1], 1e-300):.3g})"), U
+
+
+def _inner_tolerance(o, hist) -> float:
+    """PCG2 tolerance (relative to max(‖F‖, ‖b‖)) of the next step: at least `inner_tolerance`,
+    and `forcing` × the last relative increment (inexact inner solves: no point solving
+    S0 U = b far below the error of the current U)."""
+    eta = o["inner_tolerance"]
+    if hist["dU"]:
+        eta = max(eta, o["forcing"] * hist["dU"][-1] / max(hist["U"][-1], 1e-300))
+    return eta
 
 
 def _mean_q(qs) -> float:
@@ -486,11 +597,11 @@ def build_heat_decomposition(model, dd: dict) -> Decomposition:
     return Decomposition(mech.part, units, nif, T.shape[1])
 
 
-def solve_heat_dd(model, c, options: dict | None = None):
+def solve_heat_dd(model, c, options: dict | None = None, *, comm=None):
     """The thermal step by the same decomposition (the linear case: PCG1 only).
 
     c: the model's `Coefficients`. Returns (T nodal (nnodes,), info, status, message),
-    the same temperature as `Model.solve_heat(c)`.
+    the same temperature as `Model.solve_heat(c)`. comm: as in `solve_dd`.
     """
     o = _dd_options(options)
     per_model = _CACHE.setdefault(model, {})
@@ -498,22 +609,26 @@ def solve_heat_dd(model, c, options: dict | None = None):
     if key not in per_model:
         per_model[key] = build_heat_decomposition(model, options)
     dec = per_model[key]
+    team = Team(comm, dec.units)
     Kh = model.H(c.kappa)
     Th0 = model.heat_elim.U0 @ c.temperature_values
     q = model.source_vectors.T @ c.source
     rhs = model.heat_Tt @ (q - Kh @ Th0)
-    for u in dec.units:
+    t = time.perf_counter()
+    for u in team.local(dec.units):
         u.assemble(c.kappa)
+    team.timings["assemble"] += time.perf_counter() - t
     kreg = np.asarray(c.kappa, float)
     rho = [_unit_rho(model, u, kreg, dec.part) for u in dec.units]
     D = injections(dec.units, dec.nif, rho)
     for u, w in zip(dec.units, D):
-        f = rhs[u.dofs].copy()
-        f[u.B] *= w
-        u.set_load(f)
-    info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif}
+        if team.mine(u):
+            f = rhs[u.dofs].copy()
+            f[u.B] *= w
+            u.set_load(f)
+    info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif, "nranks": team.size}
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D)
+        S = InterfaceOperator(dec.units, dec.nif, D, team)
     except CoarseSingular as exc:
         return None, info, SETUP_FAILED, f"thermal interface operator singular: {exc}"
     info["coarse"] = S.coarse.size
@@ -522,8 +637,11 @@ def solve_heat_dd(model, c, options: dict | None = None):
     info["pcg1"] = r.iterations
     if not r.converged:
         return None, info, BUDGET, f"thermal PCG did not converge in {r.iterations} iterations"
+    mine = [(u.index, u.interior(r.x[u.gamma])) for u in team.local(dec.units)]
+    loc = {i: x for part in team.allgather(mine) for i, x in part}
     w = np.zeros(dec.ndof)
     for u in dec.units:
-        w[u.dofs] = u.interior(r.x[u.gamma])
+        w[u.dofs] = loc[u.index]
+    info["ranks"] = team.report()
     theta = model.heat_elim.T @ w + Th0
     return model.P @ theta, info, CONVERGED, f"converged in {r.iterations} PCG iterations"

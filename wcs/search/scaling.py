@@ -131,7 +131,9 @@ class Space:
             ref = np.full(self.n, 0.5) if z_ref is None else np.asarray(z_ref, dtype=float)
             tiny = 1e-14 * np.max(np.abs(g), initial=0.0)
             return np.where(g > tiny, 1.0, np.where(g < -tiny, 0.0, (ref > 0.5).astype(float)))
-        res = linprog(-g, A_ub=self.A, b_ub=self.b, bounds=[(0.0, 1.0)] * self.n, method="highs-ds")
+        scale = np.max(np.abs(g), initial=0.0)           # HiGHS fails on |g| ~ 1e13 (Pa² criteria)
+        gs = g / scale if scale > 0 else g
+        res = linprog(-gs, A_ub=self.A, b_ub=self.b, bounds=[(0.0, 1.0)] * self.n, method="highs-ds")
         if res.status != 0:
             raise RuntimeError(f"LP for the gradient vertex failed: {res.message}")
         return self.repair(res.x)

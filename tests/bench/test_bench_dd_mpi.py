@@ -1,0 +1,33 @@
+"""DD over MPI ranks (`python -m wcs.dd.bench`): one large DD solve on 1 and 2 ranks (per-rank
+timings, speed-up, bitwise identity) and a study on 1 and 2 ranks (evaluation-level speed-up).
+Writes results/bench/dd_mpi_solve.json and dd_mpi_study.json. Run by `make bench`."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "results" / "bench"
+
+
+def _bench(*args, timeout=3600):
+    p = subprocess.run([sys.executable, "-m", "wcs.dd.bench", *args], cwd=ROOT, capture_output=True, text=True,
+                       timeout=timeout)
+    print(p.stdout)
+    assert p.returncode == 0, p.stdout + p.stderr
+    return p.stdout
+
+
+@pytest.mark.bench
+def test_dd_solve_on_two_ranks():
+    out = _bench("speedup", "studies/tunnel-fault.yaml", "--mesh-scale", "0.4", "--repeat", "2",
+                 "--out", str(OUT / "dd_mpi_solve.json"))
+    assert "bitwise identical (u, lam_n, lam_t, PCG1 residuals, ‖ΔU‖ history): True" in out
+
+
+@pytest.mark.bench
+def test_study_on_two_ranks():
+    out = _bench("study-speedup", "studies/validation/stacked-layers.yaml", "--mesh-scale", "0.1", "--budget", "40",
+                 "--out", str(OUT / "dd_mpi_study.json"))
+    assert "bitwise identical (x, phi, worst_value, worst_x): True" in out
