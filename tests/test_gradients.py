@@ -79,3 +79,14 @@ def test_nonsmooth_point_is_flagged(tmp_path):
     study = wcs.load_study(path)
     ev = study.evaluate(study.nominal(), gradients=True)
     assert ev.status == 0 and ev.nonsmooth
+
+
+def test_tunnel_with_redundant_contact_constraints(tmp_path):
+    """The tunnel: fault ends held by supports on both sides (zero contact rows) and by rollers
+    on both sides (tangent parallel to normal) make the active-set system singular; the
+    multipliers are not unique there but the criteria's gradients are (least squares)."""
+    doc = yaml.safe_load((Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml").read_text())
+    doc["solver"] = {"method": "monolithic", "tolerance": TOL}
+    path = tmp_path / "tunnel.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    assert check_against_fd(wcs.load_study(path)) < 1e-5

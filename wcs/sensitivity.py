@@ -167,9 +167,8 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     N[B, B] = 1.0
     tang = B[B >= m]
     N[tang, tang - m] = -s[tang - m] * res_coulomb(model, state)[tang - m]
-    try:
-        mu = np.linalg.solve(N.T, g)
-    except np.linalg.LinAlgError:
+    mu = _consistent_solve(N.T, g)
+    if mu is None:
         return None
     z = cf.factor.solve(phi_w - C[A].T @ mu[A])
     if r:
@@ -177,11 +176,29 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     return z, mu, s
 
 
+def _consistent_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """A⁻¹ b, or — when A is singular because constraints are redundant (a contact node
+    held by supports on both sides, normal and tangential rows made parallel by rollers)
+    — the least-squares solution if the system is consistent there: the multipliers are
+    then not unique but the displacements, and so the criteria's gradients, are."""
+    try:
+        x = np.linalg.solve(A, b)
+        if np.all(np.isfinite(x)):
+            return x
+    except np.linalg.LinAlgError:
+        pass
+    x = np.linalg.lstsq(A, b, rcond=None)[0]
+    scale = max(np.abs(b).max(initial=0.0), 1e-300)
+    # redundant rows make A ill-conditioned (seen: cond 1e16, residual 1e-7 of |b|): round-off, not an
+    # inconsistency, which would leave a residual of the order of |b|
+    return x if np.abs(A @ x - b).max() <= 1e-6 * scale else None
+
+
 def res_coulomb(model, state) -> np.ndarray:
     return np.asarray(state.coefficients.coulomb, float)
 
 
-def contact_nonsmooth(state) -> bool:
+def contact_nonsmooth(model, state) -> bool:
     """An active-set change within reach: weakly active normals or tangents at the switch."""
     res, c = state.raw, state.contact
     m = res.lam_n.size
@@ -195,7 +212,15 @@ def contact_nonsmooth(state) -> bool:
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
     weak_stick = stick & (gw > 0) & (np.abs(res.lam_t) >= (1 - REL_TOL) * gw)
     weak_slip = ~stick & (gw > 0) & (np.abs(c.slip) <= REL_TOL * us)
-    return bool(np.any(weak_closed | weak_open | weak_stick | weak_slip))
+    # constraints that cannot move the solution: a node held by supports on both sides (its
+    # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
+    n2 = np.asarray(model.Bn_r.multiply(model.Bn_r).sum(axis=1)).ravel()
+    nt = np.asarray(model.Bn_r.multiply(model.Bt_r).sum(axis=1)).ravel()
+    t2 = np.asarray(model.Bt_r.multiply(model.Bt_r).sum(axis=1)).ravel()
+    moves = n2 > 0
+    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-20 * np.maximum(t2, 1e-300)
+    weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
+    return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
 
 def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
@@ -262,7 +287,7 @@ def gradients(evaluator, state, x: np.ndarray) -> tuple[dict[str, np.ndarray | N
     point is non-smooth (an active-set change or a switch of the maximising region nearby)."""
     model = evaluator.model
     J = coefficient_jacobian(evaluator.study, model, x)
-    nonsmooth = state.raw is not None and contact_nonsmooth(state)
+    nonsmooth = state.raw is not None and contact_nonsmooth(model, state)
     out = {}
     for crit in evaluator.criteria:
         P, tie = criterion_partials(crit, model, state)
