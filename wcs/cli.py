@@ -17,6 +17,14 @@ def _fmt(v) -> str:
     return f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v)
 
 
+def _cell_sizes(mesh) -> tuple[float, float]:
+    """Smallest and largest cell diameter (longest edge) of the mesh."""
+    p, t = mesh.p, mesh.t
+    edges = [np.hypot(*(p[:, t[a]] - p[:, t[b]])) for a, b in ((0, 1), (1, 2), (2, 0))]
+    h = np.max(edges, axis=0)
+    return float(h.min()), float(h.max())
+
+
 def summary(study, ev) -> str:
     """What the study will do, in the words of the study file."""
     scene, sm = study.scene, ev.smesh
@@ -32,15 +40,24 @@ def summary(study, ev) -> str:
         desc = ", ".join(f"{r} [{ev.model.region_material[j]}, {int(np.sum(sm.cell_region == j))} cells]" for j, r in regs)
         held = ev.model.free_modes[name].shape[1]
         lines.append(f"    {name}: {desc}" + ("" if held == 0 else f"  (held by contact only: {held} rigid modes free)"))
+    sizes = _cell_sizes(mesh)
+    m = scene.get("mesh") or {}
+    lines.append(f"  mesh: target size {m.get('size', 'per body')}"
+                 + (f", {len(m.get('refine') or [])} refinement zone(s)" if m.get("refine") else "")
+                 + "".join(f", body {b}: {v['mesh']}" for b, v in scene["bodies"].items() if v.get("mesh"))
+                 + f"; cells from {sizes[0]:.3g} m to {sizes[1]:.3g} m")
     lines.append("  boundaries:")
     for name, facets in sm.boundaries.items():
         lines.append(f"    {name}: {len(facets)} edges")
     for key, label in (("supports", "supports"), ("loads", "loads"), ("body_forces", "body forces")):
         for name, v in (scene.get(key) or {}).items():
             lines.append(f"  {label[:-1] if label.endswith('s') else label} {name}: {v}")
-    for name, c in (scene.get("contacts") or {}).items():
+    zone = ev.model.zone
+    for k, (name, c) in enumerate((scene.get("contacts") or {}).items()):
         fr = c.get("friction") or {}
-        lines.append(f"  contact {name}: slave {c['slave']} / master {c['master']}, "
+        how = zone.discretization[k] if zone is not None and getattr(zone, "discretization", None) else "node-to-node"
+        nodes = int((zone.contact_of_node == k).sum()) if zone is not None else 0
+        lines.append(f"  contact {name} ({how}, {nodes} contact nodes): slave {c['slave']} / master {c['master']}, "
                      + (f"Tresca g = {_fmt(fr['slip_limit'])}" if "slip_limit" in fr else
                         f"Coulomb F = {_fmt(fr['coefficient'])}" if "coefficient" in fr else "frictionless"))
     if scene.get("thermal"):
@@ -58,7 +75,10 @@ def summary(study, ev) -> str:
         lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
     s = study.search
-    lines.append(f"  search: {s.get('method')}, budget {s.get('budget')} solves; solver: {study.solver.get('method')}")
+    method = study.solver.get("method")
+    solver = method if method != "auto" else f"auto -> {ev.model.solver_method}"
+    lines.append(f"  search: {s.get('method')}, budget {s.get('budget')} solves; solver: {solver}"
+                 + ("" if scene.get("contacts") else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")
     return "\n".join(lines)
 

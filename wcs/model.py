@@ -119,6 +119,7 @@ class Model:
             self.floating = [(b, m) for b, m in self.free_modes.items() if m.shape[1]]
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = None               # MPI communicator the DD solver spreads its subdomains over
+        self.solver_method = self.options.get("method", "auto") if self.options.get("method") != "auto" else "monolithic"
         self._anchor = None            # contact state at the nominal data: every solve starts from it
         self._anchor_tried = False
         self._contact_factor = None    # the latest factorization (reused with its analysis)

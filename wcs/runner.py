@@ -523,10 +523,11 @@ def _is_root() -> bool:
 def _finish_command(args, study, ds, out: Path) -> int:
     from .progress import limits_broken, summary_table
     n, failed = int(ds.sizes.get("eval", 0)), int(ds.attrs.get("failed_evaluations", 0))
-    print(f"{study.name}: {n} evaluations ({failed} failed), "
-          f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} from the store; "
-          f"wrote {out}")
-    print(summary_table(ds))
+    if not getattr(args, "quiet", False):
+        print(f"{study.name}: {n} evaluations ({failed} failed), "
+              f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
+              f"from the store; wrote {out}")
+        print(summary_table(ds))
     broken = limits_broken(ds)
     if broken and getattr(args, "fail_on_limit", False):
         print(f"limit broken: {', '.join(broken)}", file=sys.stderr)

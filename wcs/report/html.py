@@ -119,7 +119,7 @@ class Report:
         self.res = res
         self.source = source
         self.strict = strict
-        self.units = [u if u else param_units(p) for u, p in
+        self.units = [("" if u == "1" else u) if u else param_units(p) for u, p in   # "1": dimensionless
                       zip(res.param_units or [""] * len(res.params), res.params)]
         self.problems: list[str] = []
 
