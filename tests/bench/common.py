@@ -29,7 +29,11 @@ def stamp() -> str:
                 break
     except OSError:
         pass
-    return f"wcs {commit} | {cpu} | {os.cpu_count()} cores | {time.strftime('%Y-%m-%d %H:%M')}"
+    try:
+        load = f" | load {os.getloadavg()[0]:.1f}"      # a shared machine: how busy it was
+    except OSError:
+        load = ""
+    return f"wcs {commit} | {cpu} | {os.cpu_count()} cores{load} | {time.strftime('%Y-%m-%d %H:%M')}"
 
 
 def measure(f, repeat: int = 3):
@@ -56,7 +60,7 @@ def write_table(name: str, header: list[str], rows: list[list]) -> Path:
 
 def save_figure(fig, name: str) -> Path:
     OUT.mkdir(parents=True, exist_ok=True)
-    fig.text(0.99, 0.005, stamp(), ha="right", va="bottom", fontsize=6, color="0.4")
+    fig.text(0.99, -0.01, stamp(), ha="right", va="top", fontsize=6, color="0.4")   # below the axes labels
     path = OUT / f"{name}.png"
     fig.savefig(path, dpi=110, bbox_inches="tight")
     import matplotlib.pyplot as plt

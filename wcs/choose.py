@@ -1,0 +1,131 @@
+"""Defaults chosen from the benchmarks (`make bench`, results/bench/; README: "Choosing methods").
+
+Pure functions of facts about a study; each returns (choice, reason) where the reason names the
+chart that justifies the rule, so a caller can put it in the results file or a log line.
+
+    solver_method(SolverFacts(...))  -> ("monolithic" | "dd", reason)
+    search_method(SearchFacts(...))  -> ("auto" | "local" | "global" | "sample", reason)
+    mesh_size(MeshFacts(...))        -> (size [m], reason)
+
+Nothing here reads files or runs solves; the thresholds are the numbers read off the charts of
+one `make bench` run on the reference machine (2 cores) and are kept as named constants.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# ---- solver (forward_hertz.png, forward_tunnel.png, forward_tresca.png, scaling.png,
+#      dd_stability.png, stability_materials.png)
+DD_MIN_UNKNOWNS = 1_000_000     # the DD was slower than the monolithic solver at every size measured
+#                                 (Hertz 3.6e3-1.2e5 unknowns, tunnel 4e3-6e4: forward_*.png); no crossover
+#                                 seen, so the DD is only picked beyond the measured range (scaling.png
+#                                 goes to 4.5e5) and only where it is known to converge
+DD_MAX_CONTRAST = 10.0          # dd_stability.png: with E_pad/E_base <= 0.1 the seed's iteration diverges
+#                                 and Aitken converges in only some cases
+DD_MAX_NU = 0.45                # stability_materials.png: the DD fails (status 5) from nu = 0.49
+NU_LOCKING = 0.45               # stability_materials.png: P1 Hertz peak-pressure error 2% at 0.45, 8% at 0.49,
+#                                 27% at 0.499, 135% at 0.4999 (0.2% at 0.3): say so in the reason
+
+
+@dataclass(frozen=True)
+class SolverFacts:
+    unknowns: int                       # displacement unknowns (2 x nodes), estimated or from the mesh
+    contact: bool = True                # any contact pair
+    friction: str = "none"              # "none" | "tresca" | "coulomb"
+    gradients: bool = True              # the search asks adjoint gradients (auto, local, global polish)
+    stiffness_contrast: float = 1.0     # max E / min E over bodies in contact (>= 1)
+    max_nu: float = 0.3                 # largest Poisson ratio of any material
+    dd_converges: bool | None = None    # the DD converged on this scene family (a dd_stability point or a trial)
+
+
+def solver_method(f: SolverFacts) -> tuple[str, str]:
+    """`solver.method: auto` -> "monolithic" or "dd" (never "qp": the cvxpy reference, 28-87x slower
+    than the monolithic Newton for the same answer, forward_hertz.png). The reason carries a
+    P1-locking warning when some material has nu > NU_LOCKING."""
+    method, why = _solver_rule(f)
+    if f.max_nu > NU_LOCKING:
+        why += (f"; warning: nu = {f.max_nu:g} > {NU_LOCKING:g}: P1 elements lock (Hertz peak pressure "
+                "8% off at 0.49, 27% at 0.499, stability_materials.png)")
+    return method, why
+
+
+def _solver_rule(f: SolverFacts) -> tuple[str, str]:
+    if not f.contact:
+        return "monolithic", "no contact: one sparse factorization and solve, nothing to iterate"
+    if f.gradients:
+        return "monolithic", ("the search asks adjoint gradients, which need the monolithic factorization "
+                              "(a DD answer is polished by the monolithic solver anyway, wcs/model.py)")
+    if f.friction != "none":
+        return "monolithic", ("friction: the DD's successive approximations stagnate or a local solve fails "
+                              "in 31 of 32 Tresca cases (dd_stability.png b), while the monolithic "
+                              "Newton converged in <= 11 iterations (Tresca) and the Coulomb fixed point for "
+                              "every F it can hold, up to 1.5 (stability_friction.png)")
+    if f.max_nu > DD_MAX_NU:
+        return "monolithic", f"nu = {f.max_nu:g} > {DD_MAX_NU:g}: the DD fails there (status 5, stability_materials.png)"
+    if f.stiffness_contrast > DD_MAX_CONTRAST:
+        return "monolithic", (f"stiffness contrast {f.stiffness_contrast:.0e} > {DD_MAX_CONTRAST:g}: the DD's "
+                              "successive approximations diverge or stagnate there (dd_stability.png a)")
+    if f.unknowns < DD_MIN_UNKNOWNS:
+        return "monolithic", (f"{f.unknowns} unknowns < {DD_MIN_UNKNOWNS}: the monolithic Newton was faster at "
+                              "every measured size (forward_hertz.png, forward_tunnel.png)")
+    if f.dd_converges is not True:
+        return "monolithic", "the DD has not been shown to converge on this scene family (run one dd solve first)"
+    return "dd", (f"{f.unknowns} unknowns >= {DD_MIN_UNKNOWNS}, frictionless, no gradients, contrast <= "
+                  f"{DD_MAX_CONTRAST:g}, nu <= {DD_MAX_NU:g} and known to converge: the decomposition "
+                  "(fallback to monolithic on failure)")
+
+
+# ---- search (search_convergence.png, search_solves_to_tolerance.csv)
+GLOBAL_MIN_BUDGET = 150         # DIRECT (+ polish) reached 1e-3 in 152-162 solves on all three bench studies
+
+
+@dataclass(frozen=True)
+class SearchFacts:
+    dimension: int                      # number of parameters
+    budget: int = 200                   # forward solves allowed
+    gradients: bool = True              # adjoint gradients available for the criteria
+
+
+def search_method(f: SearchFacts) -> tuple[str, str]:
+    """`search.method: auto` resolution (the strategy names of wcs.search.registry)."""
+    if f.gradients:
+        return "auto", ("gradient-sign corners with KKT checks reached 1e-4 relative in 14, 15 and 36 solves "
+                        "(heated plate, stacked layers, tunnel with 22 parameters) where the max of 512-1024 LHS "
+                        "samples is still 5-23% short, and local / global needed 36 to >200 / 154-186 "
+                        "(search_convergence.png)")
+    if f.budget >= GLOBAL_MIN_BUDGET:
+        return "global", ("no adjoint gradients: auto's corners cannot be formed; DIRECT needs none and reached "
+                          "1e-3 in 152-162 solves on every bench study (search_convergence.png)")
+    return "sample", (f"no adjoint gradients and a budget < {GLOBAL_MIN_BUDGET}: too small for DIRECT; a Latin "
+                      "hypercube at least spends it evenly (it stays 5-23% short: search_convergence.png)")
+
+
+# ---- mesh (forward_hertz.png, forward_tunnel.png)
+DIAGONAL_FRACTION = 1 / 20      # global size: 1/20 of the bounding-box diagonal (the mesher's default)
+CONTACT_POINTS = 6              # Hertz: h = a/6 -> 0.2% (peak) / 0.3% (width); a/3 -> 2.4% / 1.5% (forward_hertz.png)
+FEATURE_POINTS = 10             # tunnel: wall size = radius/10 -> criteria within 0.5% of a 4x finer mesh
+#                                 (radius/20: 0.4%, forward_tunnel.png)
+
+
+@dataclass(frozen=True)
+class MeshFacts:
+    diagonal: float                     # bounding-box diagonal of the scene [m]
+    contact_width: float | None = None  # expected contact half-width a (Hertz estimate), or the contact side length [m]
+    feature: float | None = None        # smallest curved feature (hole radius) [m]
+
+
+def mesh_size(f: MeshFacts) -> tuple[float, str]:
+    """Default `mesh.size` when the study gives none (about 1% accuracy of the criteria): the smallest
+    of diagonal/20, feature/10 and contact half-width/6, with the reason. Callers that can refine
+    locally should use the feature and contact sizes there and diagonal/20 elsewhere."""
+    h = f.diagonal * DIAGONAL_FRACTION
+    why = [f"diagonal/{round(1 / DIAGONAL_FRACTION)}"]
+    if f.feature:
+        h2 = f.feature / FEATURE_POINTS
+        if h2 < h:
+            h, why = h2, [f"smallest feature/{FEATURE_POINTS} (forward_tunnel.png)"]
+    if f.contact_width:
+        h3 = f.contact_width / CONTACT_POINTS
+        if h3 < h:
+            h, why = h3, [f"contact half-width/{CONTACT_POINTS} (forward_hertz.png)"]
+    return h, "mesh size = " + why[0]
