@@ -76,7 +76,7 @@ def summary(study, ev) -> str:
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
     s = study.search
     method = study.solver.get("method")
-    solver = method if method != "auto" else f"auto -> {ev.model.solver_method}"
+    solver = method if method != "auto" else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})"
     lines.append(f"  search: {s.get('method')}, budget {s.get('budget')} solves; solver: {solver}"
                  + ("" if scene.get("contacts") else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")

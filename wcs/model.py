@@ -119,7 +119,7 @@ class Model:
             self.floating = [(b, m) for b, m in self.free_modes.items() if m.shape[1]]
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = None               # MPI communicator the DD solver spreads its subdomains over
-        self.solver_method = self.options.get("method", "auto") if self.options.get("method") != "auto" else "monolithic"
+        self.solver_method, self.solver_reason = self._choose_solver(scene)
         self._anchor = None            # contact state at the nominal data: every solve starts from it
         self._anchor_tried = False
         self._contact_factor = None    # the latest factorization (reused with its analysis)
@@ -129,6 +129,24 @@ class Model:
         self._factor = None
         self._heat_factor = None
         self._theta = None
+
+    def _choose_solver(self, scene: dict) -> tuple[str, str]:
+        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
+        method = self.options.get("method", "auto")
+        if method != "auto":
+            return method, "chosen in the study"
+        from .choose import SolverFacts, solver_method
+        from .materials import lame
+        mats = [scene["materials"][m] for m in set(self.region_material)]
+        moduli = [lame(m)[1] for m in mats]
+        nus = [lam / (2 * (lam + mu)) for lam, mu in (lame(m) for m in mats)]
+        contacts = scene.get("contacts") or {}
+        friction = ("coulomb" if any((c.get("friction") or {}).get("coefficient") for c in contacts.values())
+                    else "tresca" if any((c.get("friction") or {}).get("slip_limit") for c in contacts.values())
+                    else "none")
+        facts = SolverFacts(unknowns=2 * self.nnodes, contact=bool(contacts), friction=friction,
+                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus))
+        return solver_method(facts)
 
     # ---- structure -----------------------------------------------------------------
     def _region_materials(self, scene) -> list[str]:
@@ -292,7 +310,7 @@ class Model:
         data set is then the same whatever was solved before it — in another order, after a
         resume, on another MPI rank — to the last bit."""
         nominal = scene is self.scene
-        if self.zone is not None and not self._anchor_tried and not nominal and self.options.get("method") != "dd":
+        if self.zone is not None and not self._anchor_tried and not nominal and self.solver_method != "dd":
             try:
                 self.solve(self.scene)
             except SolveError:
@@ -319,7 +337,7 @@ class Model:
             return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
                          w=w, theta=theta, factor=self._factor)
         used, warm = "monolithic", None
-        if self.options.get("method") == "dd":
+        if self.solver_method == "dd":
             dd = self._solve_dd(scene, c, Kr, rhs, u0)
             if dd.status == 0 and not adjoint:
                 z = self.zone
@@ -346,7 +364,7 @@ class Model:
     def _heat(self, c: Coefficients, adjoint: bool) -> np.ndarray:
         """The thermal step: by the decomposition when the study asks for dd (the adjoint
         needs the direct factorization), else directly."""
-        if self.options.get("method") == "dd" and not adjoint:
+        if self.solver_method == "dd" and not adjoint:
             from .dd.solver import solve_heat_dd
             T, _, status, _ = solve_heat_dd(self, c, self.options, comm=self.comm)
             if status == 0:
@@ -362,7 +380,7 @@ class Model:
         tol = float(self.options.get("tolerance", 1e-8))
         max_iter = int(self.options.get("max_iterations", 200))
         Fc = F if F.any() else None
-        if self.options.get("method") == "qp":
+        if self.solver_method == "qp":
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,

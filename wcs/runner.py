@@ -120,7 +120,7 @@ class Runner:
         self.evaluator = evaluator or Evaluator(study)
         # MPI: with the DD solver every evaluation is spread over all ranks (its subdomains);
         # otherwise each rank solves its share of a batch (evaluation-level parallelism)
-        self.split_batches = self.comm is not None and study.solver.get("method") != "dd"
+        self.split_batches = self.comm is not None and self.evaluator.model.solver_method != "dd"
         if self.comm is not None and not self.split_batches:
             self.evaluator.model.comm = self.comm
         self.criteria = [c.name for c in self.evaluator.criteria]
