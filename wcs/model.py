@@ -414,24 +414,18 @@ class Model:
         v = m_best @ a_best
         work = float(rhs @ (self.elim.T.T @ v))
         nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(best))
-        force = np.array([rhs_full_component(self, rhs, nodes, i) for i in range(2)])
+        load = self.elim.T @ rhs                                   # the reduced load, back on the dofs
+        force = np.array([load[2 * nodes + i].sum() for i in range(2)])
         return (f"body '{best}' is held only by contact and its load is not balanced: "
                 f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
                 f"and contact do not resist (load work {work:.3g} > friction work); "
                 f"solvability S(w) <= j(w) fails (physics.md §2)")
-
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
         reg = self.smesh.cell_region
         strain = (self.G @ u).reshape(3, -1)
         dT = cell_mean(self.smesh.mesh.t, T) - c.reference if T is not None else np.zeros(reg.size)
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
-
-
-def rhs_full_component(model, rhs, nodes, i) -> float:
-    """Resultant of the reduced load on a set of nodes in direction i."""
-    f = model.elim.T @ rhs
-    return float(f[2 * nodes + i].sum())
 
 
 def _refactor(factor, A):

@@ -166,7 +166,7 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
         N[2 * m:, :2 * m] = CR.T
     N[B, B] = 1.0
     tang = B[B >= m]
-    N[tang, tang - m] = -s[tang - m] * res_coulomb(model, state)[tang - m]
+    N[tang, tang - m] = -s[tang - m] * np.asarray(state.coefficients.coulomb, float)[tang - m]
     mu = _consistent_solve(N.T, g)
     if mu is None:
         return None
@@ -192,10 +192,6 @@ def _consistent_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     # redundant rows make A ill-conditioned (seen: cond 1e16, residual 1e-7 of |b|): round-off, not an
     # inconsistency, which would leave a residual of the order of |b|
     return x if np.abs(A @ x - b).max() <= 1e-6 * scale else None
-
-
-def res_coulomb(model, state) -> np.ndarray:
-    return np.asarray(state.coefficients.coulomb, float)
 
 
 def contact_nonsmooth(model, state) -> bool:
