@@ -20,23 +20,9 @@ from wcs.contact.mortar import mortar_integrals, sides_match
 from wcs.fem.gluing import build_glue, substitution
 from wcs.scene.mesher import build_mesh
 
-VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
+from scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
 
 
-def load(name, tmp_path, edit=None):
-    doc = yaml.safe_load((VALIDATION / f"{name}.yaml").read_text())
-    if edit:
-        edit(doc)
-    path = tmp_path / f"{name}-{abs(hash(yaml.safe_dump(doc))) % 10**8}.yaml"
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    return wcs.load_study(path)
-
-
-def solve(name, tmp_path, edit=None):
-    study = load(name, tmp_path, edit)
-    ev = study.evaluate(study.nominal())
-    assert ev.status == 0, ev.message
-    return study, ev
 
 
 # ---------------------------------------------------------------- the operator itself
