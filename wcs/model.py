@@ -323,12 +323,7 @@ class Model:
             body, modes = next(iter(floating.items()))
             raise StudyError(f"body '{body}' is not held: {_describe_modes(modes)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
-        kc = self.stiffness_coefficients(c)
-        K = self.K(kc)
-        Kr = self.reduce(K)
-        u0 = self.elim.U0 @ c.support_values
-        f = self.mechanical_load(c, T)
-        rhs = self.Tt @ (f - K @ u0)
+        K, Kr, rhs, u0 = self.reduced_system(c, T)
         theta = self._theta
         if self.zone is None:
             self._factor = _refactor(self._factor, Kr)
@@ -356,6 +351,13 @@ class Model:
         u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0, nominal, warm)
         return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c, solver=used,
                      iterations=iterations, contact=contact, w=res.u, theta=theta, raw=res)
+
+    def reduced_system(self, c: Coefficients, T: np.ndarray | None):
+        """(K, Kr, rhs, u0): the stiffness, Kr = Tᵀ K T on its fixed pattern, the reduced load
+        rhs = Tᵀ(f − K u0) and the displacement u0 the supports impose (u = T w + u0)."""
+        K = self.K(self.stiffness_coefficients(c))
+        u0 = self.elim.U0 @ c.support_values
+        return K, self.reduce(K), self.Tt @ (self.mechanical_load(c, T) - K @ u0), u0
 
     def _solve_dd(self, scene, c, Kr, rhs, u0):
         from .dd.solver import solve_dd

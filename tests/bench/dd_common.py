@@ -34,11 +34,7 @@ def run(study, model, options, compare=True):
     """(DDResult, dict of measured numbers)."""
     scene = study.scene
     c = model.coefficients(scene)
-    K = model.K(model.stiffness_coefficients(c))
-    Kr = model.Tt @ K @ model.elim.T
-    u0 = model.elim.U0 @ c.support_values
-    T = model.solve_heat(c) if model.thermal else None
-    rhs = model.Tt @ (model.mechanical_load(c, T) - K @ u0)
+    _, Kr, rhs, u0 = model.reduced_system(c, model.solve_heat(c) if model.thermal else None)
     t = time.perf_counter()
     res = dds.solve_dd(model, scene, Kr, rhs, u0, options, coefficients=c)
     out = {"status": dds.STATUS_NAMES[res.status], "time_dd": time.perf_counter() - t,

@@ -71,11 +71,7 @@ def edited_study(path: Path, tmp: Path, mesh_scale: float = 1.0, budget: int | N
 
 def reduced_system(model, scene):
     c = model.coefficients(scene)
-    K = model.K(model.stiffness_coefficients(c))
-    Kr = model.Tt @ K @ model.elim.T
-    u0 = model.elim.U0 @ c.support_values
-    T = model.solve_heat(c) if model.thermal else None
-    rhs = model.Tt @ (model.mechanical_load(c, T) - K @ u0)
+    _, Kr, rhs, u0 = model.reduced_system(c, model.solve_heat(c) if model.thermal else None)
     return c, Kr, rhs, u0
 
 
