@@ -31,3 +31,12 @@ def test_auto_solver_is_resolved_and_reported():
     assert ev.status == 0
     model = ev.evaluator.model
     assert study.solver["method"] == "auto" and model.solver_method == "monolithic" and model.solver_reason
+
+
+def test_default_mesh_size_follows_the_rule():
+    from wcs.scene.mesher import default_size
+    scene = {"bodies": {"rock": {"regions": [{"shape": {"rectangle": [-60, -60, 60, 60],
+                                                        "minus": [{"disc": {"center": [0, 0], "radius": 5.0}}]}}]}}}
+    diag = 120 * 2 ** 0.5
+    assert default_size(scene, diag) == min(diag / 20, 5.0 / 10)
+    assert default_size({"bodies": {}}, diag) == diag / 20

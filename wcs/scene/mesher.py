@@ -135,13 +135,33 @@ def _refinements(scene: dict, entries, path0: str, grading_path: str):
     return refs
 
 
+def default_size(scene: dict, bbox_diag: float) -> float:
+    """`mesh.size` when the study gives none: the benchmark rule of `wcs.choose.mesh_size`
+    (diagonal/20, and a tenth of the smallest disc radius, e.g. a tunnel)."""
+    from ..choose import MeshFacts, mesh_size
+    radii = [float(r["radius"]) for r in _discs(scene)]
+    return mesh_size(MeshFacts(diagonal=bbox_diag, feature=min(radii) if radii else None))[0]
+
+
+def _discs(node):
+    """Every `disc: {center, radius}` in a (nested) scene structure."""
+    if isinstance(node, dict):
+        if isinstance(node.get("disc"), dict) and "radius" in node["disc"]:
+            yield node["disc"]
+        for v in node.values():
+            yield from _discs(v)
+    elif isinstance(node, list):
+        for v in node:
+            yield from _discs(v)
+
+
 def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entity_size=None):
     """The size callback. ``body``: a body meshed on its own (its ``mesh: {size, refine}``
     overrides / adds to the scene's). ``entity_size``: {(dim, tag): size} of entities
     inside regions with their own ``mesh: {size}``."""
     mspec = scene.get("mesh") or {}
     size = mspec.get("size")
-    size = float(size) if size is not None else bbox_diag / 20.0
+    size = float(size) if size is not None else default_size(scene, bbox_diag)
     if not (size > 0 and math.isfinite(size)):
         raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
     grading = float(mspec.get("grading", DEFAULT_GRADING))
