@@ -55,20 +55,26 @@ class Progress:
                   file=self.stream, flush=True)
             return
         now = time.perf_counter()
+        self._pending = (done, best)
         if now - self._last < self.interval and done < self.total:
             return
+        self._draw(done, best, now)
+
+    def _draw(self, done: int, best: dict, now: float, final: bool = False) -> None:
         self._last = now
         elapsed = now - self.t0
         eta = elapsed / done * (self.total - done) if done else 0.0
         line = (f"{self.label} {done}/{self.total}  best: "
                 + " ".join(f"{c}={_g(best.get(c))}" for c in self.criteria)
-                + f"  [eta {_clock(eta)}]")
+                + (f"  [done in {_clock(elapsed)}]" if final else f"  [eta {_clock(eta)}]"))
         pad = max(0, self._width - len(line))
         self._width = len(line)
         self.stream.write("\r" + line + " " * pad)
         self.stream.flush()
 
     def finish(self) -> None:
+        if self.mode == "line" and getattr(self, "_pending", None):
+            self._draw(*self._pending, time.perf_counter(), final=True)   # the final count, not a throttled one
         if self.mode == "line" and self._width:
             self.stream.write("\n")
             self.stream.flush()
