@@ -44,7 +44,7 @@ def test_demo_loads(demo):
     assert demo.text == DEMO.read_text()
     assert demo.search == {"method": "auto", "sample": {"design": "lhs", "n": 32, "seed": 7},
                            "budget": 200, "local": {"starts": 3}}
-    assert demo.solver["dd"] == {"subdomains": 8, "pair_size": 0.5, "relaxation": "aitken", "patience": 8}
+    assert demo.solver["dd"] == {"subdomains": 8, "pair_size": 0.5, "relaxation": "aitken", "patience": 8, "step": "seed"}
     assert demo.solver["fallback"] is True
     assert demo.limits == {"shear": 4.0e12}
     assert demo.sweep is None

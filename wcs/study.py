@@ -469,6 +469,7 @@ class DomainDecomposition(_Strict):
     pair_size: float = Field(0.5, gt=0)                  # band around a contact side, in subdomain widths H
     relaxation: Literal["aitken"] | Annotated[float, Field(gt=0, le=2)] = "aitken"   # or ω (1 = the seed)
     patience: int = Field(8, ge=1)                       # steps with contraction q ≥ 1 before "stagnated"
+    step: Literal["seed", "glued"] = "seed"              # successive steps with S0 (the seed) or S0 + glued pairs
 
 
 class Solver(_Strict):

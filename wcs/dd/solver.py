@@ -273,6 +273,10 @@ def _dd_options(options: dict) -> dict:
         "anderson": int(dd.get("anderson", 5)),
         "anderson_restart": float(dd.get("anderson_restart", 0.0)),
         "mixing": float(dd.get("mixing", 1.0)),
+        # the operator of the successive steps: the seed's S0 (linear subdomains only) or
+        # S = S0 + L with the pairs' glued response L, iterating only the nonlinear correction
+        # S U^k = F − S_con(U^{k−1}) + L U^{k−1} (same fixed point; no contraction proof)
+        "linear_part": "glued" if dd.get("step", "seed") == "glued" else "S0",
     }
 
 
@@ -369,7 +373,8 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     # 2. successive approximations: PCG2
     t = time.perf_counter()
     Fl = S0.load()
-    status, message, U = _successive(dec, S0, Fl, r1.x, d, g, F, z.weight, o, info, team)
+    step_operator = S if o["linear_part"] == "glued" else S0
+    status, message, U = _successive(dec, step_operator, Fl, r1.x, d, g, F, z.weight, o, info, team)
     info["timings"]["successive"] = time.perf_counter() - t
     if status != CONVERGED:
         info["ranks"] = team.report()
@@ -482,6 +487,8 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         if rc is None:
             return LOCAL_FAILED, msg, U
         b = F - rc
+        if o["linear_part"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
+            b = b + team.sum(pairs, {p.index: p.apply_S(U[p.gamma]) for p in team.local(pairs)}, dec.nif)
         eta = _inner_tolerance(o, hist)
         r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
                  coarse=S0.coarse, reference=max(Fnorm, np.linalg.norm(b)))
