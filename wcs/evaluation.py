@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .criteria import build_criteria
-from .errors import SolveError, StudyError
+from .errors import SolveError
 from .model import Model, State
 from .scene.mesher import build_mesh
 

@@ -200,7 +200,7 @@ class Model:
         p = self.smesh.mesh.p
         free = {}
         for cluster in glued_clusters(len(self.smesh.bodies), self.glue):   # glued bodies move together
-            b, name = cluster[0], self.smesh.bodies[cluster[0]]
+            name = self.smesh.bodies[cluster[0]]
             nodes = np.flatnonzero(np.isin(node_body, cluster))
             R = rigid_modes(p, nodes, self.nnodes)
             held = [r for bb in cluster for r in rows[bb]]

@@ -42,7 +42,7 @@ import numpy as np
 import xarray as xr
 
 from .errors import StudyError
-from .search import Batch, Outcome, Problem, Worst
+from .search import Outcome, Problem, Worst
 from .store import Store, key, store_path
 
 OTHER_FAILURE = 6            # wcs.evaluation.STATUS: "other failure"

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import xarray as xr
 
 from ..errors import StudyError
 from ..scene.meshdata import SceneMesh

@@ -295,6 +295,18 @@ def _fail(info, status, message):
     return DDResult(None, None, None, info, status, message)
 
 
+def _distribute_load(dec, rho, rhs: np.ndarray, team) -> list:
+    """The stiffness-weighted injections D_s ([21, (5.5)–(5.7)]) and each own unit's share of
+    the reduced load (interface entries weighted by D_s, so the shares sum to the load)."""
+    D = injections(dec.units, dec.nif, rho)
+    for u, w in zip(dec.units, D):
+        if team.mine(u):
+            f = rhs[u.dofs].copy()
+            f[u.B] *= w
+            u.set_load(f)
+    return D
+
+
 def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: dict | None = None,
              *, coefficients=None, comm=None) -> DDResult:
     """Solve the model's reduced contact problem (Kr, rhs, u = T w + u0) by the DD method.
@@ -343,12 +355,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
         if hasattr(u, "warm"):
             u.warm = None
     rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
-    D = injections(dec.units, dec.nif, rho)
-    for u, w in zip(dec.units, D):
-        if team.mine(u):
-            f = rhs[u.dofs].copy()
-            f[u.B] *= w
-            u.set_load(f)
+    D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
     try:
@@ -627,12 +634,7 @@ def solve_heat_dd(model, c, options: dict | None = None, *, comm=None):
     team.timings["assemble"] += time.perf_counter() - t
     kreg = np.asarray(c.kappa, float)
     rho = [_unit_rho(model, u, kreg, dec.part) for u in dec.units]
-    D = injections(dec.units, dec.nif, rho)
-    for u, w in zip(dec.units, D):
-        if team.mine(u):
-            f = rhs[u.dofs].copy()
-            f[u.B] *= w
-            u.set_load(f)
+    D = _distribute_load(dec, rho, rhs, team)
     info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif, "nranks": team.size}
     try:
         S = InterfaceOperator(dec.units, dec.nif, D, team)

@@ -300,7 +300,6 @@ def _extract(owner: dict, offset: int = 0):
 def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
     """Mesh each body in its own gmsh model (its regions fragmented together, so regions of
     a body stay conforming); returns the concatenation, bodies in scene order."""
-    occ = gmsh.model.occ
     base = gmsh.model.getCurrent()
     xys, tris, cbs, crs = [], [], [], []
     offset = 0
@@ -309,12 +308,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
         mine = [(rg, make_shape(regions_flat[rg]["shape"], f"scene.bodies.{body}.regions.{i}.shape"))
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
         flat = [(rg, dt) for rg, dts in mine for dt in dts]
-        if len(flat) > 1:
-            alldt = [dt for _, dt in flat]
-            _, outmap = occ.fragment(alldt[:1], alldt[1:])
-        else:
-            outmap = [[flat[0][1]]]
-        occ.synchronize()
+        outmap = _fragment([dt for _, dt in flat])
         owner = {}
         for (rg, _), pieces in zip(flat, outmap):
             for dim, tag in pieces:
@@ -330,6 +324,16 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
         offset += xy.shape[0]
         xys.append(xy); tris += t; cbs += c1; crs += c2
     return np.concatenate(xys), tris, cbs, crs
+
+
+def _fragment(dimtags: list) -> list:
+    """Boolean fragment of the given shapes (conforming pieces): the pieces of each input, in order."""
+    if len(dimtags) > 1:
+        _, outmap = gmsh.model.occ.fragment(dimtags[:1], dimtags[1:])
+    else:
+        outmap = [[dimtags[0]]]
+    gmsh.model.occ.synchronize()
+    return outmap
 
 
 def build_mesh(scene: dict) -> SceneMesh:
@@ -350,7 +354,6 @@ def build_mesh(scene: dict) -> SceneMesh:
     regions = region_names(scene)
 
     with _Session():
-        occ = gmsh.model.occ
         # -- shapes: one entry (body index, region index, surfaces) per region
         inputs: list[tuple[int, int, list]] = []
         r = 0
@@ -367,12 +370,7 @@ def build_mesh(scene: dict) -> SceneMesh:
 
         # -- one fragment of everything -> conforming pieces
         flat = [(k, dt) for k, (_, _, dts) in enumerate(inputs) for dt in dts]
-        if len(flat) > 1:
-            alldt = [dt for _, dt in flat]
-            _, outmap = occ.fragment(alldt[:1], alldt[1:])
-        else:
-            outmap = [[flat[0][1]]]
-        occ.synchronize()
+        outmap = _fragment([dt for _, dt in flat])
         covered: dict[int, list[int]] = {}          # piece tag -> input (region) indices
         for (k, _), pieces in zip(flat, outmap):
             for dim, tag in pieces:
