@@ -13,7 +13,10 @@ import numpy as np
 
 from .errors import StudyError
 from .fem.stress import shear_intensity, von_mises
-from .scene.selectors import Selection, distance_function, facet_lengths, facet_normals, select_region
+from .scene.selectors import (Selection, boundary_facets, dist_segment, distance_function, facet_lengths,
+                              facet_normals, select_region)
+
+CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
 
 UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
          "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
@@ -55,7 +58,7 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
     for k, spec in enumerate(study_criteria):
         path = f"criteria.{k}"
         contact = spec["kind"] == "contact_pressure"        # only the contact nodes in G_r matter
-        sels = [select_region(smesh, rois[r], f"scene.regions_of_interest.{r}", allow_empty=contact)
+        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}", contact)
                 for r in spec["regions"]]
         functionals, measures = None, np.array([_measure(smesh.mesh, s) for s in sels])
         if spec["kind"] == "mean_temperature":
@@ -63,85 +66,129 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
         elif spec["kind"] == "mean_normal_displacement":
             functionals = []
             for r, s in zip(spec["regions"], sels):
-                d = _direction(smesh, spec, s, f"{path} ({r})")
+                d = _direction(smesh, spec, s, path, r)
                 nodal = _mean_weights(smesh.mesh, s)
                 ell = np.zeros(2 * nodal.size)
                 ell[0::2], ell[1::2] = nodal * d[0], nodal * d[1]
                 functionals.append(ell)
         masks = None
         if spec["kind"] == "contact_pressure":
-            masks = [_contact_nodes_in(scene, zone, r, f"scene.regions_of_interest.{r}") for r in spec["regions"]]
+            masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
+                     for r, s in zip(spec["regions"], sels)]
         out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures, masks))
     return out
 
 
+def _roi_selection(smesh, name: str, spec: dict, path: str, allow_empty: bool) -> Selection:
+    """G_r as mesh entities: the cells of a box / disc / polygon embedded in the mesh (exactly
+    G_r, the disc as the mesh's polygon), else `select_region` (boundary facets; on a mesh file
+    the cells cut exactly by a box or polygon)."""
+    if name not in smesh.roi_cells:
+        return select_region(smesh, spec, path, allow_empty=allow_empty)
+    sel = Selection("cells", smesh.roi_cells[name])
+    if len(sel) == 0 and not allow_empty:
+        where = f" of body {spec['body']!r}" if spec.get("body") is not None else ""
+        raise StudyError(f"the region of interest covers no part of the scene{where}", path=path)
+    return sel
+
+
 def _measure(mesh, sel: Selection) -> float:
     if sel.kind == "cells":
-        return float(_areas(mesh, sel.index).sum())
+        return float(sel.cell_moments(mesh).sum())
     return float(facet_lengths(mesh, sel.index).sum())
 
 
-def _areas(mesh, cells):
-    p, t = mesh.p, mesh.t[:, cells]
-    d1, d2 = p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]
-    return 0.5 * np.abs(d1[0] * d2[1] - d1[1] * d2[0])
+def cell_weights(model, sel: Selection) -> tuple[np.ndarray, np.ndarray]:
+    """(cells, meas(G ∩ T)) of the cells a cell-wise mean over G_r runs over; a boundary
+    region of interest: the cells along its facets, whole."""
+    if sel.kind == "facets":
+        cells = np.unique(model.smesh.mesh.f2t[0, sel.index])
+        return cells, model.cell_area[cells]
+    if sel.moments is None:
+        return sel.index, model.cell_area[sel.index]
+    return sel.index, sel.moments.sum(axis=0)
 
 
 def _mean_weights(mesh, sel: Selection) -> np.ndarray:
     """Nodal weights ℓ with ℓ · v = (meas G)⁻¹ ∫_G v for a P1 field v (exact)."""
     w = np.zeros(mesh.p.shape[1])
     if sel.kind == "cells":
-        a = _areas(mesh, sel.index)
+        m = sel.cell_moments(mesh)
         for k in range(3):
-            np.add.at(w, mesh.t[k, sel.index], a / 3.0)
-        return w / a.sum()
+            np.add.at(w, mesh.t[k, sel.index], m[k])
+        return w / m.sum()
     L = facet_lengths(mesh, sel.index)
     for k in range(2):
         np.add.at(w, mesh.facets[k, sel.index], L / 2.0)
     return w / L.sum()
 
 
-def _direction(smesh, spec: dict, sel: Selection, path: str) -> np.ndarray:
-    """The fixed direction n(X_r): given, the outward normal at the boundary point nearest
-    `point`, or the mean outward normal of a boundary region of interest."""
+def _direction(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+    """The fixed direction n(X_r): given, the outward normal of the boundary of the region's
+    body at `point` X_r (X_r must lie on it, up to half an edge; at a node between edges that
+    turn by at most 30° their length-weighted mean normal, at a sharper corner refused), or the
+    mean outward normal of a boundary region of interest."""
     mesh = smesh.mesh
     if spec.get("direction") is not None:
         d = np.asarray(spec["direction"], float)
         return d / np.linalg.norm(d)
     if spec.get("point") is not None:
         X = np.asarray(spec["point"], float)
-        facets = np.flatnonzero(mesh.f2t[1] == -1)
+        facets = boundary_facets(mesh)
         owners = smesh.cell_body[sel.index] if sel.kind == "cells" else smesh.cell_body[mesh.f2t[0, sel.index]]
         facets = facets[np.isin(smesh.cell_body[mesh.f2t[0, facets]], owners)]   # the ROI's own body
-        mid = mesh.p[:, mesh.facets[:, facets]].mean(axis=1)
-        nearest = facets[np.argmin(np.hypot(mid[0] - X[0], mid[1] - X[1]))]
-        return facet_normals(mesh, np.array([nearest]))[0]
+        a, b = mesh.p[:, mesh.facets[0, facets]], mesh.p[:, mesh.facets[1, facets]]
+        e = b - a
+        s = np.clip(((X[:, None] - a) * e).sum(axis=0) / (e * e).sum(axis=0), 0.0, 1.0)
+        dist = np.hypot(*(X[:, None] - a - s * e))
+        L = np.hypot(*e)
+        k = int(np.argmin(dist))
+        bodies = ", ".join(smesh.bodies[i] for i in np.unique(owners))
+        if dist[k] > 0.5 * L[k]:
+            raise StudyError(f"point {X.tolist()} is not on the boundary of body {bodies} (region "
+                             f"'{roi}'): the nearest boundary edge is {dist[k]:.6g} away; X_r must lie "
+                             "on the boundary", path=f"{path}.point")
+        tied = dist <= dist[k] + 1e-3 * L[k]
+        n = facet_normals(mesh, facets[tied])
+        if np.min(n @ n.T) < CORNER:
+            raise StudyError(f"point {X.tolist()} is equally near boundary edges of body {bodies} "
+                             f"whose outward normals differ by more than 30° (a corner): n(X_r) is "
+                             "not defined there; move the point or give `direction`",
+                             path=f"{path}.point")
+        m = (n * L[tied][:, None]).sum(axis=0)
+        return m / np.linalg.norm(m)
     if sel.kind == "facets":
         n = (facet_normals(mesh, sel.index) * facet_lengths(mesh, sel.index)[:, None]).sum(axis=0)
         return n / np.linalg.norm(n)
-    raise StudyError("a mean normal displacement over an area needs `point` (X_r) or `direction`",
-                     path=path)
+    raise StudyError(f"a mean normal displacement over an area (region '{roi}') needs `point` (X_r) "
+                     "or `direction`", path=path)
 
 
 def _cell_mean(model, sel: Selection, density: np.ndarray) -> float:
-    cells = sel.index if sel.kind == "cells" else np.unique(model.smesh.mesh.f2t[0, sel.index])
-    a = model.cell_area[cells]
+    cells, a = cell_weights(model, sel)
     return float(a @ density[cells] / a.sum())
 
 
-def _contact_nodes_in(scene: dict, zone, roi: str, path: str) -> np.ndarray:
-    """Contact (slave) nodes lying in a region of interest, tested on the ROI's geometry:
-    a ROI on either side of the contact catches the same nodes, matching or not."""
-    spec = dict(scene["regions_of_interest"][roi])
-    spec.pop("body", None)
-    if "boundary" in spec:
-        spec = {k: v for k, v in scene["boundaries"][spec["boundary"]].items() if k != "body"}
-    x, y = zone.coords.T
-    scale = max(np.ptp(zone.coords, axis=0).max(), 1e-300)
-    mask = distance_function(spec, path)(x, y) <= 1e-6 * scale + 1e-3 * zone.weight
+def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: str) -> np.ndarray:
+    """Contact rows (slave nodes) next to G_r: the slave node x or its master projection
+    x + gap·n lies in G_r, so a region on either side of a contact, open or closed, matching
+    or not, catches the same rows. A boundary G_r is its facets; an area one its shape."""
+    normal = np.concatenate([p.normal for p in zone.pairs])
+    pts = np.vstack([zone.coords, zone.coords + zone.gap[:, None] * normal])
+    if sel.kind == "facets":
+        mesh = smesh.mesh
+        a, b = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
+        dist = np.min([dist_segment(pts[:, 0], pts[:, 1], a[i], b[i]) for i in range(len(a))], axis=0)
+    else:
+        spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
+        dist = distance_function(spec, path)(pts[:, 0], pts[:, 1])
+    scale = max(np.ptp(pts, axis=0).max(), 1e-300)
+    near = dist <= 1e-6 * scale + 1e-3 * np.tile(zone.weight, 2)
+    mask = near[:zone.gap.size] | near[zone.gap.size:]
     if not mask.any():
-        raise StudyError(f"region of interest '{roi}' holds no contact node: a contact pressure "
-                         "criterion needs a region next to a contact", path=path)
+        raise StudyError(f"region of interest '{roi}' holds no contact node nor its master "
+                         "projection: a contact pressure criterion needs a region next to a contact",
+                         path=path)
     return mask
 
 

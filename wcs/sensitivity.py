@@ -100,12 +100,13 @@ def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
 
 def _stress_partials(criterion, model, state, r: int) -> Partials:
     """Φ = Σ_c a_c ψ(τ_c) / Σ a_c with ψ = I₂² (or von Mises); τ = D(λ, μ) e − β ΔT m."""
+    from .criteria import cell_weights
     from .fem.stress import shear_intensity
     sm, mesh = model.smesh, model.smesh.mesh
     sel = criterion.selections[r]
-    cells = sel.index if sel.kind == "cells" else np.unique(mesh.f2t[0, sel.index])
+    cells, a = cell_weights(model, sel)
     weight = np.zeros(mesh.t.shape[1])
-    weight[cells] = model.cell_area[cells] / model.cell_area[cells].sum()
+    weight[cells] = a / a.sum()
     s = state.stress
     xx, yy, zz, xy = s
     dI = (2.0 / 3.0) * np.array([2 * xx - yy - zz, 2 * yy - xx - zz, 2 * zz - xx - yy, 3 * xy])

@@ -23,6 +23,8 @@ class SceneMesh:
     cell_region: np.ndarray                 # (ncells,) index into regions
     boundaries: dict[str, np.ndarray] = field(default_factory=dict)
     # name -> sorted indices into mesh.facets of the boundary facets selected
+    roi_cells: dict[str, np.ndarray] = field(default_factory=dict)
+    # region of interest (box, disc, polygon: embedded in the mesh) -> sorted indices of its cells
 
     @property
     def node_body(self) -> np.ndarray:

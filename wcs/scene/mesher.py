@@ -62,6 +62,7 @@ from .meshdata import SceneMesh
 CURVATURE_ELEMENTS = 24         # Mesh.MeshSizeFromCurvature: elements per 2*pi of arc
 DEFAULT_GRADING = 0.5           # size growth per unit distance away from a refine zone
 ALGORITHM_2D = 6                # Frontal-Delaunay
+ROI_SHAPES = {"box": "rectangle", "disc": "disc", "polygon": "polygon"}   # region of interest -> shape
 
 _lock = threading.Lock()        # gmsh is a process-wide singleton
 
@@ -279,51 +280,92 @@ def _area(tag: int) -> float:
     return float(gmsh.model.occ.getMass(2, tag))
 
 
-def _extract(owner: dict, offset: int = 0):
+def _extract(owner: dict, inside: dict, offset: int = 0):
     """Nodes (k, 2) and, per owned surface in (body, region, tag) order, its cells (global
-    numbering = offset + gmsh node order), body and region indices."""
+    numbering = offset + gmsh node order), body and region indices, and (n_roi, cells)
+    flags: the cell lies in region of interest j (``inside[tag]``: the j covering the piece)."""
     ntags, coords, _ = gmsh.model.mesh.getNodes()
     ntags = np.asarray(ntags, dtype=np.int64)
     xy = np.asarray(coords, dtype=float).reshape(-1, 3)[:, :2]
     lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
     lookup[ntags] = np.arange(ntags.size)
-    tris, cb, cr = [], [], []
+    tris, cb, cr, ci = [], [], [], []
     for tag in sorted(owner, key=lambda t: (owner[t], t)):
         _, nt = gmsh.model.mesh.getElementsByType(2, tag)
         tri = lookup[np.asarray(nt, dtype=np.int64)].reshape(-1, 3)
         tris.append(np.where(tri >= 0, tri + offset, -1))
         cb.append(np.full(len(tri), owner[tag][0], dtype=np.int64))
         cr.append(np.full(len(tri), owner[tag][1], dtype=np.int64))
-    return xy, tris, cb, cr
+        flags = np.zeros((len(inside[tag]), len(tri)), dtype=bool)
+        flags[[j for j, hit in enumerate(inside[tag]) if hit]] = True
+        ci.append(flags)
+    return xy, tris, cb, cr, ci
+
+
+def _roi_shapes(scene: dict) -> list:
+    """Surfaces of the area regions of interest (box, disc, polygon), created in the current
+    model, in scene order: fragmented with the bodies, they make G_r a union of cells."""
+    out = []
+    for name in area_rois(scene):
+        spec = scene["regions_of_interest"][name]
+        kind = next(k for k in ROI_SHAPES if spec.get(k) is not None)
+        out.append(make_shape({ROI_SHAPES[kind]: spec[kind]}, f"scene.regions_of_interest.{name}"))
+    return out
+
+
+def area_rois(scene: dict) -> list[str]:
+    """Names of the regions of interest given by a box, disc or polygon (embedded in the mesh)."""
+    return [name for name, spec in (scene.get("regions_of_interest") or {}).items()
+            if isinstance(spec, dict) and any(spec.get(k) is not None for k in ROI_SHAPES)]
+
+
+def _pieces(region_shapes: list, roi_shapes: list):
+    """Fragment region and region-of-interest surfaces together; remove the pieces no region
+    covers (parts of a region of interest outside every body). Returns {piece: [region input
+    indices]} and {piece: [covered by region of interest j, for every j]}."""
+    flat = [(k, dt) for k, dts in enumerate(region_shapes) for dt in dts]
+    flat += [(-1 - j, dt) for j, dts in enumerate(roi_shapes) for dt in dts]
+    outmap = _fragment([dt for _, dt in flat])
+    covered: dict[int, list[int]] = {}
+    rois: dict[int, set[int]] = {}
+    for (k, _), pieces in zip(flat, outmap):
+        for dim, tag in pieces:
+            if dim == 2 and k >= 0:
+                covered.setdefault(tag, [])
+                if k not in covered[tag]:
+                    covered[tag].append(k)
+            elif dim == 2:
+                rois.setdefault(tag, set()).add(-1 - k)
+    outside = [(2, tag) for tag in rois if tag not in covered]
+    if outside:
+        gmsh.model.occ.remove(outside, recursive=True)
+        gmsh.model.occ.synchronize()
+    inside = {tag: [j in rois.get(tag, ()) for j in range(len(roi_shapes))] for tag in covered}
+    return covered, inside
 
 
 def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
     """Mesh each body in its own gmsh model (its regions fragmented together, so regions of
     a body stay conforming); returns the concatenation, bodies in scene order."""
     base = gmsh.model.getCurrent()
-    xys, tris, cbs, crs = [], [], [], []
+    xys, tris, cbs, crs, cis = [], [], [], [], []
     offset = 0
     for b, body in enumerate(bodies):
         gmsh.model.add(f"{base}_body{b}")
         mine = [(rg, make_shape(regions_flat[rg]["shape"], f"scene.bodies.{body}.regions.{i}.shape"))
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
-        flat = [(rg, dt) for rg, dts in mine for dt in dts]
-        outmap = _fragment([dt for _, dt in flat])
-        owner = {}
-        for (rg, _), pieces in zip(flat, outmap):
-            for dim, tag in pieces:
-                if dim == 2:
-                    owner[tag] = (b, max(owner.get(tag, (b, -1))[1], rg))
+        covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene))
+        owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
         _, callback = _size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat))
         gmsh.model.mesh.setSizeCallback(callback)
         gmsh.model.mesh.generate(2)
-        xy, t, c1, c2 = _extract(owner, offset)
+        xy, t, c1, c2, c3 = _extract(owner, inside, offset)
         gmsh.model.mesh.removeSizeCallback()
         gmsh.model.remove()
         gmsh.model.setCurrent(base)
         offset += xy.shape[0]
-        xys.append(xy); tris += t; cbs += c1; crs += c2
-    return np.concatenate(xys), tris, cbs, crs
+        xys.append(xy); tris += t; cbs += c1; crs += c2; cis += c3
+    return np.concatenate(xys), tris, cbs, crs, cis
 
 
 def _fragment(dimtags: list) -> list:
@@ -368,16 +410,8 @@ def build_mesh(scene: dict) -> SceneMesh:
                 inputs.append((b, r, make_shape(reg["shape"], path)))
                 r += 1
 
-        # -- one fragment of everything -> conforming pieces
-        flat = [(k, dt) for k, (_, _, dts) in enumerate(inputs) for dt in dts]
-        outmap = _fragment([dt for _, dt in flat])
-        covered: dict[int, list[int]] = {}          # piece tag -> input (region) indices
-        for (k, _), pieces in zip(flat, outmap):
-            for dim, tag in pieces:
-                if dim == 2:
-                    lst = covered.setdefault(tag, [])
-                    if k not in lst:
-                        lst.append(k)
+        # -- one fragment of everything (regions of interest included) -> conforming pieces
+        covered, inside = _pieces([dts for _, _, dts in inputs], _roi_shapes(scene))
 
         owner: dict[int, tuple[int, int]] = {}      # piece tag -> (body, region)
         for tag in sorted(covered):
@@ -406,16 +440,17 @@ def build_mesh(scene: dict) -> SceneMesh:
                                             _region_entity_sizes(scene, owner, regions_flat))
             gmsh.model.mesh.setSizeCallback(callback)
             gmsh.model.mesh.generate(2)
-            xy, tris, cb, cr = _extract(owner)
+            xy, tris, cb, cr, ci = _extract(owner, inside)
             gmsh.model.mesh.removeSizeCallback()
         else:
             # bodies with their own sizes: every body meshed in a model of its own, so
             # curves shared with other bodies are NOT shared meshes (nonmatching sides)
-            xy, tris, cb, cr = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag)
+            xy, tris, cb, cr, ci = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag)
 
     tri = np.concatenate(tris)
     cell_body = np.concatenate(cb)
     cell_region = np.concatenate(cr)
+    in_roi = np.concatenate(ci, axis=1)
     if (tri < 0).any():
         raise RuntimeError("gmsh returned a cell with an unknown node")
 
@@ -438,4 +473,11 @@ def build_mesh(scene: dict) -> SceneMesh:
     bnd = {}
     for name, spec in (scene.get("boundaries") or {}).items():
         bnd[name] = selectors.select_boundary(sm, spec, f"scene.boundaries.{name}")
-    return dataclasses.replace(sm, boundaries=bnd)
+    roi_cells = {}
+    for j, name in enumerate(area_rois(scene)):
+        mask = in_roi[j]
+        body = selectors._body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
+        if body is not None:
+            mask = mask & (cell_body == body)
+        roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
+    return dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells)

@@ -53,9 +53,18 @@ class Selection:
 
     kind: str               # "cells" | "facets"
     index: np.ndarray
+    moments: np.ndarray | None = None
+    # cells cut by the region: (3, n) ∫_{G ∩ T} λ_k dx per cell T and vertex k (λ_k the P1
+    # hat functions); None: whole cells
 
     def __len__(self) -> int:
         return int(self.index.size)
+
+    def cell_moments(self, mesh) -> np.ndarray:
+        """(3, n) ∫_{G ∩ T} λ_k dx of the selected cells (a third of the area for a whole cell)."""
+        if self.moments is not None:
+            return self.moments
+        return np.tile(cell_areas(mesh, self.index) / 3.0, (3, 1))
 
 
 # ---------------------------------------------------------------------------
@@ -111,9 +120,62 @@ def nodal_normals(mesh, facets) -> tuple[np.ndarray, np.ndarray]:
     return nodes, acc
 
 
-def cell_centroids(mesh) -> np.ndarray:
-    """(2, ncells) centroids."""
-    return mesh.p[:, mesh.t].mean(axis=1)
+def cell_areas(mesh, cells) -> np.ndarray:
+    """(n,) areas of the given cells."""
+    p, t = mesh.p, mesh.t[:, np.asarray(cells, dtype=np.int64)]
+    d1, d2 = p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]
+    return 0.5 * np.abs(d1[0] * d2[1] - d1[1] * d2[0])
+
+
+def _clip(poly: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """The counter-clockwise polygon ``poly`` clipped by the counter-clockwise triangle ``tri``
+    (Sutherland–Hodgman; exact area integrals also for a non-convex ``poly``)."""
+    for i in range(3):
+        a, b = tri[i], tri[(i + 1) % 3]
+        e = b - a
+        side = e[0] * (poly[:, 1] - a[1]) - e[1] * (poly[:, 0] - a[0])      # >= 0: inside
+        out = []
+        for j in range(len(poly)):
+            p, q, sp_, sq = poly[j - 1], poly[j], side[j - 1], side[j]
+            if (sp_ >= 0) != (sq >= 0):
+                out.append(p + (q - p) * (sp_ / (sp_ - sq)))
+            if sq >= 0:
+                out.append(q)
+        if not out:
+            return np.zeros((0, 2))
+        poly = np.array(out)
+    return poly
+
+
+def cut_cells(mesh, pts: np.ndarray) -> Selection:
+    """The cells meeting the polygon ``pts`` with their exact moments ∫_{G ∩ T} λ_k dx:
+    each cell is clipped by the polygon, ∫_P λ_k = |P| λ_k(centroid P) (λ_k is linear)."""
+    x, y = pts[:, 0], pts[:, 1]
+    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+        pts = pts[::-1]
+    P = mesh.p[:, mesh.t]                                        # (2, 3, ncells)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    near = np.flatnonzero((P[0].max(0) >= lo[0]) & (P[0].min(0) <= hi[0])
+                          & (P[1].max(0) >= lo[1]) & (P[1].min(0) <= hi[1]))
+    cells, moments = [], []
+    for c in near:
+        tri = P[:, :, c].T
+        poly = _clip(pts, tri)
+        if len(poly) < 3:
+            continue
+        px, py = poly[:, 0], poly[:, 1]
+        qx, qy = np.roll(px, -1), np.roll(py, -1)
+        w = px * qy - qx * py
+        area = 0.5 * w.sum()
+        if area <= 0.0:
+            continue
+        g = np.array([((px + qx) * w).sum(), ((py + qy) * w).sum()]) / (6.0 * area)
+        T = np.vstack([tri.T, np.ones(3)])                         # barycentric coordinates of g
+        cells.append(c)
+        moments.append(area * np.linalg.solve(T, np.array([g[0], g[1], 1.0])))
+    if not cells:
+        return Selection("cells", np.zeros(0, dtype=np.int64))
+    return Selection("cells", np.asarray(cells, dtype=np.int64), np.array(moments).T.copy())
 
 
 def facet_body(sm, facets) -> np.ndarray:
@@ -330,13 +392,23 @@ def select_region(sm, spec: dict, path: str, *, allow_empty: bool = False) -> Se
         if not idx:
             raise StudyError(f"unknown region {val!r}", path=p)
         mask = np.isin(sm.cell_region, idx)
+        if body is not None:
+            mask &= sm.cell_body == body
+        return _nonempty(Selection("cells", np.nonzero(mask)[0].astype(np.int64)), spec, path, allow_empty)
+    if kind == "disc":
+        raise StudyError("a disc cannot be cut exactly from the cells of a mesh file (scenes built "
+                         "from shapes embed it in the mesh): give a polygon, whose cells are cut "
+                         "exactly, or make the disc a region (2D physical group) of the file", path=p)
+    if kind == "box":
+        x0, y0, x1, y1 = _box(val, p)
+        pts = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
     else:
-        c = cell_centroids(mesh)
-        tol = ABS_TOL * _scene_scale(mesh)
-        mask = distance_function({kind: val}, path, ("box", "disc", "polygon"))(c[0], c[1]) <= tol
+        pts = _polygon(val, p)
+    sel = cut_cells(mesh, pts)
     if body is not None:
-        mask &= sm.cell_body == body
-    return _nonempty(Selection("cells", np.nonzero(mask)[0].astype(np.int64)), spec, path, allow_empty)
+        keep = sm.cell_body[sel.index] == body
+        sel = Selection("cells", sel.index[keep], sel.moments[:, keep] if sel.moments is not None else None)
+    return _nonempty(sel, spec, path, allow_empty)
 
 
 def _nonempty(sel, spec, path, allow_empty):
