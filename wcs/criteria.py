@@ -29,8 +29,8 @@ class Criterion:
     rois: list[str]
     selections: list[Selection]
     functionals: list[np.ndarray] | None     # linear kinds: one ℓ_r per region of interest
-    measures: np.ndarray                      # meas G_r
-    contact_masks: list[np.ndarray] | None = None   # contact_pressure: contact nodes inside G_r
+    measures: np.ndarray                      # meas G_r (contact_pressure: of its contact rows)
+    contact_masks: list[np.ndarray] | None = None   # contact_pressure: contact rows next to G_r
 
     @property
     def units(self) -> str:
@@ -57,9 +57,16 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
     out = []
     for k, spec in enumerate(study_criteria):
         path = f"criteria.{k}"
-        contact = spec["kind"] == "contact_pressure"        # only the contact nodes in G_r matter
-        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}", contact)
-                for r in spec["regions"]]
+        if spec["kind"] == "contact_pressure":             # only the contact rows next to G_r matter
+            sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}")
+                    if "boundary" in rois[r] else Selection("cells", np.zeros(0, dtype=np.int64))
+                    for r in spec["regions"]]
+            masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
+                     for r, s in zip(spec["regions"], sels)]
+            measures = np.array([zone.weight[m].sum() for m in masks])
+            out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, None, measures, masks))
+            continue
+        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
         functionals, measures = None, np.array([_measure(smesh.mesh, s) for s in sels])
         if spec["kind"] == "mean_temperature":
             functionals = [_mean_weights(smesh.mesh, s) for s in sels]
@@ -71,22 +78,24 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
                 ell = np.zeros(2 * nodal.size)
                 ell[0::2], ell[1::2] = nodal * d[0], nodal * d[1]
                 functionals.append(ell)
-        masks = None
-        if spec["kind"] == "contact_pressure":
-            masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
-                     for r, s in zip(spec["regions"], sels)]
-        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures, masks))
+        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures))
     return out
 
 
-def _roi_selection(smesh, name: str, spec: dict, path: str, allow_empty: bool) -> Selection:
+def embedded_rois(study_criteria: list[dict]) -> list[str]:
+    """The regions of interest whose cells a criterion integrates over (every kind but the
+    contact pressure, which takes the contact rows next to G_r): the mesh embeds them."""
+    return sorted({r for c in study_criteria if c["kind"] != "contact_pressure" for r in c["regions"]})
+
+
+def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
     """G_r as mesh entities: the cells of a box / disc / polygon embedded in the mesh (exactly
     G_r, the disc as the mesh's polygon), else `select_region` (boundary facets; on a mesh file
     the cells cut exactly by a box or polygon)."""
     if name not in smesh.roi_cells:
-        return select_region(smesh, spec, path, allow_empty=allow_empty)
+        return select_region(smesh, spec, path)
     sel = Selection("cells", smesh.roi_cells[name])
-    if len(sel) == 0 and not allow_empty:
+    if len(sel) == 0:
         where = f" of body {spec['body']!r}" if spec.get("body") is not None else ""
         raise StudyError(f"the region of interest covers no part of the scene{where}", path=path)
     return sel

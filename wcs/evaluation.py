@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .criteria import build_criteria
+from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
 from .model import Model, State
 from .scene.mesher import build_mesh
@@ -54,7 +54,7 @@ class Evaluator:
     def __init__(self, study):
         t0 = time.perf_counter()
         self.study = study
-        self.smesh = build_mesh(study.scene)
+        self.smesh = build_mesh(study.scene, embedded_rois(study.criteria))
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)

@@ -302,21 +302,23 @@ def _extract(owner: dict, inside: dict, offset: int = 0):
     return xy, tris, cb, cr, ci
 
 
-def _roi_shapes(scene: dict) -> list:
-    """Surfaces of the area regions of interest (box, disc, polygon), created in the current
-    model, in scene order: fragmented with the bodies, they make G_r a union of cells."""
+def _roi_shapes(scene: dict, names: list[str]) -> list:
+    """Surfaces of the regions of interest ``names`` (box, disc, polygon), created in the current
+    model: fragmented with the bodies, they make G_r a union of cells."""
     out = []
-    for name in area_rois(scene):
+    for name in names:
         spec = scene["regions_of_interest"][name]
         kind = next(k for k in ROI_SHAPES if spec.get(k) is not None)
         out.append(make_shape({ROI_SHAPES[kind]: spec[kind]}, f"scene.regions_of_interest.{name}"))
     return out
 
 
-def area_rois(scene: dict) -> list[str]:
-    """Names of the regions of interest given by a box, disc or polygon (embedded in the mesh)."""
+def area_rois(scene: dict, names=None) -> list[str]:
+    """Names of the regions of interest given by a box, disc or polygon, in scene order
+    (only those in ``names`` if given)."""
     return [name for name, spec in (scene.get("regions_of_interest") or {}).items()
-            if isinstance(spec, dict) and any(spec.get(k) is not None for k in ROI_SHAPES)]
+            if isinstance(spec, dict) and any(spec.get(k) is not None for k in ROI_SHAPES)
+            and (names is None or name in names)]
 
 
 def _pieces(region_shapes: list, roi_shapes: list):
@@ -344,7 +346,7 @@ def _pieces(region_shapes: list, roi_shapes: list):
     return covered, inside
 
 
-def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
+def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed):
     """Mesh each body in its own gmsh model (its regions fragmented together, so regions of
     a body stay conforming); returns the concatenation, bodies in scene order."""
     base = gmsh.model.getCurrent()
@@ -354,7 +356,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag):
         gmsh.model.add(f"{base}_body{b}")
         mine = [(rg, make_shape(regions_flat[rg]["shape"], f"scene.bodies.{body}.regions.{i}.shape"))
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
-        covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene))
+        covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
         _, callback = _size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat))
         gmsh.model.mesh.setSizeCallback(callback)
@@ -378,12 +380,15 @@ def _fragment(dimtags: list) -> list:
     return outmap
 
 
-def build_mesh(scene: dict) -> SceneMesh:
+def build_mesh(scene: dict, rois=None) -> SceneMesh:
     """Mesh a validated scene dict (study-format §2) into a :class:`SceneMesh`.
 
     ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
     the sorted facet indices its selector picks (an empty selection raises
-    ``StudyError`` at ``scene.boundaries.<name>``).  A scene with
+    ``StudyError`` at ``scene.boundaries.<name>``).  The regions of interest
+    ``rois`` given by a box, disc or polygon (default: all of them) are embedded
+    in the mesh (their outlines are curves of the fragment) and ``roi_cells``
+    holds their cells (of their ``body`` if given).  A scene with
     ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``).
     """
     bodies_spec = scene.get("bodies") or {}
@@ -394,6 +399,7 @@ def build_mesh(scene: dict) -> SceneMesh:
         return read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file")
     bodies = list(bodies_spec)
     regions = region_names(scene)
+    embed = area_rois(scene, rois)
 
     with _Session():
         # -- shapes: one entry (body index, region index, surfaces) per region
@@ -411,7 +417,7 @@ def build_mesh(scene: dict) -> SceneMesh:
                 r += 1
 
         # -- one fragment of everything (regions of interest included) -> conforming pieces
-        covered, inside = _pieces([dts for _, _, dts in inputs], _roi_shapes(scene))
+        covered, inside = _pieces([dts for _, _, dts in inputs], _roi_shapes(scene, embed))
 
         owner: dict[int, tuple[int, int]] = {}      # piece tag -> (body, region)
         for tag in sorted(covered):
@@ -445,7 +451,7 @@ def build_mesh(scene: dict) -> SceneMesh:
         else:
             # bodies with their own sizes: every body meshed in a model of its own, so
             # curves shared with other bodies are NOT shared meshes (nonmatching sides)
-            xy, tris, cb, cr, ci = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag)
+            xy, tris, cb, cr, ci = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed)
 
     tri = np.concatenate(tris)
     cell_body = np.concatenate(cb)
@@ -474,7 +480,7 @@ def build_mesh(scene: dict) -> SceneMesh:
     for name, spec in (scene.get("boundaries") or {}).items():
         bnd[name] = selectors.select_boundary(sm, spec, f"scene.boundaries.{name}")
     roi_cells = {}
-    for j, name in enumerate(area_rois(scene)):
+    for j, name in enumerate(embed):
         mask = in_roi[j]
         body = selectors._body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
         if body is not None:
