@@ -237,18 +237,18 @@ def test_selector_selecting_nothing():
 
 
 def test_region_selectors(demo):
+    """Box and polygon regions cut the cells exactly (the cut area is the region's), a
+    disc needs the mesh to embed it, a boundary region is its facets."""
     sc, sm = demo
-    m = sm.mesh
-    s = select_region(sm, {"box": [0.9, 0.9, 1.1, 1.0]}, "scene.regions_of_interest.under_pad")
+    s = select_region(sm, {"box": [0.93, 0.91, 1.07, 1.0]}, "scene.regions_of_interest.under_pad")
     assert s.kind == "cells" and len(s) > 0
     assert np.all(sm.cell_body[s.index] == 0)
-    c = m.p[:, m.t[:, s.index]].mean(axis=1)
-    assert np.all((c[0] >= 0.9) & (c[0] <= 1.1) & (c[1] >= 0.9) & (c[1] <= 1.0))
-    s2 = select_region(sm, {"disc": {"center": [1.0, 1.0], "radius": 0.1}, "body": "pad"}, "x")
-    assert len(s2) > 0 and np.all(sm.cell_body[s2.index] == 1)
+    assert s.cell_moments(sm.mesh).sum() == pytest.approx(0.14 * 0.09, rel=1e-12)
     s3 = select_region(sm, {"polygon": [[0, 0], [2, 0], [0, 1]]}, "x")
-    c3 = m.p[:, m.t[:, s3.index]].mean(axis=1)
-    assert np.all(c3[0] / 2 + c3[1] <= 1 + 1e-12) and len(s3) > 0
+    assert s3.cell_moments(sm.mesh).sum() == pytest.approx(1.0, rel=1e-12)
+    with pytest.raises(StudyError, match="disc cannot be cut") as e:
+        select_region(sm, {"disc": {"center": [1.0, 1.0], "radius": 0.1}, "body": "pad"}, "x")
+    assert e.value.path == "x.disc"
     s4 = select_region(sm, {"boundary": "pad_left"}, "x")
     assert isinstance(s4, Selection) and s4.kind == "facets"
     assert np.array_equal(s4.index, sm.boundaries["pad_left"])
@@ -257,6 +257,30 @@ def test_region_selectors(demo):
     assert e.value.path == "scene.regions_of_interest.far"
     with pytest.raises(StudyError):
         select_region(sm, {"box": [0.9, 0.9, 1.1, 1.0], "body": "pad"}, "x")
+
+
+def test_regions_of_interest_are_embedded():
+    """A box, disc and polygon region of interest are unions of cells: their area is the
+    shape's (the disc: the mesh's polygon, as for a disc body); a body restricts them."""
+    sc = scene({"a": {"regions": [{"material": "m", "shape": {"rectangle": [0, 0, 2, 1]}}]},
+                "b": {"regions": [{"material": "m", "shape": {"rectangle": [0, 1, 2, 2]}}]}}, size=0.3)
+    sc["regions_of_interest"] = {
+        "box": {"box": [0.37, 0.21, 1.53, 1.62]},
+        "box_a": {"box": [0.37, 0.21, 1.53, 1.62], "body": "a"},
+        "poly": {"polygon": [[0.1, 0.1], [1.9, 0.3], [0.4, 0.8]]},
+        "disc": {"disc": {"center": [1.0, 1.0], "radius": 0.45}},
+        "outside": {"box": [1.5, 1.5, 3.0, 3.0]}}
+    sm = build_mesh(sc)
+    area = lambda name: signed_areas(sm.mesh)[sm.roi_cells[name]].sum()  # noqa: E731
+    assert area("box") == pytest.approx(1.16 * 1.41, rel=1e-12)
+    assert area("box_a") == pytest.approx(1.16 * 0.79, rel=1e-12)
+    assert area("poly") == pytest.approx(0.5 * abs(1.8 * 0.7 - 0.2 * 0.3), rel=1e-12)
+    assert area("outside") == pytest.approx(0.5 * 0.5, rel=1e-12)        # only its part in the scene
+    n = np.unique(sm.mesh.facets[:, np.flatnonzero(sm.mesh.f2t[1] == -1)]).size
+    r = np.hypot(*(sm.mesh.p[:, np.unique(sm.mesh.t[:, sm.roi_cells["disc"]])] - 1.0))
+    assert r.max() == pytest.approx(0.45, rel=1e-9)                       # inscribed in the circle
+    assert math.pi * 0.45 ** 2 * 0.97 < area("disc") < math.pi * 0.45 ** 2
+    assert signed_areas(sm.mesh).sum() == pytest.approx(4.0, rel=1e-12) and n > 0
 
 
 def test_boundary_selector_box_and_body(demo):
