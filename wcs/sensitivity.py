@@ -215,7 +215,7 @@ def contact_nonsmooth(model, state) -> bool:
     nt = np.asarray(model.Bn_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     t2 = np.asarray(model.Bt_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     moves = n2 > 0
-    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-20 * np.maximum(t2, 1e-300)
+    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-12 * np.maximum(t2, 1e-300)   # above round-off
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
