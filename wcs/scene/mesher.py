@@ -10,6 +10,11 @@ How it is done
   the result is a conforming partition, each curve shared by two pieces is
   meshed once, so regions of one body share nodes and touching bodies have
   matching nodes on their common curves.
+* Regions of interest given by a box, disc or polygon (those a criterion integrates
+  over, ``build_mesh(scene, rois)``) go into the same fragment: their outlines become
+  curves of the mesh, so G_r is exactly a union of cells (a disc: the mesh's polygon,
+  as a disc body) and means over it are exact (``SceneMesh.roi_cells``); their parts
+  outside every body are removed before meshing.
 * Ownership of fragment pieces: inside a body a piece belongs to the LAST
   region (scene order) whose shape covers it.  A piece covered by two bodies
   is an overlap -> ``StudyError`` at ``scene.bodies.<later body>``.  A region

@@ -19,10 +19,15 @@ a tiny absolute tolerance relative to the scene size), so it follows the local
 mesh size and is insensitive to round-off but never picks a facet that only
 touches the curve at one end.
 
-Region selectors (choose cells by centroid, or facets):
+Region selectors (choose cells, or facets):
 
-* ``box: [x0, y0, x1, y1]``, ``disc: {center, radius}``, ``polygon: [[x, y], ...]``
-  -- cells whose centroid is inside (closed sets, same tolerance idea),
+* ``box: [x0, y0, x1, y1]``, ``polygon: [[x, y], ...]`` -- the cells meeting the set,
+  each cut by it exactly (``Selection.moments``: ∫ over the cut part of each hat
+  function), so a mean over the selection is the mean over the set itself on any
+  mesh; a scene meshed from shapes embeds its regions of interest instead
+  (``SceneMesh.roi_cells``, whole cells),
+* ``disc: {center, radius}`` -- only embedded (a disc cannot be cut exactly by
+  straight clipping): refused here,
 * ``boundary: NAME`` -- the facets of the named boundary (a facet selection),
 * ``region: NAME`` -- the cells of a named region (extension),
 * ``body: NAME`` alone -- all cells of that body; with any of the above it
@@ -157,8 +162,14 @@ def cut_cells(mesh, pts: np.ndarray) -> Selection:
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     near = np.flatnonzero((P[0].max(0) >= lo[0]) & (P[0].min(0) <= hi[0])
                           & (P[1].max(0) >= lo[1]) & (P[1].min(0) <= hi[1]))
-    cells, moments = [], []
-    for c in near:
+    e = np.roll(pts, -1, axis=0) - pts
+    turns = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)
+    whole = np.zeros(near.size, dtype=bool)
+    if np.all(turns >= 0):          # convex: a cell with its three vertices inside is inside
+        whole = np.all([inside_polygon(P[0, k, near], P[1, k, near], pts) for k in range(3)], axis=0)
+    cells = list(near[whole])
+    moments = list(np.repeat(cell_areas(mesh, near[whole])[:, None] / 3.0, 3, axis=1))
+    for c in near[~whole]:
         tri = P[:, :, c].T
         poly = _clip(pts, tri)
         if len(poly) < 3:
@@ -175,7 +186,8 @@ def cut_cells(mesh, pts: np.ndarray) -> Selection:
         moments.append(area * np.linalg.solve(T, np.array([g[0], g[1], 1.0])))
     if not cells:
         return Selection("cells", np.zeros(0, dtype=np.int64))
-    return Selection("cells", np.asarray(cells, dtype=np.int64), np.array(moments).T.copy())
+    order = np.argsort(cells)
+    return Selection("cells", np.asarray(cells, dtype=np.int64)[order], np.array(moments)[order].T.copy())
 
 
 def facet_body(sm, facets) -> np.ndarray:
