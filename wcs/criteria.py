@@ -161,8 +161,9 @@ def _direction(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.nda
         n = facet_normals(mesh, facets[tied])
         if np.min(n @ n.T) < CORNER:
             raise StudyError(f"point {X.tolist()} is equally near boundary edges of body {bodies} "
-                             f"whose outward normals differ by more than 30° (a corner): n(X_r) is "
-                             "not defined there; move the point or give `direction`",
+                             f"whose outward normals differ by more than 30° (a corner, or the two "
+                             "sides of an interface): n(X_r) is not defined there; move the point "
+                             "or give `direction`",
                              path=f"{path}.point")
         m = (n * L[tied][:, None]).sum(axis=0)
         return m / np.linalg.norm(m)
