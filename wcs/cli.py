@@ -108,7 +108,12 @@ def cmd_solve(args) -> int:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if res.status == 3 else 1
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
-    out, vtu = write_solution(study, ev, res, out)
+    from .store import WriteError
+    try:
+        out, vtu = write_solution(study, ev, res, out)
+    except WriteError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     if not args.quiet:
         m = ev.smesh.mesh
         print(f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns")

@@ -50,7 +50,7 @@ import xarray as xr
 
 from .errors import StudyError
 from .search import Outcome, Problem, Worst
-from .store import OutputLock, Store, WriteError, check_output, key, store_path, stored_count, writer
+from .store import OutputLock, Store, WriteError, check_output, incomplete_run, key, store_path, stored_count
 
 OTHER_FAILURE = 6            # wcs.evaluation.STATUS: "other failure"
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
@@ -642,6 +642,9 @@ def solve_worst(args) -> int:
                                  file=str(run_file))
             x = ds["worst_x"].sel(criterion=criterion).values.astype(float)
             sha = ds.attrs.get("study_sha256")
+            if str(ds.attrs.get("complete", "yes")) == "no":
+                n = int(ds.sizes.get("eval", 0))
+                raise StudyError(incomplete_run(run_file, n, args.study), file=str(run_file))
             extra = {}
             if "sweep_value" in ds and int(ds["worst_eval"].sel(criterion=criterion)) >= 0:
                 row = int(ds["worst_eval"].sel(criterion=criterion))
@@ -666,7 +669,11 @@ def solve_worst(args) -> int:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
     out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
-    out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
+    try:
+        out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
+    except WriteError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     if not getattr(args, "quiet", False):
         print(f"{study.name}: worst case of {criterion} from {run_file}, solved in "
               f"{time.perf_counter() - t0:.2f} s")
