@@ -589,7 +589,7 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
     under MPI the other ranks are stopped with it."""
     from .parallel import world
     n = stored_count(out)
-    kept = "" if n is None else (f"; the {n} evaluations finished so far are kept in {store_path(out)}, "
+    kept = "" if n is None else (f"; the store {store_path(out)} keeps every evaluation finished so far ({n}): "
                                  f"continue with `wcs {args.command} {args.study} -o {out} --resume`")
     print(f"error: {e}{kept}", file=sys.stderr, flush=True)
     comm = world()
