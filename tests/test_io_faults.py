@@ -14,6 +14,7 @@ ends in one clear line and a defined exit status, and loses nothing already stor
 import contextlib
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -239,8 +240,7 @@ def test_a_full_disk_stops_with_one_line_and_resume_finishes(tmp_path):
                 assert_bitwise(clean, ds)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("where,nth", [("store", 4), ("netcdf", 2)])
+@pytest.mark.parametrize("where,nth", [("store", 4), pytest.param("netcdf", 2, marks=pytest.mark.slow)])
 def test_ctrl_c_inside_a_write_ends_between_writes_and_resume_is_bitwise(tmp_path, where, nth):
     path = pad(tmp_path, budget=9)
     clean = wcs.run(wcs.load_study(path), tmp_path / "clean.nc")
@@ -254,6 +254,20 @@ def test_ctrl_c_inside_a_write_ends_between_writes_and_resume_is_bitwise(tmp_pat
     assert writer(out) is None and not (tmp_path / "out.nc.lock").exists()
     resumed = wcs.run(wcs.load_study(path), out, resume=True)
     assert_bitwise(clean, resumed)
+
+
+@pytest.mark.slow
+def test_a_store_removed_mid_run_stops_with_one_line(tmp_path):
+    path = pad(tmp_path, budget=15)
+    out = tmp_path / "out.nc"
+    proc = wcs_process(tmp_path, "run", path, "-o", out, "--quiet", SLEEP=0.2)
+    wait_for_records(proc, out, 3)
+    shutil.rmtree(store_path(out))
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and len(err.splitlines()) == 1, err
+    assert err.startswith(f"error: cannot write {store_path(out)}/") and "No such file or directory" in err
+    assert_intact(tmp_path)
+    assert writer(out) is None
 
 
 # ---------------------------------------------------------------- two runs, kill -9, incomplete files
@@ -277,7 +291,7 @@ def test_second_run_refused_and_a_killed_run_says_it_is_incomplete(tmp_path, cap
     stored = len(list(store_path(out).glob("*.npz")))
     res = load(out)
     assert 1 <= res.n_eval <= stored < 15
-    assert (f"the file holds {res.n_eval} evaluations, its store {store_path(out)} {stored}" in res.incomplete
+    assert (f"evaluation{'s' * (res.n_eval != 1)}, the store beside it ({store_path(out)}) {stored};" in res.incomplete
             and f"wcs run {path} -o {out} --resume" in res.incomplete)
     summary = Report(res, str(out)).summary()
     assert 'id="incomplete"' in summary and ">INCOMPLETE RUN<" in summary and "PASS" not in summary

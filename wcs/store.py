@@ -159,12 +159,12 @@ def incomplete_run(run_file, n: int, study_file: str) -> str:
     """What a results file with `complete: no` and `n` evaluations is: a run still writing it or one
     that stopped, how much of it the file and the store beside it hold, and how to finish it."""
     stored, who = stored_count(run_file), writer(run_file)
-    held = "" if stored is None else f", its store {store_path(run_file)} {stored}"
+    held = f"the file holds {n} evaluation{'s' * (n != 1)}" + (
+        "" if stored is None else f", the store beside it ({store_path(run_file)}) {stored}")
     if who is not None:
-        return (f"the run is incomplete: it is still running ({who}); the file holds {n} evaluations so far"
-                f"{held}; wait for it to finish")
-    return (f"the run is incomplete: it stopped before the end; the file holds {n} evaluations{held}; "
-            f"its worst values are not the run's. Finish it with `wcs run {study_file} -o {run_file} --resume`")
+        return f"the run is incomplete: it is still running ({who}); {held} so far; wait for it to finish"
+    return (f"the run is incomplete: it stopped before the end; {held}; its worst values are not the run's. "
+            f"Finish it with `wcs run {study_file} -o {run_file} --resume`")
 
 
 @contextlib.contextmanager
