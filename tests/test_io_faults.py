@@ -240,9 +240,9 @@ def test_a_full_disk_stops_with_one_line_and_resume_finishes(tmp_path):
                 assert_bitwise(clean, ds)
 
 
-@pytest.mark.parametrize("where,nth", [("store", 4), pytest.param("netcdf", 2, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("where,nth", [("store", 3), pytest.param("netcdf", 2, marks=pytest.mark.slow)])
 def test_ctrl_c_inside_a_write_ends_between_writes_and_resume_is_bitwise(tmp_path, where, nth):
-    path = pad(tmp_path, budget=9)
+    path = pad(tmp_path, budget=6)
     clean = wcs.run(wcs.load_study(path), tmp_path / "clean.nc")
     out = tmp_path / "out.nc"
     proc = wcs_process(tmp_path, "run", path, "-o", out, "--quiet", WHERE=where, NTH=nth)

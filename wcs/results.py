@@ -83,14 +83,15 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
 
 def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     """NetCDF-4 file of `ds` at `path`, whole or not at all (WriteError on an I/O fault)."""
-    from .store import WriteError, write_atomic
+    from .store import WriteError, uninterrupted, write_atomic
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise WriteError(f"cannot create the folder of {path}: {e.strerror or e}") from None
-    data = ds.to_netcdf(engine="h5netcdf")          # bytes in memory: HDF5 never meets the disk's faults
-    write_atomic(path, lambda fh: fh.write(data))
+    with uninterrupted():                           # a Ctrl-C waits for the end of the encoding
+        data = ds.to_netcdf(engine="h5netcdf")      # bytes in memory: HDF5 never meets the disk's faults
+        write_atomic(path, lambda fh: fh.write(data))
     return path
 
 

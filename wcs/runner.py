@@ -658,6 +658,8 @@ def solve_worst(args) -> int:
         raise StudyError(f"the run has no solved data set for criterion '{criterion}'", file=str(run_file))
     if sha != study.sha256 and not getattr(args, "quiet", False):
         print(f"note: {run_file} was written for a different version of {args.study}", file=sys.stderr)
+    out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
+    check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     t0 = time.perf_counter()
     ev = Evaluator(study)
     point = x
@@ -668,7 +670,6 @@ def solve_worst(args) -> int:
     if res.status != 0:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
-    out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
     try:
         out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
     except WriteError as e:
