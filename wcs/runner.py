@@ -368,6 +368,18 @@ class Runner:
 
     # ---- the search ---------------------------------------------------------------------------
     def run(self, strategy=None) -> xr.Dataset:
+        try:
+            return self._search(strategy)
+        finally:
+            self.release()
+
+    def sweep(self) -> xr.Dataset:
+        try:
+            return self._sweep()
+        finally:
+            self.release()
+
+    def _search(self, strategy) -> xr.Dataset:
         search = dict(self.study.search)
         budget = int(search.get("budget", 200))
         seed = int(search.get("sample", {}).get("seed", 0))
@@ -378,29 +390,26 @@ class Runner:
             self.progress.start(budget, self.criteria)
         result = None
         try:
-            try:
-                batch = next(gen)
-                while True:
-                    pts = np.atleast_2d(np.asarray(batch.points, float))
-                    if len(self.records) >= budget and len(pts):
-                        outcomes = []
-                    else:
-                        outcomes = self.answer(pts, batch.stage, bool(batch.gradients), budget)
-                    short = len(outcomes) < len(pts)
-                    batch = gen.send(outcomes)
-                    if short and len(self.records) >= budget:   # told it is out of budget and it asks again
-                        gen.close()
-                        break
-            except StopIteration as stop:
-                result = stop.value
-            finally:
-                if self.progress is not None:
-                    self.progress.finish()
-            return self.finish(result)
+            batch = next(gen)
+            while True:
+                pts = np.atleast_2d(np.asarray(batch.points, float))
+                if len(self.records) >= budget and len(pts):
+                    outcomes = []
+                else:
+                    outcomes = self.answer(pts, batch.stage, bool(batch.gradients), budget)
+                short = len(outcomes) < len(pts)
+                batch = gen.send(outcomes)
+                if short and len(self.records) >= budget:   # told it is out of budget and it asks again
+                    gen.close()
+                    break
+        except StopIteration as stop:
+            result = stop.value
         finally:
-            self.release()
+            if self.progress is not None:
+                self.progress.finish()
+        return self.finish(result)
 
-    def sweep(self) -> xr.Dataset:
+    def _sweep(self) -> xr.Dataset:
         grid = (self.study.sweep or {}).get("grid")
         if not grid:
             raise StudyError("the study has no `sweep:` block with a `grid`", file=str(self.study.file), path="sweep")
@@ -410,14 +419,11 @@ class Runner:
         if self.progress is not None:
             self.progress.start(len(points), self.criteria)
         try:
-            try:
-                self.answer(points, "sweep", False, None, sweeps=[list(map(float, c)) for c in combos])
-            finally:
-                if self.progress is not None:
-                    self.progress.finish()
-            return self.finish(None, paths)
+            self.answer(points, "sweep", False, None, sweeps=[list(map(float, c)) for c in combos])
         finally:
-            self.release()
+            if self.progress is not None:
+                self.progress.finish()
+        return self.finish(None, paths)
 
     # ---- the end ------------------------------------------------------------------------------
     def _worst(self):
@@ -589,8 +595,9 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
     under MPI the other ranks are stopped with it."""
     from .parallel import world
     n = stored_count(out)
-    kept = "" if n is None else (f"; the store {store_path(out)} keeps every evaluation finished so far ({n}): "
-                                 f"continue with `wcs {args.command} {args.study} -o {out} --resume`")
+    kept = "" if n is None else f"; the store {store_path(out)} keeps every evaluation finished so far ({n})"
+    if n is not None and args.command == "run":
+        kept += f": continue with `wcs run {args.study} -o {out} --resume`"
     print(f"error: {e}{kept}", file=sys.stderr, flush=True)
     comm = world()
     if comm is not None:
