@@ -119,6 +119,10 @@ class OutputLock:
                 who = writer(output) or "another process"
                 raise StudyError(f"another `wcs run` ({who}) is writing {output}; wait for it to finish "
                                  f"or choose another output", file=file, path=path) from None
+            except OSError as e:
+                os.close(fd)
+                raise StudyError(f"cannot lock {self.path} ({e.strerror or e}): choose an output on a "
+                                 f"filesystem with file locks", file=file, path=path) from None
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
             except FileNotFoundError:
