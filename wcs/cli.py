@@ -100,15 +100,21 @@ def cmd_solve(args) -> int:
     from .evaluation import Evaluator
     from .results import write_solution
     from .study import load_study
+    from .store import WriteError, check_output
     study = load_study(args.study)
+    out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
+    check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     t0 = time.perf_counter()
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
     if res.status != 0:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if res.status == 3 else 1
-    out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
-    out, vtu = write_solution(study, ev, res, out)
+    try:
+        out, vtu = write_solution(study, ev, res, out)
+    except WriteError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     if not args.quiet:
         m = ev.smesh.mesh
         print(f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns")

@@ -1,10 +1,15 @@
 """Results files: provenance attributes, the nominal-solve file, and the .vtu for ParaView.
 
 NetCDF attributes hold strings and numbers only (no bool/dict/None).
+
+A file is encoded in memory and written with one plain write + rename
+(`wcs.store.write_atomic`): a full disk or a removed folder is an ordinary
+`WriteError` and the previous file stays whole, never a fault inside HDF5.
 """
 from __future__ import annotations
 
 import datetime as _dt
+import os
 import subprocess
 from pathlib import Path
 
@@ -39,6 +44,7 @@ def provenance(study, evaluator) -> dict:
         "plane": study.scene.get("plane", "strain"),
         "mesh_nodes": int(mesh.p.shape[1]),
         "mesh_cells": int(mesh.t.shape[1]),
+        "warnings": "\n".join(getattr(study, "warnings", None) or []),   # what `wcs check` warns of, one a line
     }
 
 
@@ -76,11 +82,16 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
 
 
 def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
+    """NetCDF-4 file of `ds` at `path`, whole or not at all (WriteError on an I/O fault)."""
+    from .store import WriteError, uninterrupted, write_atomic
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
-    ds.to_netcdf(tmp, engine="h5netcdf")
-    tmp.replace(path)                    # never leave a half-written file under the real name
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise WriteError(f"cannot create the folder of {path}: {e.strerror or e}") from None
+    with uninterrupted():                           # a Ctrl-C waits for the end of the encoding
+        data = ds.to_netcdf(engine="h5netcdf")      # bytes in memory: HDF5 never meets the disk's faults
+        write_atomic(path, lambda fh: fh.write(data))
     return path
 
 
@@ -102,9 +113,16 @@ def write_vtu(ds: xr.Dataset, path: str | Path) -> Path:
         "body": [ds["cell_body"].values], "region": [ds["cell_region"].values],
     }
     mesh = meshio.Mesh(points, [("triangle", ds["cells"].values)], point_data=point_data, cell_data=cell_data)
+    from .store import WriteError
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    mesh.write(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        mesh.write(tmp, file_format="vtu")
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise WriteError(f"cannot write {path}: {e.strerror or e}") from None
     return path
 
 

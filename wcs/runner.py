@@ -14,7 +14,14 @@ NetCDF file is rewritten from memory (temp + rename) after an evaluation
 whenever the time since the last rewrite is at least 20 times what that
 rewrite cost — at most 5% overhead — and always at the end. A kill -9 loses
 the evaluation in flight only; the NetCDF on disk is always a complete,
-readable file of the evaluations up to its last rewrite.
+readable file of the evaluations up to its last rewrite (`complete: no` until
+the run ends; `wcs report` and `wcs solve --worst` say so).
+
+Faults: the output is checked (not a directory, a name the filesystem takes,
+its folder creatable) and locked (`OUT.lock`, see `wcs/store.py`) before
+anything is solved; a second run on the same output is refused. A failed
+write stops the run with `WriteError` and leaves the store and the last
+results file intact, so `--resume` continues from there.
 
 Resume: the strategy is deterministic given its seed and the outcomes it is
 sent, so `--resume` runs it again from the start and answers every point the
@@ -43,7 +50,7 @@ import xarray as xr
 
 from .errors import StudyError
 from .search import Outcome, Problem, Worst
-from .store import Store, key, store_path
+from .store import OutputLock, Store, WriteError, check_output, incomplete_run, key, store_path, stored_count
 
 OTHER_FAILURE = 6            # wcs.evaluation.STATUS: "other failure"
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
@@ -110,13 +117,39 @@ def get_strategy(name: str):
 class Runner:
     """Evaluates points for a run or a sweep, keeps the record, writes the results file."""
 
-    def __init__(self, study, output=None, resume=False, progress=None, kind="run", evaluator=None):
-        from .evaluation import Evaluator
-        from .parallel import rank, world
+    def __init__(self, study, output=None, resume=False, progress=None, kind="run", evaluator=None, where=None):
+        """where: (file, key path) that named the output, for its errors (default: the study's
+        `output` when `output` is None)."""
+        from .parallel import agree, rank, world
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
         self.study = study
         self.kind = kind
+        if where is None:
+            where = (str(study.file), "output") if output is None else (None, None)
+        self.output = None if output is False else Path(output or study.output)
+        self.store = self.lock = None
+        if self.output is not None:                # before anything is meshed or solved
+            error = None
+            if self.root:
+                try:
+                    check_output(self.output, *where)
+                    self.lock = OutputLock(self.output, *where)
+                    if resume:
+                        self._check_resumable()
+                except StudyError as e:
+                    error = e
+                    self.release()
+            agree(self.comm, error)                # every rank raises, or every rank goes on
+        try:
+            self._prepare(study, progress, kind, resume, evaluator)
+        except BaseException:
+            self.release()
+            raise
+
+    def _prepare(self, study, progress, kind, resume, evaluator) -> None:
+        from .evaluation import Evaluator
+        from .parallel import agree
         self.evaluator = evaluator or Evaluator(study)
         # MPI: with the DD solver every evaluation is spread over all ranks (its subdomains);
         # otherwise each rank solves its share of a batch (evaluation-level parallelism)
@@ -126,7 +159,6 @@ class Runner:
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
         self.progress = progress if self.root else None
-        self.output = None if output is False else Path(output or study.output)
         self.records: list[dict] = []
         self.memo: dict[str, int] = {}         # key -> row of its first evaluation in this run
         self.best: dict[str, float] = {}
@@ -144,20 +176,22 @@ class Runner:
             self._has_gradients = "gradients" in inspect.signature(self.evaluator.evaluate).parameters
         except (TypeError, ValueError):
             self._has_gradients = False
-        self.store = None
         if self.output is not None:
-            from .parallel import agree
             error = None
             if self.root:
                 try:
-                    if resume:
-                        self._check_resumable()
                     self.store = Store(store_path(self.output), study.sha256, kind=kind, fresh=not resume)
-                except StudyError as e:
+                except (StudyError, WriteError) as e:
                     error = e
-            agree(self.comm, error)                # every rank raises, or every rank goes on
+            agree(self.comm, error)
             if not self.root:                      # the others read the store rank 0 prepared
                 self.store = Store(store_path(self.output), study.sha256, kind=kind, fresh=False)
+
+    def release(self) -> None:
+        """Give the output up to the next run (the lock; the process's end does it too)."""
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
 
     def _check_resumable(self) -> None:
         if not self.output.exists():
@@ -334,6 +368,18 @@ class Runner:
 
     # ---- the search ---------------------------------------------------------------------------
     def run(self, strategy=None) -> xr.Dataset:
+        try:
+            return self._search(strategy)
+        finally:
+            self.release()
+
+    def sweep(self) -> xr.Dataset:
+        try:
+            return self._sweep()
+        finally:
+            self.release()
+
+    def _search(self, strategy) -> xr.Dataset:
         search = dict(self.study.search)
         budget = int(search.get("budget", 200))
         seed = int(search.get("sample", {}).get("seed", 0))
@@ -363,7 +409,7 @@ class Runner:
                 self.progress.finish()
         return self.finish(result)
 
-    def sweep(self) -> xr.Dataset:
+    def _sweep(self) -> xr.Dataset:
         grid = (self.study.sweep or {}).get("grid")
         if not grid:
             raise StudyError("the study has no `sweep:` block with a `grid`", file=str(self.study.file), path="sweep")
@@ -450,6 +496,7 @@ class Runner:
             notes, complete = {}, "no"
             sweep_paths = self.final_sweep_paths() if self.kind == "sweep" else None
         attrs = {"created": self.created, "kind": self.kind, "complete": complete,
+                 "study_file": str(self.study.file),
                  "search_method": str(search.get("method", "auto")),
                  "budget": int(search.get("budget", 200)),
                  "evaluations": len(self.records),
@@ -521,6 +568,7 @@ def _is_root() -> bool:
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
+    from .evaluation import STATUS
     from .progress import limits_broken, summary_table
     n, failed = int(ds.sizes.get("eval", 0)), int(ds.attrs.get("failed_evaluations", 0))
     if not getattr(args, "quiet", False):
@@ -528,6 +576,13 @@ def _finish_command(args, study, ds, out: Path) -> int:
               f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
               f"from the store; wrote {out}")
         print(summary_table(ds))
+    if failed == n:
+        codes, counts = np.unique(ds["status"].values, return_counts=True)
+        why = ", ".join(f"{m} with status {c} ({STATUS.get(int(c), 'unknown')})" for c, m in zip(codes, counts))
+        first = f"; the first: {ds['message'].values[0]}" if n else ""
+        print(f"error: no evaluation solved ({why or 'none run'}{first}); {out} records their statuses",
+              file=sys.stderr)
+        return 1
     broken = limits_broken(ds)
     if broken and getattr(args, "fail_on_limit", False):
         print(f"limit broken: {', '.join(broken)}", file=sys.stderr)
@@ -535,22 +590,45 @@ def _finish_command(args, study, ds, out: Path) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
+def _write_failure(e: WriteError, args, out: Path) -> int:
+    """One line for a failed write (the store keeps every evaluation finished before it), exit 1;
+    under MPI the other ranks are stopped with it."""
+    from .parallel import world
+    n = stored_count(out)
+    kept = "" if n is None else f"; the store {store_path(out)} keeps every evaluation finished so far ({n})"
+    if n is not None and args.command == "run":
+        kept += f": continue with `wcs run {args.study} -o {out} --resume`"
+    print(f"error: {e}{kept}", file=sys.stderr, flush=True)
+    comm = world()
+    if comm is not None:
+        comm.Abort(1)
+    return 1
+
+
+def _command(args, kind: str) -> int:
     from .progress import Progress
     from .study import load_study
     study = load_study(args.study)
-    out = Path(args.output or study.output)
-    ds = run(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args))
+    if args.output:
+        out, where = Path(args.output), (None, "-o")
+    else:
+        out, where = Path(study.output), (str(study.file), "output")
+        if kind == "sweep":
+            out = out.with_name(out.stem + "-sweep.nc")
+    try:
+        r = Runner(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args), kind=kind, where=where)
+        ds = r.run() if kind == "run" else r.sweep()
+    except WriteError as e:
+        return _write_failure(e, args, out)
     return _finish_command(args, study, ds, out) if _is_root() else 0
+
+
+def cmd_run(args) -> int:
+    return _command(args, "run")
 
 
 def cmd_sweep(args) -> int:
-    from .progress import Progress
-    from .study import load_study
-    study = load_study(args.study)
-    out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-sweep.nc"))
-    ds = sweep(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args))
-    return _finish_command(args, study, ds, out) if _is_root() else 0
+    return _command(args, "sweep")
 
 
 def solve_worst(args) -> int:
@@ -571,6 +649,9 @@ def solve_worst(args) -> int:
                                  file=str(run_file))
             x = ds["worst_x"].sel(criterion=criterion).values.astype(float)
             sha = ds.attrs.get("study_sha256")
+            if str(ds.attrs.get("complete", "yes")) == "no":
+                n = int(ds.sizes.get("eval", 0))
+                raise StudyError(incomplete_run(run_file, n, args.study), file=str(run_file))
             extra = {}
             if "sweep_value" in ds and int(ds["worst_eval"].sel(criterion=criterion)) >= 0:
                 row = int(ds["worst_eval"].sel(criterion=criterion))
@@ -584,6 +665,8 @@ def solve_worst(args) -> int:
         raise StudyError(f"the run has no solved data set for criterion '{criterion}'", file=str(run_file))
     if sha != study.sha256 and not getattr(args, "quiet", False):
         print(f"note: {run_file} was written for a different version of {args.study}", file=sys.stderr)
+    out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
+    check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     t0 = time.perf_counter()
     ev = Evaluator(study)
     point = x
@@ -594,8 +677,11 @@ def solve_worst(args) -> int:
     if res.status != 0:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
-    out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
-    out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
+    try:
+        out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
+    except WriteError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     if not getattr(args, "quiet", False):
         print(f"{study.name}: worst case of {criterion} from {run_file}, solved in "
               f"{time.perf_counter() - t0:.2f} s")

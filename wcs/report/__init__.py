@@ -21,12 +21,14 @@ SECTION_IDS = ["summary", "limits", "scene", "worst-data", "worst-fields", "cont
 
 
 def render_report(results, source: str = "", strict: bool = False) -> str:
-    """The report's HTML for a results file path or an xarray.Dataset in the layout
-    of study-format.md §4 (run, sweep or solve file). StudyError for a bad file."""
+    """The report's HTML for a results file path, an xarray.Dataset in the layout of
+    study-format.md §4 (run, sweep or solve file) or a loaded `data.Results`. StudyError for a bad file."""
     import xarray as xr
 
     from . import data, html
-    if isinstance(results, xr.Dataset):
+    if isinstance(results, data.Results):
+        res, source = results, source or results.source
+    elif isinstance(results, xr.Dataset):
         res = data.from_dataset(results, source or "dataset")
     else:
         res = data.load(results)
@@ -58,14 +60,18 @@ def cmd_report(args) -> int:
     if out.suffix.lower() not in (".html", ".htm"):
         print(f"error: {out}: the report is an HTML file (use a .html name)", file=sys.stderr)
         return 2
+    from .data import load
     try:
-        path = write_report(results, out, strict=getattr(args, "verbose", False))
+        res = load(results)
+        path = write_report(res, out, strict=getattr(args, "verbose", False))
     except StudyError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except OSError as e:
         print(f"error: {out}: cannot write the report ({e.strerror or e})", file=sys.stderr)
         return 2
+    if res.incomplete:
+        print(f"warning: {results}: {res.incomplete}", file=sys.stderr)
     if not getattr(args, "quiet", False):
         size = path.stat().st_size
         print(f"wrote {path} ({size / 1e6:.2f} MB)")

@@ -102,6 +102,9 @@ class Results:
     iterations_doc: str = ""
     param_units: list[str] | None = None    # from the file, when it records them
     messages: list[str] | None = None       # per evaluation, when recorded
+    incomplete: str = ""                    # why the run is not finished ("" when it is)
+    source: str = ""                        # the file it was read from
+    warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
 
     @property
     def n_eval(self) -> int:
@@ -214,7 +217,11 @@ def load(path: str | Path) -> Results:
             raise StudyError(f"{path}: not a NetCDF results file ({first})") from None
     with ds:
         ds.load()
-    return from_dataset(ds, str(path))
+    res = from_dataset(ds, str(path))
+    if res.incomplete:           # the store and the lock beside the file tell how far the run got
+        from ..store import incomplete_run
+        res.incomplete = incomplete_run(path, res.n_eval, _text(res.attrs.get("study_file", "STUDY.yaml")))
+    return res
 
 
 def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
@@ -326,7 +333,11 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    iterations_doc=_text(ds["iterations"].attrs.get("long_name", "")) if "iterations" in ds else "",
                    param_units=[_text(u) for u in ds["param_units"].values.tolist()] if "param_units" in ds else None,
                    messages=[_text(m) for m in ds["message"].values.tolist()]
-                   if is_run and "message" in ds and ds["message"].dims == ("eval",) else None)
+                   if is_run and "message" in ds and ds["message"].dims == ("eval",) else None,
+                   incomplete="the run stopped before the end (complete: no)"
+                   if _text(attrs.get("complete", "yes")) == "no" else "",
+                   warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
+                   source=where)
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:

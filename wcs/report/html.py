@@ -148,6 +148,14 @@ class Report:
                 out.append("fail" if c.worst > c.limit else "pass")
         return out
 
+    def fallbacks(self) -> dict[str, int]:
+        """Solved evaluations whose message names a fallback, `solved (B after A ...)`: message -> count."""
+        out: dict[str, int] = {}
+        for m, st in zip(self.res.messages or [], self.res.status):
+            if st == 0 and m.startswith("solved (") and " after " in m:
+                out[m] = out.get(m, 0) + 1
+        return out
+
     # ------------------------------------------------------------ sections
     def summary(self) -> str:
         r, a = self.res, self.res.attrs
@@ -156,6 +164,9 @@ class Report:
         if "fail" in v:
             broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
             verdict, cls, why = "FAIL", "fail", f"broken limit: {', '.join(broken)}"
+        elif r.incomplete:
+            verdict, cls, why = "INCOMPLETE RUN", "none", (f"no limit is broken among the {r.n_eval} evaluations "
+                                                            "in the file, but the run did not finish")
         elif "pass" in v and "unknown" not in v:
             verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit"
         elif "unknown" in v:
@@ -168,12 +179,21 @@ class Report:
                 ("evaluations", f"{r.n_eval} ({n_fail} failed)"),
                 ("parameters", f"{len(r.params)} uncertain numbers"),
                 ("criteria", ", ".join(esc(c.name) for c in r.criteria))]
-        body = (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
-                f'<p>{esc(why)}.</p>'
-                + _kv(rows))
-        if str(a.get("complete", "yes")) == "no":
-            body += ('<p class="warn">The run did not finish (the file was written as it ran): the worst '
-                     'values are the best found so far.</p>')
+        body = ""
+        if r.incomplete:
+            body += (f'<p class="warn" id="incomplete"><b>This run is incomplete.</b> {esc(r.incomplete)}. '
+                     'The worst values below are the best of the evaluations in this file only.</p>')
+        body += (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
+                 f'<p>{esc(why)}.</p>')
+        if r.warnings:
+            body += ('<div class="warn" id="study-warnings"><b>Warnings of the study</b> (as `wcs check` '
+                     'gives them):<ul>' + "".join(f"<li>{esc(w)}</li>" for w in r.warnings) + "</ul></div>")
+        fallbacks = self.fallbacks()
+        if fallbacks:
+            body += (f'<div class="warn" id="fallbacks"><b>{sum(fallbacks.values())} of {r.n_eval} evaluations '
+                     'were solved by a fallback</b> (not the solver method first tried):<ul>'
+                     + "".join(f"<li>{n} × {esc(m)}</li>" for m, n in fallbacks.items()) + "</ul></div>")
+        body += _kv(rows)
         if r.kind != "run":
             body += ('<p class="note">This file is not a worst-scenario search: the values below are the '
                      'largest found among its evaluations, not a certified maximum over the box.</p>')
@@ -315,7 +335,8 @@ class Report:
         rows = "".join(f'<tr><td class="num">{int(c)}</td><td>{esc(r.status_meanings.get(int(c), "unknown code"))}</td>'
                        f'<td class="num">{int(n)}</td></tr>' for c, n in zip(codes, counts))
         n_fail = int(r.failed.sum())
-        body = (f'<p>{n_fail} of {r.n_eval} evaluations failed.</p>'
+        body = (f'<p>{n_fail} of {r.n_eval} evaluations failed'
+                f'{" (the evaluations in this file of an incomplete run)" if r.incomplete else ""}.</p>'
                 '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
         if n_fail:
             body += ('<p>Where in the box they happened (each evaluation a line over the parameters scaled to '
