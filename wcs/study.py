@@ -566,9 +566,8 @@ class Sweep(_Strict):
 class StudyFile(_Strict):
     study: Optional[Name] = None
     scene: Any = Field(description="inline mapping, or a file name relative to the study file")
-    # a worst scenario is the maximum of a criterion over U_ad: both must be there
-    uncertain: Annotated[dict[str, Any], Field(min_length=1)]
-    criteria: Annotated[list[Criterion], Field(min_length=1)]
+    uncertain: dict[str, Any] = {}                       # none: a run evaluates the nominal data
+    criteria: Annotated[list[Criterion], Field(min_length=1)]   # what a run, sweep or solve measures
     limits: dict[str, float] = {}
     search: Search = Field(default_factory=Search)
     solver: Solver = Field(default_factory=Solver)
