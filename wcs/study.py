@@ -897,7 +897,7 @@ def _in_range(value: float, bounds: dict) -> bool:
 
 def _range_text(bounds: dict) -> str:
     words = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-    return " and ".join(f"{words[k]} {v}" for k, v in bounds.items())
+    return " and ".join(f"{words[k]} {v:g}" for k, v in bounds.items())
 
 
 def _nominal_number(scene: dict, path: str, src: _Source, where) -> float:
