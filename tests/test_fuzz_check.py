@@ -21,6 +21,9 @@ from wcs.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
+# exit 1 is allowed for one message only: valid input on which the solver fails at the nominal
+# data (e.g. semismooth Newton not converging, issue 15 A2), said as such
+NOMINAL_FAILED = "the nominal data set cannot be solved (status"
 EXTREMES = [0, -1, 1e-300, 1e300, float("nan"), float("inf"), -float("inf"), 1e-3, 10, 2**70]
 ODD = ["abc", None, True, [], {}, [1, 2, 3], {"x": 1}, "1e5"]
 
@@ -113,7 +116,7 @@ def run_cases(count: int, tmp_path: Path):
         code, err, wall = check(doc, tmp_path)
         results.append((study, what, code, err, wall))
     bad = [(s, w, c, e) for s, w, c, e, _ in results
-           if c not in (0, 2) or "internal failure" in e or "Traceback" in e]
+           if not (c in (0, 2) or c == 1 and NOMINAL_FAILED in e) or "internal failure" in e or "Traceback" in e]
     assert not bad, "\n".join(f"{s}: {w}: exit {c}: {e.strip()[-300:]}" for s, w, c, e in bad)
     for study, what, code, err, _ in results:    # bad input names the file
         if code == 2:
@@ -131,8 +134,8 @@ def test_mutations_are_deterministic_and_valid_yaml():
 
 @pytest.mark.timeout(120)
 def test_check_on_mutated_studies_exits_0_or_2(tmp_path):
-    """A default-suite slice: 72 mutations (4 per shipped study)."""
-    run_cases(72, tmp_path)
+    """A default-suite slice: 36 mutations (2 per shipped study)."""
+    run_cases(36, tmp_path)
 
 
 @pytest.mark.slow

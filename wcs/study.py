@@ -265,8 +265,8 @@ Polygon = Annotated[list[XY], Field(min_length=3), AfterValidator(_simple)]
 
 
 def _has_length(ends: list[list[float]]) -> list[list[float]]:
-    if ends[0] == ends[1]:
-        raise ValueError("the segment's two ends coincide")
+    if np.hypot(ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]) < FEATURE_MIN:
+        raise ValueError(f"the segment's two ends coincide (closer than {FEATURE_MIN:g})")
     return ends
 
 
