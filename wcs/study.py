@@ -279,7 +279,7 @@ def _nonzero(direction: list[float]) -> list[float]:
     return direction
 
 
-Direction = Annotated[Point, AfterValidator(_nonzero)]
+Direction = Annotated[XY, AfterValidator(_nonzero)]
 
 
 def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
