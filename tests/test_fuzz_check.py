@@ -148,5 +148,6 @@ def test_check_fuzz_full(tmp_path):
     peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20   # KiB on Linux
     assert peak_gb < 1.0, peak_gb
     codes = [c for _, _, c, _, _ in results]
-    print(f"{len(codes)} mutations: {codes.count(0)} exit 0, {codes.count(2)} exit 2; "
+    print(f"{len(codes)} mutations: {codes.count(0)} exit 0, {codes.count(2)} exit 2, "
+          f"{codes.count(1)} exit 1 (nominal solve failed); "
           f"total {sum(t for *_, t in results):.1f} s, peak {peak_gb:.2f} GB")
