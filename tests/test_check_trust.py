@@ -240,4 +240,3 @@ def test_an_error_that_names_its_file_keeps_it():
     e = StudyError("bad", file="lib.yaml", path="x")
     assert e.in_file("study.yaml") is e
     assert str(StudyError("bad", path="x").in_file("study.yaml")) == "study.yaml: x: bad"
-    assert np.isfinite(estimate.CELLS_PER_H2)

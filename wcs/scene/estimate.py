@@ -89,7 +89,7 @@ def estimate_cells(scene: dict) -> tuple[float, str]:
     contributes most, relative to the scene (to name in a refusal). `scene` is validated (shapes, not a mesh file)."""
     mesh = scene["mesh"]
     grading = mesh.get("grading", DEFAULT_GRADING)
-    total, parts = 0.0, []
+    parts = []
     for body, spec in scene["bodies"].items():
         own = spec.get("mesh") or {}
         h = own.get("size", mesh["size"])
@@ -107,5 +107,4 @@ def estimate_cells(scene: dict) -> tuple[float, str]:
             if ref["size"] < h:
                 a, p = _zone(ref, scene)
                 parts.append((_refined(a, p, ref["size"], h, grading, area), path))
-    total = sum(c for c, _ in parts)
-    return total, max(parts)[1]
+    return sum(c for c, _ in parts), max(parts)[1]
