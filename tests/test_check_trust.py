@@ -240,3 +240,10 @@ def test_an_error_that_names_its_file_keeps_it():
     e = StudyError("bad", file="lib.yaml", path="x")
     assert e.in_file("study.yaml") is e
     assert str(StudyError("bad", path="x").in_file("study.yaml")) == "study.yaml: x: bad"
+
+
+def test_no_criteria_is_a_warning(tmp_path, capsys):
+    doc = doc_of("contact-patch.yaml")
+    doc["criteria"] = []
+    code, _, err, _ = check(doc, tmp_path, capsys, "--quiet")
+    assert code == 0 and "warning:" in err and "no criteria" in err

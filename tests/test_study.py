@@ -231,7 +231,7 @@ def test_lame_material_with_lame_box(tmp_path):
 
 def test_defaults_when_optional_blocks_are_absent(tmp_path):
     doc = demo_doc()
-    for key in ("study", "search", "solver", "output", "limits", "uncertain"):
+    for key in ("study", "search", "solver", "output", "limits", "criteria", "uncertain"):
         del doc[key]
     del doc["scene"]["plane"]
     study = load_study(write_study(doc, tmp_path, "plain.yaml"))

@@ -567,7 +567,7 @@ class StudyFile(_Strict):
     study: Optional[Name] = None
     scene: Any = Field(description="inline mapping, or a file name relative to the study file")
     uncertain: dict[str, Any] = {}                       # none: a run evaluates the nominal data
-    criteria: Annotated[list[Criterion], Field(min_length=1)]   # what a run, sweep or solve measures
+    criteria: list[Criterion] = []                       # none: a warning (a run measures nothing)
     limits: dict[str, float] = {}
     search: Search = Field(default_factory=Search)
     solver: Solver = Field(default_factory=Solver)
@@ -791,6 +791,7 @@ def _check_mesh(scene: dict, src: _Source) -> float | None:
 
 
 LOCKING_NU = 0.45       # P1 triangles lock as nu -> 0.5
+NO_CRITERIA = "no criteria: `run` and `sweep` solve but measure nothing (`solve` writes the fields)"
 
 
 def _locking_warnings(scene: dict, uncertain: list[dict]) -> list[str]:
@@ -1103,7 +1104,7 @@ def load_study(path) -> Study:
         scene=scene, uncertain=uncertain, criteria=criteria, limits=dict(top.limits),
         search=_dump(top.search), solver=_dump(top.solver), sweep=sweep,
         output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
-        warnings=_locking_warnings(scene, uncertain), estimated_cells=cells,
+        warnings=_locking_warnings(scene, uncertain) + ([] if criteria else [NO_CRITERIA]), estimated_cells=cells,
     )
 
 
