@@ -27,6 +27,7 @@ def _cell_sizes(mesh) -> tuple[float, float]:
 
 def summary(study, ev) -> str:
     """What the study will do, in the words of the study file."""
+    from .scene.estimate import DEFAULT_MAX_CELLS
     scene, sm = study.scene, ev.smesh
     mesh = sm.mesh
     lines = [f"study {study.name}  ({study.file})",
@@ -46,6 +47,10 @@ def summary(study, ev) -> str:
                  + (f", {len(m.get('refine') or [])} refinement zone(s)" if m.get("refine") else "")
                  + "".join(f", body {b}: {v['mesh']}" for b, v in scene["bodies"].items() if v.get("mesh"))
                  + f"; cells from {sizes[0]:.3g} m to {sizes[1]:.3g} m")
+    if study.estimated_cells is not None:
+        lines.append(f"  mesh size: estimated {study.estimated_cells:.3g} cells before meshing "
+                     f"(limit mesh.max_cells = {m.get('max_cells', DEFAULT_MAX_CELLS):g}), "
+                     f"{mesh.t.shape[1]} meshed, {2 * mesh.p.shape[1]} unknowns")
     lines.append("  boundaries:")
     for name, facets in sm.boundaries.items():
         lines.append(f"    {name}: {len(facets)} edges")
@@ -84,12 +89,26 @@ def summary(study, ev) -> str:
 
 
 def cmd_check(args) -> int:
-    from .evaluation import Evaluator
+    """Load, mesh and assemble the study, and solve its nominal data set once: what the nominal
+    solve refuses as bad input (status 3, the solvability condition) `check` refuses too (exit 2);
+    any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
+    from .evaluation import STATUS, Evaluator
     from .study import load_study
     study = load_study(args.study)
     ev = Evaluator(study)
-    print(summary(study, ev))
-    print("ok")
+    res = ev.evaluate(study.nominal())
+    for w in study.warnings:
+        print(f"warning: {study.file}: {w}", file=sys.stderr)
+    if not args.quiet:
+        print(summary(study, ev))
+    if res.status != 0:
+        print(f"error: {study.file}: the nominal data set cannot be solved "
+              f"(status {res.status}, {STATUS[res.status]}): {res.message}", file=sys.stderr)
+        return 2 if res.status == 3 else 1
+    if not args.quiet:
+        print(f"  nominal solve: {res.message} in {res.wall_time:.2f} s; "
+              + ", ".join(f"{k} = {v:.4g}" for k, v in res.phi.items()))
+        print("ok")
     return 0
 
 
@@ -177,7 +196,7 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except StudyError as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {e.in_file(getattr(args, 'study', None) or args.results)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

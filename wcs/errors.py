@@ -11,6 +11,10 @@ class StudyError(Exception):
         where = ": ".join(p for p in (file, path) if p)
         super().__init__(f"{where}: {message}" if where else message)
 
+    def in_file(self, file) -> "StudyError":
+        """This error, naming `file` if it names none yet (mesh-stage faults know only the key path)."""
+        return self if self.file is not None else StudyError(self.fault, file=str(file), path=self.path)
+
 
 class SolveError(Exception):
     """A forward solve that cannot be carried out for a data set (e.g. solvability)."""

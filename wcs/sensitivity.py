@@ -68,7 +68,9 @@ def coefficient_jacobian(study, model, x: np.ndarray) -> np.ndarray:
         cp = flatten(model.coefficients(scene_with(study, xp)))[0]
         cm = flatten(model.coefficients(scene_with(study, xm)))[0]
         cols.append((cp - cm) / (2 * h))
-    return np.column_stack(cols) if cols else np.zeros((0, 0))
+    if not cols:                                   # no uncertain number: (ncoef, 0)
+        return np.zeros((flatten(model.coefficients(scene_with(study, x)))[0].size, 0))
+    return np.column_stack(cols)
 
 
 @dataclass

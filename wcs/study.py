@@ -80,7 +80,9 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
     except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"cannot read the file: {exc}", file=str(path)) from None
     try:
-        return yaml.load(text, Loader=_Loader), text
+        doc = yaml.load(text, Loader=_Loader)
+    except RecursionError:                          # the parser recurses per level
+        raise StudyError(f"the file nests deeper than {MAX_NESTING} levels", file=str(path)) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -88,6 +90,23 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
                          file=str(path)) from None
     except yaml.YAMLError as exc:
         raise StudyError(f"YAML syntax error: {exc}", file=str(path)) from None
+    if _depth(doc) > MAX_NESTING:
+        raise StudyError(f"the file nests deeper than {MAX_NESTING} levels", file=str(path))
+    return doc, text
+
+
+def _depth(doc) -> int:
+    """Levels of nested mappings and lists (a scalar is level 0), without recursion."""
+    deepest, stack, seen = 0, [(doc, 0)], set()
+    while stack:
+        node, level = stack.pop()
+        if isinstance(node, (dict, list)) and (id(node), level) not in seen:   # aliases: once
+            seen.add((id(node), level))
+            deepest = max(deepest, level + 1)
+            if level + 1 > MAX_NESTING:
+                break
+            stack += [(child, level + 1) for child in (node.values() if isinstance(node, dict) else node)]
+    return deepest
 
 
 def _locate(name: str, src: _Source, key: str) -> Path:
@@ -150,12 +169,29 @@ class _Source:
 
 # ---------------------------------------------------------------- typed models
 
-# Physical ranges, shared by the models and by the boxes of uncertain data.
-_ANY: dict = {}
-_POSITIVE = {"gt": 0}
-_NONNEGATIVE = {"ge": 0}
+# Physical ranges, shared by the models and by the boxes of uncertain data. The bounds lie
+# beyond any solid (moduli from gels, ~1e2 Pa, to diamond, 1.2e12 Pa; conductivities from
+# aerogels to diamond; expansions of polymers, ~1e-3/K) yet keep every product of the solve
+# (u ~ load * length / E) far inside double precision: E = 1e-300 would give u ~ 1e306.
+_MODULUS = {"ge": 1.0, "le": 1e13}                 # E, mu [Pa]
+_LAME = {"ge": -1e13, "le": 1e17}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
 _POISSON = {"gt": -1, "lt": 0.5}
-_KELVIN = {"gt": 0}
+_CONDUCTIVITY = {"ge": 1e-6, "le": 1e6}           # [W/(m K)]
+_EXPANSION = {"ge": -1e-2, "le": 1e-2}            # [1/K]
+_WEIGHT = {"ge": 0, "le": 1e7}                     # density_weight [N/m^3]
+_STRESS = {"ge": -1e12, "le": 1e12}               # pressure, traction [Pa]
+_SLIP = {"ge": 0, "le": 1e12}                      # Tresca slip limit [Pa]
+_COEFFICIENT = {"ge": 0, "le": 10}                 # Coulomb friction coefficient
+_BODY_FORCE = {"ge": -1e10, "le": 1e10}           # [N/m^3]
+_SOURCE = {"ge": -1e12, "le": 1e12}               # heat source [W/m^3]
+_LENGTH = {"ge": -1e6, "le": 1e6}                 # coordinates, prescribed displacements [m]
+_KELVIN = {"gt": 0, "le": 1e5}
+# OpenCASCADE merges points closer than its tolerance (1e-7): sides, radii, edges and mesh
+# sizes below FEATURE_MIN fail inside gmsh ("Could not create line")
+FEATURE_MIN = 1e-6
+_FEATURE = {"ge": FEATURE_MIN, "le": 1e6}
+MAX_NESTING = 50                                   # levels of a study file (shapes nest)
+MAX_PROFILE_POINTS = 1000
 
 _CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
@@ -168,7 +204,9 @@ def _valid_name(name: str) -> str:
 
 Name = Annotated[str, AfterValidator(_valid_name)]
 Point = Annotated[list[float], Field(min_length=2, max_length=2)]
-Corners = Annotated[list[float], Field(min_length=4, max_length=4)]
+Coordinate = Annotated[float, Field(**_LENGTH)]
+XY = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
+Corners = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
 
 
 def _ordered(corners: list[float], strict: bool) -> list[float]:
@@ -176,6 +214,9 @@ def _ordered(corners: list[float], strict: bool) -> list[float]:
     if (x0 >= x1 or y0 >= y1) if strict else (x0 > x1 or y0 > y1):
         relation = "<" if strict else "<="
         raise ValueError(f"corners must be [x0, y0, x1, y1] with x0 {relation} x1 and y0 {relation} y1")
+    if strict and min(x1 - x0, y1 - y0) < FEATURE_MIN:
+        raise ValueError(f"a side of {min(x1 - x0, y1 - y0):.3g} is below {FEATURE_MIN:g}, "
+                         "the smallest length the geometry kernel resolves")
     return corners
 
 
@@ -183,23 +224,53 @@ Rectangle = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=True)
 BoxCorners = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=False))]
 
 
-def _has_area(points: list[list[float]]) -> list[list[float]]:
-    xs, ys = np.array(points).T
+def _simple(points: list[list[float]]) -> list[list[float]]:
+    """A simple polygon: no repeated vertex, no edge shorter than FEATURE_MIN, no two edges
+    crossing or touching (other than neighbours at their common vertex), nonzero area."""
+    ring = points[:-1] if len(points) > 3 and points[0] == points[-1] else points   # a closed ring
+    P = np.array(ring, dtype=float)
+    A, B = P, np.roll(P, -1, axis=0)
+    n = len(P)
+    short = np.flatnonzero(np.hypot(*(B - A).T) < FEATURE_MIN)
+    if short.size:
+        i = int(short[0])
+        raise ValueError(f"vertices {i} and {(i + 1) % n} coincide (a repeated vertex) or are closer "
+                         f"than {FEATURE_MIN:g}")
+    i, j = np.triu_indices(n, 1)
+    far = (j - i > 1) & ~((i == 0) & (j == n - 1))            # non-neighbouring edges
+    i, j = i[far], j[far]
+
+    def orient(a, b, c):
+        return np.sign((b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
+                       - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
+    d1, d2 = orient(A[j], B[j], A[i]), orient(A[j], B[j], B[i])
+    d3, d4 = orient(A[i], B[i], A[j]), orient(A[i], B[i], B[j])
+    cross = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    collinear = (d1 == 0) & (d2 == 0)                          # overlap only if the spans meet
+    lo = lambda a, b: np.minimum(a, b)                          # noqa: E731
+    hi = lambda a, b: np.maximum(a, b)                          # noqa: E731
+    span = np.all((lo(A[i], B[i]) <= hi(A[j], B[j])) & (lo(A[j], B[j]) <= hi(A[i], B[i])), axis=1)
+    hit = np.flatnonzero(cross & (~collinear | span))
+    if hit.size:
+        k = int(hit[0])
+        raise ValueError(f"the polygon is self-intersecting (edge {i[k]}-{(i[k] + 1) % n} meets "
+                         f"edge {j[k]}-{(j[k] + 1) % n})")
+    xs, ys = P.T
     if np.dot(xs, np.roll(ys, -1)) == np.dot(ys, np.roll(xs, -1)):
         raise ValueError("the polygon has zero area")
     return points
 
 
-Polygon = Annotated[list[Point], Field(min_length=3), AfterValidator(_has_area)]
+Polygon = Annotated[list[XY], Field(min_length=3), AfterValidator(_simple)]
 
 
 def _has_length(ends: list[list[float]]) -> list[list[float]]:
-    if ends[0] == ends[1]:
-        raise ValueError("the segment's two ends coincide")
+    if np.hypot(ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]) < FEATURE_MIN:
+        raise ValueError(f"the segment's two ends coincide (closer than {FEATURE_MIN:g})")
     return ends
 
 
-Segment = Annotated[list[Point], Field(min_length=2, max_length=2), AfterValidator(_has_length)]
+Segment = Annotated[list[XY], Field(min_length=2, max_length=2), AfterValidator(_has_length)]
 
 
 def _nonzero(direction: list[float]) -> list[float]:
@@ -208,7 +279,7 @@ def _nonzero(direction: list[float]) -> list[float]:
     return direction
 
 
-Direction = Annotated[Point, AfterValidator(_nonzero)]
+Direction = Annotated[XY, AfterValidator(_nonzero)]
 
 
 def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
@@ -237,13 +308,13 @@ class _Strict(BaseModel):
 
 
 class Material(_Strict):
-    E: Optional[float] = Field(None, **_POSITIVE)
+    E: Optional[float] = Field(None, **_MODULUS)
     nu: Optional[float] = Field(None, **_POISSON)
-    lam: Optional[float] = Field(None, alias="lambda")
-    mu: Optional[float] = Field(None, **_POSITIVE)
-    conductivity: Optional[float] = Field(None, **_POSITIVE)
-    expansion: Optional[float] = None
-    density_weight: Optional[float] = Field(None, **_NONNEGATIVE)
+    lam: Optional[float] = Field(None, alias="lambda", **_LAME)
+    mu: Optional[float] = Field(None, **_MODULUS)
+    conductivity: Optional[float] = Field(None, **_CONDUCTIVITY)
+    expansion: Optional[float] = Field(None, **_EXPANSION)
+    density_weight: Optional[float] = Field(None, **_WEIGHT)
 
     @model_validator(mode="after")
     def _one_elastic_pair(self):
@@ -261,8 +332,8 @@ class Material(_Strict):
 
 
 class Disc(_Strict):
-    center: Point
-    radius: float = Field(**_POSITIVE)
+    center: XY
+    radius: float = Field(**_FEATURE)
 
 
 class Shape(_Strict):
@@ -279,7 +350,7 @@ class Shape(_Strict):
 
 
 class RegionMesh(_Strict):
-    size: float = Field(**_POSITIVE)       # target element size inside the region
+    size: float = Field(**_FEATURE)        # target element size inside the region
 
 
 class Region(_Strict):
@@ -292,7 +363,7 @@ class Region(_Strict):
 class BodyMesh(_Strict):
     """A body's own mesh sizes: the body is meshed on its own (nodes on curves it shares
     with other bodies do not match theirs: contacts and glue there use mortar)."""
-    size: Optional[float] = Field(None, **_POSITIVE)
+    size: Optional[float] = Field(None, **_FEATURE)
     refine: list["Refinement"] = []
 
 
@@ -314,8 +385,8 @@ class Boundary(_Strict):
 
 
 class Support(_Strict):
-    u: Optional[Annotated[list[Optional[float]], Field(min_length=2, max_length=2)]] = None
-    normal: Optional[float] = None
+    u: Optional[Annotated[list[Optional[Coordinate]], Field(min_length=2, max_length=2)]] = None
+    normal: Optional[float] = Field(None, **_LENGTH)
 
     @model_validator(mode="after")
     def _holds_something(self):
@@ -326,8 +397,8 @@ class Support(_Strict):
 
 
 class Load(_Strict):
-    pressure: Optional[float] = None
-    traction: Optional[Point] = None
+    pressure: Optional[float] = Field(None, **_STRESS)
+    traction: Optional[Annotated[list[Annotated[float, Field(**_STRESS)]], Field(min_length=2, max_length=2)]] = None
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -336,8 +407,8 @@ class Load(_Strict):
 
 
 class Friction(_Strict):
-    slip_limit: Optional[float] = Field(None, **_NONNEGATIVE)
-    coefficient: Optional[float] = Field(None, **_NONNEGATIVE)
+    slip_limit: Optional[float] = Field(None, **_SLIP)
+    coefficient: Optional[float] = Field(None, **_COEFFICIENT)
 
     @model_validator(mode="after")
     def _one_law(self):
@@ -362,7 +433,7 @@ class Glue(_Strict):
 class Thermal(_Strict):
     reference: float = Field(**_KELVIN)
     temperature: Annotated[dict[str, Annotated[float, Field(**_KELVIN)]], Field(min_length=1)]
-    sources: dict[str, float] = {}
+    sources: dict[str, Annotated[float, Field(**_SOURCE)]] = {}
 
 
 class RegionSelector(_Strict):
@@ -382,7 +453,7 @@ class RegionOfInterest(RegionSelector):
 
 
 class Refinement(RegionSelector):
-    size: float = Field(**_POSITIVE)
+    size: float = Field(**_FEATURE)
 
 
 BodyMesh.model_rebuild()
@@ -390,17 +461,19 @@ Body.model_rebuild()
 
 
 class Mesh(_Strict):
-    size: Optional[float] = Field(None, **_POSITIVE)
-    grading: Optional[float] = Field(None, **_NONNEGATIVE)
+    size: Optional[float] = Field(None, **_FEATURE)
+    grading: Optional[float] = Field(None, ge=0, le=1e3)
     refine: list[Refinement] = []
     file: Optional[str] = None             # a mesh file (gmsh .msh, ...) instead of shapes
+    max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
 
     @model_validator(mode="after")
     def _size_or_file(self):
         if self.file is None and self.size is None:
             raise ValueError("give `size` (the target element size) or `file` (a mesh file)")
-        if self.file is not None and (self.size is not None or self.refine or self.grading is not None):
-            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading` and `refine`")
+        if self.file is not None and (self.size is not None or self.refine or self.grading is not None
+                                      or self.max_cells is not None):
+            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading`, `refine` and `max_cells`")
         return self
 
 
@@ -413,7 +486,8 @@ class Scene(_Strict):
     boundaries: dict[Name, Boundary] = {}
     supports: dict[str, Support] = {}
     loads: dict[str, Load] = {}
-    body_forces: dict[str, Point] = {}
+    body_forces: dict[str, Annotated[list[Annotated[float, Field(**_BODY_FORCE)]],
+                                     Field(min_length=2, max_length=2)]] = {}
     contacts: dict[Name, Contact] = {}
     glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
@@ -435,7 +509,7 @@ class Criterion(_Strict):
     name: Name
     kind: CriterionKind
     regions: Annotated[list[str], Field(min_length=1)]
-    point: Optional[Point] = None
+    point: Optional[XY] = None
     direction: Optional[Direction] = None
 
     @model_validator(mode="after")
@@ -447,35 +521,40 @@ class Criterion(_Strict):
         return self
 
 
+# Counts of the search and the solver: a million solves is weeks of work at the sizes wcs
+# runs; every count fits the results file's int64 (a budget of 1e30 did not).
+MAX_SOLVES = 1_000_000
+
+
 class SampleDesign(_Strict):
     design: Literal["lhs", "sobol", "vertices", "grid"] = "lhs"
-    n: int = Field(32, ge=1)
-    seed: int = Field(0, ge=0)
+    n: int = Field(32, ge=1, le=MAX_SOLVES)
+    seed: int = Field(0, ge=0, le=2**32 - 1)
 
 
 class LocalSearch(_Strict):
-    starts: int = Field(3, ge=1)
+    starts: int = Field(3, ge=1, le=1000)
 
 
 class Search(_Strict):
     method: Literal["auto", "sample", "local", "global"] = "auto"
     sample: SampleDesign = Field(default_factory=SampleDesign)
-    budget: int = Field(200, ge=1)
+    budget: int = Field(200, ge=1, le=MAX_SOLVES)
     local: LocalSearch = Field(default_factory=LocalSearch)
 
 
 class DomainDecomposition(_Strict):
-    subdomains: int = Field(8, ge=1)
-    pair_size: float = Field(0.5, gt=0)                  # band around a contact side, in subdomain widths H
+    subdomains: int = Field(8, ge=1, le=4096)
+    pair_size: float = Field(0.5, gt=0, le=100)          # band around a contact side, in subdomain widths H
     relaxation: Literal["aitken"] | Annotated[float, Field(gt=0, le=2)] = "aitken"   # or ω (1 = the seed)
-    patience: int = Field(8, ge=1)                       # steps with contraction q ≥ 1 before "stagnated"
+    patience: int = Field(8, ge=1, le=10_000)            # steps with contraction q ≥ 1 before "stagnated"
     step: Literal["seed", "glued"] = "seed"              # successive steps with S0 (the seed) or S0 + glued pairs
 
 
 class Solver(_Strict):
     method: Literal["auto", "monolithic", "dd", "qp"] = "auto"
-    tolerance: float = Field(1e-8, **_POSITIVE)
-    max_iterations: int = Field(200, ge=1)
+    tolerance: float = Field(1e-8, gt=0, le=1e-2)       # relative: above 1e-2 a "solved" state is not a solution
+    max_iterations: int = Field(200, ge=1, le=100_000)
     dd: DomainDecomposition = Field(default_factory=DomainDecomposition)
     fallback: bool = True
 
@@ -487,8 +566,8 @@ class Sweep(_Strict):
 class StudyFile(_Strict):
     study: Optional[Name] = None
     scene: Any = Field(description="inline mapping, or a file name relative to the study file")
-    uncertain: dict[str, Any] = {}
-    criteria: list[Criterion] = []
+    uncertain: dict[str, Any] = {}                       # none: a run evaluates the nominal data
+    criteria: list[Criterion] = []                       # none: a warning (a run measures nothing)
     limits: dict[str, float] = {}
     search: Search = Field(default_factory=Search)
     solver: Solver = Field(default_factory=Solver)
@@ -505,8 +584,8 @@ class StudyFile(_Strict):
 
 class Profile(_Strict):
     range: Point
-    lipschitz: float = Field(**_POSITIVE)
-    points: int = Field(ge=2)
+    lipschitz: float = Field(gt=0)
+    points: int = Field(ge=2, le=MAX_PROFILE_POINTS)
 
 
 _STUDY = TypeAdapter(StudyFile)
@@ -681,6 +760,61 @@ def _check_thermal(scene: dict, src: _Source) -> list[str]:
     return notes
 
 
+# ---------------------------------------------------------------- mesh size and resources
+
+MIN_CELLS_ALONG = 4     # a mesh size gives at least this many cells along the longest side
+
+
+def _check_mesh(scene: dict, src: _Source) -> float | None:
+    """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
+    when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
+    cells along the longest side of the scene (or of a body with its own size)."""
+    if "file" in scene["mesh"]:
+        return None
+    from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, shape_box
+    boxes = {b: [shape_box(r["shape"]) for r in spec["regions"]] for b, spec in scene["bodies"].items()}
+    sizes = [(("mesh", "size"), scene["mesh"]["size"], "the scene", sum(boxes.values(), []))]
+    sizes += [(("bodies", b, "mesh", "size"), spec["mesh"]["size"], f"body '{b}'", boxes[b])
+              for b, spec in scene["bodies"].items() if (spec.get("mesh") or {}).get("size")]
+    for where, h, what, bx in sizes:
+        longest = max(max(b[2] for b in bx) - min(b[0] for b in bx), max(b[3] for b in bx) - min(b[1] for b in bx))
+        if h > longest / MIN_CELLS_ALONG:
+            raise src.error(where, f"size {h:g} leaves fewer than {MIN_CELLS_ALONG} cells along the longest "
+                                   f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
+    cells, path = estimate_cells(scene)
+    limit = scene["mesh"].get("max_cells", DEFAULT_MAX_CELLS)
+    if cells > limit:
+        raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} cells "
+                        f"({cells:.3g} unknowns), more than mesh.max_cells = {limit:g} (this size contributes "
+                        "most); coarsen the mesh or raise `mesh.max_cells`")
+    return cells
+
+
+LOCKING_NU = 0.45       # P1 triangles lock as nu -> 0.5
+NO_CRITERIA = "no criteria: `run` and `sweep` solve but measure nothing (`solve` writes the fields)"
+
+
+def _locking_warnings(scene: dict, uncertain: list[dict]) -> list[str]:
+    """A warning per material whose Poisson ratio (nominal or anywhere in its box) is >= LOCKING_NU:
+    P1 triangles lock (Hertz peak-pressure error 2 % at nu = 0.45, 8 % at 0.49, 135 % at 0.4999)."""
+    box = {e["path"]: (e["lower"], e["upper"]) for e in uncertain}
+    used = dict.fromkeys(r["material"] for b in scene["bodies"].values() for r in b["regions"])
+    out = []
+    for name in used:
+        m = scene["materials"][name]
+        if "nu" in m:
+            top = box.get(f"materials.{name}.nu", (m["nu"], m["nu"]))[1]
+        else:                                      # nu = lambda / (2 (lambda + mu)), largest at max lambda, min mu
+            lam = box.get(f"materials.{name}.lambda", (m["lambda"], m["lambda"]))[1]
+            mu = box.get(f"materials.{name}.mu", (m["mu"], m["mu"]))[0]
+            top = lam / (2 * (lam + mu))
+        if top >= LOCKING_NU:
+            out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 triangles "
+                       "lock as nu -> 0.5: results there are too stiff (wcs's Hertz benchmark: peak-pressure "
+                       "error 2 % at 0.45, 8 % at 0.49, 135 % at 0.4999)")
+    return out
+
+
 # ---------------------------------------------------------------- dotted paths
 
 
@@ -718,23 +852,23 @@ def _child(node, key: str, where: str):
 # What can be uncertain (or swept), each with its physical range.
 # `<i>` is a vector component (0 or 1), any other `<...>` a name.
 _ADDRESSES = {
-    "materials.<m>.E": _POSITIVE,
+    "materials.<m>.E": _MODULUS,
     "materials.<m>.nu": _POISSON,
-    "materials.<m>.lambda": _ANY,  # lambda + mu > 0 is checked on the pair
-    "materials.<m>.mu": _POSITIVE,
-    "materials.<m>.conductivity": _POSITIVE,
-    "materials.<m>.expansion": _ANY,
-    "materials.<m>.density_weight": _NONNEGATIVE,
-    "loads.<boundary>.pressure": _ANY,
-    "loads.<boundary>.traction.<i>": _ANY,
-    "body_forces.<body or region>.<i>": _ANY,
-    "supports.<boundary>.u.<i>": _ANY,
-    "supports.<boundary>.normal": _ANY,
-    "contacts.<c>.friction.slip_limit": _NONNEGATIVE,
-    "contacts.<c>.friction.coefficient": _NONNEGATIVE,
+    "materials.<m>.lambda": _LAME,  # lambda + mu > 0 is checked on the pair
+    "materials.<m>.mu": _MODULUS,
+    "materials.<m>.conductivity": _CONDUCTIVITY,
+    "materials.<m>.expansion": _EXPANSION,
+    "materials.<m>.density_weight": _WEIGHT,
+    "loads.<boundary>.pressure": _STRESS,
+    "loads.<boundary>.traction.<i>": _STRESS,
+    "body_forces.<body or region>.<i>": _BODY_FORCE,
+    "supports.<boundary>.u.<i>": _LENGTH,
+    "supports.<boundary>.normal": _LENGTH,
+    "contacts.<c>.friction.slip_limit": _SLIP,
+    "contacts.<c>.friction.coefficient": _COEFFICIENT,
     "thermal.reference": _KELVIN,
     "thermal.temperature.<boundary>": _KELVIN,
-    "thermal.sources.<body or region>": _ANY,
+    "thermal.sources.<body or region>": _SOURCE,
 }
 _PROFILE_ADDRESS = "contacts.<c>.friction.slip_limit"
 
@@ -758,12 +892,13 @@ def _matches(part: str, key: str) -> bool:
 def _in_range(value: float, bounds: dict) -> bool:
     return ((value > bounds["gt"]) if "gt" in bounds else True) and \
         ((value >= bounds["ge"]) if "ge" in bounds else True) and \
-        ((value < bounds["lt"]) if "lt" in bounds else True)
+        ((value < bounds["lt"]) if "lt" in bounds else True) and \
+        ((value <= bounds["le"]) if "le" in bounds else True)
 
 
 def _range_text(bounds: dict) -> str:
-    words = {"gt": ">", "ge": ">=", "lt": "<"}
-    return " and ".join(f"{words[k]} {v}" for k, v in bounds.items())
+    words = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+    return " and ".join(f"{words[k]} {v:g}" for k, v in bounds.items())
 
 
 def _nominal_number(scene: dict, path: str, src: _Source, where) -> float:
@@ -912,6 +1047,8 @@ class Study:
     output: str
     parameters: Parameters
     notes: list[str]
+    warnings: list[str] = field(default_factory=list)   # results to distrust (e.g. P1 locking)
+    estimated_cells: float | None = None                # before meshing; None for a mesh file
     _evaluator: Any = field(default=None, repr=False, compare=False)
 
     def evaluate(self, values, gradients: bool = False):
@@ -953,6 +1090,7 @@ def load_study(path) -> Study:
     _check_references(scene, scene_src)
     _check_contacts(scene, scene_src)
     notes = scene["mesh"].pop("notes", []) + _check_thermal(scene, scene_src)
+    cells = _check_mesh(scene, scene_src)
     uncertain = _parse_uncertain(top.uncertain, scene, src)
     criteria = [_dump(c) for c in top.criteria]
     _check_criteria(criteria, scene, src)
@@ -966,6 +1104,7 @@ def load_study(path) -> Study:
         scene=scene, uncertain=uncertain, criteria=criteria, limits=dict(top.limits),
         search=_dump(top.search), solver=_dump(top.solver), sweep=sweep,
         output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
+        warnings=_locking_warnings(scene, uncertain) + ([] if criteria else [NO_CRITERIA]), estimated_cells=cells,
     )
 
 

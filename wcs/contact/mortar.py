@@ -292,6 +292,8 @@ def mortar_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Mo
     gap = -np.einsum("ij,ij->i", CX, n)
     h = float(np.mean(mi.D))
     gap[np.abs(gap) <= 1e-12 * h] = 0.0
+    from .pairs import check_penetration
+    check_penetration(gap, X[mi.slave], h, path)
     # master nodes / coefficients, padded
     Cm = mi.C.tolil()
     masters = set(mi.master.tolist())

@@ -32,6 +32,10 @@ facet's length) -- or when the sides do not face each other there (the
 slave's own outward nodal normal has ``n_slave · n_i <= 0``).  If no kept node
 is within ``max(5 × mean facet length, 1% of the master side length)`` of the
 master side, the two sides do not face each other: ``StudyError`` at ``path``.
+A kept node whose initial gap is below ``-PENETRATION`` × the mean facet length
+lies deep inside the master body: the sides overlap or face away from each other
+(e.g. the top of the upper block against the bottom of the lower one, whose
+normals also oppose): ``StudyError`` (``check_penetration``, also used by mortar).
 """
 from __future__ import annotations
 
@@ -46,6 +50,7 @@ from ..scene.selectors import facet_lengths, facet_normals, nodal_normals
 SNAP = 1e-9             # |s| (facet parameter) below this -> the projection is the master node
 OUTSIDE = 1e-6          # projection parameter beyond an end of the master side by more -> dropped
 COINCIDENT = 1e-9       # distance / mean facet length below this -> coincident nodes, gap 0
+PENETRATION = 0.5       # initial gap / mean facet length below -this -> the sides do not face
 _CHUNK = 2_000_000      # slave nodes x master facets per vectorised block
 
 
@@ -148,6 +153,8 @@ def pair_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Cont
             f"the slave and master sides do not face each other (no slave node within "
             f"{near:.3g} of the master side with opposing normals)", path=path)
 
+    check_penetration(gap[keep], X[keep], h, path)
+
     # master nodes / weights; (node, 1) first at a master node
     mn = np.where(at1[:, None], np.stack([b_node, a_node], 1), np.stack([a_node, b_node], 1))
     mw = np.where(at1[:, None], np.stack([1.0 - s, s], 1)[:, ::-1], np.stack([1.0 - s, s], 1))
@@ -156,6 +163,19 @@ def pair_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Cont
         slave=snodes[keep], master_nodes=mn[keep], master_weights=mw[keep],
         normal=n[keep], tangent=tangent[keep], gap=gap[keep], weight=weight[keep],
         dropped=snodes[~keep])
+
+
+def check_penetration(gap: np.ndarray, coords: np.ndarray, h: float, path: str) -> None:
+    """StudyError at ``path`` when a slave node (row of ``coords``) starts deeper than
+    PENETRATION × h inside the master side (gap < 0 is an initial penetration)."""
+    deep = np.flatnonzero(gap < -PENETRATION * h)
+    if deep.size:
+        i = deep[np.argmin(gap[deep])]
+        raise StudyError(
+            f"the slave and master sides do not face each other: {deep.size} slave node(s) start inside "
+            f"the master body, up to {-gap[i]:.3g} deep at ({coords[i, 0]:.4g}, {coords[i, 1]:.4g}) "
+            f"(more than {PENETRATION} x the element size {h:.3g}); a contact joins the two sides that "
+            f"touch, each with its outward normal towards the other body", path=path)
 
 
 def pair_contact(sm, spec: dict, path: str) -> ContactPairs:

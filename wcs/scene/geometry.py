@@ -83,15 +83,16 @@ def _primitive(shape: dict, path: str) -> DimTags:
 def make_shape(shape: dict, path: str) -> DimTags:
     """Create ``shape`` in the current OCC model; return its surfaces (dim 2 dimtags).
 
-    Raises StudyError (with ``path``) on a malformed or empty shape.
+    Raises StudyError (with ``path``) on a malformed or empty shape, and on a shape the
+    geometry kernel refuses (gmsh raises a bare Exception, e.g. "Could not create line").
     """
     if not isinstance(shape, dict):
         raise StudyError(f"a shape must be a mapping, got {shape!r}", path=path)
     occ = gmsh.model.occ
-    out = _primitive(shape, path)
+    out = _kernel(path, _primitive, shape, path)
     for i, sub in enumerate(_shape_list(shape.get("intersect"), f"{path}.intersect")):
         tool = make_shape(sub, f"{path}.intersect.{i}")
-        out, _ = occ.intersect(out, tool, removeObject=True, removeTool=True)
+        out, _ = _kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 2]
         if not out:
             raise StudyError("the intersection is empty", path=f"{path}.intersect.{i}")
@@ -100,11 +101,22 @@ def make_shape(shape: dict, path: str) -> DimTags:
         tools: DimTags = []
         for i, sub in enumerate(minus):
             tools += make_shape(sub, f"{path}.minus.{i}")
-        out, _ = occ.cut(out, tools, removeObject=True, removeTool=True)
+        out, _ = _kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 2]
         if not out:
             raise StudyError("the shape is empty after `minus`", path=path)
     return out
+
+
+def _kernel(path: str, call, *args, **kwargs):
+    """``call(*args, **kwargs)``; an exception of the geometry kernel as a StudyError at ``path``."""
+    try:
+        return call(*args, **kwargs)
+    except StudyError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - gmsh raises a bare Exception
+        raise StudyError(f"the geometry kernel (OpenCASCADE) cannot build this shape: {exc}",
+                         path=path) from None
 
 
 def _shape_list(value, path: str) -> list:

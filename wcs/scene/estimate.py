@@ -1,0 +1,110 @@
+"""The size of a scene's mesh, estimated from the study before any meshing (the resource guard).
+
+A triangle of side h has area sqrt(3)/4 h^2, so a surface of area A meshed at size h has
+about A / (sqrt(3)/4 h^2) = 2.31 A / h^2 cells. A refine zone of size s < h (area A_r,
+perimeter P_r) adds its own cells plus the graded halo around it, where the size grows
+as s + g d (g = `mesh.grading`) until it reaches h at d = (h - s) / g; integrating
+(P_r + 2 pi d) / (s + g d)^2 over that halo gives
+    (P_r / g) (1/s - 1/h) + (2 pi / g^2) (ln(h/s) + s/h - 1)
+(with g = 0, one layer of cells along the perimeter, P_r / s). Shape areas are those of the
+primitives (a `minus` is not subtracted), so the count is an upper estimate; nodes are about
+half the cells, and a P1 vector field has two unknowns per node.
+"""
+from __future__ import annotations
+
+import math
+
+CELLS_PER_H2 = 4.0 / math.sqrt(3.0)     # cells per unit area at size 1
+DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives none
+DEFAULT_GRADING = 0.5                   # wcs.scene.mesher's (not imported: it loads gmsh and skfem)
+
+
+def shape_box(shape: dict) -> tuple[float, float, float, float]:
+    """Bounding box (x0, y0, x1, y1) of a validated shape (intersections narrow it)."""
+    if "rectangle" in shape:
+        box = tuple(shape["rectangle"])
+    elif "disc" in shape:
+        (cx, cy), r = shape["disc"]["center"], shape["disc"]["radius"]
+        box = (cx - r, cy - r, cx + r, cy + r)
+    else:
+        xs, ys = zip(*shape["polygon"])
+        box = (min(xs), min(ys), max(xs), max(ys))
+    for other in shape.get("intersect") or []:
+        o = shape_box(other)
+        box = (max(box[0], o[0]), max(box[1], o[1]), min(box[2], o[2]), min(box[3], o[3]))
+    return box
+
+
+def _primitive_area(shape: dict) -> float:
+    if "rectangle" in shape:
+        x0, y0, x1, y1 = shape["rectangle"]
+        area = (x1 - x0) * (y1 - y0)
+    elif "disc" in shape:
+        area = math.pi * shape["disc"]["radius"] ** 2
+    else:
+        area = abs(_shoelace(shape["polygon"]))
+    return min([area] + [_primitive_area(o) for o in shape.get("intersect") or []])
+
+
+def _shoelace(points) -> float:
+    return 0.5 * sum(points[i - 1][0] * points[i][1] - points[i][0] * points[i - 1][1]
+                     for i in range(len(points)))
+
+
+def _perimeter(points) -> float:
+    return sum(math.dist(points[i - 1], points[i]) for i in range(len(points)))
+
+
+def _zone(selector: dict, scene: dict) -> tuple[float, float]:
+    """Area and perimeter of a refine selector (a boundary: no area, both sides of its length)."""
+    if "box" in selector:
+        x0, y0, x1, y1 = selector["box"]
+        return (x1 - x0) * (y1 - y0), 2 * ((x1 - x0) + (y1 - y0))
+    if "disc" in selector:
+        r = selector["disc"]["radius"]
+        return math.pi * r * r, 2 * math.pi * r
+    if "polygon" in selector:
+        return abs(_shoelace(selector["polygon"])), _perimeter(selector["polygon"])
+    spec = scene["boundaries"][selector["boundary"]]
+    if "segment" in spec:
+        return 0.0, 2 * math.dist(*spec["segment"])
+    if "circle" in spec:
+        return 0.0, 4 * math.pi * spec["circle"]["radius"]
+    x0, y0, x1, y1 = spec["box"]
+    return 0.0, 4 * ((x1 - x0) + (y1 - y0))
+
+
+def _refined(area: float, perimeter: float, s: float, h: float, g: float, body_area: float) -> float:
+    """Cells a zone of size s adds to a body meshed at h (area clipped to the body's)."""
+    inside = min(area, body_area) / s**2
+    if g > 0:
+        halo = perimeter / g * (1 / s - 1 / h) + 2 * math.pi / g**2 * (math.log(h / s) + s / h - 1)
+    else:
+        halo = perimeter / s
+    return CELLS_PER_H2 * min(inside + halo, body_area / s**2)
+
+
+def estimate_cells(scene: dict) -> tuple[float, str]:
+    """About how many cells the scene's mesh will have, and the key path of the size that
+    contributes most, relative to the scene (to name in a refusal). `scene` is validated (shapes, not a mesh file)."""
+    mesh = scene["mesh"]
+    grading = mesh.get("grading", DEFAULT_GRADING)
+    parts = []
+    for body, spec in scene["bodies"].items():
+        own = spec.get("mesh") or {}
+        h = own.get("size", mesh["size"])
+        h_path = f"bodies.{body}.mesh.size" if "size" in own else "mesh.size"
+        area = sum(_primitive_area(r["shape"]) for r in spec["regions"])
+        parts.append((CELLS_PER_H2 * area / h**2, h_path))
+        for i, region in enumerate(spec["regions"]):
+            s = (region.get("mesh") or {}).get("size", h)
+            if s < h:
+                parts.append((CELLS_PER_H2 * _primitive_area(region["shape"]) * (1 / s**2 - 1 / h**2),
+                              f"bodies.{body}.regions.{i}.mesh.size"))
+        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(mesh.get("refine") or [])]
+        zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(own.get("refine") or [])]
+        for ref, path in zones:
+            if ref["size"] < h:
+                a, p = _zone(ref, scene)
+                parts.append((_refined(a, p, ref["size"], h, grading, area), path))
+    return sum(c for c, _ in parts), max(parts)[1]
