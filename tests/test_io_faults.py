@@ -146,7 +146,7 @@ def test_a_directory_as_output_is_refused_and_nothing_is_written_beside_it(tmp_p
     err = capsys.readouterr().err
     assert f"{path}: output: the output {target} is a directory" in err and len(err.splitlines()) == 1
     assert main(["run", str(path), "-o", str(target), "--quiet"]) == 2
-    assert capsys.readouterr().err.startswith(f"error: -o: the output {target} is a directory")
+    assert capsys.readouterr().err.startswith(f"error: {path}: -o: the output {target} is a directory")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["D", path.name]
     assert list(target.iterdir()) == []
 
@@ -187,7 +187,7 @@ def test_a_read_only_output_folder_is_refused_before_solving(tmp_path, capsys, m
     with read_only_folder(tmp_path / "ro") as ro:
         assert main(["run", str(path), "-o", str(ro / "out.nc"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert f"error: -o: cannot write beside the output {ro / 'out.nc'}: " in err
+    assert f"error: {path}: -o: cannot write beside the output {ro / 'out.nc'}: " in err
     assert "Read-only file system" in err or "Permission denied" in err
 
 
