@@ -247,3 +247,19 @@ def test_no_criteria_is_a_warning(tmp_path, capsys):
     doc["criteria"] = []
     code, _, err, _ = check(doc, tmp_path, capsys, "--quiet")
     assert code == 0 and "warning:" in err and "no criteria" in err
+
+
+# ---------------------------------------------------------------- a body in pieces
+
+
+def test_a_body_in_two_pieces_is_bad_input(tmp_path, capsys):
+    """A body of two regions that do not touch: one piece held, the other free, so its
+    stiffness is singular (before: exit 1 'singular factorization' at the nominal solve)."""
+    doc = doc_of("contact-patch.yaml")
+    body = next(iter(doc["scene"]["bodies"]))
+    regions = doc["scene"]["bodies"][body]["regions"]
+    far = dict(regions[0], name="far", shape={"rectangle": [50.0, 50.0, 51.0, 51.0]})
+    regions.append(far)
+    code, out, err, path = check(doc, tmp_path, capsys)
+    assert code == 2, (out, err)
+    assert f"{path}: scene.bodies.{body}: body '{body}' consists of 2 pieces" in err

@@ -57,7 +57,9 @@ import threading
 
 import gmsh
 import numpy as np
+import scipy.sparse as sp
 import skfem
+from scipy.sparse.csgraph import connected_components
 
 from ..errors import StudyError
 from . import selectors
@@ -401,7 +403,7 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
         raise StudyError("the scene has no bodies", path="scene.bodies")
     if (scene.get("mesh") or {}).get("file"):       # the user's own mesh (wcs.scene.meshfile)
         from .meshfile import read_mesh_file
-        return read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file")
+        return check_connected(read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file"), "scene.mesh.file")
     bodies = list(bodies_spec)
     regions = region_names(scene)
     embed = area_rois(scene, rois)
@@ -491,4 +493,24 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
         if body is not None:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
-    return dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells)
+    return check_connected(dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells), "scene.bodies")
+
+
+def check_connected(sm: SceneMesh, path: str) -> SceneMesh:
+    """A body is one connected piece of cells: two pieces of one body would each need their
+    own rigid motions and supports, and the body's stiffness would be singular where one
+    piece is held and the other is not. Pieces that should move apart are separate bodies."""
+    t = sm.mesh.t
+    n = sm.mesh.p.shape[1]
+    rows = np.concatenate([t[0], t[0]])
+    cols = np.concatenate([t[1], t[2]])
+    graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    node_body = sm.node_body
+    for b, name in enumerate(sm.bodies):
+        pieces = np.unique(label[node_body == b]).size
+        if pieces > 1:
+            where = f"{path}.{name}" if path == "scene.bodies" else path
+            raise StudyError(f"body {name!r} consists of {pieces} pieces that do not touch; "
+                             "make each piece a body of its own (with its own support or contact)", path=where)
+    return sm
