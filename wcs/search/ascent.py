@@ -49,14 +49,14 @@ class Run:
     iterations: int = 0
 
 
-def ascend(archive, starts, tol: float, max_iter: int = 40):
+def ascend(archive, starts, tol: float, max_iter: int = 40, label: str = "local ascent"):
     """Local ascents of criteria from records: starts = [(criterion, Record), …]. Returns the runs
     (and notes, per criterion, why each stopped)."""
     runs = yield from _ascend(archive, starts, tol, max_iter)
     for c in archive.criteria:
         why = [f"{r.done} after {r.iterations} steps" for r in runs if r.c == c]
         if why:
-            archive.note("local ascent: " + ", ".join(why), c)
+            archive.note(f"{label}: " + ", ".join(why), c)
     return runs
 
 

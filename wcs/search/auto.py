@@ -34,6 +34,8 @@ from .designs import lhs
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
+RESTART_VERTICES = 3      # step 4: vertices whose one-flip neighbours are evaluated
+RESTART_RUNS = 3          # step 4: restarted ascents per criterion
 
 
 def auto(problem, config, rng):
@@ -78,7 +80,53 @@ def auto(problem, config, rng):
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol)
+
+    # 4. a local maximum is not the maximum: restart the ascents from one-flip neighbours,
+    #    then go on from the best point of a criterion that is still uncertified
+    if rest and archive.remaining:
+        yield from restart(archive, rest, tol)
+    rest = [c for c in rest if not archive.certified(c, tol)]
+    if rest and archive.remaining:
+        yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol, label="ascent from the best")
     return archive.worst(tol)
+
+
+def restart(archive, criteria, tol):
+    """Step 4: one round of restarts for the criteria that needed the ascent.
+
+    The one-flip neighbours of each criterion's best RESTART_VERTICES evaluated
+    vertices (z_i → 1 − z_i, one coordinate at a time, projected onto P) are
+    evaluated in one batch; the ascent then restarts from each criterion's
+    RESTART_RUNS best neighbours, in lockstep. Costs at most
+    RESTART_VERTICES·n + RESTART_RUNS·max_iter solves per criterion, capped by the budget."""
+    space = archive.space
+    flips = [i for i in range(space.n) if space.width[i] > 0]
+    neighbours = {}
+    for c in criteria:
+        for rec in _best_vertices(archive, c):
+            for i in flips:
+                z = rec.z.copy()
+                z[i] = 1.0 - z[i]
+                z = space.project(z)
+                neighbours.setdefault(space.key(z), z)
+    if not neighbours:
+        return
+    recs = yield from archive.ask(list(neighbours.values()), "restart")
+    starts = []
+    for c in criteria:
+        ok = [r for r in recs if r is not None and r.ok[c]]
+        ok.sort(key=lambda r: -r.phi[c])
+        starts += [(c, r) for r in ok[:RESTART_RUNS]]
+    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best vertices evaluated")
+    if starts and archive.remaining:
+        yield from ascend(archive, starts, tol, label="restarted ascent")
+
+
+def _best_vertices(archive, c):
+    """The evaluated vertices of P, best first by Φ_c, at most RESTART_VERTICES."""
+    vs = [r for r in archive.records if r.ok[c] and archive.space.is_vertex(r.z)]
+    vs.sort(key=lambda r: -r.phi[c])
+    return vs[:RESTART_VERTICES]
 
 
 def _disagree(a, b, c) -> bool:
