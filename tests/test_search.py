@@ -168,10 +168,14 @@ def test_flat_region_escaped_within_40_solves(seed):
 
 def test_flat_region_is_not_certified_when_nothing_varies():
     tp = flat()
-    run = drive("auto", tp, cfg("auto", safeguard=0))          # centre only: the trap
+    run = drive("auto", tp, cfg("auto", safeguard=0, budget=1))          # centre only: the trap
     assert run.worst.value["p_corner"] == 0.0
     assert run.worst.certificate["p_corner"] == "heuristic"
     assert "flat" in run.worst.notes["p_corner"]
+    # with budget left, the restarts from the centre's one-flip neighbours leave the flat region
+    run = drive("auto", tp, cfg("auto", safeguard=0))
+    assert relative_error(tp, run.worst, "p_corner") <= 1e-4
+    assert run.worst.certificate["p_corner"] == "corner-kkt"
 
 
 # ----------------------------------------------------------- (d) Lipschitz

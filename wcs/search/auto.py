@@ -29,13 +29,14 @@ from __future__ import annotations
 import numpy as np
 
 from .archive import Archive, settings
-from .ascent import ascend
+from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
-RESTART_VERTICES = 3      # step 4: vertices whose one-flip neighbours are evaluated
+RESTART_BASES = 3         # step 4: points whose one-flip neighbours are evaluated
 RESTART_RUNS = 3          # step 4: restarted ascents per criterion
+ASCENT_STEPS = 40         # steps of one ascent at most
 
 
 def auto(problem, config, rng):
@@ -94,39 +95,46 @@ def auto(problem, config, rng):
 def restart(archive, criteria, tol):
     """Step 4: one round of restarts for the criteria that needed the ascent.
 
-    The one-flip neighbours of each criterion's best RESTART_VERTICES evaluated
-    vertices (z_i → 1 − z_i, one coordinate at a time, projected onto P) are
-    evaluated in one batch; the ascent then restarts from each criterion's
-    RESTART_RUNS best neighbours, in lockstep. Costs at most
-    RESTART_VERTICES·n + RESTART_RUNS·max_iter solves per criterion, capped by the budget."""
+    From the best point of each criterion and its best evaluated vertices of P
+    (RESTART_BASES in all), the one-flip neighbours (z_i → 1 − round(z_i), one
+    coordinate at a time, projected onto P) are evaluated in one batch; the ascent
+    then restarts, in lockstep, from each criterion's RESTART_RUNS best neighbours
+    among those with a gradient that are not already KKT points. A restarted run
+    that reaches a point without a gradient (non-smooth) stops there: no finite
+    differences. Costs at most RESTART_BASES·n + RESTART_RUNS·40 solves per
+    criterion, capped by the budget."""
     space = archive.space
     flips = [i for i in range(space.n) if space.width[i] > 0]
     neighbours = {}
     for c in criteria:
-        for rec in _best_vertices(archive, c):
+        for rec in _bases(archive, c):
             for i in flips:
                 z = rec.z.copy()
-                z[i] = 1.0 - z[i]
+                z[i] = 1.0 - np.round(z[i])
                 z = space.project(z)
                 neighbours.setdefault(space.key(z), z)
     if not neighbours:
         return
     recs = yield from archive.ask(list(neighbours.values()), "restart")
+    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated")
     starts = []
     for c in criteria:
-        ok = [r for r in recs if r is not None and r.ok[c]]
+        ok = [r for r in recs if r is not None and r.ok[c] and r.grad.get(c) is not None
+              and space.gap(r.z, r.grad[c]) > tol * archive.scale(c)]
         ok.sort(key=lambda r: -r.phi[c])
         starts += [(c, r) for r in ok[:RESTART_RUNS]]
-    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best vertices evaluated")
-    if starts and archive.remaining:
-        yield from ascend(archive, starts, tol, label="restarted ascent")
+    runs = runs_from(starts)
+    yield from advance(archive, runs, tol, ASCENT_STEPS, fd=False)
+    note_runs(archive, runs, "restarted ascent")
 
 
-def _best_vertices(archive, c):
-    """The evaluated vertices of P, best first by Φ_c, at most RESTART_VERTICES."""
-    vs = [r for r in archive.records if r.ok[c] and archive.space.is_vertex(r.z)]
+def _bases(archive, c):
+    """Where the restarts flip from: the best point of c, then its best evaluated vertices of P
+    (RESTART_BASES in all)."""
+    best = archive.best_record(c)
+    vs = [r for r in archive.records if r.ok[c] and r is not best and archive.space.is_vertex(r.z)]
     vs.sort(key=lambda r: -r.phi[c])
-    return vs[:RESTART_VERTICES]
+    return ([] if best is None else [best] + vs)[:RESTART_BASES]
 
 
 def _disagree(a, b, c) -> bool:
