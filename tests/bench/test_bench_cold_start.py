@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 import yaml
@@ -87,3 +88,19 @@ def test_first_evaluation_against_one_superlu_solve(tmp_path):
                                "first_solve_s", "total_s", "superlu_s", "ratio", "loaded"], rows)
     assert 8.0e4 <= pad_result["unknowns"] <= 9.2e4, pad_result["unknowns"]
     assert pad_result["ratio"] <= 3.0, pad_result
+
+
+@pytest.mark.parametrize("args", [["--help"], ["check", "studies/validation/tresca-pad.yaml"]],
+                         ids=["help", "check"])
+def test_cli_starts_in_under_a_second(args):
+    """`wcs --help` and `wcs check` of a small study: a fresh process each, best of 3."""
+    wcs = os.path.join(os.path.dirname(sys.executable), "wcs")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    times = []
+    for _ in range(3):
+        t = time.perf_counter()
+        proc = subprocess.run([wcs, *args], capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
+        times.append(time.perf_counter() - t)
+        assert proc.returncode == 0, proc.stderr
+    print(f"\nwcs {' '.join(args)}: best {min(times):.2f} s of {', '.join(f'{t:.2f}' for t in times)}")
+    assert min(times) < 1.0
