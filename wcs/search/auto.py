@@ -21,7 +21,11 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    maximum inside, or a non-smooth point) leaves the corner phase.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
-4. Stop as soon as every criterion is certified; the budget caps it all.
+4. A local maximum is not the maximum: for the criteria that needed step 3,
+   restarts from the one-flip neighbours of the best point and the best
+   vertices (`restart`), then an ascent from the best point if it is still
+   uncertified. The corners' certificates end the search earlier; the budget
+   caps it all.
 Every outcome updates every criterion's best. Certificates: archive.py.
 """
 from __future__ import annotations
