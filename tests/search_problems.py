@@ -9,7 +9,10 @@ Each mimics a situation of the physics:
   Φ = max(0, x1 + x2 − 1.2)·(…): zero value and zero gradient at the centre;
 - `lipschitz`: a slip-limit profile g0..g5 on a grid of step Δs with
   0 ≤ g ≤ ḡ and |g_{i+1} − g_i| ≤ C·Δs; a linear functional (LP optimum) and a
-  least-squares fit to an infeasible target (optimum on a face, not a vertex).
+  least-squares fit to an infeasible target (optimum on a face, not a vertex);
+- `two_bumps`: two local maxima (a broad bump in the middle of the box and a
+  narrow higher one near the vertex (0, 1, 1)): the ascent from the gradient
+  corner ends on the broad one, a one-flip neighbour lies in the other's basin.
 
 `drive` is a plain serial runner: it plays the generator protocol, counts the
 solves and enforces an optional hard cap of its own (truncating batches).
@@ -146,6 +149,24 @@ def lipschitz() -> AnalyticProblem:
     return AnalyticProblem(Problem(names, lo, hi, ["lin", "fit"], A, b), phi, grad,
                        {"lin": float(c @ lp.x), "fit": -float(np.sum((y - t / gbar) ** 2))},
                        {"lin": lp.x, "fit": y * gbar}, {"fit"})
+
+
+# ------------------------------------------------------------------- (e)
+BUMPS = [(np.array([0.75, 0.75, 0.75]), 0.35, 1.0), (np.array([0.05, 0.8, 0.8]), 0.15, 1.1)]   # centre, width, height
+
+
+def two_bumps() -> AnalyticProblem:
+    def phi(x):
+        return {"bumps": float(sum(a * np.exp(-np.sum((x - p) ** 2) / (2 * s ** 2)) for p, s, a in BUMPS))}
+
+    def grad(x):
+        return {"bumps": -sum(a * np.exp(-np.sum((x - p) ** 2) / (2 * s ** 2)) * (x - p) / s ** 2
+                              for p, s, a in BUMPS)}
+
+    res = minimize(lambda x: -phi(x)["bumps"], BUMPS[1][0], jac=lambda x: -grad(x)["bumps"], method="SLSQP",
+                   bounds=[(0, 1)] * 3, options={"ftol": 1e-15})
+    return AnalyticProblem(Problem(["a", "b", "c"], np.zeros(3), np.ones(3), ["bumps"]), phi, grad,
+                           {"bumps": -res.fun}, {"bumps": res.x}, {"bumps"})
 
 
 PROBLEMS = {"monotone": monotone, "interior": interior, "flat": flat, "lipschitz": lipschitz}

@@ -13,8 +13,10 @@ import warnings
 import numpy as np
 import pytest
 
+from scipy.optimize import minimize
+
 from search_problems import (PROBLEMS, AnalyticProblem, drive, flat, interior, interior_dense_grid,
-                             lipschitz, monotone, relative_error)
+                             lipschitz, monotone, relative_error, two_bumps)
 from wcs.search import Outcome, Problem, STRATEGIES
 from wcs.search.compare import compare_with_lhs
 from wcs.search.designs import design
@@ -124,6 +126,33 @@ def test_interior_maximum_against_dense_grid(method, budget):
         assert set(run.worst.certificate.values()) == {"local-kkt"}       # (h)
 
 
+# ------------------------------------------------------- (e) two local maxima
+def slsqp(tp, c, z0):
+    """SLSQP on Φ_c with its exact gradient over the box, from z0: (value, point)."""
+    res = minimize(lambda x: -tp.phi(x)[c], z0, jac=lambda x: -tp.grad(x)[c], method="SLSQP",
+                   bounds=list(zip(tp.problem.lower, tp.problem.upper)), options={"ftol": 1e-15})
+    return -res.fun, res.x
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_auto_restarts_reach_what_an_attack_from_one_flip_neighbours_finds(seed):
+    """Issue 15 A7: the ascent from the gradient corner stops on a local maximum (the broad
+    bump); SLSQP from a one-flip neighbour of that point finds a higher one. The restarts
+    from the best vertices' one-flip neighbours must reach at least the attack's value."""
+    tp = two_bumps()
+    c = "bumps"
+    local, x_local = slsqp(tp, c, np.full(3, 0.9))                        # the broad bump's maximum
+    attack = max(slsqp(tp, c, np.where(np.arange(3) == i, 1.0 - np.round(x_local), x_local))[0]
+                 for i in range(3))
+    assert attack > 1.2 * local                                           # the trap is real
+    run = drive("auto", tp, cfg("auto", budget=80), seed=seed)
+    assert run.solves <= 80
+    assert run.worst.value[c] >= attack * (1 - 1e-9)
+    assert run.worst.value[c] <= tp.optimum[c] * (1 + 1e-12)
+    assert run.worst.certificate[c] == "local-kkt"
+    assert any(b.stage == "restart" for b in run.batches)
+
+
 # ---------------------------------------------------------------- (c) flat
 @pytest.mark.parametrize("seed", range(10))
 def test_flat_region_escaped_within_40_solves(seed):
@@ -139,10 +168,14 @@ def test_flat_region_escaped_within_40_solves(seed):
 
 def test_flat_region_is_not_certified_when_nothing_varies():
     tp = flat()
-    run = drive("auto", tp, cfg("auto", safeguard=0))          # centre only: the trap
+    run = drive("auto", tp, cfg("auto", safeguard=0, budget=1))          # centre only: the trap
     assert run.worst.value["p_corner"] == 0.0
     assert run.worst.certificate["p_corner"] == "heuristic"
     assert "flat" in run.worst.notes["p_corner"]
+    # with budget left, the restarts from the centre's one-flip neighbours leave the flat region
+    run = drive("auto", tp, cfg("auto", safeguard=0))
+    assert relative_error(tp, run.worst, "p_corner") <= 1e-4
+    assert run.worst.certificate["p_corner"] == "corner-kkt"
 
 
 # ----------------------------------------------------------- (d) Lipschitz

@@ -27,7 +27,27 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+
+def _mkl_rt_hint() -> None:
+    """Point pypardiso at the mkl wheel's mkl_rt (PYPARDISO_MKL_RT, unless set): its own search
+    globs all of sys.prefix when ldconfig does not know the library (0.6 s at every import)."""
+    if "PYPARDISO_MKL_RT" in os.environ:
+        return
+    from importlib import metadata
+    try:
+        files = metadata.files("mkl") or []
+    except metadata.PackageNotFoundError:
+        return
+    for f in files:
+        if f.name.startswith(("libmkl_rt.", "mkl_rt.")):
+            path = f.locate()
+            if path.exists():
+                os.environ["PYPARDISO_MKL_RT"] = str(path.resolve())
+                return
+
+
 try:  # pragma: no cover - depends on the platform
+    _mkl_rt_hint()
     import pypardiso as _pardiso
 except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
     _pardiso = None

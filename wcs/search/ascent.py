@@ -49,23 +49,34 @@ class Run:
     iterations: int = 0
 
 
-def ascend(archive, starts, tol: float, max_iter: int = 40):
+def ascend(archive, starts, tol: float, max_iter: int = 40, label: str = "local ascent"):
     """Local ascents of criteria from records: starts = [(criterion, Record), …]. Returns the runs
     (and notes, per criterion, why each stopped)."""
-    runs = yield from _ascend(archive, starts, tol, max_iter)
-    for c in archive.criteria:
-        why = [f"{r.done} after {r.iterations} steps" for r in runs if r.c == c]
-        if why:
-            archive.note("local ascent: " + ", ".join(why), c)
+    runs = runs_from(starts)
+    yield from advance(archive, runs, tol, max_iter)
+    note_runs(archive, runs, label)
     return runs
 
 
-def _ascend(archive, starts, tol, max_iter):
-    runs = [Run(c, r.z.copy(), r.phi[c], r.grad.get(c)) for c, r in starts if r is not None and r.ok[c]]
+def runs_from(starts) -> list[Run]:
+    return [Run(c, r.z.copy(), r.phi[c], r.grad.get(c)) for c, r in starts if r is not None and r.ok[c]]
+
+
+def note_runs(archive, runs, label: str) -> None:
+    for c in archive.criteria:
+        why = [f"{r.done} after {r.iterations} steps" for r in runs if r.c == c]
+        if why:
+            archive.note(f"{label}: " + ", ".join(why), c)
+
+
+def advance(archive, runs, tol, max_iter, fd: bool = True):
+    """Advance the runs not done, in lockstep, until each is done or has made max_iter steps
+    in all (done = "iterations": it may be advanced further). Without `fd`, a run whose point
+    has no gradient stops there instead of paying n solves for finite differences."""
     space = archive.space
     while True:
         active = [r for r in runs if not r.done]
-        yield from _ensure_gradients(archive, active)
+        yield from _ensure_gradients(archive, active, fd)
         for r in active:
             if r.g is None:
                 rec = archive.find(r.z)
@@ -89,7 +100,7 @@ def _ascend(archive, starts, tol, max_iter):
         if not trials or archive.remaining == 0:
             for r, _, _ in trials:
                 r.done = "budget"
-            return runs
+            return
         recs = yield from archive.ask([r.z + d for r, d, _ in trials], "local", gradients=True)
         for (r, d, pred), rec in zip(trials, recs):
             r.iterations += 1
@@ -113,7 +124,7 @@ def _ascend(archive, starts, tol, max_iter):
         if archive.exhausted:
             for r in runs:
                 r.done = r.done or "budget"
-            return runs
+            return
 
 
 def _step(space, z, g, B, delta):
@@ -173,7 +184,7 @@ def _bfgs(B, s, y):
     B += np.outer(y, y) / sy - np.outer(Bs, Bs) / sBs
 
 
-def _ensure_gradients(archive, runs):
+def _ensure_gradients(archive, runs, fd=True):
     """Give every run a gradient at its point: ask again with gradients, else finite differences."""
     need = [r for r in runs if r.g is None]
     if not need:
@@ -186,7 +197,8 @@ def _ensure_gradients(archive, runs):
         rec = archive.find(r.z)
         if rec is not None and rec.grad.get(r.c) is None and rec.ok[r.c]:
             pending.append(rec)
-    yield from finite_differences(archive, pending)
+    if fd:
+        yield from finite_differences(archive, pending)
 
 
 def finite_differences(archive, recs):

@@ -21,7 +21,11 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    maximum inside, or a non-smooth point) leaves the corner phase.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
-4. Stop as soon as every criterion is certified; the budget caps it all.
+4. A local maximum is not the maximum: for the criteria that needed step 3,
+   restarts from the one-flip neighbours of the best point and the best
+   vertices (`restart`), then an ascent from the best point if it is still
+   uncertified. The corners' certificates end the search earlier; the budget
+   caps it all.
 Every outcome updates every criterion's best. Certificates: archive.py.
 """
 from __future__ import annotations
@@ -29,11 +33,14 @@ from __future__ import annotations
 import numpy as np
 
 from .archive import Archive, settings
-from .ascent import ascend
+from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
+RESTART_BASES = 3         # step 4: points whose one-flip neighbours are evaluated
+RESTART_RUNS = 3          # step 4: restarted ascents per criterion
+ASCENT_STEPS = 40         # steps of one ascent at most
 
 
 def auto(problem, config, rng):
@@ -78,7 +85,60 @@ def auto(problem, config, rng):
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol)
+
+    # 4. a local maximum is not the maximum: restart the ascents from one-flip neighbours,
+    #    then go on from the best point of a criterion that is still uncertified
+    if rest and archive.remaining:
+        yield from restart(archive, rest, tol)
+    rest = [c for c in rest if not archive.certified(c, tol)]
+    if rest and archive.remaining:
+        yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol, label="ascent from the best")
     return archive.worst(tol)
+
+
+def restart(archive, criteria, tol):
+    """Step 4: one round of restarts for the criteria that needed the ascent.
+
+    From the best point of each criterion and its best evaluated vertices of P
+    (RESTART_BASES in all), the one-flip neighbours (z_i → 1 − round(z_i), one
+    coordinate at a time, projected onto P) are evaluated in one batch; the ascent
+    then restarts, in lockstep, from each criterion's RESTART_RUNS best neighbours
+    among those with a gradient that are not already KKT points. A restarted run
+    that reaches a point without a gradient (non-smooth) stops there: no finite
+    differences. Costs at most RESTART_BASES·n + RESTART_RUNS·40 solves per
+    criterion, capped by the budget."""
+    space = archive.space
+    flips = [i for i in range(space.n) if space.width[i] > 0]
+    neighbours = {}
+    for c in criteria:
+        for rec in _bases(archive, c):
+            for i in flips:
+                z = rec.z.copy()
+                z[i] = 1.0 - np.round(z[i])
+                z = space.project(z)
+                neighbours.setdefault(space.key(z), z)
+    if not neighbours:
+        return
+    recs = yield from archive.ask(list(neighbours.values()), "restart")
+    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated")
+    starts = []
+    for c in criteria:
+        ok = [r for r in recs if r is not None and r.ok[c] and r.grad.get(c) is not None
+              and space.gap(r.z, r.grad[c]) > tol * archive.scale(c)]
+        ok.sort(key=lambda r: -r.phi[c])
+        starts += [(c, r) for r in ok[:RESTART_RUNS]]
+    runs = runs_from(starts)
+    yield from advance(archive, runs, tol, ASCENT_STEPS, fd=False)
+    note_runs(archive, runs, "restarted ascent")
+
+
+def _bases(archive, c):
+    """Where the restarts flip from: the best point of c, then its best evaluated vertices of P
+    (RESTART_BASES in all)."""
+    best = archive.best_record(c)
+    vs = [r for r in archive.records if r.ok[c] and r is not best and archive.space.is_vertex(r.z)]
+    vs.sort(key=lambda r: -r.phi[c])
+    return ([] if best is None else [best] + vs)[:RESTART_BASES]
 
 
 def _disagree(a, b, c) -> bool:

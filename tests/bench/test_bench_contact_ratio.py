@@ -7,7 +7,7 @@ Each time is the best of a few repeats (the machine is shared and noisy)."""
 import time
 from pathlib import Path
 
-import numpy as np
+import pytest
 import scipy.sparse.linalg as spla
 import yaml
 
@@ -16,7 +16,7 @@ from wcs.model import Model
 from wcs.scene.mesher import build_mesh
 from wcs.study import scene_with
 
-PAD = Path(__file__).resolve().parents[1] / "studies" / "validation" / "tresca-pad.yaml"
+PAD = Path(__file__).resolve().parents[2] / "studies" / "validation" / "tresca-pad.yaml"
 
 
 def best(f, n):
@@ -28,6 +28,7 @@ def best(f, n):
     return min(times), out
 
 
+@pytest.mark.bench
 def test_first_solve_and_resolve_against_one_superlu_solve(tmp_path):
     doc = yaml.safe_load(PAD.read_text())
     doc["scene"]["mesh"] = {"size": 0.0075}
