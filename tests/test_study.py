@@ -9,7 +9,7 @@ import yaml
 
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
-from wcs.study import CONFIGS, get_path, load_study, scene_with, set_path
+from wcs.study import LIBRARIES, get_path, load_study, scene_with, set_path
 
 SLIP = "contacts.interface.friction.slip_limit"
 
@@ -170,7 +170,7 @@ def _scene_file_study(tmp_path, materials="materials-implants.yaml"):
     return write_study(doc, tmp_path)
 
 
-def test_scene_file_and_material_library_from_configs(tmp_path):
+def test_scene_file_and_material_library_shipped(tmp_path):
     study = load_study(_scene_file_study(tmp_path))
     assert study.scene["materials"]["uhmwpe"] == {"E": 3.4e8, "nu": 0.4}
     assert study.parameters.names[0] == "materials.uhmwpe.E"
@@ -205,9 +205,9 @@ def test_errors_in_material_library_name_that_file(tmp_path):
     assert info.value.path == "uhmwpe.nu"
 
 
-@pytest.mark.parametrize("library", sorted(p.name for p in CONFIGS.glob("materials-*.yaml")))
-def test_material_libraries_in_configs_load(tmp_path, library):
-    materials = yaml.safe_load((CONFIGS / library).read_text())
+@pytest.mark.parametrize("library", sorted(p.name for p in LIBRARIES.glob("materials-*.yaml")))
+def test_shipped_material_libraries_load(tmp_path, library):
+    materials = yaml.safe_load((LIBRARIES / library).read_text())
     doc = demo_doc()
     doc["scene"]["materials"] = library
     first = next(iter(materials))

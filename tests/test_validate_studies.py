@@ -40,7 +40,7 @@ def _id(path: Path) -> str:
 def small_copy(path: Path, folder: Path, budget: int = BUDGET) -> Path:
     """The study with search.budget = budget, written into `folder`; files the study names
     relative to itself (meshes/) stay reachable through a link, material libraries are
-    found in configs/ as for any study."""
+    found among the shipped ones as for any study."""
     doc = yaml.safe_load(path.read_text())
     doc.setdefault("search", {})
     doc["search"] = {**(doc["search"] or {}), "budget": budget}

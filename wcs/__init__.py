@@ -4,10 +4,10 @@ from .errors import SolveError, StudyError
 __version__ = "0.1.0"
 
 
-def load_study(path):
-    """Load and validate a study file (raises StudyError on bad input)."""
+def load_study(path_or_mapping, base_dir=None):
+    """Load and validate a study file or mapping (raises StudyError on bad input); see wcs.study.load_study."""
     from .study import load_study as _load
-    return _load(path)
+    return _load(path_or_mapping, base_dir)
 
 
 def run(study, output=None, resume=False, progress=None, **kwargs):

@@ -1,10 +1,16 @@
 """Study files: load and validate them, and address the numbers of a scene by dotted path.
 
-`load_study(path)` reads a study file (study-format.md §2), checks it with typed
-models and cross-reference rules, and returns a `Study` whose `scene` is plain
-dicts and lists in the YAML shape, resolved: scene and material files inlined,
-region names and defaults filled in. Every bad input raises `StudyError` naming
-the file, the dotted key path and the fault.
+`load_study(path_or_mapping)` reads a study file, or takes the mapping YAML would
+parse one into, checks it with typed models and cross-reference rules, and
+returns a `Study` whose `scene` is plain dicts and lists in the YAML shape,
+resolved: scene and material files inlined, region names and defaults filled in.
+Every bad input raises `StudyError` naming the file (`<mapping>` for a mapping),
+the dotted key path and the fault.
+
+A file a study names (scene, material library, mesh) is found relative to the
+folder of the file that names it; the study's own names relative to `base_dir`
+when given (the current directory for a mapping). A material library not found
+there is looked up among the libraries shipped in the package (`wcs/library/`).
 
 Dotted paths are relative to the scene (`materials.rubber.E`,
 `loads.pad_top.traction.1`, ...). `get_path` / `set_path` read and write them.
@@ -44,8 +50,8 @@ from pydantic_core import PydanticCustomError
 
 from .errors import StudyError
 
-REPO = Path(__file__).resolve().parent.parent
-CONFIGS = REPO / "configs"
+LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
+MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
 
 # ---------------------------------------------------------------- reading YAML
 
@@ -79,6 +85,11 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
         raise StudyError("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"cannot read the file: {exc}", file=str(path)) from None
+    return _parse_yaml(text, path), text
+
+
+def _parse_yaml(text: str, path: Path) -> Any:
+    """The parsed content of YAML text read from `path`; StudyError naming `path` if not YAML."""
     try:
         doc = yaml.load(text, Loader=_Loader)
     except RecursionError:                          # the parser recurses per level
@@ -92,7 +103,21 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
         raise StudyError(f"YAML syntax error: {exc}", file=str(path)) from None
     if _depth(doc) > MAX_NESTING:
         raise StudyError(f"the file nests deeper than {MAX_NESTING} levels", file=str(path))
-    return doc, text
+    return doc
+
+
+def _mapping_yaml(mapping: Mapping) -> tuple[Any, str]:
+    """A study given as a mapping, as YAML text and parsed back from it: it loads exactly
+    as the file with that text would, and the text is what the results record."""
+    file = str(MAPPING)
+    if _depth(mapping) > MAX_NESTING:
+        raise StudyError(f"the mapping nests deeper than {MAX_NESTING} levels", file=file)
+    try:
+        text = yaml.safe_dump(mapping, sort_keys=False, allow_unicode=True)
+    except yaml.YAMLError as exc:
+        raise StudyError(f"not YAML data (numbers, strings, booleans, null, lists, mappings): {exc}",
+                         file=file) from None
+    return _parse_yaml(text, MAPPING), text
 
 
 def _depth(doc) -> int:
@@ -109,13 +134,14 @@ def _depth(doc) -> int:
     return deepest
 
 
-def _locate(name: str, src: _Source, key: str) -> Path:
-    """A file named at `key`: relative to the referencing file's folder, else in <repo>/configs/."""
-    places = (src.file.parent / name, CONFIGS / name)
+def _locate(name: str, src: _Source, key: str, shipped: bool = False) -> Path:
+    """A file named at `key`: relative to the referencing file's folder, then (`shipped`)
+    among the package's material libraries."""
+    places = (src.base / name,) + ((LIBRARIES / name,) if shipped else ())
     for candidate in places:
         if candidate.is_file():
             return candidate
-    raise src.error((key,), f"file '{name}' not found (looked for {places[0]} and {places[1]})")
+    raise src.error((key,), f"file '{name}' not found (looked for {' and '.join(map(str, places))})")
 
 
 # ---------------------------------------------------------------- errors
@@ -144,10 +170,16 @@ def _fault(err: dict) -> str:
 
 @dataclass(frozen=True)
 class _Source:
-    """Where a piece of input lives: the file to name and the key path of the piece in it."""
+    """Where a piece of input lives: the file to name, the key path of the piece in it, and
+    the folder the names it gives are relative to (default: the file's folder)."""
 
     file: Path
     prefix: tuple = ()
+    folder: Path | None = None
+
+    @property
+    def base(self) -> Path:
+        return self.file.parent if self.folder is None else self.folder
 
     def error(self, path, message: str) -> StudyError:
         keys = self.prefix + tuple(path)
@@ -607,7 +639,7 @@ def _dump(model) -> Any:
 def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path, str]]]:
     """The validated scene, where it lives, and the extra files it came from."""
     extra = []
-    src = _Source(study_src.file, ("scene",))
+    src = _Source(study_src.file, ("scene",), study_src.folder)
     if isinstance(raw, str):
         path = _locate(raw, study_src, "scene")
         raw, text = _read_yaml(path)
@@ -620,7 +652,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path
     scene = _dump(src.validate(_SCENE, raw))
     if "file" in scene["mesh"]:                # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene
-        scene["mesh"]["notes"] = prepare_scene(scene, src.file.parent, src.error)  # popped by load_study
+        scene["mesh"]["notes"] = prepare_scene(scene, src.base, src.error)  # popped by load_study
     else:
         _require_shapes(scene, src)
     _name_regions(scene)
@@ -637,7 +669,7 @@ def _require_shapes(scene: dict, src: _Source) -> None:
 
 
 def _load_materials(name: str, src: _Source) -> tuple[dict, tuple[Path, str]]:
-    path = _locate(name, src, "materials")
+    path = _locate(name, src, "materials", shipped=True)
     raw, text = _read_yaml(path)
     materials = _dump(_Source(path).validate(_LIBRARY, raw))
     return materials, (path, text)
@@ -1068,19 +1100,28 @@ class Study:
         return np.array(values, dtype=float)
 
 
-def _recorded_text(file: Path, text: str, extra: list[tuple[Path, str]]) -> str:
-    """The study text followed by each file it pulled in, as further YAML documents."""
+def _recorded_text(base: Path, text: str, extra: list[tuple[Path, str]]) -> str:
+    """The study text followed by each file it pulled in (named relative to `base`), as
+    further YAML documents."""
     for path, more in extra:
-        name = os.path.relpath(path, file.parent)
+        name = os.path.relpath(path, base)
         text = f"{text.rstrip()}\n---\n# {name}\n{more}"
     return text
 
 
-def load_study(path) -> Study:
-    """Read and validate a study file; StudyError names the file, key path and fault."""
-    file = Path(path)
-    doc, text = _read_yaml(file)
-    src = _Source(file)
+def load_study(path_or_mapping, base_dir=None) -> Study:
+    """Read and validate a study file, or a study given as the mapping its YAML parses to;
+    StudyError names the file (`<mapping>`), key path and fault. The files the study names
+    are relative to `base_dir` (default: the study file's folder; for a mapping, the current
+    directory)."""
+    if isinstance(path_or_mapping, Mapping):
+        file, folder = MAPPING, Path.cwd()
+        doc, text = _mapping_yaml(path_or_mapping)
+    else:
+        file = Path(path_or_mapping)
+        folder = file.parent
+        doc, text = _read_yaml(file)
+    src = _Source(file, (), folder if base_dir is None else Path(base_dir))
     if not isinstance(doc, dict):
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
@@ -1097,8 +1138,8 @@ def load_study(path) -> Study:
     _check_limits(top.limits, criteria, src)
     sweep = _dump(top.sweep) if top.sweep else None
     _check_sweep(sweep, scene, src)
-    name = top.study or file.stem
-    text = _recorded_text(file, text, extra)
+    name = top.study or ("study" if file is MAPPING else file.stem)
+    text = _recorded_text(src.base, text, extra)
     return Study(
         name=name, file=file, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(),
         scene=scene, uncertain=uncertain, criteria=criteria, limits=dict(top.limits),

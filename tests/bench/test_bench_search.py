@@ -53,7 +53,7 @@ def tunnel_coarse(tmp_path, factor=2.0):
     for r in mesh.get("refine", []):
         r["size"] *= factor
     path = tmp_path / "tunnel-fault-coarse.yaml"
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))   # materials-rock.yaml is found in configs/
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))   # materials-rock.yaml is a shipped library
     return wcs.load_study(path)
 
 
