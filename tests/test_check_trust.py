@@ -81,13 +81,13 @@ def test_facing_away_refused_by_either_discretization(tmp_path, capsys, discreti
 # ---------------------------------------------------------------- B10: sensible ranges
 
 
-def test_empty_uncertain_runs_the_nominal_data(tmp_path):
+def test_empty_uncertain_runs_the_nominal_data():
     """`uncertain: {}` is U_ad = {nominal}: a run is one evaluation, the nominal one."""
     from wcs.evaluation import Evaluator
     from wcs.runner import run
     doc = doc_of("contact-patch.yaml")
     doc["uncertain"] = {}
-    study = load_study(write_study(doc, tmp_path))
+    study = load_study(doc)
     ds = run(study, output=False)
     assert ds.sizes["eval"] == 1 and int(ds["status"].values[0]) == 0
     nominal = Evaluator(study).evaluate(study.nominal())
@@ -95,31 +95,31 @@ def test_empty_uncertain_runs_the_nominal_data(tmp_path):
 
 
 @pytest.mark.parametrize("value", [1e-300, 1e300, 0.5])
-def test_moduli_outside_physical_range(tmp_path, value):
+def test_moduli_outside_physical_range(value):
     doc = demo_doc()
     doc["scene"]["materials"]["steel"]["E"] = value
     doc["uncertain"]["materials.rubber.E"] = [0.8e7, 1.2e7]
     with pytest.raises(StudyError) as info:
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
     assert info.value.path == "scene.materials.steel.E"
 
 
-def test_uncertain_box_bounded_too(tmp_path):
+def test_uncertain_box_bounded_too():
     doc = demo_doc()
     doc["uncertain"]["materials.rubber.E"] = [0.8e7, 1e300]
     with pytest.raises(StudyError) as info:
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
     assert info.value.path == "uncertain.materials.rubber.E" and "<= 1e+13" in info.value.fault
 
 
-def test_mesh_size_larger_than_a_quarter_of_the_scene(tmp_path):
+def test_mesh_size_larger_than_a_quarter_of_the_scene():
     doc = demo_doc()
     doc["scene"]["mesh"]["size"] = 0.6                      # scene 2 m wide: 3.3 cells along it
     with pytest.raises(StudyError) as info:
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
     assert info.value.path == "scene.mesh.size" and "fewer than 4 cells" in info.value.fault
     doc["scene"]["mesh"]["size"] = 0.5
-    load_study(write_study(doc, tmp_path))
+    load_study(doc)
 
 
 # ---------------------------------------------------------------- B11: resource guard
@@ -137,21 +137,21 @@ def test_guard_refuses_a_tiny_size_before_meshing(tmp_path, capsys):
     assert f"about {cells:.3g} cells" in err
 
 
-def test_guard_limit_is_a_study_option(tmp_path):
+def test_guard_limit_is_a_study_option():
     doc = demo_doc()
     doc["scene"]["mesh"]["max_cells"] = 5000
     with pytest.raises(StudyError) as info:
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
     assert "more than mesh.max_cells = 5000" in info.value.fault
     doc["scene"]["mesh"]["max_cells"] = 50_000
-    assert 1e4 < load_study(write_study(doc, tmp_path)).estimated_cells < 5e4
+    assert 1e4 < load_study(doc).estimated_cells < 5e4
 
 
-def test_profile_points_capped(tmp_path):
+def test_profile_points_capped():
     doc = demo_doc()
     doc["uncertain"]["contacts.interface.friction.slip_limit"]["points"] = 10**7
     with pytest.raises(StudyError) as info:
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
     assert info.value.path == "uncertain.contacts.interface.friction.slip_limit.points"
 
 
@@ -183,11 +183,11 @@ def test_locking_warning_on_nominal_and_box(tmp_path, capsys):
     assert code == 0 and "warning:" in err and "material 'rubber': Poisson ratio up to 0.48" in err
     doc["scene"]["materials"]["rubber"]["nu"] = 0.42
     doc["uncertain"]["materials.rubber.nu"] = [0.40, 0.449]
-    assert load_study(write_study(doc, tmp_path)).warnings == []
+    assert load_study(doc).warnings == []
     for key in ("materials.rubber.nu", "materials.rubber.E"):
         doc["uncertain"].pop(key)
     doc["scene"]["materials"]["rubber"] = {"lambda": 9.0e7, "mu": 3.4e6, "conductivity": 0.2}
-    warnings = load_study(write_study(doc, tmp_path)).warnings
+    warnings = load_study(doc).warnings
     assert len(warnings) == 1 and f"{9.0e7 / (2 * (9.0e7 + 3.4e6)):.4g}" in warnings[0]
 
 

@@ -15,12 +15,11 @@ SLIP = "contacts.interface.friction.slip_limit"
 
 
 @pytest.mark.parametrize("mutate, fragment", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
-def test_broken_study_names_file_and_key_path(tmp_path, mutate, fragment):
-    path = write_study(broken(mutate), tmp_path, "broken-study.yaml")
-    with pytest.raises(StudyError) as info:
-        load_study(path)
+def test_broken_study_names_file_and_key_path(mutate, fragment):
+    with pytest.raises(StudyError) as info:          # as a mapping; test_cli runs them as files
+        load_study(broken(mutate))
     message = str(info.value)
-    assert "broken-study.yaml" in message
+    assert message.startswith("<mapping>: ")
     assert fragment in message
 
 
@@ -111,18 +110,18 @@ def test_get_and_set_path():
         get_path(scene, "loads.tp.pressure")
 
 
-def test_unknown_key_hint(tmp_path):
+def test_unknown_key_hint():
     doc = demo_doc()
     doc["serach"] = doc.pop("search")
     with pytest.raises(StudyError, match="did you mean 'search'"):
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
 
 
-def test_unknown_name_hint(tmp_path):
+def test_unknown_name_hint():
     doc = demo_doc()
     doc["scene"]["bodies"]["pad"]["regions"][0]["material"] = "rubbr"
     with pytest.raises(StudyError, match="did you mean 'rubber'"):
-        load_study(write_study(doc, tmp_path))
+        load_study(doc)
 
 
 def test_yaml_syntax_error_has_line(tmp_path):
@@ -155,6 +154,72 @@ def test_exponent_without_dot_is_a_number(tmp_path):
     path = tmp_path / "exp.yaml"
     path.write_text(DEMO.read_text().replace("{E: 1.0e7,", "{E: 1e7,"))
     assert load_study(path).scene["materials"]["rubber"]["E"] == 1.0e7
+
+
+def test_mapping_loads_as_its_file(demo):
+    study = load_study(demo_doc())
+    assert study.file == Path("<mapping>") and study.name == demo.name
+    assert study.text == yaml.safe_dump(demo_doc(), sort_keys=False)
+    assert study.sha256 == hashlib.sha256(study.text.encode()).hexdigest()
+    for field in ("scene", "uncertain", "criteria", "limits", "search", "solver", "sweep", "output",
+                  "notes", "warnings", "estimated_cells"):
+        assert getattr(study, field) == getattr(demo, field), field
+    assert study.parameters.names == demo.parameters.names
+
+
+def test_mapping_is_not_changed_and_needs_no_name():
+    doc = demo_doc()
+    del doc["study"], doc["output"]
+    before = yaml.safe_dump(doc)
+    study = load_study(doc)
+    assert yaml.safe_dump(doc) == before
+    assert study.name == "study" and study.output == "results/study.nc"
+
+
+@pytest.mark.parametrize("value", [np.float64(1.0), object()], ids=["numpy", "object"])
+def test_mapping_of_non_yaml_data_names_the_mapping(value):
+    doc = demo_doc()
+    doc["scene"]["materials"]["rubber"]["E"] = value
+    with pytest.raises(StudyError) as info:
+        load_study(doc)
+    assert str(info.value).startswith("<mapping>: not YAML data (numbers, strings, booleans, null, lists, mappings)")
+
+
+def test_mapping_nesting_is_capped():
+    deep = {}
+    node = deep
+    for _ in range(60):
+        node["a"] = {}
+        node = node["a"]
+    with pytest.raises(StudyError, match="nests deeper than 50 levels") as info:
+        load_study({"study": "x", "scene": deep})
+    assert info.value.file == "<mapping>"
+
+
+def test_base_dir_resolves_the_files_a_mapping_names(tmp_path):
+    _scene_file_study(tmp_path)                      # tmp_path/scene.yaml
+    doc = yaml.safe_load((tmp_path / "study.yaml").read_text())
+    with pytest.raises(StudyError) as info:          # relative to the current directory
+        load_study(doc)
+    assert info.value.file == "<mapping>" and info.value.path == "scene"
+    assert "file 'scene.yaml' not found" in info.value.fault
+    study = load_study(doc, base_dir=tmp_path)
+    assert study.scene == load_study(tmp_path / "study.yaml").scene
+    assert "# scene.yaml\n" in study.text
+
+
+def test_base_dir_of_a_study_file(tmp_path):
+    (tmp_path / "libs").mkdir()
+    (tmp_path / "libs" / "materials-implants.yaml").write_text("uhmwpe: {E: 3.6e8, nu: 0.4}\ncocrmo: {E: 2e11, nu: 0.3}\n")
+    doc = demo_doc()
+    doc["scene"]["materials"] = "materials-implants.yaml"
+    for body, material in (("base", "cocrmo"), ("pad", "uhmwpe")):
+        doc["scene"]["bodies"][body]["regions"][0]["material"] = material
+    del doc["scene"]["thermal"]
+    doc["uncertain"] = {}
+    path = write_study(doc, tmp_path)
+    assert load_study(path).scene["materials"]["uhmwpe"]["E"] == 3.4e8                   # shipped
+    assert load_study(path, base_dir=tmp_path / "libs").scene["materials"]["uhmwpe"]["E"] == 3.6e8
 
 
 def _scene_file_study(tmp_path, materials="materials-implants.yaml"):
@@ -206,7 +271,7 @@ def test_errors_in_material_library_name_that_file(tmp_path):
 
 
 @pytest.mark.parametrize("library", sorted(p.name for p in LIBRARIES.glob("materials-*.yaml")))
-def test_shipped_material_libraries_load(tmp_path, library):
+def test_shipped_material_libraries_load(library):
     materials = yaml.safe_load((LIBRARIES / library).read_text())
     doc = demo_doc()
     doc["scene"]["materials"] = library
@@ -215,16 +280,16 @@ def test_shipped_material_libraries_load(tmp_path, library):
         doc["scene"]["bodies"][body]["regions"][0]["material"] = first
     del doc["scene"]["thermal"]
     doc["uncertain"] = {}
-    study = load_study(write_study(doc, tmp_path))
+    study = load_study(doc)
     assert set(study.scene["materials"]) == set(materials)
 
 
-def test_lame_material_with_lame_box(tmp_path):
+def test_lame_material_with_lame_box():
     doc = demo_doc()
     doc["scene"]["materials"]["rubber"] = {"lambda": 3.1e7, "mu": 3.4e6, "conductivity": 0.2}
     del doc["uncertain"]["materials.rubber.E"], doc["uncertain"]["materials.rubber.nu"]
     doc["uncertain"]["materials.rubber.mu"] = [3.0e6, 4.0e6]
-    study = load_study(write_study(doc, tmp_path))
+    study = load_study(doc)
     assert study.parameters.names[-1] == "materials.rubber.mu"
     assert any("rubber" in note and "expansion" in note for note in study.notes)
 
@@ -242,12 +307,12 @@ def test_defaults_when_optional_blocks_are_absent(tmp_path):
     assert len(study.parameters) == 0 and study.nominal().shape == (0,)
 
 
-def test_sweep_and_named_regions(tmp_path):
+def test_sweep_and_named_regions():
     doc = demo_doc()
     doc["sweep"] = {"grid": {"loads.pad_top.pressure": [1e6, 2e6], "materials.steel.E": [2e11]}}
     doc["scene"]["bodies"]["pad"]["regions"][0]["name"] = "pad"
     doc["scene"]["body_forces"]["pad"] = [0.0, -1.0e4]
-    study = load_study(write_study(doc, tmp_path))
+    study = load_study(doc)
     assert study.sweep == doc["sweep"]
     assert study.scene["bodies"]["pad"]["regions"][0]["name"] == "pad"
     assert math.isclose(study.scene["body_forces"]["pad"][1], -1.0e4)
