@@ -16,8 +16,8 @@ from scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
 
 
 
-def test_contact_patch_test_gives_uniform_pressure(tmp_path):
-    _, ev = solve("contact-patch", tmp_path)
+def test_contact_patch_test_gives_uniform_pressure():
+    _, ev = solve("contact-patch")
     c = ev.state.contact
     # P1 with matching node pairs reproduces uniform uniaxial stress exactly: round-off only
     np.testing.assert_allclose(c.pressure, 1.0e6, rtol=1e-8)
@@ -32,10 +32,10 @@ def test_contact_patch_test_gives_uniform_pressure(tmp_path):
 HERTZ = dict(E=2.0e11, nu=0.3, R=1.0, p_top=1.0786e8)
 
 
-def hertz_errors(tmp_path, h):
+def hertz_errors(h):
     def refine(doc):
         doc["scene"]["mesh"]["refine"][0]["size"] = h
-    _, ev = solve("hertz", tmp_path, refine)
+    _, ev = solve("hertz", refine)
     c = ev.state.contact
     P = 2 * HERTZ["p_top"] * HERTZ["R"]                    # whole cylinder, per unit length
     Es = HERTZ["E"] / (2 * (1 - HERTZ["nu"] ** 2))
@@ -47,15 +47,15 @@ def hertz_errors(tmp_path, h):
     return c.pressure.max() / p0 - 1, width / a - 1
 
 
-def test_hertz_peak_pressure_and_width_converge(tmp_path):
+def test_hertz_peak_pressure_and_width_converge():
     # a = 0.05 m; h = a/6 and a/12 in the contact zone
-    coarse, fine = hertz_errors(tmp_path, 0.008), hertz_errors(tmp_path, 0.004)
+    coarse, fine = hertz_errors(0.008), hertz_errors(0.004)
     assert max(map(abs, fine)) < 0.03
     assert abs(fine[0]) < abs(coarse[0]) and abs(fine[1]) < abs(coarse[1])
 
 
-def test_tresca_partial_slip(tmp_path):
-    study, ev = solve("tresca-pad", tmp_path)
+def test_tresca_partial_slip():
+    study, ev = solve("tresca-pad")
     c = ev.state.contact
     g = 3.0e5
     scale = np.abs(c.slip).max()
@@ -77,7 +77,7 @@ def _pressed_only(doc):
     doc["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["interface"]}]
 
 
-def test_zero_slip_limit_is_frictionless(tmp_path):
+def test_zero_slip_limit_is_frictionless():
     def zero(doc):
         _pressed_only(doc)
         doc["scene"]["contacts"]["interface"]["friction"] = {"slip_limit": 0.0}
@@ -85,12 +85,12 @@ def test_zero_slip_limit_is_frictionless(tmp_path):
         _pressed_only(doc)
         doc["scene"]["contacts"]["interface"].pop("friction")
         doc["uncertain"] = {"loads.pad_top.traction.1": [-2.0e6, -0.5e6]}
-    _, a = solve("tresca-pad", tmp_path, zero)
-    _, b = solve("tresca-pad", tmp_path, none)
+    _, a = solve("tresca-pad", zero)
+    _, b = solve("tresca-pad", none)
     assert np.linalg.norm(a.state.u - b.state.u) <= 1e-10 * np.linalg.norm(b.state.u)
 
 
-def test_large_slip_limit_is_glued(tmp_path):
+def test_large_slip_limit_is_glued():
     def sticky(doc):
         _pressed_only(doc)
         doc["scene"]["contacts"]["interface"]["friction"] = {"slip_limit": 1.0e12}
@@ -108,8 +108,8 @@ def test_large_slip_limit_is_glued(tmp_path):
         sc["regions_of_interest"] = {"pad_top": {"boundary": "pad_top"}}
         doc["uncertain"] = {"loads.pad_top.traction.1": [-2.0e6, -0.5e6]}
         doc["criteria"] = [{"name": "shift", "kind": "mean_normal_displacement", "regions": ["pad_top"]}]
-    _, stick = solve("tresca-pad", tmp_path, sticky)
-    _, glue = solve("tresca-pad", tmp_path, glued)
+    _, stick = solve("tresca-pad", sticky)
+    _, glue = solve("tresca-pad", glued)
     # nothing opened (round-off relative to the displacements): the same discrete problem
     assert np.all(stick.state.contact.gap <= 1e-10 * np.abs(stick.state.u).max())
     key = lambda p: [tuple(np.round(q, 9)) for q in p.T]        # noqa: E731
@@ -123,10 +123,12 @@ def test_unbalanced_floating_body_is_bad_input(tmp_path, capsys):
     def pull(doc):
         doc["scene"]["loads"]["pad_top"] = {"traction": [4.0e5, -1.0e6]}   # shear 4e5 > g = 3e5
         doc["uncertain"] = {"loads.pad_top.traction.0": [3.5e5, 4.5e5]}
-    study = load("tresca-pad", tmp_path, pull)
+    study = load("tresca-pad", pull)
     ev = study.evaluate(study.nominal())
     assert ev.status == 3 and "'pad'" in ev.message
-    code = main(["solve", str(study.file), "-o", str(tmp_path / "o.nc")])
+    path = tmp_path / "pull.yaml"                    # the CLI reads a file: the study's own text
+    path.write_text(study.text)
+    code = main(["solve", str(path), "-o", str(tmp_path / "o.nc")])
     err = capsys.readouterr().err
     assert code == 2 and "'pad'" in err and "not balanced" in err and "Traceback" not in err
 
@@ -143,15 +145,15 @@ def _coulomb(doc):
 
 @pytest.mark.parametrize("name,edit", [("contact-patch", None), ("tresca-pad", _small), ("tresca-pad", _coulomb)],
                          ids=["patch-floating", "tresca-floating", "coulomb-floating"])
-def test_monolithic_agrees_with_qp(name, edit, tmp_path):
+def test_monolithic_agrees_with_qp(name, edit):
     def with_method(method):
         def e(doc):
             if edit:
                 edit(doc)
             doc["solver"] = {"method": method}
         return e
-    _, mono = solve(name, tmp_path, with_method("monolithic"))
-    _, qp = solve(name, tmp_path, with_method("qp"))
+    _, mono = solve(name, with_method("monolithic"))
+    _, qp = solve(name, with_method("qp"))
     # Clarabel at 1e-10 gaps on a scaled program; Coulomb adds the fixed point's 1e-8
     assert np.linalg.norm(mono.state.u - qp.state.u) <= 1e-6 * np.linalg.norm(qp.state.u)
     cm, cq = mono.state.contact, qp.state.contact

@@ -10,45 +10,43 @@ import wcs
 VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
 
 
-def study(tmp_path, name, solver, edit=None):
+def study(name, solver, edit=None):
     doc = yaml.safe_load((VALIDATION / f"{name}.yaml").read_text())
     if edit:
         edit(doc)
     doc["solver"] = solver
-    path = tmp_path / f"{name}-{solver['method']}-{solver.get('fallback', True)}.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    return wcs.load_study(path)
+    return wcs.load_study(doc)
 
 
 def small_pad(doc):
     doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.04}]}
 
 
-def test_dd_agrees_with_monolithic_through_the_model(tmp_path):
-    mono = study(tmp_path, "contact-patch", {"method": "monolithic", "tolerance": 1e-10})
-    dd = study(tmp_path, "contact-patch", {"method": "dd", "tolerance": 1e-10, "dd": {"subdomains": 6}})
+def test_dd_agrees_with_monolithic_through_the_model():
+    mono = study("contact-patch", {"method": "monolithic", "tolerance": 1e-10})
+    dd = study("contact-patch", {"method": "dd", "tolerance": 1e-10, "dd": {"subdomains": 6}})
     a, b = mono.evaluate(mono.nominal()), dd.evaluate(dd.nominal())
     assert b.status == 0 and b.state.solver == "dd" and b.iterations >= 1
     assert np.linalg.norm(a.state.u - b.state.u) <= 1e-6 * np.linalg.norm(a.state.u)
     assert np.linalg.norm(a.state.contact.force_n - b.state.contact.force_n) <= 1e-6 * np.linalg.norm(a.state.contact.force_n)
 
 
-def test_failing_successive_approximations_fall_back_and_say_so(tmp_path):
+def test_failing_successive_approximations_fall_back_and_say_so():
     # Tresca pad: the contraction estimate of the successive approximations stays ≥ 1
-    dd = study(tmp_path, "tresca-pad", {"method": "dd", "dd": {"subdomains": 6}}, small_pad)
+    dd = study("tresca-pad", {"method": "dd", "dd": {"subdomains": 6}}, small_pad)
     ev = dd.evaluate(dd.nominal())
     assert ev.status == 0 and "monolithic after dd" in ev.message and "contraction" in ev.message
-    mono = study(tmp_path, "tresca-pad", {"method": "monolithic"}, small_pad)
+    mono = study("tresca-pad", {"method": "monolithic"}, small_pad)
     ref = mono.evaluate(mono.nominal())
     assert np.linalg.norm(ev.state.u - ref.state.u) <= 1e-10 * np.linalg.norm(ref.state.u)
-    strict = study(tmp_path, "tresca-pad", {"method": "dd", "fallback": False, "dd": {"subdomains": 6}}, small_pad)
+    strict = study("tresca-pad", {"method": "dd", "fallback": False, "dd": {"subdomains": 6}}, small_pad)
     failed = strict.evaluate(strict.nominal())
     assert failed.status == 5 and "domain decomposition" in failed.message
     assert np.isnan(list(failed.phi.values())).all()
 
 
-def test_dd_answers_do_not_depend_on_the_order(tmp_path):
-    s = study(tmp_path, "contact-patch", {"method": "dd", "dd": {"subdomains": 6}})
+def test_dd_answers_do_not_depend_on_the_order():
+    s = study("contact-patch", {"method": "dd", "dd": {"subdomains": 6}})
     x1 = s.nominal()
     x2 = x1.copy()
     x2[0] *= 1.3
@@ -58,16 +56,16 @@ def test_dd_answers_do_not_depend_on_the_order(tmp_path):
     assert np.array_equal(first, again)
 
 
-def test_dd_with_mortar_contact_agrees_with_monolithic(tmp_path):
+def test_dd_with_mortar_contact_agrees_with_monolithic():
     """Nonmatching sides (dual mortar rows reach several master nodes) inside the DD pairs."""
-    mono = study(tmp_path, "mortar-patch", {"method": "monolithic", "tolerance": 1e-10})
-    dd = study(tmp_path, "mortar-patch", {"method": "dd", "tolerance": 1e-10, "dd": {"subdomains": 6}})
+    mono = study("mortar-patch", {"method": "monolithic", "tolerance": 1e-10})
+    dd = study("mortar-patch", {"method": "dd", "tolerance": 1e-10, "dd": {"subdomains": 6}})
     a, b = mono.evaluate(mono.nominal()), dd.evaluate(dd.nominal())
     assert b.status == 0 and b.state.solver == "dd"
     assert np.linalg.norm(a.state.u - b.state.u) <= 1e-6 * np.linalg.norm(a.state.u)
 
 
-def test_glued_step_converges_where_the_seeds_step_stagnates(tmp_path):
+def test_glued_step_converges_where_the_seeds_step_stagnates():
     """The tunnel: the seed's successive steps with S0 stagnate (q ≈ 1.1) and fall back; steps
     with S0 + the pairs' glued response iterate only the nonlinear correction and converge."""
     root = Path(__file__).resolve().parents[1] / "studies"
@@ -77,9 +75,7 @@ def test_glued_step_converges_where_the_seeds_step_stagnates(tmp_path):
                         ("seed", {"method": "dd", "tolerance": 1e-6, "dd": {"subdomains": 12}}),
                         ("glued", {"method": "dd", "tolerance": 1e-6, "dd": {"subdomains": 12, "step": "glued"}})):
         doc["solver"] = solver
-        path = tmp_path / f"tunnel-{key}.yaml"
-        path.write_text(yaml.safe_dump(doc))
-        s = wcs.load_study(path)
+        s = wcs.load_study(doc)
         results[key] = s.evaluate(s.nominal())
     assert "monolithic after dd" in results["seed"].message
     glued, mono = results["glued"], results["mono"]

@@ -47,7 +47,7 @@ def test_every_criterion_and_parameter_kind():
     assert check_against_fd(study) < 1e-5
 
 
-def test_coulomb_coefficient_and_floating_pad(tmp_path):
+def test_coulomb_coefficient_and_floating_pad():
     doc = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
     doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.04}]}
     doc["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.4}
@@ -59,9 +59,7 @@ def test_coulomb_coefficient_and_floating_pad(tmp_path):
                        {"name": "shift", "kind": "mean_normal_displacement", "regions": ["pad_top"],
                         "direction": [1.0, 0.0]}]
     doc["solver"] = {"method": "monolithic", "tolerance": TOL}
-    path = tmp_path / "coulomb.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    assert check_against_fd(wcs.load_study(path)) < 1e-5
+    assert check_against_fd(wcs.load_study(doc)) < 1e-5
 
 
 def test_linear_scene_without_contact():
@@ -69,24 +67,20 @@ def test_linear_scene_without_contact():
     assert check_against_fd(study) < 1e-5
 
 
-def test_nonsmooth_point_is_flagged(tmp_path):
+def test_nonsmooth_point_is_flagged():
     """At a slip limit exactly equal to the stick force the active set is about to change."""
     doc = yaml.safe_load((VALIDATION / "contact-patch.yaml").read_text())
     doc["scene"]["loads"]["block_top"] = {"pressure": 0.0}       # contact just closed, zero pressure
     doc["uncertain"] = {"loads.block_top.pressure": [0.0, 1.0e6]}
-    path = tmp_path / "touch.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    study = wcs.load_study(path)
+    study = wcs.load_study(doc)
     ev = study.evaluate(study.nominal(), gradients=True)
     assert ev.status == 0 and ev.nonsmooth
 
 
-def test_tunnel_with_redundant_contact_constraints(tmp_path):
+def test_tunnel_with_redundant_contact_constraints():
     """The tunnel: fault ends held by supports on both sides (zero contact rows) and by rollers
     on both sides (tangent parallel to normal) make the active-set system singular; the
     multipliers are not unique there but the criteria's gradients are (least squares)."""
     doc = yaml.safe_load((Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml").read_text())
     doc["solver"] = {"method": "monolithic", "tolerance": TOL}
-    path = tmp_path / "tunnel.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    assert check_against_fd(wcs.load_study(path)) < 1e-5
+    assert check_against_fd(wcs.load_study(doc)) < 1e-5

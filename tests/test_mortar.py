@@ -75,7 +75,7 @@ def test_per_body_sizes_make_nonmatching_sides():
 
 @pytest.mark.parametrize("ratio", [3, 7])
 @pytest.mark.parametrize("coarse", ["block", "base"])
-def test_patch_test_on_nonmatching_meshes(tmp_path, ratio, coarse):
+def test_patch_test_on_nonmatching_meshes(ratio, coarse):
     fine = "base" if coarse == "block" else "block"
 
     def sizes(disc):
@@ -84,14 +84,14 @@ def test_patch_test_on_nonmatching_meshes(tmp_path, ratio, coarse):
             doc["scene"]["bodies"][coarse]["mesh"] = {"size": 0.03 * ratio}
             doc["scene"]["contacts"]["interface"]["discretization"] = disc
         return edit
-    _, ev = solve("mortar-patch", tmp_path, sizes("auto"))
+    _, ev = solve("mortar-patch", sizes("auto"))
     c = ev.state.contact
     assert c.zone.discretization == ["mortar"]                       # auto: the sides do not match
     err_mortar = np.max(np.abs(c.pressure / 1.0e6 - 1.0))
     assert err_mortar <= 1e-8
     assert ev.phi["pressure"] == pytest.approx(1.0e6, rel=1e-10)      # Φ6 with the mortar weights
     assert c.weight.sum() == pytest.approx(2.0, rel=1e-12)
-    _, ev_ns = solve("mortar-patch", tmp_path, sizes("node-to-node"))
+    _, ev_ns = solve("mortar-patch", sizes("node-to-node"))
     err_nts = np.max(np.abs(ev_ns.state.contact.pressure / 1.0e6 - 1.0))
     print(f"ratio 1:{ratio}, coarse {coarse}: mortar {err_mortar:.2e}, node-to-segment {err_nts:.2e}")
     assert err_nts > 5e-4 and err_nts > 1e4 * max(err_mortar, 1e-16)
@@ -103,11 +103,11 @@ def test_patch_test_on_nonmatching_meshes(tmp_path, ratio, coarse):
 HERTZ = dict(E=2.0e11, nu=0.3, R=1.0, p_top=1.0786e8)
 
 
-def hertz_errors(tmp_path, h):
+def hertz_errors(h):
     def edit(doc):
         doc["scene"]["bodies"]["cylinder"]["mesh"]["refine"][0]["size"] = h
         doc["scene"]["bodies"]["block"]["mesh"]["refine"][0]["size"] = 3 * h
-    _, ev = solve("hertz-mortar", tmp_path, edit)
+    _, ev = solve("hertz-mortar", edit)
     c = ev.state.contact
     assert c.zone.discretization == ["mortar"]
     P = 2 * HERTZ["p_top"] * HERTZ["R"]
@@ -120,9 +120,9 @@ def hertz_errors(tmp_path, h):
     return c.pressure.max() / p0 - 1, width / a - 1
 
 
-def test_hertz_fine_cylinder_on_coarse_block(tmp_path):
+def test_hertz_fine_cylinder_on_coarse_block():
     # cylinder h = a/12, a/25 in the contact zone; block 3x coarser
-    coarse, fine = hertz_errors(tmp_path, 0.004), hertz_errors(tmp_path, 0.002)
+    coarse, fine = hertz_errors(0.004), hertz_errors(0.002)
     print(f"Hertz mortar: coarse peak {coarse[0]:+.4f} width {coarse[1]:+.4f}; "
           f"fine peak {fine[0]:+.4f} width {fine[1]:+.4f}")
     assert max(map(abs, fine)) < 0.03
@@ -133,13 +133,13 @@ def test_hertz_fine_cylinder_on_coarse_block(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["contact-patch", "tresca-pad", "gap-closing", "stacked-layers"])
-def test_mortar_equals_node_to_node_on_matching_meshes(tmp_path, name):
+def test_mortar_equals_node_to_node_on_matching_meshes(name):
     evs = {}
     for disc in ("mortar", "node-to-node"):
         def edit(doc):
             for c in doc["scene"]["contacts"].values():
                 c["discretization"] = disc
-        _, evs[disc] = solve(name, tmp_path, edit)
+        _, evs[disc] = solve(name, edit)
     a, b = evs["mortar"].state, evs["node-to-node"].state
     assert a.contact.zone.discretization[0] == "mortar"
     scale = np.abs(b.u).max()
@@ -156,8 +156,8 @@ def test_mortar_equals_node_to_node_on_matching_meshes(tmp_path, name):
 # ---------------------------------------------------------------- gluing
 
 
-def test_glued_bodies_on_nonmatching_meshes_reproduce_the_closed_form(tmp_path):
-    study, ev = solve("glued-mortar", tmp_path)
+def test_glued_bodies_on_nonmatching_meshes_reproduce_the_closed_form():
+    study, ev = solve("glued-mortar")
     s = ev.state.stress
     np.testing.assert_allclose(s[1], -1.0e6, rtol=1e-8)
     assert np.abs(s[3]).max() <= 1e-6 * 1.0e6
@@ -170,16 +170,16 @@ def test_glued_bodies_on_nonmatching_meshes_reproduce_the_closed_form(tmp_path):
     assert master.size > 2 * slave.size                                   # really nonmatching
 
 
-def test_glue_holds_a_body_without_supports(tmp_path):
+def test_glue_holds_a_body_without_supports():
     """A body held only by a glue is not 'floating': the glued cluster is held."""
     def edit(doc):
         doc["scene"]["supports"] = {"bottom": {"u": [0.0, 0.0]}}
         doc["scene"]["boundaries"]["bottom"]["body"] = "soft"
-    _, ev = solve("glued-mortar", tmp_path, edit)
+    _, ev = solve("glued-mortar", edit)
     assert ev.phi["settlement"] > 0
 
 
-def test_glue_conducts_heat(tmp_path):
+def test_glue_conducts_heat():
     """Two bodies glued on a nonmatching interface, hot bottom, cold top: linear temperature."""
     def edit(doc):
         sc = doc["scene"]
@@ -187,7 +187,7 @@ def test_glue_conducts_heat(tmp_path):
             m.update(conductivity=2.0, expansion=0.0)
         sc["thermal"] = {"reference": 293.0, "temperature": {"bottom": 373.0, "top": 273.0}}
         doc["criteria"] = [{"name": "t", "kind": "mean_temperature", "regions": ["soft_layer"]}]
-    _, ev = solve("glued-mortar", tmp_path, edit)
+    _, ev = solve("glued-mortar", edit)
     T, y = ev.state.T, ev.fields["coords"].values[:, 1]
     np.testing.assert_allclose(T, 373.0 - 200.0 * y, atol=1e-8)
 
@@ -298,7 +298,7 @@ def test_mortar_poisson_example_converges_as_h():
 # ---------------------------------------------------------------- plumbing: gradients, results file
 
 
-def test_gradients_on_a_mortar_scene(tmp_path):
+def test_gradients_on_a_mortar_scene():
     import sys
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from test_gradients import TOL, check_against_fd
@@ -319,7 +319,7 @@ def test_gradients_on_a_mortar_scene(tmp_path):
         doc["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["edge"]},
                            {"name": "settlement", "kind": "mean_normal_displacement", "regions": ["top"],
                             "direction": [0.0, -1.0]}]
-    study = load("mortar-patch", tmp_path, edit)
+    study = load("mortar-patch", edit)
     worst = check_against_fd(study)
     print(f"mortar scene: worst relative gradient error {worst:.2e}")
     assert worst < 1e-5
@@ -334,12 +334,12 @@ def test_solve_writes_the_mortar_contact_to_the_results_file(tmp_path, capsys):
         np.testing.assert_allclose(ds["contact_pressure"].values, 1.0e6, rtol=1e-8)
 
 
-def test_study_schema_for_mortar_and_glue(tmp_path):
+def test_study_schema_for_mortar_and_glue():
     from wcs.errors import StudyError
 
     def bad(edit):
         with pytest.raises(StudyError) as e:
-            load("glued-mortar", tmp_path, edit)
+            load("glued-mortar", edit)
         return str(e.value)
     assert "discretization" in bad(lambda d: d["scene"].__setitem__(
         "contacts", {"c": {"slave": "soft_top", "master": "hard_bottom", "discretization": "nts"}}))

@@ -21,12 +21,6 @@ BOX = [0.37, 0.21, 1.53, 0.62]             # interior box, cut by no mesh line o
 POLYGON = [[0.2, 0.1], [1.7, 0.2], [1.1, 0.5], [1.6, 0.85], [0.3, 0.7]]   # non-convex
 
 
-def _study(tmp_path, doc: dict, name="s.yaml"):
-    path = tmp_path / name
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    return load_study(path)
-
-
 def _values(study) -> dict:
     ev = Evaluator(study)
     e = ev.evaluate(study.nominal())
@@ -67,10 +61,10 @@ EXACT = {"down": -EPS_YY * (BOX[1] + BOX[3]) / 2, "side": EPS_XX * _polygon_cent
          "top": EPS_YY * (BOX[1] + BOX[3]) / 2}
 
 
-def test_means_over_an_interior_box_and_polygon_are_exact(tmp_path):
+def test_means_over_an_interior_box_and_polygon_are_exact():
     """P1 reproduces the linear field exactly, so the means over G_r are exact: the box and the
     polygon are embedded in the mesh (before: whole cells by centroid, 'down' 6.6 % off)."""
-    study = _study(tmp_path, _block({"size": 0.3}, {"box": {"box": BOX}, "poly": {"polygon": POLYGON}}, MEANS))
+    study = load_study(_block({"size": 0.3}, {"box": {"box": BOX}, "poly": {"polygon": POLYGON}}, MEANS))
     _, phi = _values(study)
     for name, exact in EXACT.items():
         assert phi[name] == pytest.approx(exact, rel=1e-10), name
@@ -103,20 +97,20 @@ def test_means_on_a_mesh_file_cut_the_cells_exactly(tmp_path):
     refused (exit 2 at its key path)."""
     _grid_msh(tmp_path / "grid.msh")
     rois = {"box": {"box": BOX}, "poly": {"polygon": POLYGON}}
-    _, phi = _values(_study(tmp_path, _block({"file": "grid.msh"}, rois, MEANS)))
+    _, phi = _values(load_study(_block({"file": "grid.msh"}, rois, MEANS), base_dir=tmp_path))
     for name, exact in EXACT.items():
         assert phi[name] == pytest.approx(exact, rel=1e-10), name
     disc = _block({"file": "grid.msh"}, {"d": {"disc": {"center": [1.0, 0.5], "radius": 0.3}}},
                   [{"name": "t", "kind": "mean_normal_displacement", "regions": ["d"], "direction": [0, 1]}])
     with pytest.raises(StudyError, match="disc cannot be cut") as e:
-        Evaluator(_study(tmp_path, disc, "disc.yaml"))
+        Evaluator(load_study(disc, base_dir=tmp_path))
     assert e.value.path == "scene.regions_of_interest.d.disc"
 
 
 @pytest.mark.parametrize("point, why", [([2.0, 1.0], "corner"), ([1.0, 51.0], "not on the boundary")])
-def test_a_point_at_a_corner_or_off_the_body_is_refused(tmp_path, point, why):
+def test_a_point_at_a_corner_or_off_the_body_is_refused(point, why):
     crit = [{"name": "top", "kind": "mean_normal_displacement", "regions": ["box"], "point": point}]
-    study = _study(tmp_path, _block({"size": 0.3}, {"box": {"box": BOX}}, crit))
+    study = load_study(_block({"size": 0.3}, {"box": {"box": BOX}}, crit))
     with pytest.raises(StudyError, match=why) as e:
         Evaluator(study)
     assert e.value.path == "criteria.0.point"
@@ -128,7 +122,7 @@ GAP, DOWN = 0.002, 0.003                     # initial gap; prescribed descent o
 EB, NUB, ES, NUS = 1.0e9, 0.3, 1.0e10, 0.25  # block, base
 
 
-def test_contact_pressure_on_either_side_of_a_closing_gap(tmp_path):
+def test_contact_pressure_on_either_side_of_a_closing_gap():
     """A block 2 mm above a base of the same width is pushed down 3 mm: the gap closes and both
     are compressed uniformly, σ_yy = −p with (1 − ν²) p / E summed over the heights = 1 mm.
     Φ6 over a region on the master side (apart from the slave nodes) takes the same rows as on
@@ -155,7 +149,7 @@ def test_contact_pressure_on_either_side_of_a_closing_gap(tmp_path):
         "uncertain": {"materials.block.E": [0.8 * EB, 1.2 * EB]},
         "criteria": [{"name": r, "kind": "contact_pressure", "regions": [r]}
                      for r in ("master_box", "slave_box", "master_side", "slave_side")]}
-    ev, phi = _values(_study(tmp_path, doc))
+    ev, phi = _values(load_study(doc))
     masks = [c.contact_masks[0] for c in ev.criteria]
     assert all(np.array_equal(m, masks[0]) for m in masks) and masks[0].all()
     p = (DOWN - GAP) / (hb * (1 - NUB ** 2) / EB + 1.0 * (1 - NUS ** 2) / ES)
@@ -166,7 +160,7 @@ def test_contact_pressure_on_either_side_of_a_closing_gap(tmp_path):
 # ---------------------------------------------------------------- A5: a 1D group as G_r
 
 
-def test_boundary_region_of_a_mesh_file_group(tmp_path):
+def test_boundary_region_of_a_mesh_file_group():
     """`boundary: base_top` where base_top is a 1D group of the mesh file gives the criteria of
     the same curve chosen by a segment; the mean pressure under the pad is its load, 2 MPa."""
     doc = yaml.safe_load((STUDIES / "user-mesh-demo.yaml").read_text())
@@ -177,7 +171,7 @@ def test_boundary_region_of_a_mesh_file_group(tmp_path):
     doc["criteria"] = [{"name": f"{k}_{r}", "kind": k, "regions": [r]} for r in ("by_group", "by_segment")
                        for k in ("contact_pressure", "mean_normal_displacement", "shear_stress_intensity")]
     doc.pop("limits")
-    _, phi = _values(_study(tmp_path, doc))
+    _, phi = _values(load_study(doc))
     for k in ("contact_pressure", "mean_normal_displacement", "shear_stress_intensity"):
         assert phi[f"{k}_by_group"] == pytest.approx(phi[f"{k}_by_segment"], rel=1e-14), k
     assert phi["contact_pressure_by_group"] == pytest.approx(float(sc["loads"]["pad_top"]["pressure"]), rel=1e-9)
