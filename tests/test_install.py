@@ -44,7 +44,7 @@ def test_installed_wcs_runs_a_study_with_a_shipped_library(tmp_path):
     # dependencies already present; --ignore-installed: never touch the lent site-packages' wcs
     _run(python, "-m", "pip", "install", "--no-deps", "--ignore-installed", "--quiet", src, cwd=tmp_path)
 
-    outside = tmp_path / "elsewhere"             # no configs/, no source tree
+    outside = tmp_path / "elsewhere"             # no source tree, no material library
     outside.mkdir()
     doc = yaml.safe_load((REPO / "studies" / "heated-plate.yaml").read_text())
     doc["scene"]["materials"] = "materials-basic.yaml"

@@ -1066,7 +1066,7 @@ class Study:
     """A validated study. `scene` is resolved plain data in the YAML shape."""
 
     name: str
-    file: Path
+    file: Path                                          # Path("<mapping>") for a study given as a mapping
     text: str
     sha256: str
     scene: dict
