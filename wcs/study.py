@@ -1101,10 +1101,12 @@ class Study:
 
 
 def _recorded_text(base: Path, text: str, extra: list[tuple[Path, str]]) -> str:
-    """The study text followed by each file it pulled in (named relative to `base`), as
+    """The study text followed by each file it pulled in (named relative to `base`; a shipped
+    library by its name, so the record does not depend on where wcs is installed), as
     further YAML documents."""
     for path, more in extra:
-        name = os.path.relpath(path, base)
+        shipped = path.resolve().parent == LIBRARIES.resolve()
+        name = f"shipped library {path.name}" if shipped else os.path.relpath(path, base)
         text = f"{text.rstrip()}\n---\n# {name}\n{more}"
     return text
 
