@@ -17,6 +17,7 @@ import yaml
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "validation" / "tresca-pad.yaml"
 BIN = Path(sys.executable).parent
+DD_BENCH = Path(__file__).resolve().parent / "bench" / "dd_bench.py"
 
 
 def _pad(tmp_path):
@@ -37,7 +38,7 @@ def test_dd_on_two_ranks_is_bitwise_the_one_rank_solve(tmp_path):
     env["WCS_THREADS"] = "1"
     out = {}
     for n in (1, 2):
-        cmd = [str(mpiexec), "-n", str(n), sys.executable, "-m", "wcs.dd.bench", "solve", str(study),
+        cmd = [str(mpiexec), "-n", str(n), sys.executable, str(DD_BENCH), "solve", str(study),
                "--subdomains", "8", "--tolerance", "1e-10", "--max-iterations", "300", "--repeat", "1",
                "--save", str(tmp_path / f"r{n}.npz"), "--json", str(tmp_path / f"r{n}.json")]
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)

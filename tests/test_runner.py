@@ -20,6 +20,8 @@ import yaml
 import wcs
 import wcs.runner as runner
 from wcs.cli import main
+from wcs.commands import solve_worst
+from wcs.problem import build_problem
 from wcs.search import Batch, Worst
 from wcs.store import Store, store_path
 
@@ -127,7 +129,7 @@ def test_results_file_layout(tmp_path):
 def test_contact_study_layout_and_lipschitz(tmp_path):
     study = wcs.load_study(STUDIES / "two-blocks-demo.yaml")
     from wcs.evaluation import Evaluator
-    problem = runner.build_problem(study, Evaluator(study))
+    problem = build_problem(study, Evaluator(study))
     # 6 profile points -> 5 differences, two signs each; ds = 1.0 m / 5
     assert problem.A_ub.shape == (10, 9)
     assert np.allclose(problem.b_ub, 2.0e5 * 0.2)
@@ -316,7 +318,7 @@ def test_solve_worst(tresca, tmp_path):
     clean.to_netcdf(run_file, engine="h5netcdf")
     out = tmp_path / "worst.nc"
     args = SimpleNamespace(study=str(path), worst=[str(run_file), "shift"], output=str(out), quiet=True)
-    assert runner.solve_worst(args) == 0
+    assert solve_worst(args) == 0
     ds = xr.open_dataset(out, engine="h5netcdf")
     assert out.with_suffix(".vtu").exists()
     assert np.array_equal(ds["x"].values, clean["worst_x"].sel(criterion="shift").values)
@@ -324,7 +326,7 @@ def test_solve_worst(tresca, tmp_path):
         float(clean["worst_value"].sel(criterion="shift")), rel=1e-10)
     bad = SimpleNamespace(study=str(path), worst=[str(run_file), "nope"], output=str(out), quiet=True)
     with pytest.raises(wcs.StudyError, match="no criterion 'nope'"):
-        runner.solve_worst(bad)
+        solve_worst(bad)
 
 
 def test_store_keys_exact_bits(tmp_path):

@@ -1,4 +1,8 @@
-"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken."""
+"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken.
+
+Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
+solve --worst, `wcs/report/` for report), so `wcs --help` and `wcs report` do not load the
+solvers."""
 from __future__ import annotations
 
 import argparse
@@ -114,7 +118,7 @@ def cmd_check(args) -> int:
 
 def cmd_solve(args) -> int:
     if getattr(args, "worst", None):
-        from .runner import solve_worst
+        from .commands import solve_worst
         return solve_worst(args)
     from .evaluation import Evaluator
     from .results import write_solution
@@ -146,12 +150,12 @@ def cmd_solve(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .runner import cmd_run as run
+    from .commands import cmd_run as run
     return run(args)
 
 
 def cmd_sweep(args) -> int:
-    from .runner import cmd_sweep as sweep
+    from .commands import cmd_sweep as sweep
     return sweep(args)
 
 

@@ -1,4 +1,4 @@
-"""DD over MPI ranks (`python -m wcs.dd.bench`): one large DD solve on 1 and 2 ranks (per-rank
+"""DD over MPI ranks (`python tests/bench/dd_bench.py`): one large DD solve on 1 and 2 ranks (per-rank
 timings, speed-up, bitwise identity) and a study on 1 and 2 ranks (evaluation-level speed-up).
 Writes results/bench/dd_mpi_solve.json and dd_mpi_study.json. Run by `make bench`."""
 import subprocess
@@ -9,10 +9,11 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "results" / "bench"
+DD_BENCH = Path(__file__).resolve().parent / "dd_bench.py"
 
 
 def _bench(*args, timeout=3600):
-    p = subprocess.run([sys.executable, "-m", "wcs.dd.bench", *args], cwd=ROOT, capture_output=True, text=True,
+    p = subprocess.run([sys.executable, str(DD_BENCH), *args], cwd=ROOT, capture_output=True, text=True,
                        timeout=timeout)
     print(p.stdout)
     assert p.returncode == 0, p.stdout + p.stderr

@@ -59,7 +59,7 @@ def tunnel_coarse(tmp_path, factor=2.0):
 
 class NaNGradients:
     """An Evaluator whose evaluations carry NaN rows instead of None for a criterion whose
-    adjoint gradient is unavailable. The runner (wcs/runner.py, `_record_from_evaluation`)
+    adjoint gradient is unavailable. The runner (wcs/record.py, `from_evaluation`)
     stacks `np.asarray(None, float)` there and the results dataset then fails to broadcast
     (seen on the tunnel before the adjoint handled redundant contact constraints); NaN rows
     are what it means (the archive treats non-finite gradients as absent)."""

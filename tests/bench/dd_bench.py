@@ -1,10 +1,12 @@
 r"""Benchmarks of the DD solver over MPI ranks: one large evaluation, and a whole study.
 
-    python -m wcs.dd.bench solve STUDY [options]      # under mpiexec -n N: one DD solve on N ranks
-    python -m wcs.dd.bench speedup STUDY [options]    # runs `solve` on 1 and 2 ranks, compares
-    python -m wcs.dd.bench study STUDY [-o out.nc]    # under mpiexec -n N: `wcs run` with per-rank timings
-    python -m wcs.dd.bench study-speedup STUDY        # runs `study` on 1 and 2 ranks, compares
-    python -m wcs.dd.bench iterations                 # PCG1/PCG2 table (H/h, seed's models)
+    python tests/bench/dd_bench.py solve STUDY [options]    # under mpiexec -n N: one DD solve on N ranks
+    python tests/bench/dd_bench.py speedup STUDY [options]  # runs `solve` on 1 and 2 ranks, compares
+    python tests/bench/dd_bench.py study STUDY [-o out.nc]  # under mpiexec -n N: `wcs run` with per-rank timings
+    python tests/bench/dd_bench.py study-speedup STUDY      # runs `study` on 1 and 2 ranks, compares
+    python tests/bench/dd_bench.py iterations               # PCG1/PCG2 table (H/h, seed's models)
+
+It runs the `wcs` of the clone it is in (the clone's root goes first on sys.path).
 
 `solve`: every rank builds the model (mesh, assembly: deterministic, identical), then
 calls `solve_dd(..., comm=COMM_WORLD)` `--repeat` times (the first includes the
@@ -13,6 +15,9 @@ study costs) and prints per-rank timings of the last: assemble (local
 factorizations), Dirichlet solves, Neumann solves, coarse, contact solves, comm
 (gathers, including waiting for the slowest rank). `--save F.npz` writes u, lam_n,
 lam_t and the iteration history (rank 0) for comparisons.
+
+`study`: `wcs run` of the study with per-rank timings from the runner's timing events
+(`wcs.runner.Event`): building the model, the evaluations, waiting in the batch gathers.
 
 `--mesh-scale s` multiplies every mesh size of the study (global and refinements) by s:
 s = 0.4 takes the tunnel (1.5e4 unknowns) to about 1e5.
@@ -23,6 +28,7 @@ the 2 cores and 1 rank one of them.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import subprocess
@@ -31,14 +37,22 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+import yaml  # noqa: E402
+from dd_common import build  # noqa: E402
+
+import wcs  # noqa: E402
+from wcs.dd import solver as dds  # noqa: E402
+from wcs.model import Model  # noqa: E402
+from wcs.parallel import world  # noqa: E402
+from wcs.runner import Runner  # noqa: E402
+from wcs.scene.mesher import build_mesh  # noqa: E402
 
 PARTS = ("assemble", "dirichlet", "neumann", "coarse", "contact", "comm")
-
-
-def _comm():
-    from wcs.parallel import world
-    return world()
 
 
 def _scale_mesh(doc: dict, s: float) -> None:
@@ -54,7 +68,6 @@ def _scale_mesh(doc: dict, s: float) -> None:
 def edited_study(path: Path, tmp: Path, mesh_scale: float = 1.0, budget: int | None = None,
                  solver: dict | None = None) -> Path:
     """A copy of the study (and its materials files) in tmp, with the mesh scaled."""
-    import yaml
     doc = yaml.safe_load(Path(path).read_text())
     if mesh_scale != 1.0:
         _scale_mesh(doc, mesh_scale)
@@ -76,11 +89,7 @@ def reduced_system(model, scene):
 
 
 def cmd_solve(a) -> int:
-    import wcs
-    from wcs.dd import solver as dds
-    from wcs.model import Model
-    from wcs.scene.mesher import build_mesh
-    comm = _comm()
+    comm = world()
     me = 0 if comm is None else comm.rank
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -148,7 +157,7 @@ def _env():
 
 def _mpiexec(n: int, args: list[str], timeout: float = 3600) -> subprocess.CompletedProcess:
     bindir = Path(sys.executable).parent
-    cmd = [str(bindir / "mpiexec"), "-n", str(n), sys.executable, "-m", "wcs.dd.bench", *args]
+    cmd = [str(bindir / "mpiexec"), "-n", str(n), sys.executable, str(Path(__file__).resolve()), *args]
     return subprocess.run(cmd, env=_env(), capture_output=True, text=True, timeout=timeout)
 
 
@@ -189,51 +198,20 @@ def cmd_speedup(a) -> int:
 
 # ---- a whole study ---------------------------------------------------------------------------
 def cmd_study(a) -> int:
-    """`wcs run` with per-rank timings: evaluation (solves), waiting in the batch gather, rest."""
-    import wcs
-    from wcs import runner as R
-    comm = _comm()
+    """`wcs run` with per-rank timings: model build, evaluations (solves), waiting in the batch
+    gathers, from the runner's timing events."""
+    comm = world()
     me = 0 if comm is None else comm.rank
-    tm = {"model_build": 0.0, "evaluate": 0.0, "gather": 0.0, "evaluations": 0}
+    events = []
     t0 = time.perf_counter()
     study = wcs.load_study(a.study)
-    orig_eval = R.Runner._evaluate_one
-
-    def evaluate_one(self, point, gradients):
-        t = time.perf_counter()
-        try:
-            return orig_eval(self, point, gradients)
-        finally:
-            tm["evaluate"] += time.perf_counter() - t
-            tm["evaluations"] += 1
-    R.Runner._evaluate_one = evaluate_one
-    if comm is not None:
-        orig_allgather = type(comm).allgather
-
-        class Timed:
-            def __init__(self, c):
-                self._c = c
-
-            def __getattr__(self, name):
-                return getattr(self._c, name)
-
-            def allgather(self, obj):
-                t = time.perf_counter()
-                try:
-                    return orig_allgather(self._c, obj)
-                finally:
-                    tm["gather"] += time.perf_counter() - t
-        import wcs.parallel as P
-        orig_world = P.world
-        P.world = lambda: Timed(orig_world())
-    t = time.perf_counter()
-    runner = R.Runner(study, a.output, False, None)
-    tm["model_build"] = time.perf_counter() - t           # evaluator/model built lazily or here
-    ds = runner.run()
-    tm["wall"] = time.perf_counter() - t0
-    tm["rank"] = me
-    tm["evals_total"] = int(ds.sizes.get("eval", 0))
-    tm["batches"] = _batch_sizes(runner)
+    ds = Runner(study, a.output, False, None, on_event=events.append).run()
+    evals = [e for e in events if e.what == "evaluate"]
+    tm = {"model_build": sum(e.seconds for e in events if e.what == "prepare"),
+          "evaluate": sum(e.seconds for e in evals), "evaluations": len(evals),
+          "gather": sum(e.seconds for e in events if e.what == "gather"),
+          "wall": time.perf_counter() - t0, "rank": me, "evals_total": int(ds.sizes.get("eval", 0)),
+          "batches": _records_per_stage(events)}
     allt = [tm] if comm is None else comm.allgather(tm)
     if me == 0:
         if a.json:
@@ -243,14 +221,15 @@ def cmd_study(a) -> int:
     return 0
 
 
-def _batch_sizes(runner) -> list:
-    stages = [r.get("stage") for r in runner.records]
-    out, last = [], object()
-    for s in stages:
-        if s != last:
-            out.append([s, 0])
-            last = s
-        out[-1][1] += 1
+def _records_per_stage(events) -> list:
+    """[stage, records] of the run's batches, consecutive batches of one stage merged."""
+    out = []
+    for e in events:
+        if e.what == "batch" and e.records:
+            if out and out[-1][0] == e.stage:
+                out[-1][1] += e.records
+            else:
+                out.append([e.stage, e.records])
     return out
 
 
@@ -274,7 +253,6 @@ def cmd_study_speedup(a) -> int:
             allt = json.loads(js.read_text())
             print_study(allt)
             rows.append(allt)
-        import xarray as xr
         dss = [xr.open_dataset(Path(tmp) / f"s{n}.nc", engine="h5netcdf") for n in a.ranks]
         same = all(np.array_equal(dss[0][v].values, d[v].values, equal_nan=True)
                    for d in dss[1:] for v in ("x", "phi", "worst_value", "worst_x"))
@@ -314,7 +292,6 @@ ITER_FIELDS = ["case", "h", "subdomains_asked", "relaxation", "tolerance", "ndof
 
 
 def _iter_row(study, model, opts, **extra) -> dict:
-    from wcs.dd import solver as dds
     c, Kr, rhs, u0 = reduced_system(model, study.scene)
     t = time.perf_counter()
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=c)
@@ -339,27 +316,11 @@ def _iter_row(study, model, opts, **extra) -> dict:
 
 
 def cmd_iterations(a) -> int:
-    import csv
-
-    import yaml
-
-    import wcs
-    from wcs.model import Model
-    from wcs.scene.mesher import build_mesh
-    root = Path(__file__).resolve().parents[2] / "studies"
     rows = []
 
     def load(name, edit=None):
         with tempfile.TemporaryDirectory() as tmp:
-            src = root / name
-            doc = yaml.safe_load(src.read_text())
-            if edit:
-                edit(doc)
-            for f in src.parent.glob("materials*.yaml"):
-                (Path(tmp) / f.name).write_text(f.read_text())
-            (Path(tmp) / src.name).write_text(yaml.safe_dump(doc, sort_keys=False))
-            study = wcs.load_study(Path(tmp) / src.name)
-        return study, Model(study.scene, build_mesh(study.scene), {"method": "monolithic"})
+            return build(name, Path(tmp), edit)
 
     for scale in (1.0, 0.5, 0.25):
         study, model = load("validation/tresca-pad.yaml", lambda d, s=scale: _pad_off_centre(d, s))
@@ -392,7 +353,7 @@ def cmd_iterations(a) -> int:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m wcs.dd.bench", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python tests/bench/dd_bench.py", description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     for name in ("solve", "speedup"):
         p = sub.add_parser(name)
@@ -425,8 +386,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("iterations")
     p.add_argument("--relaxations", nargs="+", default=["aitken", "anderson"])
     p.add_argument("--no-seed", action="store_true")
-    p.add_argument("--out", default=str(Path(__file__).resolve().parents[2] / "results" / "bench"
-                                        / "dd_iterations_nonlinear.csv"))
+    p.add_argument("--out", default=str(ROOT / "results" / "bench" / "dd_iterations_nonlinear.csv"))
     a = ap.parse_args(argv)
     return {"solve": cmd_solve, "speedup": cmd_speedup, "study": cmd_study, "study-speedup": cmd_study_speedup,
             "iterations": cmd_iterations}[a.cmd](a)

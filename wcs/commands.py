@@ -1,0 +1,139 @@
+"""The commands `wcs run`, `wcs sweep` and `wcs solve --worst`: a run's messages and exit status.
+
+Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable),
+3 a worst value breaks its limit (with --fail-on-limit); bad input raises StudyError, which
+`wcs.cli.main` turns into exit 2.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .errors import StudyError
+from .evaluation import STATUS, Evaluator
+from .parallel import rank, world
+from .progress import Progress, limits_broken, summary_table
+from .results import write_solution
+from .runner import Runner
+from .store import WriteError, check_output, incomplete_run, store_path, stored_count
+from .study import load_study
+
+
+def _finish_command(args, study, ds, out: Path) -> int:
+    n, failed = int(ds.sizes.get("eval", 0)), int(ds.attrs.get("failed_evaluations", 0))
+    if not getattr(args, "quiet", False):
+        print(f"{study.name}: {n} evaluations ({failed} failed), "
+              f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
+              f"from the store; wrote {out}")
+        print(summary_table(ds))
+    if failed == n:
+        codes, counts = np.unique(ds["status"].values, return_counts=True)
+        why = ", ".join(f"{m} with status {c} ({STATUS.get(int(c), 'unknown')})" for c, m in zip(codes, counts))
+        first = f"; the first: {ds['message'].values[0]}" if n else ""
+        print(f"error: no evaluation solved ({why or 'none run'}{first}); {out} records their statuses",
+              file=sys.stderr)
+        return 1
+    broken = limits_broken(ds)
+    if broken and getattr(args, "fail_on_limit", False):
+        print(f"limit broken: {', '.join(broken)}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _write_failure(e: WriteError, args, out: Path) -> int:
+    """One line for a failed write (the store keeps every evaluation finished before it), exit 1;
+    under MPI the other ranks are stopped with it."""
+    n = stored_count(out)
+    kept = "" if n is None else f"; the store {store_path(out)} keeps every evaluation finished so far ({n})"
+    if n is not None and args.command == "run":
+        kept += f": continue with `wcs run {args.study} -o {out} --resume`"
+    print(f"error: {e}{kept}", file=sys.stderr, flush=True)
+    comm = world()
+    if comm is not None:
+        comm.Abort(1)
+    return 1
+
+
+def _command(args, kind: str) -> int:
+    study = load_study(args.study)
+    if args.output:
+        out, where = Path(args.output), (None, "-o")
+    else:
+        out, where = Path(study.output), (str(study.file), "output")
+        if kind == "sweep":
+            out = out.with_name(out.stem + "-sweep.nc")
+    try:
+        r = Runner(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args), kind=kind, where=where)
+        ds = r.run() if kind == "run" else r.sweep()
+    except WriteError as e:
+        return _write_failure(e, args, out)
+    return _finish_command(args, study, ds, out) if rank(world()) == 0 else 0
+
+
+def cmd_run(args) -> int:
+    return _command(args, "run")
+
+
+def cmd_sweep(args) -> int:
+    return _command(args, "sweep")
+
+
+def solve_worst(args) -> int:
+    """`wcs solve STUDY --worst RUN.nc CRITERION`: the worst data set of a criterion as one scenario."""
+    study = load_study(args.study)
+    run_file, criterion = args.worst
+    if not Path(run_file).is_file():
+        raise StudyError("results file not found", file=str(run_file))
+    try:
+        with xr.open_dataset(run_file, engine="h5netcdf") as ds:
+            crits = [str(c) for c in ds["criterion"].values]
+            params = [str(p) for p in ds["param"].values]
+            if criterion not in crits:
+                raise StudyError(f"no criterion '{criterion}' in the run (it has: {', '.join(crits)})",
+                                 file=str(run_file))
+            x = ds["worst_x"].sel(criterion=criterion).values.astype(float)
+            sha = ds.attrs.get("study_sha256")
+            if str(ds.attrs.get("complete", "yes")) == "no":
+                n = int(ds.sizes.get("eval", 0))
+                raise StudyError(incomplete_run(run_file, n, args.study), file=str(run_file))
+            extra = {}
+            if "sweep_value" in ds and int(ds["worst_eval"].sel(criterion=criterion)) >= 0:
+                row = int(ds["worst_eval"].sel(criterion=criterion))
+                extra = dict(zip(map(str, ds["sweep_path"].values), map(float, ds["sweep_value"].values[row])))
+    except (OSError, KeyError, ValueError) as e:
+        raise StudyError(f"not a results file of `wcs run` ({e})", file=str(run_file)) from None
+    if params != list(study.parameters.names):
+        raise StudyError(f"the run's parameters ({', '.join(params)}) are not this study's "
+                         f"({', '.join(study.parameters.names)})", file=str(run_file))
+    if not np.all(np.isfinite(x)):
+        raise StudyError(f"the run has no solved data set for criterion '{criterion}'", file=str(run_file))
+    if sha != study.sha256 and not getattr(args, "quiet", False):
+        print(f"note: {run_file} was written for a different version of {args.study}", file=sys.stderr)
+    out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
+    check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
+    t0 = time.perf_counter()
+    ev = Evaluator(study)
+    point = x
+    if extra:
+        point = dict(zip(study.parameters.names, map(float, x)))
+        point.update(extra)
+    res = ev.evaluate(point)
+    if res.status != 0:
+        print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
+        return 1
+    try:
+        out, vtu = write_solution(study, ev, res, out, worst_of=f"{run_file}: criterion {criterion}")
+    except WriteError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    if not getattr(args, "quiet", False):
+        print(f"{study.name}: worst case of {criterion} from {run_file}, solved in "
+              f"{time.perf_counter() - t0:.2f} s")
+        for name, v in res.phi.items():
+            print(f"  {name} = {v:.6g}")
+        print(f"  wrote {out} and {vtu}")
+    return 0

@@ -1,0 +1,134 @@
+"""The results file of a run or sweep: claimed before anything is solved, rewritten as the run
+goes, marked incomplete until it ends.
+
+Before anything is meshed or solved, rank 0 checks the output (not a directory, a name the
+filesystem takes, its folder creatable) and locks it (`OUT.lock`, `wcs/store.py`), so a
+second run on the same output is refused; with `--resume` the results file there must be
+this study file's.
+
+The NetCDF file is built from the ledger in memory and written whole (temp + rename,
+`wcs.results.write_netcdf`) after an evaluation whenever the time since the last rewrite is
+at least 1/WRITE_OVERHEAD times what that rewrite cost — at most 4% overhead — and always at
+the end. Until the end it says `complete: no`, its certificates are `in-progress` and its
+worst fields are those of the best evaluation solved in this session so far; at the end the
+certificates are the search's and the worst fields are re-solved.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import xarray as xr
+
+from .errors import StudyError
+from .parallel import agree, rank
+from .record import Ledger
+from .results import provenance, run_dataset, write_netcdf
+from .store import OutputLock, check_output
+
+WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
+
+
+def check_resumable(output: Path, study_sha256: str) -> None:
+    """StudyError unless the results file at `output` (if any) was written for this study file."""
+    if not output.exists():
+        return
+    try:
+        with xr.open_dataset(output, engine="h5netcdf") as old:
+            sha = old.attrs.get("study_sha256")
+    except (OSError, ValueError) as e:
+        raise StudyError(f"cannot read the results file to resume it: {e}", file=str(output)) from None
+    if sha != study_sha256:
+        raise StudyError(f"cannot resume: the results file was written for another study file "
+                         f"(study_sha256 {str(sha)[:12]}..., this study {study_sha256[:12]}...); "
+                         f"run without --resume to start over", file=str(output))
+
+
+def claim_output(comm, output: Path, where: tuple, resume_sha256: str | None) -> OutputLock | None:
+    """Check and lock `output` on rank 0 (its lock; None on the other ranks); with
+    `resume_sha256`, check the results file there is that study file's. where: (file, key path)
+    that named the output, for the errors. Every rank raises, or none."""
+    lock, error = None, None
+    if rank(comm) == 0:
+        try:
+            check_output(output, *where)
+            lock = OutputLock(output, *where)
+            if resume_sha256 is not None:
+                check_resumable(output, resume_sha256)
+        except StudyError as e:
+            error = e
+            if lock is not None:
+                lock.release()
+                lock = None
+    agree(comm, error)                # every rank raises, or every rank goes on
+    return lock
+
+
+@dataclass(frozen=True)
+class Final:
+    """What the end of a run adds to its file (criterion -> ...)."""
+    worst: dict                 # (value, data set, row), as `Ledger.worst`
+    certificate: dict           # how the worst value is certified
+    notes: dict                 # the search's notes
+    fields: dict                # fields of the worst case, re-solved (None where none solved)
+
+
+class Writer:
+    """Builds the results dataset from a ledger and writes it to `output` (rank 0; None: in
+    memory only); `due()` says when a rewrite during the run keeps within WRITE_OVERHEAD."""
+
+    def __init__(self, study, evaluator, output: Path | None, kind: str, sweep_paths: list[str] | None,
+                 writes: bool, gradients: bool):
+        """sweep_paths: the swept paths of a sweep (None: a run); writes: whether this process
+        writes the file (rank 0); gradients: whether the evaluator gives adjoint gradients."""
+        self.study, self.evaluator = study, evaluator
+        self.output, self.kind, self.sweep_paths, self.writes = output, kind, sweep_paths, writes
+        self.gradients = gradients
+        self.created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+        self.provenance = provenance(study, evaluator)
+        self.last_end = 0.0
+        self.last_cost = 0.0             # seconds of the last write (building the dataset included)
+
+    def dataset(self, ledger: Ledger, stats: dict, final: Final | None) -> xr.Dataset:
+        """The results file of the ledger's records; `final` None: the run is still going."""
+        criteria, records = ledger.criteria, ledger.records
+        search = self.study.search
+        if final is not None:
+            worst, certificate, notes, fields = final.worst, final.certificate, final.notes, final.fields
+            complete = "yes"
+        else:
+            worst, fields = ledger.worst(), ledger.live_fields
+            certificate = {c: "in-progress" for c in criteria}
+            notes, complete = {}, "no"
+        attrs = {"created": self.created, "kind": self.kind, "complete": complete,
+                 "study_file": str(self.study.file),
+                 "search_method": str(search.get("method", "auto")),
+                 "budget": int(search.get("budget", 200)),
+                 "evaluations": len(records),
+                 "failed_evaluations": int(sum(r["status"] != 0 for r in records)),
+                 "solves_this_session": int(stats["solved"]),
+                 "answered_from_store": int(stats["from_store"]),
+                 "gradients": "adjoint" if self.gradients else "unavailable",
+                 "worst_fields": "re-solved from a cold start at the end of the run" if complete == "yes"
+                 else "fields of the best evaluation solved in this session so far"}
+        if self.kind == "sweep":
+            attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in (self.study.sweep or {})["grid"].items())
+        return run_dataset(self.study, self.evaluator, records, worst=worst, certificate=certificate,
+                           notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=self.sweep_paths,
+                           provenance_attrs=self.provenance)
+
+    def due(self) -> bool:
+        """Whether a rewrite now keeps the writing within WRITE_OVERHEAD of the run's time."""
+        return self.writes and time.perf_counter() - self.last_end >= self.last_cost / WRITE_OVERHEAD
+
+    def write(self, ledger: Ledger, stats: dict, final: Final | None) -> xr.Dataset:
+        """Build the dataset and write it (WriteError on an I/O fault: the last file stays whole)."""
+        t0 = time.perf_counter()
+        ds = self.dataset(ledger, stats, final)
+        if self.output is not None and self.writes:
+            write_netcdf(ds, self.output)
+        t1 = time.perf_counter()
+        self.last_cost, self.last_end = t1 - t0, t1
+        return ds
