@@ -219,7 +219,6 @@ _OPTIONS = {
     "Mesh.MaxNumThreads1D": 1,
     "Mesh.MaxNumThreads2D": 1,
     "Mesh.Algorithm": ALGORITHM_2D,
-    "Mesh.Smoothing": 0,            # no Laplacian pass: 37 % of the meshing time, Frontal-Delaunay cells are already ~equilateral
     "Mesh.ElementOrder": 1,
     "Mesh.RecombineAll": 0,
     "Mesh.MeshSizeFromPoints": 0,
