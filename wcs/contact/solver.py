@@ -49,6 +49,7 @@ spring sizes k_j only set the conditioning, not the answer.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -88,13 +89,31 @@ class ContactResult:
 
 @dataclass
 class ContactFactor:
-    """A factor of K (or its regularization) with the Delassus data of one K."""
+    """A factor of K (or its regularization) and the Delassus operator W of the matrix it holds.
+
+    Changed only by `update`, in place. `K_data` is the matrix the factor holds now: it is
+    cleared before a refactor and set once the factor and W are complete, so a refactor that
+    fails halfway (or is interrupted) leaves a record that matches no matrix, and a cache
+    hit is decided by what the factor holds, never by a copy that can go stale."""
 
     factor: object
-    K_data: np.ndarray  # values of the factored K, to skip refactoring an unchanged K
     pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
     S: np.ndarray       # contact DOFs (columns of C)
-    W: np.ndarray
+    C_S: np.ndarray     # C on those DOFs (dense): W = C_S (K⁺)_SS C_Sᵀ
+    W: np.ndarray | None = None
+    K_data: np.ndarray | None = None  # values (on K's fixed pattern) of the factored matrix
+
+    def holds(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> bool:
+        return (self.K_data is not None and np.array_equal(self.K_data, Kr.data)
+                and np.array_equal(self.C_S, C_S))
+
+    def update(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> "ContactFactor":
+        if not self.holds(Kr, C_S):
+            self.K_data = None
+            self.factor.refactor(Kr)
+            self.C_S, self.W = C_S, delassus(self.factor, C_S)
+            self.K_data = Kr.data.copy()
+        return self
 
 
 def pinned_dofs(R: np.ndarray) -> np.ndarray:
@@ -131,18 +150,16 @@ def delassus(factor, C_S: np.ndarray) -> np.ndarray:
 
 
 def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> ContactFactor:
-    """Factor K (regularized when R is given) with the block on the contact DOFs; reuse the analysis."""
+    """Factor K (regularized when R is given) with the block on the contact DOFs; `reuse` (same
+    contact DOFs and pinned DOFs) is updated in place, keeping its analysis."""
     S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
     Kr = regularize(K, pinned)
     C_S = C[:, S].toarray()
     if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
-        if reuse.K_data.shape == Kr.data.shape and np.array_equal(reuse.K_data, Kr.data):
-            return reuse
-        f = reuse.factor.refactor(Kr)
-    else:
-        f = linalg.factorize(Kr, spd=True, block=S)
-    return ContactFactor(factor=f, K_data=Kr.data.copy(), pinned=pinned, S=S, W=delassus(f, C_S))
+        return reuse.update(Kr, C_S)
+    f = linalg.factorize(Kr, spd=True, block=S)
+    return ContactFactor(f, pinned, S, C_S, delassus(f, C_S), Kr.data.copy())
 
 
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
@@ -240,20 +257,31 @@ def _dual_qp(W, q, G, e, lo, hi, force):
 
 
 def _newton_point(W, q, G, e, free, fixed_values):
-    """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α)."""
+    """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α).
+
+    The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
+    node whose normal and tangential rows are parallel (rollers on both sides of it) and
+    that is closed and stuck carries a pair (λn, λt) of which only one combination acts.
+    In floating point it is then merely ill-conditioned (cond ~1e17) and an LU solve puts
+    ~1e23 along the redundant combination, which flips the next prediction. A system whose
+    reciprocal condition number is below the round-off level is therefore solved by least
+    squares (complete orthogonal factorization: minimum norm along the redundant
+    combinations; the displacements and the acting forces are unique). α is scaled by max|W| so that both blocks are of one size.
+    """
     F = np.flatnonzero(free)
     lam = np.where(free, 0.0, fixed_values)
     r = G.shape[0]
-    M = np.block([[W[np.ix_(F, F)], -G[:, F].T], [G[:, F], np.zeros((r, r))]])
-    rhs = np.r_[q[F] - W[F] @ lam, e - G @ lam]
+    s = max(np.abs(W).max(initial=0.0), 1e-300)
+    M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
+    rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     try:
-        x = np.linalg.solve(M, rhs)
-        if not np.all(np.isfinite(x)):
-            raise np.linalg.LinAlgError
-    except np.linalg.LinAlgError:  # rank-deficient face (e.g. a rigid mode free to slide): min-norm
-        x = np.linalg.lstsq(M, rhs, rcond=None)[0]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", sla.LinAlgWarning)
+            x = sla.solve(M, rhs, check_finite=False)
+    except (np.linalg.LinAlgError, sla.LinAlgWarning):
+        x = sla.lstsq(M, rhs, lapack_driver="gelsy", check_finite=False)[0]
     lam[F] = x[: len(F)]
-    return lam, x[len(F):]
+    return lam, s * x[len(F):]
 
 
 def _first_free_set(warm, gw):
