@@ -24,6 +24,7 @@ STATUS = {
     4: "singular system or factorization failed",
     5: "domain decomposition failed",
     6: "other failure",
+    7: "solution not unique: a rigid motion of a floating body is free",
 }
 
 

@@ -383,7 +383,7 @@ class Model:
         return self.P @ theta, theta
 
     def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None):
-        from .contact.solver import CONVERGED, UNSOLVABLE, solve_contact
+        from .contact.solver import CONVERGED, NOT_UNIQUE, UNSOLVABLE, solve_contact
         z = self.zone
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
@@ -405,6 +405,8 @@ class Model:
         self._anchor_tried |= anchor                 # a failure too: then every solve starts cold
         if res.status == UNSOLVABLE:
             raise SolveError(self._unbalanced_message(res, rhs), status=3)
+        if res.status == NOT_UNIQUE:
+            raise SolveError(self._free_motion_message(res.alpha), status=NOT_UNIQUE)
         if res.status != CONVERGED:
             raise SolveError(res.message, status=res.status)
         if anchor and self._anchor is None:
@@ -435,6 +437,24 @@ class Model:
                 f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
                 f"and contact do not resist (load work {work:.3g} > friction work); "
                 f"solvability S(w) <= j(w) fails (physics.md §2)")
+
+    def _free_motion_message(self, beta: np.ndarray) -> str:
+        """Name the floating body whose rigid motion the active contact leaves free, and the motion."""
+        k, parts = 0, []
+        for body, modes in self.floating:
+            v = modes @ beta[k:k + modes.shape[1]]
+            k += modes.shape[1]
+            nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(body))
+            R = rigid_modes(self.smesh.mesh.p, nodes, self.nnodes)[np.r_[2 * nodes, 2 * nodes + 1]]
+            a = np.linalg.lstsq(R, v[np.r_[2 * nodes, 2 * nodes + 1]], rcond=None)[0]
+            parts.append((np.abs(a).max(), body, a, self.smesh.mesh.p[:, nodes].mean(axis=1)))
+        _, body, a, c = max(parts, key=lambda t: t[0])
+        a = a / np.abs(a).max()
+        a = np.where(np.abs(a) > 1e-9, a, 0.0) + 0.0
+        return (f"body '{body}' is not held: its position is not determined — the rigid motion "
+                f"translation ({a[0]:.3g}, {a[1]:.3g}) m with rotation {a[2]:.3g} rad about "
+                f"({c[0]:.4g}, {c[1]:.4g}) moves no closed or stuck contact node, so the solution is not "
+                f"unique (add a support, friction, or a contact that holds it)")
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
         reg = self.smesh.cell_region

@@ -64,6 +64,7 @@ NEWTON_NOT_CONVERGED = 1
 FIXED_POINT_NOT_CONVERGED = 2
 UNSOLVABLE = 3
 SINGULAR = 4
+NOT_UNIQUE = 7     # (5, 6: codes of the evaluation, wcs.evaluation.STATUS)
 
 OPEN, STICK, SLIP = 0, 1, 2
 
@@ -175,6 +176,30 @@ def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     res = sopt.linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
                        bounds=[(-1, 1)] * r + [(0, None)] * m, method="highs")
     return -res.fun, res.x[:r]
+
+
+def free_rigid_motion(G: np.ndarray, free: np.ndarray) -> np.ndarray | None:
+    """A rigid motion that the active constraints leave free at a solution: β ≠ 0 with
+    (C R)_F β = 0 on the free set F (closed normals, stuck tangents with a positive slip
+    bound), normalised to max|β| = 1; None when (C R)_F has full column rank.
+
+    Along such a β, u + tRβ is a solution too for small t: open nodes stay open, slipping
+    nodes keep their sign (a frictionless tangent never holds), and the energy does not
+    change, since the equilibrium of the rigid modes Rᵀ(f − Cᵀλ) = 0 makes the load's work
+    equal the friction's. The columns of C R are scaled to unit norm over all contact rows;
+    a singular value below 1e-8 of the largest counts as zero (a determined direction,
+    e.g. a curved contact side, gives at least the sine of the angle between its normals)."""
+    r = G.shape[0]
+    if r == 0:
+        return None
+    scale = np.maximum(np.linalg.norm(G, axis=1), 1e-300)
+    A = G[:, free].T / scale
+    sv, vt = (np.linalg.svd(A)[1:] if A.shape[0] else (np.zeros(0), np.eye(r)))
+    rank = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0
+    if rank == r:
+        return None
+    beta = vt[rank] / scale
+    return beta / beta[np.argmax(np.abs(beta))]
 
 
 def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True):
@@ -382,6 +407,12 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
                                  f"{np.array2string(a, precision=4)}", iterations=iters,
                                  fixed_point_iterations=fp_iters, alpha=a, timings=timings)
+    beta = free_rigid_motion(G, free) if ok else None
+    if beta is not None:
+        return ContactResult(None, None, None, NOT_UNIQUE,
+                             f"the solution is not unique: the rigid motion v = Rβ, β = "
+                             f"{np.array2string(beta, precision=4)}, moves no closed or stuck contact node",
+                             iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = CONVERGED, "converged"
     if not ok:
