@@ -106,7 +106,7 @@ def cmd_solve(args) -> int:
     res = ev.evaluate(study.nominal())
     if res.status != 0:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
-        return 2 if res.status == 3 else 1
+        return 2 if res.status in (3, 7) else 1     # the scene itself: unbalanced, or not unique
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
     out, vtu = write_solution(study, ev, res, out)
     if not args.quiet:
