@@ -178,22 +178,24 @@ def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     return -res.fun, res.x[:r]
 
 
-def free_rigid_motion(G: np.ndarray, free: np.ndarray) -> np.ndarray | None:
+def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
     """A rigid motion that the active constraints leave free at a solution: β ≠ 0 with
-    (C R)_F β = 0 on the free set F (closed normals, stuck tangents with a positive slip
-    bound), normalised to max|β| = 1; None when (C R)_F has full column rank.
+    (C R)_H β = 0 on the rows H that hold (closed or touching normals, stuck tangents with a
+    positive slip bound), normalised to max|β| = 1; None when (C R)_H has full column rank.
 
     Along such a β, u + tRβ is a solution too for small t: open nodes stay open, slipping
     nodes keep their sign (a frictionless tangent never holds), and the energy does not
     change, since the equilibrium of the rigid modes Rᵀ(f − Cᵀλ) = 0 makes the load's work
-    equal the friction's. The columns of C R are scaled to unit norm over all contact rows;
+    equal the friction's. Touching normals without pressure (a body resting under no load)
+    count as holding: lifting off is then free too, but the position along the contact is
+    determined, and only a motion that keeps every touching node touching is reported. The columns of C R are scaled to unit norm over all contact rows;
     a singular value below 1e-8 of the largest counts as zero (a determined direction,
     e.g. a curved contact side, gives at least the sine of the angle between its normals)."""
     r = G.shape[0]
     if r == 0:
         return None
     scale = np.maximum(np.linalg.norm(G, axis=1), 1e-300)
-    A = G[:, free].T / scale
+    A = G[:, held].T / scale
     sv, vt = (np.linalg.svd(A)[1:] if A.shape[0] else (np.zeros(0), np.eye(r)))
     rank = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0
     if rank == r:
@@ -407,7 +409,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
                                  f"{np.array2string(a, precision=4)}", iterations=iters,
                                  fixed_point_iterations=fp_iters, alpha=a, timings=timings)
-    beta = free_rigid_motion(G, free) if ok else None
+    beta = None
+    if ok and R is not None:
+        r = q - W @ lam + G.T @ alpha                     # C u − [d; 0]: −gap on the normal rows
+        touching = np.abs(r[:m]) <= tol * max(np.abs(r).max(), 1e-300)
+        beta = free_rigid_motion(G, free | np.r_[touching, np.zeros(m, bool)])
     if beta is not None:
         return ContactResult(None, None, None, NOT_UNIQUE,
                              f"the solution is not unique: the rigid motion v = Rβ, β = "
