@@ -231,13 +231,17 @@ def test_redundant_contact_rows_get_the_minimum_norm_multipliers():
     combination of (λn, λt) acts. The step must not put an arbitrary amount along the
     redundant combination v (on granite-crack that was ~1e23, which flipped the next
     prediction: a cycle): the minimum-norm solution has none."""
-    a, b = np.cos(0.38), -np.sin(0.38)
-    C = np.array([[a, 0.3], [b, 0.7], [0.2, -1.0]])
-    C[1] = C[0] * (b / a)                               # tangential row parallel to the normal row
-    W = C @ np.diag([2.0, 3.0]) @ C.T
-    q = W @ np.array([1.0, 0.5, 2.0])
-    v = np.array([b / a, -1.0, 0.0]) / np.hypot(b / a, 1.0)            # Cᵀ v = 0
-    lam, _ = cs._newton_point(W, q, np.zeros((0, 3)), np.zeros(0), np.ones(3, bool), np.zeros(3))
+    kappa = -np.tan(0.38)
+    c0, c1, c2 = np.array([np.cos(0.38), 0.3, 0.1]), np.array([0.2, -1.0, 0.4]), np.array([0.5, 0.1, 1.0])
+    C = np.array([c0, c1, kappa * c0, c2])              # rows n0, n1, t0, t1: t0 parallel to n0
+    W = C @ np.diag([2.0, 3.0, 1.5]) @ C.T
+    W[2, 2] *= 1 + 2**-52                               # one rounding of the assembly: cond 1.5e17
+    q = W @ np.array([1.0, 0.5, 0.2, 2.0])
+    q[0] *= 1 + 2**-52
+    v = np.array([kappa, 0.0, -1.0, 0.0]) / np.hypot(kappa, 1.0)       # Cᵀ v = 0
+    redundant = cs.redundant_pairs(W)
+    assert list(redundant) == [True, False]
+    lam, _ = cs._newton_point(W, q, np.zeros((0, 4)), np.zeros(0), np.ones(4, bool), np.zeros(4), redundant)
     assert np.abs(W @ lam - q).max() <= 1e-14 * np.abs(q).max()      # it solves the system
     assert abs(v @ lam) <= 1e-12 * np.abs(lam).max()                 # and has nothing along v
 

@@ -30,9 +30,9 @@ i.e. the optimality conditions of the dual box-constrained QP
 min ½λᵀWλ − qᵀλ over B with Gλ = e. Semismooth Newton on Φ is the
 primal–dual active set method: components with λ + c r inside the box are
 free (contact closed / stick: r_i = 0), the others are fixed at the bound
-they project to (open: λn = 0; slip: λt = ±gw). The step is globalized
-by a nonmonotone Armijo search on ψ = ½‖Φ‖² + ½‖Gλ − e‖² (the Newton
-direction is a descent direction of ψ) and bounded by `max_iter`.
+they project to (open: λn = 0; slip: λt = ±gw). Full steps; a free set
+seen before (a cycle) or `max_iter` restarts Newton from the dual QP's
+solution (`_newton`).
 The constants c = 1 / diag(W) turn displacements into forces node by node.
 
 The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
@@ -49,7 +49,6 @@ spring sizes k_j only set the conditioning, not the answer.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -188,9 +187,10 @@ def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
     change, since the equilibrium of the rigid modes Rᵀ(f − Cᵀλ) = 0 makes the load's work
     equal the friction's. Touching normals without pressure (a body resting under no load)
     count as holding: lifting off is then free too, but the position along the contact is
-    determined, and only a motion that keeps every touching node touching is reported. The columns of C R are scaled to unit norm over all contact rows;
-    a singular value below 1e-8 of the largest counts as zero (a determined direction,
-    e.g. a curved contact side, gives at least the sine of the angle between its normals)."""
+    determined, and only a motion that keeps every touching node touching is reported.
+    The columns of C R are scaled to unit norm over all contact rows; a singular value
+    below 1e-8 of the largest counts as zero (a determined direction, e.g. a curved contact
+    side, gives at least the sine of the angle between its normals)."""
     r = G.shape[0]
     if r == 0:
         return None
@@ -221,6 +221,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     Returns (λ, α, free, iterations, converged).
     """
     c = 1.0 / np.where(np.diag(W) > 0, np.diag(W), 1.0)
+    redundant = redundant_pairs(W)
     force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def check(lam, alpha):
@@ -241,7 +242,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         if it == max_iter or key in seen:
             break
         seen.add(key)
-        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi))
+        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi), redundant)
     if not fallback:
         return lam, alpha, free, it, False
     qp = _dual_qp(W, q, G, e, lo, hi, force)
@@ -283,29 +284,41 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     return mu.value * s, alpha
 
 
-def _newton_point(W, q, G, e, free, fixed_values):
+def redundant_pairs(W: np.ndarray) -> np.ndarray:
+    """Nodes whose normal and tangential rows are parallel (rollers on both sides of the node:
+    both rows act on one relative motion): the 2×2 block of W on the pair is singular,
+    det ≤ 1e-10 W_nn W_tt (an angle below 1e-5 rad between the rows in the W-metric)."""
+    m = W.shape[0] // 2
+    dn, dt, nt = np.diag(W)[:m], np.diag(W)[m:], np.diag(W, m)
+    return dn * dt - nt * nt <= 1e-10 * dn * dt
+
+
+def _newton_point(W, q, G, e, free, fixed_values, redundant):
     """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α).
 
     The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
-    node whose normal and tangential rows are parallel (rollers on both sides of it) and
-    that is closed and stuck carries a pair (λn, λt) of which only one combination acts.
-    In floating point it is then merely ill-conditioned (cond ~1e17) and an LU solve puts
-    ~1e23 along the redundant combination, which flips the next prediction. A system whose
-    reciprocal condition number is below the round-off level is therefore solved by least
-    squares (complete orthogonal factorization: minimum norm along the redundant
-    combinations; the displacements and the acting forces are unique). α is scaled by max|W| so that both blocks are of one size.
+    node of `redundant_pairs` that is closed and stuck carries a pair (λn, λt) of which
+    only one combination acts. In floating point the system is then merely ill-conditioned
+    (cond ~1e17) and an LU solve puts ~1e23 along the redundant combination, which flips
+    the next prediction (a cycle). Such a system, and any exactly singular one (a node held
+    by supports on both sides has zero rows), is solved by least squares (complete
+    orthogonal factorization: minimum norm along the redundant combinations; the
+    displacements and the acting forces are unique). α is scaled by max|W| so that both
+    blocks are of one size.
     """
     F = np.flatnonzero(free)
     lam = np.where(free, 0.0, fixed_values)
-    r = G.shape[0]
+    r, m = G.shape[0], len(redundant)
     s = max(np.abs(W).max(initial=0.0), 1e-300)
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", sla.LinAlgWarning)
-            x = sla.solve(M, rhs, check_finite=False)
-    except (np.linalg.LinAlgError, sla.LinAlgWarning):
+    x = None
+    if not np.any(redundant & free[:m] & free[m:]):
+        try:
+            x = np.linalg.solve(M, rhs)
+        except np.linalg.LinAlgError:
+            pass
+    if x is None or not np.all(np.isfinite(x)):
         x = sla.lstsq(M, rhs, lapack_driver="gelsy", check_finite=False)[0]
     lam[F] = x[: len(F)]
     return lam, s * x[len(F):]
@@ -344,6 +357,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             fixed point over Tresca problems started from the all-stick (glued) solution
             — which also holds a floating body that only friction keeps in place — or
             from the warm pressures, until ‖Δp‖ ≤ tol_fp ‖p‖ (at most max_fp_iter solves).
+    A solution along which a rigid mode of R is left free (`free_rigid_motion`) is not
+    unique: status NOT_UNIQUE, `alpha` the free motion, no u.
     """
     t0 = time.perf_counter()
     timings = {}
