@@ -257,7 +257,9 @@ def _dual_qp(W, q, G, e, lo, hi, force):
 
     Scaled to O(1) data: λ = s μ with the force scale s, objective divided by s²·max|W|.
     The equality's dual y (∇f + Gᵀy = 0 in the scaled problem) gives α = −s·max|W|·y
-    (the solver's convention Wλ − q = Gᵀα on free components)."""
+    (the solver's convention Wλ − q = Gᵀα on free components). Tolerances 1e-12: at
+    Clarabel's default 1e-8 the multipliers of the knee (stiffness contrast 600) were off by
+    1e-5 of the force scale, and Newton restarted from there cycled again."""
     import cvxpy as cp
     n, s, wmax = W.shape[0], force, np.abs(W).max()
     mu = cp.Variable(n)
@@ -275,7 +277,7 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(mu, cp.psd_wrap(0.5 * (Wn + Wn.T)))
                                   - (q / (s * wmax)) @ mu), cons)
     try:
-        prob.solve(solver=cp.CLARABEL)
+        prob.solve(solver=cp.CLARABEL, **{k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")})
     except cp.SolverError:
         return None
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
