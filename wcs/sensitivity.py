@@ -214,7 +214,8 @@ def contact_nonsmooth(model, state) -> bool:
     nt = np.asarray(model.Bn_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     t2 = np.asarray(model.Bt_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     moves = n2 > 0
-    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-20 * np.maximum(t2, 1e-300)
+    # parallel rows leave ~1e-16 t2 of round-off; 1e-10: an angle below 1e-5 rad (as `redundant_pairs`)
+    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-10 * np.maximum(t2, 1e-300)
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
