@@ -238,6 +238,25 @@ def test_redundant_crack_tip_is_not_a_nonsmooth_point(granite):
     assert ev.status == 0 and not ev.nonsmooth
 
 
+def test_gradients_with_the_crack_tip_closed_and_stuck(granite):
+    """At this vertex the crack tip (parallel rows) is closed and stuck: the adjoint system
+    is singular there. Adjoint against central differences (step 1e-5 of each interval:
+    truncation ~1e-10, round-off ~1e-11/1e-5 of the value; 1e-5 of the largest component)."""
+    study = granite.study
+    x = np.array([5.1e10, 0.28, 1.2e7, 4.0e6] + [5.0e5] * 6)
+    e = granite.evaluate(x, gradients=True)
+    assert e.status == 0 and not e.nonsmooth
+    span = np.array(study.parameters.upper) - np.array(study.parameters.lower)
+    for c in granite.criteria:
+        fd = []
+        for k in range(x.size):
+            h = np.zeros(x.size)
+            h[k] = 1e-5 * span[k]
+            fd.append((granite.evaluate(x + h).phi[c.name] - granite.evaluate(x - h).phi[c.name]) / (2 * h[k]))
+        scaled = np.array(fd) * span
+        assert np.abs(e.grad[c.name] * span - scaled).max() <= 1e-5 * np.abs(scaled).max(), c.name
+
+
 def test_redundant_contact_rows_get_the_minimum_norm_multipliers():
     """A node held by rollers on both sides has parallel normal and tangential rows: closed
     and stuck, the active-set system is singular (in floating point: cond ~1e17) and only one

@@ -167,9 +167,17 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     N[B, B] = 1.0
     tang = B[B >= m]
     N[tang, tang - m] = -s[tang - m] * np.asarray(state.coefficients.coulomb, float)[tang - m]
-    mu = _consistent_solve(N.T, g)
-    if mu is None:
+    # a closed and stuck node whose rows are parallel (rollers on both sides): its tangential
+    # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
+    # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
+    # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
+    from .contact.solver import redundant_pairs
+    keep = np.setdiff1d(np.arange(N.shape[0]), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:]))
+    mu = np.zeros(N.shape[0])
+    mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
+    if mu_keep is None:
         return None
+    mu[keep] = mu_keep
     z = cf.factor.solve(phi_w - C[A].T @ mu[A])
     if r:
         z = z + R @ mu[2 * m:]
