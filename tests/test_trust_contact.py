@@ -26,14 +26,12 @@ from wcs.sensitivity import flatten
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def coarse(name, size, refine=None, edit=None):
+def coarse(name, size, refine):
     """A shipped study with a coarser mesh (the numbers of a data set do not matter here)."""
     study = wcs.load_study(ROOT / "studies" / f"{name}.yaml")
     study.scene["mesh"]["size"] = size
     for r in study.scene["mesh"].get("refine", []):
         r["size"] = refine
-    if edit:
-        edit(study)
     return study
 
 
@@ -63,7 +61,8 @@ def _coulomb_pad(doc):
 
 SCENES = {   # a study and the box each parameter is drawn from where it is not the study's own
     "granite-crack": (lambda tmp: coarse("granite-crack", 1.0, 0.3), {}),
-    "tresca-pad": (lambda tmp: scenes.load("tresca-pad", tmp, _tresca_pad), {"loads.pad_top.traction.0": (1.0e5, 4.5e5)}),
+    "tresca-pad": (lambda tmp: scenes.load("tresca-pad", tmp, _tresca_pad),
+                   {"loads.pad_top.traction.0": (1.0e5, 4.5e5)}),           # beyond g L: unsolvable
     "coulomb-pad": (lambda tmp: scenes.load("tresca-pad", tmp, _coulomb_pad), {}),
     "thermal-two-blocks": (lambda tmp: coarse("two-blocks-demo", 0.1, 0.04), {}),
 }
