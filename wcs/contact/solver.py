@@ -300,28 +300,31 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant):
 
     The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
     node of `redundant_pairs` that is closed and stuck carries a pair (λn, λt) of which
-    only one combination acts. In floating point the system is then merely ill-conditioned
-    (cond ~1e17) and an LU solve puts ~1e23 along the redundant combination, which flips
-    the next prediction (a cycle). Such a system, and any exactly singular one (a node held
-    by supports on both sides has zero rows), is solved by least squares (complete
-    orthogonal factorization: minimum norm along the redundant combinations; the
-    displacements and the acting forces are unique). α is scaled by max|W| so that both
-    blocks are of one size.
+    only one combination acts, and its tangential equation is a multiple of its normal one.
+    In floating point the system is then merely ill-conditioned (cond ~1e17) and an LU
+    solve puts ~1e23 along the redundant combination, which flips the next prediction (a
+    cycle). Such a tangent is therefore held at λt = 0 and its equation dropped (exact: the
+    normal multiplier carries the acting force; λt = 0 is inside the friction bound, so the
+    node is predicted stuck again). A system singular otherwise (a node held by supports on
+    both sides has zero rows) is solved by least squares (minimum norm). α is scaled by
+    max|W| so that both blocks are of one size.
     """
-    F = np.flatnonzero(free)
+    m = len(redundant)
+    tied = np.zeros_like(free)
+    tied[m:] = redundant & free[:m] & free[m:]
+    solve = free & ~tied
+    F = np.flatnonzero(solve)
     lam = np.where(free, 0.0, fixed_values)
-    r, m = G.shape[0], len(redundant)
+    r = G.shape[0]
     s = max(np.abs(W).max(initial=0.0), 1e-300)
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
-    x = None
-    if not np.any(redundant & free[:m] & free[m:]):
-        try:
-            x = np.linalg.solve(M, rhs)
-        except np.linalg.LinAlgError:
-            pass
-    if x is None or not np.all(np.isfinite(x)):
-        x = sla.lstsq(M, rhs, lapack_driver="gelsy", check_finite=False)[0]
+    try:
+        x = np.linalg.solve(M, rhs)
+        if not np.all(np.isfinite(x)):
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(M, rhs, rcond=None)[0]
     lam[F] = x[: len(F)]
     return lam, s * x[len(F):]
 
