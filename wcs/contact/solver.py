@@ -303,11 +303,12 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant):
     only one combination acts, and its tangential equation is a multiple of its normal one.
     In floating point the system is then merely ill-conditioned (cond ~1e17) and an LU
     solve puts ~1e23 along the redundant combination, which flips the next prediction (a
-    cycle). Such a tangent is therefore held at λt = 0 and its equation dropped (exact: the
-    normal multiplier carries the acting force; λt = 0 is inside the friction bound, so the
-    node is predicted stuck again). A system singular otherwise (a node held by supports on
-    both sides has zero rows) is solved by least squares (minimum norm). α is scaled by
-    max|W| so that both blocks are of one size.
+    cycle). Such a tangent's equation (κ times the normal one, κ = W_nt / W_nn) is dropped
+    with λt = 0, and the pair is then moved along the null direction (κ, −1) to the minimum
+    norm split λn + κλt = const: λ = (λn, 0) / (1 + κ²) · (1, κ) — the least-squares
+    solution at the cost of one LU. A system singular otherwise (a node held by supports on
+    both sides has zero rows) is solved by least squares. α is scaled by max|W| so that
+    both blocks are of one size.
     """
     m = len(redundant)
     tied = np.zeros_like(free)
@@ -326,6 +327,9 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant):
     except np.linalg.LinAlgError:
         x = np.linalg.lstsq(M, rhs, rcond=None)[0]
     lam[F] = x[: len(F)]
+    pair = np.flatnonzero(tied[m:] & (np.diag(W)[:m] > 0))
+    kappa = np.diag(W, m)[pair] / np.diag(W)[pair]
+    lam[pair], lam[m + pair] = lam[pair] / (1 + kappa**2), kappa * lam[pair] / (1 + kappa**2)
     return lam, s * x[len(F):]
 
 
