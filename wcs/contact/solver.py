@@ -208,9 +208,12 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_[lo,hi](λ + c ⊙ r) = 0, Gλ = e.
 
     Full (undamped) steps: each step solves the active-set system of the predicted
-    free set exactly, so the iteration ends when a free set reproduces itself. The
-    iteration is deterministic, so a free set seen before without convergence means a
-    cycle; then (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
+    free set exactly, so the iteration ends when a free set reproduces itself. A step is
+    determined by its free set and the bound each other component is held at (λn = 0;
+    λt = −gw or +gw), so that pattern seen before without convergence means a cycle (the
+    free set alone is not: the same free set with a slip of the other sign is another
+    step — counted as a cycle, it sent 14 % of granite's solves to the QP); then (and at
+    `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
     with Gλ = e is solved by an interior-point method and Newton restarts from it to
     polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖² — stalled on
     floating bodies: its short first step leaves the rigid amplitudes α at zero and the
@@ -238,10 +241,11 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
         free = predicted if (it > 0 or free0 is None) else free0
-        key = free.tobytes()
+        key = np.where(free, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()
         if it == max_iter or key in seen:
             break
-        seen.add(key)
+        if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
+            seen.add(key)
         lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi), redundant)
     if not fallback:
         return lam, alpha, free, it, False
