@@ -24,7 +24,9 @@ STATUS = {
     4: "singular system or factorization failed",
     5: "domain decomposition failed",
     6: "other failure",
+    7: "solution not unique: a rigid motion of a floating body is free",
 }
+SCENE_FAULTS = (3, 7)   # the scene itself has no (unique) solution at these data: bad input at the nominal data
 
 
 @dataclass

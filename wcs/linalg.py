@@ -95,6 +95,7 @@ class SuperLUFactor:
     def refactor(self, A: sp.spmatrix) -> "SuperLUFactor":
         A = sp.csc_matrix(A, dtype=np.float64)
         self.n = A.shape[0]
+        self._lu = None             # a failed refactor leaves no factor of the previous matrix
         try:
             self._lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                  options={"SymmetricMode": True})

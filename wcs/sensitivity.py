@@ -170,9 +170,17 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     N[B, B] = 1.0
     tang = B[B >= m]
     N[tang, tang - m] = -s[tang - m] * np.asarray(state.coefficients.coulomb, float)[tang - m]
-    mu = _consistent_solve(N.T, g)
-    if mu is None:
+    # a closed and stuck node whose rows are parallel (rollers on both sides): its tangential
+    # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
+    # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
+    # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
+    from .contact.solver import redundant_pairs
+    keep = np.setdiff1d(np.arange(N.shape[0]), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:]))
+    mu = np.zeros(N.shape[0])
+    mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
+    if mu_keep is None:
         return None
+    mu[keep] = mu_keep
     z = cf.factor.solve(phi_w - C[A].T @ mu[A])
     if r:
         z = z + R @ mu[2 * m:]
@@ -217,7 +225,8 @@ def contact_nonsmooth(model, state) -> bool:
     nt = np.asarray(model.Bn_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     t2 = np.asarray(model.Bt_r.multiply(model.Bt_r).sum(axis=1)).ravel()
     moves = n2 > 0
-    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-12 * np.maximum(t2, 1e-300)   # above round-off
+    # parallel rows leave ~1e-16 t2 of round-off; 1e-10: an angle below 1e-5 rad (as `redundant_pairs`)
+    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-10 * np.maximum(t2, 1e-300)
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 

@@ -30,9 +30,9 @@ i.e. the optimality conditions of the dual box-constrained QP
 min ½λᵀWλ − qᵀλ over B with Gλ = e. Semismooth Newton on Φ is the
 primal–dual active set method: components with λ + c r inside the box are
 free (contact closed / stick: r_i = 0), the others are fixed at the bound
-they project to (open: λn = 0; slip: λt = ±gw). The step is globalized
-by a nonmonotone Armijo search on ψ = ½‖Φ‖² + ½‖Gλ − e‖² (the Newton
-direction is a descent direction of ψ) and bounded by `max_iter`.
+they project to (open: λn = 0; slip: λt = ±gw). Full steps; a free set
+seen before (a cycle) or `max_iter` restarts Newton from the dual QP's
+solution (`_newton`).
 The constants c = 1 / diag(W) turn displacements into forces node by node.
 
 The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
@@ -63,6 +63,7 @@ NEWTON_NOT_CONVERGED = 1
 FIXED_POINT_NOT_CONVERGED = 2
 UNSOLVABLE = 3
 SINGULAR = 4
+NOT_UNIQUE = 7     # (5, 6: codes of the evaluation, wcs.evaluation.STATUS)
 
 OPEN, STICK, SLIP = 0, 1, 2
 
@@ -88,13 +89,31 @@ class ContactResult:
 
 @dataclass
 class ContactFactor:
-    """A factor of K (or its regularization) with the Delassus data of one K."""
+    """A factor of K (or its regularization) and the Delassus operator W of the matrix it holds.
+
+    Changed only by `update`, in place. `K_data` is the matrix the factor holds now: it is
+    cleared before a refactor and set once the factor and W are complete, so a refactor that
+    fails halfway (or is interrupted) leaves a record that matches no matrix, and a cache
+    hit is decided by what the factor holds, never by a copy that can go stale."""
 
     factor: object
-    K_data: np.ndarray  # values of the factored K, to skip refactoring an unchanged K
     pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
     S: np.ndarray       # contact DOFs (columns of C)
-    W: np.ndarray
+    C_S: np.ndarray     # C on those DOFs (dense): W = C_S (K⁺)_SS C_Sᵀ
+    W: np.ndarray | None = None
+    K_data: np.ndarray | None = None  # values (on K's fixed pattern) of the factored matrix
+
+    def holds(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> bool:
+        return (self.K_data is not None and np.array_equal(self.K_data, Kr.data)
+                and np.array_equal(self.C_S, C_S))
+
+    def update(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> "ContactFactor":
+        if not self.holds(Kr, C_S):
+            self.K_data = None
+            self.factor.refactor(Kr)
+            self.C_S, self.W = C_S, delassus(self.factor, C_S)
+            self.K_data = Kr.data.copy()
+        return self
 
 
 def pinned_dofs(R: np.ndarray) -> np.ndarray:
@@ -131,18 +150,16 @@ def delassus(factor, C_S: np.ndarray) -> np.ndarray:
 
 
 def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> ContactFactor:
-    """Factor K (regularized when R is given) with the block on the contact DOFs; reuse the analysis."""
+    """Factor K (regularized when R is given) with the block on the contact DOFs; `reuse` (same
+    contact DOFs and pinned DOFs) is updated in place, keeping its analysis."""
     S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
     Kr = regularize(K, pinned)
     C_S = C[:, S].toarray()
     if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
-        if reuse.K_data.shape == Kr.data.shape and np.array_equal(reuse.K_data, Kr.data):
-            return reuse
-        f = reuse.factor.refactor(Kr)
-    else:
-        f = linalg.factorize(Kr, spd=True, block=S)
-    return ContactFactor(factor=f, K_data=Kr.data.copy(), pinned=pinned, S=S, W=delassus(f, C_S))
+        return reuse.update(Kr, C_S)
+    f = linalg.factorize(Kr, spd=True, block=S)
+    return ContactFactor(f, pinned, S, C_S, delassus(f, C_S), Kr.data.copy())
 
 
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
@@ -160,13 +177,43 @@ def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     return -res.fun, res.x[:r]
 
 
+def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
+    """A rigid motion that the active constraints leave free at a solution: β ≠ 0 with
+    (C R)_H β = 0 on the rows H that hold (closed or touching normals, stuck tangents with a
+    positive slip bound), normalised to max|β| = 1; None when (C R)_H has full column rank.
+
+    Along such a β, u + tRβ is a solution too for small t: open nodes stay open, slipping
+    nodes keep their sign (a frictionless tangent never holds), and the energy does not
+    change, since the equilibrium of the rigid modes Rᵀ(f − Cᵀλ) = 0 makes the load's work
+    equal the friction's. Touching normals without pressure (a body resting under no load)
+    count as holding: lifting off is then free too, but the position along the contact is
+    determined, and only a motion that keeps every touching node touching is reported.
+    The columns of C R are scaled to unit norm over all contact rows; a singular value
+    below 1e-8 of the largest counts as zero (a determined direction, e.g. a curved contact
+    side, gives at least the sine of the angle between its normals)."""
+    r = G.shape[0]
+    if r == 0:
+        return None
+    scale = np.maximum(np.linalg.norm(G, axis=1), 1e-300)
+    A = G[:, held].T / scale
+    sv, vt = (np.linalg.svd(A)[1:] if A.shape[0] else (np.zeros(0), np.eye(r)))
+    rank = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0
+    if rank == r:
+        return None
+    beta = vt[rank] / scale
+    return beta / beta[np.argmax(np.abs(beta))]
+
+
 def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True):
     """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_[lo,hi](λ + c ⊙ r) = 0, Gλ = e.
 
     Full (undamped) steps: each step solves the active-set system of the predicted
-    free set exactly, so the iteration ends when a free set reproduces itself. The
-    iteration is deterministic, so a free set seen before without convergence means a
-    cycle; then (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
+    free set exactly, so the iteration ends when a free set reproduces itself. A step is
+    determined by its free set and the bound each other component is held at (λn = 0;
+    λt = −gw or +gw), so that pattern seen before without convergence means a cycle (the
+    free set alone is not: the same free set with a slip of the other sign is another
+    step — counted as a cycle, it sent 14 % of granite's solves to the QP); then (and at
+    `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
     with Gλ = e is solved by an interior-point method and Newton restarts from it to
     polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖² — stalled on
     floating bodies: its short first step leaves the rigid amplitudes α at zero and the
@@ -177,6 +224,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     Returns (λ, α, free, iterations, converged).
     """
     c = 1.0 / np.where(np.diag(W) > 0, np.diag(W), 1.0)
+    redundant = redundant_pairs(W)
     force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def check(lam, alpha):
@@ -193,11 +241,12 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
         free = predicted if (it > 0 or free0 is None) else free0
-        key = free.tobytes()
+        key = np.where(free, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()
         if it == max_iter or key in seen:
             break
-        seen.add(key)
-        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi))
+        if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
+            seen.add(key)
+        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi), redundant)
     if not fallback:
         return lam, alpha, free, it, False
     qp = _dual_qp(W, q, G, e, lo, hi, force)
@@ -212,7 +261,9 @@ def _dual_qp(W, q, G, e, lo, hi, force):
 
     Scaled to O(1) data: λ = s μ with the force scale s, objective divided by s²·max|W|.
     The equality's dual y (∇f + Gᵀy = 0 in the scaled problem) gives α = −s·max|W|·y
-    (the solver's convention Wλ − q = Gᵀα on free components)."""
+    (the solver's convention Wλ − q = Gᵀα on free components). Tolerances 1e-12: at
+    Clarabel's default 1e-8 the multipliers of the knee (stiffness contrast 600) were off by
+    1e-5 of the force scale, and Newton restarted from there cycled again."""
     import cvxpy as cp
     n, s, wmax = W.shape[0], force, np.abs(W).max()
     mu = cp.Variable(n)
@@ -230,7 +281,7 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(mu, cp.psd_wrap(0.5 * (Wn + Wn.T)))
                                   - (q / (s * wmax)) @ mu), cons)
     try:
-        prob.solve(solver=cp.CLARABEL)
+        prob.solve(solver=cp.CLARABEL, **{k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")})
     except cp.SolverError:
         return None
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
@@ -239,21 +290,51 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     return mu.value * s, alpha
 
 
-def _newton_point(W, q, G, e, free, fixed_values):
-    """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α)."""
-    F = np.flatnonzero(free)
+def redundant_pairs(W: np.ndarray) -> np.ndarray:
+    """Nodes whose normal and tangential rows are parallel (rollers on both sides of the node:
+    both rows act on one relative motion): the 2×2 block of W on the pair is singular,
+    det ≤ 1e-10 W_nn W_tt (an angle below 1e-5 rad between the rows in the W-metric)."""
+    m = W.shape[0] // 2
+    dn, dt, nt = np.diag(W)[:m], np.diag(W)[m:], np.diag(W, m)
+    return dn * dt - nt * nt <= 1e-10 * dn * dt
+
+
+def _newton_point(W, q, G, e, free, fixed_values, redundant):
+    """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α).
+
+    The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
+    node of `redundant_pairs` that is closed and stuck carries a pair (λn, λt) of which
+    only one combination acts, and its tangential equation is a multiple of its normal one.
+    In floating point the system is then merely ill-conditioned (cond ~1e17) and an LU
+    solve puts ~1e23 along the redundant combination, which flips the next prediction (a
+    cycle). Such a tangent's equation (κ times the normal one, κ = W_nt / W_nn) is dropped
+    with λt = 0, and the pair is then moved along the null direction (κ, −1) to the minimum
+    norm split λn + κλt = const: λ = (λn, 0) / (1 + κ²) · (1, κ) — the least-squares
+    solution at the cost of one LU. A system singular otherwise (a node held by supports on
+    both sides has zero rows) is solved by least squares. α is scaled by max|W| so that
+    both blocks are of one size.
+    """
+    m = len(redundant)
+    tied = np.zeros_like(free)
+    tied[m:] = redundant & free[:m] & free[m:]
+    solve = free & ~tied
+    F = np.flatnonzero(solve)
     lam = np.where(free, 0.0, fixed_values)
     r = G.shape[0]
-    M = np.block([[W[np.ix_(F, F)], -G[:, F].T], [G[:, F], np.zeros((r, r))]])
-    rhs = np.r_[q[F] - W[F] @ lam, e - G @ lam]
+    s = max(np.abs(W).max(initial=0.0), 1e-300)
+    M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
+    rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     try:
         x = np.linalg.solve(M, rhs)
         if not np.all(np.isfinite(x)):
             raise np.linalg.LinAlgError
-    except np.linalg.LinAlgError:  # rank-deficient face (e.g. a rigid mode free to slide): min-norm
+    except np.linalg.LinAlgError:
         x = np.linalg.lstsq(M, rhs, rcond=None)[0]
     lam[F] = x[: len(F)]
-    return lam, x[len(F):]
+    pair = np.flatnonzero(tied[m:] & (np.diag(W)[:m] > 0))
+    kappa = np.diag(W, m)[pair] / np.diag(W)[pair]
+    lam[pair], lam[m + pair] = lam[pair] / (1 + kappa**2), kappa * lam[pair] / (1 + kappa**2)
+    return lam, s * x[len(F):]
 
 
 def _first_free_set(warm, gw):
@@ -289,6 +370,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             fixed point over Tresca problems started from the all-stick (glued) solution
             — which also holds a floating body that only friction keeps in place — or
             from the warm pressures, until ‖Δp‖ ≤ tol_fp ‖p‖ (at most max_fp_iter solves).
+    A solution along which a rigid mode of R is left free (`free_rigid_motion`) is not
+    unique: status NOT_UNIQUE, `alpha` the free motion, no u.
     """
     t0 = time.perf_counter()
     timings = {}
@@ -354,6 +437,16 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
                                  f"{np.array2string(a, precision=4)}", iterations=iters,
                                  fixed_point_iterations=fp_iters, alpha=a, timings=timings)
+    beta = None
+    if ok and R is not None:
+        r = q - W @ lam + G.T @ alpha                     # C u − [d; 0]: −gap on the normal rows
+        touching = np.abs(r[:m]) <= tol * max(np.abs(r).max(), 1e-300)
+        beta = free_rigid_motion(G, free | np.r_[touching, np.zeros(m, bool)])
+    if beta is not None:
+        return ContactResult(None, None, None, NOT_UNIQUE,
+                             f"the solution is not unique: the rigid motion v = Rβ, β = "
+                             f"{np.array2string(beta, precision=4)}, moves no closed or stuck contact node",
+                             iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = CONVERGED, "converged"
     if not ok:

@@ -26,7 +26,7 @@ DEFAULT_STATUS = {0: "solved", 1: "contact solver did not converge",
                   2: "Coulomb fixed point did not converge",
                   3: "solvability violated: a floating body is not balanced",
                   4: "singular system or factorization failed", 5: "domain decomposition failed",
-                  6: "other failure"}
+                  6: "other failure", 7: "solution not unique: a rigid motion of a floating body is free"}
 FIELD_NAMES = ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity",
                "temperature", "contact_coords", "contact_pair", "contact_pressure", "contact_gap",
                "contact_slip", "contact_shear")
