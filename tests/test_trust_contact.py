@@ -61,9 +61,9 @@ def _coulomb_pad(doc):
 
 SCENES = {   # a study and the box each parameter is drawn from where it is not the study's own
     "granite-crack": (lambda tmp: coarse("granite-crack", 1.0, 0.3), {}),
-    "tresca-pad": (lambda tmp: scenes.load("tresca-pad", tmp, _tresca_pad),
+    "tresca-pad": (lambda tmp: scenes.load("tresca-pad", _tresca_pad),
                    {"loads.pad_top.traction.0": (1.0e5, 4.5e5)}),           # beyond g L: unsolvable
-    "coulomb-pad": (lambda tmp: scenes.load("tresca-pad", tmp, _coulomb_pad), {}),
+    "coulomb-pad": (lambda tmp: scenes.load("tresca-pad", _coulomb_pad), {}),
     "thermal-two-blocks": (lambda tmp: coarse("two-blocks-demo", 0.1, 0.04), {}),
 }
 
