@@ -40,7 +40,7 @@ def dd_vs_monolithic(study, model, options):
     mono = model.solve(study.scene)
     Kr, rhs, u0 = reduced_system(model, study.scene)
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, options)
-    assert res.status == dds.CONVERGED, res.message
+    assert res.status == dds.DDOutcome.CONVERGED, res.message
     rel = lambda a, b: np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)  # noqa: E731
     return res, mono, rel(res.u, mono.u), rel(res.lam_n, mono.contact.force_n), \
         rel(res.lam_t, mono.contact.force_t) if np.any(mono.contact.force_t) else np.linalg.norm(res.lam_t)
@@ -131,7 +131,7 @@ def test_divergence_gives_a_status_not_a_hang(tmp_path):
     Kr, rhs, u0 = reduced_system(model, study.scene)
     opts = {"tolerance": 1e-10, "max_iterations": 50, "dd": {"subdomains": 4, "relaxation": 1.0}}
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts)
-    assert res.status in (dds.DIVERGED, dds.STAGNATED)
+    assert res.status in (dds.DDOutcome.DIVERGED, dds.DDOutcome.STAGNATED)
     assert res.u is None and "contraction" in res.message and res.info["successive"] < 50
     assert res.info["history"]["q"][-1] > 1
 
@@ -144,6 +144,6 @@ def test_thermal_step_by_decomposition(tmp_path):
     c = model.coefficients(study.scene)
     T_mono = model.solve_heat(c)
     T, info, status, msg = dds.solve_heat_dd(model, c, {"tolerance": 1e-10, "dd": {"subdomains": 8}})
-    assert status == dds.CONVERGED, msg
+    assert status == dds.DDOutcome.CONVERGED, msg
     assert np.linalg.norm(T - T_mono) <= 1e-6 * np.linalg.norm(T_mono)
     assert info["coarse"] >= 1

@@ -20,7 +20,7 @@ import xarray as xr
 
 import wcs
 from wcs.cli import main
-from wcs.evaluation import STATUS
+from wcs.status import flag_attrs
 from wcs.report import SECTION_IDS, render_report, write_report
 from wcs.results import provenance, write_netcdf
 
@@ -64,10 +64,7 @@ def synthetic_run(study_path, n=6, seed=0, failures=(), limits=None, stage=None,
     ds["param_upper"] = ("param", p.upper)
     ds["x"] = (("eval", "param"), xs)
     ds["phi"] = (("eval", "criterion"), phi)
-    ds["status"] = xr.Variable("eval", status, {
-        "flag_values": np.array(sorted(STATUS), np.int32),
-        "flag_meanings": " ".join(v.replace(" ", "_").replace(":", "").replace(",", "")
-                                  for _, v in sorted(STATUS.items()))})
+    ds["status"] = xr.Variable("eval", status, flag_attrs())
     ds["stage"] = ("eval", np.array(stage or (["sample"] * (n - 2) + ["local"] * 2), dtype=object))
     ds["wall_time"] = xr.Variable("eval", wall, {"units": "s"})
     ds["iterations"] = xr.Variable("eval", iterations, {"long_name": "semismooth Newton iterations"})

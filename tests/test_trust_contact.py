@@ -298,8 +298,8 @@ def test_frictionless_pad_without_shear_is_not_unique(tmp_path, capsys):
     ev = study.evaluate(study.nominal())
     assert ev.status == 7 and np.isnan(ev.phi["shift"])
     assert "'pad'" in ev.message and "translation (1, 0)" in ev.message and "not unique" in ev.message
-    from wcs.evaluation import STATUS
-    assert "not unique" in STATUS[7]
+    from wcs.status import Status
+    assert "not unique" in Status.NOT_UNIQUE.description
     from wcs.cli import main
     code = main(["solve", str(study.file), "-o", str(tmp_path / "o.nc")])
     err = capsys.readouterr().err

@@ -96,7 +96,8 @@ def cmd_check(args) -> int:
     """Load, mesh and assemble the study, and solve its nominal data set once: what the nominal
     solve refuses as bad input (status 3, the solvability condition) `check` refuses too (exit 2);
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
-    from .evaluation import SCENE_FAULTS, STATUS, Evaluator
+    from .evaluation import Evaluator
+    from .status import Status
     from .study import load_study
     study = load_study(args.study)
     ev = Evaluator(study)
@@ -107,8 +108,8 @@ def cmd_check(args) -> int:
         print(summary(study, ev))
     if res.status != 0:
         print(f"error: {study.file}: the nominal data set cannot be solved "
-              f"(status {res.status}, {STATUS[res.status]}): {res.message}", file=sys.stderr)
-        return 2 if res.status in SCENE_FAULTS else 1
+              f"(status {res.status}, {Status(res.status).description}): {res.message}", file=sys.stderr)
+        return 2 if Status(res.status).scene_fault else 1
     if not args.quiet:
         print(f"  nominal solve: {res.message} in {res.wall_time:.2f} s; "
               + ", ".join(f"{k} = {v:.4g}" for k, v in res.phi.items()))
@@ -120,8 +121,9 @@ def cmd_solve(args) -> int:
     if getattr(args, "worst", None):
         from .commands import solve_worst
         return solve_worst(args)
-    from .evaluation import SCENE_FAULTS, Evaluator
+    from .evaluation import Evaluator
     from .results import write_solution
+    from .status import Status
     from .study import load_study
     from .store import WriteError, check_output
     study = load_study(args.study)
@@ -132,7 +134,7 @@ def cmd_solve(args) -> int:
     res = ev.evaluate(study.nominal())
     if res.status != 0:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
-        return 2 if res.status in SCENE_FAULTS else 1
+        return 2 if Status(res.status).scene_fault else 1
     try:
         out, vtu = write_solution(study, ev, res, out)
     except WriteError as e:

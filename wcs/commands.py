@@ -14,11 +14,12 @@ import numpy as np
 import xarray as xr
 
 from .errors import StudyError
-from .evaluation import STATUS, Evaluator
+from .evaluation import Evaluator
 from .parallel import rank, world
 from .progress import Progress, limits_broken, summary_table
 from .results import write_solution
 from .runner import Runner
+from .status import describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
 from .study import load_study
 
@@ -32,7 +33,7 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(summary_table(ds))
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
-        why = ", ".join(f"{m} with status {c} ({STATUS.get(int(c), 'unknown')})" for c, m in zip(codes, counts))
+        why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))
         first = f"; the first: {ds['message'].values[0]}" if n else ""
         print(f"error: no evaluation solved ({why or 'none run'}{first}); {out} records their statuses",
               file=sys.stderr)

@@ -14,26 +14,14 @@ from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
 from .model import Model, State
 from .scene.mesher import build_mesh
-
-# status codes of an evaluation (the `status` variable of the results file)
-STATUS = {
-    0: "solved",
-    1: "contact solver did not converge",
-    2: "Coulomb fixed point did not converge",
-    3: "solvability violated: a floating body is not balanced",
-    4: "singular system or factorization failed",
-    5: "domain decomposition failed",
-    6: "other failure",
-    7: "solution not unique: a rigid motion of a floating body is free",
-}
-SCENE_FAULTS = (3, 7)   # the scene itself has no (unique) solution at these data: bad input at the nominal data
+from .status import Status
 
 
 @dataclass
 class Evaluation:
     x: np.ndarray
     phi: dict
-    status: int
+    status: Status
     message: str
     iterations: int
     wall_time: float
@@ -81,5 +69,5 @@ class Evaluator:
             from .sensitivity import gradients as adjoint
             grad, nonsmooth = adjoint(self, state, x)
         message = "solved" if state.solver in ("direct", "monolithic", "dd") else f"solved ({state.solver})"
-        return Evaluation(x, phi, 0, message, state.iterations, time.perf_counter() - t0,
+        return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)

@@ -15,6 +15,7 @@ import scipy.sparse as sp
 
 from . import linalg
 from .contact.zone import ContactState, build_zone
+from .dd.solver import DDOutcome
 from .errors import SolveError, StudyError
 from .fem import forms
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -24,6 +25,7 @@ from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
+from .status import Status
 
 
 @dataclass
@@ -342,20 +344,20 @@ class Model:
         used, warm = "monolithic", None
         if self.solver_method == "dd":
             dd = self._solve_dd(scene, c, Kr, rhs, u0)
-            if dd.status == 0 and not adjoint:
+            if dd.status is DDOutcome.CONVERGED and not adjoint:
                 z = self.zone
                 contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
                 return State(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c), coefficients=c,
                              iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact,
                              theta=theta)
-            if dd.status == 0:          # the adjoint needs the monolithic factorization: start from dd
+            if dd.status is DDOutcome.CONVERGED:          # the adjoint needs the monolithic factorization: start from dd
                 from .contact.solver import ContactResult
-                warm = ContactResult(None, dd.lam_n, dd.lam_t, 0, "", active=dd.info.get("active"))
+                warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
                 used = "dd, polished by monolithic for the adjoint"
             elif self.options.get("fallback", True):
                 used = f"monolithic after dd {dd.message}"
             else:
-                raise SolveError(f"domain decomposition: {dd.message}", status=5)
+                raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0, nominal, warm)
         return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c, solver=used,
                      iterations=iterations, contact=contact, w=res.u, theta=theta, raw=res)
@@ -377,13 +379,13 @@ class Model:
         if self.solver_method == "dd" and not adjoint:
             from .dd.solver import solve_heat_dd
             T, _, status, _ = solve_heat_dd(self, c, self.options, comm=self.comm)
-            if status == 0:
+            if status is DDOutcome.CONVERGED:
                 return T, None
         theta = self._heat_theta(c)
         return self.P @ theta, theta
 
     def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None):
-        from .contact.solver import CONVERGED, NOT_UNIQUE, UNSOLVABLE, solve_contact
+        from .contact.solver import solve_contact
         z = self.zone
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
@@ -403,11 +405,11 @@ class Model:
                 self._contact_factor = res.factor    # one factor object, refactored in place from now on
         anchor = nominal and self._anchored and warm is None
         self._anchor_tried |= anchor                 # a failure too: then every solve starts cold
-        if res.status == UNSOLVABLE:
-            raise SolveError(self._unbalanced_message(res, rhs), status=3)
-        if res.status == NOT_UNIQUE:
-            raise SolveError(self._free_motion_message(res.alpha), status=NOT_UNIQUE)
-        if res.status != CONVERGED:
+        if res.status == Status.UNSOLVABLE:
+            raise SolveError(self._unbalanced_message(res, rhs), status=Status.UNSOLVABLE)
+        if res.status == Status.NOT_UNIQUE:
+            raise SolveError(self._free_motion_message(res.alpha), status=Status.NOT_UNIQUE)
+        if res.status != Status.SOLVED:
             raise SolveError(res.message, status=res.status)
         if anchor and self._anchor is None:
             self._anchor = dataclasses.replace(res, factor=None)   # the factor moves on with later data
@@ -468,7 +470,7 @@ def _refactor(factor, A):
     try:
         return linalg.factorize(A) if factor is None else factor.refactor(A)
     except linalg.FactorizationError as exc:
-        raise SolveError(f"factorization failed: {exc}", status=4) from None
+        raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from None
 
 
 def _same_data(a: Coefficients, b: Coefficients) -> bool:

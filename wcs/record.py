@@ -29,7 +29,7 @@ class Record(TypedDict):
     """One evaluation (k criteria, n parameters)."""
     x: np.ndarray                      # (n,) the data set, physical units
     phi: np.ndarray                    # (k,) criterion values in criterion order; NaN unless solved
-    status: int                        # 0 solved; wcs.evaluation.STATUS
+    status: int                        # a wcs.status.Status code (0 solved)
     message: str                       # the solver's message
     iterations: int                    # solver iterations
     wall_time: float                   # seconds of the evaluation

@@ -17,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__, linalg
+from .status import Status, flag_attrs
 
 
 def git_commit() -> str:
@@ -59,7 +60,6 @@ def parameter_variables(study) -> dict:
 
 def solve_dataset(study, evaluator, ev) -> xr.Dataset:
     """The file of `wcs solve`: the fields of one evaluation, its data set and criteria."""
-    from .evaluation import STATUS
     ds = ev.fields.copy()
     pvars, pcoords = parameter_variables(study)
     for k, v in pvars.items():
@@ -71,10 +71,7 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
     ds["phi"] = xr.Variable(("criterion",), np.array([ev.phi[n] for n in names], float),
                             {"long_name": "criterion values",
                              "units": ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)})
-    ds["status"] = xr.Variable((), np.int32(ev.status), {
-        "flag_values": np.array(sorted(STATUS), dtype=np.int32),
-        "flag_meanings": " ".join(v.replace(" ", "_").replace(":", "").replace(",", "") for _, v in sorted(STATUS.items())),
-    })
+    ds["status"] = xr.Variable((), np.int32(ev.status), flag_attrs())
     ds["iterations"] = xr.Variable((), np.int32(ev.iterations))
     ds["wall_time"] = xr.Variable((), float(ev.wall_time), {"units": "s"})
     ds.attrs.update(provenance(study, evaluator))
@@ -152,22 +149,9 @@ def parameter_units(path: str) -> str:
     return _PARAM_UNITS.get(field, "1")
 
 
-def _flag_meanings(table: dict) -> str:
-    words = []
-    for _, v in sorted(table.items()):
-        w = "".join(ch if ch.isalnum() else "_" for ch in v)
-        while "__" in w:
-            w = w.replace("__", "_")
-        words.append(w.strip("_"))
-    return " ".join(words)
-
-
 def status_attrs() -> dict:
-    from .evaluation import STATUS
-    return {"long_name": "evaluation status (0 solved)",
-            "flag_values": np.array(sorted(STATUS), dtype=np.int32),
-            "flag_meanings": _flag_meanings(STATUS),
-            "codes": "; ".join(f"{k}: {v}" for k, v in sorted(STATUS.items()))}
+    return {"long_name": "evaluation status (0 solved)", **flag_attrs(),
+            "codes": "; ".join(f"{s.value}: {s.description}" for s in Status)}
 
 
 def _criterion_units(evaluator) -> dict:

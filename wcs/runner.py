@@ -50,12 +50,10 @@ from .parallel import rank, world
 from .problem import build_problem
 from .record import Ledger, from_evaluation, open_store
 from .search import STRATEGIES, Outcome, Worst
+from .status import Status
 from .store import key
 from .study import load_study, parameter_vector
 from .writer import Final, Writer, claim_output
-
-OTHER_FAILURE = 6            # wcs.evaluation.STATUS: "other failure"
-
 
 def get_strategy(name: str):
     """The strategy factory registered under `name` (search.method)."""
@@ -153,7 +151,7 @@ class Runner:
             except Exception:  # noqa: BLE001
                 x = np.full(len(self.names), np.nan)
             nan = {c: float("nan") for c in self.criteria}
-            ev = Evaluation(x, nan, OTHER_FAILURE, f"{type(e).__name__}: {e}", 0, time.perf_counter() - t0)
+            ev = Evaluation(x, nan, Status.OTHER_FAILURE, f"{type(e).__name__}: {e}", 0, time.perf_counter() - t0)
         self._report(Event("evaluate", time.perf_counter() - t0, stage))
         return ev
 

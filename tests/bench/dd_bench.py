@@ -110,7 +110,7 @@ def cmd_solve(a) -> int:
         res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=c, comm=comm)
         walls.append(time.perf_counter() - t)
     info = res.info
-    out = {"ranks": 1 if comm is None else comm.size, "ndof": int(Kr.shape[0]), "status": dds.STATUS_NAMES[res.status],
+    out = {"ranks": 1 if comm is None else comm.size, "ndof": int(Kr.shape[0]), "status": res.status.value,
            "message": res.message, "subdomains": info.get("subdomains"), "pairs": info.get("pairs"),
            "interface_dofs": info.get("interface_dofs"), "coarse": info.get("coarse"),
            "pcg1": info.get("pcg1"), "successive": info.get("successive"), "pcg2": info.get("pcg2"),
@@ -128,7 +128,7 @@ def cmd_solve(a) -> int:
             Path(a.json).write_text(json.dumps(out, default=float, indent=1))
         if not a.quiet:
             print_solve(out)
-    return 0 if res.status == dds.CONVERGED else 1
+    return 0 if res.status == dds.DDOutcome.CONVERGED else 1
 
 
 def _relax(r):
@@ -295,7 +295,7 @@ def _iter_row(study, model, opts, **extra) -> dict:
     c, Kr, rhs, u0 = reduced_system(model, study.scene)
     t = time.perf_counter()
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=c)
-    row = {**extra, "tolerance": opts["tolerance"], "ndof": int(Kr.shape[0]), "status": dds.STATUS_NAMES[res.status],
+    row = {**extra, "tolerance": opts["tolerance"], "ndof": int(Kr.shape[0]), "status": res.status.value,
            "time_dd": time.perf_counter() - t, "contact_nodes": int(model.zone.gap.size)}
     i = res.info
     row.update({k: i.get(k) for k in ("subdomains", "pairs", "interface_dofs", "pcg1", "successive", "pcg2")})

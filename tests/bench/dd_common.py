@@ -37,7 +37,7 @@ def run(study, model, options, compare=True):
     _, Kr, rhs, u0 = model.reduced_system(c, model.solve_heat(c) if model.thermal else None)
     t = time.perf_counter()
     res = dds.solve_dd(model, scene, Kr, rhs, u0, options, coefficients=c)
-    out = {"status": dds.STATUS_NAMES[res.status], "time_dd": time.perf_counter() - t,
+    out = {"status": res.status.value, "time_dd": time.perf_counter() - t,
            "pcg1": res.info.get("pcg1"), "successive": res.info.get("successive"), "pcg2": res.info.get("pcg2"),
            "contraction": res.info.get("contraction"), "ndof": Kr.shape[0],
            "subdomains": res.info.get("subdomains"), "interface_dofs": res.info.get("interface_dofs"),

@@ -23,6 +23,7 @@ from common import write_table  # noqa: E402
 from wcs import linalg  # noqa: E402
 from wcs.contact import solver as cs  # noqa: E402
 from wcs.contact.qp import solve_contact_qp  # noqa: E402
+from wcs.status import Status  # noqa: E402
 
 
 
@@ -44,7 +45,7 @@ def run(N=150, with_qp=True):
     t_slu, _ = best_of(lambda: spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                          options={"SymmetricMode": True}).solve(P0["f"]))
     t_first, r0 = best_of(lambda: cs.solve_contact(*args(P0), g=g))
-    assert r0.status == cs.CONVERGED, r0.message
+    assert r0.status == Status.SOLVED, r0.message
 
     def resolve():  # each repeat: back to data set 0, then the timed switch to data set 1
         base = cs.solve_contact(*args(P0), g=g, warm=r0)
@@ -52,7 +53,7 @@ def run(N=150, with_qp=True):
         r = cs.solve_contact(*args(P1), g=g, warm=base)
         return time.perf_counter() - t, r
     t_re, r1 = min((resolve() for _ in range(3)), key=lambda x: x[0])
-    assert r1.status == cs.CONVERGED, r1.message
+    assert r1.status == Status.SOLVED, r1.message
     cold1 = cs.solve_contact(*args(P1), g=g)
     rows = {
         "unknowns": K.shape[0], "contact_nodes": m, "backend": linalg.backend(),

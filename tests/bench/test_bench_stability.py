@@ -1,7 +1,7 @@
 """Stability map: where each contact method fails, and what its evaluation reports.
 
 Families (one chart each; every point is one evaluation at the scene's data; marker = converged /
-slow / failed, colour = the evaluation's `status` (wcs.evaluation.STATUS), number = iterations):
+slow / failed, colour = the evaluation's `status` (wcs.status.Status), number = iterations):
 
 - stability_friction.png — the monolithic semismooth Newton on the Tresca pad
   (studies/validation/tresca-pad.yaml, coarse mesh) against the Tresca slip limit g, and the
@@ -34,7 +34,8 @@ import yaml
 
 import wcs
 from wcs.errors import SolveError
-from wcs.evaluation import STATUS, Evaluator
+from wcs.evaluation import Evaluator
+from wcs.status import Status
 
 from common import STUDIES, save_figure, write_table
 
@@ -98,7 +99,7 @@ def draw_status(ax, xs, ys, rows, xkey, ykey, annotate="iterations"):
 def legend(fig, rows):
     import matplotlib.pyplot as plt
     handles = [plt.Line2D([], [], marker=m, color="0.5", ls="", label=c) for c, m in CLASS_MARKERS.items()]
-    handles += [plt.Line2D([], [], marker="o", color=STATUS_COLOURS[s], ls="", label=f"status {s}: {STATUS[s]}")
+    handles += [plt.Line2D([], [], marker="o", color=STATUS_COLOURS[s], ls="", label=f"status {s}: {Status(s).description}")
                 for s in sorted({r["status"] for r in rows})]
     fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8)
 

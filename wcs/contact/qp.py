@@ -22,7 +22,8 @@ import time
 import cvxpy as cp
 import numpy as np
 
-from .solver import (CONVERGED, FIXED_POINT_NOT_CONVERGED, SINGULAR, UNSOLVABLE, ContactResult)
+from ..status import Status
+from .solver import ContactResult
 
 
 def _tresca_qp(K, f, Bn, Bt, d, gw, tol):
@@ -64,7 +65,7 @@ def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,
         fp_ok = u is not None and np.linalg.norm(ln / w - p_old) <= tol_fp * max(np.linalg.norm(ln / w), 1e-300)
     timings = {"total": time.perf_counter() - t0}
     if u is None:
-        code = UNSOLVABLE if st in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) else SINGULAR
+        code = Status.UNSOLVABLE if st in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) else Status.SINGULAR
         return ContactResult(None, None, None, code, f"cvxpy status {st}", timings=timings)
-    status, msg = (CONVERGED, st) if fp_ok else (FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged")
+    status, msg = (Status.SOLVED, st) if fp_ok else (Status.FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged")
     return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=fp, timings=timings)

@@ -57,13 +57,7 @@ import scipy.optimize as sopt
 import scipy.sparse as sp
 
 from wcs import linalg
-
-CONVERGED = 0
-NEWTON_NOT_CONVERGED = 1
-FIXED_POINT_NOT_CONVERGED = 2
-UNSOLVABLE = 3
-SINGULAR = 4
-NOT_UNIQUE = 7     # (5, 6: codes of the evaluation, wcs.evaluation.STATUS)
+from wcs.status import Status
 
 OPEN, STICK, SLIP = 0, 1, 2
 
@@ -75,7 +69,7 @@ class ContactResult:
     u: np.ndarray | None
     lam_n: np.ndarray | None
     lam_t: np.ndarray | None
-    status: int
+    status: Status
     message: str
     iterations: int = 0
     fixed_point_iterations: int = 0
@@ -391,7 +385,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
         timings["solvability"] = time.perf_counter() - t0
         if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
-            return ContactResult(None, None, None, UNSOLVABLE,
+            return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
                                  alpha=alpha, timings=timings)
@@ -401,7 +395,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None))
         u0 = cf.factor.solve(f)
     except linalg.FactorizationError as exc:
-        return ContactResult(None, None, None, SINGULAR, f"factorization failed: {exc}", timings=timings)
+        return ContactResult(None, None, None, Status.SINGULAR, f"factorization failed: {exc}", timings=timings)
     timings["factor"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -432,7 +426,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     if not ok and coulomb and R is not None:     # friction F p may be too weak to hold a floating body
         value, a = unbalanced_rigid_motion(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R)
         if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
-            return ContactResult(None, None, None, UNSOLVABLE,
+            return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body held by Coulomb friction: "
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
                                  f"{np.array2string(a, precision=4)}", iterations=iters,
@@ -443,16 +437,16 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         touching = np.abs(r[:m]) <= tol * max(np.abs(r).max(), 1e-300)
         beta = free_rigid_motion(G, free | np.r_[touching, np.zeros(m, bool)])
     if beta is not None:
-        return ContactResult(None, None, None, NOT_UNIQUE,
+        return ContactResult(None, None, None, Status.NOT_UNIQUE,
                              f"the solution is not unique: the rigid motion v = Rβ, β = "
                              f"{np.array2string(beta, precision=4)}, moves no closed or stuck contact node",
                              iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
-    status, message = CONVERGED, "converged"
+    status, message = Status.SOLVED, "converged"
     if not ok:
-        status, message = NEWTON_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
+        status, message = Status.CONTACT_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
     elif not fp_ok:
-        status, message = FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
+        status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
     timings["total"] = time.perf_counter() - t0
     return ContactResult(u, lam[:m], lam[m:], status, message, iters, fp_iters, _states(free, m, gw), cf,
                          alpha if R is not None else None, timings, free=free, gw=gw)

@@ -3,8 +3,6 @@
 `solve_dd(model, scene, Kr, rhs, u0, options)` solves the model's reduced contact
 problem; `solve_heat_dd(model, coefficients, options)` the thermal step.
 """
-from .solver import (BUDGET, CONVERGED, DIVERGED, LOCAL_FAILED, SETUP_FAILED, STAGNATED, DDResult,
-                     solve_dd, solve_heat_dd)
+from .solver import DDOutcome, DDResult, solve_dd, solve_heat_dd
 
-__all__ = ["solve_dd", "solve_heat_dd", "DDResult", "CONVERGED", "DIVERGED", "STAGNATED", "BUDGET",
-           "LOCAL_FAILED", "SETUP_FAILED"]
+__all__ = ["solve_dd", "solve_heat_dd", "DDResult", "DDOutcome"]

@@ -46,27 +46,29 @@ from __future__ import annotations
 import time
 import weakref
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
-from wcs.contact.solver import CONVERGED as CONTACT_CONVERGED
 from wcs.fem.affine import CellAffineOperator
+from wcs.status import Status
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
 
-CONVERGED = 0
-DIVERGED = 5
-STAGNATED = 6
-BUDGET = 7
-LOCAL_FAILED = 8
-SETUP_FAILED = 9
-STATUS_NAMES = {CONVERGED: "converged", DIVERGED: "diverged", STAGNATED: "stagnated",
-                BUDGET: "budget exhausted", LOCAL_FAILED: "local solve failed", SETUP_FAILED: "setup failed"}
+class DDOutcome(Enum):
+    """How a DD solve ended; the value names it in messages and `info["status_name"]`. Not an
+    evaluation status: the model reports every outcome but CONVERGED as `Status.DD_FAILED`."""
+    CONVERGED = "converged"
+    DIVERGED = "diverged"
+    STAGNATED = "stagnated"
+    BUDGET = "budget exhausted"
+    LOCAL_FAILED = "local solve failed"
+    SETUP_FAILED = "setup failed"
 
 
 class DDResult(NamedTuple):
@@ -75,7 +77,7 @@ class DDResult(NamedTuple):
     lam_n: np.ndarray | None       # (m,) normal contact forces, zone row order
     lam_t: np.ndarray | None       # (m,) tangential contact forces
     info: dict                     # iteration counts, history, active set, timings, sizes
-    status: int
+    status: DDOutcome
     message: str
 
 
@@ -291,7 +293,7 @@ def decomposition(model, options: dict) -> Decomposition:
 
 
 def _fail(info, status, message):
-    info["status_name"] = STATUS_NAMES[status]
+    info["status_name"] = status.value
     return DDResult(None, None, None, info, status, message)
 
 
@@ -329,7 +331,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     try:
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
-        return _fail(info, SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
+        return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
     team = Team(comm, dec.units)
     tm = team.timings
     info["nranks"] = team.size
@@ -350,7 +352,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     tm["assemble"] += time.perf_counter() - t
     error = team.first_error(error)
     if error:
-        return _fail(info, SETUP_FAILED, error)
+        return _fail(info, DDOutcome.SETUP_FAILED, error)
     for u in dec.units:            # each solve starts afresh: the answer must not depend on history
         if hasattr(u, "warm"):
             u.warm = None
@@ -362,7 +364,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
         S = InterfaceOperator(dec.units, dec.nif, D, team)
         S0 = InterfaceOperator(lin, dec.nif, oD, team)
     except CoarseSingular as exc:
-        return _fail(info, SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
+        return _fail(info, DDOutcome.SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
                                          f"(a group of them floats between pairs): {exc}")
     info["coarse"] = {"pcg1": S.coarse.size, "pcg2": S0.coarse.size}
     info["timings"] = {"setup": dec.timings["setup"], "assemble": time.perf_counter() - t}
@@ -383,7 +385,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     step_operator = S if o["linear_part"] == "glued" else S0
     status, message, U = _successive(dec, step_operator, Fl, r1.x, d, g, F, z.weight, o, info, team)
     info["timings"]["successive"] = time.perf_counter() - t
-    if status != CONVERGED:
+    if status != DDOutcome.CONVERGED:
         info["ranks"] = team.report()
         return _fail(info, status, message)
 
@@ -396,7 +398,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
             _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows],
                                     _coulomb(F, u.rows), o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
-            if res.status != CONTACT_CONVERGED:
+            if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
                 continue
             mine.append((u.index, loc, res.lam_n, res.lam_t, res.active))
@@ -407,7 +409,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     gathered = {i: rest for _, piece in parts for i, *rest in piece}
     if error:
         info["ranks"] = team.report()
-        return _fail(info, LOCAL_FAILED, error)
+        return _fail(info, DDOutcome.LOCAL_FAILED, error)
     w = np.zeros(dec.ndof)
     m = z.gap.size
     lam_n, lam_t, active = np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64)
@@ -420,10 +422,10 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: d
     info["active"] = active
     info["w"] = w
     info["timings"]["total"] = time.perf_counter() - t0
-    info["status_name"] = STATUS_NAMES[CONVERGED]
+    info["status_name"] = DDOutcome.CONVERGED.value
     info["ranks"] = team.report()
     u_full = model.elim.T @ w + u0
-    return DDResult(u_full, lam_n, lam_t, info, CONVERGED, message)
+    return DDResult(u_full, lam_n, lam_t, info, DDOutcome.CONVERGED, message)
 
 
 def _coulomb(F, rows):
@@ -468,7 +470,7 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         for p in team.local(pairs):                  # independent local contact solves
             r, _, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
                                   o["contact_tolerance"], 200)
-            if res.status != CONTACT_CONVERGED:
+            if res.status != Status.SOLVED:
                 error = error or f"contact solve of pair {p.index}: {res.message}"
                 r = np.zeros(p.gamma.size)
             pieces[p.index] = r
@@ -492,7 +494,7 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
     for k in range(1, budget + 1):
         rc, msg = s_con(U)
         if rc is None:
-            return LOCAL_FAILED, msg, U
+            return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["linear_part"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
             b = b + team.sum(pairs, {p.index: p.apply_S(U[p.gamma]) for p in team.local(pairs)}, dec.nif)
@@ -542,7 +544,7 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         hist["dU"].append(n_dU)
         hist["U"].append(n_U)
         if not np.isfinite(n_dU) or not np.isfinite(n_U):
-            return DIVERGED, f"successive approximations diverged (non-finite iterate at step {k})", U
+            return DDOutcome.DIVERGED, f"successive approximations diverged (non-finite iterate at step {k})", U
         q = n_dU / hist["dU"][-2] if len(hist["dU"]) > 1 and hist["dU"][-2] > 0 else np.nan
         hist["q"].append(q)
         est = q / (1 - q) * n_dU / max(n_U, 1e-300) if np.isfinite(q) and q < 1 else np.inf
@@ -551,27 +553,27 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
             if anderson:                  # T(U) − U is within tolerance at the evaluated U: keep T(U)
                 U, SU = r2.x, r2.Sx
             info["contraction"] = _mean_q(hist["q"])
-            return CONVERGED, f"converged in {k} successive approximations ({info['pcg2']} PCG2 iterations, " \
-                              f"{info['pcg1']} PCG1)", U
+            return DDOutcome.CONVERGED, f"converged in {k} successive approximations ({info['pcg2']} PCG2 iterations, " \
+                                        f"{info['pcg1']} PCG1)", U
         if not r2.converged:
-            return BUDGET, f"PCG2 did not converge in {r2.iterations} iterations at step {k}", U
+            return DDOutcome.BUDGET, f"PCG2 did not converge in {r2.iterations} iterations at step {k}", U
         first = n_dU if first is None else first
         qbar = _mean_q(hist["q"][-patience:])
         info["contraction"] = qbar
         if k > patience and n_dU >= hist["dU"][-1 - patience]:     # no net decrease in `patience` steps
-            kind = DIVERGED if n_dU > first else STAGNATED
-            return kind, (f"successive approximations {STATUS_NAMES[kind]} at step {k}: contraction estimate "
+            kind = DDOutcome.DIVERGED if n_dU > first else DDOutcome.STAGNATED
+            return kind, (f"successive approximations {kind.value} at step {k}: contraction estimate "
                           f"q = {qbar:.3g} ≥ 1 over the last {patience} steps (‖ΔU‖/‖U‖ = {n_dU / max(n_U, 1e-300):.3g}); "
                           f"[21, Cor. 7.1] needs q = 2β² < 1 — try relaxation or larger pairs"), U
         rate = (n_dU / hist["dU"][0]) ** (1.0 / (k - 1)) if k > 1 and hist["dU"][0] > 0 else np.nan
         if np.isfinite(rate) and rate < 1 and k >= 10:       # overall rate: Aitken's q_k fluctuate
             need = np.log(tol * n_U / n_dU) / np.log(rate)
             if k + need > budget:
-                return STAGNATED, (f"successive approximations stagnating at step {k}: mean contraction "
-                                   f"{rate:.4f} needs ~{need:.0f} more steps to reach {tol:g}, "
-                                   f"beyond the budget of {budget}"), U
-    return BUDGET, (f"successive approximations did not reach {tol:g} in {budget} steps "
-                    f"(‖ΔU‖/‖U‖ = {hist['dU'][-1] / max(hist['U'][-1], 1e-300):.3g})"), U
+                return DDOutcome.STAGNATED, (f"successive approximations stagnating at step {k}: mean contraction "
+                                             f"{rate:.4f} needs ~{need:.0f} more steps to reach {tol:g}, "
+                                             f"beyond the budget of {budget}"), U
+    return DDOutcome.BUDGET, (f"successive approximations did not reach {tol:g} in {budget} steps "
+                              f"(‖ΔU‖/‖U‖ = {hist['dU'][-1] / max(hist['U'][-1], 1e-300):.3g})"), U
 
 
 def _inner_tolerance(o, hist) -> float:
@@ -639,13 +641,13 @@ def solve_heat_dd(model, c, options: dict | None = None, *, comm=None):
     try:
         S = InterfaceOperator(dec.units, dec.nif, D, team)
     except CoarseSingular as exc:
-        return None, info, SETUP_FAILED, f"thermal interface operator singular: {exc}"
+        return None, info, DDOutcome.SETUP_FAILED, f"thermal interface operator singular: {exc}"
     info["coarse"] = S.coarse.size
     r = pcg(S.apply, S.precondition, S.load(), np.zeros(dec.nif), tol=o["pcg_tolerance"],
             max_iter=o["pcg_max_iterations"], coarse=S.coarse)
     info["pcg1"] = r.iterations
     if not r.converged:
-        return None, info, BUDGET, f"thermal PCG did not converge in {r.iterations} iterations"
+        return None, info, DDOutcome.BUDGET, f"thermal PCG did not converge in {r.iterations} iterations"
     mine = [(u.index, u.interior(r.x[u.gamma])) for u in team.local(dec.units)]
     loc = {i: x for part in team.allgather(mine) for i, x in part}
     w = np.zeros(dec.ndof)
@@ -653,4 +655,4 @@ def solve_heat_dd(model, c, options: dict | None = None, *, comm=None):
         w[u.dofs] = loc[u.index]
     info["ranks"] = team.report()
     theta = model.heat_elim.T @ w + Th0
-    return model.P @ theta, info, CONVERGED, f"converged in {r.iterations} PCG iterations"
+    return model.P @ theta, info, DDOutcome.CONVERGED, f"converged in {r.iterations} PCG iterations"

@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import StudyError
+from ..status import Status
 
 KIND_UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
               "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
@@ -22,11 +23,6 @@ KIND_LABEL = {"mean_temperature": "mean temperature (Φ1/Φ2)",
               "shear_stress_intensity": "shear stress intensity I₂² (Φ5)",
               "contact_pressure": "contact pressure (Φ6)",
               "von_mises": "von Mises stress"}
-DEFAULT_STATUS = {0: "solved", 1: "contact solver did not converge",
-                  2: "Coulomb fixed point did not converge",
-                  3: "solvability violated: a floating body is not balanced",
-                  4: "singular system or factorization failed", 5: "domain decomposition failed",
-                  6: "other failure", 7: "solution not unique: a rigid motion of a floating body is free"}
 FIELD_NAMES = ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity",
                "temperature", "contact_coords", "contact_pair", "contact_pressure", "contact_gap",
                "contact_slip", "contact_shear")
@@ -161,7 +157,7 @@ def _scene(doc: dict, extra: dict) -> dict:
 
 
 def status_meanings(var: xr.DataArray | None) -> dict:
-    out = dict(DEFAULT_STATUS)
+    out = {s.value: s.description for s in Status}
     if var is None:
         return out
     values = var.attrs.get("flag_values")

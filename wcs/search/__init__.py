@@ -50,7 +50,7 @@ class Batch:
 class Outcome:
     x: np.ndarray
     phi: dict[str, float]            # NaN where the evaluation failed
-    status: int                      # 0 solved; see wcs.evaluation.STATUS
+    status: int                      # a wcs.status.Status code (0 solved)
     grad: dict[str, np.ndarray] | None = None   # dΦ/dx (physical units) per criterion, if asked and smooth
     nonsmooth: bool = False          # the active set (or the max over regions) changes within reach
 
