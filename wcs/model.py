@@ -350,7 +350,7 @@ class Model:
                 return State(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c), coefficients=c,
                              iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact,
                              theta=theta)
-            if dd.status is DDOutcome.CONVERGED:          # the adjoint needs the monolithic factorization: start from dd
+            if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
                 from .contact.solver import ContactResult
                 warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
                 used = "dd, polished by monolithic for the adjoint"

@@ -99,7 +99,8 @@ def draw_status(ax, xs, ys, rows, xkey, ykey, annotate="iterations"):
 def legend(fig, rows):
     import matplotlib.pyplot as plt
     handles = [plt.Line2D([], [], marker=m, color="0.5", ls="", label=c) for c, m in CLASS_MARKERS.items()]
-    handles += [plt.Line2D([], [], marker="o", color=STATUS_COLOURS[s], ls="", label=f"status {s}: {Status(s).description}")
+    handles += [plt.Line2D([], [], marker="o", color=STATUS_COLOURS[s], ls="",
+                           label=f"status {s}: {Status(s).description}")
                 for s in sorted({r["status"] for r in rows})]
     fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8)
 

@@ -67,5 +67,6 @@ def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,
     if u is None:
         code = Status.UNSOLVABLE if st in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) else Status.SINGULAR
         return ContactResult(None, None, None, code, f"cvxpy status {st}", timings=timings)
-    status, msg = (Status.SOLVED, st) if fp_ok else (Status.FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged")
+    status, msg = ((Status.SOLVED, st) if fp_ok
+                   else (Status.FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged"))
     return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=fp, timings=timings)

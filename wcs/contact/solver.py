@@ -446,7 +446,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     if not ok:
         status, message = Status.CONTACT_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
     elif not fp_ok:
-        status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
+        status = Status.FIXED_POINT_NOT_CONVERGED
+        message = f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
     timings["total"] = time.perf_counter() - t0
     return ContactResult(u, lam[:m], lam[m:], status, message, iters, fp_iters, _states(free, m, gw), cf,
                          alpha if R is not None else None, timings, free=free, gw=gw)
