@@ -18,7 +18,7 @@ Sign conventions (used everywhere in wcs.contact)
   ``(B_n u)_i = (u(x_i) - sum_k w_ik u(m_ik)) · n_i`` (slave minus master,
   along ``n_i``), ``(B_t u)_i`` the same along ``t_i``.  A slave node moving
   towards the master increases ``B_n u``; the deformed gap is
-  ``gap - B_n u``, so non-penetration is ``B_n u <= gap`` ([21, §2]:
+  ``gap - B_n u``, so non-penetration is ``B_n u <= gap`` ([68, (2.10)]:
   ``u_n^k - u_n^l <= d``, d the initial gap) and ``B_t u`` is the relative tangential slip.
 * ``weight[i]`` is the tributary length of the slave node (half the lengths
   of its adjacent slave facets): nodal force = traction × weight.
