@@ -22,7 +22,7 @@ run: $(STAMP)
 	$(VENV)/bin/wcs report results/$(NAME).nc -o results/$(NAME).html
 	@if [ "$(NAME)" = "tunnel-fault" ]; then $(PY) studies/figures.py results/$(NAME).nc -o results; fi
 	@echo
-	@echo "results: $(CURDIR)/results/$(NAME).nc   (NetCDF, study-format.md §4)"
+	@echo "results: $(CURDIR)/results/$(NAME).nc   (NetCDF: x, phi, status, worst_value, worst_x, fields)"
 	@echo "report:  $(CURDIR)/results/$(NAME).html (open in a browser)"
 	@if [ "$(NAME)" = "tunnel-fault" ]; then \
 	  echo "figures: $(CURDIR)/results/tunnel-slip.png $(CURDIR)/results/tunnel-stress.png"; fi

@@ -1,6 +1,6 @@
 """`wcs report`: the HTML report of a results file (issue 6, items 4-5).
 
-The results file of `wcs run` follows study-format.md §4; `synthetic_run` builds one
+The results file of `wcs run` has the layout of wcs.results.run_dataset; `synthetic_run` builds one
 in that layout from real forward solves, so the report is tested independently of the
 search. Run `python tests/test_report.py STUDY.yaml OUT.nc [N]` to write such a file.
 """
@@ -33,7 +33,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def synthetic_run(study_path, n=6, seed=0, failures=(), limits=None, stage=None,
                   certificates=None, with_fields=True) -> xr.Dataset:
-    """A results Dataset in the layout of study-format.md §4 from n real evaluations at
+    """A results Dataset in the layout of wcs.results.run_dataset from n real evaluations at
     points of the box (a random design plus the upper corner). `failures`: evaluation
     indices recorded as failed (status 1, phi NaN); `limits`: {criterion: limit}
     overriding the study's."""

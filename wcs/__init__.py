@@ -1,4 +1,13 @@
-"""wcs: worst-scenario uncertainty quantification for contact problems of elastic bodies."""
+"""wcs: worst-scenario uncertainty quantification for contact problems of elastic bodies.
+
+Citations are to the seed, a habilitation thesis on multibody contact problems: "thesis eq. (3.15)"
+for the thesis itself, "[21, (4.32)]" for equation (4.32) of a paper it collects, numbered as the
+thesis numbers them:
+[17] DD for frictionless unilateral contact; [19] 2D knee replacement; [21] DD for contact with
+Tresca friction; [28] knee replacement with Coulomb friction; [33] mortar FEM for 2D elliptic
+problems; [68] quasi-coupled thermo-elasticity, DD and worst scenario; [101] dynamic contact in
+viscoelasticity, dual mortar, primal-dual active set.
+"""
 from .errors import SolveError, StudyError
 
 __version__ = "0.1.0"
@@ -11,7 +20,7 @@ def load_study(path_or_mapping, base_dir=None):
 
 
 def run(study, output=None, resume=False, progress=None, **kwargs):
-    """The whole worst-scenario study -> xarray.Dataset (study-format.md §3, §4); see wcs.runner.run."""
+    """The whole worst-scenario study -> xarray.Dataset (the results file's content); see wcs.runner.run."""
     from .runner import run as _run
     return _run(study, output=output, resume=resume, progress=progress, **kwargs)
 

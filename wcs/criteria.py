@@ -1,4 +1,4 @@
-"""Criterion functionals Φ1–Φ6 (physics.md §6): each a maximum over regions of
+"""Criterion functionals Φ1–Φ6 [68, (4.29)–(4.34)]: each a maximum over regions of
 interest G_r of a mean over G_r.
 
 Linear criteria (temperature, normal displacement) keep their functional as

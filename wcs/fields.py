@@ -1,4 +1,4 @@
-"""The solution fields of one evaluation as an xarray.Dataset (study-format.md §4)."""
+"""The solution fields of one evaluation as an xarray.Dataset (the fields a results file holds)."""
 from __future__ import annotations
 
 import numpy as np

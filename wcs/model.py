@@ -3,7 +3,8 @@ thermal solve and one elastic solve per data set.
 
 `Model(scene, smesh)` reads only the *structure* of the scene (which regions,
 loads, supports exist); `Model.solve(scene_x)` reads the *numbers* of a scene
-with the data set applied and combines the pieces (architecture.md, idea 1).
+with the data set applied and combines the pieces: the data are piecewise constant on
+regions and boundary parts, so every operator is an affine combination of fixed matrices.
 """
 from __future__ import annotations
 
@@ -422,7 +423,8 @@ class Model:
         if res.alpha is None:                     # the QP reference reports unboundedness only
             names = ", ".join(f"'{b}'" for b, _ in self.floating)
             return (f"the load on the floating bodies {names} is not balanced by contact and friction "
-                    f"({res.message}); solvability S(w) <= j(w) fails (physics.md §2)")
+                    f"({res.message}); solvability L(w) <= j(w) (load work at most friction work for every "
+                    f"admissible rigid motion w) fails ([21, Remark 2.1])")
         alpha = np.asarray(res.alpha, float)
         k, best, share = 0, None, -1.0
         for body, modes in self.floating:
@@ -438,7 +440,7 @@ class Model:
         return (f"body '{best}' is held only by contact and its load is not balanced: "
                 f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
                 f"and contact do not resist (load work {work:.3g} > friction work); "
-                f"solvability S(w) <= j(w) fails (physics.md §2)")
+                f"solvability L(w) <= j(w) fails ([21, Remark 2.1])")
 
     def _free_motion_message(self, beta: np.ndarray) -> str:
         """Name the floating body whose rigid motion the active contact leaves free, and the motion."""

@@ -191,7 +191,10 @@ def worst_field_variables(criteria: list[str], fields: dict) -> dict:
 def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certificate: dict,
                 notes: dict | None = None, worst_fields: dict | None = None, attrs: dict | None = None,
                 sweep_paths: list[str] | None = None, provenance_attrs: dict | None = None) -> xr.Dataset:
-    """The results file of `wcs run` / `wcs sweep` (study-format.md §4).
+    """The results file of `wcs run` / `wcs sweep`: `param` with its box `param_lower`/`param_upper`;
+    per evaluation `x` (eval, param), `phi` (eval, criterion), `status`, `stage`, `wall_time`,
+    `iterations`; per criterion `worst_value`, `worst_x`, `limit`; the study text in the attributes
+    and the worst-case fields under a `worst_` prefix.
 
     records: one dict per evaluation, in order, with x, phi (array in criterion order), status,
     message, stage, iterations, wall_time, grad ((criterion, param) array or None), nonsmooth,

@@ -1,4 +1,4 @@
-r"""Adjoint gradients of the criteria with respect to the data (architecture.md, idea 3).
+r"""Adjoint gradients of the criteria with respect to the data.
 
 On a fixed active set the discrete problem is linear in the data, so each
 criterion needs one adjoint solve with the factorization of the forward solve.

@@ -1,7 +1,7 @@
 r"""Mortar coupling of two nonmatching boundary sides with dual (biorthogonal) multipliers.
 
 Used for contact (`contacts.<c>.discretization: mortar`) and for glued
-interfaces (`glue:`, `wcs.fem.gluing`). Seed [101, (16)–(26)], physics.md §3.
+interfaces (`glue:`, `wcs.fem.gluing`). Seed [101, (16)–(26)].
 
 The integrals
 -------------

@@ -8,7 +8,8 @@ Sign conventions (used everywhere in wcs.contact)
   (the master facet's normal, or the master nodal normal -- length-weighted
   facet average -- when ``y_i`` is a master node).  For matching (coincident)
   sides this is exactly the slave side's outward nodal normal.  This is the
-  ``n = n^k`` of physics.md §2 with the slave as body ``k``.
+  normal ``n = n^k`` of body ``k`` in the contact conditions of [21, §2], with the slave
+  as body ``k``.
 * ``tangent[i] = R(+90°) n_i = (-n_y, n_x)``.
 * ``gap[i] = (y_i - x_i) · n_i`` in the reference configuration: ``>= 0`` open,
   ``< 0`` initial penetration, exactly 0 for coincident nodes.  ``y_i`` is the
@@ -17,8 +18,8 @@ Sign conventions (used everywhere in wcs.contact)
   ``(B_n u)_i = (u(x_i) - sum_k w_ik u(m_ik)) · n_i`` (slave minus master,
   along ``n_i``), ``(B_t u)_i`` the same along ``t_i``.  A slave node moving
   towards the master increases ``B_n u``; the deformed gap is
-  ``gap - B_n u``, so non-penetration is ``B_n u <= gap`` (physics.md:
-  ``u_n^k - u_n^l <= d``) and ``B_t u`` is the relative tangential slip.
+  ``gap - B_n u``, so non-penetration is ``B_n u <= gap`` ([68, (2.10)]:
+  ``u_n^k - u_n^l <= d``, d the initial gap) and ``B_t u`` is the relative tangential slip.
 * ``weight[i]`` is the tributary length of the slave node (half the lengths
   of its adjacent slave facets): nodal force = traction × weight.
 

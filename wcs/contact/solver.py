@@ -159,7 +159,7 @@ def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> Conta
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     """max fᵀRα − Σ gw|Bt Rα| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r.
 
-    The problem is solvable only if this maximum is 0 (physics.md §2: S(v) ≤ j(v)).
+    The problem is solvable only if this maximum is 0 (L(w) ≤ j(w) for rigid w ∈ K, [21, Remark 2.1]).
     Linear program in (α, s) with s ≥ |Bt Rα|. Returns (value, α).
     """
     r, m = R.shape[1], Bn.shape[0]

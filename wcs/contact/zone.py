@@ -141,7 +141,7 @@ def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
 
 @dataclass
 class ContactState:
-    """Contact tractions of a solution on the slave nodes (study-format.md §4)."""
+    """Contact tractions of a solution on the slave nodes (the results file's `contact_*` fields)."""
     zone: ContactZone
     force_n: np.ndarray      # λn ≥ 0, nodal normal force [N/m]
     force_t: np.ndarray      # λt

@@ -1,6 +1,6 @@
 r"""Deterministic partition of the bodies into subdomains for the DD contact solver.
 
-Rule ([21, §4]; physics.md §4: ``Γ ∩ Γ_c = ∅``):
+Rule ([21, §4]: subdomain interfaces Γ do not cut the contact boundary, ``Γ ∩ Γ_c = ∅``):
 
 1. **Contact bands.** For every contact side (the slave nodes and the master
    nodes of a contact), the cells touching a side node form a band; every

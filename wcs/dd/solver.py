@@ -1,4 +1,4 @@
-r"""The seed's domain decomposition contact solver [21, §4–7] (dd-algorithm.md).
+r"""The seed's domain decomposition contact solver [21, §4–7].
 
 Interface equation [21, (4.32)] for the trace U of the solution on the
 subdomain interfaces Γ (reduced DOFs shared by two or more units):

@@ -3,7 +3,7 @@
 The cell matrices of every piece are computed once (P1: exact, one point);
 a new coefficient table costs one weighted scatter into a fixed pattern
 (O(cells), no quadrature), and every K(c) has the same CSR pattern so a
-sparse factorization reuses its symbolic analysis (architecture.md, idea 1).
+sparse factorization reuses its symbolic analysis.
 
 Vector fields use 2×2 node blocks (dof = 2·node + component, scikit-fem's
 order for ElementVector(ElementTriP1)): the pattern is built on node pairs

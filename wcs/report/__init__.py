@@ -22,7 +22,7 @@ SECTION_IDS = ["summary", "limits", "scene", "worst-data", "worst-fields", "cont
 
 def render_report(results, source: str = "", strict: bool = False) -> str:
     """The report's HTML for a results file path, an xarray.Dataset in the layout of
-    study-format.md §4 (run, sweep or solve file) or a loaded `data.Results`. StudyError for a bad file."""
+    a wcs results file (run, sweep or solve file) or a loaded `data.Results`. StudyError for a bad file."""
     import xarray as xr
 
     from . import data, html

@@ -1,4 +1,5 @@
-"""Read a results file (study-format.md §4) into one plain structure for the report.
+"""Read a results file (`param`, `x`, `phi`, `status`, `worst_*`, …; see wcs.results) into one
+plain structure for the report.
 
 Accepts the file of `wcs run` and `wcs sweep` (evaluations along `eval`, worst-case
 fields under a `worst_` prefix with a leading `criterion` dimension) and the file of
@@ -224,7 +225,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
     missing = [v for v in ("phi", "param") if v not in ds.variables]
     if missing:
         raise StudyError(f"{where}: not a wcs results file (no {', '.join(missing)}; "
-                         f"expected the layout of study-format.md §4)")
+                         f"expected the layout written by wcs run, sweep or solve)")
     attrs = {k: _attr_scalar(v) for k, v in ds.attrs.items()}
     study_yaml = _text(attrs.get("study_yaml", ""))
     doc, extra = split_yaml(study_yaml) if study_yaml else ({}, {})

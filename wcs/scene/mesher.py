@@ -1,4 +1,4 @@
-"""Scene dict (study-format §2) -> gmsh (OpenCASCADE) -> :class:`SceneMesh`.
+"""Scene dict (the ``scene:`` block of a study) -> gmsh (OpenCASCADE) -> :class:`SceneMesh`.
 
 ``build_mesh(scene)`` takes the ``scene:`` block of a study, already validated
 by the loader, and returns one ``skfem.MeshTri`` holding every body.
@@ -388,7 +388,7 @@ def _fragment(dimtags: list) -> list:
 
 
 def build_mesh(scene: dict, rois=None) -> SceneMesh:
-    """Mesh a validated scene dict (study-format §2) into a :class:`SceneMesh`.
+    """Mesh a validated scene dict (the ``scene:`` block) into a :class:`SceneMesh`.
 
     ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
     the sorted facet indices its selector picks (an empty selection raises
