@@ -13,15 +13,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..criteria import KINDS
 from ..errors import StudyError
 
-KIND_UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
-              "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
-KIND_LABEL = {"mean_temperature": "mean temperature (Φ1/Φ2)",
-              "mean_normal_displacement": "mean normal displacement (Φ3/Φ4)",
-              "shear_stress_intensity": "shear stress intensity I₂² (Φ5)",
-              "contact_pressure": "contact pressure (Φ6)",
-              "von_mises": "von Mises stress"}
+KIND_UNITS = {k: v.units for k, v in KINDS.items()}
+KIND_LABEL = {k: v.label for k, v in KINDS.items()}
 DEFAULT_STATUS = {0: "solved", 1: "contact solver did not converge",
                   2: "Coulomb fixed point did not converge",
                   3: "solvability violated: a floating body is not balanced",
