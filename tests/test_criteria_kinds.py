@@ -1,0 +1,58 @@
+"""The criterion kinds added through the registry alone (`wcs.criteria.KINDS`): the largest
+principal stress and the mean contact slip, each with adjoint gradients against central
+finite differences (the rule of test_gradients.py: 1e-5 relative plus the FD noise floor),
+and the schema, the adjoint and the report reading them from the one entry."""
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+import wcs
+from test_gradients import check_against_fd
+from wcs.criteria import KINDS, _principal_kink
+from wcs.report.data import KIND_LABEL, KIND_UNITS
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def all_kinds(criteria):
+    doc = yaml.safe_load((DATA / "gradients-all-kinds.yaml").read_text())
+    doc["criteria"] = criteria
+    return doc
+
+
+def test_principal_stress_gradient():
+    study = wcs.load_study(all_kinds([
+        {"name": "s1_core", "kind": "principal_stress", "regions": ["pad_core"]},
+        {"name": "s1_edge", "kind": "principal_stress", "regions": ["pad_top"]}]))
+    assert check_against_fd(study) < 1e-5
+
+
+def test_principal_stress_value_is_the_area_mean_of_sigma_1():
+    """Φ = Σ a_c σ₁,c / Σ a_c over the cells inside the box G_r (embedded in the mesh), σ₁ the
+    larger eigenvalue of each cell's in-plane stress block (numpy's eigvalsh, not wcs's formula)."""
+    study = wcs.load_study(all_kinds([{"name": "s1", "kind": "principal_stress", "regions": ["pad_core"]}]))
+    ev = study.evaluate(study.nominal())
+    assert ev.status == 0
+    f = ev.fields
+    p, t = f["coords"].values, f["cells"].values
+    x0, y0, x1, y1 = 0.8, 1.1, 1.2, 1.4
+    c = p[t].mean(axis=1)
+    inside = (c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 1] > y0) & (c[:, 1] < y1)
+    e1, e2 = p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert abs(area[inside].sum() - 0.4 * 0.3) < 1e-12            # the box is embedded exactly
+    xx, yy, _, xy = f["stress"].values[inside].T
+    s1 = np.linalg.eigvalsh(np.stack([np.stack([xx, xy], -1), np.stack([xy, yy], -1)], -2))[:, 1]
+    expect = area[inside] @ s1 / area[inside].sum()
+    assert abs(ev.phi["s1"] - expect) <= 1e-12 * np.abs(s1).max()     # round-off of two formulas
+
+
+def test_principal_kink_where_the_principal_stresses_meet():
+    s = np.array([[1.0, 2.0, -3.0], [1.0, 1.0, 1.0], [0.3, 0.0, 0.0], [0.0, 0.0, 1e-12]])
+    assert _principal_kink(s).tolist() == [True, False, False]
+
+
+def test_registry_feeds_schema_and_report():
+    for name in ("principal_stress",):
+        assert KIND_UNITS[name] == KINDS[name].units == "Pa" and KIND_LABEL[name] == KINDS[name].label
