@@ -8,7 +8,7 @@ import numpy as np
 import yaml
 
 import wcs
-from test_gradients import check_against_fd
+from test_gradients import TOL, VALIDATION, check_against_fd
 from wcs.criteria import KINDS, _principal_kink
 from wcs.report.data import KIND_LABEL, KIND_UNITS
 
@@ -54,5 +54,41 @@ def test_principal_kink_where_the_principal_stresses_meet():
 
 
 def test_registry_feeds_schema_and_report():
-    for name in ("principal_stress",):
-        assert KIND_UNITS[name] == KINDS[name].units == "Pa" and KIND_LABEL[name] == KINDS[name].label
+    for name in ("principal_stress", "contact_slip"):
+        assert KIND_UNITS[name] == KINDS[name].units and KIND_LABEL[name] == KINDS[name].label
+
+
+def tresca_pad(criteria):
+    doc = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
+    doc["scene"]["regions_of_interest"]["edge"] = {"box": [1.3, 0.99, 1.5, 1.01]}
+    doc["uncertain"] = {"loads.pad_top.traction.0": [1.0e5, 2.5e5],
+                        "contacts.interface.friction.slip_limit": [2.6e5, 4.0e5],
+                        "materials.rubber.nu": [0.40, 0.48]}
+    doc["criteria"] = criteria
+    doc["solver"] = {"method": "monolithic", "tolerance": TOL}
+    return wcs.load_study(doc)
+
+
+def test_contact_slip_gradient_with_stuck_and_sliding_nodes():
+    """Tresca pad: 11 of 51 interface nodes stick (slip ~1e-15, the kink of |s| at 0) and
+    the rest slide; the stuck ones keep s = 0 on their active set, so the gradient is exact."""
+    study = tresca_pad([{"name": "slip_edge", "kind": "contact_slip", "regions": ["edge"]},
+                        {"name": "slip_all", "kind": "contact_slip", "regions": ["interface"]}])
+    ev = study.evaluate(study.nominal())
+    c, m = ev.state.contact, ev.state.contact.slip.size
+    stuck = ev.state.raw.free[m:]
+    assert stuck.sum() == 11 and np.abs(c.slip[stuck]).max() < 1e-14
+    assert ev.phi["slip_all"] == c.weight @ np.abs(c.slip) / c.weight.sum()
+    assert check_against_fd(study) < 1e-5
+
+
+def test_contact_slip_held_node_is_smooth():
+    """Frictionless patch: the node at x = 0 is held in x on both sides (slip ≡ 0 whatever the
+    data, the kink of |s| never reached): not flagged, and the gradient matches FD."""
+    doc = yaml.safe_load((VALIDATION / "contact-patch.yaml").read_text())
+    doc["criteria"] = [{"name": "slip", "kind": "contact_slip", "regions": ["interface"]}]
+    doc["solver"] = {"method": "monolithic", "tolerance": TOL}
+    study = wcs.load_study(doc)
+    ev = study.evaluate(study.nominal(), gradients=True)
+    assert np.abs(ev.state.contact.slip).min() == 0.0 and not ev.nonsmooth
+    assert check_against_fd(study) < 1e-5

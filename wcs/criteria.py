@@ -316,6 +316,29 @@ def _contact_pressure_partials(crit, model, state, r):
     return Partials(lam_n=np.where(mask, 1.0 / state.contact.weight[mask].sum(), 0.0)), False
 
 
+def _slip_mean(crit, model, state, r) -> float:
+    """Mean |relative tangential displacement| over the contact nodes next to G_r: Σ w|s| / Σ w."""
+    mask, c = crit.contact_masks[r], state.contact
+    return float(c.weight[mask] @ np.abs(c.slip[mask]) / c.weight[mask].sum())
+
+
+def _slip_partials(crit, model, state, r):
+    """∂Φ/∂u = Btᵀ (w sign(s)) / Σ w over the rows next to G_r (s = Bt u). |s| has a kink at
+    s = 0, which matters only where s can cross 0: a stuck node keeps s fixed on its active
+    set (and a stick/slip switch is flagged with the active set), and a node whose reduced
+    tangential row vanishes (held by supports on both sides) has s fixed by them; any other
+    node in G_r with s ≈ 0 makes the point non-smooth."""
+    mask, c = crit.contact_masks[r], state.contact
+    w = np.where(mask, c.weight, 0.0)
+    dslip = w * np.sign(c.slip) / w.sum()
+    m = c.slip.size
+    stuck = state.raw.free[m:] if state.raw is not None else np.zeros(m, dtype=bool)
+    scale = max(np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
+    moves = np.asarray(abs(model.Bt_r).sum(axis=1)).ravel() > 0
+    kink = mask & ~stuck & moves & (np.abs(c.slip) <= REL_TOL * scale)
+    return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
+
+
 KINDS: dict[str, Kind] = {
     "mean_temperature": Kind(
         "mean temperature (Φ1/Φ2)", "K",
@@ -335,4 +358,6 @@ KINDS: dict[str, Kind] = {
     "von_mises": _area_kind("von Mises stress", "Pa", von_mises, _dvon_mises),
     "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),
+    "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m", value=_slip_mean, partials=_slip_partials,
+                         reads="contact", needs="contacts"),
 }
