@@ -2,14 +2,17 @@
 principal stress and the mean contact slip, each with adjoint gradients against central
 finite differences (the rule of test_gradients.py: 1e-5 relative plus the FD noise floor),
 and the schema, the adjoint and the report reading them from the one entry."""
+import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 import wcs
 from test_gradients import TOL, VALIDATION, check_against_fd
 from wcs.criteria import KINDS, _principal_kink
+from wcs.errors import StudyError
 from wcs.report.data import KIND_LABEL, KIND_UNITS
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -54,8 +57,19 @@ def test_principal_kink_where_the_principal_stresses_meet():
 
 
 def test_registry_feeds_schema_and_report():
-    for name in ("principal_stress", "contact_slip"):
-        assert KIND_UNITS[name] == KINDS[name].units and KIND_LABEL[name] == KINDS[name].label
+    """The schema takes the new kinds, refuses a kind's missing scene block and a foreign
+    option by key path, and the report has their units and labels, all from `KINDS`."""
+    for name, units in (("principal_stress", "Pa"), ("contact_slip", "m")):
+        assert KIND_UNITS[name] == units and KIND_LABEL[name] == KINDS[name].label
+    doc = yaml.safe_load((VALIDATION.parent / "glued-layers.yaml").read_text())    # no contact
+    roi = "soft_layer"
+    doc["criteria"] = [{"name": "s", "kind": "contact_slip", "regions": [roi]}]
+    with pytest.raises(StudyError, match="contact_slip needs a contact in the scene") as info:
+        wcs.load_study(doc)
+    assert info.value.path == "criteria.0.kind"
+    doc["criteria"] = [{"name": "s", "kind": "principal_stress", "regions": [roi], "point": [0.0, 0.0]}]
+    with pytest.raises(StudyError, match="'point' applies only to kind mean_normal_displacement"):
+        wcs.load_study(doc)
 
 
 def tresca_pad(criteria):
@@ -92,3 +106,21 @@ def test_contact_slip_held_node_is_smooth():
     ev = study.evaluate(study.nominal(), gradients=True)
     assert np.abs(ev.state.contact.slip).min() == 0.0 and not ev.nonsmooth
     assert check_against_fd(study) < 1e-5
+
+
+def test_contact_slip_flags_a_sliding_node_at_zero_slip():
+    """|s| has a kink at s = 0: on the frictionless patch's real model and state, a node that
+    slides freely (frictionless: never stuck) set to s = 0 makes the partials non-smooth; the
+    held node at x = 0 with s = 0 does not."""
+    doc = yaml.safe_load((VALIDATION / "contact-patch.yaml").read_text())
+    doc["criteria"] = [{"name": "slip", "kind": "contact_slip", "regions": ["interface"]}]
+    study = wcs.load_study(doc)
+    ev = study.evaluate(study.nominal())
+    crit, model, state = ev.evaluator.criteria[0], ev.evaluator.model, ev.state
+    partials = KINDS["contact_slip"].partials
+    assert partials(crit, model, state, 0)[1] is False
+    k = int(np.argmax(np.abs(state.contact.slip)))
+    slip = state.contact.slip.copy()
+    slip[k] = 0.0
+    state = dataclasses.replace(state, contact=dataclasses.replace(state.contact, slip=slip))
+    assert partials(crit, model, state, 0)[1] is True
