@@ -358,6 +358,6 @@ KINDS: dict[str, Kind] = {
     "von_mises": _area_kind("von Mises stress", "Pa", von_mises, _dvon_mises),
     "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),
-    "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m", value=_slip_mean, partials=_slip_partials,
-                         reads="contact", needs="contacts"),
+    "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m",
+                         value=_slip_mean, partials=_slip_partials, reads="contact", needs="contacts"),
 }
