@@ -1,25 +1,53 @@
 """Criterion functionals Φ1–Φ6 [68, (4.29)–(4.34)]: each a maximum over regions of
 interest G_r of a mean over G_r.
 
+`KINDS` is the one registry of criterion kinds: a `Kind` holds everything the code
+knows of a kind (its value on a region, its partial derivatives for the adjoint,
+units, label, the scene block it needs, the options it takes, where it reads its
+regions). The schema, the adjoint and the report read it; a new kind is one entry.
+
 Linear criteria (temperature, normal displacement) keep their functional as
 a vector ℓ_r (Φ_r = ℓ_r · field), which is also the adjoint load of the
-criterion. Quadratic ones (shear stress intensity) average a cell field.
+criterion. Stress criteria average a cell density ψ(τ) over G_r; contact
+criteria a nodal quantity over the contact rows next to G_r.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import StudyError
-from .fem.stress import shear_intensity, von_mises
+from .fem.stress import principal, shear_intensity, von_mises
 from .scene.selectors import (Selection, boundary_facets, dist_segment, distance_function, facet_lengths,
                               facet_normals, select_region)
 
 CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
+REL_TOL = 1e-7       # "within reach" for the non-smoothness flags, relative
 
-UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
-         "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
+
+@dataclass
+class Partials:
+    """Explicit partial derivatives of one criterion at a solution."""
+    u: np.ndarray | None = None          # ∂Φ/∂u (full dofs)
+    theta: np.ndarray | None = None      # ∂Φ/∂θ (heat nodes)
+    lam_n: np.ndarray | None = None      # ∂Φ/∂λ_n (contact nodes)
+    coef: dict | None = None             # field -> ∂Φ/∂c (explicit dependence, e.g. of stresses)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One criterion kind. `value(criterion, model, state, r)` is Φ_r; `partials(...)` its
+    explicit partials at region r and whether Φ_r is not differentiable within reach."""
+    label: str
+    units: str
+    value: Callable
+    partials: Callable
+    reads: str = "cells"                 # "cells": G_r embedded in the mesh; "contact": the contact rows next to G_r
+    functional: Callable | None = None   # (smesh, spec, selection, path, roi) -> ℓ_r of a linear kind
+    needs: str | None = None             # the scene block the kind needs: "thermal", "contacts"
+    options: tuple[str, ...] = ()        # criterion keys beyond name, kind, regions
 
 
 @dataclass
@@ -29,24 +57,16 @@ class Criterion:
     rois: list[str]
     selections: list[Selection]
     functionals: list[np.ndarray] | None     # linear kinds: one ℓ_r per region of interest
-    measures: np.ndarray                      # meas G_r (contact_pressure: of its contact rows)
-    contact_masks: list[np.ndarray] | None = None   # contact_pressure: contact rows next to G_r
+    measures: np.ndarray                      # meas G_r (contact kinds: of its contact rows)
+    contact_masks: list[np.ndarray] | None = None   # contact kinds: contact rows next to G_r
 
     @property
     def units(self) -> str:
-        return UNITS[self.kind]
+        return KINDS[self.kind].units
 
     def region_values(self, model, state) -> np.ndarray:
-        if self.kind == "mean_temperature":
-            return np.array([l @ state.T for l in self.functionals])
-        if self.kind == "mean_normal_displacement":
-            return np.array([l @ state.u for l in self.functionals])
-        if self.kind in ("shear_stress_intensity", "von_mises"):
-            density = shear_intensity(state.stress) if self.kind == "shear_stress_intensity" else von_mises(state.stress)
-            return np.array([_cell_mean(model, sel, density) for sel in self.selections])
-        if self.kind == "contact_pressure":
-            return np.array([_contact_mean(state, mask) for mask in self.contact_masks])
-        raise ValueError(self.kind)
+        value = KINDS[self.kind].value
+        return np.array([value(self, model, state, r) for r in range(len(self.rois))])
 
     def value(self, model, state) -> float:
         return float(np.max(self.region_values(model, state)))
@@ -56,8 +76,8 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
     rois = scene.get("regions_of_interest") or {}
     out = []
     for k, spec in enumerate(study_criteria):
-        path = f"criteria.{k}"
-        if spec["kind"] == "contact_pressure":             # only the contact rows next to G_r matter
+        path, kind = f"criteria.{k}", KINDS[spec["kind"]]
+        if kind.reads == "contact":             # only the contact rows next to G_r matter
             sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}")
                     if "boundary" in rois[r] else Selection("cells", np.zeros(0, dtype=np.int64))
                     for r in spec["regions"]]
@@ -67,25 +87,17 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
             out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, None, measures, masks))
             continue
         sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
-        functionals, measures = None, np.array([_measure(smesh.mesh, s) for s in sels])
-        if spec["kind"] == "mean_temperature":
-            functionals = [_mean_weights(smesh.mesh, s) for s in sels]
-        elif spec["kind"] == "mean_normal_displacement":
-            functionals = []
-            for r, s in zip(spec["regions"], sels):
-                d = _direction(smesh, spec, s, path, r)
-                nodal = _mean_weights(smesh.mesh, s)
-                ell = np.zeros(2 * nodal.size)
-                ell[0::2], ell[1::2] = nodal * d[0], nodal * d[1]
-                functionals.append(ell)
+        functionals = None if kind.functional is None else \
+            [kind.functional(smesh, spec, s, path, r) for r, s in zip(spec["regions"], sels)]
+        measures = np.array([_measure(smesh.mesh, s) for s in sels])
         out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures))
     return out
 
 
 def embedded_rois(study_criteria: list[dict]) -> list[str]:
     """The regions of interest whose cells a criterion integrates over (every kind but the
-    contact pressure, which takes the contact rows next to G_r): the mesh embeds them."""
-    return sorted({r for c in study_criteria if c["kind"] != "contact_pressure" for r in c["regions"]})
+    contact ones, which take the contact rows next to G_r): the mesh embeds them."""
+    return sorted({r for c in study_criteria if KINDS[c["kind"]].reads == "cells" for r in c["regions"]})
 
 
 def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
@@ -206,3 +218,146 @@ def _contact_mean(state, mask: np.ndarray) -> float:
     """Mean contact pressure over the contact nodes in G_r: transmitted force / length."""
     c = state.contact
     return float(c.force_n[mask].sum() / c.weight[mask].sum())
+
+
+# ---------------------------------------------------------------- the kinds
+
+def _normal_functional(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+    """ℓ_r with ℓ_r · u = mean over G_r of u · n(X_r)."""
+    d = _direction(smesh, spec, sel, path, roi)
+    nodal = _mean_weights(smesh.mesh, sel)
+    ell = np.zeros(2 * nodal.size)
+    ell[0::2], ell[1::2] = nodal * d[0], nodal * d[1]
+    return ell
+
+
+def _stress_partials(model, state, sel: Selection, dpsi: np.ndarray) -> Partials:
+    """Partials of Φ = Σ_c a_c ψ(τ_c) / Σ a_c given ∂ψ/∂τ per cell (4, nc); τ = D(λ, μ) e − β ΔT m."""
+    sm, mesh = model.smesh, model.smesh.mesh
+    cells, a = cell_weights(model, sel)
+    weight = np.zeros(mesh.t.shape[1])
+    weight[cells] = a / a.sum()
+    d = dpsi * weight                                          # ∂Φ/∂τ per cell, (4, nc)
+    c = state.coefficients
+    reg = sm.cell_region
+    lam, mu, beta = c.lam[reg], c.mu[reg], c.beta[reg]
+    strain = (model.G @ state.u).reshape(3, -1)
+    exx, eyy, gxy = strain
+    dz = d[2] if model.plane == "strain" else np.zeros_like(d[2])
+    trace_load = d[0] + d[1] + dz                              # ∂Φ/∂(λ tr − βΔT) along m
+    de = np.array([(lam + 2 * mu) * d[0] + lam * (d[1] + dz),
+                   lam * (d[0] + dz) + (lam + 2 * mu) * d[1],
+                   mu * d[3]])
+    nr = len(model.region_cells)
+    per_region = lambda v: np.bincount(reg, weights=v, minlength=nr)   # noqa: E731
+    dT = (np.zeros(reg.size) if state.T is None
+          else state.T[mesh.t].mean(axis=0) - c.reference)
+    coef = {"lam": per_region(trace_load * (exx + eyy)),
+            "mu": per_region(2 * exx * d[0] + 2 * eyy * d[1] + gxy * d[3]),
+            "beta": per_region(-dT * trace_load),
+            "reference": np.array([np.sum(beta * trace_load)])}
+    theta = None
+    if state.T is not None:
+        nodal = np.zeros(mesh.p.shape[1])
+        for k in range(3):
+            np.add.at(nodal, mesh.t[k], -beta * trace_load / 3.0)
+        theta = model.P.T @ nodal
+    return Partials(u=model.G.T @ de.ravel(), theta=theta, coef=coef)
+
+
+def _dI2(s: np.ndarray) -> np.ndarray:
+    """∂I₂²/∂τ (4, nc), τ_xy counted twice (τ_xy = τ_yx)."""
+    xx, yy, zz, xy = s
+    dI = (2.0 / 3.0) * np.array([2 * xx - yy - zz, 2 * yy - xx - zz, 2 * zz - xx - yy, 3 * xy])
+    dI[3] *= 2.0                                              # ∂I₂²/∂τ_xy = 4 τ_xy
+    return dI
+
+
+def _dvon_mises(s: np.ndarray) -> np.ndarray:
+    """∂σ_vM/∂τ = (3/4) ∂I₂²/∂τ / σ_vM (σ_vM = √(3/2 I₂²)); 0 where σ_vM = 0."""
+    vm = np.sqrt(1.5 * shear_intensity(s))
+    return _dI2(s) * np.where(vm > 0, 0.75 / np.where(vm > 0, vm, 1.0), 0.0)
+
+
+def _principal_max(s: np.ndarray) -> np.ndarray:
+    """σ₁, the largest in-plane principal stress (the field `principal_stress`, first column)."""
+    return principal(s)[:, 0]
+
+
+def _dprincipal_max(s: np.ndarray) -> np.ndarray:
+    """∂σ₁/∂τ with σ₁ = (τxx+τyy)/2 + r, r = √(((τxx−τyy)/2)² + τxy²); at r = 0 (σ₁ = σ₂,
+    a kink) the mean of the one-sided derivatives, (½, ½, 0, 0)."""
+    xx, yy, _, xy = s
+    r = np.sqrt((0.5 * (xx - yy)) ** 2 + xy**2)
+    q = np.where(r > 0, 1.0 / np.where(r > 0, r, 1.0), 0.0)
+    return np.array([0.5 + 0.25 * (xx - yy) * q, 0.5 - 0.25 * (xx - yy) * q, np.zeros_like(r), xy * q])
+
+
+def _principal_kink(s: np.ndarray) -> np.ndarray:
+    """Cells where σ₁ ≈ σ₂ (relative to the cell's stress): σ₁ is not differentiable there."""
+    xx, yy, _, xy = s
+    return np.sqrt((0.5 * (xx - yy)) ** 2 + xy**2) <= REL_TOL * np.abs(s).max(axis=0)
+
+
+def _area_kind(label: str, units: str, density: Callable, ddensity: Callable,
+               kink: Callable | None = None) -> Kind:
+    """A mean over G_r of a cell density ψ(τ) (as Φ5): value and partials from ψ and ∂ψ/∂τ;
+    `kink(τ)`: the cells where ψ is not differentiable."""
+    def partials(crit, model, state, r):
+        sel = crit.selections[r]
+        nonsmooth = kink is not None and bool(kink(state.stress)[cell_weights(model, sel)[0]].any())
+        return _stress_partials(model, state, sel, ddensity(state.stress)), nonsmooth
+    return Kind(label, units, partials=partials,
+                value=lambda crit, model, state, r: _cell_mean(model, crit.selections[r], density(state.stress)))
+
+
+def _contact_pressure_partials(crit, model, state, r):
+    mask = crit.contact_masks[r]
+    return Partials(lam_n=np.where(mask, 1.0 / state.contact.weight[mask].sum(), 0.0)), False
+
+
+def _slip_mean(crit, model, state, r) -> float:
+    """Mean |relative tangential displacement| over the contact nodes next to G_r: Σ w|s| / Σ w."""
+    mask, c = crit.contact_masks[r], state.contact
+    return float(c.weight[mask] @ np.abs(c.slip[mask]) / c.weight[mask].sum())
+
+
+def _slip_partials(crit, model, state, r):
+    """∂Φ/∂u = Btᵀ (w sign(s)) / Σ w over the rows next to G_r (s = Bt u). |s| has a kink at
+    s = 0, which matters only where s can cross 0: a stuck node keeps s fixed on its active
+    set (and a stick/slip switch is flagged with the active set), and a node whose reduced
+    tangential row vanishes (held by supports on both sides) has s fixed by them; any other
+    node in G_r with s ≈ 0 makes the point non-smooth."""
+    mask, c = crit.contact_masks[r], state.contact
+    w = np.where(mask, c.weight, 0.0)
+    dslip = w * np.sign(c.slip) / w.sum()
+    m = c.slip.size
+    stuck = state.raw.free[m:] if state.raw is not None else np.zeros(m, dtype=bool)
+    scale = max(np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
+    moves = np.asarray(abs(model.Bt_r).sum(axis=1)).ravel() > 0
+    kink = mask & ~stuck & moves & (np.abs(c.slip) <= REL_TOL * scale)
+    return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
+
+
+KINDS: dict[str, Kind] = {
+    "mean_temperature": Kind(
+        "mean temperature (Φ1/Φ2)", "K",
+        value=lambda crit, model, state, r: crit.functionals[r] @ state.T,
+        partials=lambda crit, model, state, r: (Partials(theta=model.P.T @ crit.functionals[r]), False),
+        functional=lambda smesh, spec, sel, path, roi: _mean_weights(smesh.mesh, sel), needs="thermal"),
+    "mean_normal_displacement": Kind(
+        "mean normal displacement (Φ3/Φ4)", "m",
+        value=lambda crit, model, state, r: crit.functionals[r] @ state.u,
+        partials=lambda crit, model, state, r: (Partials(u=crit.functionals[r].copy()), False),
+        functional=_normal_functional, options=("point", "direction")),
+    "shear_stress_intensity": _area_kind("shear stress intensity I₂² (Φ5)", "Pa^2", shear_intensity, _dI2),
+    "contact_pressure": Kind(
+        "contact pressure (Φ6)", "Pa",
+        value=lambda crit, model, state, r: _contact_mean(state, crit.contact_masks[r]),
+        partials=_contact_pressure_partials, reads="contact", needs="contacts"),
+    "von_mises": _area_kind("von Mises stress", "Pa", von_mises, _dvon_mises),
+    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
+                                   _dprincipal_max, _principal_kink),
+    "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m",
+                         value=_slip_mean, partials=_slip_partials, reads="contact", needs="contacts"),
+}

@@ -27,16 +27,14 @@ differences of the cheap map x → scene → coefficients (no solves).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
+from .criteria import KINDS, REL_TOL, Partials
 from .model import Coefficients
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
           "support_values", "temperature_values", "reference", "slip", "coulomb")
-REL_TOL = 1e-7       # "within reach" for the non-smoothness flags, relative
 
 
 def flatten(c: Coefficients) -> tuple[np.ndarray, dict[str, slice]]:
@@ -73,75 +71,15 @@ def coefficient_jacobian(study, model, x: np.ndarray) -> np.ndarray:
     return np.column_stack(cols)
 
 
-@dataclass
-class Partials:
-    """Explicit partial derivatives of one criterion at a solution."""
-    u: np.ndarray | None = None          # ∂Φ/∂u (full dofs)
-    theta: np.ndarray | None = None      # ∂Φ/∂θ (heat nodes)
-    lam_n: np.ndarray | None = None      # ∂Φ/∂λ_n (contact nodes)
-    coef: dict | None = None             # field -> ∂Φ/∂c (explicit dependence, e.g. of stresses)
-
-
 def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
-    """Partials of Φ = max_r Φ_r at the maximising region; flags a near-tie between regions."""
+    """Partials of Φ = max_r Φ_r at the maximising region; flags a near-tie between regions
+    and a kink of Φ_r itself (the kind says)."""
     values = criterion.region_values(model, state)
     r = int(np.argmax(values))
     others = np.delete(values, r)
     tie = others.size > 0 and np.max(others) >= values[r] - REL_TOL * max(abs(values[r]), 1e-300)
-    kind = criterion.kind
-    if kind == "mean_temperature":
-        return Partials(theta=model.P.T @ criterion.functionals[r]), tie
-    if kind == "mean_normal_displacement":
-        return Partials(u=criterion.functionals[r].copy()), tie
-    if kind == "contact_pressure":
-        mask = criterion.contact_masks[r]
-        dn = np.where(mask, 1.0 / state.contact.weight[mask].sum(), 0.0)
-        return Partials(lam_n=dn), tie
-    return _stress_partials(criterion, model, state, r), tie
-
-
-def _stress_partials(criterion, model, state, r: int) -> Partials:
-    """Φ = Σ_c a_c ψ(τ_c) / Σ a_c with ψ = I₂² (or von Mises); τ = D(λ, μ) e − β ΔT m."""
-    from .criteria import cell_weights
-    from .fem.stress import shear_intensity
-    sm, mesh = model.smesh, model.smesh.mesh
-    sel = criterion.selections[r]
-    cells, a = cell_weights(model, sel)
-    weight = np.zeros(mesh.t.shape[1])
-    weight[cells] = a / a.sum()
-    s = state.stress
-    xx, yy, zz, xy = s
-    dI = (2.0 / 3.0) * np.array([2 * xx - yy - zz, 2 * yy - xx - zz, 2 * zz - xx - yy, 3 * xy])
-    dI[3] *= 2.0                                              # ∂I₂²/∂τ_xy = 4 τ_xy
-    if criterion.kind == "von_mises":
-        vm = np.sqrt(1.5 * shear_intensity(s))
-        dI = dI * np.where(vm > 0, 0.75 / np.where(vm > 0, vm, 1.0), 0.0)
-    d = dI * weight                                            # ∂Φ/∂τ per cell, (4, nc)
-    c = state.coefficients
-    reg = sm.cell_region
-    lam, mu, beta = c.lam[reg], c.mu[reg], c.beta[reg]
-    strain = (model.G @ state.u).reshape(3, -1)
-    exx, eyy, gxy = strain
-    dz = d[2] if model.plane == "strain" else np.zeros_like(d[2])
-    trace_load = d[0] + d[1] + dz                              # ∂Φ/∂(λ tr − βΔT) along m
-    de = np.array([(lam + 2 * mu) * d[0] + lam * (d[1] + dz),
-                   lam * (d[0] + dz) + (lam + 2 * mu) * d[1],
-                   mu * d[3]])
-    nr = len(model.region_cells)
-    per_region = lambda v: np.bincount(reg, weights=v, minlength=nr)   # noqa: E731
-    dT = (np.zeros(reg.size) if state.T is None
-          else state.T[mesh.t].mean(axis=0) - c.reference)
-    coef = {"lam": per_region(trace_load * (exx + eyy)),
-            "mu": per_region(2 * exx * d[0] + 2 * eyy * d[1] + gxy * d[3]),
-            "beta": per_region(-dT * trace_load),
-            "reference": np.array([np.sum(beta * trace_load)])}
-    theta = None
-    if state.T is not None:
-        nodal = np.zeros(mesh.p.shape[1])
-        for k in range(3):
-            np.add.at(nodal, mesh.t[k], -beta * trace_load / 3.0)
-        theta = model.P.T @ nodal
-    return Partials(u=model.G.T @ de.ravel(), theta=theta, coef=coef)
+    P, kink = KINDS[criterion.kind].partials(criterion, model, state, r)
+    return P, bool(tie or kink)
 
 
 def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None):

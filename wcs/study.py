@@ -48,6 +48,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from .criteria import KINDS
 from .errors import StudyError
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
@@ -533,8 +534,7 @@ class Scene(_Strict):
         return dimension
 
 
-CriterionKind = Literal["mean_temperature", "mean_normal_displacement",
-                        "shear_stress_intensity", "contact_pressure", "von_mises"]
+CriterionKind = Literal[tuple(KINDS)]
 
 
 class Criterion(_Strict):
@@ -545,11 +545,11 @@ class Criterion(_Strict):
     direction: Optional[Direction] = None
 
     @model_validator(mode="after")
-    def _point_only_for_displacement(self):
-        if self.kind != "mean_normal_displacement":
-            for key in ("point", "direction"):
-                if getattr(self, key) is not None:
-                    raise ValueError(f"'{key}' applies only to kind mean_normal_displacement")
+    def _options_of_the_kind(self):
+        for key in ("point", "direction"):
+            if getattr(self, key) is not None and key not in KINDS[self.kind].options:
+                raise ValueError(f"'{key}' applies only to kind "
+                                 + ", ".join(k for k, v in KINDS.items() if key in v.options))
         return self
 
 
@@ -1021,10 +1021,11 @@ def _check_criteria(criteria: list[dict], scene: dict, src: _Source) -> None:
         for j, roi in enumerate(criterion["regions"]):
             _require(roi, scene["regions_of_interest"], "region of interest", src,
                      ("criteria", i, "regions", j))
-        if criterion["kind"] == "mean_temperature" and "thermal" not in scene:
-            raise src.error(("criteria", i, "kind"), "mean_temperature needs a thermal block in the scene")
-        if criterion["kind"] == "contact_pressure" and not scene["contacts"]:
-            raise src.error(("criteria", i, "kind"), "contact_pressure needs a contact in the scene")
+        needs = KINDS[criterion["kind"]].needs
+        if needs == "thermal" and "thermal" not in scene:
+            raise src.error(("criteria", i, "kind"), f"{criterion['kind']} needs a thermal block in the scene")
+        if needs == "contacts" and not scene["contacts"]:
+            raise src.error(("criteria", i, "kind"), f"{criterion['kind']} needs a contact in the scene")
 
 
 def _check_limits(limits: dict, criteria: list[dict], src: _Source) -> None:

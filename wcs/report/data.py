@@ -14,16 +14,12 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..criteria import KINDS
 from ..errors import StudyError
 from ..status import Status
 
-KIND_UNITS = {"mean_temperature": "K", "mean_normal_displacement": "m",
-              "shear_stress_intensity": "Pa^2", "von_mises": "Pa", "contact_pressure": "Pa"}
-KIND_LABEL = {"mean_temperature": "mean temperature (Φ1/Φ2)",
-              "mean_normal_displacement": "mean normal displacement (Φ3/Φ4)",
-              "shear_stress_intensity": "shear stress intensity I₂² (Φ5)",
-              "contact_pressure": "contact pressure (Φ6)",
-              "von_mises": "von Mises stress"}
+KIND_UNITS = {k: v.units for k, v in KINDS.items()}
+KIND_LABEL = {k: v.label for k, v in KINDS.items()}
 FIELD_NAMES = ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity",
                "temperature", "contact_coords", "contact_pair", "contact_pressure", "contact_gap",
                "contact_slip", "contact_shear")
