@@ -341,3 +341,17 @@ def test_study_warnings_and_fallbacks_reach_the_file_and_the_report(tmp_path):
     assert "2 of 3 evaluations were solved by a fallback" in summary and f"<li>2 × {fallback}</li>" in summary
     plain = wcs.run(wcs.load_study(plate(tmp_path, budget=3)), False)
     assert plain.attrs["warnings"] == "" and 'id="study-warnings"' not in Report(from_dataset(plain)).summary()
+
+
+def test_run_prints_the_study_warnings(tmp_path, capsys):
+    """A study whose Poisson ratio reaches 0.48 (P1 locking): `wcs run` says so on stderr
+    before solving, as `check` does, besides the file and the report."""
+    doc = yaml.safe_load((ROOT / "studies" / "two-blocks-demo.yaml").read_text())
+    doc["search"] = {"method": "sample", "budget": 1, "sample": {"n": 1}}
+    doc["scene"]["mesh"] = {"size": 0.2}
+    doc["solver"] = {"method": "monolithic"}
+    path = tmp_path / "demo.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    assert main(["run", str(path), "-o", str(tmp_path / "d.nc"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {path}: " in err and "Poisson ratio up to 0.48" in err

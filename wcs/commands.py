@@ -61,6 +61,9 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
 
 def _command(args, kind: str) -> int:
     study = load_study(args.study)
+    if rank(world()) == 0:
+        for w in study.warnings:          # also in the results file and the report
+            print(f"warning: {study.file}: {w}", file=sys.stderr)
     if args.output:
         out, where = Path(args.output), (None, "-o")
     else:
