@@ -572,7 +572,8 @@ class _Options(_Strict):
 class SampleDesign(_Options):
     design: Literal["lhs", "sobol", "vertices", "grid"] = Field(
         "lhs", description="space-filling design of the sample")
-    n: int = Field(32, ge=1, le=MAX_SOLVES, description="points of the sample (local: of its starting sample)")
+    n: int = Field(32, ge=1, le=MAX_SOLVES, description="points of the sample (local: of its "
+                   "starting sample; auto: the most of its first sample)")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of every random draw of the search")
 
 
@@ -613,6 +614,14 @@ class DomainDecomposition(_Options):
     anderson_restart: float = Field(0.0, ge=0, le=1e6, description="clear Anderson's history when the "
                                     "residual grows by this factor; 0: never")
     mixing: float = Field(1.0, gt=0, le=2, description="Anderson's mixing β: the damped map U + β(T(U) − U)")
+
+    @field_validator("relaxation", mode="wrap")
+    @classmethod
+    def _one_message(cls, value, handler):
+        try:
+            return handler(value)
+        except ValidationError:
+            raise ValueError("must be 'aitken', 'anderson' or a fixed ω in (0, 2]") from None
 
 
 class Solver(_Options):
