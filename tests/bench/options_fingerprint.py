@@ -6,8 +6,8 @@ change of the option handling and diff the outputs.
 """
 import hashlib
 import sys
-
 from pathlib import Path
+
 import numpy as np
 import yaml
 
@@ -15,10 +15,12 @@ import wcs
 
 root = Path(sys.argv[1])
 
+
 def show(tag, ev):
     phi = {k: float(v).hex() for k, v in ev.phi.items()}
     u = hashlib.sha256(np.ascontiguousarray(ev.state.u).tobytes()).hexdigest()[:16] if ev.state is not None else None
     print(tag, ev.status.name, ev.iterations, phi, u, ev.message)
+
 
 for name in ["two-blocks-demo", "validation/tresca-pad", "heated-plate", "validation/cooled-layer"]:
     path = root / "studies" / f"{name}.yaml"
