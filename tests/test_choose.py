@@ -30,7 +30,7 @@ def test_auto_solver_is_resolved_and_reported():
     ev = study.evaluate(study.nominal())
     assert ev.status == 0
     model = ev.evaluator.model
-    assert study.solver["method"] == "auto" and model.solver_method == "monolithic" and model.solver_reason
+    assert study.solver.method == "auto" and model.solver_method == "monolithic" and model.solver_reason
 
 
 def test_default_mesh_size_follows_the_rule():

@@ -34,7 +34,7 @@ REAL_GET_STRATEGY = runner.get_strategy
 def tiny(problem, config, rng):
     """The centre (with gradients), then `sample.n` uniform samples in batches of 3."""
     lo, hi = problem.lower, problem.upper
-    n = int(config.get("sample", {}).get("n", 6))
+    n = config.sample.n
     seen = []
     outs = yield Batch((0.5 * (lo + hi))[None, :], "centre", True)
     seen += outs

@@ -9,7 +9,8 @@ import yaml
 
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
-from wcs.study import LIBRARIES, get_path, load_study, scene_with, set_path
+from wcs.study import (LIBRARIES, DomainDecomposition, SampleDesign, Search, get_path, load_study, scene_with,
+                       set_path)
 
 SLIP = "contacts.interface.friction.slip_limit"
 
@@ -41,10 +42,10 @@ def test_demo_loads(demo):
     assert demo.scene["bodies"]["pad"]["regions"][0]["shape"] == {"rectangle": [0.5, 1.0, 1.5, 1.5]}
     assert demo.sha256 == hashlib.sha256(demo.text.encode()).hexdigest()
     assert demo.text == DEMO.read_text()
-    assert demo.search == {"method": "auto", "sample": {"design": "lhs", "n": 32, "seed": 7},
-                           "budget": 200, "local": {"starts": 3}}
-    assert demo.solver["dd"] == {"subdomains": 8, "pair_size": 0.5, "relaxation": "aitken", "patience": 8, "step": "seed"}
-    assert demo.solver["fallback"] is True
+    assert demo.search == Search(sample=SampleDesign(seed=7))      # the rest: the defaults
+    assert demo.search.method == "auto" and demo.search.budget == 200 and demo.search.local.starts == 3
+    assert demo.solver.dd == DomainDecomposition(subdomains=8)
+    assert demo.solver.dd.pair_size == 0.5 and demo.solver.dd.relaxation == "aitken" and demo.solver.fallback is True
     assert demo.limits == {"shear": 4.0e12}
     assert demo.sweep is None
     assert demo.criteria[0]["point"] == [1.0, 1.0] and "point" not in demo.criteria[1]
@@ -302,8 +303,8 @@ def test_defaults_when_optional_blocks_are_absent(tmp_path):
     study = load_study(write_study(doc, tmp_path, "plain.yaml"))
     assert study.name == "plain" and study.output == "results/plain.nc"
     assert study.scene["plane"] == "strain"
-    assert study.search["sample"] == {"design": "lhs", "n": 32, "seed": 0}
-    assert study.solver["tolerance"] == 1e-8 and study.solver["max_iterations"] == 200
+    assert study.search.sample == SampleDesign(design="lhs", n=32, seed=0)
+    assert study.solver.tolerance == 1e-8 and study.solver.max_iterations == 200
     assert len(study.parameters) == 0 and study.nominal().shape == (0,)
 
 

@@ -39,7 +39,7 @@ def fresh(ev, **options):
     """An evaluator that has solved nothing: a new model on the same mesh (the criteria hold
     geometry only)."""
     new = copy.copy(ev)
-    new.model = Model(ev.study.scene, ev.smesh, {**ev.study.solver, **options})
+    new.model = Model(ev.study.scene, ev.smesh, ev.study.solver.model_copy(update=options))
     return new
 
 

@@ -84,9 +84,9 @@ def summary(study, ev) -> str:
         lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
     s = study.search
-    method = study.solver.get("method")
+    method = study.solver.method
     solver = method if method != "auto" else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})"
-    lines.append(f"  search: {s.get('method')}, budget {s.get('budget')} solves; solver: {solver}"
+    lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
                  + ("" if scene.get("contacts") else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")
     return "\n".join(lines)

@@ -27,6 +27,7 @@ from .materials import plane_lame, thermal_beta
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import Status
+from .study import Solver
 
 
 @dataclass
@@ -77,9 +78,9 @@ def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
 
 
 class Model:
-    def __init__(self, scene: dict, smesh: SceneMesh, options: dict | None = None):
+    def __init__(self, scene: dict, smesh: SceneMesh, options=None):
         linalg.configure_threads()
-        self.options = options or {}
+        self.options = Solver.of(options)             # the study's `solver` options (a mapping is validated)
         self.scene = scene
         self.smesh = smesh
         self.plane = scene.get("plane", "strain")
@@ -137,7 +138,7 @@ class Model:
 
     def _choose_solver(self, scene: dict) -> tuple[str, str]:
         """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
-        method = self.options.get("method", "auto")
+        method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
         from .choose import SolverFacts, solver_method
@@ -355,7 +356,7 @@ class Model:
                 from .contact.solver import ContactResult
                 warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
                 used = "dd, polished by monolithic for the adjoint"
-            elif self.options.get("fallback", True):
+            elif self.options.fallback:
                 used = f"monolithic after dd {dd.message}"
             else:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
@@ -390,8 +391,7 @@ class Model:
         z = self.zone
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
-        tol = float(self.options.get("tolerance", 1e-8))
-        max_iter = int(self.options.get("max_iterations", 200))
+        tol, max_iter = self.options.tolerance, self.options.max_iterations
         Fc = F if F.any() else None
         if self.solver_method == "qp":
             from .contact.qp import solve_contact_qp
@@ -401,7 +401,7 @@ class Model:
                                 R=self.R_r, tol=tol, max_iter=max_iter,
                                 warm=warm if warm is not None or nominal or not self._anchored else self._anchor,
                                 factor=self._contact_factor, tol_fp=tol,
-                                max_fp_iter=int(self.options.get("max_fixed_point_iterations", 100)))
+                                max_fp_iter=self.options.max_fixed_point_iterations)
             if self._contact_factor is None:
                 self._contact_factor = res.factor    # one factor object, refactored in place from now on
         anchor = nominal and self._anchored and warm is None

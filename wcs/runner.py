@@ -246,12 +246,11 @@ class Runner:
             self.release()
 
     def _search(self, strategy) -> xr.Dataset:
-        search = dict(self.study.search)
-        budget = int(search.get("budget", 200))
-        seed = int(search.get("sample", {}).get("seed", 0))
-        factory = strategy or get_strategy(search.get("method", "auto"))
+        search = self.study.search
+        budget = search.budget
+        factory = strategy or get_strategy(search.method)
         problem = build_problem(self.study, self.evaluator)
-        gen = factory(problem, search, np.random.default_rng(seed))
+        gen = factory(problem, search, np.random.default_rng(search.sample.seed))
         if self.progress is not None:
             self.progress.start(budget, self.criteria)
         result = None

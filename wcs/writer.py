@@ -104,8 +104,8 @@ class Writer:
             notes, complete = {}, "no"
         attrs = {"created": self.created, "kind": self.kind, "complete": complete,
                  "study_file": str(self.study.file),
-                 "search_method": str(search.get("method", "auto")),
-                 "budget": int(search.get("budget", 200)),
+                 "search_method": search.method,
+                 "budget": search.budget,
                  "evaluations": len(records),
                  "failed_evaluations": int(sum(r["status"] != 0 for r in records)),
                  "solves_this_session": int(stats["solved"]),

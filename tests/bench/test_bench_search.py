@@ -33,6 +33,7 @@ import yaml
 import wcs
 from wcs.evaluation import Evaluator
 from wcs.runner import Runner
+from wcs.study import Search
 
 from common import STUDIES, save_figure, write_table
 
@@ -80,7 +81,7 @@ class NaNGradients:
 
 def run_with(study, evaluator, search: dict) -> dict:
     """One search run in memory on a shared evaluator -> phi (evals x criteria), status, wall times."""
-    st = dataclasses.replace(study, search=search)
+    st = dataclasses.replace(study, search=Search.of(search))
     runner = Runner(st, False, evaluator=NaNGradients(evaluator))
     t = time.perf_counter()
     ds = runner.run()
@@ -143,7 +144,7 @@ def test_search_error_against_solves(tmp_path):
         else:
             extra["auto-long"] = run_with(study, ev, {"method": "auto", "budget": LONG_BUDGET, "kkt_tol": 1e-9,
                                                       "sample": {"design": "lhs", "n": 64, "seed": 7}})
-            extra["local-long"] = run_with(study, ev, {"method": "local", "budget": LONG_BUDGET, "starts": 6,
+            extra["local-long"] = run_with(study, ev, {"method": "local", "budget": LONG_BUDGET, "local": {"starts": 6},
                                                        "sample": {"design": "lhs", "n": 96, "seed": 11}})
         crits = runs["auto"]["criteria"]
         all_runs = list(runs.values()) + [r for rs in lhs.values() for r in rs] + list(extra.values())
@@ -222,8 +223,8 @@ def test_study_time_breakdown(tmp_path):
     by the measured cost of the adjoint, I/O from the runner's write_time."""
     import matplotlib.pyplot as plt
     study = wcs.load_study(STUDIES / BREAKDOWN_STUDY)
-    study = dataclasses.replace(study, search={**study.search,
-                                               "budget": min(BREAKDOWN_BUDGET, int(study.search.get("budget", 200)))})
+    study = dataclasses.replace(study, search=study.search.model_copy(
+        update={"budget": min(BREAKDOWN_BUDGET, study.search.budget)}))
     out = tmp_path / "breakdown.nc"
     t0 = time.perf_counter()
     runner = Runner(study, out, evaluator=NaNGradients(Evaluator(study)))

@@ -123,7 +123,7 @@ def facet_components(cells: np.ndarray, f2t: np.ndarray) -> list[np.ndarray]:
 
 
 def partition(mesh, cell_body: np.ndarray, sides: list[tuple[int, int, np.ndarray]], floating: set[int],
-              subdomains: int, pair_size: float = 1.0) -> Partition:
+              subdomains: int, pair_size: float) -> Partition:
     """Partition the cells; see the module docstring.
 
     mesh:      skfem.MeshTri (p, t, f2t)

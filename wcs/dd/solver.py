@@ -23,19 +23,12 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
 
 Entry points: `solve_dd` (elasticity with contact, on the model's reduced
 system) and `solve_heat_dd` (the thermal step: the same decomposition, all
-subdomains linear). Options (the study's `solver` mapping; `dd` sub-mapping):
-`tolerance`, `max_iterations` (budget of successive approximations), and in
-`dd`: `subdomains` (8), `pair_size` (1.0), `relaxation` (1.0 or "aitken"),
-`pcg_tolerance` (tolerance of PCG1, default max(tolerance, 1e-8): U⁰ only starts
-the successive approximations), `pcg_max_iterations`
-(500), `patience` (8: divergence when ‖ΔU‖ did not decrease over that many
-steps), `inner_tolerance` (PCG2 floor, default tolerance/10) and `forcing`
-(0.1: PCG2 stops at forcing × the last relative increment — inexact inner
-solves), `contact_tolerance` (local contact solves, default 1e-10);
-`relaxation: anderson` with `anderson` (history, 5), `mixing` (β, 1.0) and
-`anderson_restart` (0: never; else clear the history when the residual grows by
-that factor) — measured worse than Aitken on the off-centre pad, converges on the
-tunnel with β = 0.1 where Aitken stagnates (results/bench/dd_iterations_nonlinear.csv).
+subdomains linear). Options: the study's `solver` block (`wcs.study.Solver`, its
+`dd` block `wcs.study.DomainDecomposition`: each option with its default there);
+`tolerance` and `max_iterations` (the budget of successive approximations) apply.
+`relaxation: anderson` (with `anderson`, `mixing`, `anderson_restart`) measured worse
+than Aitken on the off-centre pad, converges on the tunnel with β = 0.1 where Aitken
+stagnates (results/bench/dd_iterations_nonlinear.csv).
 
 MPI: `solve_dd(..., comm=)` / `solve_heat_dd(..., comm=)` distribute the units over
 the communicator's ranks (team.py: deterministic gathers summed in unit order, so
@@ -54,6 +47,7 @@ import scipy.sparse as sp
 
 from wcs.fem.affine import CellAffineOperator
 from wcs.status import Status
+from wcs.study import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
@@ -152,13 +146,15 @@ def contact_sides(model) -> list[tuple[int, int, np.ndarray]]:
     return sides
 
 
-def build_decomposition(model, dd: dict) -> Decomposition:
-    """Partition the model's mesh and build the units of the elastic problem."""
+def build_decomposition(model, dd) -> Decomposition:
+    """Partition the model's mesh and build the units of the elastic problem (`dd`: the
+    `DomainDecomposition` options, or a mapping of them)."""
+    dd = DomainDecomposition.of(dd)
     t0 = time.perf_counter()
     smesh, mesh = model.smesh, model.smesh.mesh
     floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
     part = partition(mesh, smesh.cell_body, contact_sides(model), floating,
-                     int(dd.get("subdomains", 8)), float(dd.get("pair_size", 1.0)))
+                     dd.subdomains, dd.pair_size)
     T = model.elim.T
     _, node_dofs = dofs_of_nodes(T, 2)
     Bn, Bt = model.Bn_r, model.Bt_r
@@ -257,38 +253,31 @@ class InterfaceOperator:
 _CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def _dd_options(options: dict) -> dict:
-    dd = dict((options or {}).get("dd") or {})
-    tol = float((options or {}).get("tolerance", 1e-8))
+def _dd_options(options) -> dict:
+    """The DD's working values of the `solver` options (a `Solver`, or a mapping of them):
+    the typed values, with the two tolerances the schema derives from `tolerance`."""
+    solver = Solver.of(options)
+    dd, tol = solver.dd, solver.tolerance
     return {
-        "subdomains": int(dd.get("subdomains", 8)),
-        "pair_size": float(dd.get("pair_size", 0.5)),
-        "relaxation": dd.get("relaxation", "aitken"),
+        **dd.model_dump(exclude={"pcg_tolerance", "inner_tolerance", "step"}),
         "tolerance": tol,
-        "max_iterations": int((options or {}).get("max_iterations", 200)),
-        "pcg_tolerance": float(dd.get("pcg_tolerance", max(tol, 1e-8))),
-        "pcg_max_iterations": int(dd.get("pcg_max_iterations", 500)),
-        "inner_tolerance": float(dd.get("inner_tolerance", tol / 10)),
-        "contact_tolerance": float(dd.get("contact_tolerance", 1e-10)),
-        "patience": int(dd.get("patience", 8)),
-        "forcing": float(dd.get("forcing", 0.1)),
-        "anderson": int(dd.get("anderson", 5)),
-        "anderson_restart": float(dd.get("anderson_restart", 0.0)),
-        "mixing": float(dd.get("mixing", 1.0)),
+        "max_iterations": solver.max_iterations,
+        "pcg_tolerance": max(tol, 1e-8) if dd.pcg_tolerance is None else dd.pcg_tolerance,
+        "inner_tolerance": tol / 10 if dd.inner_tolerance is None else dd.inner_tolerance,
         # the operator of the successive steps: the seed's S0 (linear subdomains only) or
         # S = S0 + L with the pairs' glued response L, iterating only the nonlinear correction
         # S U^k = F − S_con(U^{k−1}) + L U^{k−1} (same fixed point; no contraction proof)
-        "linear_part": "glued" if dd.get("step", "seed") == "glued" else "S0",
+        "linear_part": "glued" if dd.step == "glued" else "S0",
     }
 
 
-def decomposition(model, options: dict) -> Decomposition:
-    """The model's decomposition for these options (built once, cached on the model)."""
-    o = _dd_options(options)
-    key = (o["subdomains"], o["pair_size"])
+def decomposition(model, options) -> Decomposition:
+    """The model's decomposition for these `solver` options (built once, cached on the model)."""
+    dd = Solver.of(options).dd
+    key = (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
-        per_model[key] = build_decomposition(model, o)
+        per_model[key] = build_decomposition(model, dd)
     return per_model[key]
 
 
@@ -309,14 +298,15 @@ def _distribute_load(dec, rho, rhs: np.ndarray, team) -> list:
     return D
 
 
-def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options: dict | None = None,
+def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
              *, coefficients=None, comm=None) -> DDResult:
     """Solve the model's reduced contact problem (Kr, rhs, u = T w + u0) by the DD method.
 
     Same inputs as `Model._solve_contact`: Kr = Tᵀ K T, rhs = Tᵀ (f − K u0), u0 the lifted
     support values. The local matrices are assembled per unit from the scene's
     coefficients (`coefficients`: a `Coefficients` already computed, else from `scene`);
-    Kr itself is only used to size and check. Returns a `DDResult`
+    Kr itself is only used to size and check. `options`: the study's `Solver` (a mapping is
+    validated by it; None: the defaults). Returns a `DDResult`
     (u_full, lam_n, lam_t, info, status, message); lam_n, lam_t in the zone's row order
     (ContactState(zone, lam_n, lam_t, gap − Bn u, Bt u, info["active"])).
 
@@ -592,10 +582,10 @@ def _mean_q(qs) -> float:
 
 
 # ---- the thermal step -------------------------------------------------------------------------
-def build_heat_decomposition(model, dd: dict) -> Decomposition:
+def build_heat_decomposition(model, options) -> Decomposition:
     """Units of the heat equation: every subdomain of the elastic partition, all linear
     (contacts conduct perfectly: both sides share the heat nodes, which become interface DOFs)."""
-    mech = decomposition(model, dd)
+    mech = decomposition(model, options)
     smesh, mesh = model.smesh, model.smesh.mesh
     heat_of_node = model.P.indices                       # P: one entry per row
     th = heat_of_node[mesh.t]
@@ -613,7 +603,7 @@ def build_heat_decomposition(model, dd: dict) -> Decomposition:
     return Decomposition(mech.part, units, nif, T.shape[1])
 
 
-def solve_heat_dd(model, c, options: dict | None = None, *, comm=None):
+def solve_heat_dd(model, c, options=None, *, comm=None):
     """The thermal step by the same decomposition (the linear case: PCG1 only).
 
     c: the model's `Coefficients`. Returns (T nodal (nnodes,), info, status, message),

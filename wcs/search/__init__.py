@@ -3,7 +3,7 @@
 The contract between a search strategy and the runner that evaluates for it
 is a generator (ask/tell):
 
-    def strategy(problem: Problem, config: dict, rng: np.random.Generator)
+    def strategy(problem: Problem, config: Search, rng: np.random.Generator)
             -> Generator[Batch, list[Outcome], Worst]
 
 The strategy yields a `Batch` of data sets (physical units, inside the box);
@@ -11,7 +11,8 @@ the runner evaluates them (in parallel where it can, from its store when it
 has seen the exact same bits before, which is how `--resume` replays a run)
 and sends back one `Outcome` per point, in order. Every outcome carries every
 criterion (criteria share evaluations). The strategy must stop before the
-budget (`config["budget"]`, forward solves) is spent; the runner enforces it
+budget (`config.budget`, forward solves; `config`: the study's `wcs.study.Search`, or
+a mapping it validates) is spent; the runner enforces it
 as a hard cap and sends back only the outcomes it could afford (a shorter
 list) when a batch would overrun, and the strategy then returns. When done, it
 returns `Worst`: per criterion the best point found and its certificate.

@@ -25,8 +25,6 @@ import numpy as np
 from . import Batch, Worst
 from .scaling import Space
 
-KKT_TOL = 1e-6
-
 
 @dataclass
 class Record:
@@ -40,22 +38,6 @@ class Record:
     asked_gradients: bool
     grad: dict[str, np.ndarray | None] = field(default_factory=dict)   # dΦ/dz
     fd: set[str] = field(default_factory=set)                          # criteria whose grad is a finite difference
-
-
-def settings(config: dict) -> dict:
-    """The `search:` block with defaults (accepts `starts` at top level or under `local:`)."""
-    config = config or {}
-    sample = dict(config.get("sample") or {})
-    local = dict(config.get("local") or {})
-    return {
-        "method": config.get("method", "auto"),
-        "budget": int(config.get("budget", 200)),
-        "design": sample.get("design", "lhs"),
-        "n": int(sample.get("n", 32)),
-        "starts": int(config.get("starts", local.get("starts", 3))),
-        "kkt_tol": float(config.get("kkt_tol", KKT_TOL)),
-        "safeguard": config.get("safeguard"),
-    }
 
 
 class Archive:
@@ -156,7 +138,7 @@ class Archive:
             return False
         return all(r.grad.get(c) is None or not np.any(r.grad[c]) for r in self.records if r.ok[c])
 
-    def certify(self, c, rec: Record | None = None, tol: float = KKT_TOL) -> tuple[str, str]:
+    def certify(self, c, rec: Record | None = None, *, tol: float) -> tuple[str, str]:
         rec = self.best_record(c) if rec is None else rec
         if rec is None:
             return "heuristic", "no successful evaluation"
@@ -175,10 +157,10 @@ class Archive:
             return kind, f"KKT gap {rel:.1e} of scale{how}"
         return "heuristic", f"KKT gap {rel:.1e} of scale > {tol:.0e}{how}"
 
-    def certified(self, c, tol: float = KKT_TOL) -> bool:
+    def certified(self, c, tol: float) -> bool:
         return self.certify(c, tol=tol)[0] != "heuristic"
 
-    def worst(self, tol: float = KKT_TOL) -> Worst:
+    def worst(self, tol: float) -> Worst:
         xs, vals, certs, notes = {}, {}, {}, {}
         centre = self.space.to_x(self.space.centre())
         for c in self.criteria:

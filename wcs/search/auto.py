@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .archive import Archive, settings
+from ..study import Search
+from .archive import Archive
 from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
 
@@ -44,15 +45,15 @@ ASCENT_STEPS = 40         # steps of one ascent at most
 
 
 def auto(problem, config, rng):
-    cfg = settings(config)
-    tol = cfg["kkt_tol"]
-    archive = Archive(problem, cfg["budget"])
+    cfg = Search.of(config)
+    tol = cfg.kkt_tol
+    archive = Archive(problem, cfg.budget)
     space = archive.space
     n = space.n
 
     # 1. centre + safeguard sample
-    s = cfg["safeguard"]
-    s = min(2 * n + 1, cfg["n"]) if s is None else int(s)
+    s = cfg.safeguard
+    s = min(2 * n + 1, cfg.sample.n) if s is None else int(s)
     s = max(0, min(s, (archive.remaining - 1) // 2))
     centre = space.centre()
     yield from archive.ask([centre, *lhs(space, s, rng)], "sample")

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .archive import Archive, settings
+from ..study import Search
+from .archive import Archive
 from .ascent import ascend
 
 EPS = 1e-4
@@ -35,14 +36,14 @@ POLISH = 0.25
 
 
 def global_(problem, config, rng):
-    cfg = settings(config)
-    archive = Archive(problem, cfg["budget"])
+    cfg = Search.of(config)
+    archive = Archive(problem, cfg.budget)
     space, crit = archive.space, archive.criteria
     polish = int(POLISH * archive.budget) if archive.budget >= 8 else 0
     free = np.flatnonzero(space.width > 0)
     if free.size == 0:
         yield from archive.ask([space.centre()], "global")
-        return archive.worst(cfg["kkt_tol"])
+        return archive.worst(cfg.kkt_tol)
 
     levels = [np.zeros(space.n, dtype=int)]       # k_i: side = 3^-k_i
     centres = [np.full(space.n, 0.5)]
@@ -87,9 +88,9 @@ def global_(problem, config, rng):
             break
 
     if archive.remaining and not archive.exhausted:
-        starts = [(c, archive.best_record(c)) for c in crit if not archive.certified(c, cfg["kkt_tol"])]
-        yield from ascend(archive, [s for s in starts if s[1] is not None], cfg["kkt_tol"])
-    return archive.worst(cfg["kkt_tol"])
+        starts = [(c, archive.best_record(c)) for c in crit if not archive.certified(c, cfg.kkt_tol)]
+        yield from ascend(archive, [s for s in starts if s[1] is not None], cfg.kkt_tol)
+    return archive.worst(cfg.kkt_tol)
 
 
 def _value(rec, c, values):

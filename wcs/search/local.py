@@ -16,7 +16,8 @@ import warnings
 
 import numpy as np
 
-from .archive import Archive, settings
+from ..study import Search
+from .archive import Archive
 from .ascent import ascend
 from .designs import design
 
@@ -24,18 +25,18 @@ SEPARATION = 0.05
 
 
 def local(problem, config, rng):
-    cfg = settings(config)
-    archive = Archive(problem, cfg["budget"])
+    cfg = Search.of(config)
+    archive = Archive(problem, cfg.budget)
     space = archive.space
-    n = max(1, min(cfg["n"], archive.remaining // 3))
+    n = max(1, min(cfg.sample.n, archive.remaining // 3))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        Z, note = design(cfg["design"], space, n - 1, rng) if n > 1 else (np.zeros((0, space.n)), "")
+        Z, note = design(cfg.sample.design, space, n - 1, rng) if n > 1 else (np.zeros((0, space.n)), "")
     archive.note(note)
     yield from archive.ask([space.centre(), *Z], "sample", gradients=True)
-    starts = [(c, r) for c in archive.criteria for r in top_points(archive, c, cfg["starts"])]
-    yield from ascend(archive, starts, cfg["kkt_tol"])
-    return archive.worst(cfg["kkt_tol"])
+    starts = [(c, r) for c in archive.criteria for r in top_points(archive, c, cfg.local.starts)]
+    yield from ascend(archive, starts, cfg.kkt_tol)
+    return archive.worst(cfg.kkt_tol)
 
 
 def top_points(archive, c, k, separation=SEPARATION):

@@ -9,16 +9,17 @@ from __future__ import annotations
 
 import warnings
 
-from .archive import Archive, settings
+from ..study import Search
+from .archive import Archive
 from .designs import design
 
 
 def sample(problem, config, rng):
-    cfg = settings(config)
-    archive = Archive(problem, cfg["budget"])
+    cfg = Search.of(config)
+    archive = Archive(problem, cfg.budget)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        Z, note = design(cfg["design"], archive.space, cfg["n"], rng, cap=archive.remaining)
+        Z, note = design(cfg.sample.design, archive.space, cfg.sample.n, rng, cap=archive.remaining)
     archive.note(note)
     yield from archive.ask(list(Z), "sample", gradients=False)
-    return archive.worst(cfg["kkt_tol"])
+    return archive.worst(cfg.kkt_tol)
