@@ -82,3 +82,15 @@ def test_glued_step_converges_where_the_seeds_step_stagnates():
     assert glued.status == 0 and glued.state.solver == "dd"
     # DD stops at ‖ΔU‖ ≤ 1e-6 ‖U‖: the displacements agree to a few times that
     assert np.linalg.norm(glued.state.u - mono.state.u) <= 1e-5 * np.linalg.norm(mono.state.u)
+
+
+def test_dd_thermal_step_of_a_scene_without_contact():
+    """The cooled layer (heat, no contact): the thermal step by the decomposition, the
+    elasticity direct; the settlement equals the monolithic one (before: an internal
+    failure, the heat partition was taken from the contact decomposition)."""
+    mono = study("cooled-layer", {"method": "monolithic"})
+    dd = study("cooled-layer", {"method": "dd", "dd": {"subdomains": 4}})
+    a, b = mono.evaluate(mono.nominal()), dd.evaluate(dd.nominal())
+    assert b.status == 0, b.message
+    assert np.allclose(b.state.T, a.state.T, rtol=1e-8, atol=0)
+    assert abs(b.phi["settlement"] - a.phi["settlement"]) <= 1e-8 * abs(a.phi["settlement"])

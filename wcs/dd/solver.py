@@ -139,11 +139,19 @@ def contact_sides(model) -> list[tuple[int, int, np.ndarray]]:
     """(contact, body, side nodes) for the slave and master sides of every contact."""
     nb = model.smesh.node_body
     sides = []
-    for k, pr in enumerate(model.zone.pairs):
+    for k, pr in enumerate(model.zone.pairs if model.zone is not None else ()):
         master = np.unique(pr.master_nodes[pr.master_weights > 0])
         sides.append((k, int(nb[pr.slave[0]]), pr.slave))
         sides.append((k, int(nb[master[0]]), master))
     return sides
+
+
+def model_partition(model, dd: DomainDecomposition):
+    """The partition of the model's mesh into subdomains and contact pairs."""
+    smesh = model.smesh
+    floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
+    return partition(smesh.mesh, smesh.cell_body, contact_sides(model), floating,
+                     dd.subdomains, dd.pair_size)
 
 
 def build_decomposition(model, dd) -> Decomposition:
@@ -152,9 +160,7 @@ def build_decomposition(model, dd) -> Decomposition:
     dd = DomainDecomposition.of(dd)
     t0 = time.perf_counter()
     smesh, mesh = model.smesh, model.smesh.mesh
-    floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
-    part = partition(mesh, smesh.cell_body, contact_sides(model), floating,
-                     dd.subdomains, dd.pair_size)
+    part = model_partition(model, dd)
     T = model.elim.T
     _, node_dofs = dofs_of_nodes(T, 2)
     Bn, Bt = model.Bn_r, model.Bt_r
@@ -585,22 +591,22 @@ def _mean_q(qs) -> float:
 def build_heat_decomposition(model, options) -> Decomposition:
     """Units of the heat equation: every subdomain of the elastic partition, all linear
     (contacts conduct perfectly: both sides share the heat nodes, which become interface DOFs)."""
-    mech = decomposition(model, options)
+    part = model_partition(model, Solver.of(options).dd)    # the elastic partition (no elastic units needed)
     smesh, mesh = model.smesh, model.smesh.mesh
     heat_of_node = model.P.indices                       # P: one entry per row
     th = heat_of_node[mesh.t]
     T = model.heat_elim.T
     _, node_dofs = dofs_of_nodes(T, 1)
     units = []
-    for s in range(mech.part.nsub):
-        cells = mech.part.cells(s)
+    for s in range(part.nsub):
+        cells = part.cells(s)
         comps = facet_components(cells, mesh.f2t)
         _, dofs, Tloc, op, modes = _local_pieces(th, cells, 1, T, node_dofs, model.H.local,
                                                  smesh.cell_region, mesh.p, comps)
         Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
         units.append(Unit(s, (s,), dofs, op, Tloc, Z, None))
     nif = _interface(units, T.shape[1])
-    return Decomposition(mech.part, units, nif, T.shape[1])
+    return Decomposition(part, units, nif, T.shape[1])
 
 
 def solve_heat_dd(model, c, options=None, *, comm=None):
