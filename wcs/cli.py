@@ -7,9 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 import traceback
-from pathlib import Path
 
 import numpy as np
 
@@ -118,37 +116,8 @@ def cmd_check(args) -> int:
 
 
 def cmd_solve(args) -> int:
-    if getattr(args, "worst", None):
-        from .commands import solve_worst
-        return solve_worst(args)
-    from .evaluation import Evaluator
-    from .results import write_solution
-    from .status import Status
-    from .study import load_study
-    from .store import WriteError, check_output
-    study = load_study(args.study)
-    out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
-    check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
-    t0 = time.perf_counter()
-    ev = Evaluator(study)
-    res = ev.evaluate(study.nominal())
-    if res.status != 0:
-        print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
-        return 2 if Status(res.status).scene_fault else 1
-    try:
-        out, vtu = write_solution(study, ev, res, out)
-    except WriteError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
-    if not args.quiet:
-        m = ev.smesh.mesh
-        print(f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns")
-        print(f"  mesh {ev.timings['mesh']:.2f} s, assembly {ev.timings['assembly']:.2f} s, "
-              f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s")
-        for name, v in res.phi.items():
-            print(f"  {name} = {v:.6g}")
-        print(f"  wrote {out} and {vtu}")
-    return 0
+    from .commands import solve_nominal, solve_worst
+    return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 
 def cmd_run(args) -> int:
