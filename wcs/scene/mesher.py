@@ -480,7 +480,7 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
     cw = d1[0] * d2[1] - d1[1] * d2[0] < 0
     t[1, cw], t[2, cw] = t[2, cw], t[1, cw].copy()
 
-    mesh = skfem.MeshTri(p, np.ascontiguousarray(t), sort_t=False)
+    mesh = _with_facets(skfem.MeshTri(p, np.ascontiguousarray(t), sort_t=False))
     sm = SceneMesh(mesh=mesh, bodies=bodies, regions=regions,
                    cell_body=cell_body, cell_region=cell_region, boundaries={})
     bnd = {}
@@ -494,6 +494,20 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
     return check_connected(dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells), "scene.bodies")
+
+
+def _with_facets(mesh: skfem.MeshTri) -> skfem.MeshTri:
+    """``mesh`` with its facets and cell-to-facet map set: the same arrays skfem's
+    ``build_entities`` makes (facets = sorted node pairs, lexicographic order; ``t2f`` rows
+    = the cell edges (0,1), (1,2), (0,2)), by a 1-d unique of the pair keys instead of the
+    column-wise unique, 4x slower at 1e5 cells."""
+    t = mesh.t
+    n = np.int64(mesh.p.shape[1])
+    e = np.sort(np.hstack([t[[0, 1]], t[[1, 2]], t[[0, 2]]]).astype(np.int64), axis=0)
+    keys, inv = np.unique(e[0] * n + e[1], return_inverse=True)
+    mesh._facets = np.ascontiguousarray(np.vstack([keys // n, keys % n]).astype(t.dtype))
+    mesh._t2f = inv.reshape(3, t.shape[1])
+    return mesh
 
 
 def check_connected(sm: SceneMesh, path: str) -> SceneMesh:
