@@ -9,6 +9,7 @@ regions and boundary parts, so every operator is an affine combination of fixed 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -109,7 +110,6 @@ class Model:
                 self.pressure_vectors[name] = forms.pressure_vector(mesh, facets)
             else:
                 self.traction_vectors[name] = forms.traction_vectors(mesh, facets)
-        self.body_force_vectors = np.array([forms.body_force_vectors(mesh, c) for c in self.region_cells])
 
         self.thermal = scene.get("thermal") is not None
         if self.thermal:
@@ -134,6 +134,11 @@ class Model:
         _, self.cell_area = gradient_operator(mesh.p, mesh.t)
         self._factor = None
         self._heat_factor = None
+
+    @functools.cached_property
+    def body_force_vectors(self) -> np.ndarray:
+        """(nregions, 2, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
+        return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene: dict) -> tuple[str, str]:
         """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
@@ -285,7 +290,8 @@ class Model:
         return np.column_stack([c.lam, c.mu])
 
     def mechanical_load(self, c: Coefficients, T: np.ndarray | None) -> np.ndarray:
-        f = np.einsum("ji,jid->d", c.body_force, self.body_force_vectors)
+        f = (np.einsum("ji,jid->d", c.body_force, self.body_force_vectors) if np.any(c.body_force)
+             else np.zeros(2 * self.nnodes))
         for b, v in self.pressure_vectors.items():
             f += c.pressure[b] * v
         for b, v in self.traction_vectors.items():
