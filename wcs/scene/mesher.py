@@ -20,7 +20,7 @@ How it is done
   is an overlap -> ``StudyError`` at ``scene.bodies.<later body>``.  A region
   left with no piece (empty shape, or completely covered by later regions) ->
   ``StudyError`` at ``scene.bodies.<body>.regions.<i>[.shape]``.
-* Sizes: a ``gmsh.model.mesh.setSizeCallback`` returns
+* Sizes: a ``gmsh.model.mesh.setSizeCallback`` (``Mesh.MeshSizeMax`` for a uniform size) returns
   ``min(lc_gmsh, size, min_r (size_r + grading * dist_r(x)))`` where ``r``
   runs over ``mesh.refine`` entries, ``dist_r`` is the distance to the
   refine selector's geometric set (0 inside a box/disc/polygon; for
@@ -164,9 +164,9 @@ def _discs(node):
 
 
 def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entity_size=None):
-    """The size callback. ``body``: a body meshed on its own (its ``mesh: {size, refine}``
-    overrides / adds to the scene's). ``entity_size``: {(dim, tag): size} of entities
-    inside regions with their own ``mesh: {size}``."""
+    """The size and the size callback (None when the size is uniform). ``body``: a body meshed
+    on its own (its ``mesh: {size, refine}`` overrides / adds to the scene's). ``entity_size``:
+    {(dim, tag): size} of entities inside regions with their own ``mesh: {size}``."""
     mspec = scene.get("mesh") or {}
     size = mspec.get("size")
     size = float(size) if size is not None else default_size(scene, bbox_diag)
@@ -182,6 +182,8 @@ def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entit
             size = float(bmesh["size"])
         refs += _refinements(scene, bmesh.get("refine"), f"scene.bodies.{body}.mesh.refine", "")
     entity_size = entity_size or {}
+    if not refs and not entity_size:
+        return size, None
 
     def callback(dim, tag, x, y, z, lc):
         h = min(lc, size, entity_size.get((dim, tag), size))
@@ -190,6 +192,14 @@ def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entit
                 h = min(h, s + grading * d(x, y))
         return h
     return size, callback
+
+
+def _set_sizes(size: float, callback) -> None:
+    """A uniform size is gmsh's own bound ``Mesh.MeshSizeMax``: the same mesh as the callback
+    ``min(lc, size)``, without its ~5e4 calls into Python (~5% of the meshing time)."""
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size if callback is None else _OPTIONS["Mesh.MeshSizeMax"])
+    if callback is not None:
+        gmsh.model.mesh.setSizeCallback(callback)
 
 
 def _region_entity_sizes(scene: dict, owner: dict, regions_flat: list) -> dict:
@@ -365,8 +375,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed):
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
         covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
-        _, callback = _size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat))
-        gmsh.model.mesh.setSizeCallback(callback)
+        _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat)))
         gmsh.model.mesh.generate(2)
         xy, t, c1, c2, c3 = _extract(owner, inside, offset)
         gmsh.model.mesh.removeSizeCallback()
@@ -449,9 +458,7 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
         diag = math.hypot(xmax - xmin, ymax - ymin)
         regions_flat = [reg for body in bodies for reg in bodies_spec[body].get("regions") or []]
         if not any(bodies_spec[body].get("mesh") for body in bodies):
-            size, callback = _size_function(scene, diag, None,
-                                            _region_entity_sizes(scene, owner, regions_flat))
-            gmsh.model.mesh.setSizeCallback(callback)
+            _set_sizes(*_size_function(scene, diag, None, _region_entity_sizes(scene, owner, regions_flat)))
             gmsh.model.mesh.generate(2)
             xy, tris, cb, cr, ci = _extract(owner, inside)
             gmsh.model.mesh.removeSizeCallback()
