@@ -99,7 +99,7 @@ class Model:
         self.elim: Elimination = glue_elimination(
             eliminate(self.nnodes, 2, constraints, len(self.support_keys)), self.glue, self.nnodes, 2)
         self.Tt = self.elim.T.T.tocsr()
-        self.reduce = Reduction(self.K(np.ones((len(smesh.regions), 2))), self.elim.T)
+        self.reduce = Reduction(self.K.pattern(), self.elim.T)
         self.free_modes = self._free_rigid_modes(constraints)
 
         self.pressure_vectors = {}

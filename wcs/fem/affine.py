@@ -63,6 +63,13 @@ class CellAffineOperator:
     def npieces(self) -> int:
         return self.local.shape[0]
 
+    def pattern(self) -> sp.csr_matrix:
+        """The sorted CSR pattern every K(c) has, with zero values (no assembly)."""
+        b = self.block
+        K = sp.bsr_matrix((np.zeros((self.nblocks, b, b)), self.indices, self.indptr), shape=self.shape).tocsr()
+        K.sort_indices()
+        return K
+
     def __call__(self, coefficients) -> sp.csr_matrix:
         """`coefficients`: (ngroups, npieces) — e.g. per region (λ, μ)."""
         c = np.asarray(coefficients, dtype=float).reshape(-1, self.npieces)[self.group]   # (nc, npieces)
