@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.optimize as sopt
 import scipy.sparse as sp
 
 from wcs import linalg
@@ -163,10 +164,9 @@ def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     """
     r, m = R.shape[1], Bn.shape[0]
     BnR, BtR, e = Bn @ R, Bt @ R, R.T @ f
-    from scipy.optimize import linprog    # 0.13 s of import, for floating bodies only
     I = np.eye(m)
     A_ub = np.block([[BnR, np.zeros((m, m))], [BtR, -I], [-BtR, -I]])
-    res = linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
+    res = sopt.linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
                        bounds=[(-1, 1)] * r + [(0, None)] * m, method="highs")
     return -res.fun, res.x[:r]
 
