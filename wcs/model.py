@@ -9,6 +9,7 @@ regions and boundary parts, so every operator is an affine combination of fixed 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -99,7 +100,7 @@ class Model:
         self.elim: Elimination = glue_elimination(
             eliminate(self.nnodes, 2, constraints, len(self.support_keys)), self.glue, self.nnodes, 2)
         self.Tt = self.elim.T.T.tocsr()
-        self.reduce = Reduction(self.K(np.ones((len(smesh.regions), 2))), self.elim.T)
+        self.reduce = Reduction(self.K.pattern(), self.elim.T)
         self.free_modes = self._free_rigid_modes(constraints)
 
         self.pressure_vectors = {}
@@ -110,7 +111,6 @@ class Model:
                 self.pressure_vectors[name] = forms.pressure_vector(mesh, facets)
             else:
                 self.traction_vectors[name] = forms.traction_vectors(mesh, facets)
-        self.body_force_vectors = np.array([forms.body_force_vectors(mesh, c) for c in self.region_cells])
 
         self.thermal = scene.get("thermal") is not None
         if self.thermal:
@@ -135,6 +135,11 @@ class Model:
         _, self.cell_area = gradient_operator(mesh.p, mesh.t)
         self._factor = None
         self._heat_factor = None
+
+    @functools.cached_property
+    def body_force_vectors(self) -> np.ndarray:
+        """(nregions, 2, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
+        return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene: dict) -> tuple[str, str]:
         """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
@@ -286,7 +291,8 @@ class Model:
         return np.column_stack([c.lam, c.mu])
 
     def mechanical_load(self, c: Coefficients, T: np.ndarray | None) -> np.ndarray:
-        f = np.einsum("ji,jid->d", c.body_force, self.body_force_vectors)
+        f = (np.einsum("ji,jid->d", c.body_force, self.body_force_vectors) if np.any(c.body_force)
+             else np.zeros(2 * self.nnodes))
         for b, v in self.pressure_vectors.items():
             f += c.pressure[b] * v
         for b, v in self.traction_vectors.items():

@@ -22,11 +22,14 @@ def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
     |T| 2 e(φ_a) : e(φ_b), by node pair (a, b) and components (i, j)."""
     (dx, dy), area = gradient_operator(p, t)
     g = np.stack([dx, dy], axis=-1)                           # (nc, 3, 2): ∇N_a
-    lam = area[:, None, None, None, None] * g[:, :, None, :, None] * g[:, None, :, None, :]
+    a = area[:, None, None, None, None]
+    out = np.empty((2, len(area), 3, 3, 2, 2))                # written in place: no stacked copy
+    np.multiply(a * g[:, :, None, :, None], g[:, None, :, None, :], out=out[0])
     # 2 e(φ_ai):e(φ_bj) = δ_ij ∇N_a·∇N_b + ∂_j N_a ∂_i N_b
     dot = np.einsum("eak,ebk->eab", g, g)
     mu = dot[:, :, :, None, None] * np.eye(2) + g[:, :, None, None, :] * g[:, None, :, :, None]
-    return np.stack([lam, area[:, None, None, None, None] * mu])
+    np.multiply(a, mu, out=out[1])
+    return out
 
 
 def conduction_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -59,6 +62,13 @@ class CellAffineOperator:
     @property
     def npieces(self) -> int:
         return self.local.shape[0]
+
+    def pattern(self) -> sp.csr_matrix:
+        """The sorted CSR pattern every K(c) has, with zero values (no assembly)."""
+        b = self.block
+        K = sp.bsr_matrix((np.zeros((self.nblocks, b, b)), self.indices, self.indptr), shape=self.shape).tocsr()
+        K.sort_indices()
+        return K
 
     def __call__(self, coefficients) -> sp.csr_matrix:
         """`coefficients`: (ngroups, npieces) — e.g. per region (λ, μ)."""
