@@ -21,9 +21,6 @@ from wcs.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
-# exit 1 is allowed for one message only: valid input on which the solver fails at the nominal
-# data (e.g. semismooth Newton not converging, issue 15 A2), said as such
-NOMINAL_FAILED = "the nominal data set cannot be solved (status"
 EXTREMES = [0, -1, 1e-300, 1e300, float("nan"), float("inf"), -float("inf"), 1e-3, 10, 2**70]
 ODD = ["abc", None, True, [], {}, [1, 2, 3], {"x": 1}, "1e5"]
 
@@ -99,6 +96,15 @@ def cases(count: int, seed: int = 15):
     return out
 
 
+def _peak_gb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20      # KiB on Linux
+
+
+def _rss_gb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 2**30
+
+
 def check(doc: dict, folder: Path) -> tuple[int, str, float]:
     """Exit code, stderr and wall time of `wcs check --quiet` on `doc`."""
     path = folder / "study.yaml"
@@ -116,7 +122,7 @@ def run_cases(count: int, tmp_path: Path):
         code, err, wall = check(doc, tmp_path)
         results.append((study, what, code, err, wall))
     bad = [(s, w, c, e) for s, w, c, e, _ in results
-           if not (c in (0, 2) or c == 1 and NOMINAL_FAILED in e) or "internal failure" in e or "Traceback" in e]
+           if c not in (0, 2) or "internal failure" in e or "Traceback" in e]
     assert not bad, "\n".join(f"{s}: {w}: exit {c}: {e.strip()[-300:]}" for s, w, c, e in bad)
     for study, what, code, err, _ in results:    # bad input names the file
         if code == 2:
@@ -132,22 +138,27 @@ def test_mutations_are_deterministic_and_valid_yaml():
         yaml.safe_dump(doc)
 
 
-@pytest.mark.timeout(120)
-def test_check_on_mutated_studies_exits_0_or_2(tmp_path):
-    """A default-suite slice: 36 mutations (2 per shipped study)."""
-    run_cases(36, tmp_path)
+@pytest.mark.timeout(600)
+def test_check_fuzz(tmp_path):
+    """The acceptance run: 360 mutations (20 per shipped study), each exit 0 or 2 (never a
+    traceback or an internal failure), the process under 1 GB resident (about 20 s in all on
+    a quiet machine)."""
+    rss_before = _rss_gb()
+    peak_before = _peak_gb()
+    results = run_cases(360, tmp_path)
+    peak_gb = _peak_gb()
+    # the cases may raise the process's high-water mark by less than 1 GB over where they
+    # started (an earlier test of the same process may have set a higher mark: then they stayed below it)
+    assert peak_gb <= max(peak_before, rss_before + 1.0), (peak_before, rss_before, peak_gb)
+    codes = [c for _, _, c, _, _ in results]
+    print(f"{len(codes)} mutations: {codes.count(0)} exit 0, {codes.count(2)} exit 2; "
+          f"total {sum(t for *_, t in results):.1f} s, peak {peak_gb:.2f} GB")
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(300)
-def test_check_fuzz_full(tmp_path):
-    """The acceptance run: 360 mutations, none over 10 s, the process under 1 GB resident."""
+@pytest.mark.timeout(600)
+def test_check_fuzz_no_case_over_10_s(tmp_path):
+    """The same mutations, timed (a timing goal, so not in the default suite)."""
     results = run_cases(360, tmp_path)
     slow = [(s, w, t) for s, w, _, _, t in results if t > 10.0]
     assert not slow, slow
-    peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20   # KiB on Linux
-    assert peak_gb < 1.0, peak_gb
-    codes = [c for _, _, c, _, _ in results]
-    print(f"{len(codes)} mutations: {codes.count(0)} exit 0, {codes.count(2)} exit 2, "
-          f"{codes.count(1)} exit 1 (nominal solve failed); "
-          f"total {sum(t for *_, t in results):.1f} s, peak {peak_gb:.2f} GB")
