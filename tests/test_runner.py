@@ -195,7 +195,7 @@ def test_kill_9_then_resume(tresca, tmp_path):
     proc = subprocess.Popen([sys.executable, str(script), "run", str(path), "-o", str(out), "--quiet"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     store = store_path(out)
-    deadline = time.time() + 60
+    deadline = time.time() + 240          # generous: a loaded machine is slow, not wrong
     while time.time() < deadline and proc.poll() is None:
         if store.exists() and len(list(store.glob("*.npz"))) >= 6:
             break
