@@ -474,9 +474,13 @@ class Model:
 
 
 def _refactor(factor, A):
-    """The factor of A: `factor` refactored in place (its analysis kept), or a new one."""
+    """The Cholesky factor of the SPD matrix A (a held stiffness, a conduction matrix with
+    fixed temperatures): `factor` refactored in place (its analysis kept), or a new one.
+    Cholesky's analysis reads the pattern only; an LU's scaling and matching read the values
+    of the first matrix factored, so every later answer depended on which data set came
+    first (last bits of a heated plate's shear)."""
     try:
-        return linalg.factorize(A) if factor is None else factor.refactor(A)
+        return linalg.factorize(A, spd=True) if factor is None else factor.refactor(A)
     except linalg.FactorizationError as exc:
         raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from None
 
