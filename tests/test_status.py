@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 
 import wcs
-from wcs.dd.solver import DDOutcome
+from wcs.status import DDOutcome
 from wcs.evaluation import Evaluator
 from wcs.report.data import status_meanings
 from wcs.results import run_dataset, solve_dataset, write_netcdf

@@ -17,7 +17,6 @@ import scipy.sparse as sp
 
 from . import linalg
 from .contact.zone import ContactState, build_zone
-from .dd.solver import DDOutcome
 from .errors import SolveError, StudyError
 from .fem import forms
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -27,7 +26,7 @@ from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import plane_lame, thermal_beta
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
-from .status import Status
+from .status import DDOutcome, Status
 from .study import Solver
 
 

@@ -2,10 +2,11 @@
 
 The contact solver, the model and the evaluator report these members; the results file writes
 their codes as `flag_values` and their descriptions as CF `flag_meanings`. The domain
-decomposition has its own outcomes (`wcs.dd.solver.DDOutcome`); every one but converged leaves
-the model as DD_FAILED.
+decomposition has its own outcomes (`DDOutcome`, here beside them so that the model reads
+them without importing the decomposition); every one but converged leaves the model as
+DD_FAILED.
 """
-from enum import IntEnum
+from enum import Enum, IntEnum
 
 import numpy as np
 
@@ -50,3 +51,14 @@ def flag_attrs() -> dict:
     """CF `flag_values` and `flag_meanings` of a `status` variable."""
     return {"flag_values": np.array([s.value for s in Status], dtype=np.int32),
             "flag_meanings": " ".join(s.flag_meaning for s in Status)}
+
+
+class DDOutcome(Enum):
+    """How a DD solve ended; the value names it in messages and `info["status_name"]`. Not an
+    evaluation status: the model reports every outcome but CONVERGED as `Status.DD_FAILED`."""
+    CONVERGED = "converged"
+    DIVERGED = "diverged"
+    STAGNATED = "stagnated"
+    BUDGET = "budget exhausted"
+    LOCAL_FAILED = "local solve failed"
+    SETUP_FAILED = "setup failed"

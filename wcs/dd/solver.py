@@ -39,31 +39,19 @@ from __future__ import annotations
 import time
 import weakref
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
 from wcs.fem.affine import CellAffineOperator
-from wcs.status import Status
+from wcs.status import DDOutcome, Status
 from wcs.study import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
-
-class DDOutcome(Enum):
-    """How a DD solve ended; the value names it in messages and `info["status_name"]`. Not an
-    evaluation status: the model reports every outcome but CONVERGED as `Status.DD_FAILED`."""
-    CONVERGED = "converged"
-    DIVERGED = "diverged"
-    STAGNATED = "stagnated"
-    BUDGET = "budget exhausted"
-    LOCAL_FAILED = "local solve failed"
-    SETUP_FAILED = "setup failed"
-
 
 class DDResult(NamedTuple):
     """What `solve_dd` returns; unpacks as (u, lam_n, lam_t, info, status, message)."""
