@@ -52,6 +52,10 @@ class Archive:
         self.index: dict[bytes, int] = {}
         self.best: dict[str, int | None] = {c: None for c in self.criteria}
         self.notes: dict[str, str] = {}   # per criterion; "" for all
+        for o in problem.known:             # made before (an inner α-level): the strategy's own, free
+            z = self.space.to_z(o.x)
+            self._record(z, np.asarray(o.x, float), o, "known", o.grad is not None)
+            self.index.setdefault(self.space.key(z), self.index[o.x.tobytes()])
 
     @property
     def remaining(self) -> int:
