@@ -363,6 +363,12 @@ def range_variables(study, crit: list[str], extremes: list, unit_text: str) -> d
     return {k: xr.Variable(*v) for k, v in out.items()}
 
 
+def widest(ds: xr.Dataset) -> xr.Dataset:
+    """A fuzzy study's results at its widest level (the smallest α: the support when α = 0 is a
+    level), the per-criterion layout of a crisp study; a crisp study's results unchanged."""
+    return ds.isel(level=int(np.argmin(ds["level"].values))) if "level" in ds.dims else ds
+
+
 def extremes(ds: xr.Dataset) -> list[Extreme]:
     """Every end of every range a results file holds (worst_* and best_*, per level when the
     study is fuzzy), in the order level, criterion, max before min; ends a criterion's sense
