@@ -677,7 +677,7 @@ class StudyFile(_Strict):
     scene: Any = Field(description="inline mapping, or a file name relative to the study file")
     uncertain: dict[str, Any] = {}                       # none: a run evaluates the nominal data
     criteria: list[Criterion] = []                       # none: a warning (a run measures nothing)
-    limits: dict[str, float | Limit] = {}                # a number: an upper limit
+    limits: dict[str, Any] = {}                          # a number (an upper limit) or a `Limit`
     fuzzy: Optional[Fuzzy] = None                        # α-levels; default levels when a number is fuzzy
     search: Search = Field(default_factory=Search)
     solver: Solver = Field(default_factory=Solver)
@@ -715,6 +715,8 @@ _STUDY = TypeAdapter(StudyFile)
 _SCENE = TypeAdapter(Scene)
 _PROFILE = TypeAdapter(Profile)
 _FUZZY = TypeAdapter(FuzzyNumber)
+_LIMIT = TypeAdapter(Limit)
+_NUMBER = TypeAdapter(float, config=_CONFIG)
 _BOX = TypeAdapter(Point, config=_CONFIG)
 _LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
 
@@ -1143,8 +1145,11 @@ def _split_limits(limits: dict, criteria: list[dict], src: _Source) -> tuple[dic
     upper, lower = {}, {}
     for name, limit in limits.items():
         _require(name, list(senses), "criterion", src, ("limits", name))
-        bounds = {"upper": limit} if isinstance(limit, float) else \
-            {k: v for k, v in (("lower", limit.lower), ("upper", limit.upper)) if v is not None}
+        if isinstance(limit, dict):
+            limit = src.validate(_LIMIT, limit, ("limits", name))
+            bounds = {k: v for k, v in (("lower", limit.lower), ("upper", limit.upper)) if v is not None}
+        else:
+            bounds = {"upper": src.validate(_NUMBER, limit, ("limits", name))}
         for side, value in bounds.items():
             needs = "max" if side == "upper" else "min"
             if senses[name] not in (needs, "both"):

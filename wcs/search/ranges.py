@@ -80,13 +80,14 @@ def ranges(factory, problem, config, rng, senses: dict[str, str], cuts=None):
         known = tuple(signed(o, objs) for o in seen.values() if in_box(o.x, lower, upper))
         sub = dataclasses.replace(problem, lower=np.asarray(lower, float), upper=np.asarray(upper, float),
                                   criteria=[name for name, _, _ in objs], known=known)
-        gen = factory(sub, cfg.model_copy(update={"budget": max(cfg.budget - spent, 0)}), rng)
+        gen = factory(sub, cfg if spent == 0 else cfg.model_copy(update={"budget": max(cfg.budget - spent, 0)}), rng)
         worst, n = yield from _drive(gen, seen, objs)
         spent += n
         for name, c, sign in objs:
-            extremes.append(Extreme(c, "max" if sign > 0 else "min", alpha, sign * worst.value[name],
-                                    np.asarray(worst.x[name], float), worst.certificate[name],
-                                    worst.notes.get(name, "")))
+            if worst is not None and name in worst.value:
+                extremes.append(Extreme(c, "max" if sign > 0 else "min", alpha, sign * worst.value[name],
+                                        np.asarray(worst.x[name], float), worst.certificate[name],
+                                        worst.notes.get(name, "")))
     return extremes
 
 
