@@ -116,6 +116,27 @@ def test_monotone_study_levels_equal_vertex_values_nested_at_a_fraction_of_the_c
     assert "started from the best of" in str(ds["certificate_note"].values[0, 0])
 
 
+def test_triangular_numbers_core_is_one_data_set_and_certified():
+    """Every number a triangle at its nominal value: the core (α = 1) is one data set, its own
+    maximum and minimum; the levels outside still equal their cuts' vertex values."""
+    doc = plate_doc()
+    nominal = load(plate_doc(fuzzy=False), PLATE).nominal()
+    for (path, spec), x0 in zip(list(doc["uncertain"].items()), nominal):
+        doc["uncertain"][path] = {"support": spec["support"] if isinstance(spec, dict) else spec,
+                                  "core": [float(x0), float(x0)]}
+    study = load(doc, PLATE)
+    ds = wcs.run(study, output=False)
+    core = {"level": len(study.levels) - 1}
+    assert np.all(ds["certificate"].isel(core).values == "corner-kkt")
+    assert np.all(ds["best_certificate"].isel(core).values == "corner-kkt")
+    assert "one data set" in str(ds["certificate_note"].isel(core).values[0])
+    assert np.array_equal(ds["worst_value"].isel(core).values, ds["best_value"].isel(core).values)
+    for c, (lo, hi) in vertex_ranges(load(doc, PLATE), 0.5).items():
+        half = {"level": 2, "criterion": c}
+        assert float(ds["worst_value"].sel(criterion=c).isel(level=2)) == pytest.approx(hi, rel=1e-10), half
+        assert float(ds["best_value"].sel(criterion=c).isel(level=2)) == pytest.approx(lo, rel=1e-10), half
+
+
 def test_cooled_layer_each_level_finds_its_interior_maximum():
     doc = _read_yaml(COOLED)[0]
     doc["uncertain"] = {"materials.polymer.nu": {"support": [0.05, 0.45], "core": [0.3, 0.4]},

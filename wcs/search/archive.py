@@ -10,6 +10,8 @@ strategy that found it. With g = dΦ/dz there and the Frank–Wolfe gap
 G = max_{z'∈P} g·(z' − z) (see scaling.py):
 - "corner-kkt": z is a vertex of U_ad and G ≤ tol·scale (the KKT sign pattern);
 - "local-kkt":  G ≤ tol·scale at a non-vertex point;
+- a box of one point (every width 0, e.g. the core of triangular fuzzy numbers) is its own
+  maximum: "corner-kkt";
 - "heuristic":  otherwise — no gradient, a non-smooth point (the active set
   changes within reach, so g is one-sided), or a gradient that is zero
   while no evaluation has shown a different value (a flat region, where
@@ -146,6 +148,8 @@ class Archive:
         rec = self.best_record(c) if rec is None else rec
         if rec is None:
             return "heuristic", "no successful evaluation"
+        if not np.any(self.space.width):
+            return "corner-kkt", "the admissible set is this one data set (e.g. the core of triangular fuzzy numbers)"
         g = rec.grad.get(c)
         if rec.nonsmooth:
             return "heuristic", "non-smooth point (active set changes within reach): KKT not checked"
