@@ -20,6 +20,8 @@ import xarray as xr
 import wcs
 from wcs.cli import main
 from wcs.progress import limits_broken, summary_table
+from wcs.report import render_report
+from wcs.report.html import number
 from wcs.results import extremes
 from wcs.study import _read_yaml
 
@@ -114,6 +116,9 @@ def test_sense_min_alone_leaves_the_maximum_unsearched():
     assert math.isnan(float(ds["best_value"].sel(criterion="heave")))
     assert str(ds["best_certificate"].sel(criterion="heave").values) == "not-searched"
     assert "heave" in summary_table(ds) and "min corner-kkt" in summary_table(ds)
+    page = render_report(ds, strict=True)
+    worst_data = page[page.index('<section id="worst-data">'):page.index('<section id="worst-fields">')]
+    assert "temperature</h3><p class=\"note\">Its maximum is not searched (sense: min)" in worst_data
 
 
 def write(tmp_path: Path, doc: dict, path: Path) -> Path:
@@ -135,6 +140,11 @@ def test_fail_on_limit_counts_a_broken_lower_limit(tmp_path, capsys):
     ds = xr.open_dataset(tmp_path / "a.nc", engine="h5netcdf")
     assert limits_broken(ds) == ["settlement"] and float(ds["margin_lower"].sel(criterion="settlement")) < 0
     assert float(ds["margin"].sel(criterion="settlement")) > 0
+    page = render_report(tmp_path / "a.nc", strict=True)          # the interval against both limits
+    assert '<div class="verdict fail" id="verdict">FAIL</div>' in page and "range of each criterion" in page
+    best = number(float(ds["best_value"].sel(criterion="settlement")), "m")
+    assert f'<td class="num best-value">{best}</td>' in page
+    assert f"settlement ∈ [{best}, {number(float(ds['worst_value'].sel(criterion='settlement')), 'm')}]" in page
     held = write(tmp_path, study_doc(COOLED, search=search, limits={"settlement": {"lower": 7e-3, "upper": 1e-2}}),
                  COOLED)
     assert main(["run", str(held), "-o", str(tmp_path / "b.nc"), "--fail-on-limit", "--quiet"]) == 0

@@ -330,11 +330,11 @@ def range_variables(study, crit: list[str], extremes: list, unit_text: str) -> d
     out = {}
     limit = np.array([float(study.limits.get(c, np.nan)) for c in crit])
     lower = np.array([float(study.lower_limits.get(c, np.nan)) for c in crit])
-    where = "at each level" if study.levels is not None else ""
+    where = " at each level" if study.levels is not None else ""
     if study.levels is not None:
         wv, wx, we, wc, wn = table("max")
         out.update({
-            "worst_value": (dims, wv, {"long_name": f"maximum of each criterion found {where}", "units": unit_text}),
+            "worst_value": (dims, wv, {"long_name": f"maximum of each criterion found{where}", "units": unit_text}),
             "worst_x": (dims + ("param",), wx, {"long_name": "data set attaining worst_value"}),
             "worst_eval": (dims, we, {"long_name": "index (eval) of the evaluation attaining worst_value; -1 if none"}),
             "margin": (dims, limit - wv, {"long_name": "limit - worst_value (negative: limit broken)", "units": unit_text}),
@@ -349,7 +349,7 @@ def range_variables(study, crit: list[str], extremes: list, unit_text: str) -> d
     if any(e.sense == "min" for e in extremes):
         bv, bx, be, bc, bn = table("min")
         out.update({
-            "best_value": (dims, bv, {"long_name": f"minimum of each criterion found {where} (NaN where its sense "
+            "best_value": (dims, bv, {"long_name": f"minimum of each criterion found{where} (NaN where its sense "
                                                    "does not ask for it)", "units": unit_text}),
             "best_x": (dims + ("param",), bx, {"long_name": "data set attaining best_value"}),
             "best_eval": (dims, be, {"long_name": "index (eval) of the evaluation attaining best_value; -1 if none"}),

@@ -64,6 +64,8 @@ dl.kv dt{font-weight:bold}
 dl.kv dd{margin:0;font-family:monospace;word-break:break-all}
 """
 
+NOT_SEARCHED = "Its maximum is not searched (sense: min): see its minimum under Limits."
+
 SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 PARAM_UNITS = [
@@ -283,6 +285,9 @@ class Report:
         r = self.res
         out = []
         for c in r.criteria:
+            if not c.searched_max:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">{NOT_SEARCHED}</p>')
+                continue
             if not np.isfinite(c.worst_x).any():
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No data set: every evaluation failed.</p>')
                 continue
@@ -315,6 +320,9 @@ class Report:
         done = {}
         for j, c in enumerate(r.criteria):
             f = r.worst_fields[j]
+            if not c.searched_max:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">{NOT_SEARCHED}</p>')
+                continue
             if f is None:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No fields (no successful evaluation).</p>')
                 continue

@@ -560,8 +560,13 @@ def range_figure(res: Results) -> bytes:
         ax.set_ylabel(c.name, rotation=0, ha="right", va="center")
         ax.set_xlabel(f"[{unit_label(c.units)}]", fontsize=8)
         ax.grid(alpha=0.3, axis="x")
-        if j == 0:
-            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.2))
+    labelled = {}
+    for ax in axes.flat:
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            labelled.setdefault(label, h)
+    if labelled:
+        axes[0, 0].legend(list(labelled.values()), list(labelled), fontsize=7, loc="upper left",
+                          bbox_to_anchor=(1.0, 1.2))
     fig.tight_layout()
     return png(fig)
 
