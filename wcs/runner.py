@@ -3,8 +3,9 @@
     ds = wcs.run(study, output=None, resume=False, progress=None)
 
 The runner builds the search `Problem` from the study (`wcs/problem.py`), creates the
-strategy registered under `search.method` with `numpy.random.default_rng(seed)`, and
-answers its batches. Every evaluation becomes one `Record` (`wcs/record.py`), failures
+strategy registered under `search.method` with `numpy.random.default_rng(seed)`, drives it
+through `wcs.search.ranges` (the ends of each criterion's range its `sense` asks for, and the
+α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/record.py`), failures
 included (status code, NaN criteria); the budget is a hard cap on records.
 
 Incremental writing: each finished evaluation goes at once to the evaluation store (one

@@ -72,7 +72,7 @@ def claim_output(comm, output: Path, where: tuple, resume_sha256: str | None) ->
 @dataclass(frozen=True)
 class Final:
     """What the end of a run adds to its file (criterion -> ...)."""
-    worst: dict                 # (value, data set, row), as `Ledger.worst`
+    worst: dict                 # criterion -> (value, data set, row) of its maximum over the widest level
     certificate: dict           # how the worst value is certified
     notes: dict                 # the search's notes
     fields: dict                # fields of the worst case, re-solved (None where none solved)
@@ -124,7 +124,7 @@ def extremes_of(study, records: list, criteria: list[str], kind: str, found: lis
 
 def widest_maxima(extremes: list[Extreme], criteria: list[str]) -> tuple[dict, dict, dict]:
     """(worst, certificate, notes) by criterion of the maxima over the widest level (the whole
-    box of a crisp study): worst as `Ledger.worst`, (value, data set, row), where one was found;
+    box of a crisp study): worst as (value, data set, row) where one was found;
     a criterion whose maximum is not searched (sense min) is `not-searched`."""
     levels = [e.level for e in extremes if e.level is not None]
     widest = min(levels) if levels else None
