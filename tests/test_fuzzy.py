@@ -282,3 +282,9 @@ def test_report_draws_the_membership_function(tmp_path):
     section = page[page.index('<section id="membership">'):]
     section = section[:section.index("</section>")]
     assert section.count("<img") == 3 and "The limit holds for every data set of membership ≥ 0.5; a data set of membership ≥ 0.25 breaks it." in section
+
+
+def test_check_prints_the_levels_and_cores(tmp_path, capsys):
+    assert main(["check", str(write(tmp_path, plate_doc()))]) == 0
+    assert ("fuzzy: levels 0, 0.25, 0.5, 0.75, 1, searched from the core (α = 1) outwards; the boxes above are "
+            "the supports; cores: materials.steel.E [2.05e+11, 2.15e+11]") in capsys.readouterr().out
