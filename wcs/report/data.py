@@ -57,8 +57,6 @@ class Levels:
     alpha: np.ndarray          # (level,)
     worst: np.ndarray          # (level, criterion)
     best: np.ndarray           # (level, criterion)
-    lower: np.ndarray          # (level, param) the α-cut
-    upper: np.ndarray
 
 
 @dataclass
@@ -369,9 +367,7 @@ def _levels(ds: xr.Dataset) -> Levels | None:
     worst = ds["worst_value"].transpose("level", "criterion").values.astype(float)
     best = ds["best_value"].transpose("level", "criterion").values.astype(float) if "best_value" in ds \
         else np.full_like(worst, np.nan)
-    return Levels(ds["level"].values.astype(float), worst, best,
-                  ds["level_lower"].transpose("level", "param").values.astype(float),
-                  ds["level_upper"].transpose("level", "param").values.astype(float))
+    return Levels(ds["level"].values.astype(float), worst, best)
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:

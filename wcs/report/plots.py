@@ -538,15 +538,16 @@ def failures_figure(res: Results) -> bytes:
 
 # ---------------------------------------------------------------- both ends, membership
 
-def _limits(ax, crit, vertical: bool) -> None:
-    for value, label in ((crit.limit, "upper limit"), (crit.limit_lower, "lower limit")):
+def _limits(ax, crit) -> None:
+    """The criterion's limits as vertical red lines (upper dashed, lower dotted)."""
+    for value, label, ls in ((crit.limit, "upper limit", "--"), (crit.limit_lower, "lower limit", ":")):
         if np.isfinite(value):
-            (ax.axvline if vertical else ax.axhline)(value, color="#d62728", ls="--", lw=1, label=label)
+            ax.axvline(value, color="#d62728", ls=ls, lw=1.2, label=label)
 
 
 def range_figure(res: Results) -> bytes:
     """Per criterion the interval [min, max] found (a bar; a dot for an end alone) against its
-    limits (red dashed lines), one row each (criteria have their own units)."""
+    limits (red lines), one row each (criteria have their own units)."""
     m = len(res.criteria)
     fig, axes = plt.subplots(m, 1, figsize=(7.5, 0.9 + 0.75 * m), squeeze=False)
     for j, c in enumerate(res.criteria):
@@ -555,7 +556,7 @@ def range_figure(res: Results) -> bytes:
         if len(ends) == 2:
             ax.plot([c.best, c.worst], [0, 0], color="#1f3a5f", lw=6, solid_capstyle="butt", label="[min, max]")
         ax.plot(ends, [0] * len(ends), "o", color="#1f3a5f", ms=5)
-        _limits(ax, c, vertical=True)
+        _limits(ax, c)
         ax.set_yticks([])
         ax.set_ylabel(c.name, rotation=0, ha="right", va="center")
         ax.set_xlabel(f"[{unit_label(c.units)}]", fontsize=8)
@@ -585,12 +586,13 @@ def membership_figure(res: Results, j: int) -> bytes:
         if ok.any():
             ax.plot(ends[ok], lv.alpha[ok], "o-", color="#1f3a5f" if label.startswith("max") else "#2ca02c",
                     ms=4, label=label)
-    _limits(ax, c, vertical=True)
+    _limits(ax, c)
     ax.set_ylim(-0.05, 1.05)
     ax.set_ylabel("membership α")
     ax.set_xlabel(f"{c.name} [{unit_label(c.units)}]")
     ax.set_title(f"{c.name}: membership function")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return png(fig)
