@@ -137,6 +137,17 @@ def test_triangular_numbers_core_is_one_data_set_and_certified():
         assert float(ds["best_value"].sel(criterion=c).isel(level=2)) == pytest.approx(lo, rel=1e-10), half
 
 
+def test_a_budget_spent_at_the_core_leaves_the_outer_levels_uncertified_and_says_so():
+    doc = plate_doc()
+    doc["search"]["budget"] = 10
+    ds = wcs.run(load(doc, PLATE), output=False)
+    assert ds.sizes["eval"] == 10
+    outer = ds["certificate"].values[:-1]
+    assert np.all(outer == "heuristic") and np.all(ds["best_certificate"].values[:-1] == "heuristic")
+    assert all("no budget left for this level" in str(n) for n in ds["certificate_note"].values[:-1].ravel())
+    assert np.all(np.diff(ds["worst_value"].values, axis=0) <= 0)       # still nested: lower bounds of the ranges
+
+
 def test_cooled_layer_each_level_finds_its_interior_maximum():
     doc = _read_yaml(COOLED)[0]
     doc["uncertain"] = {"materials.polymer.nu": {"support": [0.05, 0.45], "core": [0.3, 0.4]},

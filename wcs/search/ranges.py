@@ -80,14 +80,16 @@ def ranges(factory, problem, config, rng, senses: dict[str, str], cuts=None):
         known = tuple(signed(o, objs) for o in seen.values() if in_box(o.x, lower, upper))
         sub = dataclasses.replace(problem, lower=np.asarray(lower, float), upper=np.asarray(upper, float),
                                   criteria=[name for name, _, _ in objs], known=known)
-        gen = factory(sub, cfg if spent == 0 else cfg.model_copy(update={"budget": max(cfg.budget - spent, 0)}), rng)
+        left = max(cfg.budget - spent, 0)
+        gen = factory(sub, cfg if spent == 0 else cfg.model_copy(update={"budget": left}), rng)
         worst, n = yield from _drive(gen, seen, objs)
         spent += n
+        starved = "no budget left for this level: the best of the inner levels' evaluations" if left == 0 else ""
         for name, c, sign in objs:
             if worst is not None and name in worst.value:
+                note = "; ".join(t for t in (worst.notes.get(name, ""), starved) if t)
                 extremes.append(Extreme(c, "max" if sign > 0 else "min", alpha, sign * worst.value[name],
-                                        np.asarray(worst.x[name], float), worst.certificate[name],
-                                        worst.notes.get(name, "")))
+                                        np.asarray(worst.x[name], float), worst.certificate[name], note))
     return extremes
 
 
