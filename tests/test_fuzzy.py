@@ -285,11 +285,15 @@ def test_the_limit_is_read_against_the_membership_function():
 
 
 def test_report_draws_the_membership_function(tmp_path):
+    """Heave's maximum against an upper limit; temperature's minimum only (its maximum is not searched)."""
     doc = plate_doc(sense="max")
+    doc["criteria"][2]["sense"] = "min"
     doc["limits"] = {"heave": 8.5e-4}
     doc["search"]["budget"] = 60
     ds = wcs.run(load(doc, PLATE), output=False)
     page = render_report(ds, strict=True)
+    worst_data = page[page.index('<section id="worst-data">'):page.index('<section id="worst-fields">')]
+    assert "temperature</h3><p class=\"note\">Its maximum is not searched (sense: min)" in worst_data
     section = page[page.index('<section id="membership">'):]
     section = section[:section.index("</section>")]
     assert section.count("<img") == 3 and "The limit holds for every data set of membership ≥ 0.5; a data set of membership ≥ 0.25 breaks it." in section
