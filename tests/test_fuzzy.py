@@ -303,3 +303,20 @@ def test_check_prints_the_levels_and_cores(tmp_path, capsys):
     assert main(["check", str(write(tmp_path, plate_doc()))]) == 0
     assert ("fuzzy: levels 0, 0.25, 0.5, 0.75, 1, searched from the core (α = 1) outwards; the boxes above are "
             "the supports; cores: materials.steel.E [2.05e+11, 2.15e+11]") in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_fuzzy_report_renders_in_chromium(tmp_path):
+    """The membership figures are drawn on the page as Chromium shows it: the minima's line
+    (green, #2ca02c) is only in them."""
+    from PIL import Image
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_report import ensure_chromium, screenshot
+    from wcs.report import write_report
+    doc = plate_doc()
+    doc["limits"] = {"heave": {"lower": 3.0e-4, "upper": 8.5e-4}}
+    wcs.run(load(doc, PLATE), tmp_path / "plate.nc")
+    page = write_report(tmp_path / "plate.nc", tmp_path / "plate.html", strict=True)
+    shot = np.asarray(Image.open(screenshot(page, tmp_path / "shot.png", ensure_chromium(), height=5000)).convert("RGB"))
+    green = np.all(np.abs(shot.astype(int) - [0x2c, 0xa0, 0x2c]) < 12, axis=-1)
+    assert green.sum() > 200
