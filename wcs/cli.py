@@ -1,7 +1,8 @@
-"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken.
+"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken,
+4 `compare`: the files differ.
 
 Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
-solve --worst, `wcs/report/` for report), so `wcs --help` and `wcs report` do not load the
+solve --worst, `wcs/report/` for report, `wcs/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
 solvers."""
 from __future__ import annotations
 
@@ -135,6 +136,11 @@ def cmd_report(args) -> int:
     return report(args)
 
 
+def cmd_compare(args) -> int:
+    from .compare import cmd_compare as compare
+    return compare(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wcs", description="Worst-scenario analysis of contact problems of elastic bodies.")
     ap.add_argument("--version", action="version", version=f"wcs {__version__}")
@@ -155,6 +161,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
     p.add_argument("--fail-on-limit", action="store_true", help="exit 3 when a worst value breaks its limit")
+    p.add_argument("--no-mesh-check", action="store_true",
+                   help="skip re-solving the extreme data sets on the mesh refined once and twice")
     p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")
     p.add_argument("-o", "--output", help="results file (.nc)")
     p = sub.add_parser("report", help="an HTML repository-safety report of a results file")
@@ -163,6 +171,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_report)
+    p = sub.add_parser("compare", help="exit 0 when two results files of one study agree, 4 with a table when not")
+    p.add_argument("a", help="results file (.nc)")
+    p.add_argument("b", help="results file (.nc) of the same study")
+    p.add_argument("--rtol", type=float, default=0.0,
+                   help="relative tolerance for floating-point values (default 0: exact, NaN equals NaN)")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--verbose", action="store_true")
+    p.set_defaults(func=cmd_compare)
     return ap
 
 
@@ -171,7 +187,8 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except StudyError as e:
-        print(f"error: {e.in_file(getattr(args, 'study', None) or args.results)}", file=sys.stderr)
+        print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
