@@ -98,6 +98,7 @@ class Results:
     incomplete: str = ""                    # why the run is not finished ("" when it is)
     source: str = ""                        # the file it was read from
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
+    after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
 
     @property
     def n_eval(self) -> int:
@@ -330,7 +331,18 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where)
+                   after_search=after_search(ds), source=where)
+
+
+def after_search(ds: xr.Dataset) -> xr.Dataset | None:
+    """What `wcs run` adds after the search (`wcs/drivers.py`, `wcs/meshcheck.py`): the drivers*
+    and mesh_check* variables with the `mesh_check` attribute; None when the file has neither."""
+    names = [v for v in ds.data_vars if str(v).startswith(("drivers", "mesh_check_"))]
+    if not names and "mesh_check" not in ds.attrs:
+        return None
+    out = ds[names]
+    out.attrs = {"mesh_check": _text(ds.attrs.get("mesh_check", ""))}
+    return out
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:
