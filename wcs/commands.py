@@ -34,6 +34,8 @@ def _finish_command(args, study, ds, out: Path) -> int:
               f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
               f"from the store; wrote {out}")
         print(summary_table(ds))
+        if "mesh_check_value" in ds:
+            print(meshcheck.summary(ds))
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
         why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))

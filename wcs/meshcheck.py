@@ -136,7 +136,9 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dat
             values[ext.index(e.kind), crit.index(e.criterion), 0] = e.value
     cells = int(ds.attrs.get("mesh_cells", 0)) * 4 ** SPLITS[-1]
     status = "done"
-    if cells > max_cells(study):
+    if not any(e.found for e in found):
+        status = "not run: no extreme data set was solved"
+    elif cells > max_cells(study):
         status = (f"not run: the mesh split {SPLITS[-1]} times would have {cells:.3g} cells, beyond "
                   f"mesh.max_cells = {max_cells(study):g}")
     else:
@@ -214,3 +216,19 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dat
 def skipped(why: str) -> xr.Dataset:
     """The attribute of a results file whose mesh check was not run."""
     return xr.Dataset(attrs={"mesh_check": why})
+
+
+def summary(ds: xr.Dataset) -> str:
+    """One line per extreme of the mesh check: the three values, the order, the error, the verdict."""
+    lines = [f"mesh check: {ds.attrs.get('mesh_check', '')}"]
+    for kind in map(str, ds["extreme"].values):
+        for c in map(str, ds["criterion"].values):
+            pick = {"extreme": kind, "criterion": c}
+            f = ds["mesh_check_value"].sel(pick).values
+            if not np.isfinite(f[0]):
+                continue
+            p, err = float(ds["mesh_check_order"].sel(pick)), float(ds["mesh_check_error"].sel(pick))
+            lines.append(f"  {c} ({kind}): {f[0]:.7g} / {f[1]:.7g} / {f[2]:.7g} on h, h/2, h/4; "
+                         + (f"order {p:.2f}, estimated error {err:+.3g}" if math.isfinite(p) else "no observed order")
+                         + f"; {ds['mesh_check_verdict'].sel(pick).values or 'no limit'}")
+    return "\n".join(lines)

@@ -424,7 +424,7 @@ class Report:
                     f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
                     f'<td class="num">{number(err, u)}{pct}</td>'
                     f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
-                    f'<td class="note">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+                    f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         head = "".join(f"<th>{h}</th>" for h in (
             "criterion", "extreme", f"h ({nodes[0]} nodes)", f"h/2 ({nodes[1]} nodes, {seconds[1]:.3g} s)",
             f"h/4 ({nodes[2]} nodes, {seconds[2]:.3g} s)", "observed order", "extrapolated",
