@@ -42,6 +42,12 @@ def test_drivers_of_the_heated_slab_are_its_exact_derivatives(slab):
     assert page.count("drivers of warmth") == 1                    # the chart
 
 
+def test_no_mesh_check_skips_it_and_keeps_the_drivers(slab):
+    assert slab.attrs["mesh_check"] == "skipped (--no-mesh-check)"
+    assert not any(str(v).startswith("mesh_check_") for v in slab.data_vars)
+    assert 'id="no-mesh-check"' in render_report(slab, strict=True)
+
+
 def test_an_extreme_without_a_kept_gradient_is_solved_again(slab):
     ds = slab.copy(deep=True)
     row = int(ds["worst_eval"].values[0])
@@ -72,9 +78,9 @@ def test_no_gradient_gives_no_number(slab, outcome, said):
     assert 'class="warn no-gradient">No drivers' in page and "drivers of warmth" not in page
 
 
-def test_a_nonsmooth_extreme_says_so(slab):
+def test_a_nonsmooth_extreme_has_no_drivers(slab):
     ds = slab.copy(deep=True)
     ds["nonsmooth"].values[int(ds["worst_eval"].values[0])] = 1
     out = drivers(ds, extremes(ds), lambda x: pytest.fail("the run's gradient is there"))
-    np.testing.assert_array_equal(out["drivers"].values, slab["drivers"].values)
-    assert "not differentiable here" in str(out["drivers_note"].values[0, 0])
+    assert np.isnan(out["drivers"].values).all()
+    assert "not differentiable at the extreme" in str(out["drivers_note"].values[0, 0])

@@ -141,14 +141,6 @@ def test_marginal_reaches_the_report(tmp_path):
     assert 'id="mesh-check-table"' in page
 
 
-def test_no_mesh_check_skips_it(tmp_path, capsys):
-    ds = _run(tmp_path, SLAB, "--no-mesh-check")
-    assert ds.attrs["mesh_check"] == "skipped (--no-mesh-check)"
-    assert not any(str(v).startswith("mesh_check_") for v in ds.data_vars)
-    assert "drivers" in ds                                         # the drivers are cheap: always there
-    assert 'id="no-mesh-check"' in render_report(ds, strict=True)
-
-
 def test_check_prints_the_cost(capsys):
     assert main(["check", str(SLAB)]) == 0
     out = capsys.readouterr().out

@@ -4,12 +4,11 @@
 
 the first-order change of Φ when x_i runs across its interval — comparable between parameters
 of different units. The gradient is the run's own where the evaluation at the extreme kept
-one; otherwise the extreme data set is solved again with the adjoint. Where there is none (the
-adjoint's active-set system is singular, the solve failed) the drivers are NaN and the note
-says why; where the active set (or the maximising region) changes within reach of the data
-set, Φ is not differentiable there and the note says that the values are the derivatives on
-the current active set (one of the one-sided derivatives). A parameter whose d_i is at most
-IDLE × the largest does not move the criterion (to first order, at the extreme).
+one; otherwise the extreme data set is solved again with the adjoint. Where there is none the
+drivers are NaN and the note says why: the active set (or the maximising region) changes
+within reach of the data set, so Φ is not differentiable there; the adjoint's active-set
+system is singular; the solve failed. A parameter whose d_i is at most IDLE × the largest
+does not move the criterion (to first order, at the extreme).
 """
 from __future__ import annotations
 
@@ -22,8 +21,8 @@ from .extremes import Extreme, kinds
 
 IDLE = 1e-9                     # d_i at most this share of the largest: the parameter does not move Φ
 
-NONSMOOTH = ("not differentiable here (the active set or the maximising region changes within reach): "
-             "the values are the derivatives on the current active set, a one-sided derivative")
+NONSMOOTH = ("no gradient: the criterion is not differentiable at the extreme (the active set or the "
+             "maximising region changes within reach of the data set)")
 
 
 def idle(d: np.ndarray) -> np.ndarray:
@@ -64,8 +63,11 @@ def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Data
                 continue
             g, rough = np.asarray(g, float), bool(ev.nonsmooth)
             how = "the adjoint gradient of the extreme data set solved again"
+        if rough:
+            notes[a, c] = NONSMOOTH
+            continue
         grad[a, c] = g
-        notes[a, c] = f"{how}; {NONSMOOTH}" if rough else how
+        notes[a, c] = how
     dims = ("extreme", "criterion", "param")
     return xr.Dataset({
         "drivers": (dims, np.abs(grad) * width,

@@ -457,8 +457,6 @@ class Report:
                 if not np.all(np.isfinite(d)):
                     body += f'<p class="warn no-gradient">No drivers: {esc(note)}.</p>'
                     continue
-                if "not differentiable" in note:
-                    body += f'<p class="warn">{esc(note)}.</p>'
                 body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
                                                  f"{c}: what drives its {kind} value"), f"drivers of {c}")
                 still = [p for p, z in zip(params, idle(d)) if z]
