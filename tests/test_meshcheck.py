@@ -1,7 +1,6 @@
 """The mesh check of `wcs run`: the extremes re-solved on the mesh split once and twice,
 Richardson's order, extrapolation and error estimate, and the PASS / FAIL / MARGINAL verdict."""
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np

@@ -21,6 +21,7 @@ from .extremes import Extreme, kinds
 
 IDLE = 1e-9                     # d_i at most this share of the largest: the parameter does not move Φ
 
+NO_EXTREME = "no extreme found"
 NONSMOOTH = ("no gradient: the criterion is not differentiable at the extreme (the active set or the "
              "maximising region changes within reach of the data set)")
 
@@ -40,7 +41,7 @@ def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Data
     width = ds["param_upper"].values - ds["param_lower"].values
     n = width.size
     grad = np.full((len(ext), len(crit), n), np.nan)
-    notes = np.full((len(ext), len(crit)), "no extreme found", dtype=object)
+    notes = np.full((len(ext), len(crit)), NO_EXTREME, dtype=object)
     resolved = {}
     for e in found:
         a, c = ext.index(e.kind), crit.index(e.criterion)

@@ -7,6 +7,7 @@ What comes after a search (the mesh check, the drivers) loops over this list.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,3 +48,11 @@ def extremes(ds: xr.Dataset) -> list[Extreme]:
             out.append(Extreme(c, kind, np.asarray(x.sel(criterion=c).values, float),
                                float(value.sel(criterion=c)), -1 if row is None else int(row.values[j])))
     return out
+
+
+def pairs(ds: xr.Dataset) -> Iterator[tuple[str, str, dict]]:
+    """(kind, criterion, selection) of every extreme of the variables added after the search
+    (dims `extreme`, `criterion`), kind by kind."""
+    for kind in map(str, ds["extreme"].values):
+        for c in map(str, ds["criterion"].values):
+            yield kind, c, {"extreme": kind, "criterion": c}

@@ -29,7 +29,7 @@ import xarray as xr
 
 from .errors import StudyError
 from .evaluation import Evaluator
-from .extremes import Extreme, kinds
+from .extremes import Extreme, kinds, pairs
 from .scene.estimate import DEFAULT_MAX_CELLS
 from .store import key
 
@@ -221,14 +221,12 @@ def skipped(why: str) -> xr.Dataset:
 def summary(ds: xr.Dataset) -> str:
     """One line per extreme of the mesh check: the three values, the order, the error, the verdict."""
     lines = [f"mesh check: {ds.attrs.get('mesh_check', '')}"]
-    for kind in map(str, ds["extreme"].values):
-        for c in map(str, ds["criterion"].values):
-            pick = {"extreme": kind, "criterion": c}
-            f = ds["mesh_check_value"].sel(pick).values
-            if not np.isfinite(f[0]):
-                continue
-            p, err = float(ds["mesh_check_order"].sel(pick)), float(ds["mesh_check_error"].sel(pick))
-            lines.append(f"  {c} ({kind}): {f[0]:.7g} / {f[1]:.7g} / {f[2]:.7g} on h, h/2, h/4; "
-                         + (f"order {p:.2f}, estimated error {err:+.3g}" if math.isfinite(p) else "no observed order")
-                         + f"; {ds['mesh_check_verdict'].sel(pick).values or 'no limit'}")
+    for kind, c, pick in pairs(ds):
+        f = ds["mesh_check_value"].sel(pick).values
+        if not np.isfinite(f[0]):
+            continue
+        p, err = float(ds["mesh_check_order"].sel(pick)), float(ds["mesh_check_error"].sel(pick))
+        lines.append(f"  {c} ({kind}): {f[0]:.7g} / {f[1]:.7g} / {f[2]:.7g} on h, h/2, h/4; "
+                     + (f"order {p:.2f}, estimated error {err:+.3g}" if math.isfinite(p) else "no observed order")
+                     + f"; {ds['mesh_check_verdict'].sel(pick).values or 'no limit'}")
     return "\n".join(lines)

@@ -11,7 +11,8 @@ import traceback
 
 import numpy as np
 
-from ..drivers import idle
+from ..drivers import NO_EXTREME, idle
+from ..extremes import pairs
 from . import plots
 from .data import KIND_LABEL, Results
 
@@ -406,25 +407,23 @@ class Report:
         units = {c.name: c.units for c in self.res.criteria}
         nodes, seconds = a["mesh_check_nodes"].values, a["mesh_check_time"].values
         rows = []
-        for kind in map(str, a["extreme"].values):
-            for c in map(str, a["criterion"].values):
-                pick = {"extreme": kind, "criterion": c}
-                f = a["mesh_check_value"].sel(pick).values
-                if not np.isfinite(f[0]):
-                    continue
-                u = units.get(c, "")
-                err = float(a["mesh_check_error"].sel(pick))
-                pct = f" ({100 * err / abs(f[0]):+.2g} %)".replace("-", "−") if np.isfinite(err) and f[0] else ""
-                ver = str(a["mesh_check_verdict"].sel(pick).values)
-                cls = {"PASS": "pass", "FAIL": "fail"}.get(ver, "none")
-                rows.append(
-                    f'<tr data-criterion="{esc(c)}" data-extreme="{esc(kind)}"><td>{esc(c)}</td><td>{esc(kind)}</td>'
-                    + "".join(f'<td class="num">{number(v, u, 7)}</td>' for v in f)
-                    + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
-                    f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
-                    f'<td class="num">{number(err, u)}{pct}</td>'
-                    f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
-                    f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+        for kind, c, pick in pairs(a):
+            f = a["mesh_check_value"].sel(pick).values
+            if not np.isfinite(f[0]):
+                continue
+            u = units.get(c, "")
+            err = float(a["mesh_check_error"].sel(pick))
+            pct = f" ({100 * err / abs(f[0]):+.2g} %)".replace("-", "−") if np.isfinite(err) and f[0] else ""
+            ver = str(a["mesh_check_verdict"].sel(pick).values)
+            cls = {"PASS": "pass", "FAIL": "fail"}.get(ver, "none")
+            rows.append(
+                f'<tr data-criterion="{esc(c)}" data-extreme="{esc(kind)}"><td>{esc(c)}</td><td>{esc(kind)}</td>'
+                + "".join(f'<td class="num">{number(v, u, 7)}</td>' for v in f)
+                + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
+                f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
+                f'<td class="num">{number(err, u)}{pct}</td>'
+                f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
+                f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         head = "".join(f"<th>{h}</th>" for h in (
             "criterion", "extreme", f"h ({nodes[0]} nodes)", f"h/2 ({nodes[1]} nodes, {seconds[1]:.3g} s)",
             f"h/4 ({nodes[2]} nodes, {seconds[2]:.3g} s)", "observed order", "extrapolated",
@@ -448,28 +447,29 @@ class Report:
                 '|∂Φ/∂xᵢ| · (uᵢ − lᵢ), the first-order change of the criterion when parameter i runs across '
                 'its interval, so parameters of different units compare. Red bars: the criterion grows with '
                 'the parameter; blue: it falls.</p>')
-        for kind in map(str, a["extreme"].values):
-            for c in map(str, a["criterion"].values):
-                pick = {"extreme": kind, "criterion": c}
-                d = a["drivers"].sel(pick).values
-                note = str(a["drivers_note"].sel(pick).values)
-                body += f'<h3 data-criterion="{esc(c)}">{esc(c)}, {esc(kind)} case</h3>'
-                if not np.all(np.isfinite(d)):
-                    body += f'<p class="warn no-gradient">No drivers: {esc(note)}.</p>'
-                    continue
-                body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
-                                                 f"{c}: what drives its {kind} value"), f"drivers of {c}")
-                still = [p for p, z in zip(params, idle(d)) if z]
-                body += (f'<p class="idle">Parameters that do not move {esc(c)} (to first order at its {esc(kind)} '
-                         f'data set): {", ".join(esc(p) for p in still)}.</p>' if still else
-                         f'<p class="idle">Every parameter moves {esc(c)} at its {esc(kind)} data set.</p>')
+        for kind, c, pick in pairs(a):
+            d = a["drivers"].sel(pick).values
+            note = str(a["drivers_note"].sel(pick).values)
+            if note == NO_EXTREME:
+                continue
+            body += f'<h3 data-criterion="{esc(c)}">{esc(c)}, {esc(kind)} case</h3>'
+            if not np.all(np.isfinite(d)):
+                body += f'<p class="warn no-gradient">No drivers: {esc(note)}.</p>'
+                continue
+            body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
+                                             f"{c}: what drives its {kind} value"), f"drivers of {c}")
+            still = [p for p, z in zip(params, idle(d)) if z]
+            body += (f'<p class="idle">Parameters that do not move {esc(c)} (to first order at its {esc(kind)} '
+                     f'data set): {", ".join(esc(p) for p in still)}.</p>' if still else
+                     f'<p class="idle">Every parameter moves {esc(c)} at its {esc(kind)} data set.</p>')
         return body
 
     # ------------------------------------------------------------ page
     def render(self) -> str:
         r = self.res
         builders = {"summary": self.summary, "limits": self.limits, "scene": self.scene,
-                    "worst-data": self.worst_data, "mesh-check": self.mesh_check, "drivers": self.drivers, "worst-fields": self.worst_fields, "contact": self.contact,
+                    "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
+                    "mesh-check": self.mesh_check, "drivers": self.drivers,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
         sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)
