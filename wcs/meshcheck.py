@@ -101,7 +101,7 @@ def cost(evaluator, solve_time: float, n_extremes: int) -> list[tuple[int, int, 
     """(splits, unknowns, estimated seconds) of each refined mesh: meshing as the study's mesh
     (gmsh's splitting is cheap beside the geometry), assembly and each of the `n_extremes` cold
     solves growing with the nodes (the study's mesh took evaluator.timings and one cold solve
-    `solve_time`). Measured on Hertz (1.6e4 to 2.5e5 nodes): 1.5x the time taken."""
+    `solve_time`). Measured: the tunnel 33 s estimated, 40 s taken; Hertz 14 s, 24 s."""
     mesh = evaluator.smesh.mesh
     n = mesh.p.shape[1]
     per_node = 3 if evaluator.model.thermal else 2
