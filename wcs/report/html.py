@@ -148,18 +148,20 @@ class Report:
                 out.append("none")
             elif not math.isfinite(c.worst):
                 out.append("unknown")
-            elif self.mesh_verdict(c.name) == "MARGINAL":
-                out.append("marginal")
             else:
                 out.append("fail" if c.worst > c.limit else "pass")
         return out
 
-    def mesh_verdict(self, criterion: str) -> str:
-        """The mesh check's verdict of a criterion's worst value ("" where none)."""
+    def mesh_verdicts(self):
+        """`verdicts` read with the mesh check: "marginal" where a limit of the criterion lies
+        within an extreme ± its estimated mesh error."""
+        return ["marginal" if v in ("pass", "fail") and self.marginal(c.name) else v
+                for c, v in zip(self.res.criteria, self.verdicts())]
+
+    def marginal(self, criterion: str) -> bool:
         a = self.res.after_search
-        if a is None or "mesh_check_verdict" not in a or "worst" not in a["extreme"].values:
-            return ""
-        return str(a["mesh_check_verdict"].sel(extreme="worst", criterion=criterion).values)
+        return a is not None and "mesh_check_verdict" in a and \
+            bool((a["mesh_check_verdict"].sel(criterion=criterion) == "MARGINAL").any())
 
     def fallbacks(self) -> dict[str, int]:
         """Solved evaluations whose message names a fallback, `solved (B after A ...)`: message -> count."""
@@ -172,7 +174,7 @@ class Report:
     # ------------------------------------------------------------ sections
     def summary(self) -> str:
         r, a = self.res, self.res.attrs
-        v = self.verdicts()
+        v = self.mesh_verdicts()
         n_fail = int(r.failed.sum())
         if "fail" in v:
             broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
@@ -219,7 +221,7 @@ class Report:
     def limits(self) -> str:
         r = self.res
         rows = []
-        for c, v in zip(r.criteria, self.verdicts()):
+        for c, v in zip(r.criteria, self.mesh_verdicts()):
             margin = c.limit - c.worst if math.isfinite(c.limit) and math.isfinite(c.worst) else float("nan")
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
             label = {"pass": "PASS", "fail": "FAIL", "marginal": "MARGINAL", "none": "no limit", "unknown": "unknown"}[v]
