@@ -112,18 +112,20 @@ def cmd_check(args) -> int:
     if not args.quiet:
         print(f"  nominal solve: {res.message} in {res.wall_time:.2f} s; "
               + ", ".join(f"{k} = {v:.4g}" for k, v in res.phi.items()))
-        print(mesh_check_cost(study, ev, res.wall_time))
+        p = study.parameters                                # a solve away from the nominal state
+        print(mesh_check_cost(study, ev, ev.evaluate((p.lower + p.upper) / 2).wall_time))
         print("ok")
     return 0
 
 
-def mesh_check_cost(study, ev, solve_time: float) -> str:
-    """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate."""
+def mesh_check_cost(study, ev, warm_solve: float) -> str:
+    """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
+    from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
     from .meshcheck import cost, max_cells
     if (study.scene.get("mesh") or {}).get("file"):
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
     n_ext = sum(2 if c.get("sense") == "both" else 1 for c in study.criteria)
-    levels = cost(ev, solve_time, n_ext)
+    levels = cost(ev, warm_solve, n_ext)
     cells = ev.smesh.mesh.t.shape[1] * 4 ** levels[-1][0]
     if cells > max_cells(study):
         return (f"  mesh check: will not run (the mesh split {levels[-1][0]} times would have {cells:.3g} cells, "
