@@ -1,7 +1,8 @@
-"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken.
+"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken,
+4 `compare`: the files differ.
 
 Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
-solve --worst, `wcs/report/` for report), so `wcs --help` and `wcs report` do not load the
+solve --worst, `wcs/report/` for report, `wcs/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
 solvers."""
 from __future__ import annotations
 
@@ -119,8 +120,28 @@ def cmd_check(args) -> int:
     if not args.quiet:
         print(f"  nominal solve: {res.message} in {res.wall_time:.2f} s; "
               + ", ".join(f"{k} = {v:.4g}" for k, v in res.phi.items()))
+        p = study.parameters                                # a solve away from the nominal state
+        print(mesh_check_cost(study, ev, ev.evaluate((p.lower + p.upper) / 2).wall_time))
         print("ok")
     return 0
+
+
+def mesh_check_cost(study, ev, warm_solve: float) -> str:
+    """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
+    from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
+    from .meshcheck import cost, max_cells
+    if (study.scene.get("mesh") or {}).get("file"):
+        return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
+    n_ext = sum(2 if c.get("sense") == "both" else 1 for c in study.criteria)
+    levels = cost(ev, warm_solve, n_ext)
+    cells = ev.smesh.mesh.t.shape[1] * 4 ** levels[-1][0]
+    if cells > max_cells(study):
+        return (f"  mesh check: will not run (the mesh split {levels[-1][0]} times would have {cells:.3g} cells, "
+                f"beyond mesh.max_cells = {max_cells(study):g})")
+    return (f"  mesh check (after the search; `run --no-mesh-check` skips it): up to {n_ext} extreme data set(s) "
+            f"solved again on the mesh split once and twice, "
+            + " and ".join(f"{n} unknowns" for _, n, _ in levels)
+            + f"; about {sum(t for _, _, t in levels):.2g} s (assembly and solves taken as growing with the unknowns)")
 
 
 def cmd_solve(args) -> int:
@@ -143,6 +164,11 @@ def cmd_report(args) -> int:
     return report(args)
 
 
+def cmd_compare(args) -> int:
+    from .compare import cmd_compare as compare
+    return compare(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wcs", description="Worst-scenario analysis of contact problems of elastic bodies.")
     ap.add_argument("--version", action="version", version=f"wcs {__version__}")
@@ -163,6 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
     p.add_argument("--fail-on-limit", action="store_true", help="exit 3 when a worst value breaks its limit")
+    p.add_argument("--no-mesh-check", action="store_true",
+                   help="skip re-solving the extreme data sets on the mesh refined once and twice")
     p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")
     p.add_argument("-o", "--output", help="results file (.nc)")
     p = sub.add_parser("report", help="an HTML repository-safety report of a results file")
@@ -171,6 +199,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_report)
+    p = sub.add_parser("compare", help="exit 0 when two results files of one study agree, 4 with a table when not")
+    p.add_argument("a", help="results file (.nc)")
+    p.add_argument("b", help="results file (.nc) of the same study")
+    p.add_argument("--rtol", type=float, default=0.0,
+                   help="relative tolerance for floating-point values (default 0: exact, NaN equals NaN)")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--verbose", action="store_true")
+    p.set_defaults(func=cmd_compare)
     return ap
 
 
@@ -179,7 +215,8 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except StudyError as e:
-        print(f"error: {e.in_file(getattr(args, 'study', None) or args.results)}", file=sys.stderr)
+        print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

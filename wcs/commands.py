@@ -13,11 +13,14 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from . import meshcheck
+from .drivers import drivers
 from .errors import StudyError
 from .evaluation import Evaluator
+from .extremes import extremes
 from .parallel import rank, world
 from .progress import Progress, limits_broken, summary_table
-from .results import widest, write_solution
+from .results import widest, write_netcdf, write_solution
 from .runner import Runner
 from .status import Status, describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
@@ -31,6 +34,8 @@ def _finish_command(args, study, ds, out: Path) -> int:
               f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
               f"from the store; wrote {out}")
         print(summary_table(ds))
+        if "mesh_check_value" in ds:
+            print(meshcheck.summary(ds))
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
         why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))
@@ -59,6 +64,32 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
     return 1
 
 
+class CheckedRunner(Runner):
+    """A run whose results file also says what drives each extreme (`wcs/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): both are added after
+    the search, under the run's lock, and the file is written again."""
+
+    def __init__(self, *args, mesh_check: bool = True, **kw):
+        self.mesh_check = mesh_check
+        super().__init__(*args, **kw)
+
+    def finish(self, result) -> xr.Dataset:
+        ds = super().finish(result)
+        collective = self.comm is not None and not self.split_batches       # a DD solve spread over the ranks
+        if self.kind != "run" or not (self.root or collective):
+            return ds
+        found = extremes(ds)
+        parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers"))]
+        parts.append(meshcheck.mesh_check(self.study, ds, found, self.comm if collective else None)
+                     if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
+        for part in parts:
+            ds = ds.assign_coords(part.coords).assign(part.data_vars)
+            ds.attrs.update(part.attrs)
+        if self.output is not None and self.root:
+            write_netcdf(ds, self.output)
+        return ds
+
+
 def _command(args, kind: str) -> int:
     study = load_study(args.study)
     if rank(world()) == 0:
@@ -71,7 +102,8 @@ def _command(args, kind: str) -> int:
         if kind == "sweep":
             out = out.with_name(out.stem + "-sweep.nc")
     try:
-        r = Runner(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args), kind=kind, where=where)
+        r = CheckedRunner(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args), kind=kind,
+                          where=where, mesh_check=not getattr(args, "no_mesh_check", False))
         ds = r.run() if kind == "run" else r.sweep()
     except WriteError as e:
         return _write_failure(e, args, out)

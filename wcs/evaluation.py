@@ -41,10 +41,12 @@ class Evaluation:
 
 
 class Evaluator:
-    def __init__(self, study):
+    def __init__(self, study, splits: int = 0):
+        """splits: the study's mesh refined that many times, every triangle split into four
+        (the mesh check, `wcs/meshcheck.py`)."""
         t0 = time.perf_counter()
         self.study = study
-        self.smesh = build_mesh(study.scene, embedded_rois(study.criteria))
+        self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)

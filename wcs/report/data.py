@@ -119,6 +119,7 @@ class Results:
     source: str = ""                        # the file it was read from
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
+    after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
 
     @property
     def n_eval(self) -> int:
@@ -357,7 +358,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where, levels=levels)
+                   source=where, levels=levels, after_search=after_search(ds))
 
 
 def _levels(ds: xr.Dataset) -> Levels | None:
@@ -368,6 +369,17 @@ def _levels(ds: xr.Dataset) -> Levels | None:
     best = ds["best_value"].transpose("level", "criterion").values.astype(float) if "best_value" in ds \
         else np.full_like(worst, np.nan)
     return Levels(ds["level"].values.astype(float), worst, best)
+
+
+def after_search(ds: xr.Dataset) -> xr.Dataset | None:
+    """What `wcs run` adds after the search (`wcs/drivers.py`, `wcs/meshcheck.py`): the drivers*
+    and mesh_check* variables with the `mesh_check` attribute; None when the file has neither."""
+    names = [v for v in ds.data_vars if str(v).startswith(("drivers", "mesh_check_"))]
+    if not names and "mesh_check" not in ds.attrs:
+        return None
+    out = ds[names]
+    out.attrs = {"mesh_check": _text(ds.attrs.get("mesh_check", ""))}
+    return out
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:

@@ -11,6 +11,8 @@ import traceback
 
 import numpy as np
 
+from ..drivers import NO_EXTREME, idle
+from ..extremes import pairs
 from . import plots
 from .data import KIND_LABEL, Results
 
@@ -19,7 +21,9 @@ SECTIONS = [
     ("limits", "Limits"),
     ("membership", "Membership function of each criterion (fuzzy data)"),
     ("scene", "The scene and mesh"),
+    ("mesh-check", "The mesh's share"),
     ("worst-data", "Worst data set per criterion"),
+    ("drivers", "What drives the extremes"),
     ("worst-fields", "Deformed shape and stresses at the worst case"),
     ("contact", "Contact pressure and slip"),
     ("criteria-vs-parameters", "Criteria against the parameters"),
@@ -152,6 +156,17 @@ class Report:
                        else "pass")
         return out
 
+    def mesh_verdicts(self):
+        """`verdicts` read with the mesh check: "marginal" where a limit of the criterion lies
+        within an extreme ± its estimated mesh error."""
+        return ["marginal" if v in ("pass", "fail") and self.marginal(c.name) else v
+                for c, v in zip(self.res.criteria, self.verdicts())]
+
+    def marginal(self, criterion: str) -> bool:
+        a = self.res.after_search
+        return a is not None and "mesh_check_verdict" in a and \
+            bool((a["mesh_check_verdict"].sel(criterion=criterion) == "MARGINAL").any())
+
     def fallbacks(self) -> dict[str, int]:
         """Solved evaluations whose message names a fallback, `solved (B after A ...)`: message -> count."""
         out: dict[str, int] = {}
@@ -163,11 +178,15 @@ class Report:
     # ------------------------------------------------------------ sections
     def summary(self) -> str:
         r, a = self.res, self.res.attrs
-        v = self.verdicts()
+        v = self.mesh_verdicts()
         n_fail = int(r.failed.sum())
         if "fail" in v:
             broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
             verdict, cls, why = "FAIL", "fail", f"broken limit: {', '.join(broken)}"
+        elif "marginal" in v:
+            marginal = [c.name for c, s in zip(r.criteria, v) if s == "marginal"]
+            verdict, cls, why = "MARGINAL", "none", (f"the limit of {', '.join(marginal)} lies within the worst "
+                                                     "value ± its estimated mesh error (see “The mesh's share”)")
         elif r.incomplete:
             verdict, cls, why = "INCOMPLETE RUN", "none", (f"no limit is broken among the {r.n_eval} evaluations "
                                                             "in the file, but the run did not finish")
@@ -209,10 +228,10 @@ class Report:
         r = self.res
         ends = any(c.searched_min for c in r.criteria)
         rows = []
-        for c, v in zip(r.criteria, self.verdicts()):
+        for c, v in zip(r.criteria, self.mesh_verdicts()):
             margin = c.limit - c.worst if math.isfinite(c.limit) and math.isfinite(c.worst) else float("nan")
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
-            label = {"pass": "PASS", "fail": "FAIL", "none": "no limit", "unknown": "unknown"}[v]
+            label = {"pass": "PASS", "fail": "FAIL", "marginal": "MARGINAL", "none": "no limit", "unknown": "unknown"}[v]
             cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
             low = ""
             if ends:
@@ -428,12 +447,80 @@ class Report:
             body += '<p class="note">The results file does not record the study text.</p>'
         return body
 
+    # ------------------------------------------------------------ after the search
+    def mesh_check(self) -> str:
+        a = self.res.after_search
+        said = "" if a is None else a.attrs.get("mesh_check", "")
+        if a is None or "mesh_check_value" not in a:
+            return (f'<p class="note" id="no-mesh-check">No mesh check in this file'
+                    f'{": " + esc(said) if said else " (written without one)"}.</p>')
+        units = {c.name: c.units for c in self.res.criteria}
+        nodes, seconds = a["mesh_check_nodes"].values, a["mesh_check_time"].values
+        rows = []
+        for kind, c, pick in pairs(a):
+            f = a["mesh_check_value"].sel(pick).values
+            if not np.isfinite(f[0]):
+                continue
+            u = units.get(c, "")
+            err = float(a["mesh_check_error"].sel(pick))
+            pct = f" ({100 * err / abs(f[0]):+.2g} %)".replace("-", "−") if np.isfinite(err) and f[0] else ""
+            ver = str(a["mesh_check_verdict"].sel(pick).values)
+            cls = {"PASS": "pass", "FAIL": "fail"}.get(ver, "none")
+            rows.append(
+                f'<tr data-criterion="{esc(c)}" data-extreme="{esc(kind)}"><td>{esc(c)}</td><td>{esc(kind)}</td>'
+                + "".join(f'<td class="num">{number(v, u, 7)}</td>' for v in f)
+                + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
+                f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
+                f'<td class="num">{number(err, u)}{pct}</td>'
+                f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
+                f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+        head = "".join(f"<th>{h}</th>" for h in (
+            "criterion", "extreme", f"h ({nodes[0]} nodes)", f"h/2 ({nodes[1]} nodes, {seconds[1]:.3g} s)",
+            f"h/4 ({nodes[2]} nodes, {seconds[2]:.3g} s)", "observed order", "extrapolated",
+            "estimated error of the h value", "verdict", "note"))
+        return (f'<p>{esc(said)}.</p><table id="mesh-check-table"><tr>{head}</tr>{"".join(rows)}</table>'
+                '<p class="note">Each extreme data set is solved again on the study\'s mesh split once and twice '
+                '(every triangle into four, new nodes of curved boundaries on the curve: the same geometry, h '
+                'halved exactly). With f(h), f(h/2), f(h/4) and r = (f(h/2) − f(h))/(f(h/4) − f(h/2)) &gt; 1 the '
+                'observed order is log₂ r and Richardson\'s extrapolation f(h/4) + (f(h/4) − f(h/2))/(r − 1); '
+                'the estimated error is the extrapolated value minus the value on the study\'s mesh. The verdict '
+                'is MARGINAL when the limit lies within the extreme ± the estimated error (without an '
+                'observed order: ± the spread of the three values, as the note says).</p>')
+
+    def drivers(self) -> str:
+        a = self.res.after_search
+        if a is None or "drivers" not in a:
+            return '<p class="note" id="no-drivers">No drivers in this file (written without them).</p>'
+        units = {c.name: c.units for c in self.res.criteria}
+        params = list(self.res.params)
+        body = ('<p>At each extreme data set: the adjoint gradient of the criterion scaled by the box, '
+                '|∂Φ/∂xᵢ| · (uᵢ − lᵢ), the first-order change of the criterion when parameter i runs across '
+                'its interval, so parameters of different units compare. Red bars: the criterion grows with '
+                'the parameter; blue: it falls.</p>')
+        for kind, c, pick in pairs(a):
+            d = a["drivers"].sel(pick).values
+            note = str(a["drivers_note"].sel(pick).values)
+            if note == NO_EXTREME:
+                continue
+            body += f'<h3 data-criterion="{esc(c)}">{esc(c)}, {esc(kind)} case</h3>'
+            if not np.all(np.isfinite(d)):
+                body += f'<p class="warn no-gradient">No drivers: {esc(note)}.</p>'
+                continue
+            body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
+                                             f"{c}: what drives its {kind} value"), f"drivers of {c}")
+            still = [p for p, z in zip(params, idle(d)) if z]
+            body += (f'<p class="idle">Parameters that do not move {esc(c)} (to first order at its {esc(kind)} '
+                     f'data set): {", ".join(esc(p) for p in still)}.</p>' if still else
+                     f'<p class="idle">Every parameter moves {esc(c)} at its {esc(kind)} data set.</p>')
+        return body
+
     # ------------------------------------------------------------ page
     def render(self) -> str:
         r = self.res
         builders = {"summary": self.summary, "limits": self.limits, "membership": self.membership,
                     "scene": self.scene,
                     "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
+                    "mesh-check": self.mesh_check, "drivers": self.drivers,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
         sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)

@@ -596,3 +596,34 @@ def membership_figure(res: Results, j: int) -> bytes:
         ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return png(fig)
+
+
+# ---------------------------------------------------------------- after the search: what drives an extreme
+
+DRIVER_BARS = 15            # bars shown per criterion; the rest are summed into one
+
+
+def drivers_figure(params: list[str], drivers: np.ndarray, signs: np.ndarray, units: str, title: str) -> bytes:
+    """Ranked horizontal bars |dΦ/dx_i|(u_i − l_i), largest on top; red: Φ grows with x_i, blue: it falls.
+    Beyond DRIVER_BARS the rest is one grey bar ("k others")."""
+    order = np.argsort(-drivers, kind="stable")
+    shown = order[:DRIVER_BARS]
+    labels = [_short(params[i]) for i in shown]
+    values = list(drivers[shown])
+    colors = ["#d62728" if signs[i] > 0 else "#1f77b4" for i in shown]
+    if order.size > DRIVER_BARS:
+        labels.append(f"{order.size - DRIVER_BARS} others (sum)")
+        values.append(float(drivers[order[DRIVER_BARS:]].sum()))
+        colors.append("0.6")
+    fig, ax = plt.subplots(figsize=(6.4, 0.28 * len(values) + 1.2))
+    y = np.arange(len(values))[::-1]
+    ax.barh(y, values, color=colors)
+    ax.set_yticks(y)
+    ax.set_yticklabels(labels, fontsize=7)
+    ax.set_xlabel(f"|∂Φ/∂xᵢ| · (uᵢ − lᵢ) [{unit_label(units)}]")
+    ax.set_title(title)
+    ax.grid(axis="x", alpha=0.3)
+    ax.legend(handles=[Patch(color="#d62728", label="grows with xᵢ"), Patch(color="#1f77b4", label="falls with xᵢ")],
+              fontsize=7, loc="lower right")
+    fig.tight_layout()
+    return png(fig)

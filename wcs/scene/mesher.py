@@ -363,7 +363,15 @@ def _pieces(region_shapes: list, roi_shapes: list):
     return covered, inside
 
 
-def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed):
+def _generate(splits: int) -> None:
+    """gmsh's 2D mesh, then `splits` uniform refinements: every triangle split into four at its
+    edge midpoints, the new nodes of a curve placed on the curve (the geometry is kept)."""
+    gmsh.model.mesh.generate(2)
+    for _ in range(splits):
+        gmsh.model.mesh.refine()
+
+
+def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed, splits):
     """Mesh each body in its own gmsh model (its regions fragmented together, so regions of
     a body stay conforming); returns the concatenation, bodies in scene order."""
     base = gmsh.model.getCurrent()
@@ -376,7 +384,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed):
         covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
         _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat)))
-        gmsh.model.mesh.generate(2)
+        _generate(splits)
         xy, t, c1, c2, c3 = _extract(owner, inside, offset)
         gmsh.model.mesh.removeSizeCallback()
         gmsh.model.remove()
@@ -396,7 +404,7 @@ def _fragment(dimtags: list) -> list:
     return outmap
 
 
-def build_mesh(scene: dict, rois=None) -> SceneMesh:
+def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
     """Mesh a validated scene dict (the ``scene:`` block) into a :class:`SceneMesh`.
 
     ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
@@ -406,11 +414,16 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
     in the mesh (their outlines are curves of the fragment) and ``roi_cells``
     holds their cells (of their ``body`` if given).  A scene with
     ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``).
+    ``splits``: the mesh refined that many times by splitting every triangle into four
+    (uniform refinement of the same geometry, h halved each time; not for a mesh file).
     """
     bodies_spec = scene.get("bodies") or {}
     if not bodies_spec:
         raise StudyError("the scene has no bodies", path="scene.bodies")
     if (scene.get("mesh") or {}).get("file"):       # the user's own mesh (wcs.scene.meshfile)
+        if splits:
+            raise StudyError("a mesh file is used as it is: it has no geometry to refine on",
+                             path="scene.mesh.file")
         from .meshfile import read_mesh_file
         return check_connected(read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file"), "scene.mesh.file")
     bodies = list(bodies_spec)
@@ -459,13 +472,13 @@ def build_mesh(scene: dict, rois=None) -> SceneMesh:
         regions_flat = [reg for body in bodies for reg in bodies_spec[body].get("regions") or []]
         if not any(bodies_spec[body].get("mesh") for body in bodies):
             _set_sizes(*_size_function(scene, diag, None, _region_entity_sizes(scene, owner, regions_flat)))
-            gmsh.model.mesh.generate(2)
+            _generate(splits)
             xy, tris, cb, cr, ci = _extract(owner, inside)
             gmsh.model.mesh.removeSizeCallback()
         else:
             # bodies with their own sizes: every body meshed in a model of its own, so
             # curves shared with other bodies are NOT shared meshes (nonmatching sides)
-            xy, tris, cb, cr, ci = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed)
+            xy, tris, cb, cr, ci = _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed, splits)
 
     tri = np.concatenate(tris)
     cell_body = np.concatenate(cb)

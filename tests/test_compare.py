@@ -1,0 +1,102 @@
+"""`wcs compare A.nc B.nc [--rtol R]`: 0 equal, 4 different (with a table), 2 unreadable / another study."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from wcs.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "studies" / "validation" / "stacked-layers.yaml"
+BIN = Path(sys.executable).parent
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Two serial runs of one study (a tiny mesh, ~1 s each), with the mesh check skipped."""
+    d = tmp_path_factory.mktemp("compare")
+    shutil.copy(STUDY, d / "study.yaml")
+    for name in ("a.nc", "b.nc"):
+        assert main(["run", str(d / "study.yaml"), "-o", str(d / name), "--quiet", "--no-mesh-check"]) == 0
+    return d
+
+
+def _edited(src: Path, dst: Path, edit) -> Path:
+    ds = xr.load_dataset(src, engine="h5netcdf")
+    edit(ds)
+    ds.to_netcdf(dst, engine="h5netcdf")
+    return dst
+
+
+def test_two_runs_of_one_study_agree(runs, capsys):
+    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc")]) == 0
+    out = capsys.readouterr().out
+    assert "agree exactly" in out and "worst_value" in out and "phi" in out
+
+
+def test_one_changed_evaluation_is_named(runs, capsys):
+    ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
+    crit = str(ds["criterion"].values[0])
+    old = float(ds["phi"].values[3, 0])
+
+    def edit(ds):
+        ds["phi"].values[3, 0] = np.nextafter(old, np.inf)       # the smallest change there is
+    b = _edited(runs / "a.nc", runs / "one-changed.nc", edit)
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4
+    out = capsys.readouterr().out
+    assert "1 value(s) in phi" in out
+    row = [line for line in out.splitlines() if line.startswith("phi ")]
+    assert len(row) == 1 and f"eval=3, criterion={crit}" in row[0]
+    assert repr(old) in row[0] and repr(float(np.nextafter(old, np.inf))) in row[0]
+    # within a relative tolerance the one-ulp change is no difference; a 1e-6 change is
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-12"]) == 0
+
+    def bigger(ds):
+        ds["worst_value"].values[0] *= 1 + 1e-6
+    c = _edited(runs / "a.nc", runs / "worst-changed.nc", bigger)
+    assert main(["compare", str(runs / "a.nc"), str(c), "--rtol", "1e-9"]) == 4
+    assert "worst_value" in capsys.readouterr().out
+
+
+def test_a_missing_nan_or_extra_variable_is_a_difference(runs, capsys):
+    def nan_status(ds):
+        ds["phi"].values[0, 0] = np.nan
+        ds["best_value"] = ds["worst_value"]
+    b = _edited(runs / "a.nc", runs / "nan.nc", nan_status)
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4
+    out = capsys.readouterr().out
+    assert re.search(r"^best_value\s+-\s+absent\s+present$", out, re.M)
+    assert re.search(r"^phi\s+eval=0, criterion=\S+\s+\S+\s+nan$", out, re.M)
+
+
+def test_unreadable_or_another_study_is_exit_2(runs, capsys):
+    bad = runs / "bad.nc"
+    bad.write_text("not netcdf")
+    assert main(["compare", str(runs / "a.nc"), str(bad)]) == 2
+    assert "bad.nc" in capsys.readouterr().err
+    assert main(["compare", str(runs / "a.nc"), str(runs / "missing.nc")]) == 2
+
+    def other(ds):
+        ds.attrs["study_sha256"] = "0" * 64
+    b = _edited(runs / "a.nc", runs / "other.nc", other)
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 2
+    assert "different studies" in capsys.readouterr().err
+
+
+def test_one_and_two_mpi_ranks_agree(runs):
+    mpiexec = BIN / "mpiexec"
+    if not mpiexec.exists():
+        pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)                  # this tree's wcs, whatever the venv installed
+    cmd = [str(mpiexec), "-n", "2", sys.executable, "-m", "wcs.cli", "run", "study.yaml", "-o", "mpi.nc",
+           "--quiet", "--no-mesh-check"]
+    p = subprocess.run(cmd, cwd=runs, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr + p.stdout
+    assert main(["compare", str(runs / "a.nc"), str(runs / "mpi.nc")]) == 0

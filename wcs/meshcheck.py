@@ -1,0 +1,237 @@
+"""The mesh's share of an extreme value: each extreme data set solved again on the study's mesh
+refined once and twice, Richardson's extrapolation, and a verdict that knows the error.
+
+Refinement: every triangle of gmsh's mesh split into four at its edge midpoints (gmsh's
+`refine`), once and twice, the new nodes of a curve placed on the curve. Of the two uniform
+refinements of the same geometry this one keeps the geometry (a circle's new nodes lie on
+the circle) and halves h exactly everywhere: a halved gmsh size would not halve the cells
+where the curvature bound (24 per turn) or a graded refine zone sets the size, and a new
+Delaunay mesh is not a refinement of the old one, so its error does not follow C h^p from
+mesh to mesh. A mesh read from a file has no geometry to refine on: the check says so.
+
+With f0, f1, f2 the values on h, h/2, h/4 and r = (f1 − f0)/(f2 − f1) > 1 (the differences
+shrink), the observed order is p = log2 r, the extrapolated value f∞ = f2 + (f2 − f1)/(r − 1)
+(Richardson: f = f∞ + C h^p), and the estimated error of the reported value f0 is f∞ − f0
+(signed: the exact value is about f0 + error). Otherwise no order is observed: the three
+values agree to the solver's tolerance (the mesh's share is below it), or the differences do
+not shrink (not in the asymptotic range, no extrapolation). The verdict against a limit L is
+MARGINAL when |L − f0| ≤ |error| (without an error estimate: the spread max|f_k − f0| of the
+three values, and the note says so), else PASS or FAIL.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from .errors import StudyError
+from .evaluation import Evaluator
+from .extremes import Extreme, kinds, pairs
+from .scene.estimate import DEFAULT_MAX_CELLS
+from .store import key
+
+SPLITS = (1, 2)                 # the refined meshes: split once (h/2) and twice (h/4)
+ORDER_RANGE = (0.5, 4.0)        # observed orders outside it: the extrapolation is not to be trusted
+SOLVE_GROWTH = 1.15             # a solve's time grows as nodes^1.15 (1.1-1.25 from h/2 to h/4: knee, tunnel, Hertz)
+FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
+
+
+@dataclass(frozen=True)
+class Richardson:
+    order: float                # observed order p (NaN where none)
+    extrapolated: float         # f∞ (NaN where none)
+    error: float                # estimated error of f0: f∞ − f0 (NaN where none)
+    spread: float               # max |f_k − f0|
+    note: str
+
+
+def richardson(f0: float, f1: float, f2: float, tol: float) -> Richardson:
+    """Observed order, extrapolated value and estimated error of f0 from the values on h, h/2,
+    h/4; `tol`: relative differences at most this are the solver's, not the mesh's."""
+    vals = (f0, f1, f2)
+    if not all(map(math.isfinite, vals)):
+        return Richardson(math.nan, math.nan, math.nan, math.nan, "a value is missing: no estimate")
+    d1, d2 = f1 - f0, f2 - f1
+    spread = max(abs(d1), abs(f2 - f0))
+    if spread <= tol * max(map(abs, vals)):
+        return Richardson(math.nan, math.nan, math.nan, spread,
+                          f"the three values agree within the solver tolerance {tol:g}: the mesh's share "
+                          f"is below it (no order observed)")
+    r = d1 / d2 if d2 != 0 else math.inf
+    if not (1 < r < math.inf):
+        return Richardson(math.nan, math.nan, math.nan, spread,
+                          f"the differences do not shrink (f(h/2) − f(h) = {d1:.4g}, f(h/4) − f(h/2) = {d2:.4g}): "
+                          f"not in the asymptotic range, no extrapolation; the verdict uses the spread of "
+                          f"the three values")
+    p = math.log2(r)
+    f_inf = f2 + d2 / (r - 1)
+    note = f"observed order {p:.2f}"
+    if not ORDER_RANGE[0] <= p <= ORDER_RANGE[1]:
+        note += (f", outside {ORDER_RANGE[0]:g}–{ORDER_RANGE[1]:g}: far from the asymptotic range, "
+                 f"the extrapolation is not to be trusted")
+    return Richardson(p, f_inf, f_inf - f0, spread, note)
+
+
+def verdict(value: float, est: Richardson, limit: float, kind: str) -> str:
+    """PASS / FAIL / MARGINAL of an extreme against its limit ("" without a limit or a value):
+    an upper limit for the worst value, a lower limit for the best."""
+    if not (math.isfinite(limit) and math.isfinite(value)):
+        return ""
+    width = abs(est.error) if math.isfinite(est.error) else est.spread
+    if math.isfinite(width) and abs(limit - value) <= width:
+        return "MARGINAL"
+    return "PASS" if (value <= limit if kind == "worst" else value >= limit) else "FAIL"
+
+
+def refined_nodes(mesh, splits: int) -> int:
+    """Nodes of a triangle mesh after `splits` splittings into four (each edge gains a node,
+    each triangle three inner edges), without building it."""
+    n, f, t = mesh.p.shape[1], mesh.facets.shape[1], mesh.t.shape[1]
+    for _ in range(splits):
+        n, f, t = n + f, 2 * f + 3 * t, 4 * t
+    return n
+
+
+def max_cells(study) -> float:
+    return float((study.scene.get("mesh") or {}).get("max_cells", DEFAULT_MAX_CELLS))
+
+
+def cost(evaluator, warm_solve: float, n_extremes: int) -> list[tuple[int, int, float]]:
+    """(splits, unknowns, estimated seconds) of each refined mesh, from the study's mesh
+    (evaluator.timings, and `warm_solve` seconds of a solve with the factorization's analysis
+    reused): meshing as the study's (the geometry dominates), assembly growing with the nodes,
+    a solve as nodes^SOLVE_GROWTH, a new mesh's first solve FIRST_SOLVE_EXTRA solves dearer.
+    Measured (knee, tunnel, Hertz: both refined meshes, one solve per extreme): 12, 8.8 and 10 s
+    estimated against about 17, 13 and 19 s taken: the estimate is good to a factor 2."""
+    mesh = evaluator.smesh.mesh
+    n = mesh.p.shape[1]
+    per_node = 3 if evaluator.model.thermal else 2
+    out = []
+    for s in SPLITS:
+        r = refined_nodes(mesh, s) / n
+        seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r
+                   + (n_extremes + FIRST_SOLVE_EXTRA) * warm_solve * r ** SOLVE_GROWTH)
+        out.append((s, per_node * refined_nodes(mesh, s), seconds))
+    return out
+
+
+def _limit(ds: xr.Dataset, kind: str, criterion: str) -> float:
+    name = "limit" if kind == "worst" else "limit_lower"
+    return float(ds[name].sel(criterion=criterion)) if name in ds else math.nan
+
+
+def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dataset:
+    """The mesh-check variables (`mesh_check_*`) and attribute (`mesh_check`) of a results file
+    `ds`: the `found` extremes re-solved on the mesh split once and twice. comm: the
+    communicator a DD solve spreads over (None: serial)."""
+    crit = [str(c) for c in ds["criterion"].values]
+    ext = kinds(ds)
+    levels = (0, *SPLITS)
+    values = np.full((len(ext), len(crit), len(levels)), np.nan)
+    nodes = np.full(len(levels), -1, dtype=np.int64)
+    seconds = np.full(len(levels), np.nan)
+    nodes[0] = int(ds.attrs.get("mesh_nodes", -1))
+    seconds[0] = 0.0
+    failures: dict[tuple[str, str], list[str]] = {}
+    for e in found:
+        if e.found:
+            values[ext.index(e.kind), crit.index(e.criterion), 0] = e.value
+    cells = int(ds.attrs.get("mesh_cells", 0)) * 4 ** SPLITS[-1]
+    status = "done"
+    if not any(e.found for e in found):
+        status = "not run: no extreme data set was solved"
+    elif cells > max_cells(study):
+        status = (f"not run: the mesh split {SPLITS[-1]} times would have {cells:.3g} cells, beyond "
+                  f"mesh.max_cells = {max_cells(study):g}")
+    else:
+        for j, s in enumerate(SPLITS, start=1):
+            t0 = time.perf_counter()
+            try:
+                ev = Evaluator(study, splits=s)
+            except StudyError as err:
+                status = f"not available: {err.fault}"
+                break
+            if comm is not None:
+                ev.model.comm = comm
+            nodes[j] = ev.smesh.mesh.p.shape[1]
+            solved = {}
+            for e in found:
+                if not e.found:
+                    continue
+                k = key(study.sha256, e.x, None)
+                if k not in solved:
+                    try:
+                        solved[k] = (ev.evaluate(e.x), "")
+                    except StudyError:
+                        raise
+                    except Exception as err:  # noqa: BLE001 - a failed solve on a refined mesh is data
+                        solved[k] = (None, f"{type(err).__name__}: {err}")
+                res, why = solved[k]
+                if res is not None and res.status == 0:
+                    values[ext.index(e.kind), crit.index(e.criterion), j] = res.phi[e.criterion]
+                else:
+                    why = why or f"status {int(res.status)}: {res.message}"
+                    failures.setdefault((e.kind, e.criterion), []).append(f"h/{2 ** s}: {why}")
+            seconds[j] = time.perf_counter() - t0
+    tol = max(float(study.solver.tolerance), 1e-12)
+    order, extrap, error = (np.full((len(ext), len(crit)), np.nan) for _ in range(3))
+    verdicts = np.full((len(ext), len(crit)), "", dtype=object)
+    notes = np.full((len(ext), len(crit)), "", dtype=object)
+    for a, kind in enumerate(ext):
+        for c, name in enumerate(crit):
+            f = values[a, c]
+            if not math.isfinite(f[0]):
+                notes[a, c] = "no extreme found"
+                continue
+            if status != "done":
+                notes[a, c] = status
+                continue
+            est = richardson(*map(float, f), tol)
+            order[a, c], extrap[a, c], error[a, c] = est.order, est.extrapolated, est.error
+            verdicts[a, c] = verdict(float(f[0]), est, _limit(ds, kind, name), kind)
+            fails = failures.get((kind, name))
+            notes[a, c] = "; ".join([*(f"the refined solve failed at {w}" for w in fails or []), est.note])
+    dims = ("extreme", "criterion")
+    variables = {
+        "mesh_check_value": (dims + ("refinement",), values,
+                             {"long_name": "extreme value on the study's mesh (refinement 0, h), split once "
+                                           "(1, h/2) and twice (2, h/4); NaN where not solved"}),
+        "mesh_check_nodes": (("refinement",), nodes, {"long_name": "nodes of each mesh (-1: not built)"}),
+        "mesh_check_time": (("refinement",), seconds,
+                            {"long_name": "seconds spent on each refined mesh (meshing, assembly, solves)",
+                             "units": "s"}),
+        "mesh_check_order": (dims, order, {"long_name": "observed order p = log2((f1 - f0)/(f2 - f1)); NaN: none"}),
+        "mesh_check_extrapolated": (dims, extrap, {"long_name": "Richardson-extrapolated value "
+                                                                "f2 + (f2 - f1)/(2^p - 1); NaN: none"}),
+        "mesh_check_error": (dims, error, {"long_name": "estimated discretisation error of the reported extreme: "
+                                                        "extrapolated - value on the study's mesh; NaN: none"}),
+        "mesh_check_verdict": (dims, verdicts, {"long_name": "PASS | FAIL | MARGINAL (the limit within the "
+                                                             "extreme +- the estimated error); empty: no limit"}),
+        "mesh_check_note": (dims, notes, {"long_name": "what the mesh check observed"}),
+    }
+    coords = {"extreme": np.array(ext, dtype=object), "refinement": np.array(levels, dtype=np.int32)}
+    said = status if status != "done" else (f"done: the extreme data sets re-solved on the mesh split once "
+                                            f"and twice ({nodes[1]} and {nodes[2]} nodes)")
+    return xr.Dataset(variables, coords=coords, attrs={"mesh_check": said})
+
+
+def skipped(why: str) -> xr.Dataset:
+    """The attribute of a results file whose mesh check was not run."""
+    return xr.Dataset(attrs={"mesh_check": why})
+
+
+def summary(ds: xr.Dataset) -> str:
+    """One line per extreme of the mesh check: the three values, the order, the error, the verdict."""
+    lines = [f"mesh check: {ds.attrs.get('mesh_check', '')}"]
+    for kind, c, pick in pairs(ds):
+        f = ds["mesh_check_value"].sel(pick).values
+        if not np.isfinite(f[0]):
+            continue
+        p, err = float(ds["mesh_check_order"].sel(pick)), float(ds["mesh_check_error"].sel(pick))
+        lines.append(f"  {c} ({kind}): {f[0]:.7g} / {f[1]:.7g} / {f[2]:.7g} on h, h/2, h/4; "
+                     + (f"order {p:.2f}, estimated error {err:+.3g}" if math.isfinite(p) else "no observed order")
+                     + f"; {ds['mesh_check_verdict'].sel(pick).values or 'no limit'}")
+    return "\n".join(lines)
