@@ -17,7 +17,7 @@ from . import meshcheck
 from .drivers import drivers
 from .errors import StudyError
 from .evaluation import Evaluator
-from .extremes import extremes
+from .extremes import support_extremes
 from .parallel import rank, world
 from .progress import Progress, limits_broken, summary_table
 from .results import widest, write_netcdf, write_solution
@@ -78,7 +78,7 @@ class CheckedRunner(Runner):
         collective = self.comm is not None and not self.split_batches       # a DD solve spread over the ranks
         if self.kind != "run" or not (self.root or collective):
             return ds
-        found = extremes(ds)
+        found = support_extremes(ds)
         parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers"))]
         parts.append(meshcheck.mesh_check(self.study, ds, found, self.comm if collective else None)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))

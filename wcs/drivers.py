@@ -47,8 +47,8 @@ def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Data
         a, c = ext.index(e.kind), crit.index(e.criterion)
         if not e.found:
             continue
-        g = ds["grad"].values[e.row, c] if 0 <= e.row < ds.sizes["eval"] else np.full(n, np.nan)
-        rough = bool(ds["nonsmooth"].values[e.row]) if 0 <= e.row < ds.sizes["eval"] else False
+        g = ds["grad"].values[e.eval, c] if 0 <= e.eval < ds.sizes["eval"] else np.full(n, np.nan)
+        rough = bool(ds["nonsmooth"].values[e.eval]) if 0 <= e.eval < ds.sizes["eval"] else False
         how = "the run's adjoint gradient at the extreme"
         if not np.all(np.isfinite(g)):
             k = e.x.tobytes()

@@ -1,36 +1,20 @@
-"""The extremes a run found, as one list: (criterion, kind, data set, value, row).
+"""The extremes a results file holds, as one list of `wcs.search.ranges.Extreme` records.
 
-`kind` is "worst" (the maximum, `worst_*` variables) or "best" (the minimum, `best_*`, when
-the results file has it). With fuzzy levels (a `level` dimension) the extremes are those of
-the support, the lowest level: the widest box, holding every other level's extremes.
-What comes after a search (the mesh check, the drivers) loops over this list.
+Each end of each criterion's range: `kind` "worst" (the maximum, `worst_*` variables) or
+"best" (the minimum, `best_*`, when a criterion's sense asks for it), per α-level when the
+study is fuzzy. What comes after a search (the drivers, the mesh check) takes the extremes of
+the widest box (`support_extremes`).
 """
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 
+from .search.ranges import Extreme
+
 KINDS = ("worst", "best")
-
-
-@dataclass(frozen=True)
-class Extreme:
-    criterion: str
-    kind: str                  # "worst" | "best"
-    x: np.ndarray              # the data set, physical units (NaN where none was solved)
-    value: float               # the criterion there, on the study's mesh
-    row: int                   # its evaluation index (eval), -1 if unknown
-
-    @property
-    def found(self) -> bool:
-        return bool(np.all(np.isfinite(self.x))) and bool(np.isfinite(self.value))
-
-
-def _support(v: xr.DataArray) -> xr.DataArray:
-    return v.isel(level=int(np.argmin(v["level"].values))) if "level" in v.dims else v
 
 
 def kinds(ds: xr.Dataset) -> list[str]:
@@ -39,15 +23,36 @@ def kinds(ds: xr.Dataset) -> list[str]:
 
 
 def extremes(ds: xr.Dataset) -> list[Extreme]:
-    """Every extreme of the results file, kind by kind, criteria in file order."""
+    """Every end of every range a results file holds (worst_* and best_*, per level when the
+    study is fuzzy), in the order level, criterion, max before min; ends a criterion's sense
+    does not ask for are left out. What the checks after a search iterate over."""
+    levels = [None] if "level" not in ds.coords else [float(a) for a in ds["level"].values]
     out = []
-    for kind in kinds(ds):
-        value, x = _support(ds[f"{kind}_value"]), _support(ds[f"{kind}_x"])
-        row = _support(ds[f"{kind}_eval"]) if f"{kind}_eval" in ds else None
-        for j, c in enumerate(map(str, ds["criterion"].values)):
-            out.append(Extreme(c, kind, np.asarray(x.sel(criterion=c).values, float),
-                               float(value.sel(criterion=c)), -1 if row is None else int(row.values[j])))
+    for i, level in enumerate(levels):
+        for j, c in enumerate(ds["criterion"].values):
+            for sense, prefix, cert in (("max", "worst", "certificate"), ("min", "best", "best_certificate")):
+                if f"{prefix}_value" not in ds:
+                    continue
+                pick = {"criterion": j} if level is None else {"level": i, "criterion": j}
+                certificate = str(ds[cert].isel(pick).values)
+                if certificate == "not-searched":
+                    continue
+                note = f"{cert}_note" if prefix == "best" else "certificate_note"
+                out.append(Extreme(str(c), sense, level, float(ds[f"{prefix}_value"].isel(pick)),
+                                   ds[f"{prefix}_x"].isel(pick).values.astype(float), certificate,
+                                   str(ds[note].isel(pick).values) if note in ds else "",
+                                   int(ds[f"{prefix}_eval"].isel(pick))))
     return out
+
+
+def support_extremes(ds: xr.Dataset) -> list[Extreme]:
+    """The extremes over the widest box: U_ad of a crisp study, the support (the lowest α-level,
+    holding every other level's extremes) of a fuzzy one. What the drivers and the mesh check
+    take."""
+    if "level" not in ds.coords:
+        return extremes(ds)
+    lowest = float(np.min(ds["level"].values))
+    return [e for e in extremes(ds) if e.level == lowest]
 
 
 def pairs(ds: xr.Dataset) -> Iterator[tuple[str, str, dict]]:

@@ -17,7 +17,6 @@ import numpy as np
 import xarray as xr
 
 from . import __version__, linalg
-from .search.ranges import Extreme
 from .status import Status, flag_attrs
 from .study import alpha_cut
 
@@ -367,29 +366,6 @@ def widest(ds: xr.Dataset) -> xr.Dataset:
     """A fuzzy study's results at its widest level (the smallest α: the support when α = 0 is a
     level), the per-criterion layout of a crisp study; a crisp study's results unchanged."""
     return ds.isel(level=int(np.argmin(ds["level"].values))) if "level" in ds.dims else ds
-
-
-def extremes(ds: xr.Dataset) -> list[Extreme]:
-    """Every end of every range a results file holds (worst_* and best_*, per level when the
-    study is fuzzy), in the order level, criterion, max before min; ends a criterion's sense
-    does not ask for are left out. What the checks after a search iterate over."""
-    levels = [None] if "level" not in ds.coords else [float(a) for a in ds["level"].values]
-    out = []
-    for i, level in enumerate(levels):
-        for j, c in enumerate(ds["criterion"].values):
-            for sense, prefix, cert in (("max", "worst", "certificate"), ("min", "best", "best_certificate")):
-                if f"{prefix}_value" not in ds:
-                    continue
-                pick = {"criterion": j} if level is None else {"level": i, "criterion": j}
-                certificate = str(ds[cert].isel(pick).values)
-                if certificate == "not-searched":
-                    continue
-                note = f"{cert}_note" if prefix == "best" else "certificate_note"
-                out.append(Extreme(str(c), sense, level, float(ds[f"{prefix}_value"].isel(pick)),
-                                   ds[f"{prefix}_x"].isel(pick).values.astype(float), certificate,
-                                   str(ds[note].isel(pick).values) if note in ds else "",
-                                   int(ds[f"{prefix}_eval"].isel(pick))))
-    return out
 
 
 def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:

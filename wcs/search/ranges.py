@@ -39,6 +39,16 @@ class Extreme:
     note: str = ""
     eval: int = -1             # row of the evaluation attaining it in the results file (-1: none)
 
+    @property
+    def kind(self) -> str:
+        """"worst" (the maximum, `worst_*` variables) or "best" (the minimum, `best_*`)."""
+        return "worst" if self.sense == "max" else "best"
+
+    @property
+    def found(self) -> bool:
+        """A successful evaluation attains it (x and the value are numbers)."""
+        return bool(np.all(np.isfinite(self.x))) and bool(np.isfinite(self.value))
+
 
 def objectives(senses: dict[str, str]) -> list[tuple[str, str, float]]:
     """(objective name, criterion, sign) the strategy maximises, for {criterion: sense}."""
