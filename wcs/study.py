@@ -17,14 +17,12 @@ Dotted paths are relative to the scene (`materials.rubber.E`,
 
 A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
-`<path>[points-1]`: values of g at equally spaced points along the contact.
-`scene_with` stores them as `friction.slip_limit_profile: [g0, ...]` and sets
-`friction.slip_limit` to their mean. The slope bound |g[i+1] - g[i]| <= C*ds
+`<path>[points-1]`: values of g at equally spaced points along the contact
+(`wcs.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
 needs the contact length (ds = length / (points - 1)), so it is only stored here.
 """
 from __future__ import annotations
 
-import copy
 import difflib
 import hashlib
 import os
@@ -1201,8 +1199,8 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
 # ---------------------------------------------------------------- applying data
 
 
-def scene_with(study: Study, values) -> dict:
-    """A deep copy of the scene with data applied.
+def data_set(study: Study, values) -> tuple[np.ndarray, dict[str, float]]:
+    """A data set as (x, others): the parameter vector and any other addressed numbers.
 
     `values` is a vector in the order of `study.parameters`, or a mapping from
     dotted path to value: a parameter name (`...slip_limit[2]`), an uncertain
@@ -1211,26 +1209,8 @@ def scene_with(study: Study, values) -> dict:
     Parameters a mapping leaves out keep their nominal value.
     """
     if isinstance(values, Mapping):
-        x, others = _split_mapping(study, values)
-    else:
-        x, others = np.asarray(values, dtype=float), {}
-    if x.shape != (len(study.parameters),):
-        raise ValueError(f"expected {len(study.parameters)} values, got shape {x.shape}")
-    scene = copy.deepcopy(study.scene)
-    slices = _entry_slices(study)
-    for entry in study.uncertain:
-        _apply(scene, entry, x[slices[entry["path"]]])
-    for path, value in others.items():
-        set_path(scene, path, value)
-    return scene
-
-
-def _apply(scene: dict, entry: dict, chunk: np.ndarray) -> None:
-    if "points" in entry:
-        set_path(scene, entry["path"] + "_profile", [float(v) for v in chunk])
-        set_path(scene, entry["path"], float(np.mean(chunk)))
-    else:
-        set_path(scene, entry["path"], float(chunk[0]))
+        return _split_mapping(study, values)
+    return parameter_vector(study, values), {}
 
 
 def parameter_vector(study: Study, values) -> np.ndarray:

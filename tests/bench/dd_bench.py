@@ -305,7 +305,7 @@ def _iter_row(study, model, opts, **extra) -> dict:
         row["open_nodes"], row["slip_nodes"] = int((act == 0).sum()), int((act == 2).sum())
     if res.u is not None:
         t = time.perf_counter()
-        mono = model.solve(study.scene)
+        mono = model.solve(model.nominal)
         row["time_mono"] = time.perf_counter() - t
         row["err_u"] = float(np.linalg.norm(res.u - mono.u) / np.linalg.norm(mono.u))
         row["err_lam_n"] = float(np.linalg.norm(res.lam_n - mono.contact.force_n)

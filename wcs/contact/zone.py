@@ -1,5 +1,5 @@
 """The contact zone of a scene: every contact's node pairs stacked into one set
-of jump operators, with the friction data read per data set.
+of jump operators (the friction data per node are coefficients: `wcs.coefficients`).
 
 Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
 is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`).
@@ -64,23 +64,6 @@ class ContactZone:
     @property
     def nodes(self) -> np.ndarray:
         return np.concatenate([p.slave for p in self.pairs])
-
-    def friction(self, scene: dict) -> tuple[np.ndarray, np.ndarray]:
-        """(g, F) per contact node: the Tresca slip limit (a profile along the side is
-        interpolated linearly in arc length) and the Coulomb coefficient."""
-        g = np.zeros(self.gap.size)
-        F = np.zeros(self.gap.size)
-        for k, name in enumerate(self.names):
-            fr = (scene["contacts"][name].get("friction") or {})
-            rows = self.contact_of_node == k
-            if fr.get("slip_limit_profile") is not None:
-                prof = np.asarray(fr["slip_limit_profile"], float)
-                g[rows] = np.interp(self.arc[rows], np.linspace(0, 1, prof.size), prof)
-            elif fr.get("slip_limit") is not None:
-                g[rows] = float(fr["slip_limit"])
-            if fr.get("coefficient") is not None:
-                F[rows] = float(fr["coefficient"])
-        return g, F
 
 
 def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
