@@ -9,7 +9,7 @@ import yaml
 
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
-from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, data_set, get_path, load_study, set_path
+from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, get_path, load_study, set_path
 
 SLIP = "contacts.interface.friction.slip_limit"
 
@@ -66,23 +66,23 @@ def test_nominal_is_the_scene(demo):
 
 def test_data_set_of_a_vector_is_the_vector(demo):
     x = demo.parameters.lower.copy()
-    got, others = data_set(demo, x)
+    got, others = demo.data_set(x)
     assert np.array_equal(got, x) and others == {}
 
 
 def test_data_set_of_a_mapping(demo):
-    x, others = data_set(demo, {"materials.rubber.nu": 0.41, f"{SLIP}[2]": 0.6e5, "materials.steel.E": 2.0e11})
+    x, others = demo.data_set({"materials.rubber.nu": 0.41, f"{SLIP}[2]": 0.6e5, "materials.steel.E": 2.0e11})
     np.testing.assert_array_equal(x, [1.0e7, 0.41, 2.0e6] + [1.0e5, 1.0e5, 0.6e5, 1.0e5, 1.0e5, 1.0e5])
     assert others == {"materials.steel.E": 2.0e11}
-    whole, _ = data_set(demo, {SLIP: 0.7e5})
+    whole, _ = demo.data_set({SLIP: 0.7e5})
     np.testing.assert_array_equal(whole[3:], [0.7e5] * 6)
 
 
 def test_data_set_rejects_unknown_names_and_wrong_length(demo):
     with pytest.raises(StudyError, match="materials.rubber.G"):
-        data_set(demo, {"materials.rubber.G": 1.0})
+        demo.data_set({"materials.rubber.G": 1.0})
     with pytest.raises(StudyError, match="expected a vector of 9 parameters"):
-        data_set(demo, np.zeros(3))
+        demo.data_set(np.zeros(3))
 
 
 def test_get_and_set_path():

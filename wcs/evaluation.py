@@ -13,11 +13,11 @@ import numpy as np
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
+from .fields import fields_dataset
 from .model import Model, Solution
 from .scene.mesher import build_mesh
 from .sensitivity import gradients as adjoint_gradients
 from .status import Status
-from .study import data_set
 
 
 @dataclass
@@ -38,7 +38,6 @@ class Evaluation:
     def fields(self):
         """xarray.Dataset of the solution fields (built on first access)."""
         if self._fields is None and self.state is not None:
-            from .fields import fields_dataset
             self._fields = fields_dataset(self.evaluator.model, self.state)
         return self._fields
 
@@ -61,7 +60,7 @@ class Evaluator:
         """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
         with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
         t0 = time.perf_counter()
-        x, others = data_set(self.study, values)
+        x, others = self.study.data_set(values)
         c = self.map.coefficients(x, others)
         nan = {c.name: float("nan") for c in self.criteria}
         try:

@@ -21,11 +21,13 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+from importlib import metadata
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 
 def _mkl_rt_hint() -> None:
@@ -33,7 +35,6 @@ def _mkl_rt_hint() -> None:
     globs all of sys.prefix when ldconfig does not know the library (0.6 s at every import)."""
     if "PYPARDISO_MKL_RT" in os.environ:
         return
-    from importlib import metadata
     try:
         files = metadata.files("mkl") or []
     except metadata.PackageNotFoundError:
@@ -70,7 +71,6 @@ def configure_threads() -> int:
     takes the GNU OpenMP layer whatever was loaded first (left to itself it picks by
     that order, and its layer changes the last bits of a PARDISO solve). Returns the
     thread count set."""
-    from threadpoolctl import threadpool_limits
     n = int(os.environ.get("WCS_THREADS", "1") or 1)
     os.environ.setdefault("MKL_THREADING_LAYER", "GNU")
     for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):

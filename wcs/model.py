@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import linalg
+from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, solve_contact
 from .contact.zone import ContactState, build_zone
@@ -33,7 +34,7 @@ from .materials import lame
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
-from .study import Solver
+from .options import Solver
 
 
 @dataclass(frozen=True)
@@ -159,7 +160,6 @@ class Model:
         method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
-        from .choose import SolverFacts, solver_method
         mats = [scene["materials"][m] for m in set(self.region_material)]
         moduli = [lame(m)[1] for m in mats]
         nus = [lam / (2 * (lam + mu)) for lam, mu in (lame(m) for m in mats)]

@@ -13,39 +13,11 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from ..scene.meshdata import SceneMesh
+from ..scene.selectors import arc_coordinate
+from .mortar import directional_rows, mortar_contact, sides_match
 from .pairs import ContactPairs, normal_jump_matrix, pair_contact, tangent_jump_matrix
 
 DISCRETIZATIONS = ("auto", "node-to-node", "mortar")
-
-
-def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """Normalised arc length s ∈ [0, 1] of `nodes` along the chain of `facets`
-    (from the end with the smaller (x, y); a closed chain starts at its smallest node)."""
-    edges = mesh.facets[:, facets].T
-    ids, inv = np.unique(edges, return_inverse=True)
-    inv = inv.reshape(-1, 2)
-    n = ids.size
-    adj = [[] for _ in range(n)]
-    for k, (a, b) in enumerate(inv):
-        adj[a].append((b, k))
-        adj[b].append((a, k))
-    ends = [i for i in range(n) if len(adj[i]) == 1]
-    key = lambda i: tuple(mesh.p[:, ids[i]])  # noqa: E731
-    start = min(ends, key=key) if ends else min(range(n), key=key)
-    s = np.full(n, np.nan)
-    s[start] = 0.0
-    seen_edges = np.zeros(len(inv), bool)
-    stack = [start]
-    while stack:                                   # walk the chain (a forest walk if it branches)
-        i = stack.pop()
-        for j, k in adj[i]:
-            if not seen_edges[k]:
-                seen_edges[k] = True
-                if np.isnan(s[j]):
-                    s[j] = s[i] + np.linalg.norm(mesh.p[:, ids[j]] - mesh.p[:, ids[i]])
-                    stack.append(j)
-    s = np.nan_to_num(s) / max(np.nanmax(s), 1e-300)
-    return s[np.searchsorted(ids, nodes)]
 
 
 @dataclass
@@ -69,7 +41,6 @@ class ContactZone:
 def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
     """The discretization a contact uses: its `discretization` key, `auto` (the default)
     meaning node-to-node when the two sides match (mortar.sides_match), mortar otherwise."""
-    from .mortar import sides_match
     kind = spec.get("discretization") or "auto"
     if kind not in DISCRETIZATIONS:
         raise StudyError(f"unknown discretization {kind!r} (one of {', '.join(DISCRETIZATIONS)})",
@@ -89,7 +60,6 @@ def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
 def _rows(pr, nn: int):
     """(Bn, Bt) of one contact's pairs, node-to-node or mortar."""
     if getattr(pr, "discretization", "node-to-node") == "mortar":
-        from .mortar import directional_rows
         return directional_rows(pr.C, pr.normal, nn), directional_rows(pr.C, pr.tangent, nn)
     return normal_jump_matrix(pr, nn), tangent_jump_matrix(pr, nn)
 
@@ -98,7 +68,6 @@ def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
     contacts = scene.get("contacts") or {}
     if not contacts:
         return None
-    from .mortar import mortar_contact
     mesh = smesh.mesh
     nn = mesh.p.shape[1]
     names, pairs, owner, arcs, kinds = [], [], [], [], []

@@ -46,7 +46,7 @@ import scipy.sparse as sp
 
 from wcs.fem.affine import CellAffineOperator
 from wcs.status import DDOutcome, Status
-from wcs.study import DomainDecomposition, Solver
+from wcs.options import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
