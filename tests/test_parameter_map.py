@@ -117,6 +117,9 @@ def test_the_model_is_read_only_and_leaves_threads_alone(evaluator):
     model = evaluator.model
     with pytest.raises(AttributeError, match="read-only"):
         model.comm = object()
+    for array in (model.cell_area, model.Bt_r.data, model.zone.gap, model.elim.U0.data):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0
     with threadpoolctl.threadpool_limits(limits=2):
         before = [i["num_threads"] for i in threadpoolctl.threadpool_info()]
         Model(evaluator.study.scene, evaluator.smesh, evaluator.study.solver)

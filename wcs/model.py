@@ -143,6 +143,9 @@ class Model:
             contact=None,                            # the contact factorization, refactored in place
             anchor=None,                             # contact state at the nominal data: other solves start from it
             anchor_tried=False)
+        for name, value in vars(self).items():
+            if name != "_cache":
+                _read_only(value)
         self._frozen = True
 
     def __setattr__(self, name, value):
@@ -464,6 +467,26 @@ def _factor(held: linalg.HeldFactor, A):
         return held.of(A)
     except linalg.FactorizationError as exc:
         raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from None
+
+
+def _read_only(value) -> None:
+    """Make the arrays of a built model (and of its parts: sparse matrices, dataclasses,
+    containers) read-only in place."""
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
+    elif sp.issparse(value):
+        for a in ("data", "indices", "indptr", "row", "col"):
+            if hasattr(value, a):
+                getattr(value, a).flags.writeable = False
+    elif isinstance(value, dict):
+        for v in value.values():
+            _read_only(v)
+    elif isinstance(value, (list, tuple)):
+        for v in value:
+            _read_only(v)
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            _read_only(getattr(value, f.name))
 
 
 def _same_data(a: Coefficients, b: Coefficients) -> bool:
