@@ -13,7 +13,6 @@ import numpy as np
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
-from .fields import fields_dataset
 from .model import Model, Solution
 from .scene.mesher import build_mesh
 from .sensitivity import gradients as adjoint_gradients
@@ -38,6 +37,7 @@ class Evaluation:
     def fields(self):
         """xarray.Dataset of the solution fields (built on first access)."""
         if self._fields is None and self.state is not None:
+            from .fields import fields_dataset   # xarray loads when fields are asked for (`wcs check` never does)
             self._fields = fields_dataset(self.evaluator.model, self.state)
         return self._fields
 
