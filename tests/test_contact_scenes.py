@@ -167,7 +167,6 @@ def test_knee_coulomb_needs_the_fallback_and_satisfies_kkt(monkeypatch):
     is unreliable here: stiffness contrast 600, it reports 'inaccurate' / 'unbounded')."""
     import functools
     import wcs.contact.solver as cs
-    from wcs.study import scene_with
     knee = Path(__file__).resolve().parents[1] / "studies" / "knee-replacement.yaml"
     monkeypatch.setattr(cs, "_newton", functools.partial(cs._newton, fallback=False))
     bare = wcs.load_study(knee)
@@ -178,7 +177,7 @@ def test_knee_coulomb_needs_the_fallback_and_satisfies_kkt(monkeypatch):
     ev = study.evaluate(study.nominal())
     assert ev.status == 0, ev.message
     model, res = ev.evaluator.model, ev.state.raw
-    c = model.coefficients(scene_with(study, study.nominal()))
+    c = ev.evaluator.map.coefficients(study.nominal())
     K = model.K(model.stiffness_coefficients(c))
     u0 = model.elim.U0 @ c.support_values
     rhs = model.Tt @ (model.mechanical_load(c, None) - K @ u0)

@@ -37,7 +37,7 @@ def reduced_system(model, scene):
 
 
 def dd_vs_monolithic(study, model, options):
-    mono = model.solve(study.scene)
+    mono = model.solve(model.nominal)
     Kr, rhs, u0 = reduced_system(model, study.scene)
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, options)
     assert res.status == dds.DDOutcome.CONVERGED, res.message

@@ -107,9 +107,11 @@ def test_monotone_study_levels_equal_vertex_values_nested_at_a_fraction_of_the_c
         assert np.array_equal(ds["level_lower"].values[i], alpha_cut(study, alpha)[0])
     # nested: the smaller the level, the wider the range
     assert np.all(np.diff(ds["worst_value"].values, axis=0) <= 0) and np.all(np.diff(ds["best_value"].values, axis=0) >= 0)
-    # the widest level is the crisp study on the support boxes, bit for bit
-    assert np.array_equal(ds["worst_value"].values[0], crisp["worst_value"].values)
-    assert np.array_equal(ds["best_value"].values[0], crisp["best_value"].values)
+    # the widest level is the crisp study on the support boxes: the same values, to the last
+    # bits where a criterion does not depend on a parameter (the heave does not move with E:
+    # the vertices on either side of E tie up to one ulp and each search may keep either)
+    np.testing.assert_allclose(ds["worst_value"].values[0], crisp["worst_value"].values, rtol=1e-14)
+    np.testing.assert_allclose(ds["best_value"].values[0], crisp["best_value"].values, rtol=1e-14)
     # five levels cost at most 2.5 times one search on the support boxes (solves counted): every
     # level after the core starts from the inner levels' evaluations and pays for its new vertices only
     assert ds.sizes["eval"] <= 2.5 * crisp.sizes["eval"], (ds.sizes["eval"], crisp.sizes["eval"])

@@ -9,8 +9,7 @@ import yaml
 
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
-from wcs.study import (LIBRARIES, DomainDecomposition, SampleDesign, Search, get_path, load_study, scene_with,
-                       set_path)
+from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, get_path, load_study, set_path
 
 SLIP = "contacts.interface.friction.slip_limit"
 
@@ -65,41 +64,25 @@ def test_nominal_is_the_scene(demo):
     np.testing.assert_array_equal(demo.nominal(), [1.0e7, 0.45, 2.0e6] + [1.0e5] * 6)
 
 
-def test_scene_with_vector_applies_every_parameter(demo):
+def test_data_set_of_a_vector_is_the_vector(demo):
     x = demo.parameters.lower.copy()
-    x[3:] = np.linspace(0.5e5, 1.0e5, 6)
-    scene = scene_with(demo, x)
-    assert scene["materials"]["rubber"]["E"] == 0.8e7
-    assert scene["loads"]["pad_top"]["pressure"] == 1.5e6
-    friction = scene["contacts"]["interface"]["friction"]
-    assert friction["slip_limit_profile"] == list(x[3:])
-    assert friction["slip_limit"] == pytest.approx(np.mean(x[3:]))
-    assert demo.scene["materials"]["rubber"]["E"] == 1.0e7  # the study's scene is untouched
+    got, others = demo.data_set(x)
+    assert np.array_equal(got, x) and others == {}
 
 
-def test_scene_with_round_trip(demo):
-    scene = scene_with(demo, demo.nominal())
-    assert np.array_equal([get_path(scene, p) for p in demo.parameters.names[:3]], demo.nominal()[:3])
-    del scene["contacts"]["interface"]["friction"]["slip_limit_profile"]
-    assert scene == demo.scene
+def test_data_set_of_a_mapping(demo):
+    x, others = demo.data_set({"materials.rubber.nu": 0.41, f"{SLIP}[2]": 0.6e5, "materials.steel.E": 2.0e11})
+    np.testing.assert_array_equal(x, [1.0e7, 0.41, 2.0e6] + [1.0e5, 1.0e5, 0.6e5, 1.0e5, 1.0e5, 1.0e5])
+    assert others == {"materials.steel.E": 2.0e11}
+    whole, _ = demo.data_set({SLIP: 0.7e5})
+    np.testing.assert_array_equal(whole[3:], [0.7e5] * 6)
 
 
-def test_scene_with_mapping(demo):
-    scene = scene_with(demo, {"materials.rubber.nu": 0.41, f"{SLIP}[2]": 0.6e5,
-                              "materials.steel.E": 2.0e11})
-    assert scene["materials"]["rubber"]["nu"] == 0.41
-    assert scene["materials"]["rubber"]["E"] == 1.0e7
-    assert scene["materials"]["steel"]["E"] == 2.0e11
-    assert scene["contacts"]["interface"]["friction"]["slip_limit_profile"][1:3] == [1.0e5, 0.6e5]
-    whole = scene_with(demo, {SLIP: 0.7e5})
-    assert whole["contacts"]["interface"]["friction"]["slip_limit_profile"] == [0.7e5] * 6
-
-
-def test_scene_with_rejects_unknown_names_and_wrong_length(demo):
+def test_data_set_rejects_unknown_names_and_wrong_length(demo):
     with pytest.raises(StudyError, match="materials.rubber.G"):
-        scene_with(demo, {"materials.rubber.G": 1.0})
-    with pytest.raises(ValueError):
-        scene_with(demo, np.zeros(3))
+        demo.data_set({"materials.rubber.G": 1.0})
+    with pytest.raises(StudyError, match="expected a vector of 9 parameters"):
+        demo.data_set(np.zeros(3))
 
 
 def test_get_and_set_path():

@@ -19,9 +19,10 @@ import yaml
 import scenes
 import wcs
 import wcs.contact.solver as cs
+import wcs.model
+from wcs.coefficients import flatten
 from wcs.evaluation import Evaluator
 from wcs.model import Model
-from wcs.sensitivity import flatten
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -152,7 +153,7 @@ def check_history_independence(key, n, seed, inject, tmp_path):
     xs = data_sequence(study, upper[:3], rng, {}) + data_sequence(study, upper[3:], rng, widen)
     for x, mode in zip(xs, modes):
         if mode:
-            c = ev.model.coefficients(wcs.study.scene_with(study, x))
+            c = ev.map.coefficients(x)
             inject[flatten(c)[0].tobytes()] = mode
     seq = [outcome(ev, x) for x in xs]
     assert poisoned_pattern(upper, [m is not None for m in modes], [o[0] == 0 for o in seq])
@@ -336,7 +337,7 @@ def test_sheared_pad_held_by_friction_is_solved(tmp_path):
 def test_nominal_data_are_solved_once(monkeypatch):
     calls = []
     real = cs.solve_contact
-    monkeypatch.setattr(cs, "solve_contact", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(wcs.model, "solve_contact", lambda *a, **k: calls.append(1) or real(*a, **k))
     study = coarse("granite-crack", 1.0, 0.3)
     ev = Evaluator(study)
     first = outcome(ev, study.nominal())

@@ -212,6 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
+        from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
+        configure_threads()
     try:
         return args.func(args)
     except StudyError as e:

@@ -334,7 +334,7 @@ def _slip_partials(crit, model, state, r):
     m = c.slip.size
     stuck = state.raw.free[m:] if state.raw is not None else np.zeros(m, dtype=bool)
     scale = max(np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
-    moves = np.asarray(abs(model.Bt_r).sum(axis=1)).ravel() > 0
+    moves = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0   # abs() sorts its operand in place
     kink = mask & ~stuck & moves & (np.abs(c.slip) <= REL_TOL * scale)
     return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
 

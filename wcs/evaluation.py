@@ -1,7 +1,7 @@
 """One forward evaluation of a study at a data vector x: Φ(x) and the fields.
 
-`Evaluator(study)` meshes the scene and assembles the model once;
-`evaluate(x)` applies the data set, solves, and measures the criteria.
+`Evaluator(study)` meshes the scene, assembles the model and compiles the parameter map
+once; `evaluate(x)` maps the data set to coefficients, solves, and measures the criteria.
 """
 from __future__ import annotations
 
@@ -10,10 +10,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
-from .model import Model, State
+from .model import Model, Solution
 from .scene.mesher import build_mesh
+from .sensitivity import gradients as adjoint_gradients
 from .status import Status
 
 
@@ -25,7 +27,7 @@ class Evaluation:
     message: str
     iterations: int
     wall_time: float
-    state: State | None = None
+    state: Solution | None = None
     grad: dict | None = None          # criterion -> dΦ/dx (physical units), when asked for
     nonsmooth: bool = False           # an active-set change or a switch of the max within reach
     evaluator: "Evaluator | None" = field(default=None, repr=False)
@@ -35,20 +37,23 @@ class Evaluation:
     def fields(self):
         """xarray.Dataset of the solution fields (built on first access)."""
         if self._fields is None and self.state is not None:
-            from .fields import fields_dataset
+            from .fields import fields_dataset   # xarray loads when fields are asked for (`wcs check` never does)
             self._fields = fields_dataset(self.evaluator.model, self.state)
         return self._fields
 
 
 class Evaluator:
-    def __init__(self, study, splits: int = 0):
-        """splits: the study's mesh refined that many times, every triangle split into four
-        (the mesh check, `wcs/meshcheck.py`)."""
+    """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
+    study's mesh refined that many times, every triangle split into four (the mesh check,
+    `wcs/meshcheck.py`)."""
+
+    def __init__(self, study, comm=None, splits: int = 0):
         t0 = time.perf_counter()
         self.study = study
         self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         t1 = time.perf_counter()
-        self.model = Model(study.scene, self.smesh, study.solver)
+        self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+        self.map = ParameterMap(self.model, study.scene, study.uncertain)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1}
@@ -56,20 +61,18 @@ class Evaluator:
     def evaluate(self, values, gradients: bool = False) -> Evaluation:
         """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
         with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
-        from .study import parameter_vector, scene_with
         t0 = time.perf_counter()
-        x = parameter_vector(self.study, values)
-        scene = scene_with(self.study, values)
+        x, others = self.study.data_set(values)
+        c = self.map.coefficients(x, others)
         nan = {c.name: float("nan") for c in self.criteria}
         try:
-            state = self.model.solve(scene, adjoint=gradients)
+            state = self.model.solve(c, adjoint=gradients)
         except SolveError as e:
             return Evaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
         phi = {c.name: c.value(self.model, state) for c in self.criteria}
         grad, nonsmooth = None, False
         if gradients:
-            from .sensitivity import gradients as adjoint
-            grad, nonsmooth = adjoint(self, state, x)
+            grad, nonsmooth = adjoint_gradients(self, state, x, others)
         message = "solved" if state.solver in ("direct", "monolithic", "dd") else f"solved ({state.solver})"
         return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)

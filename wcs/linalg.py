@@ -21,11 +21,13 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+from importlib import metadata
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 
 def _mkl_rt_hint() -> None:
@@ -33,7 +35,6 @@ def _mkl_rt_hint() -> None:
     globs all of sys.prefix when ldconfig does not know the library (0.6 s at every import)."""
     if "PYPARDISO_MKL_RT" in os.environ:
         return
-    from importlib import metadata
     try:
         files = metadata.files("mkl") or []
     except metadata.PackageNotFoundError:
@@ -63,9 +64,17 @@ def configure_threads() -> int:
     The dense algebra of wcs is small (contact zones of a few hundred unknowns) and
     runs next to other processes (MPI ranks, a shared machine): measured here, a
     200×200 dense solve took 0.3 ms on one OpenBLAS thread and 0.3 s on two threads
-    while the other core was busy. Returns the thread count set."""
-    from threadpoolctl import threadpool_limits
+    while the other core was busy.
+
+    Call it at the process edge (the `wcs` command, a test session), before the first
+    solve: the environment reaches the OpenMP runtimes loaded later (gmsh's), and MKL
+    takes the GNU OpenMP layer whatever was loaded first (left to itself it picks by
+    that order, and its layer changes the last bits of a PARDISO solve). Returns the
+    thread count set."""
     n = int(os.environ.get("WCS_THREADS", "1") or 1)
+    os.environ.setdefault("MKL_THREADING_LAYER", "GNU")
+    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ.setdefault(name, str(n))
     threadpool_limits(limits=n)
     return n
 
@@ -213,6 +222,28 @@ def factorize(A: sp.spmatrix, kind: str | None = None, *, spd: bool = False, blo
     if kind == "pardiso":
         return PardisoFactor(A, spd=spd, block=block)
     return SuperLUFactor(A, spd=spd, block=block)
+
+
+class HeldFactor:
+    """One factor object reused for every matrix of a pattern (its analysis kept), and the
+    matrix it holds now: `of(A)` returns it holding A, refactored unless it holds A already.
+    What it holds is decided by the values it factored, so a caller that keeps its matrix
+    gets the factorization of that matrix whatever was factored in between."""
+
+    def __init__(self, *, spd: bool = False):
+        self.spd = spd
+        self._factor = None
+        self._held = None            # (indptr, indices, data) of the factored matrix; None while refactoring
+
+    def of(self, A: sp.spmatrix):
+        A = _csr(A)
+        held = self._held
+        if held is not None and all(np.array_equal(a, b) for a, b in zip(held, (A.indptr, A.indices, A.data))):
+            return self._factor
+        self._held = None            # a refactor that fails leaves a record that matches no matrix
+        self._factor = (factorize(A, spd=self.spd) if self._factor is None else self._factor.refactor(A))
+        self._held = (A.indptr.copy(), A.indices.copy(), A.data.copy())
+        return self._factor
 
 
 def solve(A: sp.spmatrix, b: np.ndarray) -> np.ndarray:

@@ -150,12 +150,10 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dat
         for j, s in enumerate(SPLITS, start=1):
             t0 = time.perf_counter()
             try:
-                ev = Evaluator(study, splits=s)
+                ev = Evaluator(study, comm, splits=s)
             except StudyError as err:
                 status = f"not available: {err.fault}"
                 break
-            if comm is not None:
-                ev.model.comm = comm
             nodes[j] = ev.smesh.mesh.p.shape[1]
             solved = {}
             for e in found:

@@ -1,21 +1,28 @@
 """The forward model of a scene: pieces assembled once per mesh, then one
 thermal solve and one elastic solve per data set.
 
-`Model(scene, smesh)` reads only the *structure* of the scene (which regions,
-loads, supports exist); `Model.solve(scene_x)` reads the *numbers* of a scene
-with the data set applied and combines the pieces: the data are piecewise constant on
-regions and boundary parts, so every operator is an affine combination of fixed matrices.
+`Model(scene, smesh)` reads the *structure* of the scene (which regions, loads, supports
+exist) and is read-only once built; `Model.solve(c)` takes the `Coefficients` of a data
+set (`wcs.coefficients.ParameterMap`) and combines the pieces: the data are piecewise
+constant on regions and boundary parts, so every operator is an affine combination of
+fixed matrices. A solve returns a `Solution` that owns its fields and the matrices its
+adjoint needs; the factor objects behind them are caches that keep their analysis and
+are refactored whenever a solution asks for a matrix they no longer hold.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
 
 from . import linalg
+from .choose import SolverFacts, solver_method
+from .coefficients import Coefficients, ParameterMap
+from .contact.solver import ContactResult, factor_contact, solve_contact
 from .contact.zone import ContactState, build_zone
 from .errors import SolveError, StudyError
 from .fem import forms
@@ -23,34 +30,16 @@ from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_ce
 from .fem.constraints import Constraint, Elimination, Reduction, eliminate
 from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
-from .materials import plane_lame, thermal_beta
+from .materials import lame
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
-from .study import Solver
+from .options import Solver
 
 
-@dataclass
-class Coefficients:
-    """The numbers of one data set, laid out like the model's pieces."""
-    lam: np.ndarray            # (nregions,) λ entering the 2D stiffness (λ* in plane stress)
-    mu: np.ndarray             # (nregions,)
-    beta: np.ndarray           # (nregions,) thermal stress coefficient
-    kappa: np.ndarray          # (nregions,) conductivity (thermal scenes)
-    source: np.ndarray         # (nregions,) heat source W
-    body_force: np.ndarray     # (nregions, 2)
-    pressure: dict             # boundary -> p
-    traction: dict             # boundary -> (tx, ty)
-    support_values: np.ndarray # values of the elastic constraints, model order
-    temperature_values: np.ndarray
-    reference: float
-    slip: np.ndarray = field(default_factory=lambda: np.zeros(0))      # Tresca slip limit per contact node
-    coulomb: np.ndarray = field(default_factory=lambda: np.zeros(0))   # Coulomb coefficient per contact node
-
-
-@dataclass
-class State:
-    """A solved data set: nodal fields and cell-wise stresses."""
+@dataclass(frozen=True)
+class Solution:
+    """A solved data set: nodal fields, cell-wise stresses, and what its adjoint needs."""
     u: np.ndarray              # (2 nnodes,) node-interleaved displacement
     T: np.ndarray | None       # (nnodes,) temperature, None without a thermal step
     stress: np.ndarray         # (4, ncells) xx, yy, zz, xy
@@ -59,11 +48,26 @@ class State:
     solver: str = "direct"                 # what actually solved it (e.g. "dd", "monolithic after dd stagnated")
     contact: object | None = None
     timings: dict = field(default_factory=dict)
-    # what the adjoint needs from the solve (valid until the model solves again)
     w: np.ndarray | None = None            # reduced displacement unknowns
-    theta: np.ndarray | None = None        # temperature on the heat nodes
-    factor: object | None = None           # factorization of the reduced stiffness (no contact)
-    raw: object | None = None              # the ContactResult (contact)
+    theta: np.ndarray | None = None        # temperature on the heat nodes (direct thermal step)
+    raw: ContactResult | None = None       # the contact solver's result (contact)
+    # the matrices this solution factored, and the caches that factor them (`factor`, ...)
+    stiffness: sp.csr_matrix | None = field(default=None, repr=False)
+    conduction: sp.csr_matrix | None = field(default=None, repr=False)
+    factors: SimpleNamespace | None = field(default=None, repr=False, compare=False)
+
+    def factor(self):
+        """The factorization of this solution's reduced stiffness (no contact)."""
+        return self.factors.elastic.of(self.stiffness)
+
+    def heat_factor(self):
+        """The factorization of this solution's reduced conduction matrix."""
+        return self.factors.heat.of(self.conduction)
+
+    def contact_factor(self, model):
+        """The contact factorization (`ContactFactor`) of this solution's reduced stiffness."""
+        C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
+        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact)
 
 
 def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
@@ -78,8 +82,12 @@ def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
 
 
 class Model:
-    def __init__(self, scene: dict, smesh: SceneMesh, options=None):
-        linalg.configure_threads()
+    """The assembled model of a scene (read-only once built: setting an attribute raises).
+
+    options: the study's `solver` options (a mapping is validated); comm: the MPI
+    communicator whose ranks share each DD solve (None: serial)."""
+
+    def __init__(self, scene: dict, smesh: SceneMesh, options=None, comm=None):
         self.options = Solver.of(options)             # the study's `solver` options (a mapping is validated)
         self.scene = scene
         self.smesh = smesh
@@ -121,19 +129,29 @@ class Model:
             self.Bn_r, self.Bt_r = (self.zone.Bn @ T).tocsr(), (self.zone.Bt @ T).tocsr()
             self.floating = [(b, m) for b, m in self.free_modes.items() if m.shape[1]]
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
-        self.comm = None               # MPI communicator the DD solver spreads its subdomains over
+        self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
-        # caches: they change the speed of a solve, never its answer (see `solve`)
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
-        self._nominal = None           # the coefficients of the nominal data (on first use)
-        self._anchor = None            # contact state at the nominal data: every other solve starts from it
-        self._anchor_tried = False
-        self._contact_factor = None    # the contact factorization, refactored in place (keeps its analysis)
 
         self.G = strain_operator(mesh.p, mesh.t)
         _, self.cell_area = gradient_operator(mesh.p, mesh.t)
-        self._factor = None
-        self._heat_factor = None
+        self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
+        # caches: they change the speed of a solve, never its answer (see `solve`)
+        self._cache = SimpleNamespace(
+            elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
+            heat=linalg.HeldFactor(spd=True),        # Cholesky of the reduced conduction matrix
+            contact=None,                            # the contact factorization, refactored in place
+            anchor=None,                             # contact state at the nominal data: other solves start from it
+            anchor_tried=False)
+        for name, value in vars(self).items():
+            if name != "_cache":
+                _read_only(value)
+        self._frozen = True
+
+    def __setattr__(self, name, value):
+        if getattr(self, "_frozen", False):
+            raise AttributeError(f"the model is read-only once built (tried to set '{name}')")
+        object.__setattr__(self, name, value)
 
     @functools.cached_property
     def body_force_vectors(self) -> np.ndarray:
@@ -145,8 +163,6 @@ class Model:
         method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
-        from .choose import SolverFacts, solver_method
-        from .materials import lame
         mats = [scene["materials"][m] for m in set(self.region_material)]
         moduli = [lame(m)[1] for m in mats]
         nus = [lam / (2 * (lam + mu)) for lam, mu in (lame(m) for m in mats)]
@@ -254,37 +270,8 @@ class Model:
 
     # ---- numbers of a data set -------------------------------------------------------
     def coefficients(self, scene: dict) -> Coefficients:
-        mats = scene["materials"]
-        nr = len(self.region_cells)
-        lam, mu, beta, kappa = (np.zeros(nr) for _ in range(4))
-        body_force = np.zeros((nr, 2))
-        for j, m in enumerate(self.region_material):
-            lam[j], mu[j] = plane_lame(mats[m], self.plane)
-            beta[j] = thermal_beta(mats[m], self.plane)
-            kappa[j] = float(mats[m].get("conductivity") or 0.0)
-            body_force[j, 1] -= float(mats[m].get("density_weight") or 0.0)
-        for name, force in (scene.get("body_forces") or {}).items():
-            for j in self.targets[name]:
-                body_force[j] += np.asarray(force, float)
-        source = np.zeros(nr)
-        thermal = scene.get("thermal") or {}
-        for name, w in (thermal.get("sources") or {}).items():
-            for j in self.targets[name]:
-                source[j] += float(w)
-        loads = scene.get("loads") or {}
-        supports = scene.get("supports") or {}
-        values = np.array([supports[b]["normal"] if key == "normal" else supports[b]["u"][int(key[2])]
-                           for b, key in self.support_keys], dtype=float)
-        temps = np.array([thermal["temperature"][b] for b in getattr(self, "temperature_keys", [])], float)
-        slip, coulomb = self.zone.friction(scene) if self.zone is not None else (np.zeros(0), np.zeros(0))
-        return Coefficients(
-            lam=lam, mu=mu, beta=beta, kappa=kappa, source=source, body_force=body_force,
-            pressure={b: float(loads[b]["pressure"]) for b in self.pressure_vectors},
-            traction={b: np.asarray(loads[b]["traction"], float) for b in self.traction_vectors},
-            support_values=values, temperature_values=temps,
-            reference=float(thermal.get("reference", 0.0) or 0.0),
-            slip=slip, coulomb=coulomb,
-        )
+        """The coefficients of a scene's own numbers (a study's data go through its `ParameterMap`)."""
+        return ParameterMap(self, scene).coefficients()
 
     def stiffness_coefficients(self, c: Coefficients) -> np.ndarray:
         return np.column_stack([c.lam, c.mu])
@@ -306,59 +293,56 @@ class Model:
     # ---- solves ------------------------------------------------------------------------
     def solve_heat(self, c: Coefficients) -> np.ndarray:
         """The nodal temperature of data set c."""
-        return self.P @ self._heat_theta(c)
+        return self.P @ self._heat_theta(c)[0]
 
-    def _heat_theta(self, c: Coefficients) -> np.ndarray:
-        """The temperature on the heat nodes (θ of `wcs.sensitivity`), by the direct solve."""
+    def _heat_theta(self, c: Coefficients) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The temperature on the heat nodes (θ of `wcs.sensitivity`) by the direct solve, and
+        the reduced conduction matrix it factored."""
         Kh = self.H(c.kappa)
         Kr = self.reduce_heat(Kh)
         Th0 = self.heat_elim.U0 @ c.temperature_values
         q = self.source_vectors.T @ c.source
         rhs = self.heat_Tt @ (q - Kh @ Th0)
-        self._heat_factor = _refactor(self._heat_factor, Kr)
-        return self.heat_elim.T @ self._heat_factor.solve(rhs) + Th0
+        return self.heat_elim.T @ _factor(self._cache.heat, Kr).solve(rhs) + Th0, Kr
 
-    def solve(self, scene: dict, adjoint: bool = False) -> State:
-        """Solve one data set. A monolithic contact solve starts from the contact state at the
-        nominal data (the anchor, solved once on first use from the cold start), never from
-        the previous data set; the nominal data themselves are always solved from the cold
-        start, so the anchor solve doubles as their evaluation. The answer for a data set is
-        then the same whatever was solved before it — in another order, after a failed solve
-        or an exception, after a resume, on another MPI rank — to the last bit: the caches
-        (the anchor, the factors with their analysis) change the cost of a solve only."""
-        if self._nominal is None:
-            self._nominal = self.coefficients(self.scene)
-        c = self.coefficients(scene)
-        nominal = _same_data(c, self._nominal)
-        if self._anchored and not self._anchor_tried and not nominal:
+    def solve(self, c: Coefficients, adjoint: bool = False) -> Solution:
+        """Solve the data set with coefficients c. A monolithic contact solve starts from the
+        contact state at the nominal data (the anchor, solved once on first use from the cold
+        start), never from the previous data set; the nominal data themselves are always solved
+        from the cold start, so the anchor solve doubles as their evaluation. The answer for a
+        data set is then the same whatever was solved before it — in another order, after a
+        failed solve or an exception, after a resume, on another MPI rank — to the last bit:
+        the caches (the anchor, the factors with their analysis) change the cost of a solve
+        only. With `adjoint`, the solution is one whose factorizations the adjoint can use
+        (a converged DD solve is polished by the monolithic solver)."""
+        cache = self._cache
+        nominal = _same_data(c, self.nominal)
+        if self._anchored and not cache.anchor_tried and not nominal:
             try:
-                self.solve(self.scene)
+                self.solve(self.nominal)
             except SolveError:
-                self._anchor_tried = True   # no anchor: every solve starts cold (still deterministic)
-        T, theta = self._heat(c, adjoint) if self.thermal else (None, None)
+                cache.anchor_tried = True   # no anchor: every solve starts cold (still deterministic)
+        T, theta, Kh = self._heat(c, adjoint) if self.thermal else (None, None, None)
         floating = {b: m for b, m in self.free_modes.items() if m.shape[1]}
         if floating and self.zone is None:
             body, modes = next(iter(floating.items()))
             raise StudyError(f"body '{body}' is not held: {_describe_modes(modes)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
         K, Kr, rhs, u0 = self.reduced_system(c, T)
+        own = dict(coefficients=c, theta=theta, conduction=Kh, factors=cache)
         if self.zone is None:
-            self._factor = _refactor(self._factor, Kr)
-            w = self._factor.solve(rhs)
+            w = _factor(cache.elastic, Kr).solve(rhs)
             u = self.elim.T @ w + u0
-            return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c,
-                         w=w, theta=theta, factor=self._factor)
+            return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), w=w, stiffness=Kr, **own)
         used, warm = "monolithic", None
         if self.solver_method == "dd":
-            dd = self._solve_dd(scene, c, Kr, rhs, u0)
+            dd = self._solve_dd(c, Kr, rhs, u0)
             if dd.status is DDOutcome.CONVERGED and not adjoint:
                 z = self.zone
                 contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
-                return State(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c), coefficients=c,
-                             iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact,
-                             theta=theta)
+                return Solution(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c),
+                                iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact, **own)
             if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
-                from .contact.solver import ContactResult
                 warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
                 used = "dd, polished by monolithic for the adjoint"
             elif self.options.fallback:
@@ -366,8 +350,8 @@ class Model:
             else:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         u, contact, iterations, res = self._solve_contact(c, Kr, rhs, u0, nominal, warm)
-        return State(u=u, T=T, stress=self.cell_stress(u, T, c), coefficients=c, solver=used,
-                     iterations=iterations, contact=contact, w=res.u, theta=theta, raw=res)
+        return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), solver=used, iterations=iterations,
+                        contact=contact, w=res.u, raw=res, stiffness=Kr, **own)
 
     def reduced_system(self, c: Coefficients, T: np.ndarray | None):
         """(K, Kr, rhs, u0): the stiffness, Kr = Tᵀ K T on its fixed pattern, the reduced load
@@ -376,49 +360,51 @@ class Model:
         u0 = self.elim.U0 @ c.support_values
         return K, self.reduce(K), self.Tt @ (self.mechanical_load(c, T) - K @ u0), u0
 
-    def _solve_dd(self, scene, c, Kr, rhs, u0):
-        from .dd.solver import solve_dd
-        return solve_dd(self, scene, Kr, rhs, u0, self.options, coefficients=c, comm=self.comm)
+    def _solve_dd(self, c, Kr, rhs, u0):
+        from .dd.solver import solve_dd     # the DD modules (and scipy.spatial) load only for method dd
+        return solve_dd(self, self.scene, Kr, rhs, u0, self.options, coefficients=c, comm=self.comm)
 
-    def _heat(self, c: Coefficients, adjoint: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """The thermal step (T, θ): by the decomposition when the study asks for dd (θ None:
-        the adjoint needs the direct factorization), else directly."""
+    def _heat(self, c: Coefficients, adjoint: bool):
+        """The thermal step (T, θ, reduced conduction matrix): by the decomposition when the
+        study asks for dd (θ and the matrix None: the adjoint needs the direct factorization),
+        else directly."""
         if self.solver_method == "dd" and not adjoint:
-            from .dd.solver import solve_heat_dd
+            from .dd.solver import solve_heat_dd     # as in `_solve_dd`
             T, _, status, _ = solve_heat_dd(self, c, self.options, comm=self.comm)
             if status is DDOutcome.CONVERGED:
-                return T, None
-        theta = self._heat_theta(c)
-        return self.P @ theta, theta
+                return T, None, None
+        theta, Kh = self._heat_theta(c)
+        return self.P @ theta, theta, Kh
 
     def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None):
-        from .contact.solver import solve_contact
         z = self.zone
+        cache = self._cache
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
         tol, max_iter = self.options.tolerance, self.options.max_iterations
         Fc = F if F.any() else None
         if self.solver_method == "qp":
-            from .contact.qp import solve_contact_qp
+            from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
                                 R=self.R_r, tol=tol, max_iter=max_iter,
-                                warm=warm if warm is not None or nominal or not self._anchored else self._anchor,
-                                factor=self._contact_factor, tol_fp=tol,
+                                warm=warm if warm is not None or nominal or not self._anchored else cache.anchor,
+                                factor=cache.contact, tol_fp=tol,
                                 max_fp_iter=self.options.max_fixed_point_iterations)
-            if self._contact_factor is None:
-                self._contact_factor = res.factor    # one factor object, refactored in place from now on
+            if cache.contact is None:
+                cache.contact = res.factor      # one factor object, refactored in place from now on
         anchor = nominal and self._anchored and warm is None
-        self._anchor_tried |= anchor                 # a failure too: then every solve starts cold
+        cache.anchor_tried |= anchor            # a failure too: then every solve starts cold
         if res.status == Status.UNSOLVABLE:
             raise SolveError(self._unbalanced_message(res, rhs), status=Status.UNSOLVABLE)
         if res.status == Status.NOT_UNIQUE:
             raise SolveError(self._free_motion_message(res.alpha), status=Status.NOT_UNIQUE)
         if res.status != Status.SOLVED:
             raise SolveError(res.message, status=res.status)
-        if anchor and self._anchor is None:
-            self._anchor = dataclasses.replace(res, factor=None)   # the factor moves on with later data
+        if anchor and cache.anchor is None:
+            cache.anchor = dataclasses.replace(res, factor=None)   # the factor moves on with later data
+        res = dataclasses.replace(res, factor=None)   # a solution reaches its factor by `contact_factor`
         u = self.elim.T @ res.u + u0
         state = ContactState(z, res.lam_n, res.lam_t, z.gap - z.Bn @ u, z.Bt @ u, res.active)
         return u, state, res.iterations, res
@@ -472,16 +458,35 @@ class Model:
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
 
 
-def _refactor(factor, A):
-    """The Cholesky factor of the SPD matrix A (a held stiffness, a conduction matrix with
-    fixed temperatures): `factor` refactored in place (its analysis kept), or a new one.
-    Cholesky's analysis reads the pattern only; an LU's scaling and matching read the values
-    of the first matrix factored, so every later answer depended on which data set came
-    first (last bits of a heated plate's shear)."""
+def _factor(held: linalg.HeldFactor, A):
+    """`held` holding the SPD matrix A (a held stiffness, a conduction matrix with fixed
+    temperatures), by Cholesky: its analysis reads the pattern only; an LU's scaling and
+    matching read the values of the first matrix factored, so every later answer depended on
+    which data set came first (last bits of a heated plate's shear)."""
     try:
-        return linalg.factorize(A, spd=True) if factor is None else factor.refactor(A)
+        return held.of(A)
     except linalg.FactorizationError as exc:
         raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from None
+
+
+def _read_only(value) -> None:
+    """Make the arrays of a built model (and of its parts: sparse matrices, dataclasses,
+    containers) read-only in place."""
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
+    elif sp.issparse(value):
+        for a in ("data", "indices", "indptr", "row", "col"):
+            if hasattr(value, a):
+                getattr(value, a).flags.writeable = False
+    elif isinstance(value, dict):
+        for v in value.values():
+            _read_only(v)
+    elif isinstance(value, (list, tuple)):
+        for v in value:
+            _read_only(v)
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            _read_only(getattr(value, f.name))
 
 
 def _same_data(a: Coefficients, b: Coefficients) -> bool:

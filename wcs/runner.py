@@ -102,12 +102,10 @@ class Runner:
 
     def _prepare(self, study, progress, kind, resume, evaluator) -> None:
         t0 = time.perf_counter()
-        self.evaluator = evaluator or Evaluator(study)
-        # MPI: with the DD solver every evaluation is spread over all ranks (its subdomains);
-        # otherwise each rank solves its share of a batch (evaluation-level parallelism)
+        # MPI: with the DD solver every evaluation is spread over all ranks (its subdomains: the
+        # model uses the communicator only then); otherwise each rank solves its share of a batch
+        self.evaluator = evaluator or Evaluator(study, comm=self.comm)
         self.split_batches = self.comm is not None and self.evaluator.model.solver_method != "dd"
-        if self.comm is not None and not self.split_batches:
-            self.evaluator.model.comm = self.comm
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
         self.sweep_paths = list((study.sweep or {}).get("grid", {})) if kind == "sweep" else None

@@ -22,53 +22,20 @@ and dΦ = z · δf_eff + μ_A · δd_A + μ_B · (δh − δN y) + explicit part
 contact z = K⁻¹ φ_w. The heat step adds one more adjoint solve with the load
 ∂Φ/∂θ + Pᵀ Σ_j β_j B_jᵀ (T z). All of it yields ∂Φ/∂c for the flat coefficient
 vector c (moduli per region, loads, support values, temperatures, slip limits per
-contact node, …); the chain rule to the parameters x uses ∂c/∂x, taken by central
-differences of the cheap map x → scene → coefficients (no solves).
+contact node, …); the chain rule to the parameters x uses the exact ∂c/∂x of the
+parameter map (`wcs.coefficients.ParameterMap.jacobian`).
+
+Every factorization is the solution's own (`Solution.factor`, `heat_factor`,
+`contact_factor`): the adjoint of a solution is the same whatever was solved after it.
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
+from .coefficients import flatten
+from .contact.solver import redundant_pairs
 from .criteria import KINDS, REL_TOL, Partials
-from .model import Coefficients
-
-FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
-          "support_values", "temperature_values", "reference", "slip", "coulomb")
-
-
-def flatten(c: Coefficients) -> tuple[np.ndarray, dict[str, slice]]:
-    """The coefficients as one vector and the slice of each field."""
-    parts, slices, k = [], {}, 0
-    for name in FIELDS:
-        v = getattr(c, name)
-        if isinstance(v, dict):
-            v = np.concatenate([np.atleast_1d(np.asarray(v[b], float)) for b in sorted(v)]) if v else np.zeros(0)
-        v = np.atleast_1d(np.asarray(v, float)).ravel()
-        parts.append(v)
-        slices[name] = slice(k, k + v.size)
-        k += v.size
-    return np.concatenate(parts), slices
-
-
-def coefficient_jacobian(study, model, x: np.ndarray) -> np.ndarray:
-    """∂c/∂x (ncoef, nparam) by central differences of x → scene → coefficients.
-    The map is affine in most data and smooth (E, ν → λ, μ, β) in the rest; a step of
-    1e-6 of the box width leaves an error ~1e-12 relative."""
-    from .study import scene_with
-    lo, hi = study.parameters.lower, study.parameters.upper
-    cols = []
-    for k in range(x.size):
-        h = 1e-6 * max(hi[k] - lo[k], abs(x[k]), 1e-300)
-        xp, xm = x.copy(), x.copy()
-        xp[k] += h
-        xm[k] -= h
-        cp = flatten(model.coefficients(scene_with(study, xp)))[0]
-        cm = flatten(model.coefficients(scene_with(study, xm)))[0]
-        cols.append((cp - cm) / (2 * h))
-    if not cols:                                   # no uncertain number: (ncoef, 0)
-        return np.zeros((flatten(model.coefficients(scene_with(study, x)))[0].size, 0))
-    return np.column_stack(cols)
 
 
 def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
@@ -85,7 +52,7 @@ def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
 def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None):
     """(z, μ, s) of the module docstring on the final active set; None when N is singular."""
     res = state.raw
-    cf, m = res.factor, res.lam_n.size
+    cf, m = state.contact_factor(model), res.lam_n.size
     C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
     R = model.R_r
     r = 0 if R is None else R.shape[1]
@@ -112,7 +79,6 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
     # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
     # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
-    from .contact.solver import redundant_pairs
     keep = np.setdiff1d(np.arange(N.shape[0]), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:]))
     mu = np.zeros(N.shape[0])
     mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
@@ -181,7 +147,7 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     phi_w = Tt @ phi_u
     mu = s = None
     if state.raw is None:
-        z = state.factor.solve(phi_w)
+        z = state.factor().solve(phi_w)
     else:
         out = _contact_adjoint(model, state, phi_w, P.lam_n)
         if out is None:
@@ -218,7 +184,7 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
             grad[sl["reference"]] -= c.beta[j] * BtZ.sum()
             coupled += c.beta[j] * BtZ
         load = model.P.T @ coupled + (0.0 if P.theta is None else P.theta)
-        zeta = model._heat_factor.solve(model.heat_Tt @ load)
+        zeta = state.heat_factor().solve(model.heat_Tt @ load)
         Zh = model.heat_elim.T @ zeta
         grad[sl["kappa"]] -= model.H.sensitivities(Zh, state.theta)[:, 0]
         grad[sl["source"]] += model.source_vectors @ Zh
@@ -228,11 +194,12 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     return grad
 
 
-def gradients(evaluator, state, x: np.ndarray) -> tuple[dict[str, np.ndarray | None], bool]:
-    """dΦ/dx for every criterion at the solution `state` of data set x, and whether the
-    point is non-smooth (an active-set change or a switch of the maximising region nearby)."""
+def gradients(evaluator, state, x: np.ndarray, others=None) -> tuple[dict[str, np.ndarray | None], bool]:
+    """dΦ/dx for every criterion at the solution `state` of data set x (and `others`, the
+    other addressed numbers), and whether the point is non-smooth (an active-set change or
+    a switch of the maximising region nearby)."""
     model = evaluator.model
-    J = coefficient_jacobian(evaluator.study, model, x)
+    J = evaluator.map.jacobian(x, others)
     nonsmooth = state.raw is not None and contact_nonsmooth(model, state)
     out = {}
     for crit in evaluator.criteria:

@@ -17,15 +17,12 @@ Dotted paths are relative to the scene (`materials.rubber.E`,
 
 A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
-`<path>[points-1]`: values of g at equally spaced points along the contact.
-`scene_with` stores them as `friction.slip_limit_profile: [g0, ...]` and sets
-`friction.slip_limit` to their mean. The slope bound |g[i+1] - g[i]| <= C*ds
+`<path>[points-1]`: values of g at equally spaced points along the contact
+(`wcs.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
 needs the contact length (ds = length / (points - 1)), so it is only stored here.
 """
 from __future__ import annotations
 
-import copy
-import difflib
 import hashlib
 import os
 import re
@@ -39,17 +36,20 @@ import yaml
 from pydantic import (
     AfterValidator,
     BaseModel,
-    ConfigDict,
     Field,
     TypeAdapter,
     ValidationError,
     field_validator,
     model_validator,
 )
-from pydantic_core import PydanticCustomError
 
 from .criteria import KINDS
 from .errors import StudyError
+from .options import CONFIG as _CONFIG
+from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
+from .options import Strict as _Strict
+from .options import did_you_mean as _did_you_mean
+from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, shape_box
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -148,14 +148,6 @@ def _locate(name: str, src: _Source, key: str, shipped: bool = False) -> Path:
 # ---------------------------------------------------------------- errors
 
 
-def _did_you_mean(word: str, choices) -> str:
-    choices = sorted(str(c) for c in choices)
-    close = difflib.get_close_matches(str(word), choices, n=1)
-    if close:
-        return f" (did you mean '{close[0]}'?)"
-    return f" (expected one of: {', '.join(choices)})" if choices else ""
-
-
 def _fault(err: dict) -> str:
     """A pydantic error in plain words, with the offending value when it is short."""
     if err["type"] == "missing":
@@ -225,9 +217,6 @@ FEATURE_MIN = 1e-6
 _FEATURE = {"ge": FEATURE_MIN, "le": 1e6}
 MAX_NESTING = 50                                   # levels of a study file (shapes nest)
 MAX_PROFILE_POINTS = 1000
-
-_CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
-
 
 def _valid_name(name: str) -> str:
     if not name or re.search(r"[.\s\[\]]", name):
@@ -320,24 +309,6 @@ def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
     if len(given) != 1:
         found = f"got {', '.join(given)}" if given else "got none"
         raise ValueError(f"give exactly one of {', '.join(keys)} ({found})")
-
-
-class _Strict(BaseModel):
-    """A mapping with a fixed set of keys; an unknown key is an error with a hint."""
-
-    model_config = _CONFIG
-
-    @model_validator(mode="before")
-    @classmethod
-    def _known_keys(cls, data):
-        if isinstance(data, dict):
-            allowed = [f.alias or name for name, f in cls.model_fields.items()]
-            for key in data:
-                if key not in allowed:
-                    raise PydanticCustomError(
-                        "unknown_key", "unknown key '{key}'{hint}",
-                        {"key": str(key), "hint": _did_you_mean(key, allowed)})
-        return data
 
 
 class Material(_Strict):
@@ -556,90 +527,6 @@ class Criterion(_Strict):
         return self
 
 
-# Counts of the search and the solver: a million solves is weeks of work at the sizes wcs
-# runs; every count fits the results file's int64 (a budget of 1e30 did not).
-MAX_SOLVES = 1_000_000
-
-
-class _Options(_Strict):
-    """Options of the search or the solver: frozen; every field documented with its one default."""
-
-    model_config = ConfigDict(**_CONFIG, frozen=True)
-
-    @classmethod
-    def of(cls, options):
-        """These options as the model: `options` itself, or a mapping (None: {}) validated by it."""
-        return options if isinstance(options, cls) else cls.model_validate(options or {})
-
-
-class SampleDesign(_Options):
-    design: Literal["lhs", "sobol", "vertices", "grid"] = Field(
-        "lhs", description="space-filling design of the sample")
-    n: int = Field(32, ge=1, le=MAX_SOLVES, description="points of the sample (local: of its "
-                   "starting sample; auto: the most of its first sample)")
-    seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of every random draw of the search")
-
-
-class LocalSearch(_Options):
-    starts: int = Field(3, ge=1, le=1000, description="best sample points per criterion the local ascent starts from")
-
-
-class Search(_Options):
-    method: Literal["auto", "sample", "local", "global"] = Field("auto", description="search strategy")
-    sample: SampleDesign = Field(default_factory=SampleDesign, description="the sample design")
-    budget: int = Field(200, ge=1, le=MAX_SOLVES, description="most forward solves of the search")
-    local: LocalSearch = Field(default_factory=LocalSearch, description="the local ascent")
-    kkt_tol: float = Field(1e-6, gt=0, lt=1, description="relative Frank–Wolfe gap below which a point is "
-                           "certified (corner-kkt, local-kkt)")
-    safeguard: Optional[int] = Field(None, ge=0, le=MAX_SOLVES, description="points of auto's first sample "
-                                     "besides the centre; null: min(2n + 1, sample.n), n the parameters")
-
-
-class DomainDecomposition(_Options):
-    subdomains: int = Field(8, ge=1, le=4096, description="subdomains of the partition")
-    pair_size: float = Field(0.5, gt=0, le=100, description="band around a contact side, in mean "
-                             "subdomain widths H")
-    relaxation: Literal["aitken", "anderson"] | Annotated[float, Field(gt=0, le=2)] = Field(
-        "aitken", description="update of the successive approximations: Aitken's dynamic ω, "
-        "Anderson acceleration, or a fixed ω (1 = the seed)")
-    patience: int = Field(8, ge=1, le=10_000, description="steps with contraction q ≥ 1 before \"stagnated\"")
-    step: Literal["seed", "glued"] = Field("seed", description="operator of the successive steps: the "
-                                           "seed's S0, or S0 + the glued pairs")
-    pcg_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="relative tolerance of PCG1 "
-                                           "(the glued start U⁰); null: max(solver.tolerance, 1e-8)")
-    pcg_max_iterations: int = Field(500, ge=1, le=100_000, description="iteration budget of each PCG solve")
-    inner_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="floor of PCG2's relative "
-                                             "tolerance; null: solver.tolerance / 10")
-    forcing: float = Field(0.1, ge=0, le=1, description="PCG2 stops at forcing × the last relative "
-                           "increment (inexact inner solves)")
-    contact_tolerance: float = Field(1e-10, gt=0, lt=1, description="tolerance of the local contact solves")
-    anderson: int = Field(5, ge=1, le=100, description="history of Anderson acceleration, in steps")
-    anderson_restart: float = Field(0.0, ge=0, le=1e6, description="clear Anderson's history when the "
-                                    "residual grows by this factor; 0: never")
-    mixing: float = Field(1.0, gt=0, le=2, description="Anderson's mixing β: the damped map U + β(T(U) − U)")
-
-    @field_validator("relaxation", mode="wrap")
-    @classmethod
-    def _one_message(cls, value, handler):
-        try:
-            return handler(value)
-        except ValidationError:
-            raise ValueError("must be 'aitken', 'anderson' or a fixed ω in (0, 2]") from None
-
-
-class Solver(_Options):
-    method: Literal["auto", "monolithic", "dd", "qp"] = Field(
-        "auto", description="contact solver (qp: the cvxpy reference)")
-    tolerance: float = Field(1e-8, gt=0, le=1e-2, description="relative tolerance of the contact solve "
-                             "(above 1e-2 a \"solved\" state is not a solution)")
-    max_iterations: int = Field(200, ge=1, le=100_000, description="iteration budget of the contact solve "
-                                "(dd: of the successive approximations)")
-    max_fixed_point_iterations: int = Field(100, ge=1, le=100_000, description="most solves of the "
-                                            "Coulomb fixed point (slip bound from the last pressures)")
-    dd: DomainDecomposition = Field(default_factory=DomainDecomposition, description="the domain decomposition")
-    fallback: bool = Field(True, description="a failed dd solve falls back to the monolithic solver (visibly)")
-
-
 class Limit(_Strict):
     lower: Optional[float] = Field(None, description="the criterion must not fall below it (needs sense min or both)")
     upper: Optional[float] = Field(None, description="the criterion must not exceed it (needs sense max or both)")
@@ -662,7 +549,7 @@ def _distinct_levels(levels: list[float]) -> tuple[float, ...]:
     return tuple(sorted(levels))
 
 
-class Fuzzy(_Options):
+class Fuzzy(Options):
     levels: Annotated[list[Annotated[float, Field(ge=0, le=1)]], Field(min_length=1),
                       AfterValidator(_distinct_levels)] = Field(
         list(DEFAULT_LEVELS), description="the α-levels whose cuts are searched (membership ≥ α)")
@@ -745,7 +632,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path
         extra.append(library)
     scene = _dump(src.validate(_SCENE, raw))
     if "file" in scene["mesh"]:                # regions come from the file's physical groups
-        from .scene.meshfile import prepare_scene
+        from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
         scene["mesh"]["notes"] = prepare_scene(scene, src.base, src.error)  # popped by load_study
     else:
         _require_shapes(scene, src)
@@ -897,7 +784,6 @@ def _check_mesh(scene: dict, src: _Source) -> float | None:
     cells along the longest side of the scene (or of a body with its own size)."""
     if "file" in scene["mesh"]:
         return None
-    from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, shape_box
     boxes = {b: [shape_box(r["shape"]) for r in spec["regions"]] for b, spec in scene["bodies"].items()}
     sizes = [(("mesh", "size"), scene["mesh"]["size"], "the scene", sum(boxes.values(), []))]
     sizes += [(("bodies", b, "mesh", "size"), spec["mesh"]["size"], f"body '{b}'", boxes[b])
@@ -1244,10 +1130,22 @@ class Study:
         """One forward solve at a data vector (or {dotted path: value}); the mesh and the
         assembled model are built on the first call and reused. With `gradients`, the
         evaluation also carries dΦ/dx of every criterion (adjoint)."""
-        from .evaluation import Evaluator
+        from .evaluation import Evaluator   # the solvers (gmsh, scikit-fem, PARDISO) load on the first solve
         if self._evaluator is None:
             self._evaluator = Evaluator(self)
         return self._evaluator.evaluate(values, gradients=gradients)
+
+    def data_set(self, values) -> tuple[np.ndarray, dict[str, float]]:
+        """A data set as (x, others): the parameter vector and any other addressed numbers.
+
+        `values` is a vector in the order of `parameters`, or a mapping from dotted path to
+        value: a parameter name (`...slip_limit[2]`), an uncertain path (a profile takes one
+        value for all points or a list of `points` values), or any other addressable number
+        of the scene (e.g. a sweep path). Parameters a mapping leaves out keep their nominal
+        value."""
+        if isinstance(values, Mapping):
+            return _split_mapping(self, values)
+        return parameter_vector(self, values), {}
 
     def nominal(self) -> np.ndarray:
         """The scene's own values in parameter order (a profile repeats the constant value)."""
@@ -1310,38 +1208,6 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
 
 
 # ---------------------------------------------------------------- applying data
-
-
-def scene_with(study: Study, values) -> dict:
-    """A deep copy of the scene with data applied.
-
-    `values` is a vector in the order of `study.parameters`, or a mapping from
-    dotted path to value: a parameter name (`...slip_limit[2]`), an uncertain
-    path (a profile takes one value for all points or a list of `points`
-    values), or any other addressable number of the scene (e.g. a sweep path).
-    Parameters a mapping leaves out keep their nominal value.
-    """
-    if isinstance(values, Mapping):
-        x, others = _split_mapping(study, values)
-    else:
-        x, others = np.asarray(values, dtype=float), {}
-    if x.shape != (len(study.parameters),):
-        raise ValueError(f"expected {len(study.parameters)} values, got shape {x.shape}")
-    scene = copy.deepcopy(study.scene)
-    slices = _entry_slices(study)
-    for entry in study.uncertain:
-        _apply(scene, entry, x[slices[entry["path"]]])
-    for path, value in others.items():
-        set_path(scene, path, value)
-    return scene
-
-
-def _apply(scene: dict, entry: dict, chunk: np.ndarray) -> None:
-    if "points" in entry:
-        set_path(scene, entry["path"] + "_profile", [float(v) for v in chunk])
-        set_path(scene, entry["path"], float(np.mean(chunk)))
-    else:
-        set_path(scene, entry["path"], float(chunk[0]))
 
 
 def parameter_vector(study: Study, values) -> np.ndarray:

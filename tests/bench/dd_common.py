@@ -44,7 +44,7 @@ def run(study, model, options, compare=True):
            "floating_units": res.info.get("floating_units"), "contact_nodes": model.zone.gap.size}
     if compare and res.u is not None:
         t = time.perf_counter()
-        mono = model.solve(scene)
+        mono = model.solve(c)
         out["time_mono"] = time.perf_counter() - t
         out["err_u"] = float(np.linalg.norm(res.u - mono.u) / np.linalg.norm(mono.u))
         out["err_lam_n"] = float(np.linalg.norm(res.lam_n - mono.contact.force_n)

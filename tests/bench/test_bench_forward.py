@@ -18,7 +18,6 @@ import yaml
 
 import wcs
 from wcs import linalg
-from wcs.study import scene_with
 
 from common import STUDIES, measure, save_figure, write_table
 
@@ -202,7 +201,7 @@ def test_time_per_evaluation_against_unknowns(tmp_path):
         it = iter(xs)
         t_eval, s_eval, ev = measure(lambda: study.evaluate(next(it)), 3)
         model = ev.evaluator.model
-        c = model.coefficients(scene_with(study, x0))
+        c = ev.evaluator.map.coefficients(x0)
         K = model.K(model.stiffness_coefficients(c))
         Kr = (model.Tt @ K @ model.elim.T).tocsr()
         b = np.ones(Kr.shape[0])

@@ -62,7 +62,7 @@ def cold_solve(study):
     ev = Evaluator(study)
     t = time.perf_counter()
     try:
-        state = ev.model.solve(study.scene)
+        state = ev.model.solve(ev.model.nominal)
     except SolveError as e:
         return {"status": e.status, "message": str(e), "iterations": 0, "fixed_point": "", "state": None,
                 "solver": "", "seconds": time.perf_counter() - t}

@@ -67,7 +67,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import StudyError
-from ..scene.selectors import facet_normals, nodal_normals
+from ..scene.selectors import arc_coordinate, facet_normals, nodal_normals
+from .pairs import check_penetration, default_nodal_dofs, pair_sides
 
 NGAUSS = 4
 MIN_COVER = 1e-6            # a covered fraction of a slave segment below this is ignored
@@ -292,7 +293,6 @@ def mortar_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Mo
     gap = -np.einsum("ij,ij->i", CX, n)
     h = float(np.mean(mi.D))
     gap[np.abs(gap) <= 1e-12 * h] = 0.0
-    from .pairs import check_penetration
     check_penetration(gap, X[mi.slave], h, path)
     # master nodes / coefficients, padded
     Cm = mi.C.tolil()
@@ -324,7 +324,6 @@ def mortar_contact(sm, spec: dict, path: str) -> MortarPairs:
 
 def directional_rows(C: sp.csr_matrix, direction: np.ndarray, nnodes: int) -> sp.csr_matrix:
     """(m, 2 nnodes) rows ``(C u)_j · d_j`` on node-interleaved DOFs (skfem's vector-P1 order)."""
-    from .pairs import default_nodal_dofs
     nd = default_nodal_dofs(nnodes)
     C = C.tocoo()
     rows = np.concatenate([C.row, C.row])
@@ -338,8 +337,6 @@ def directional_rows(C: sp.csr_matrix, direction: np.ndarray, nnodes: int) -> sp
 def sides_match(mesh, slave_facets, master_facets, path: str = "contact") -> bool:
     """True when node-to-node pairing is exact: every paired slave node projects onto a
     master node (one to one) and no master node between the hit ones is left out."""
-    from .pairs import pair_sides
-    from .zone import arc_coordinate
     pr = pair_sides(mesh, slave_facets, master_facets, path)
     if len(pr) == 0 or np.any(pr.master_weights[:, 1] != 0.0):
         return False

@@ -1,5 +1,5 @@
 """The contact zone of a scene: every contact's node pairs stacked into one set
-of jump operators, with the friction data read per data set.
+of jump operators (the friction data per node are coefficients: `wcs.coefficients`).
 
 Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
 is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`).
@@ -13,39 +13,11 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from ..scene.meshdata import SceneMesh
+from ..scene.selectors import arc_coordinate
+from .mortar import directional_rows, mortar_contact, sides_match
 from .pairs import ContactPairs, normal_jump_matrix, pair_contact, tangent_jump_matrix
 
 DISCRETIZATIONS = ("auto", "node-to-node", "mortar")
-
-
-def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """Normalised arc length s ∈ [0, 1] of `nodes` along the chain of `facets`
-    (from the end with the smaller (x, y); a closed chain starts at its smallest node)."""
-    edges = mesh.facets[:, facets].T
-    ids, inv = np.unique(edges, return_inverse=True)
-    inv = inv.reshape(-1, 2)
-    n = ids.size
-    adj = [[] for _ in range(n)]
-    for k, (a, b) in enumerate(inv):
-        adj[a].append((b, k))
-        adj[b].append((a, k))
-    ends = [i for i in range(n) if len(adj[i]) == 1]
-    key = lambda i: tuple(mesh.p[:, ids[i]])  # noqa: E731
-    start = min(ends, key=key) if ends else min(range(n), key=key)
-    s = np.full(n, np.nan)
-    s[start] = 0.0
-    seen_edges = np.zeros(len(inv), bool)
-    stack = [start]
-    while stack:                                   # walk the chain (a forest walk if it branches)
-        i = stack.pop()
-        for j, k in adj[i]:
-            if not seen_edges[k]:
-                seen_edges[k] = True
-                if np.isnan(s[j]):
-                    s[j] = s[i] + np.linalg.norm(mesh.p[:, ids[j]] - mesh.p[:, ids[i]])
-                    stack.append(j)
-    s = np.nan_to_num(s) / max(np.nanmax(s), 1e-300)
-    return s[np.searchsorted(ids, nodes)]
 
 
 @dataclass
@@ -65,28 +37,10 @@ class ContactZone:
     def nodes(self) -> np.ndarray:
         return np.concatenate([p.slave for p in self.pairs])
 
-    def friction(self, scene: dict) -> tuple[np.ndarray, np.ndarray]:
-        """(g, F) per contact node: the Tresca slip limit (a profile along the side is
-        interpolated linearly in arc length) and the Coulomb coefficient."""
-        g = np.zeros(self.gap.size)
-        F = np.zeros(self.gap.size)
-        for k, name in enumerate(self.names):
-            fr = (scene["contacts"][name].get("friction") or {})
-            rows = self.contact_of_node == k
-            if fr.get("slip_limit_profile") is not None:
-                prof = np.asarray(fr["slip_limit_profile"], float)
-                g[rows] = np.interp(self.arc[rows], np.linspace(0, 1, prof.size), prof)
-            elif fr.get("slip_limit") is not None:
-                g[rows] = float(fr["slip_limit"])
-            if fr.get("coefficient") is not None:
-                F[rows] = float(fr["coefficient"])
-        return g, F
-
 
 def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
     """The discretization a contact uses: its `discretization` key, `auto` (the default)
     meaning node-to-node when the two sides match (mortar.sides_match), mortar otherwise."""
-    from .mortar import sides_match
     kind = spec.get("discretization") or "auto"
     if kind not in DISCRETIZATIONS:
         raise StudyError(f"unknown discretization {kind!r} (one of {', '.join(DISCRETIZATIONS)})",
@@ -106,7 +60,6 @@ def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
 def _rows(pr, nn: int):
     """(Bn, Bt) of one contact's pairs, node-to-node or mortar."""
     if getattr(pr, "discretization", "node-to-node") == "mortar":
-        from .mortar import directional_rows
         return directional_rows(pr.C, pr.normal, nn), directional_rows(pr.C, pr.tangent, nn)
     return normal_jump_matrix(pr, nn), tangent_jump_matrix(pr, nn)
 
@@ -115,7 +68,6 @@ def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
     contacts = scene.get("contacts") or {}
     if not contacts:
         return None
-    from .mortar import mortar_contact
     mesh = smesh.mesh
     nn = mesh.p.shape[1]
     names, pairs, owner, arcs, kinds = [], [], [], [], []

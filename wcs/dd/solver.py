@@ -46,7 +46,7 @@ import scipy.sparse as sp
 
 from wcs.fem.affine import CellAffineOperator
 from wcs.status import DDOutcome, Status
-from wcs.study import DomainDecomposition, Solver
+from wcs.options import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
 from .partition import Partition, facet_components, partition
@@ -321,7 +321,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     info["nranks"] = team.size
     z = model.zone
     c = coefficients if coefficients is not None else model.coefficients(scene)
-    g, F = z.friction(scene)
+    g, F = c.slip, c.coulomb
     d = z.gap - z.Bn @ u0
     kc = model.stiffness_coefficients(c)
     rho_region = stiffness_measure(c.lam, c.mu)

@@ -16,7 +16,7 @@ import math
 
 CELLS_PER_H2 = 4.0 / math.sqrt(3.0)     # cells per unit area at size 1
 DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives none
-DEFAULT_GRADING = 0.5                   # wcs.scene.mesher's (not imported: it loads gmsh and skfem)
+DEFAULT_GRADING = 0.5                   # size growth per unit distance away from a refine zone (the mesher's)
 
 
 def shape_box(shape: dict) -> tuple[float, float, float, float]:

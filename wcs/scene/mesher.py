@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
 
 import gmsh
 import numpy as np
@@ -61,17 +60,16 @@ import scipy.sparse as sp
 import skfem
 from scipy.sparse.csgraph import connected_components
 
+from ..choose import MeshFacts, mesh_size
 from ..errors import StudyError
 from . import selectors
+from .estimate import DEFAULT_GRADING
 from .geometry import make_shape
 from .meshdata import SceneMesh
+from .meshfile import read_mesh_file
+from .session import OPTIONS, Session
 
-CURVATURE_ELEMENTS = 24         # Mesh.MeshSizeFromCurvature: elements per 2*pi of arc
-DEFAULT_GRADING = 0.5           # size growth per unit distance away from a refine zone
-ALGORITHM_2D = 6                # Frontal-Delaunay
 ROI_SHAPES = {"box": "rectangle", "disc": "disc", "polygon": "polygon"}   # region of interest -> shape
-
-_lock = threading.Lock()        # gmsh is a process-wide singleton
 
 
 def region_names(scene: dict) -> list[tuple[str, str]]:
@@ -146,7 +144,6 @@ def _refinements(scene: dict, entries, path0: str, grading_path: str):
 def default_size(scene: dict, bbox_diag: float) -> float:
     """`mesh.size` when the study gives none: the benchmark rule of `wcs.choose.mesh_size`
     (diagonal/20, and a tenth of the smallest disc radius, e.g. a tunnel)."""
-    from ..choose import MeshFacts, mesh_size
     radii = [float(r["radius"]) for r in _discs(scene)]
     return mesh_size(MeshFacts(diagonal=bbox_diag, feature=min(radii) if radii else None))[0]
 
@@ -197,7 +194,7 @@ def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entit
 def _set_sizes(size: float, callback) -> None:
     """A uniform size is gmsh's own bound ``Mesh.MeshSizeMax``: the same mesh as the callback
     ``min(lc, size)``, without its ~5e4 calls into Python (~5% of the meshing time)."""
-    gmsh.option.setNumber("Mesh.MeshSizeMax", size if callback is None else _OPTIONS["Mesh.MeshSizeMax"])
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size if callback is None else OPTIONS["Mesh.MeshSizeMax"])
     if callback is not None:
         gmsh.model.mesh.setSizeCallback(callback)
 
@@ -220,73 +217,6 @@ def _region_entity_sizes(scene: dict, owner: dict, regions_flat: list) -> dict:
 
 # ---------------------------------------------------------------------------
 # gmsh session
-
-
-_OPTIONS = {
-    "General.Terminal": 0,
-    "General.Verbosity": 0,
-    "General.NumThreads": 1,
-    "Mesh.MaxNumThreads1D": 1,
-    "Mesh.MaxNumThreads2D": 1,
-    "Mesh.Algorithm": ALGORITHM_2D,
-    "Mesh.ElementOrder": 1,
-    "Mesh.RecombineAll": 0,
-    "Mesh.MeshSizeFromPoints": 0,
-    "Mesh.MeshSizeFromParametricPoints": 0,
-    "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
-    "Mesh.MeshSizeExtendFromBoundary": 1,
-    "Mesh.MeshSizeMin": 0.0,
-    "Mesh.MeshSizeMax": 1e22,
-    "Mesh.MeshSizeFactor": 1.0,
-    "Mesh.SaveAll": 0,
-}
-
-
-class _Session:
-    """A private gmsh session: initialise (or a fresh model if gmsh is already
-    running), set our options, and undo all of it on exit."""
-
-    counter = 0
-
-    def __enter__(self):
-        _lock.acquire()
-        try:
-            self.own = not gmsh.isInitialized()
-            if self.own:
-                gmsh.initialize(readConfigFiles=False, run=False, interruptible=False)
-                self.saved = {}
-            else:
-                self.saved = {k: gmsh.option.getNumber(k) for k in _OPTIONS}
-                self.prev_model = gmsh.model.getCurrent()
-            _Session.counter += 1
-            gmsh.model.add(f"wcs_scene_{_Session.counter}")
-            for k, v in _OPTIONS.items():
-                gmsh.option.setNumber(k, v)
-        except BaseException:
-            _lock.release()
-            raise
-        return self
-
-    def __exit__(self, *exc):
-        try:
-            if self.own:
-                gmsh.finalize()
-            else:
-                try:
-                    gmsh.model.mesh.removeSizeCallback()
-                except Exception:
-                    pass
-                gmsh.model.remove()
-                for k, v in self.saved.items():
-                    gmsh.option.setNumber(k, v)
-                if self.prev_model:
-                    try:
-                        gmsh.model.setCurrent(self.prev_model)
-                    except Exception:
-                        pass
-        finally:
-            _lock.release()
-        return False
 
 
 # ---------------------------------------------------------------------------
@@ -424,13 +354,12 @@ def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
         if splits:
             raise StudyError("a mesh file is used as it is: it has no geometry to refine on",
                              path="scene.mesh.file")
-        from .meshfile import read_mesh_file
         return check_connected(read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file"), "scene.mesh.file")
     bodies = list(bodies_spec)
     regions = region_names(scene)
     embed = area_rois(scene, rois)
 
-    with _Session():
+    with Session():
         # -- shapes: one entry (body index, region index, surfaces) per region
         inputs: list[tuple[int, int, list]] = []
         r = 0

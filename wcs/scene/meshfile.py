@@ -33,7 +33,9 @@ another region or body, or overlapping cells inside one region: an error).
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,10 +76,10 @@ def _fail(file, message, path="scene.mesh.file"):
 
 def _read_gmsh(path: Path):
     """(xy, [(group, dim, (k, nv) node tags)], tag -> index) via the gmsh API."""
-    import gmsh
+    import gmsh                     # gmsh loads only to read a gmsh file
 
-    from .mesher import _Session
-    with _Session():
+    from .session import Session    # (it loads gmsh)
+    with Session():
         try:
             gmsh.merge(str(path))
         except Exception as exc:  # gmsh raises a bare Exception with its last error
@@ -111,10 +113,7 @@ def _read_gmsh(path: Path):
 
 
 def _read_meshio(path: Path):
-    import contextlib
-    import io
-
-    import meshio
+    import meshio                   # only for a mesh file gmsh does not read
     sink = io.StringIO()
     try:
         with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
@@ -220,7 +219,7 @@ def _assemble(path: Path, xyz: np.ndarray, groups) -> RawMesh:
 
 def _check_overlap(raw: RawMesh) -> None:
     """No cell centroid of one group inside a cell of another; no overlap inside a group."""
-    from matplotlib.tri import Triangulation
+    from matplotlib.tri import Triangulation    # matplotlib: only to check a mesh file's overlaps
     xy, tri, tg = raw.xy, raw.tris, raw.tri_group
     cent = xy[tri].mean(axis=1)
     for g, name in enumerate(raw.groups2d):

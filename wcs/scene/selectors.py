@@ -427,3 +427,33 @@ def _nonempty(sel, spec, path, allow_empty):
     if len(sel) == 0 and not allow_empty:
         raise StudyError(f"the selector {spec!r} selects no mesh {sel.kind[:-1]}", path=path)
     return sel
+
+
+def arc_coordinate(mesh, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Normalised arc length s ∈ [0, 1] of `nodes` along the chain of `facets`
+    (from the end with the smaller (x, y); a closed chain starts at its smallest node)."""
+    edges = mesh.facets[:, facets].T
+    ids, inv = np.unique(edges, return_inverse=True)
+    inv = inv.reshape(-1, 2)
+    n = ids.size
+    adj = [[] for _ in range(n)]
+    for k, (a, b) in enumerate(inv):
+        adj[a].append((b, k))
+        adj[b].append((a, k))
+    ends = [i for i in range(n) if len(adj[i]) == 1]
+    key = lambda i: tuple(mesh.p[:, ids[i]])  # noqa: E731
+    start = min(ends, key=key) if ends else min(range(n), key=key)
+    s = np.full(n, np.nan)
+    s[start] = 0.0
+    seen_edges = np.zeros(len(inv), bool)
+    stack = [start]
+    while stack:                                   # walk the chain (a forest walk if it branches)
+        i = stack.pop()
+        for j, k in adj[i]:
+            if not seen_edges[k]:
+                seen_edges[k] = True
+                if np.isnan(s[j]):
+                    s[j] = s[i] + np.linalg.norm(mesh.p[:, ids[j]] - mesh.p[:, ids[i]])
+                    stack.append(j)
+    s = np.nan_to_num(s) / max(np.nanmax(s), 1e-300)
+    return s[np.searchsorted(ids, nodes)]
