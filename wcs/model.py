@@ -355,7 +355,7 @@ class Model:
                 z = self.zone
                 contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
                 return State(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c), coefficients=c,
-                             iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact,
+                             iterations=int(dd.info.get("successive", 0)), solver=f"dd: {dd.message}", contact=contact,
                              theta=theta)
             if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
                 from .contact.solver import ContactResult

@@ -30,6 +30,8 @@ distributed over MPI ranks unchanged.
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
@@ -37,6 +39,7 @@ import scipy.sparse.linalg as spla
 
 from wcs import linalg
 from wcs.contact.solver import pinned_dofs, solve_contact
+from wcs.status import Status
 
 
 class SetupError(RuntimeError):
@@ -45,18 +48,21 @@ class SetupError(RuntimeError):
 
 # ---- kernels -----------------------------------------------------------------------------
 def rigid_basis(p: np.ndarray, nodes: np.ndarray, ncomp: int) -> np.ndarray:
-    """(ncomp·k, 3 or 1): rigid motions of the nodes, node-interleaved, O(1) scaled columns."""
+    """(ncomp·k, r): rigid motions of the nodes, node-interleaved, O(1) scaled columns —
+    r = 1 for a scalar field, else the d translations and d(d − 1)/2 rotations of the
+    dimension d = ncomp (3 in 2D, 6 in 3D)."""
     k = nodes.size
     if ncomp == 1:
         return np.ones((k, 1))
     xy = p[:, nodes].T
-    c = xy.mean(axis=0)
-    size = max(np.ptp(xy, axis=0).max(), 1e-300)
-    R = np.zeros((2 * k, 3))
-    R[0::2, 0] = 1.0
-    R[1::2, 1] = 1.0
-    R[0::2, 2] = -(xy[:, 1] - c[1]) / size
-    R[1::2, 2] = (xy[:, 0] - c[0]) / size
+    x = (xy - xy.mean(axis=0)) / max(np.ptp(xy, axis=0).max(), 1e-300)
+    rotations = [(a, b) for a in range(ncomp) for b in range(a + 1, ncomp)]
+    R = np.zeros((ncomp * k, ncomp + len(rotations)))
+    for a in range(ncomp):
+        R[a::ncomp, a] = 1.0
+    for j, (a, b) in enumerate(rotations):        # rotation in the (a, b) plane
+        R[a::ncomp, ncomp + j] = -x[:, b]
+        R[b::ncomp, ncomp + j] = x[:, a]
     return R
 
 
@@ -305,3 +311,45 @@ class PairUnit(Unit):
         u[B], u[I] = V, res.u
         r = self.A_BI @ res.u + self.A_BB @ V - self.f[B]
         return r, u, res
+
+    def tresca(self, V: np.ndarray, d, bound, tol: float, max_iter: int):
+        """S_p(V) ([21, (4.27)–(4.28)]) of the Tresca problem with nodal slip bounds `bound`
+        (g·w, or a Coulomb fixed point's g·w + F λn); `bound` None: every node sticks (the
+        fixed point's start, solve_contact's all-stick Coulomb step). Returns (residual on
+        B, local solution, ContactResult); the result's `free` is the active set."""
+        I, B = self.I, self.B
+        m = self.rows.size
+        b = self.f[I] - self.A_IB @ V
+        Bn, Bt = self.Bn[:, I], self.Bt[:, I]
+        if bound is None:
+            res = solve_contact(self.A_II, b, Bn, Bt, d, np.ones(m), F=np.ones(m), R=self.R_int, tol=tol,
+                                max_iter=max_iter, factor=self.warm.factor if self.warm else None, max_fp_iter=0)
+            if res.status is Status.FIXED_POINT_NOT_CONVERGED:     # no fixed-point step was asked for
+                res.status, res.message = Status.SOLVED, "converged (all stick)"
+        else:
+            res = solve_contact(self.A_II, b, Bn, Bt, d, np.ones(m), g=bound, R=self.R_int, tol=tol,
+                                max_iter=max_iter, warm=self.warm)
+        self.result = res
+        if res.u is None:
+            return None, None, res
+        self.warm = res
+        u = np.zeros(self.dofs.size)
+        u[B], u[I] = V, res.u
+        return self.A_BI @ res.u + self.A_BB @ V - self.f[B], u, res
+
+    def linearised(self, free: np.ndarray, factor: bool = True) -> "PairUnit":
+        """The pair made linear by an active set: the closed normal and stuck tangential rows
+        of `free` (`ContactResult.free`, (2m,)) as its equations C v = 0 instead of the glue;
+        open and slipping rows carry forces that do not vary with V. S_p is affine where the
+        active set holds ([21, (4.27)–(4.28)] piece by piece), and this pair's Schur complement
+        is its derivative there. Factored only with `factor` (the rank that owns the pair);
+        the kernel Z (the halves' rigid motions C leaves free) always."""
+        lin = copy.copy(self)
+        C = sp.vstack([self.Bn, self.Bt]).tocsr()[np.flatnonzero(free)]
+        lin.C = C[independent_rows(C.toarray())]
+        lin.Z = null_space(lin.C.toarray(), self.Z_halves)
+        lin.glue = "active set"
+        if factor:
+            lin._factor_dirichlet()
+            lin._factor_neumann()
+        return lin
