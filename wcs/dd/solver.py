@@ -356,10 +356,15 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
     try:
         S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team)
-        S0 = InterfaceOperator(lin, dec.nif, oD, [dec.traces[u.index] for u in lin], team)
     except CoarseSingular as exc:
-        return _fail(info, DDOutcome.SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
-                                         f"(a group of them floats between pairs): {exc}")
+        return _fail(info, DDOutcome.SETUP_FAILED, f"the glued interface operator is singular: {exc}")
+    Y0 = [dec.traces[u.index] for u in lin]
+    try:
+        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team), ""
+    except CoarseSingular as exc:        # Newton needs only S0's products; the seed's step its inverse
+        S0 = InterfaceOperator(lin, dec.nif, oD, [y[:, :0] for y in Y0], team)
+        singular = f"the interface operator of the linear subdomains is singular (a group of them floats " \
+                   f"between pairs): {exc}"
     info["coarse"] = {"pcg1": S.coarse.size, "pcg2": S0.coarse.size}
     info["timings"] = {"setup": dec.timings["setup"], "assemble": time.perf_counter() - t}
 
@@ -378,6 +383,10 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     Fl = S0.load()
     gw = g * z.weight
     step, prefix = o["step"], ""
+    if singular and step == "seed":
+        return _fail(info, DDOutcome.SETUP_FAILED, singular)
+    if singular and step == "auto":
+        step, prefix = "newton", f"{singular}: newton; "
     if step == "auto":
         rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team)
         if rho is None:
