@@ -382,13 +382,13 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     t = time.perf_counter()
     Fl = S0.load()
     gw = g * z.weight
-    step, prefix = o["step"], ""
+    step, prefix, cache = o["step"], "", {}
     if singular and step == "seed":
         return _fail(info, DDOutcome.SETUP_FAILED, singular)
     if singular and step == "auto":
         step, prefix = "newton", f"{singular}: newton; "
     if step == "auto":
-        rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team)
+        rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
         if rho is None:
             info["ranks"] = team.report()
             return _fail(info, DDOutcome.LOCAL_FAILED, "a contact solve of the ρ estimate failed")
@@ -397,7 +397,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
         prefix = f"ρ(S0⁻¹ dS_con) ≈ {rho:.3g} at U⁰ ({'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; "
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team)
+        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache)
         local = lambda p, V: p.tresca(V, d[p.rows], None if bound is None else bound[p.rows],  # noqa: E731
                                       o["contact_tolerance"], 200)
     else:
@@ -634,12 +634,23 @@ def _contact_residual(dec, U, d, bound, o, team):
     return team.sum(dec.pairs, pieces, dec.nif), free, ""
 
 
+def _linearised(dec, free, team, cache: dict) -> list:
+    """The pairs linearised at the active sets `free` ({pair index: free}); the last set's are
+    kept in `cache` (with the operator J built on them, "J"), so a step whose active set did
+    not change refactors nothing."""
+    key = b"".join(free[p.index].tobytes() for p in dec.pairs)
+    if cache.get("key") != key:
+        cache.clear()
+        cache.update(key=key, pairs=[p.linearised(free[p.index], team.mine(p)) for p in dec.pairs])
+    return cache["pairs"]
+
+
 def _pairs_apply(team, lin_pairs, nif, x):
     """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed)."""
     return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif)
 
 
-def _rho_estimate(dec, S0, U0, d, bound, o, team) -> float | None:
+def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> float | None:
     """ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of the local
     contact solves there) by `rho_steps` power steps x ← S0⁻¹ L x (PCG2 to 1e-2), then the
     Rayleigh quotient xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint: a lower bound that converges to
@@ -648,7 +659,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team) -> float | None:
     _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
     if free is None:
         return None
-    L = [p.linearised(free[p.index], team.mine(p)) for p in dec.pairs]
+    L = _linearised(dec, free, team, cache)
     x = np.random.default_rng(0).standard_normal(dec.nif)       # a fixed start: the same ρ every time
     for _ in range(o["rho_steps"]):
         r = pcg(S0.apply, S0.precondition, _pairs_apply(team, L, dec.nif, x), np.zeros(dec.nif), tol=1e-2,
@@ -657,7 +668,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team) -> float | None:
     return float(x @ _pairs_apply(team, L, dec.nif, x)) / max(float(x @ S0.apply(x)), 1e-300)
 
 
-def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team):
+def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache):
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
@@ -667,7 +678,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team):
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "changed": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
-        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team)
+        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache)
         if status != DDOutcome.CONVERGED or not coulomb:
             return status, message, U, bound
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
@@ -684,7 +695,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team):
             f"Tresca problems", U, bound)
 
 
-def _newton(dec, S0, D, F, U, d, bound, o, info, team):
+def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache):
     """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
     `bound`; None: all stick): J_k δ = F − S0 U_k − S_con(U_k) with
     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
@@ -693,7 +704,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team):
     η_k = min(forcing, 0.9 (‖r_k‖/‖r_{k−1}‖)²), never below what the outer tolerance needs).
     S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves.
     Converged when ‖r_k‖ ≤ tol · max(‖F‖, ‖S0 U_k‖, ‖S_con(U_k)‖); a repeated active set
-    without a smaller residual is a cycle (stagnated)."""
+    without a smaller residual is a cycle (stagnated). `cache`: see `_linearised`."""
     hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
     lin_D = [D[u.index] for u in lin]
     lin_Y = [dec.traces[u.index] for u in lin]
@@ -722,9 +733,11 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team):
         eta = min(max(eta, 0.5 * tol * ref / nr), 0.5)
         nr_prev = nr
         try:
-            lp = [p.linearised(free[p.index], team.mine(p)) for p in pairs]
-            J = InterfaceOperator(lp + lin, dec.nif, [D[p.index] for p in pairs] + lin_D,
-                                  [dec.traces[p.index] for p in pairs] + lin_Y, team)
+            lp = _linearised(dec, free, team, cache)
+            if "J" not in cache:
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, [D[p.index] for p in pairs] + lin_D,
+                                               [dec.traces[p.index] for p in pairs] + lin_Y, team)
+            J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
             return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U
         step = pcg(J.apply, J.precondition, r, np.zeros(dec.nif), tol=eta, max_iter=o["pcg_max_iterations"],
