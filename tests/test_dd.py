@@ -179,3 +179,15 @@ def test_pcg1_on_the_tunnel_with_the_complete_coarse_space(tmp_path):
                        {"tolerance": 1e-4, "max_iterations": 1, "dd": {"subdomains": 12, "step": "seed"}})
     assert res.info["pcg1_converged"] and res.info["pcg1"] <= 26, res.info["pcg1"]
     assert res.info["coarse"]["pcg1"] >= 3 * res.info["subdomains"]      # every subdomain's 3 rigid motions
+
+
+def test_newton_with_an_open_contact_over_an_unloaded_body(tmp_path):
+    """The gap stays open at the nominal data (0.001 pushed into a 0.002 gap): the base carries
+    nothing and the interface does not move, U = 0. The residual is measured against the load,
+    not only against the interface terms that vanish there (before: they were its scale and
+    Newton never converged)."""
+    study, model = build("validation/gap-closing.yaml", tmp_path)
+    res, mono, eu, en, et = dd_vs_monolithic(study, model, {"tolerance": 1e-10, "dd": {"subdomains": 4}})
+    assert not np.any(mono.contact.force_n) and np.all(res.info["active"] == 0)
+    assert res.info["step"] == "newton" and res.info["newton"] <= 4
+    assert eu <= 1e-6 and not np.any(res.lam_n) and not np.any(res.lam_t)

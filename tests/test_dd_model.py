@@ -178,3 +178,14 @@ def test_dd_thermal_step_of_a_scene_without_contact():
     assert b.status == 0, b.message
     assert np.allclose(b.state.T, a.state.T, rtol=1e-8, atol=0)
     assert abs(b.phi["settlement"] - a.phi["settlement"]) <= 1e-8 * abs(a.phi["settlement"])
+
+
+def test_check_prints_the_rho_estimate(tmp_path, capsys):
+    from wcs.cli import main
+    doc = yaml.safe_load((VALIDATION / "contact-patch.yaml").read_text())
+    doc["solver"] = {"method": "dd", "fallback": False, "dd": {"subdomains": 6}}
+    path = tmp_path / "patch-dd.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    assert main(["check", str(path)]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines() if "nominal solve" in s)
+    assert "solved (dd: ρ(S0⁻¹ dS_con) ≈ " in line and "interface Newton converged" in line, line

@@ -397,7 +397,8 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
         prefix = f"ρ(S0⁻¹ dS_con) ≈ {rho:.3g} at U⁰ ({'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; "
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache)
+        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+                                                    float(np.linalg.norm(rhs)))
         local = lambda p, V: p.tresca(V, d[p.rows], None if bound is None else bound[p.rows],  # noqa: E731
                                       o["contact_tolerance"], 200)
     else:
@@ -668,7 +669,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> float | None:
     return float(x @ _pairs_apply(team, L, dec.nif, x)) / max(float(x @ S0.apply(x)), 1e-300)
 
 
-def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache):
+def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, load):
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
@@ -678,7 +679,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache):
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "changed": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
-        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache)
+        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
             return status, message, U, bound
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
@@ -695,7 +696,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache):
             f"Tresca problems", U, bound)
 
 
-def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache):
+def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
     """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
     `bound`; None: all stick): J_k δ = F − S0 U_k − S_con(U_k) with
     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
@@ -703,7 +704,10 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache):
     from δ = 0 to a tolerance relative to the right-hand side (Eisenstat–Walker:
     η_k = min(forcing, 0.9 (‖r_k‖/‖r_{k−1}‖)²), never below what the outer tolerance needs).
     S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves.
-    Converged when ‖r_k‖ ≤ tol · max(‖F‖, ‖S0 U_k‖, ‖S_con(U_k)‖); a repeated active set
+    Converged when ‖r_k‖ ≤ tol · max(‖F‖, ‖S0 U_k‖, ‖S_con(U_k)‖, `load`) — r_k is the global
+    equilibrium residual on Γ (the units' interiors are solved exactly), `load` the norm of the
+    reduced load: a scale that does not vanish where the interface does not move (an open
+    contact over an unloaded body); a repeated active set
     without a smaller residual is a cycle (stagnated). `cache`: see `_linearised`."""
     hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
     lin_D = [D[u.index] for u in lin]
@@ -715,7 +719,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache):
             return DDOutcome.LOCAL_FAILED, error, U
         SU = S0.apply(U)
         r = F - SU - rc
-        ref = max(np.linalg.norm(F), np.linalg.norm(SU), np.linalg.norm(rc), 1e-300)
+        ref = max(np.linalg.norm(F), np.linalg.norm(SU), np.linalg.norm(rc), load, 1e-300)
         nr = float(np.linalg.norm(r))
         hist["residual"].append(nr / ref)
         if nr <= tol * ref:
