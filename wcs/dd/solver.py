@@ -7,13 +7,24 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
 
 1. Auxiliary problem (4.35)–(4.48): every pair glued (bilateral, no friction),
    S U⁰ = F⁰, S = S0 + Σ_p R_pᵀ S⁰_p R_p, by PCG1 with the balancing
-   Neumann–Neumann preconditioner (5.9)–(5.14) and the coarse space of the
-   kernels of floating subdomains and pairs, injections D_u (5.5)–(5.8).
-2. Successive approximations (4.37), (6.1): S0 U^k = F − S_con(U^{k−1}), each by
-   PCG2 with the reduced preconditioner (6.7) (injections oD_u (6.4)–(6.6): the
-   ρ-weights over linear subdomains only, so 1 next to a pair), warm started
-   from U^{k−1}; S_con by one local contact solve per pair.
-3. Monitoring ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
+   Neumann–Neumann preconditioner (5.9)–(5.14), injections D_u (5.5)–(5.8), and a
+   coarse space of the rigid-motion traces of every unit (the kernels of the floating
+   ones among them, [21, (5.11)]).
+2. The outer iteration (`step`):
+   - interface Newton (`newton`): J_k δ = F − S0 U_k − S_con(U_k) with
+     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active set A_k of
+     the last local contact solves (closed normal, stuck tangential rows), by PCG with
+     J_k's balancing preconditioner and Eisenstat–Walker tolerances; Tresca is piecewise
+     affine, so it ends once A_k settles (the residual of the interface equation is
+     checked). Coulomb: a fixed point over Tresca problems (slip bound from the last
+     pressures, first all stick), as the monolithic solver.
+   - the seed's successive approximations (`seed`) (4.37), (6.1):
+     S0 U^k = F − S_con(U^{k−1}), each by PCG2 with the reduced preconditioner (6.7)
+     (injections oD_u (6.4)–(6.6): the ρ-weights over linear subdomains only, so 1 next to
+     a pair), warm started from U^{k−1}; S_con by one local contact solve per pair.
+     They contract only if ρ(S0⁻¹ dS_con) < 1 ([21, Cor. 7.1]: 2β² < 1); `auto` estimates
+     ρ by a few power steps at U⁰ and takes them below `seed_rho`, else Newton.
+3. Monitoring of the seed's step ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
    contraction estimate q_k = ‖ΔU^k‖/‖ΔU^{k−1}‖ gives the a-posteriori bound
    q/(1−q)‖ΔU^k‖ (Theorem 7.1: contraction 2β² < 1); q_k ≥ 1 for `patience`
    steps is divergence (or stagnation), and a run whose predicted number of
@@ -399,13 +410,9 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     if step == "newton":
         status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
                                                     float(np.linalg.norm(rhs)))
-        local = lambda p, V: p.tresca(V, d[p.rows], None if bound is None else bound[p.rows],  # noqa: E731
-                                      o["contact_tolerance"], 200)
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
                                           info, team)
-        local = lambda p, V: p.contact(V, d[p.rows], z.weight[p.rows], g[p.rows], _coulomb(F, p.rows),  # noqa: E731
-                                       o["contact_tolerance"], 200)
     message = prefix + message
     info["timings"]["successive"] = time.perf_counter() - t
     if status != DDOutcome.CONVERGED:
@@ -418,7 +425,12 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     for u in team.local(dec.units):
         if u.kind == "pair":
             tc = time.perf_counter()
-            _, loc, res = local(u, U[u.gamma])
+            if step == "newton":         # the last Tresca problem (Coulomb: bounds from the last pressures)
+                _, loc, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
+                                       o["contact_tolerance"], 200)
+            else:
+                _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
+                                        o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
             if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
