@@ -191,3 +191,29 @@ def test_newton_with_an_open_contact_over_an_unloaded_body(tmp_path):
     assert not np.any(mono.contact.force_n) and np.all(res.info["active"] == 0)
     assert res.info["step"] == "newton" and res.info["newton"] <= 4
     assert eu <= 1e-6 and not np.any(res.lam_n) and not np.any(res.lam_t)
+
+
+def _soft_pad_off_centre(doc):
+    """The stability chart's scene (tests/bench/test_dd_stability.py): a soft pad (E/1000) held
+    sideways by a roller, pressed off-centre, Tresca g = 3e5, so partial slip."""
+    sc = doc["scene"]
+    _small_pad(doc)
+    sc["materials"]["rubber"] = {"E": 2.1e8, "nu": 0.3}
+    sc["boundaries"]["pad_left"] = {"body": "pad", "segment": [[0.5, 1.0], [0.5, 1.5]]}
+    sc["supports"]["pad_left"] = {"u": [0.0, None]}
+    sc["boundaries"]["pad_top_right"] = {"body": "pad", "segment": [[1.0, 1.5], [1.5, 1.5]]}
+    sc["loads"] = {"pad_top_right": {"traction": [0.0, -1.0e6]}}
+    doc["uncertain"] = {"loads.pad_top_right.traction.1": [-2.0e6, -0.5e6]}
+    doc["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["interface"]}]
+
+
+def test_newton_backtracks_where_a_full_step_jumps_over_the_solution(tmp_path):
+    """Full Newton steps alternate between two states with one node slipping one way, then the
+    other (the solution: it sticks), at a constant residual; halving the step until the
+    residual decreases lands on the solution's piece (before: budget exhausted)."""
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _soft_pad_off_centre)
+    res, mono, eu, en, et = dd_vs_monolithic(study, model, {"tolerance": 1e-10, "max_iterations": 50,
+                                                            "dd": {"subdomains": 8, "pair_size": 0.3}})
+    assert res.info["step"] == "newton" and min(res.info["history"]["step"]) < 1      # a step was halved
+    assert eu <= 1e-6 and en <= 1e-6 and et <= 1e-6, (eu, en, et)
+    assert np.any(mono.contact.status == 2) and np.any(mono.contact.status == 1)

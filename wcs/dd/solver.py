@@ -689,7 +689,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
     coulomb = bool(Fc.any())
     bound, p_old = (None if coulomb else gw), None
     info["newton"] = info["pcg2"] = info["successive"] = 0
-    info["history"] = {"residual": [], "pcg2": [], "eta": [], "changed": []}
+    info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
         status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
@@ -710,28 +710,36 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
 
 def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
     """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
-    `bound`; None: all stick): J_k δ = F − S0 U_k − S_con(U_k) with
+    `bound`; None: all stick): J_k δ = r_k = F − S0 U_k − S_con(U_k) with
     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
     local contact solves at U_k, by PCG with J_k's balancing Neumann–Neumann preconditioner,
     from δ = 0 to a tolerance relative to the right-hand side (Eisenstat–Walker:
     η_k = min(forcing, 0.9 (‖r_k‖/‖r_{k−1}‖)²), never below what the outer tolerance needs).
     S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves.
+    A full step can jump over the solution's piece (a node slipping one way, then the other):
+    the step is halved until ‖r‖ decreases by (1 − 1e-4 t (1 − η)) (inexact Newton
+    backtracking; δ is a descent direction of ‖r‖², J_k being S_con's derivative).
     Converged when ‖r_k‖ ≤ tol · max(‖F‖, ‖S0 U_k‖, ‖S_con(U_k)‖, `load`) — r_k is the global
     equilibrium residual on Γ (the units' interiors are solved exactly), `load` the norm of the
     reduced load: a scale that does not vanish where the interface does not move (an open
-    contact over an unloaded body); a repeated active set
-    without a smaller residual is a cycle (stagnated). `cache`: see `_linearised`."""
+    contact over an unloaded body). `cache`: see `_linearised`."""
     hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
     lin_D = [D[u.index] for u in lin]
     lin_Y = [dec.traces[u.index] for u in lin]
-    seen, nr_prev, eta = {}, None, o["forcing"]
-    for k in range(o["max_iterations"] + 1):
+
+    def residual(U):
         rc, free, error = _contact_residual(dec, U, d, bound, o, team)
         if rc is None:
-            return DDOutcome.LOCAL_FAILED, error, U
+            return None, None, None, error
         SU = S0.apply(U)
-        r = F - SU - rc
         ref = max(np.linalg.norm(F), np.linalg.norm(SU), np.linalg.norm(rc), load, 1e-300)
+        return F - SU - rc, ref, free, ""
+
+    r, ref, free, error = residual(U)
+    nr_prev, eta = None, o["forcing"]
+    for k in range(o["max_iterations"] + 1):
+        if r is None:
+            return DDOutcome.LOCAL_FAILED, error, U
         nr = float(np.linalg.norm(r))
         hist["residual"].append(nr / ref)
         if nr <= tol * ref:
@@ -739,11 +747,6 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
                                          f"iterations, {info['pcg1']} PCG1)"), U
         if k == o["max_iterations"]:
             break
-        key = b"".join(free[p.index].tobytes() for p in pairs)
-        if key in seen and nr >= seen[key]:
-            return DDOutcome.STAGNATED, (f"interface Newton stagnated at step {k}: the active set of step "
-                                         f"{list(seen).index(key)} came back with residual {nr / ref:.3g}"), U
-        seen.setdefault(key, nr)
         if nr_prev is not None:
             eta = min(o["forcing"], 0.9 * (nr / nr_prev) ** 2)
         eta = min(max(eta, 0.5 * tol * ref / nr), 0.5)
@@ -764,7 +767,17 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
         hist["eta"].append(eta)
         if not step.converged:
             return DDOutcome.BUDGET, f"PCG of interface Newton step {k + 1} did not converge in {step.iterations} iterations", U
-        U = U + step.x
+        t = 1.0
+        while True:
+            r, ref, free, error = residual(U + t * step.x)
+            if r is None or np.linalg.norm(r) <= (1 - 1e-4 * t * (1 - eta)) * nr:
+                break
+            t /= 2
+            if t < 2.0 ** -30:
+                return DDOutcome.STAGNATED, (f"interface Newton stagnated at step {k + 1}: no step along the Newton "
+                                             f"direction decreases the residual {nr / ref:.3g}"), U
+        hist["step"].append(t)
+        U = U + t * step.x
     return DDOutcome.BUDGET, (f"interface Newton did not reach {tol:g} in {o['max_iterations']} steps "
                               f"(residual {hist['residual'][-1]:.3g})"), U
 
