@@ -61,6 +61,12 @@ def _frictionless_pad(doc):
     doc["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["interface"]}]
 
 
+def _coulomb_pad(doc):
+    _small_pad(doc)
+    doc["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.3}
+    doc["uncertain"] = {"loads.pad_top.traction.0": [1.0e5, 2.5e5]}
+
+
 OPTS = {"tolerance": 1e-10, "max_iterations": 300, "dd": {"subdomains": 8}}
 
 
@@ -68,7 +74,8 @@ OPTS = {"tolerance": 1e-10, "max_iterations": 300, "dd": {"subdomains": 8}}
     ("validation/contact-patch.yaml", None, "frictionless"),
     ("validation/tresca-pad.yaml", _frictionless_pad, "frictionless"),
     ("validation/tresca-pad.yaml", _small_pad, "tresca"),
-], ids=["patch", "pad-frictionless", "pad-tresca"])
+    ("validation/tresca-pad.yaml", _coulomb_pad, "coulomb"),
+], ids=["patch", "pad-frictionless", "pad-tresca", "pad-coulomb"])
 def test_dd_agrees_with_monolithic(name, edit, law, tmp_path):
     study, model = build(name, tmp_path, edit)
     res, mono, eu, en, et = dd_vs_monolithic(study, model, OPTS)
@@ -76,8 +83,10 @@ def test_dd_agrees_with_monolithic(name, edit, law, tmp_path):
     assert info["floating_units"] >= 1                       # floating subdomains present: coarse space used
     assert info["coarse"]["pcg1"] >= 3 and info["pairs"] >= 1
     assert eu <= 1e-6 and en <= 1e-6 and et <= 1e-6, (eu, en, et)
-    if law == "tresca":
+    if law in ("tresca", "coulomb"):
         assert np.any(res.info["active"] == 2) and np.any(res.info["active"] == 1)   # partial slip
+    if law == "coulomb":           # the fixed point over Tresca problems (slip bound from the last pressures)
+        assert res.info["fixed_point"] >= 3 and "Coulomb fixed point" in res.message
     np.testing.assert_array_equal(res.info["active"], mono.contact.status)
 
 
