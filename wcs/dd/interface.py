@@ -76,7 +76,7 @@ def admissible(M: np.ndarray, Tloc: sp.csr_matrix, rtol: float = 1e-10) -> np.nd
         return np.zeros((Tloc.shape[1], 0))
     E = M - Tloc @ (Tloc.T @ M)
     s_ref = max(np.linalg.norm(M, 2), 1e-300)
-    _, s, vt = np.linalg.svd(E, full_matrices=False)     # M has ≤ 3 columns and many rows
+    _, s, vt = np.linalg.svd(E, full_matrices=False)     # M has ≤ 6 columns and many rows
     rank = int(np.sum(s > rtol * s_ref))
     Z = Tloc.T @ (M @ vt[rank:].T)
     return _orth(Z)
