@@ -76,10 +76,18 @@ def summary(study, ev) -> str:
     nominal = study.nominal()
     for n, lo, hi, x0 in zip(p.names, p.lower, p.upper, nominal):
         lines.append(f"    {n}: [{_fmt(lo)}, {_fmt(hi)}]  nominal {_fmt(x0)}")
+    if study.levels is not None:
+        cores = ", ".join(f"{e['path']} [{_fmt(e['core'][0])}, {_fmt(e['core'][1])}]"
+                          for e in study.uncertain if "core" in e) or "none (every number crisp)"
+        lines.append(f"  fuzzy: levels {', '.join(f'{a:g}' for a in study.levels)}, searched from the core "
+                     f"(α = 1) outwards; the boxes above are the supports; cores: {cores}")
     lines.append("  criteria:")
+    senses = {c["name"]: c.get("sense", "max") for c in study.criteria}
     for c in ev.criteria:
-        lim = study.limits.get(c.name)
+        lim, low = study.limits.get(c.name), study.lower_limits.get(c.name)
         lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
+                     + (f", sense {senses[c.name]}" if senses[c.name] != "max" else "")
+                     + (f", lower limit {_fmt(low)}" if low is not None else "")
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
     s = study.search
     method = study.solver.method

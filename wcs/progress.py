@@ -7,6 +7,8 @@ import math
 import sys
 import time
 
+from .results import widest
+
 
 def _g(v) -> str:
     return "nan" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.4g}"
@@ -81,8 +83,13 @@ class Progress:
 
 
 def summary_table(ds) -> str:
-    """criterion, worst value, limit, margin, pass/fail, certificate (one row per criterion)."""
-    rows = [("criterion", "worst", "limit", "margin", "result", "certificate")]
+    """criterion, worst value, limit, margin, pass/fail, certificate (one row per criterion); the
+    minimum and the lower limit beside them when some criterion asks for its minimum. A fuzzy
+    study's row is its widest level (`wcs.results.widest`)."""
+    ds = widest(ds)
+    ends = "best_value" in ds
+    rows = [("criterion",) + (("best", "lower limit") if ends else ()) + ("worst", "limit", "margin", "result",
+                                                                          "certificate")]
     for i, c in enumerate(ds["criterion"].values):
         w = float(ds["worst_value"].values[i])
         lim = float(ds["limit"].values[i])
@@ -92,16 +99,32 @@ def summary_table(ds) -> str:
             margin, verdict = "", "FAIL (no solved data set)"
         else:
             margin, verdict = f"{lim - w:.4g}", "pass" if w <= lim else "FAIL"
-        rows.append((str(c), _g(w), "" if math.isnan(lim) else _g(lim), margin, verdict,
-                     str(ds["certificate"].values[i])))
+        low = ()
+        if ends:
+            b, blim = float(ds["best_value"].values[i]), float(ds["limit_lower"].values[i])
+            low = (_g(b), "" if math.isnan(blim) else _g(blim))
+            if not math.isnan(blim):
+                ok = not math.isnan(b) and b >= blim
+                verdict = ("pass" if ok else "FAIL") if verdict in ("-", "pass") else verdict
+        cert = str(ds["certificate"].values[i])
+        if ends and str(ds["best_certificate"].values[i]) != "not-searched":
+            cert = f"min {ds['best_certificate'].values[i]}, max {cert}"
+        rows.append((str(c),) + low + (_g(w), "" if math.isnan(lim) else _g(lim), margin, verdict, cert))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
     return "\n".join("  ".join(s.ljust(w) for s, w in zip(r, widths)).rstrip() for r in rows)
 
 
 def limits_broken(ds) -> list[str]:
+    """Criteria whose worst value exceeds its limit or whose minimum falls below its lower limit
+    (a fuzzy study: at its widest level)."""
+    ds = widest(ds)
     out = []
     for i, c in enumerate(ds["criterion"].values):
         w, lim = float(ds["worst_value"].values[i]), float(ds["limit"].values[i])
-        if not math.isnan(lim) and (math.isnan(w) or w > lim):
+        broken = not math.isnan(lim) and (math.isnan(w) or w > lim)
+        if "limit_lower" in ds:
+            b, blim = float(ds["best_value"].values[i]), float(ds["limit_lower"].values[i])
+            broken = broken or (not math.isnan(blim) and (math.isnan(b) or b < blim))
+        if broken:
             out.append(str(c))
     return out

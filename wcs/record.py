@@ -157,8 +157,3 @@ class Ledger:
 
     def outcome(self, row: int) -> Outcome:
         return outcome(self.records[row], self.criteria)
-
-    def worst(self) -> dict:
-        """criterion -> (best value, its data set, its row), for the criteria solved at least once."""
-        return {c: (self.best[c], self.records[self.best_row[c]]["x"].copy(), self.best_row[c])
-                for c in self.criteria if c in self.best_row}

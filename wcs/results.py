@@ -17,7 +17,9 @@ import numpy as np
 import xarray as xr
 
 from . import __version__, linalg
+from .search.ranges import Extreme
 from .status import Status, flag_attrs
+from .study import alpha_cut
 
 
 def git_commit() -> str:
@@ -134,7 +136,9 @@ _PARAM_UNITS = {
 _BODY_FORCE_UNITS = "N m-3"
 
 CERTIFICATES = "corner-kkt: KKT sign pattern holds at a vertex; local-kkt: KKT conditions hold at a " \
-               "local maximum; heuristic: best value found, no optimality proof; grid: maximum over a sweep grid"
+               "local maximum; heuristic: best value found, no optimality proof; grid: maximum over a sweep grid; " \
+               "not-searched: the criterion's sense does not ask for this end; none: no successful evaluation " \
+               "(for best_*: the same of the minimum, with the KKT signs of -Phi)"
 
 
 def parameter_units(path: str) -> str:
@@ -190,7 +194,8 @@ def worst_field_variables(criteria: list[str], fields: dict) -> dict:
 
 def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certificate: dict,
                 notes: dict | None = None, worst_fields: dict | None = None, attrs: dict | None = None,
-                sweep_paths: list[str] | None = None, provenance_attrs: dict | None = None) -> xr.Dataset:
+                sweep_paths: list[str] | None = None, provenance_attrs: dict | None = None,
+                extremes: list | None = None) -> xr.Dataset:
     """The results file of `wcs run` / `wcs sweep`: `param` with its box `param_lower`/`param_upper`;
     per evaluation `x` (eval, param), `phi` (eval, criterion), `status`, `stage`, `wall_time`,
     `iterations`; per criterion `worst_value`, `worst_x`, `limit`; the study text in the attributes
@@ -200,6 +205,8 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     message, stage, iterations, wall_time, grad ((criterion, param) array or None), nonsmooth,
     and for sweeps `sweep` (values of the swept paths).
     worst: criterion -> (value, x, eval index); certificate: criterion -> string.
+    extremes: every end of every range (`wcs.search.ranges.Extreme`; `range_variables`): the
+    minima as best_*, and a fuzzy study's worst_*/best_* per α-level.
     """
     names = list(study.parameters.names)
     lower = np.asarray(study.parameters.lower, float)
@@ -282,7 +289,107 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
             ds = ds.assign_coords({c: template[c].values for c in template.coords if c not in ds.coords})
     ds.attrs.update(provenance_attrs or provenance(study, evaluator))
     ds.attrs.update(attrs or {})
+    if extremes:
+        ds = ds.assign_coords(range_coords(study)).assign(range_variables(study, crit, extremes, unit_text))
     return ds
+
+
+# ---------------------------------------------------------------- both ends, α-levels
+
+def range_coords(study) -> dict:
+    """The `level` coordinate of a fuzzy study (ascending α), else none."""
+    if study.levels is None:
+        return {}
+    return {"level": xr.Variable(("level",), np.array(study.levels, float),
+                                 {"long_name": "membership level alpha of the fuzzy admissible set"})}
+
+
+def range_variables(study, crit: list[str], extremes: list, unit_text: str) -> dict:
+    """The ends of the ranges (`Extreme`s): best_value, best_x, best_eval, best_certificate,
+    best_certificate_note (criterion) and the lower limits `limit_lower`, `margin_lower`
+    (best − lower limit) when some criterion asks for its minimum; in a fuzzy study both ends
+    per α-level (leading `level` dimension, replacing the crisp worst_*, certificate and
+    margin) and each level's α-cut `level_lower`, `level_upper` (level, param)."""
+    names = list(study.parameters.names)
+    levels = [None] if study.levels is None else list(study.levels)
+    dims = ("criterion",) if study.levels is None else ("level", "criterion")
+    shape = (len(levels), len(crit))
+    by = {(e.level, e.criterion, e.sense): e for e in extremes}
+
+    def table(sense):
+        value, x = np.full(shape, np.nan), np.full(shape + (len(names),), np.nan)
+        row, cert, note = np.full(shape, -1, np.int32), np.full(shape, "not-searched", object), np.full(shape, "", object)
+        for i, level in enumerate(levels):
+            for j, c in enumerate(crit):
+                e = by.get((level, c, sense))
+                if e is not None:
+                    value[i, j], x[i, j], row[i, j], cert[i, j], note[i, j] = e.value, e.x, e.eval, e.certificate, e.note
+        squeeze = (lambda a: a[0]) if study.levels is None else (lambda a: a)
+        return [squeeze(a) for a in (value, x, row, cert, note)]
+
+    out = {}
+    limit = np.array([float(study.limits.get(c, np.nan)) for c in crit])
+    lower = np.array([float(study.lower_limits.get(c, np.nan)) for c in crit])
+    where = " at each level" if study.levels is not None else ""
+    if study.levels is not None:
+        wv, wx, we, wc, wn = table("max")
+        out.update({
+            "worst_value": (dims, wv, {"long_name": f"maximum of each criterion found{where}", "units": unit_text}),
+            "worst_x": (dims + ("param",), wx, {"long_name": "data set attaining worst_value"}),
+            "worst_eval": (dims, we, {"long_name": "index (eval) of the evaluation attaining worst_value; -1 if none"}),
+            "margin": (dims, limit - wv, {"long_name": "limit - worst_value (negative: limit broken)", "units": unit_text}),
+            "certificate": (dims, wc, {"long_name": "how the worst value is certified", "flag_meanings_text": CERTIFICATES}),
+            "certificate_note": (dims, wn, {"long_name": "search notes per criterion"}),
+        })
+        cuts = [alpha_cut(study, a) for a in levels]
+        out["level_lower"] = (("level", "param"), np.array([lo for lo, _ in cuts]).reshape(len(levels), len(names)),
+                              {"long_name": "lower bound of the alpha-cut of each parameter"})
+        out["level_upper"] = (("level", "param"), np.array([hi for _, hi in cuts]).reshape(len(levels), len(names)),
+                              {"long_name": "upper bound of the alpha-cut of each parameter"})
+    if any(e.sense == "min" for e in extremes):
+        bv, bx, be, bc, bn = table("min")
+        out.update({
+            "best_value": (dims, bv, {"long_name": f"minimum of each criterion found{where} (NaN where its sense "
+                                                   "does not ask for it)", "units": unit_text}),
+            "best_x": (dims + ("param",), bx, {"long_name": "data set attaining best_value"}),
+            "best_eval": (dims, be, {"long_name": "index (eval) of the evaluation attaining best_value; -1 if none"}),
+            "best_certificate": (dims, bc, {"long_name": "how the minimum is certified", "flag_meanings_text": CERTIFICATES}),
+            "best_certificate_note": (dims, bn, {"long_name": "search notes of the minimum per criterion"}),
+            "limit_lower": (("criterion",), lower, {"long_name": "lower limit of each criterion (NaN where none)",
+                                                    "units": unit_text}),
+            "margin_lower": (dims, bv - lower, {"long_name": "best_value - limit_lower (negative: lower limit broken)",
+                                                "units": unit_text}),
+        })
+    return {k: xr.Variable(*v) for k, v in out.items()}
+
+
+def widest(ds: xr.Dataset) -> xr.Dataset:
+    """A fuzzy study's results at its widest level (the smallest α: the support when α = 0 is a
+    level), the per-criterion layout of a crisp study; a crisp study's results unchanged."""
+    return ds.isel(level=int(np.argmin(ds["level"].values))) if "level" in ds.dims else ds
+
+
+def extremes(ds: xr.Dataset) -> list[Extreme]:
+    """Every end of every range a results file holds (worst_* and best_*, per level when the
+    study is fuzzy), in the order level, criterion, max before min; ends a criterion's sense
+    does not ask for are left out. What the checks after a search iterate over."""
+    levels = [None] if "level" not in ds.coords else [float(a) for a in ds["level"].values]
+    out = []
+    for i, level in enumerate(levels):
+        for j, c in enumerate(ds["criterion"].values):
+            for sense, prefix, cert in (("max", "worst", "certificate"), ("min", "best", "best_certificate")):
+                if f"{prefix}_value" not in ds:
+                    continue
+                pick = {"criterion": j} if level is None else {"level": i, "criterion": j}
+                certificate = str(ds[cert].isel(pick).values)
+                if certificate == "not-searched":
+                    continue
+                note = f"{cert}_note" if prefix == "best" else "certificate_note"
+                out.append(Extreme(str(c), sense, level, float(ds[f"{prefix}_value"].isel(pick)),
+                                   ds[f"{prefix}_x"].isel(pick).values.astype(float), certificate,
+                                   str(ds[note].isel(pick).values) if note in ds else "",
+                                   int(ds[f"{prefix}_eval"].isel(pick))))
+    return out
 
 
 def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:

@@ -3,8 +3,9 @@
     ds = wcs.run(study, output=None, resume=False, progress=None)
 
 The runner builds the search `Problem` from the study (`wcs/problem.py`), creates the
-strategy registered under `search.method` with `numpy.random.default_rng(seed)`, and
-answers its batches. Every evaluation becomes one `Record` (`wcs/record.py`), failures
+strategy registered under `search.method` with `numpy.random.default_rng(seed)`, drives it
+through `wcs.search.ranges` (the ends of each criterion's range its `sense` asks for, and the
+α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/record.py`), failures
 included (status code, NaN criteria); the budget is a hard cap on records.
 
 Incremental writing: each finished evaluation goes at once to the evaluation store (one
@@ -49,11 +50,12 @@ from .evaluation import Evaluation, Evaluator
 from .parallel import rank, world
 from .problem import build_problem
 from .record import Ledger, from_evaluation, open_store
-from .search import STRATEGIES, Outcome, Worst
+from .search import STRATEGIES, Outcome
+from .search.ranges import ranges
 from .status import Status
 from .store import key
-from .study import load_study, parameter_vector
-from .writer import Final, Writer, claim_output
+from .study import alpha_cut, load_study, parameter_vector
+from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):
     """The strategy factory registered under `name` (search.method)."""
@@ -250,7 +252,11 @@ class Runner:
         budget = search.budget
         factory = strategy or get_strategy(search.method)
         problem = build_problem(self.study, self.evaluator)
-        gen = factory(problem, search, np.random.default_rng(search.sample.seed))
+        senses = {c["name"]: c.get("sense", "max") for c in self.study.criteria}
+        levels = self.study.levels
+        cuts = None if levels is None else [(a, *alpha_cut(self.study, a)) for a in levels]
+        gen = ranges(factory, problem, search, np.random.default_rng(search.sample.seed),
+                     {c: senses[c] for c in self.criteria}, cuts)
         if self.progress is not None:
             self.progress.start(budget, self.criteria)
         result = None
@@ -291,26 +297,16 @@ class Runner:
         return self.finish(None)
 
     # ---- the end ------------------------------------------------------------------------------
-    def finish(self, result: Worst | None) -> xr.Dataset:
-        worst = self.ledger.worst()
-        certificate, notes = {}, {}
-        for c in self.criteria:
-            if self.kind == "sweep":
-                certificate[c] = "grid"
-            elif c not in worst:
-                certificate[c] = "none"
-            elif isinstance(result, Worst) and c in result.certificate and (
-                    result.value.get(c) == worst[c][0]
-                    or np.array_equal(np.asarray(result.x.get(c, [])), worst[c][1])):
-                certificate[c] = str(result.certificate[c])
-            else:
-                certificate[c] = "heuristic"
-            if isinstance(result, Worst) and c in result.notes:
-                notes[c] = str(result.notes[c])
+    def finish(self, result: list | None) -> xr.Dataset:
+        """The end: every extreme (`Extreme`, per criterion sense and α-level) from the records,
+        certified as the search (`result`, its extremes; None for a sweep) left it, and the fields
+        of each criterion's worst case re-solved."""
+        extremes = extremes_of(self.study, self.ledger.records, self.criteria, self.kind, result or [])
+        worst, certificate, notes = widest_maxima(extremes, self.criteria)
         # a DD solve spread over the ranks is collective: then every rank re-solves the worst cases
         solves_here = self.root or (self.comm is not None and not self.split_batches)
         fields = self._worst_fields(worst) if solves_here else {c: None for c in self.criteria}
-        self.final = Final(worst, certificate, notes, fields)
+        self.final = Final(worst, certificate, notes, fields, extremes)
         return self._write()
 
     def _worst_fields(self, worst: dict) -> dict:

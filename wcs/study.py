@@ -543,6 +543,9 @@ class Criterion(_Strict):
     regions: Annotated[list[str], Field(min_length=1)]
     point: Optional[XY] = None
     direction: Optional[Direction] = None
+    sense: Literal["max", "min", "both"] = Field(
+        "max", description="which end of the range the search finds: the maximum (the worst "
+        "scenario), the minimum (the best), or both")
 
     @model_validator(mode="after")
     def _options_of_the_kind(self):
@@ -644,6 +647,34 @@ class Solver(_Options):
     fallback: bool = Field(True, description="a failed dd solve falls back to the monolithic solver (visibly)")
 
 
+class Limit(_Strict):
+    lower: Optional[float] = Field(None, description="the criterion must not fall below it (needs sense min or both)")
+    upper: Optional[float] = Field(None, description="the criterion must not exceed it (needs sense max or both)")
+
+    @model_validator(mode="after")
+    def _some_bound(self):
+        if self.lower is None and self.upper is None:
+            raise ValueError("give lower, upper or both")
+        if self.lower is not None and self.upper is not None and self.lower > self.upper:
+            raise ValueError(f"lower limit {self.lower} is above upper limit {self.upper}")
+        return self
+
+
+DEFAULT_LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def _distinct_levels(levels: list[float]) -> tuple[float, ...]:
+    if len(set(levels)) != len(levels):
+        raise ValueError("the levels must be distinct")
+    return tuple(sorted(levels))
+
+
+class Fuzzy(_Options):
+    levels: Annotated[list[Annotated[float, Field(ge=0, le=1)]], Field(min_length=1),
+                      AfterValidator(_distinct_levels)] = Field(
+        list(DEFAULT_LEVELS), description="the α-levels whose cuts are searched (membership ≥ α)")
+
+
 class Sweep(_Strict):
     grid: Annotated[dict[str, Annotated[list[float], Field(min_length=1)]], Field(min_length=1)]
 
@@ -653,7 +684,8 @@ class StudyFile(_Strict):
     scene: Any = Field(description="inline mapping, or a file name relative to the study file")
     uncertain: dict[str, Any] = {}                       # none: a run evaluates the nominal data
     criteria: list[Criterion] = []                       # none: a warning (a run measures nothing)
-    limits: dict[str, float] = {}
+    limits: dict[str, Any] = {}                          # a number (an upper limit) or a `Limit`
+    fuzzy: Optional[Fuzzy] = None                        # α-levels; default levels when a number is fuzzy
     search: Search = Field(default_factory=Search)
     solver: Solver = Field(default_factory=Solver)
     sweep: Optional[Sweep] = None
@@ -667,15 +699,31 @@ class StudyFile(_Strict):
         return scene
 
 
+class FuzzyNumber(_Strict):
+    support: Point
+    core: Point
+
+
 class Profile(_Strict):
-    range: Point
+    range: Optional[Point] = None
+    support: Optional[Point] = None
+    core: Optional[Point] = None
     lipschitz: float = Field(gt=0)
     points: int = Field(ge=2, le=MAX_PROFILE_POINTS)
+
+    @model_validator(mode="after")
+    def _crisp_or_fuzzy(self):
+        if (self.range is None) == (self.support is None) or (self.support is None) != (self.core is None):
+            raise ValueError("give either range: [lower, upper] or support: [a, b] with core: [c, d]")
+        return self
 
 
 _STUDY = TypeAdapter(StudyFile)
 _SCENE = TypeAdapter(Scene)
 _PROFILE = TypeAdapter(Profile)
+_FUZZY = TypeAdapter(FuzzyNumber)
+_LIMIT = TypeAdapter(Limit)
+_NUMBER = TypeAdapter(float, config=_CONFIG)
 _BOX = TypeAdapter(Point, config=_CONFIG)
 _LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
 
@@ -1021,22 +1069,37 @@ def _parse_uncertain(doc: dict, scene: dict, src: _Source) -> list[dict]:
 def _parse_box(path: str, spec, scene: dict, src: _Source) -> dict:
     where = ("uncertain", path)
     nominal = _nominal_number(scene, path, src, where)
-    if isinstance(spec, dict):
+    if isinstance(spec, dict) and not {"range", "lipschitz", "points"} & set(spec):
+        fuzzy = src.validate(_FUZZY, spec, where)
+        entry = {"path": path, "lower": fuzzy.support[0], "upper": fuzzy.support[1], "core": list(fuzzy.core)}
+    elif isinstance(spec, dict):
         if _address(path) != _PROFILE_ADDRESS:
             raise src.error(where, "a {range, lipschitz, points} profile is only allowed "
                                    f"on {_PROFILE_ADDRESS}")
         profile = src.validate(_PROFILE, spec, where)
-        entry = {"path": path, "lower": profile.range[0], "upper": profile.range[1],
+        bounds = profile.range or profile.support
+        entry = {"path": path, "lower": bounds[0], "upper": bounds[1],
                  "lipschitz": profile.lipschitz, "points": profile.points}
+        if profile.core is not None:
+            entry["core"] = list(profile.core)
     elif isinstance(spec, list):
         lower, upper = src.validate(_BOX, spec, where)
         entry = {"path": path, "lower": lower, "upper": upper}
     else:
-        raise src.error(where, "must be [lower, upper] or {range: [lower, upper], lipschitz, points}")
+        raise src.error(where, "must be [lower, upper], {support: [a, b], core: [c, d]} or "
+                               "{range: [lower, upper], lipschitz, points}")
     if entry["lower"] > entry["upper"]:
         raise src.error(where, f"lower bound {entry['lower']} is above upper bound {entry['upper']}")
     _check_values(path, (entry["lower"], entry["upper"]), src, where)
-    if not entry["lower"] <= nominal <= entry["upper"]:
+    if "core" in entry:
+        c, d = entry["core"]
+        if not entry["lower"] <= c <= d <= entry["upper"]:
+            raise src.error(where + ("core",), f"the core [{c}, {d}] must be an interval inside the "
+                                               f"support [{entry['lower']}, {entry['upper']}]")
+        if not c <= nominal <= d:
+            raise src.error(where, f"the scene's value {nominal} lies outside the core [{c}, {d}] "
+                                   "(the nominal data must have membership 1)")
+    elif not entry["lower"] <= nominal <= entry["upper"]:
         raise src.error(where, f"the scene's value {nominal} lies outside the box "
                                f"[{entry['lower']}, {entry['upper']}]")
     return entry
@@ -1081,10 +1144,55 @@ def _check_criteria(criteria: list[dict], scene: dict, src: _Source) -> None:
             raise src.error(("criteria", i, "kind"), f"{criterion['kind']} needs a contact in the scene")
 
 
-def _check_limits(limits: dict, criteria: list[dict], src: _Source) -> None:
-    names = [c["name"] for c in criteria]
-    for name in limits:
-        _require(name, names, "criterion", src, ("limits", name))
+def _split_limits(limits: dict, criteria: list[dict], src: _Source) -> tuple[dict, dict]:
+    """(upper limits, lower limits) by criterion name. A bound is checked against the end of the
+    range the criterion's search finds: an upper limit needs sense max or both, a lower one min
+    or both (otherwise the verdict would read a value nobody searched for)."""
+    senses = {c["name"]: c.get("sense", "max") for c in criteria}
+    upper, lower = {}, {}
+    for name, limit in limits.items():
+        _require(name, list(senses), "criterion", src, ("limits", name))
+        if isinstance(limit, dict):
+            limit = src.validate(_LIMIT, limit, ("limits", name))
+            bounds = {k: v for k, v in (("lower", limit.lower), ("upper", limit.upper)) if v is not None}
+        else:
+            bounds = {"upper": src.validate(_NUMBER, limit, ("limits", name))}
+        for side, value in bounds.items():
+            needs = "max" if side == "upper" else "min"
+            if senses[name] not in (needs, "both"):
+                where = ("limits", name) if isinstance(limit, float) else ("limits", name, side)
+                raise src.error(where, f"{'an' if side == 'upper' else 'a'} {side} limit needs the {'maximum' if needs == 'max' else 'minimum'} "
+                                       f"of '{name}': give the criterion sense: {needs} or both "
+                                       f"(it is {senses[name]})")
+            (upper if side == "upper" else lower)[name] = value
+    return upper, lower
+
+
+# ---------------------------------------------------------------- fuzzy admissible sets
+
+
+def _levels(top: StudyFile, uncertain: list[dict]) -> tuple[float, ...] | None:
+    """The α-levels of a fuzzy study (None: a crisp one, no `fuzzy:` and no fuzzy number)."""
+    if top.fuzzy is not None:
+        return tuple(top.fuzzy.levels)
+    return DEFAULT_LEVELS if any("core" in e for e in uncertain) else None
+
+
+def alpha_cut(study: "Study", alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """The α-cut of the admissible set, the box (lower, upper) in parameter order: each fuzzy
+    number {support: [a, b], core: [c, d]} gives [a + α(c − a), b − α(b − d)] (exactly the core at
+    α = 1 and the support at α = 0), a crisp box itself at every level. The cuts are nested:
+    the rounded formula is monotone in α."""
+    lower, upper = [], []
+    for entry in study.uncertain:
+        a, b = entry["lower"], entry["upper"]
+        c, d = entry.get("core", (a, b))
+        lo = c if alpha == 1 else a if alpha == 0 else min(max(a + alpha * (c - a), a), c)
+        hi = d if alpha == 1 else b if alpha == 0 else max(min(b - alpha * (b - d), b), d)
+        count = entry.get("points", 1)
+        lower += [lo] * count
+        upper += [hi] * count
+    return np.array(lower, dtype=float), np.array(upper, dtype=float)
 
 
 # ---------------------------------------------------------------- the study
@@ -1126,7 +1234,7 @@ class Study:
     scene: dict
     uncertain: list[dict]
     criteria: list[dict]
-    limits: dict
+    limits: dict                                        # criterion -> upper limit
     search: Search
     solver: Solver
     sweep: dict | None
@@ -1135,6 +1243,8 @@ class Study:
     notes: list[str]
     warnings: list[str] = field(default_factory=list)   # results to distrust (e.g. P1 locking)
     estimated_cells: float | None = None                # before meshing; None for a mesh file
+    lower_limits: dict = field(default_factory=dict)    # criterion -> lower limit
+    levels: tuple[float, ...] | None = None             # α-levels of a fuzzy study, ascending; None: crisp
     _evaluator: Any = field(default=None, repr=False, compare=False)
 
     def evaluate(self, values, gradients: bool = False):
@@ -1191,17 +1301,18 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     uncertain = _parse_uncertain(top.uncertain, scene, src)
     criteria = [_dump(c) for c in top.criteria]
     _check_criteria(criteria, scene, src)
-    _check_limits(top.limits, criteria, src)
+    upper_limits, lower_limits = _split_limits(top.limits, criteria, src)
     sweep = _dump(top.sweep) if top.sweep else None
     _check_sweep(sweep, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, extra)
     return Study(
         name=name, file=file, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(),
-        scene=scene, uncertain=uncertain, criteria=criteria, limits=dict(top.limits),
+        scene=scene, uncertain=uncertain, criteria=criteria, limits=upper_limits,
         search=top.search, solver=top.solver, sweep=sweep,
         output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
         warnings=_locking_warnings(scene, uncertain) + ([] if criteria else [NO_CRITERIA]), estimated_cells=cells,
+        lower_limits=lower_limits, levels=_levels(top, uncertain),
     )
 
 

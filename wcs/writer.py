@@ -20,13 +20,16 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from .errors import StudyError
 from .parallel import agree, rank
 from .record import Ledger
 from .results import provenance, run_dataset, write_netcdf
+from .search.ranges import Extreme
 from .store import OutputLock, check_output
+from .study import alpha_cut
 
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
 
@@ -69,10 +72,69 @@ def claim_output(comm, output: Path, where: tuple, resume_sha256: str | None) ->
 @dataclass(frozen=True)
 class Final:
     """What the end of a run adds to its file (criterion -> ...)."""
-    worst: dict                 # (value, data set, row), as `Ledger.worst`
+    worst: dict                 # criterion -> (value, data set, row) of its maximum over the widest level
     certificate: dict           # how the worst value is certified
     notes: dict                 # the search's notes
     fields: dict                # fields of the worst case, re-solved (None where none solved)
+    extremes: list = ()         # every end of every range (`Extreme`), per α-level; worst..notes are the
+                                # maxima of the widest level among them
+
+
+def extremes_of(study, records: list, criteria: list[str], kind: str, found: list | None) -> list[Extreme]:
+    """Every end the study asks for (each criterion's `sense`, at each α-level of a fuzzy study):
+    the largest (smallest) value of the successful evaluations inside the level's α-cut (a crisp
+    study: all of them), at the first row attaining it. Certified as the search certified it
+    when the search (`found`, its `Extreme`s) ended at that value or data set, else
+    `heuristic`; `grid` for a sweep; `in-progress` while the run goes (`found` None); `none`
+    without a successful evaluation."""
+    senses = {c["name"]: c.get("sense", "max") for c in study.criteria}
+    n, p = len(records), len(study.parameters)
+    X = np.array([r["x"] for r in records], float).reshape(n, p)
+    P = np.array([r["phi"] for r in records], float).reshape(n, len(criteria))
+    ok = np.array([r["status"] == 0 for r in records], bool)
+    by = {(e.level, e.criterion, e.sense): e for e in found or []}
+    out = []
+    for level in ([None] if study.levels is None else study.levels):
+        inside = ok
+        if level is not None:
+            lower, upper = alpha_cut(study, level)
+            inside = ok & np.all((X >= lower) & (X <= upper), axis=1)
+        for j, c in enumerate(criteria):
+            for sense in ("max", "min"):
+                if senses[c] not in (sense, "both"):
+                    continue
+                v = np.where(inside & np.isfinite(P[:, j]), P[:, j], np.nan)
+                if np.isnan(v).all():
+                    out.append(Extreme(c, sense, level, float("nan"), np.full(p, np.nan), "none",
+                                       "no successful evaluation"))
+                    continue
+                row = int(np.nanargmax(v) if sense == "max" else np.nanargmin(v))
+                e = by.get((level, c, sense))
+                if found is None:
+                    cert, note = "in-progress", ""
+                elif kind == "sweep":
+                    cert, note = "grid", ""
+                elif e is not None and (e.value == v[row] or np.array_equal(e.x, X[row])):
+                    cert, note = e.certificate, e.note
+                else:
+                    cert, note = "heuristic", "" if e is None else e.note
+                out.append(Extreme(c, sense, level, float(v[row]), X[row].copy(), cert, note, row))
+    return out
+
+
+def widest_maxima(extremes: list[Extreme], criteria: list[str]) -> tuple[dict, dict, dict]:
+    """(worst, certificate, notes) by criterion of the maxima over the widest level (the whole
+    box of a crisp study): worst as (value, data set, row) where one was found;
+    a criterion whose maximum is not searched (sense min) is `not-searched`."""
+    levels = [e.level for e in extremes if e.level is not None]
+    widest = min(levels) if levels else None
+    worst, certificate, notes = {}, {c: "not-searched" for c in criteria}, {}
+    for e in extremes:
+        if e.sense == "max" and e.level == widest:
+            certificate[e.criterion], notes[e.criterion] = e.certificate, e.note
+            if e.eval >= 0:
+                worst[e.criterion] = (e.value, e.x.copy(), e.eval)
+    return worst, certificate, notes
 
 
 class Writer:
@@ -97,11 +159,11 @@ class Writer:
         search = self.study.search
         if final is not None:
             worst, certificate, notes, fields = final.worst, final.certificate, final.notes, final.fields
-            complete = "yes"
+            extremes, complete = final.extremes, "yes"
         else:
-            worst, fields = ledger.worst(), ledger.live_fields
-            certificate = {c: "in-progress" for c in criteria}
-            notes, complete = {}, "no"
+            extremes = extremes_of(self.study, records, criteria, self.kind, None)
+            worst, certificate, notes = widest_maxima(extremes, criteria)
+            fields, complete = ledger.live_fields, "no"
         attrs = {"created": self.created, "kind": self.kind, "complete": complete,
                  "study_file": str(self.study.file),
                  "search_method": search.method,
@@ -117,7 +179,7 @@ class Writer:
             attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in (self.study.sweep or {})["grid"].items())
         return run_dataset(self.study, self.evaluator, records, worst=worst, certificate=certificate,
                            notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=self.sweep_paths,
-                           provenance_attrs=self.provenance)
+                           provenance_attrs=self.provenance, extremes=extremes)
 
     def due(self) -> bool:
         """Whether a rewrite now keeps the writing within WRITE_OVERHEAD of the run's time."""

@@ -16,7 +16,7 @@ from ..errors import StudyError
 __all__ = ["cmd_report", "render_report", "write_report", "SECTION_IDS"]
 
 
-SECTION_IDS = ["summary", "limits", "scene", "worst-data", "worst-fields", "contact",
+SECTION_IDS = ["summary", "limits", "membership", "scene", "worst-data", "worst-fields", "contact",
                "criteria-vs-parameters", "best-so-far", "failures", "provenance"]
 
 

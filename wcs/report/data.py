@@ -16,6 +16,7 @@ import xarray as xr
 
 from ..criteria import KINDS
 from ..errors import StudyError
+from ..results import widest
 from ..status import Status
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
@@ -37,6 +38,25 @@ class Criterion:
     certificate: str
     worst_eval: int | None = None   # index into the evaluations, when found
     certificate_note: str = ""
+    best: float = float("nan")      # the minimum found (NaN: not searched, or every evaluation failed)
+    best_certificate: str = "not-searched"
+    limit_lower: float = float("nan")   # NaN: none
+
+    @property
+    def searched_min(self) -> bool:
+        return self.best_certificate != "not-searched"
+
+    @property
+    def searched_max(self) -> bool:
+        return self.certificate != "not-searched"
+
+
+@dataclass
+class Levels:
+    """A fuzzy study's ranges: per α-level (ascending) and criterion, NaN where not searched."""
+    alpha: np.ndarray          # (level,)
+    worst: np.ndarray          # (level, criterion)
+    best: np.ndarray           # (level, criterion)
 
 
 @dataclass
@@ -98,6 +118,7 @@ class Results:
     incomplete: str = ""                    # why the run is not finished ("" when it is)
     source: str = ""                        # the file it was read from
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
+    levels: Levels | None = None            # a fuzzy study's ranges per α-level
 
     @property
     def n_eval(self) -> int:
@@ -222,6 +243,8 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
     if missing:
         raise StudyError(f"{where}: not a wcs results file (no {', '.join(missing)}; "
                          f"expected the layout written by wcs run, sweep or solve)")
+    levels = _levels(ds)
+    ds = widest(ds)                          # a fuzzy study reads as its widest level, plus `levels`
     attrs = {k: _attr_scalar(v) for k, v in ds.attrs.items()}
     study_yaml = _text(attrs.get("study_yaml", ""))
     doc, extra = split_yaml(study_yaml) if study_yaml else ({}, {})
@@ -303,6 +326,10 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
             "criterion" in ds["certificate_note"].dims else ""
         criteria.append(Criterion(name, kind_j, units, list(spec.get("regions", [])), float(limit[j]),
                                   float(worst[j]), wx, cert, worst_eval, note))
+        if "best_value" in ds:
+            criteria[-1].best = float(ds["best_value"].values[j])
+            criteria[-1].best_certificate = _text(ds["best_certificate"].values[j])
+            criteria[-1].limit_lower = float(ds["limit_lower"].values[j])
 
     mesh = None
     if "coords" in ds and "cells" in ds:
@@ -330,7 +357,17 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where)
+                   source=where, levels=levels)
+
+
+def _levels(ds: xr.Dataset) -> Levels | None:
+    """The per-level ranges of a fuzzy study's results (None: a crisp study)."""
+    if "level" not in ds.dims:
+        return None
+    worst = ds["worst_value"].transpose("level", "criterion").values.astype(float)
+    best = ds["best_value"].transpose("level", "criterion").values.astype(float) if "best_value" in ds \
+        else np.full_like(worst, np.nan)
+    return Levels(ds["level"].values.astype(float), worst, best)
 
 
 def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:

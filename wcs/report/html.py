@@ -17,6 +17,7 @@ from .data import KIND_LABEL, Results
 SECTIONS = [
     ("summary", "Summary"),
     ("limits", "Limits"),
+    ("membership", "Membership function of each criterion (fuzzy data)"),
     ("scene", "The scene and mesh"),
     ("worst-data", "Worst data set per criterion"),
     ("worst-fields", "Deformed shape and stresses at the worst case"),
@@ -62,6 +63,8 @@ dl.kv{display:grid;grid-template-columns:max-content auto;gap:2px 16px;font-size
 dl.kv dt{font-weight:bold}
 dl.kv dd{margin:0;font-family:monospace;word-break:break-all}
 """
+
+NOT_SEARCHED = "Its maximum is not searched (sense: min): see its minimum under Limits."
 
 SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
@@ -138,14 +141,15 @@ class Report:
         return f'<section id="{sid}">\n<h2>{esc(title)}</h2>\n{body}\n</section>\n'
 
     def verdicts(self):
+        """Per criterion: "pass", "fail", "unknown" (a limit without a value to read it against)
+        or "none" (no limit); the upper limit against the worst value, the lower against the best."""
         out = []
         for c in self.res.criteria:
-            if not math.isfinite(c.limit):
-                out.append("none")
-            elif not math.isfinite(c.worst):
-                out.append("unknown")
-            else:
-                out.append("fail" if c.worst > c.limit else "pass")
+            checks = [None if not math.isfinite(v) else ok for v, ok, lim in
+                      ((c.worst, c.worst <= c.limit, c.limit), (c.best, c.best >= c.limit_lower, c.limit_lower))
+                      if math.isfinite(lim)]
+            out.append("none" if not checks else "fail" if False in checks else "unknown" if None in checks
+                       else "pass")
         return out
 
     def fallbacks(self) -> dict[str, int]:
@@ -168,7 +172,9 @@ class Report:
             verdict, cls, why = "INCOMPLETE RUN", "none", (f"no limit is broken among the {r.n_eval} evaluations "
                                                             "in the file, but the run did not finish")
         elif "pass" in v and "unknown" not in v:
-            verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit"
+            verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit" + (
+                " and every minimum found above its lower limit" if any(
+                    math.isfinite(c.limit_lower) for c in r.criteria) else "")
         elif "unknown" in v:
             verdict, cls, why = "INCOMPLETE", "none", "no worst value for a criterion with a limit (every evaluation failed)"
         else:
@@ -201,30 +207,66 @@ class Report:
 
     def limits(self) -> str:
         r = self.res
+        ends = any(c.searched_min for c in r.criteria)
         rows = []
         for c, v in zip(r.criteria, self.verdicts()):
             margin = c.limit - c.worst if math.isfinite(c.limit) and math.isfinite(c.worst) else float("nan")
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
             label = {"pass": "PASS", "fail": "FAIL", "none": "no limit", "unknown": "unknown"}[v]
             cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
+            low = ""
+            if ends:
+                low = (f'<td class="num">{number(c.limit_lower, c.units) if math.isfinite(c.limit_lower) else "—"}</td>'
+                       f'<td class="num best-value">{number(c.best, c.units) if c.searched_min else "not searched"}</td>')
+            cert = esc(c.certificate) + (f" (max); {esc(c.best_certificate)} (min)" if c.searched_min else "")
             rows.append(
                 f'<tr data-criterion="{esc(c.name)}"><td>{esc(c.name)}</td>'
                 f'<td>{esc(KIND_LABEL.get(c.kind, c.kind or "—"))}</td>'
-                f'<td>{esc(plots.unit_label(c.units))}</td>'
-                f'<td class="num">{number(c.worst, c.units)}</td>'
+                f'<td>{esc(plots.unit_label(c.units))}</td>{low}'
+                f'<td class="num">{number(c.worst, c.units) if c.searched_max else "not searched"}</td>'
                 f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
                 f'<td class="num">{number(margin, c.units) if math.isfinite(margin) else "—"}</td>'
                 f'<td class="num">{f"{pct:+.1f} %".replace("-", "−") if math.isfinite(pct) else "—"}</td>'
-                f'<td class="{cls} verdict-cell">{label}</td><td>{esc(c.certificate)}'
+                f'<td class="{cls} verdict-cell">{label}</td><td>{cert}'
                 f'{"<br><span class=note>" + esc(c.certificate_note) + "</span>" if c.certificate_note else ""}</td></tr>')
-        return ('<table id="limits-table"><tr><th>criterion</th><th>kind</th><th>units</th><th>worst value</th>'
-                '<th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
+        head = "<th>lower limit</th><th>best value (min)</th>" if ends else ""
+        body = ('<table id="limits-table"><tr><th>criterion</th><th>kind</th><th>units</th>' + head +
+                '<th>worst value</th><th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
                 '<th>certificate</th></tr>' + "".join(rows) + "</table>"
                 '<p class="note">Every criterion is a maximum over its regions of interest; a limit is broken '
-                'when the worst value exceeds it (negative margin). Certificate: <b>corner-kkt</b> — the '
+                'when the worst value exceeds it (negative margin)' + (
+                    ', a lower limit when the best value (the minimum over the box) falls below it' if ends else '') +
+                '. Certificate: <b>corner-kkt</b> — the '
                 'maximiser is a vertex of the box satisfying the KKT sign conditions; <b>local-kkt</b> — a '
                 'local maximum satisfying the first-order conditions; <b>heuristic</b> — the best value '
-                'found, no optimality proof; <b>grid</b> — the maximum over a sweep grid.</p>')
+                'found, no optimality proof; <b>grid</b> — the maximum over a sweep grid' + (
+                    '; the same for the minimum, with the signs of −Φ' if ends else '') + '.</p>')
+        if ends:
+            body += ('<h3>The range of each criterion against its limits</h3>'
+                     + img(plots.range_figure(r), "interval [min, max] per criterion") +
+                     '<p class="note" id="range-text">' + "; ".join(
+                         f"{esc(c.name)} ∈ [{number(c.best, c.units)}, {number(c.worst, c.units)}]"
+                         for c in r.criteria if c.searched_min and c.searched_max) + "</p>")
+        return body
+
+    def membership(self) -> str:
+        r, lv = self.res, self.res.levels
+        if lv is None:
+            return ('<p class="note">A crisp study: every uncertain number is a box (no '
+                    '<code>{support, core}</code>), so each criterion has one range, in the limits above.</p>')
+        out = [f'<p>The admissible data form a fuzzy set: the data of membership ≥ α are the α-cut, a box '
+               f'(levels {", ".join(f"{a:g}" for a in lv.alpha)}). Each criterion\'s range over the α-cuts is '
+               'its membership function; the intervals are nested (larger α, smaller box).</p>']
+        for j, c in enumerate(r.criteria):
+            rows = "".join(f'<tr><td class="num">{a:g}</td><td class="num">{number(lv.best[i, j], c.units)}</td>'
+                           f'<td class="num">{number(lv.worst[i, j], c.units)}</td></tr>'
+                           for i, a in enumerate(lv.alpha))
+            reading = limit_membership(lv.alpha, lv.best[:, j], lv.worst[:, j], c.limit_lower, c.limit)
+            out.append(f'<h3>{esc(c.name)}</h3><p class="membership-reading" data-criterion="{esc(c.name)}">'
+                       f'{esc(reading)}</p>' + img(plots.membership_figure(r, j), f"membership function of {c.name}")
+                       + '<table class="levels"><tr><th>α</th><th>min over the α-cut</th><th>max over the α-cut</th>'
+                       f'</tr>{rows}</table>')
+        return "".join(out)
 
     def scene(self) -> str:
         r = self.res
@@ -243,6 +285,9 @@ class Report:
         r = self.res
         out = []
         for c in r.criteria:
+            if not c.searched_max:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">{NOT_SEARCHED}</p>')
+                continue
             if not np.isfinite(c.worst_x).any():
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No data set: every evaluation failed.</p>')
                 continue
@@ -275,6 +320,9 @@ class Report:
         done = {}
         for j, c in enumerate(r.criteria):
             f = r.worst_fields[j]
+            if not c.searched_max:
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">{NOT_SEARCHED}</p>')
+                continue
             if f is None:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No fields (no successful evaluation).</p>')
                 continue
@@ -383,7 +431,8 @@ class Report:
     # ------------------------------------------------------------ page
     def render(self) -> str:
         r = self.res
-        builders = {"summary": self.summary, "limits": self.limits, "scene": self.scene,
+        builders = {"summary": self.summary, "limits": self.limits, "membership": self.membership,
+                    "scene": self.scene,
                     "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
@@ -394,6 +443,29 @@ class Report:
                 f"<header><h1>Worst-scenario report: {esc(r.study)}</h1>"
                 f"<p>wcs {esc(r.attrs.get('wcs_version', ''))} · {esc(r.attrs.get('created', ''))}</p></header>"
                 f"<nav>{nav}</nav><main>{sections}</main></body></html>\n")
+
+
+def limit_membership(alpha, best, worst, lower: float, upper: float) -> str:
+    """The limits read against a membership function: the smallest level α* from which on (every
+    level ≥ α*) the range [best, worst] over the α-cut keeps within the limits. The cuts are
+    nested, so the limits then hold for every data set of membership ≥ α*; between the levels
+    nothing was computed."""
+    if not (math.isfinite(lower) or math.isfinite(upper)):
+        return "No limit is set."
+    holds = [(not math.isfinite(upper) or (math.isfinite(w) and w <= upper))
+             and (not math.isfinite(lower) or (math.isfinite(b) and b >= lower)) for b, w in zip(best, worst)]
+    first = len(holds)
+    while first > 0 and holds[first - 1]:
+        first -= 1
+    what = "the limits hold" if math.isfinite(lower) and math.isfinite(upper) else "the limit holds"
+    if first == len(holds):
+        return f"The limit is broken even at the highest level searched, membership {alpha[-1]:g}" + \
+            (" (the core)." if alpha[-1] == 1 else ".")
+    if first == 0:
+        return (f"{what.capitalize()} for every admissible data set (membership ≥ 0)." if alpha[0] == 0 else
+                f"{what.capitalize()} for every data set of membership ≥ {alpha[0]:g}, the lowest level searched.")
+    return (f"{what.capitalize()} for every data set of membership ≥ {alpha[first]:g}; a data set of "
+            f"membership ≥ {alpha[first - 1]:g} breaks {'them' if what.endswith('limits hold') else 'it'}.")
 
 
 def _kv(rows) -> str:

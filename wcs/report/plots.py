@@ -534,3 +534,65 @@ def failures_figure(res: Results) -> bytes:
     ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.01), ncol=3, frameon=False)
     fig.tight_layout()
     return png(fig)
+
+
+# ---------------------------------------------------------------- both ends, membership
+
+def _limits(ax, crit) -> None:
+    """The criterion's limits as vertical red lines (upper dashed, lower dotted)."""
+    for value, label, ls in ((crit.limit, "upper limit", "--"), (crit.limit_lower, "lower limit", ":")):
+        if np.isfinite(value):
+            ax.axvline(value, color="#d62728", ls=ls, lw=1.2, label=label)
+
+
+def range_figure(res: Results) -> bytes:
+    """Per criterion the interval [min, max] found (a bar; a dot for an end alone) against its
+    limits (red lines), one row each (criteria have their own units)."""
+    m = len(res.criteria)
+    fig, axes = plt.subplots(m, 1, figsize=(7.5, 0.9 + 0.75 * m), squeeze=False)
+    for j, c in enumerate(res.criteria):
+        ax = axes[j, 0]
+        ends = [v for v in (c.best, c.worst) if np.isfinite(v)]
+        if len(ends) == 2:
+            ax.plot([c.best, c.worst], [0, 0], color="#1f3a5f", lw=6, solid_capstyle="butt", label="[min, max]")
+        ax.plot(ends, [0] * len(ends), "o", color="#1f3a5f", ms=5)
+        _limits(ax, c)
+        ax.set_yticks([])
+        ax.set_ylabel(c.name, rotation=0, ha="right", va="center")
+        ax.set_xlabel(f"[{unit_label(c.units)}]", fontsize=8)
+        ax.grid(alpha=0.3, axis="x")
+    labelled = {}
+    for ax in axes.flat:
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            labelled.setdefault(label, h)
+    if labelled:
+        axes[0, 0].legend(list(labelled.values()), list(labelled), fontsize=7, loc="upper left",
+                          bbox_to_anchor=(1.0, 1.2))
+    fig.tight_layout()
+    return png(fig)
+
+
+def membership_figure(res: Results, j: int) -> bytes:
+    """The membership function of criterion j: at each α-level the interval [min, max] of the
+    criterion over the α-cut (a horizontal bar at height α), the ends joined, and the limits."""
+    lv, c = res.levels, res.criteria[j]
+    fig, ax = plt.subplots(figsize=(5.6, 3.2))
+    lo, hi = lv.best[:, j], lv.worst[:, j]
+    for a, b, w in zip(lv.alpha, lo, hi):
+        if np.isfinite(b) and np.isfinite(w):
+            ax.plot([b, w], [a, a], color="#1f3a5f", lw=3, alpha=0.6)
+    for ends, label in ((hi, "max over the α-cut"), (lo, "min over the α-cut")):
+        ok = np.isfinite(ends)
+        if ok.any():
+            ax.plot(ends[ok], lv.alpha[ok], "o-", color="#1f3a5f" if label.startswith("max") else "#2ca02c",
+                    ms=4, label=label)
+    _limits(ax, c)
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_ylabel("membership α")
+    ax.set_xlabel(f"{c.name} [{unit_label(c.units)}]")
+    ax.set_title(f"{c.name}: membership function")
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    return png(fig)

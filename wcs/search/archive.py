@@ -10,6 +10,8 @@ strategy that found it. With g = dΦ/dz there and the Frank–Wolfe gap
 G = max_{z'∈P} g·(z' − z) (see scaling.py):
 - "corner-kkt": z is a vertex of U_ad and G ≤ tol·scale (the KKT sign pattern);
 - "local-kkt":  G ≤ tol·scale at a non-vertex point;
+- a box of one point (every width 0, e.g. the core of triangular fuzzy numbers) is its own
+  maximum: "corner-kkt";
 - "heuristic":  otherwise — no gradient, a non-smooth point (the active set
   changes within reach, so g is one-sided), or a gradient that is zero
   while no evaluation has shown a different value (a flat region, where
@@ -52,6 +54,10 @@ class Archive:
         self.index: dict[bytes, int] = {}
         self.best: dict[str, int | None] = {c: None for c in self.criteria}
         self.notes: dict[str, str] = {}   # per criterion; "" for all
+        for o in problem.known:             # made before (an inner α-level): the strategy's own, free
+            z = self.space.to_z(o.x)
+            self._record(z, np.asarray(o.x, float), o, "known", o.grad is not None)
+            self.index.setdefault(self.space.key(z), self.index[o.x.tobytes()])
 
     @property
     def remaining(self) -> int:
@@ -142,6 +148,8 @@ class Archive:
         rec = self.best_record(c) if rec is None else rec
         if rec is None:
             return "heuristic", "no successful evaluation"
+        if not np.any(self.space.width):
+            return "corner-kkt", "the admissible set is this one data set (e.g. the core of triangular fuzzy numbers)"
         g = rec.grad.get(c)
         if rec.nonsmooth:
             return "heuristic", "non-smooth point (active set changes within reach): KKT not checked"

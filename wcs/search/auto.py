@@ -51,13 +51,17 @@ def auto(problem, config, rng):
     space = archive.space
     n = space.n
 
-    # 1. centre + safeguard sample
+    # 1. centre + safeguard sample (unless every criterion starts from a known best)
     s = cfg.safeguard
     s = min(2 * n + 1, cfg.sample.n) if s is None else int(s)
     s = max(0, min(s, (archive.remaining - 1) // 2))
     centre = space.centre()
-    yield from archive.ask([centre, *lhs(space, s, rng)], "sample")
-    for _ in range(FLAT_RETRIES):
+    warm = bool(problem.known) and all(archive.best_record(c) is not None for c in archive.criteria)
+    if warm:
+        archive.note(f"started from the best of {len(problem.known)} evaluations made before (inner levels)")
+    else:
+        yield from archive.ask([centre, *lhs(space, s, rng)], "sample")
+    for _ in range(0 if warm else FLAT_RETRIES):
         flat = [c for c in archive.criteria if archive.flat(c)]
         if not flat or s == 0 or archive.remaining < 2 * s:
             break
