@@ -32,14 +32,15 @@ def test_dd_agrees_with_monolithic_through_the_model():
 
 
 def test_failing_successive_approximations_fall_back_and_say_so():
-    # Tresca pad: the contraction estimate of the successive approximations stays ≥ 1
-    dd = study("tresca-pad", {"method": "dd", "dd": {"subdomains": 6}}, small_pad)
+    # Tresca pad, the seed's plain steps (ω = 1): the contraction estimate stays ≥ 1
+    dd = study("tresca-pad", {"method": "dd", "dd": {"subdomains": 6, "relaxation": 1.0}}, small_pad)
     ev = dd.evaluate(dd.nominal())
     assert ev.status == 0 and "monolithic after dd" in ev.message and "contraction" in ev.message
     mono = study("tresca-pad", {"method": "monolithic"}, small_pad)
     ref = mono.evaluate(mono.nominal())
     assert np.linalg.norm(ev.state.u - ref.state.u) <= 1e-10 * np.linalg.norm(ref.state.u)
-    strict = study("tresca-pad", {"method": "dd", "fallback": False, "dd": {"subdomains": 6}}, small_pad)
+    strict = study("tresca-pad", {"method": "dd", "fallback": False, "dd": {"subdomains": 6, "relaxation": 1.0}},
+                   small_pad)
     failed = strict.evaluate(strict.nominal())
     assert failed.status == 5 and "domain decomposition" in failed.message
     assert np.isnan(list(failed.phi.values())).all()

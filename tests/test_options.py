@@ -150,16 +150,16 @@ def dd_evaluation(**dd):
 
 def test_relaxation_anderson_is_accepted_and_used():
     """On the small Tresca pad Anderson with β = 0.5 converges (Aitken: another iteration
-    count, β unused); β = 1 stagnates and falls back, visibly. Both DD answers agree with the
-    monolithic one to 1e-6 relative (the DD stops at ‖ΔU‖ ≤ 1e-10 ‖U‖)."""
+    count, β unused); β = 1 converges in another number of steps (β is used). The DD answers
+    agree with the monolithic one to 1e-6 relative (the DD stops at ‖ΔU‖ ≤ 1e-10 ‖U‖)."""
     study = wcs.load_study(pad_doc(method="monolithic"), base_dir=PAD.parent)
     mono = study.evaluate(study.nominal())
     aitken, aitken_mixed = dd_evaluation(), dd_evaluation(mixing=0.5)
     anderson, anderson_undamped = dd_evaluation(relaxation="anderson", mixing=0.5), dd_evaluation(relaxation="anderson")
     assert aitken.state.solver == anderson.state.solver == "dd"
     assert aitken.iterations == aitken_mixed.iterations != anderson.iterations
-    assert anderson_undamped.state.solver.startswith("monolithic after dd successive approximations stagnated")
-    for ev in (aitken, anderson):
+    assert anderson_undamped.state.solver == "dd" and anderson_undamped.iterations != anderson.iterations
+    for ev in (aitken, anderson, anderson_undamped):
         for c in mono.phi:
             assert ev.phi[c] == pytest.approx(mono.phi[c], rel=1e-6)
 

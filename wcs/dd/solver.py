@@ -49,7 +49,7 @@ from wcs.status import DDOutcome, Status
 from wcs.study import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
-from .partition import Partition, facet_components, partition
+from .partition import Partition, facet_components, node_unknowns, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
 
@@ -139,7 +139,7 @@ def model_partition(model, dd: DomainDecomposition):
     smesh = model.smesh
     floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
     return partition(smesh.mesh, smesh.cell_body, contact_sides(model), floating,
-                     dd.subdomains, dd.pair_size)
+                     dd.subdomains, dd.pair_size, node_unknowns(model.elim.T, smesh.mesh.p.shape[0]))
 
 
 def build_decomposition(model, dd) -> Decomposition:

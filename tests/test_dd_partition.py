@@ -1,0 +1,108 @@
+"""The DD partition (wcs.dd.partition) balanced by unknowns: the largest unit's share of the
+unknowns on the tunnel, the knee and Hertz, determinism, the support-sliver rule, and a 3D mesh.
+
+Before (bands of fixed thickness δ = pair_size · H): the pair held 69.6 % of the unknowns of the
+tunnel, 90.2 % of the knee and 97.1 % of Hertz at 12 subdomains; after: 11.9 %, 57.7 % (the
+floating femur is kept whole) and 21.0 % (the cylinder floats in y, kept whole)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import skfem
+import yaml
+
+import wcs
+from wcs.dd import solver as dds
+from wcs.dd.partition import node_unknowns, partition
+from wcs.model import Model
+from wcs.scene.mesher import build_mesh
+
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+
+def model_of(name, tmp_path):
+    src = STUDIES / name
+    for f in src.parent.glob("materials*.yaml"):
+        (tmp_path / f.name).write_text(f.read_text())
+    (tmp_path / src.name).write_text(src.read_text())
+    study = wcs.load_study(tmp_path / src.name)
+    return Model(study.scene, build_mesh(study.scene), {"method": "monolithic"})
+
+
+def floating_unknowns(model, dec):
+    """Unknowns of the bodies the partition keeps whole (free rigid modes)."""
+    w = node_unknowns(model.elim.T, 2)
+    bodies = [model.smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]]
+    return int(w[np.isin(model.smesh.node_body, bodies)].sum())
+
+
+@pytest.mark.parametrize("name,most", [("tunnel-fault.yaml", 0.15), ("knee-replacement.yaml", 0.60),
+                                       ("validation/hertz.yaml", 0.25)], ids=["tunnel", "knee", "hertz"])
+def test_largest_unit_share_of_the_unknowns(name, most, tmp_path):
+    """Shares before: 0.70, 0.90, 0.97 (the pair). After: every pair holds its floating bodies
+    plus bands of about pair_size · n/N unknowns per contact side."""
+    model = model_of(name, tmp_path)
+    dec = dds.build_decomposition(model, {"subdomains": 12})
+    n = dec.ndof
+    sizes = np.array([u.dofs.size for u in dec.units])
+    assert sizes.max() <= most * n, sizes / n
+    sides = len(dds.contact_sides(model))
+    target = 0.5 * n / 12
+    in_pairs = sum(u.dofs.size for u in dec.pairs)
+    # the bands (pairs without their floating bodies) hold about `target` each: within 1.6×
+    assert in_pairs - floating_unknowns(model, dec) <= 1.6 * sides * target
+    assert dec.part.nsub <= 12
+    # the rest is balanced: linear subdomains within a factor 2 of each other
+    lin = np.array([u.dofs.size for u in dec.linear])
+    assert lin.max() <= 2 * lin.min()
+
+
+def test_partition_is_deterministic_and_keeps_contact_nodes_interior(tmp_path):
+    model = model_of("tunnel-fault.yaml", tmp_path)
+    opts = dds.DomainDecomposition(subdomains=12)
+    a, b = dds.model_partition(model, opts), dds.model_partition(model, opts)
+    np.testing.assert_array_equal(a.subdomain, b.subdomain)
+    assert a.pairs == b.pairs and a.pair_contacts == b.pair_contacts
+    t = model.smesh.mesh.t
+    for k, _, nodes in dds.contact_sides(model):
+        subs = np.unique(a.subdomain[np.isin(t, nodes).any(axis=0)])
+        assert subs.size == 1 and any(subs[0] in p and k in ks for p, ks in zip(a.pairs, a.pair_contacts))
+    assert len(a.pairs) == 2                      # one pair per fault: the thin bands do not touch
+
+
+def test_no_linear_subdomain_is_anchored_by_a_sliver_of_a_support(tmp_path):
+    """At 12 subdomains the tunnel's bisection cuts next to the end of a support: a subdomain
+    touched the support over < 1/4 of its extent (nearly floating, outside the coarse space).
+    Now every linear subdomain's supported nodes span ≥ 1/4 of its extent, or it has none."""
+    model = model_of("tunnel-fault.yaml", tmp_path)
+    part = dds.model_partition(model, dds.DomainDecomposition(subdomains=12))
+    mesh = model.smesh.mesh
+    supported = node_unknowns(model.elim.T, 2) < 2
+    for s in part.linear:
+        nodes = np.unique(mesh.t[:, part.cells(s)])
+        held = nodes[supported[nodes]]
+        if held.size:
+            assert np.ptp(mesh.p[:, held], axis=1).max() >= 0.25 * np.ptp(mesh.p[:, nodes], axis=1).max()
+
+
+def test_partition_of_a_tetrahedral_mesh():
+    """Nothing assumes 2D: a column of tetrahedra clamped at its bottom, a 'contact' side at its
+    top (both sides of the contact on it): the band holds pair_size · n/N unknowns up to one
+    layer of nodes, every cell at a side node is in the pair, the rest is split as asked."""
+    mesh = skfem.MeshTet.init_tensor(np.linspace(0, 1, 5), np.linspace(0, 1, 5), np.linspace(0, 8, 33))
+    nn = mesh.p.shape[1]
+    bottom, top = np.flatnonzero(mesh.p[2] == 0), np.flatnonzero(mesh.p[2] == 8)
+    unknowns = np.full(nn, 3)
+    unknowns[bottom] = 0                            # clamped
+    part = partition(mesh, np.zeros(mesh.t.shape[1], dtype=np.int64), [(0, 0, top), (0, 0, top)],
+                     set(), 4, 0.5, unknowns)
+    assert part.nsub == 4 and len(part.pairs) == 1
+    pair = part.pairs[0][0]
+    at_top = np.isin(mesh.t, top).any(axis=0)
+    assert np.all(part.subdomain[at_top] == pair)
+    held = np.unique(mesh.t[:, part.subdomain == pair])
+    target, layer = 0.5 * unknowns.sum() / 4, 3 * 25
+    assert target <= unknowns[held].sum() <= target + layer
+    again = partition(mesh, np.zeros(mesh.t.shape[1], dtype=np.int64), [(0, 0, top), (0, 0, top)],
+                      set(), 4, 0.5, unknowns)
+    np.testing.assert_array_equal(part.subdomain, again.subdomain)
