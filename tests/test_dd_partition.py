@@ -106,3 +106,93 @@ def test_partition_of_a_tetrahedral_mesh():
     again = partition(mesh, np.zeros(mesh.t.shape[1], dtype=np.int64), [(0, 0, top), (0, 0, top)],
                       set(), 4, 0.5, unknowns)
     np.testing.assert_array_equal(part.subdomain, again.subdomain)
+
+
+# ---- one factorization per unit, reused (wcs.dd.interface) ------------------------------------
+PAD = STUDIES / "validation" / "tresca-pad.yaml"
+
+
+def small_pad(tmp_path):
+    doc = yaml.safe_load(PAD.read_text())
+    doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.05}]}
+    for f in PAD.parent.glob("materials*.yaml"):
+        (tmp_path / f.name).write_text(f.read_text())
+    (tmp_path / "pad.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    study = wcs.load_study(tmp_path / "pad.yaml")
+    return study, Model(study.scene, build_mesh(study.scene), {"method": "monolithic"})
+
+
+class Counted:
+    """A factor of wcs.linalg that counts its numeric refactors and solves (right-hand sides)."""
+
+    calls = {"factorize": 0, "refactor": 0, "solve": 0, "columns": 0}
+
+    def __init__(self, factor):
+        self.factor = factor
+
+    def refactor(self, A):
+        Counted.calls["refactor"] += 1
+        self.factor.refactor(A)
+        return self
+
+    def solve(self, b):
+        Counted.calls["solve"] += 1
+        Counted.calls["columns"] += 1 if np.ndim(b) == 1 else np.shape(b)[1]
+        return self.factor.solve(b)
+
+    def __getattr__(self, name):
+        return getattr(self.factor, name)
+
+
+def test_one_factor_per_unit_reused_and_no_sparse_solve_inside_pcg(tmp_path, monkeypatch):
+    """Before: every linear unit held two factors (A_II, regularised A_u) and every pair two
+    SuperLU saddle-point factors made afresh per evaluation; each PCG iteration made one sparse
+    solve per unit for S and one for S† (thousands per evaluation). Now: one PARDISO factor per
+    unit, analysed once and refactored per data set; S_u and S_u† are dense, so an evaluation
+    makes a few solves per unit whatever the number of PCG iterations."""
+    from wcs import linalg
+    made = linalg.factorize
+    monkeypatch.setattr(linalg, "factorize", lambda *a, **k: (Counted.calls.__setitem__(
+        "factorize", Counted.calls["factorize"] + 1), Counted(made(*a, **k)))[1])
+    study, model = small_pad(tmp_path)
+    c = model.coefficients(study.scene)
+    _, Kr, rhs, u0 = model.reduced_system(c, None)
+    opts = {"tolerance": 1e-10, "max_iterations": 300, "dd": {"subdomains": 8}}
+    first = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=c)
+    assert first.status == dds.DDOutcome.CONVERGED, first.message
+    units = len(dds.decomposition(model, opts).units)
+    assert Counted.calls["factorize"] == units                     # one factor per unit
+    for k in Counted.calls:
+        Counted.calls[k] = 0
+    again = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=c)
+    assert np.array_equal(again.u, first.u)
+    info = again.info
+    assert Counted.calls["factorize"] == 0 and Counted.calls["refactor"] == units   # analyses kept
+    iterations = info["pcg1"] + info["pcg2"]
+    # per unit: the load condensed, the final local solution; per pair: one per contact solve
+    assert Counted.calls["solve"] <= 2 * units + info["successive"] + 1 < iterations * units / 4, \
+        (Counted.calls, iterations)
+
+
+def test_local_contact_solves_check_solvability_once_and_never_call_the_qp(tmp_path, monkeypatch):
+    """The pad floats (held by contact only): the load's balance on its rigid modes (a linear
+    program) was checked in every local contact solve, one per successive approximation; it does
+    not depend on the interface values, so now once per evaluation. The dual QP (cvxpy) is not a
+    hidden fallback inside the loop: a cycle of the local Newton is a status."""
+    from wcs.contact import solver as cs
+    lps = []
+    lp = cs.unbalanced_rigid_motion
+    monkeypatch.setattr(cs, "unbalanced_rigid_motion", lambda *a: lps.append(1) or lp(*a))
+
+    def no_qp(*a, **k):
+        raise AssertionError("the dual QP was called inside the DD")
+    monkeypatch.setattr(cs, "_dual_qp", no_qp)
+    study, model = small_pad(tmp_path)
+    c = model.coefficients(study.scene)
+    _, Kr, rhs, u0 = model.reduced_system(c, None)
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, {"tolerance": 1e-10, "max_iterations": 300,
+                                                         "dd": {"subdomains": 8}}, coefficients=c)
+    assert res.status == dds.DDOutcome.CONVERGED, res.message
+    floating = [p for p in dds.decomposition(model, {"dd": {"subdomains": 8}}).pairs if p.R_int is not None]
+    assert floating and res.info["successive"] > 2
+    assert len(lps) == len(floating)

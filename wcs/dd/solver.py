@@ -478,6 +478,10 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
     for k in range(1, budget + 1):
         rc, msg = s_con(U)
         if rc is None:
+            if hist["q"] and hist["q"][-1] > 1 and hist["dU"][-1] > hist["dU"][0]:     # the iterates were growing
+                return DDOutcome.DIVERGED, (f"successive approximations diverged: contraction estimate q = "
+                                            f"{hist['q'][-1]:.3g} ≥ 1 at step {k - 1} ([21, Cor. 7.1] needs "
+                                            f"q = 2β² < 1), then at step {k} the {msg}"), U
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["linear_part"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
