@@ -199,6 +199,7 @@ class Unit:
         self.B = self.I = self.gamma = None
         self.f = None
         self._F = None
+        self._coefficients = None
 
     # structure
     def set_interface(self, is_interface: np.ndarray, position: np.ndarray) -> None:
@@ -218,7 +219,11 @@ class Unit:
     # numbers
     def assemble(self, coefficients: np.ndarray) -> None:
         """Local matrix A_u = T_uᵀ K_u(c) T_u, its factorization (analysis reused) and the
-        dense Schur blocks."""
+        dense Schur blocks; nothing to do when the coefficients are those of the last call."""
+        coefficients = np.array(coefficients, dtype=float)
+        if self._F is not None and np.array_equal(coefficients, self._coefficients):
+            return
+        self._coefficients = None                          # a failure below leaves no stale record
         A = (self.Tloc.T @ self.op(coefficients) @ self.Tloc).tocsr()
         A.sort_indices()
         self.A = A
@@ -239,6 +244,7 @@ class Unit:
         self._schur0[p, p] -= (Areg.diagonal() - A.diagonal())[self.pinned]
         self._schur0 = 0.5 * (self._schur0 + self._schur0.T)
         self._dense()
+        self._coefficients = coefficients
 
     def _dense(self):
         self.S = self._schur0
