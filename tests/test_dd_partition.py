@@ -14,6 +14,7 @@ import yaml
 
 import wcs
 from wcs.dd import solver as dds
+from wcs.dd.interface import SetupError
 from wcs.dd.partition import node_unknowns, partition
 from wcs.model import Model
 from wcs.scene.mesher import build_mesh
@@ -209,3 +210,24 @@ def test_local_contact_solves_check_solvability_once_and_never_call_the_qp(tmp_p
     floating = [p for p in dds.decomposition(model, {"dd": {"subdomains": 8}}).pairs if p.R_int is not None]
     assert floating and res.info["successive"] > 2
     assert len(lps) == len(floating)
+
+
+def test_pair_schur_complement_with_rows_held(tmp_path):
+    """held_schur(rows): the glue rows give the pair's Dirichlet operator S⁰_p (the pad floats,
+    so it is glued in both directions: holding every row is the same operator), symmetric with
+    the pair's common rigid modes (traces on B) in its kernel; holding the normal rows only
+    leaves the floating pad free to slide, which is a SetupError, not a singular matrix."""
+    study, model = small_pad(tmp_path)
+    c = model.coefficients(study.scene)
+    dec = dds.decomposition(model, {"dd": {"subdomains": 8}})
+    p = dec.pairs[0]
+    p.assemble(model.stiffness_coefficients(c))
+    S0 = p.apply_S(np.eye(p.B.size))
+    assert p.glue == "normal+tangential"
+    np.testing.assert_allclose(p.held_schur(p.glue_rows), S0, rtol=0, atol=1e-12 * np.abs(S0).max())
+    S_all = p.held_schur(np.arange(2 * p.rows.size))
+    np.testing.assert_allclose(S_all, S0, rtol=0, atol=1e-9 * np.abs(S0).max())
+    assert np.abs(S_all - S_all.T).max() == 0
+    assert np.abs(S_all @ p.Z[p.B]).max() <= 1e-12 * np.abs(S_all).max()
+    with pytest.raises(SetupError, match="not positive definite"):
+        p.held_schur(np.arange(p.rows.size))

@@ -341,8 +341,10 @@ class PairUnit(Unit):
         Cn = self.Bn.toarray()
         full = self.R_int is not None and null_space(Cn[:, self.I], self.R_int).shape[1] > 0
         self.glue = "normal+tangential" if full else "normal"
-        C = sp.vstack([self.Bn, self.Bt]).tocsr() if full else self.Bn
-        self.C = C[independent_rows(C.toarray())]
+        Cfull = sp.vstack([self.Bn, self.Bt]).tocsr()
+        candidates = np.arange(Cfull.shape[0] if full else self.Bn.shape[0])
+        self.glue_rows = candidates[independent_rows(Cfull[candidates].toarray())]   # rows of [Bn; Bt]
+        self.C = Cfull[self.glue_rows]
         self.Z = null_space(self.C.toarray(), self.Z_halves)
         # the Schur block: B and the contact DOFs
         self.c = np.unique(sp.vstack([self.Bn, self.Bt]).tocsr().indices)
@@ -350,13 +352,27 @@ class PairUnit(Unit):
         self.xc = np.searchsorted(self.X, self.c)
         self.Bn_c, self.Bt_c = self.Bn[:, self.c].tocsr(), self.Bt[:, self.c].tocsr()
         self.R_c = R_local[self.c] if free else None
-        self._glue_null = sla.null_space(self.C[:, self.c].toarray())
+        self._C_c = Cfull[:, self.c].toarray()
+
+    def _held(self, rows: np.ndarray):
+        """(N, Cholesky of Nᵀ Σ⁰_cc N, T): N spans the contact displacements with the rows `rows`
+        of [Bn; Bt] held at zero, T V the contact displacements of the extension of V."""
+        N = sla.null_space(self._C_c[rows]) if len(rows) else np.eye(self.c.size)
+        M = _cho(N.T @ self._Scc @ N, f"the contact block of pair {self.index} with {len(rows)} rows held")
+        return N, M, N @ sla.cho_solve(M, N.T @ self._Sbc.T)
+
+    def held_schur(self, rows: np.ndarray) -> np.ndarray:
+        """Dense Schur complement on B of the pair with the rows `rows` of [Bn; Bt] held (closed
+        normals, stuck tangents: the linearisation at an active set; the glue rows give S⁰_p).
+        SetupError where the rows leave a floating half free."""
+        _, _, T = self._held(np.asarray(rows, dtype=np.int64))
+        S = self._Sbb - self._Sbc @ T
+        return 0.5 * (S + S.T)
 
     def _dense(self):
-        S0, xB, xc, N = self._schur0, self.xB, self.xc, self._glue_null
+        S0, xB, xc = self._schur0, self.xB, self.xc
         self._Sbb, self._Sbc, self._Scc = S0[np.ix_(xB, xB)], S0[np.ix_(xB, xc)], S0[np.ix_(xc, xc)]
-        self._M = _cho(N.T @ self._Scc @ N, f"the glued contact block of pair {self.index}")
-        self._T = N @ sla.cho_solve(self._M, N.T @ self._Sbc.T)          # c of the glued extension of B
+        self._glue_null, self._M, self._T = self._held(self.glue_rows)
         S = self._Sbb - self._Sbc @ self._T
         self.S = 0.5 * (S + S.T)
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
