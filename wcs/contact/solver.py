@@ -449,7 +449,10 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
     if not ok:
-        status, message = Status.CONTACT_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"semismooth Newton did not converge in {max_iter} iterations" if qp else
+            f"semismooth Newton did not converge ({iters} iterations: an active set cycled or the budget of "
+            f"{max_iter} ran out; no dual QP restart)")
     elif not fp_ok:
         status = Status.FIXED_POINT_NOT_CONVERGED
         message = f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
