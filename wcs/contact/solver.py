@@ -411,8 +411,9 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
     lo = np.r_[np.zeros(m), -gw]
     hi = np.r_[np.full(m, np.inf), gw]
+    no_qp = {} if qp else {"fallback": False}
     lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter,
-                                          _first_free_set(warm, gw), fallback=qp)
+                                          _first_free_set(warm, gw), **no_qp)
     fp_iters, fp_ok = 0, True
     if coulomb:
         fp_ok = False
@@ -420,8 +421,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             p_old = lam[:m] / w
             gw = gw_fixed + Fc * lam[:m]
             lo[m:], hi[m:] = -gw, gw
-            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter,
-                                              fallback=qp)
+            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter, **no_qp)
             iters += k
             fp_iters += 1
             p = lam[:m] / w
