@@ -1,5 +1,7 @@
 """The DD partition (wcs.dd.partition) balanced by unknowns: the largest unit's share of the
-unknowns on the tunnel, the knee and Hertz, determinism, the support-sliver rule, and a 3D mesh.
+unknowns on the tunnel, the knee and Hertz, determinism, the support-sliver rule, and a 3D mesh;
+and the units' one factorization each (wcs.dd.interface): reused, no sparse solve per PCG
+iteration, the solvability LP once per evaluation, no QP inside the loop.
 
 Before (bands of fixed thickness δ = pair_size · H): the pair held 69.6 % of the unknowns of the
 tunnel, 90.2 % of the knee and 97.1 % of Hertz at 12 subdomains; after: 11.9 %, 57.7 % (the
@@ -231,3 +233,27 @@ def test_pair_schur_complement_with_rows_held(tmp_path):
     assert np.abs(S_all @ p.Z[p.B]).max() <= 1e-12 * np.abs(S_all).max()
     with pytest.raises(SetupError, match="not positive definite"):
         p.held_schur(np.arange(p.rows.size))
+
+
+def test_interior_solves_from_the_one_factor(tmp_path):
+    """interior_solve(b) from the factor with the Schur block: A_II x = b for a linear unit; for
+    a pair the glued problem A_II x + C_Iᵀμ = b, C_I x = 0 (residual in the range of C_Iᵀ)."""
+    study, model = small_pad(tmp_path)
+    c = model.coefficients(study.scene)
+    dec = dds.decomposition(model, {"dd": {"subdomains": 8}})
+    rng = np.random.default_rng(3)
+    for u in dec.units:
+        u.assemble(model.stiffness_coefficients(c))
+        u.set_load(np.zeros(u.dofs.size))
+        A_II = u.A[u.I][:, u.I]
+        b = rng.standard_normal(u.I.size) * abs(A_II).max()
+        x = u.interior_solve(b)
+        r = A_II @ x - b
+        if u.kind == "linear":
+            assert np.abs(r).max() <= 1e-9 * np.abs(b).max()
+        else:
+            C = u.C[:, u.I].toarray()
+            assert np.abs(C @ x).max() <= 1e-9 * np.abs(x).max()
+            mu = np.linalg.lstsq(C.T, r, rcond=None)[0]
+            assert np.abs(C.T @ mu - r).max() <= 1e-9 * np.abs(b).max()
+            assert np.abs(r).max() > 1e-6 * np.abs(b).max()          # the glue carries force

@@ -227,11 +227,6 @@ class Unit:
         A = (self.Tloc.T @ self.op(coefficients) @ self.Tloc).tocsr()
         A.sort_indices()
         self.A = A
-        I, B = self.I, self.B
-        self.A_II = A[I][:, I].tocsr()
-        self.A_IB = A[I][:, B].tocsr()
-        self.A_BI = self.A_IB.T.tocsr()
-        self.A_BB = A[B][:, B].tocsr()
         Areg = regularize(A, self.pinned)
         try:
             self._F = self._F.refactor(Areg) if self._F is not None else \
