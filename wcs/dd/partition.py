@@ -36,11 +36,11 @@ contact: one pair held 70–97 % of the unknowns of the tunnel, the knee and Her
    would make the local Dirichlet problem singular).
 4. **No subdomain anchored by a sliver of a support.** A linear subdomain whose
    supported nodes (nodes with fewer unknowns than components) span less than
-   a quarter of its own extent while a neighbour of its body holds more of
-   that support (the cut passed next to the end of a support) gives the cells
-   at those nodes to that neighbour: it then floats exactly, and its rigid
-   modes enter the coarse space ([21, (5.11)]), instead of being nearly
-   singular and left out of it.
+   a quarter of its own extent (the cut passed next to the end of a support)
+   gives the cells at those nodes to the linear subdomain of its body that
+   shares them and has the most supported nodes, if that one has more: it then
+   floats exactly, and its rigid modes enter the coarse space ([21, (5.11)]),
+   instead of being nearly singular and left out of it.
 
 Nothing assumes a dimension: cells are simplices of any size, distances and
 bisections act on coordinates of any length.
@@ -276,9 +276,9 @@ def cell_unknowns(t: np.ndarray, unknowns: np.ndarray, inc: sp.csr_matrix) -> np
 
 
 def _release_support_slivers(subdomain, body, pair_subs, t, p, supported, inc, fraction=0.25):
-    """Rule 4 of the module docstring: the cells of a linear subdomain at its supported nodes go
-    to the neighbour of its body that holds more of those nodes' support, where the supported
-    nodes span less than `fraction` of the subdomain's extent (largest coordinate range)."""
+    """Rule 4 of the module docstring: where a linear subdomain's supported nodes span less than
+    `fraction` of its extent (largest coordinate range), its cells at those nodes go to the
+    linear subdomain of its body sharing them with the most supported nodes, if it has more."""
     subdomain = subdomain.copy()
     for s in range(body.size):
         if s in pair_subs:
@@ -296,7 +296,7 @@ def _release_support_slivers(subdomain, body, pair_subs, t, p, supported, inc, f
         near = near[(body[subdomain[near]] == body[s]) & ~np.isin(subdomain[near], list(pair_subs))]
         if near.size == 0:
             continue
-        # the neighbour whose cells carry the most supported nodes next to s's support
+        # of the linear subdomains sharing those nodes, the one with the most supported nodes
         counts = {}
         for r in np.unique(subdomain[near]):
             rn = np.unique(t[:, subdomain == r])
