@@ -1,6 +1,7 @@
 """`solver.method: dd` through the model: agreement with monolithic (`fallback: false`, so a
 DD failure fails the test), the fallback when the chosen outer iteration fails, and answers
 that do not depend on the evaluation order."""
+import re
 from pathlib import Path
 
 import numpy as np
@@ -60,9 +61,9 @@ def test_dd_agrees_with_monolithic_through_the_model():
 
 
 def test_failing_outer_iteration_falls_back_and_says_so():
-    # Tresca pad, the seed's step asked for: ρ(S0⁻¹ dS_con) ≈ 25, its successive approximations
-    # stagnate (step auto takes Newton there: test_dd.py)
-    seed = {"subdomains": 6, "step": "seed"}
+    # Tresca pad, the seed's plain step (ω = 1) asked for: ρ(S0⁻¹ dS_con) ≈ 25, its successive
+    # approximations' contraction estimate stays ≥ 1 (step auto takes Newton there: test_dd.py)
+    seed = {"subdomains": 6, "step": "seed", "relaxation": 1.0}
     dd = study("tresca-pad", {"method": "dd", "dd": seed}, small_pad)
     ev = dd.evaluate(dd.nominal())
     assert ev.status == 0 and "monolithic after dd" in ev.message and "contraction" in ev.message
@@ -104,10 +105,12 @@ def tunnel(solver, edit=None):
 
 
 def test_newton_solves_the_tunnel_where_the_seeds_step_fails():
-    """The tunnel (12 subdomains): ρ(S0⁻¹ dS_con) ≈ 200 — the seed's successive steps stagnate
-    and fall back; step auto sees ρ ≫ 1, takes interface Newton, and agrees with monolithic."""
+    """The tunnel (12 subdomains): ρ(S0⁻¹ dS_con) ≈ 100–300 — the seed's successive steps
+    stagnate or diverge and fall back; step auto sees ρ ≫ 1, takes interface Newton, and agrees
+    with monolithic."""
     seed = tunnel({"method": "dd", "tolerance": 1e-6, "dd": {"subdomains": 12, "step": "seed"}})
-    assert "monolithic after dd successive approximations stagnat" in seed.evaluate(seed.nominal()).message
+    assert re.search(r"monolithic after dd successive approximations (stagnated|diverged) at step \d+: contraction",
+                     seed.evaluate(seed.nominal()).message)
     mono = tunnel({"method": "monolithic", "tolerance": 1e-10})
     dd = tunnel({**STRICT, "dd": {"subdomains": 12}})
     b = dd.evaluate(dd.nominal())
@@ -163,7 +166,7 @@ def test_dd_agrees_on_a_thermal_contact_scene():
         s = wcs.load_study(doc, base_dir=ROOT)
         out.append(s.evaluate(s.nominal()))
     assert out[1].state.T is not None and np.any(out[1].state.contact.force_t)
-    assert "singular" in out[1].message and ": newton;" in out[1].message   # S0 floats: Newton needs only S0 U
+    assert re.search(r"ρ\(S0⁻¹ dS_con\) ≈ \S+ at U⁰ \(≥ 0.5\): newton; interface Newton converged", out[1].message)
     assert np.allclose(out[1].state.T, out[0].state.T, rtol=1e-8, atol=0)
     assert_agree(*out)
 

@@ -60,7 +60,7 @@ from wcs.status import DDOutcome, Status
 from wcs.study import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
-from .partition import Partition, facet_components, partition
+from .partition import Partition, facet_components, node_unknowns, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
 
@@ -155,7 +155,7 @@ def model_partition(model, dd: DomainDecomposition):
     smesh = model.smesh
     floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
     return partition(smesh.mesh, smesh.cell_body, contact_sides(model), floating,
-                     dd.subdomains, dd.pair_size)
+                     dd.subdomains, dd.pair_size, node_unknowns(model.elim.T, smesh.mesh.p.shape[0]))
 
 
 def build_decomposition(model, dd) -> Decomposition:
@@ -360,7 +360,7 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
         return _fail(info, DDOutcome.SETUP_FAILED, error)
     for u in dec.units:            # each solve starts afresh: the answer must not depend on history
         if hasattr(u, "warm"):
-            u.warm = None
+            u.warm, u.qp_restarts = None, 0
     rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
     D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
@@ -413,6 +413,10 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
                                           info, team)
+    info["qp_restarts"] = sum(team.allgather(sum(p.qp_restarts for p in team.local(dec.pairs))))
+    if info["qp_restarts"]:
+        message += (f"; {info['qp_restarts']} local contact solves restarted from the dual QP (their semismooth "
+                    f"Newton cycled)")
     message = prefix + message
     info["timings"]["successive"] = time.perf_counter() - t
     if status != DDOutcome.CONVERGED:
@@ -426,16 +430,16 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
         if u.kind == "pair":
             tc = time.perf_counter()
             if step == "newton":         # the last Tresca problem (Coulomb: bounds from the last pressures)
-                _, loc, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
-                                       o["contact_tolerance"], 200)
+                _, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
+                                  o["contact_tolerance"], 200)
             else:
-                _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
-                                        o["contact_tolerance"], 200)
+                _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
+                                   o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
             if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
                 continue
-            mine.append((u.index, loc, res.lam_n, res.lam_t, res.active))
+            mine.append((u.index, u.solution(U[u.gamma]), res.lam_n, res.lam_t, res.active))
         else:
             mine.append((u.index, u.interior(U[u.gamma]), None, None, None))
     parts = team.allgather((error, mine))
@@ -502,8 +506,8 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         t = time.perf_counter()
         pieces, error = {}, None
         for p in team.local(pairs):                  # independent local contact solves
-            r, _, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
-                                  o["contact_tolerance"], 200)
+            r, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
+                               o["contact_tolerance"], 200)
             if res.status != Status.SOLVED:
                 error = error or f"contact solve of pair {p.index}: {res.message}"
                 r = np.zeros(p.gamma.size)
@@ -528,6 +532,10 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
     for k in range(1, budget + 1):
         rc, msg = s_con(U)
         if rc is None:
+            if hist["q"] and hist["q"][-1] > 1 and hist["dU"][-1] > hist["dU"][0]:     # the iterates were growing
+                return DDOutcome.DIVERGED, (f"successive approximations diverged: contraction estimate q = "
+                                            f"{hist['q'][-1]:.3g} ≥ 1 at step {k - 1} ([21, Cor. 7.1] needs "
+                                            f"q = 2β² < 1), then at step {k} the {msg}"), U
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["step"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
@@ -633,8 +641,8 @@ def _contact_residual(dec, U, d, bound, o, team):
     pieces, free, error = {}, {}, None
     t = time.perf_counter()
     for p in team.local(dec.pairs):                  # independent local contact solves
-        r, _, res = p.tresca(U[p.gamma], d[p.rows], None if bound is None else bound[p.rows],
-                             o["contact_tolerance"], 200)
+        r, res = p.tresca(U[p.gamma], d[p.rows], None if bound is None else bound[p.rows],
+                           o["contact_tolerance"], 200)
         if res.status != Status.SOLVED:
             error = error or f"contact solve of pair {p.index}: {res.message}"
             r = np.zeros(p.gamma.size)
