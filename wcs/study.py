@@ -597,7 +597,7 @@ class Search(_Options):
 
 class DomainDecomposition(_Options):
     subdomains: int = Field(8, ge=1, le=4096, description="subdomains of the partition")
-    pair_size: float = Field(0.5, gt=0, le=100, description="unknowns of the band around a contact "
+    pair_size: float = Field(1.0, gt=0, le=100, description="unknowns of the band around a contact "
                              "side, in mean subdomain shares n/subdomains")
     relaxation: Literal["aitken", "anderson"] | Annotated[float, Field(gt=0, le=2)] = Field(
         "aitken", description="update of the successive approximations: Aitken's dynamic ω, "

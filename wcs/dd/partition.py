@@ -11,7 +11,7 @@ contact: one pair held 70–97 % of the unknowns of the tunnel, the knee and Her
    the cells of its body in order of their centroid's distance to the side
    (ties by cell index) until it holds ``pair_size · n / N`` unknowns (n the
    unknowns of the model, N = ``subdomains``): a pair of two sides holds about
-   one mean subdomain's share at ``pair_size = 0.5``, however fine the mesh
+   two mean subdomain shares at ``pair_size = 1``, however fine the mesh
    along the contact. A cell claimed by two bands of one body goes to the
    nearer side (ties to the lower band index).
 2. **Pairs.** Bands of one body that share a node are merged (otherwise their
