@@ -173,6 +173,16 @@ def _pinned_inverse(S: np.ndarray, Z: np.ndarray, what: str) -> np.ndarray:
     return np.triu(inv) + np.triu(inv, 1).T
 
 
+def _pseudo_inverse(S: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
+    """Moore–Penrose inverse of the symmetric S, eigenvalues below rtol·max|λ| taken as its kernel:
+    the Neumann solve of a pair linearised at an active set, whose Schur complement can be
+    singular beyond the halves' rigid motions to rounding (a half held by a few closed nodes:
+    eigenvalues ~1e-16 of the largest, of either sign)."""
+    lam, V = np.linalg.eigh(0.5 * (S + S.T))
+    keep = lam > rtol * max(np.abs(lam).max(initial=0.0), 1e-300)
+    return (V[:, keep] / lam[keep]) @ V[:, keep].T
+
+
 # ---- units -------------------------------------------------------------------------------
 class Unit:
     """A linear subdomain (or, in its linear uses, a pair): local Dirichlet and Neumann solves.
@@ -487,16 +497,11 @@ class PairUnit(Unit):
         of `free` (`ContactResult.free`, (2m,)) held instead of the glue; open and slipping
         rows carry forces that do not vary with V. S_p is affine where the active set holds
         ([21, (4.27)–(4.28)] piece by piece), and this pair's Schur complement `held_schur`
-        is its derivative there. Its dense operators only with `factor` (the rank that owns
-        the pair, which holds the factor); the kernel Z (the halves' rigid motions the held
-        rows leave free) always."""
+        is its derivative there, its Neumann solve the pseudo-inverse. The dense operators
+        only with `factor` (the rank that owns the pair, which holds the factor)."""
         lin = copy.copy(self)
-        rows = np.flatnonzero(free)
-        C = sp.vstack([self.Bn, self.Bt]).tocsr()[rows]
-        lin.Z = null_space(C.toarray(), self.Z_halves)
         lin.glue = "active set"
         if factor:
-            lin.S = self.held_schur(rows)
-            lin._N = _pinned_inverse(lin.S, _orth(lin.Z[self.B]) if lin.Z.shape[1] else lin.Z[self.B],
-                                     f"the Neumann matrix of pair {self.index} linearised")
+            lin.S = self.held_schur(np.flatnonzero(free))
+            lin._N = _pseudo_inverse(lin.S)
         return lin
