@@ -219,7 +219,8 @@ def test_pair_schur_complement_with_rows_held(tmp_path):
     """held_schur(rows): the glue rows give the pair's Dirichlet operator S⁰_p (the pad floats,
     so it is glued in both directions: holding every row is the same operator), symmetric with
     the pair's common rigid modes (traces on B) in its kernel; holding the normal rows only
-    leaves the floating pad free to slide, which is a SetupError, not a singular matrix."""
+    leaves the floating pad free to slide, which is a SetupError, not a singular matrix (found
+    from the pad's rigid modes: the Cholesky of the singular block passes on an unsmoothed mesh)."""
     study, model = small_pad(tmp_path)
     c = model.coefficients(study.scene)
     dec = dds.decomposition(model, {"dd": {"subdomains": 8}})
@@ -232,13 +233,14 @@ def test_pair_schur_complement_with_rows_held(tmp_path):
     np.testing.assert_allclose(S_all, S0, rtol=0, atol=1e-9 * np.abs(S0).max())
     assert np.abs(S_all - S_all.T).max() == 0
     assert np.abs(S_all @ p.Z[p.B]).max() <= 1e-12 * np.abs(S_all).max()
-    with pytest.raises(SetupError, match="not positive definite"):
+    with pytest.raises(SetupError, match="contact rows held leave a floating half free"):
         p.held_schur(np.arange(p.rows.size))
 
 
 def test_interior_solves_from_the_one_factor(tmp_path):
     """interior_solve(b) from the factor with the Schur block: A_II x = b for a linear unit; for
-    a pair the glued problem A_II x + C_Iᵀμ = b, C_I x = 0 (residual in the range of C_Iᵀ)."""
+    a pair the glued problem A_II x + C_Iᵀμ = b, C_I x = 0 (residual in the range of C_Iᵀ).
+    Residuals as backward errors, against ‖A_II‖ ‖x‖ (measured ≈ 1e-12 on both meshes)."""
     study, model = small_pad(tmp_path)
     c = model.coefficients(study.scene)
     dec = dds.decomposition(model, {"dd": {"subdomains": 8}})
@@ -250,11 +252,12 @@ def test_interior_solves_from_the_one_factor(tmp_path):
         b = rng.standard_normal(u.I.size) * abs(A_II).max()
         x = u.interior_solve(b)
         r = A_II @ x - b
+        scale = abs(A_II).max() * np.abs(x).max()
         if u.kind == "linear":
-            assert np.abs(r).max() <= 1e-9 * np.abs(b).max()
+            assert np.abs(r).max() <= 1e-10 * scale
         else:
             C = u.C[:, u.I].toarray()
             assert np.abs(C @ x).max() <= 1e-9 * np.abs(x).max()
             mu = np.linalg.lstsq(C.T, r, rcond=None)[0]
-            assert np.abs(C.T @ mu - r).max() <= 1e-9 * np.abs(b).max()
+            assert np.abs(C.T @ mu - r).max() <= 1e-10 * scale
             assert np.abs(r).max() > 1e-6 * np.abs(b).max()          # the glue carries force

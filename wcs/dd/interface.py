@@ -367,7 +367,11 @@ class PairUnit(Unit):
 
     def _held(self, rows: np.ndarray):
         """(N, Cholesky of Nᵀ Σ⁰_cc N, T): N spans the contact displacements with the rows `rows`
-        of [Bn; Bt] held at zero, T V the contact displacements of the extension of V."""
+        of [Bn; Bt] held at zero, T V the contact displacements of the extension of V.
+        SetupError where the rows leave a rigid motion of a floating half free (Nᵀ Σ⁰_cc N is
+        then singular; in floating point its Cholesky may still pass)."""
+        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
+            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
         N = sla.null_space(self._C_c[rows]) if len(rows) else np.eye(self.c.size)
         M = _cho(N.T @ self._Scc @ N, f"the contact block of pair {self.index} with {len(rows)} rows held")
         return N, M, N @ sla.cho_solve(M, N.T @ self._Sbc.T)
@@ -375,7 +379,7 @@ class PairUnit(Unit):
     def held_schur(self, rows: np.ndarray) -> np.ndarray:
         """Dense Schur complement on B of the pair with the rows `rows` of [Bn; Bt] held (closed
         normals, stuck tangents: the linearisation at an active set; the glue rows give S⁰_p).
-        SetupError where the rows leave a floating half free."""
+        SetupError where the rows leave a floating half free (see `_held`)."""
         _, _, T = self._held(np.asarray(rows, dtype=np.int64))
         S = self._Sbb - self._Sbc @ T
         return 0.5 * (S + S.T)
