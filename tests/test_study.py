@@ -44,7 +44,7 @@ def test_demo_loads(demo):
     assert demo.search == Search(sample=SampleDesign(seed=7))      # the rest: the defaults
     assert demo.search.method == "auto" and demo.search.budget == 200 and demo.search.local.starts == 3
     assert demo.solver.dd == DomainDecomposition(subdomains=8)
-    assert demo.solver.dd.pair_size == 0.5 and demo.solver.dd.relaxation == "aitken" and demo.solver.fallback is True
+    assert demo.solver.dd.pair_size == 1.0 and demo.solver.dd.relaxation == "aitken" and demo.solver.fallback is True
     assert demo.limits == {"shear": 4.0e12}
     assert demo.sweep is None
     assert demo.criteria[0]["point"] == [1.0, 1.0] and "point" not in demo.criteria[1]

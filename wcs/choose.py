@@ -17,9 +17,12 @@ from dataclasses import dataclass
 # ---- solver (forward_hertz.png, forward_tunnel.png, forward_tresca.png, scaling.png,
 #      dd_stability.png, stability_materials.png)
 DD_MIN_UNKNOWNS = 1_000_000     # the DD was slower than the monolithic solver at every size measured
-#                                 (Hertz 3.6e3-1.2e5 unknowns, tunnel 4e3-6e4: forward_*.png); no crossover
-#                                 seen, so the DD is only picked beyond the measured range (scaling.png
-#                                 goes to 4.5e5) and only where it is known to converge
+#                                 (Hertz 3.6e3-1.2e5 unknowns, tunnel 4e3-6e4: forward_*.png); with interface
+#                                 Newton and one factor per unit still 3.7-6x (tunnel 1.5e4) and 12-14x
+#                                 (Hertz 1.05e5) on the same data, 5-6x and 4.7-5.8x on new data
+#                                 (dd_cost.csv); no crossover seen, so the DD is only picked beyond the
+#                                 measured range (scaling.png goes to 4.5e5) and only where it is known to
+#                                 converge
 DD_MAX_CONTRAST = 10.0          # dd_stability.png: with E_pad/E_base <= 0.1 the seed's iteration diverges
 #                                 and Aitken converges in only some cases
 DD_MAX_NU = 0.45                # stability_materials.png: the DD fails (status 5) from nu = 0.49
@@ -57,9 +60,11 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
                               "(a DD answer is polished by the monolithic solver anyway, wcs/model.py)")
     if f.friction != "none":
         return "monolithic", ("friction: the DD's successive approximations stagnate or a local solve fails "
-                              "in 31 of 32 Tresca cases (dd_stability.png b), while the monolithic "
-                              "Newton converged in <= 11 iterations (Tresca) and the Coulomb fixed point for "
-                              "every F it can hold, up to 1.5 (stability_friction.png)")
+                              "in 31 of 32 Tresca cases (dd_stability.png b); its interface Newton converges "
+                              "on the tunnel (Tresca) and the knee (Coulomb, dd_iterations.csv) but 4-14x "
+                              "slower (dd_cost.csv), while the monolithic Newton converged in <= 11 "
+                              "iterations (Tresca) and the Coulomb fixed point for every F it can hold, up "
+                              "to 1.5 (stability_friction.png)")
     if f.max_nu > DD_MAX_NU:
         return "monolithic", f"nu = {f.max_nu:g} > {DD_MAX_NU:g}: the DD fails there (status 5, stability_materials.png)"
     if f.stiffness_contrast > DD_MAX_CONTRAST:

@@ -5,7 +5,8 @@ and `.refactor(A_new)` for a matrix with the same sparsity pattern (the
 symbolic analysis is reused where the backend allows it).
 
 `factorize(A, spd=True, block=S)` additionally makes `.inverse_block()` return
-the dense block `(A⁻¹)[S, S]` for a small index set `S` (the contact DOFs).
+the dense block `(A⁻¹)[S, S]` for a small index set `S` (the contact DOFs), and
+`.schur()` the Schur complement on `S` itself.
 PARDISO gets it from the Schur complement `A_SS − A_SI A_II⁻¹ A_IS`, which it
 computes during the numeric factorization at about the cost of the
 factorization itself; `(A⁻¹)_SS` is the inverse of that Schur complement.
@@ -115,6 +116,11 @@ class SuperLUFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(np.asarray(b, dtype=float))
 
+    def schur(self) -> np.ndarray:
+        """The dense Schur complement A_SS − A_SI A_II⁻¹ A_IS on `block` (block order), as the
+        inverse of (A⁻¹)_SS (this backend has no partial factorization)."""
+        return np.linalg.inv(self.inverse_block())
+
     def inverse_block(self) -> np.ndarray:
         E = np.zeros((self.n, len(self.block)))
         E[self.block, np.arange(len(self.block))] = 1.0
@@ -196,6 +202,13 @@ class PardisoFactor:
         X = np.zeros_like(B, order="F")
         self._call(33, B, X, B.shape[1])
         return X.ravel() if b.ndim == 1 else np.ascontiguousarray(X)
+
+    def schur(self) -> np.ndarray:
+        """The dense Schur complement A_SS − A_SI A_II⁻¹ A_IS on `block`, in block order (PARDISO
+        returns it in full storage, ordered by increasing index)."""
+        k = len(self.block)
+        rank = np.argsort(np.argsort(self.block))
+        return self._schur.reshape(k, k)[np.ix_(rank, rank)].copy()
 
     def inverse_block(self) -> np.ndarray:
         """(A⁻¹)_SS as the inverse of the Schur complement on S (PARDISO orders it by increasing index)."""

@@ -341,7 +341,7 @@ class Model:
                 z = self.zone
                 contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
                 return Solution(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c),
-                                iterations=int(dd.info.get("successive", 0)), solver="dd", contact=contact, **own)
+                                iterations=int(dd.info.get("successive", 0)), solver=f"dd: {dd.message}", contact=contact, **own)
             if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
                 warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
                 used = "dd, polished by monolithic for the adjoint"

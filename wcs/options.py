@@ -79,21 +79,28 @@ class Search(Options):
 
 class DomainDecomposition(Options):
     subdomains: int = Field(8, ge=1, le=4096, description="subdomains of the partition")
-    pair_size: float = Field(0.5, gt=0, le=100, description="band around a contact side, in mean "
-                             "subdomain widths H")
+    pair_size: float = Field(1.0, gt=0, le=100, description="unknowns of the band around a contact "
+                             "side, in mean subdomain shares n/subdomains")
     relaxation: Literal["aitken", "anderson"] | Annotated[float, Field(gt=0, le=2)] = Field(
         "aitken", description="update of the successive approximations: Aitken's dynamic ω, "
         "Anderson acceleration, or a fixed ω (1 = the seed)")
     patience: int = Field(8, ge=1, le=10_000, description="steps with contraction q ≥ 1 before \"stagnated\"")
-    step: Literal["seed", "glued"] = Field("seed", description="operator of the successive steps: the "
-                                           "seed's S0, or S0 + the glued pairs")
+    step: Literal["auto", "newton", "seed", "glued"] = Field(
+        "auto", description="outer iteration: interface Newton (S0 + the pairs linearised at the current "
+        "active set), the seed's successive steps with S0, or with S0 + the glued pairs; auto: the seed's "
+        "where the power estimate of ρ(S0⁻¹ dS_con) at the start is below seed_rho, else Newton")
+    seed_rho: float = Field(0.5, gt=0, le=1, description="step auto takes the seed's step below this "
+                            "estimate of its contraction ρ(S0⁻¹ dS_con) (margin below 1: the estimate is a "
+                            "lower bound, and is taken at the start, not at the solution)")
+    rho_steps: int = Field(5, ge=1, le=100, description="power steps of the ρ estimate (each one PCG2 "
+                           "solve to 1e-2)")
     pcg_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="relative tolerance of PCG1 "
                                            "(the glued start U⁰); null: max(solver.tolerance, 1e-8)")
     pcg_max_iterations: int = Field(500, ge=1, le=100_000, description="iteration budget of each PCG solve")
     inner_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="floor of PCG2's relative "
                                              "tolerance; null: solver.tolerance / 10")
     forcing: float = Field(0.1, ge=0, le=1, description="PCG2 stops at forcing × the last relative "
-                           "increment (inexact inner solves)")
+                           "increment (inexact inner solves); Newton: the largest Eisenstat–Walker tolerance")
     contact_tolerance: float = Field(1e-10, gt=0, lt=1, description="tolerance of the local contact solves")
     anderson: int = Field(5, ge=1, le=100, description="history of Anderson acceleration, in steps")
     anderson_restart: float = Field(0.0, ge=0, le=1e6, description="clear Anderson's history when the "
@@ -115,7 +122,7 @@ class Solver(Options):
     tolerance: float = Field(1e-8, gt=0, le=1e-2, description="relative tolerance of the contact solve "
                              "(above 1e-2 a \"solved\" state is not a solution)")
     max_iterations: int = Field(200, ge=1, le=100_000, description="iteration budget of the contact solve "
-                                "(dd: of the successive approximations)")
+                                "(dd: of the outer iteration — successive approximations, or Newton steps of each Tresca problem)")
     max_fixed_point_iterations: int = Field(100, ge=1, le=100_000, description="most solves of the "
                                             "Coulomb fixed point (slip bound from the last pressures)")
     dd: DomainDecomposition = Field(default_factory=DomainDecomposition, description="the domain decomposition")

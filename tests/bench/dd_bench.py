@@ -124,7 +124,8 @@ def cmd_solve(a) -> int:
                      lam_n=res.lam_n if res.lam_n is not None else np.zeros(0),
                      lam_t=res.lam_t if res.lam_t is not None else np.zeros(0),
                      pcg1_residuals=np.asarray(info.get("pcg1_residuals", [])),
-                     dU=np.asarray(hist.get("dU", [])), pcg2=np.asarray(hist.get("pcg2", [])))
+                     dU=np.asarray(hist.get("dU", [])), residual=np.asarray(hist.get("residual", [])),
+                     pcg2=np.asarray(hist.get("pcg2", [])))
         if a.json:
             Path(a.json).write_text(json.dumps(out, default=float, indent=1))
         if not a.quiet:
@@ -182,7 +183,7 @@ def cmd_speedup(a) -> int:
     base = rows[0]
     same = all(all(np.array_equal(base["arrays"][k], r["arrays"][k]) for k in base["arrays"]) for r in rows[1:])
     print(f"results of {', '.join(str(r['ranks']) for r in rows)} ranks bitwise identical "
-          f"(u, lam_n, lam_t, PCG1 residuals, ‖ΔU‖ history): {same}")
+          f"(u, lam_n, lam_t, PCG1 residuals, ‖ΔU‖ / Newton residual history): {same}")
     for r in rows[1:]:
         print(f"speed-up {r['ranks']} vs {base['ranks']} rank(s), one DD solve: {base['wall'] / r['wall']:.2f} "
               f"({base['wall']:.3f} s -> {r['wall']:.3f} s)")

@@ -354,7 +354,7 @@ def _states(free, m, gw):
 
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
-                  tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
 
     warm:   a previous result on the same mesh; its multipliers start the Newton
@@ -366,6 +366,10 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             from the warm pressures, until ‖Δp‖ ≤ tol_fp ‖p‖ (at most max_fp_iter solves).
     A solution along which a rigid mode of R is left free (`free_rigid_motion`) is not
     unique: status NOT_UNIQUE, `alpha` the free motion, no u.
+    checked: the caller has already found the load balanced on R (`unbalanced_rigid_motion`
+            depends on f only through Rᵀf): the linear program is not run again.
+    qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
+            (CONTACT_NOT_CONVERGED).
     """
     t0 = time.perf_counter()
     timings = {}
@@ -381,7 +385,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         warm_p = warm is not None and warm.lam_n is not None
         gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
 
-    if R is not None and not coulomb:
+    if R is not None and not coulomb and not checked:
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
         timings["solvability"] = time.perf_counter() - t0
         if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
@@ -407,8 +411,9 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
     lo = np.r_[np.zeros(m), -gw]
     hi = np.r_[np.full(m, np.inf), gw]
+    no_qp = {} if qp else {"fallback": False}
     lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter,
-                                          _first_free_set(warm, gw))
+                                          _first_free_set(warm, gw), **no_qp)
     fp_iters, fp_ok = 0, True
     if coulomb:
         fp_ok = False
@@ -416,7 +421,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             p_old = lam[:m] / w
             gw = gw_fixed + Fc * lam[:m]
             lo[m:], hi[m:] = -gw, gw
-            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter)
+            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter, **no_qp)
             iters += k
             fp_iters += 1
             p = lam[:m] / w
@@ -444,7 +449,10 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
     if not ok:
-        status, message = Status.CONTACT_NOT_CONVERGED, f"semismooth Newton did not converge in {max_iter} iterations"
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"semismooth Newton did not converge in {max_iter} iterations" if qp else
+            f"semismooth Newton did not converge ({iters} iterations: an active set cycled or the budget of "
+            f"{max_iter} ran out; no dual QP restart)")
     elif not fp_ok:
         status = Status.FIXED_POINT_NOT_CONVERGED
         message = f"Coulomb fixed point did not converge in {max_fp_iter} iterations"

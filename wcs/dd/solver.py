@@ -7,13 +7,24 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
 
 1. Auxiliary problem (4.35)–(4.48): every pair glued (bilateral, no friction),
    S U⁰ = F⁰, S = S0 + Σ_p R_pᵀ S⁰_p R_p, by PCG1 with the balancing
-   Neumann–Neumann preconditioner (5.9)–(5.14) and the coarse space of the
-   kernels of floating subdomains and pairs, injections D_u (5.5)–(5.8).
-2. Successive approximations (4.37), (6.1): S0 U^k = F − S_con(U^{k−1}), each by
-   PCG2 with the reduced preconditioner (6.7) (injections oD_u (6.4)–(6.6): the
-   ρ-weights over linear subdomains only, so 1 next to a pair), warm started
-   from U^{k−1}; S_con by one local contact solve per pair.
-3. Monitoring ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
+   Neumann–Neumann preconditioner (5.9)–(5.14), injections D_u (5.5)–(5.8), and a
+   coarse space of the rigid-motion traces of every unit (the kernels of the floating
+   ones among them, [21, (5.11)]).
+2. The outer iteration (`step`):
+   - interface Newton (`newton`): J_k δ = F − S0 U_k − S_con(U_k) with
+     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active set A_k of
+     the last local contact solves (closed normal, stuck tangential rows), by PCG with
+     J_k's balancing preconditioner and Eisenstat–Walker tolerances; Tresca is piecewise
+     affine, so it ends once A_k settles (the residual of the interface equation is
+     checked). Coulomb: a fixed point over Tresca problems (slip bound from the last
+     pressures, first all stick), as the monolithic solver.
+   - the seed's successive approximations (`seed`) (4.37), (6.1):
+     S0 U^k = F − S_con(U^{k−1}), each by PCG2 with the reduced preconditioner (6.7)
+     (injections oD_u (6.4)–(6.6): the ρ-weights over linear subdomains only, so 1 next to
+     a pair), warm started from U^{k−1}; S_con by one local contact solve per pair.
+     They contract only if ρ(S0⁻¹ dS_con) < 1 ([21, Cor. 7.1]: 2β² < 1); `auto` estimates
+     ρ by a few power steps at U⁰ and takes them below `seed_rho`, else Newton.
+3. Monitoring of the seed's step ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
    contraction estimate q_k = ‖ΔU^k‖/‖ΔU^{k−1}‖ gives the a-posteriori bound
    q/(1−q)‖ΔU^k‖ (Theorem 7.1: contraction 2β² < 1); q_k ≥ 1 for `patience`
    steps is divergence (or stagnation), and a run whose predicted number of
@@ -49,7 +60,7 @@ from wcs.status import DDOutcome, Status
 from wcs.options import DomainDecomposition, Solver
 
 from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
-from .partition import Partition, facet_components, partition
+from .partition import Partition, facet_components, node_unknowns, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
 
@@ -77,21 +88,25 @@ def dofs_of_nodes(T: sp.spmatrix, ncomp: int):
 
 
 def _local_pieces(t_nodes, cells, ncomp, T, node_dofs, local, group, p, components):
-    """Local nodes, DOFs, elimination block, affine operator and per-component admissible modes."""
+    """Local nodes, DOFs, elimination block, affine operator, per-component admissible modes
+    (the kernel's pieces) and the rigid-motion traces of every component in the reduced local
+    DOFs (Tᵀ of the motions: a support removes the components it fixes) for the coarse space."""
     nodes = np.unique(t_nodes[:, cells])
     dofs = np.unique(node_dofs[nodes].indices)
     rows = (ncomp * nodes[:, None] + np.arange(ncomp)).ravel()
     Tloc = sp.csr_matrix(T[rows][:, dofs])
     lt = np.searchsorted(nodes, t_nodes[:, cells])
     op = CellAffineOperator(lt, nodes.size, local[:, cells], group[cells])
-    modes = []
+    modes, traces = [], []
     for comp in components:
         cn = np.unique(t_nodes[:, comp])
-        M = np.zeros((rows.size, 1 if ncomp == 1 else 3))
+        R = rigid_basis(p, cn, ncomp)
+        M = np.zeros((rows.size, R.shape[1]))
         pos = (ncomp * np.searchsorted(nodes, cn)[:, None] + np.arange(ncomp)).ravel()
-        M[pos] = rigid_basis(p, cn, ncomp)
+        M[pos] = R
         modes.append(admissible(M, Tloc))
-    return nodes, dofs, Tloc, op, modes
+        traces.append(Tloc.T @ M)
+    return nodes, dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
 
 
 def _interface(units, ndof):
@@ -112,6 +127,7 @@ class Decomposition:
     units: list                 # Unit / PairUnit, pairs first
     nif: int                    # interface size
     ndof: int
+    traces: list                # per unit: rigid-motion traces of its components (local DOFs × modes)
     timings: dict = field(default_factory=dict)
 
     @property
@@ -139,7 +155,7 @@ def model_partition(model, dd: DomainDecomposition):
     smesh = model.smesh
     floating = {smesh.bodies.index(b) for b, m in model.free_modes.items() if m.shape[1]}
     return partition(smesh.mesh, smesh.cell_body, contact_sides(model), floating,
-                     dd.subdomains, dd.pair_size)
+                     dd.subdomains, dd.pair_size, node_unknowns(model.elim.T, smesh.mesh.p.shape[0]))
 
 
 def build_decomposition(model, dd) -> Decomposition:
@@ -148,32 +164,35 @@ def build_decomposition(model, dd) -> Decomposition:
     dd = DomainDecomposition.of(dd)
     t0 = time.perf_counter()
     smesh, mesh = model.smesh, model.smesh.mesh
+    dim = mesh.p.shape[0]
     part = model_partition(model, dd)
     T = model.elim.T
-    _, node_dofs = dofs_of_nodes(T, 2)
+    _, node_dofs = dofs_of_nodes(T, dim)
     Bn, Bt = model.Bn_r, model.Bt_r
     contact_of_row = model.zone.contact_of_node
-    units = []
+    units, traces = [], []
     for q, (subs, contacts) in enumerate(zip(part.pairs, part.pair_contacts)):
         cells = np.flatnonzero(np.isin(part.subdomain, subs))
         comps = [c for s in subs for c in facet_components(part.cells(s), mesh.f2t)]
-        nodes, dofs, Tloc, op, modes = _local_pieces(mesh.t, cells, 2, T, node_dofs, model.K.local,
-                                                     smesh.cell_region, mesh.p, comps)
+        nodes, dofs, Tloc, op, modes, trace = _local_pieces(mesh.t, cells, dim, T, node_dofs, model.K.local,
+                                                            smesh.cell_region, mesh.p, comps)
         rows = np.flatnonzero(np.isin(contact_of_row, contacts))
         outside = np.setdiff1d(np.unique(Bn[rows].indices), dofs)
         if outside.size:
             raise SetupError("contact rows reach outside their pair (partition bug)")
         units.append(PairUnit(len(units), subs, dofs, op, Tloc, modes, None, rows,
                               Bn[rows][:, dofs], Bt[rows][:, dofs]))
+        traces.append(trace)
     for s in part.linear:
         cells = part.cells(s)
         comps = facet_components(cells, mesh.f2t)
-        nodes, dofs, Tloc, op, modes = _local_pieces(mesh.t, cells, 2, T, node_dofs, model.K.local,
-                                                     smesh.cell_region, mesh.p, comps)
+        nodes, dofs, Tloc, op, modes, trace = _local_pieces(mesh.t, cells, dim, T, node_dofs, model.K.local,
+                                                            smesh.cell_region, mesh.p, comps)
         Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
         units.append(Unit(len(units), (s,), dofs, op, Tloc, Z, None))
+        traces.append(trace)
     nif = _interface(units, T.shape[1])
-    return Decomposition(part, units, nif, T.shape[1], {"setup": time.perf_counter() - t0})
+    return Decomposition(part, units, nif, T.shape[1], traces, {"setup": time.perf_counter() - t0})
 
 
 # ---- weights, loads and global operators ---------------------------------------------------------
@@ -196,15 +215,20 @@ class InterfaceOperator:
     """S = Σ_u R_uᵀ S_u R_u over `units` (linear uses of each unit) with the balancing
     Neumann–Neumann preconditioner M⁻¹ = (I − P) Σ_u R_uᵀ D_u S_u† D_u R_u ([21, (5.14)]).
 
+    Coarse space V_H = span{R_uᵀ D_u Y_u}: `traces[i]` the rigid-motion traces Y_u of every
+    unit (local DOFs × modes), not only the kernels Z_u ⊂ span Y_u of the floating ones
+    ([21, (5.11)] needs those; a subdomain held by a roller or a sliver of a support has a
+    small Neumann eigenvalue on the others and needs them too).
     `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
     each rank solves its own units' local problems, the pieces are summed in unit order."""
 
-    def __init__(self, units, nif: int, weights: list[np.ndarray], team: Team | None = None):
+    def __init__(self, units, nif: int, weights: list[np.ndarray], traces: list[np.ndarray],
+                 team: Team | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
         self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
         self.applications = 0
-        Zs = [(u.gamma, w[:, None] * u.Z[u.B]) for u, w in zip(units, weights) if u.Z.shape[1] and u.B.size]
+        Zs = [(u.gamma, w[:, None] * y[u.B]) for u, w, y in zip(units, weights, traces) if y.shape[1] and u.B.size]
         k = sum(z.shape[1] for _, z in Zs)
         Z = np.zeros((nif, k))
         j = 0
@@ -253,15 +277,12 @@ def _dd_options(options) -> dict:
     solver = Solver.of(options)
     dd, tol = solver.dd, solver.tolerance
     return {
-        **dd.model_dump(exclude={"pcg_tolerance", "inner_tolerance", "step"}),
+        **dd.model_dump(exclude={"pcg_tolerance", "inner_tolerance"}),
         "tolerance": tol,
         "max_iterations": solver.max_iterations,
+        "max_fixed_point_iterations": solver.max_fixed_point_iterations,
         "pcg_tolerance": max(tol, 1e-8) if dd.pcg_tolerance is None else dd.pcg_tolerance,
         "inner_tolerance": tol / 10 if dd.inner_tolerance is None else dd.inner_tolerance,
-        # the operator of the successive steps: the seed's S0 (linear subdomains only) or
-        # S = S0 + L with the pairs' glued response L, iterating only the nonlinear correction
-        # S U^k = F − S_con(U^{k−1}) + L U^{k−1} (same fixed point; no contraction proof)
-        "linear_part": "glued" if dd.step == "glued" else "S0",
     }
 
 
@@ -339,17 +360,22 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
         return _fail(info, DDOutcome.SETUP_FAILED, error)
     for u in dec.units:            # each solve starts afresh: the answer must not depend on history
         if hasattr(u, "warm"):
-            u.warm = None
+            u.warm, u.qp_restarts = None, 0
     rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
     D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D, team)
-        S0 = InterfaceOperator(lin, dec.nif, oD, team)
+        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team)
     except CoarseSingular as exc:
-        return _fail(info, DDOutcome.SETUP_FAILED, f"the interface operator of the linear subdomains is singular "
-                                         f"(a group of them floats between pairs): {exc}")
+        return _fail(info, DDOutcome.SETUP_FAILED, f"the glued interface operator is singular: {exc}")
+    Y0 = [dec.traces[u.index] for u in lin]
+    try:
+        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team), ""
+    except CoarseSingular as exc:        # Newton needs only S0's products; the seed's step its inverse
+        S0 = InterfaceOperator(lin, dec.nif, oD, [y[:, :0] for y in Y0], team)
+        singular = f"the interface operator of the linear subdomains is singular (a group of them floats " \
+                   f"between pairs): {exc}"
     info["coarse"] = {"pcg1": S.coarse.size, "pcg2": S0.coarse.size}
     info["timings"] = {"setup": dec.timings["setup"], "assemble": time.perf_counter() - t}
 
@@ -361,13 +387,37 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     info["pcg1"] = r1.iterations
     info["pcg1_residuals"] = r1.residuals
     info["timings"]["pcg1"] = time.perf_counter() - t
-    info["pcg1_converged"] = r1.converged      # U⁰ is only the start of the successive approximations
+    info["pcg1_converged"] = r1.converged      # U⁰ is only the start of the outer iteration
 
-    # 2. successive approximations: PCG2
+    # 2. the outer iteration: interface Newton, or the seed's successive approximations
     t = time.perf_counter()
     Fl = S0.load()
-    step_operator = S if o["linear_part"] == "glued" else S0
-    status, message, U = _successive(dec, step_operator, Fl, r1.x, d, g, F, z.weight, o, info, team)
+    gw = g * z.weight
+    step, prefix, cache = o["step"], "", {}
+    if singular and step == "seed":
+        return _fail(info, DDOutcome.SETUP_FAILED, singular)
+    if singular and step == "auto":
+        step, prefix = "newton", f"{singular}: newton; "
+    if step == "auto":
+        rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
+        if rho is None:
+            info["ranks"] = team.report()
+            return _fail(info, DDOutcome.LOCAL_FAILED, "a contact solve of the ρ estimate failed")
+        step = "seed" if rho < o["seed_rho"] else "newton"
+        info["rho"] = rho
+        prefix = f"ρ(S0⁻¹ dS_con) ≈ {rho:.3g} at U⁰ ({'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; "
+    info["step"] = step
+    if step == "newton":
+        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+                                                    float(np.linalg.norm(rhs)))
+    else:
+        status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
+                                          info, team)
+    info["qp_restarts"] = sum(team.allgather(sum(p.qp_restarts for p in team.local(dec.pairs))))
+    if info["qp_restarts"]:
+        message += (f"; {info['qp_restarts']} local contact solves restarted from the dual QP (their semismooth "
+                    f"Newton cycled)")
+    message = prefix + message
     info["timings"]["successive"] = time.perf_counter() - t
     if status != DDOutcome.CONVERGED:
         info["ranks"] = team.report()
@@ -379,13 +429,17 @@ def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=No
     for u in team.local(dec.units):
         if u.kind == "pair":
             tc = time.perf_counter()
-            _, loc, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows],
-                                    _coulomb(F, u.rows), o["contact_tolerance"], 200)
+            if step == "newton":         # the last Tresca problem (Coulomb: bounds from the last pressures)
+                _, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
+                                  o["contact_tolerance"], 200)
+            else:
+                _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
+                                   o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
             if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
                 continue
-            mine.append((u.index, loc, res.lam_n, res.lam_t, res.active))
+            mine.append((u.index, u.solution(U[u.gamma]), res.lam_n, res.lam_t, res.active))
         else:
             mine.append((u.index, u.interior(U[u.gamma]), None, None, None))
     parts = team.allgather((error, mine))
@@ -452,8 +506,8 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         t = time.perf_counter()
         pieces, error = {}, None
         for p in team.local(pairs):                  # independent local contact solves
-            r, _, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
-                                  o["contact_tolerance"], 200)
+            r, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
+                               o["contact_tolerance"], 200)
             if res.status != Status.SOLVED:
                 error = error or f"contact solve of pair {p.index}: {res.message}"
                 r = np.zeros(p.gamma.size)
@@ -478,9 +532,13 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
     for k in range(1, budget + 1):
         rc, msg = s_con(U)
         if rc is None:
+            if hist["q"] and hist["q"][-1] > 1 and hist["dU"][-1] > hist["dU"][0]:     # the iterates were growing
+                return DDOutcome.DIVERGED, (f"successive approximations diverged: contraction estimate q = "
+                                            f"{hist['q'][-1]:.3g} ≥ 1 at step {k - 1} ([21, Cor. 7.1] needs "
+                                            f"q = 2β² < 1), then at step {k} the {msg}"), U
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
-        if o["linear_part"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
+        if o["step"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
             b = b + team.sum(pairs, {p.index: p.apply_S(U[p.gamma]) for p in team.local(pairs)}, dec.nif)
         eta = _inner_tolerance(o, hist)
         r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
@@ -575,6 +633,163 @@ def _mean_q(qs) -> float:
     return float(np.exp(np.mean(np.log(qs)))) if qs else float("nan")
 
 
+# ---- interface Newton ---------------------------------------------------------------------------
+def _contact_residual(dec, U, d, bound, o, team):
+    """S_con(U) = Σ_p R_pᵀ S_p(R_p U) of the Tresca problems with slip bounds `bound` (None:
+    all stick), and the active sets {pair index: free} of every pair (gathered); on a failed
+    local solve (None, None, message)."""
+    pieces, free, error = {}, {}, None
+    t = time.perf_counter()
+    for p in team.local(dec.pairs):                  # independent local contact solves
+        r, res = p.tresca(U[p.gamma], d[p.rows], None if bound is None else bound[p.rows],
+                           o["contact_tolerance"], 200)
+        if res.status != Status.SOLVED:
+            error = error or f"contact solve of pair {p.index}: {res.message}"
+            r = np.zeros(p.gamma.size)
+        pieces[p.index], free[p.index] = r, res.free
+    team.timings["contact"] += time.perf_counter() - t
+    error = team.first_error(error) if team.comm is not None else error
+    if error:
+        return None, None, error
+    free = {i: f for part in team.allgather(free) for i, f in part.items()}
+    return team.sum(dec.pairs, pieces, dec.nif), free, ""
+
+
+def _linearised(dec, free, team, cache: dict) -> list:
+    """The pairs linearised at the active sets `free` ({pair index: free}); the last set's are
+    kept in `cache` (with the operator J built on them, "J"), so a step whose active set did
+    not change refactors nothing."""
+    key = b"".join(free[p.index].tobytes() for p in dec.pairs)
+    if cache.get("key") != key:
+        cache.clear()
+        cache.update(key=key, pairs=[p.linearised(free[p.index], team.mine(p)) for p in dec.pairs])
+    return cache["pairs"]
+
+
+def _pairs_apply(team, lin_pairs, nif, x):
+    """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed)."""
+    return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif)
+
+
+def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> float | None:
+    """ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of the local
+    contact solves there) by `rho_steps` power steps x ← S0⁻¹ L x (PCG2 to 1e-2), then the
+    Rayleigh quotient xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint: a lower bound that converges to
+    ρ). The seed's step U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the
+    solution only if ρ < 1 ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
+    _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
+    if free is None:
+        return None
+    L = _linearised(dec, free, team, cache)
+    x = np.random.default_rng(0).standard_normal(dec.nif)       # a fixed start: the same ρ every time
+    for _ in range(o["rho_steps"]):
+        r = pcg(S0.apply, S0.precondition, _pairs_apply(team, L, dec.nif, x), np.zeros(dec.nif), tol=1e-2,
+                max_iter=o["pcg_max_iterations"], coarse=S0.coarse)
+        x = r.x / max(np.linalg.norm(r.x), 1e-300)
+    return float(x @ _pairs_apply(team, L, dec.nif, x)) / max(float(x @ S0.apply(x)), 1e-300)
+
+
+def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, load):
+    """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
+    Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
+    last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
+    Tresca solves). Returns (status, message, U, the bounds of the last Tresca problem)."""
+    coulomb = bool(Fc.any())
+    bound, p_old = (None if coulomb else gw), None
+    info["newton"] = info["pcg2"] = info["successive"] = 0
+    info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
+    for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
+        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load)
+        if status != DDOutcome.CONVERGED or not coulomb:
+            return status, message, U, bound
+        lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
+        lam_n = np.zeros(weight.size)
+        for part in team.allgather(lam):
+            for i, ln in part.items():
+                lam_n[dec.units[i].rows] = ln
+        p = lam_n / weight
+        info["fixed_point"] = j
+        if p_old is not None and np.linalg.norm(p - p_old) <= o["tolerance"] * max(np.linalg.norm(p), 1e-300):
+            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U, bound
+        p_old, bound = p, gw + Fc * lam_n
+    return (DDOutcome.BUDGET, f"Coulomb fixed point did not converge in {o['max_fixed_point_iterations']} "
+            f"Tresca problems", U, bound)
+
+
+def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
+    """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
+    `bound`; None: all stick): J_k δ = r_k = F − S0 U_k − S_con(U_k) with
+    J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
+    local contact solves at U_k, by PCG with J_k's balancing Neumann–Neumann preconditioner,
+    from δ = 0 to a tolerance relative to the right-hand side (Eisenstat–Walker:
+    η_k = min(forcing, 0.9 (‖r_k‖/‖r_{k−1}‖)²), never below what the outer tolerance needs).
+    S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves.
+    A full step can jump over the solution's piece (a node slipping one way, then the other):
+    the step is halved until ‖r‖ decreases by (1 − 1e-4 t (1 − η)) (inexact Newton
+    backtracking; δ is a descent direction of ‖r‖², J_k being S_con's derivative).
+    Converged when ‖r_k‖ ≤ tol · max(‖F‖, ‖S0 U_k‖, ‖S_con(U_k)‖, `load`) — r_k is the global
+    equilibrium residual on Γ (the units' interiors are solved exactly), `load` the norm of the
+    reduced load: a scale that does not vanish where the interface does not move (an open
+    contact over an unloaded body). `cache`: see `_linearised`."""
+    hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
+    lin_D = [D[u.index] for u in lin]
+    lin_Y = [dec.traces[u.index] for u in lin]
+
+    def residual(U):
+        rc, free, error = _contact_residual(dec, U, d, bound, o, team)
+        if rc is None:
+            return None, None, None, error
+        SU = S0.apply(U)
+        ref = max(np.linalg.norm(F), np.linalg.norm(SU), np.linalg.norm(rc), load, 1e-300)
+        return F - SU - rc, ref, free, ""
+
+    r, ref, free, error = residual(U)
+    nr_prev, eta = None, o["forcing"]
+    for k in range(o["max_iterations"] + 1):
+        if r is None:
+            return DDOutcome.LOCAL_FAILED, error, U
+        nr = float(np.linalg.norm(r))
+        hist["residual"].append(nr / ref)
+        if nr <= tol * ref:
+            return DDOutcome.CONVERGED, (f"interface Newton converged in {info['newton']} steps ({info['pcg2']} PCG "
+                                         f"iterations, {info['pcg1']} PCG1)"), U
+        if k == o["max_iterations"]:
+            break
+        if nr_prev is not None:
+            eta = min(o["forcing"], 0.9 * (nr / nr_prev) ** 2)
+        eta = min(max(eta, 0.5 * tol * ref / nr), 0.5)
+        nr_prev = nr
+        try:
+            lp = _linearised(dec, free, team, cache)
+            if "J" not in cache:
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, [D[p.index] for p in pairs] + lin_D,
+                                               [dec.traces[p.index] for p in pairs] + lin_Y, team)
+            J = cache["J"]
+        except (SetupError, CoarseSingular) as exc:
+            return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U
+        step = pcg(J.apply, J.precondition, r, np.zeros(dec.nif), tol=eta, max_iter=o["pcg_max_iterations"],
+                   coarse=J.coarse)
+        info["newton"] = info["successive"] = info["newton"] + 1
+        info["pcg2"] += step.iterations
+        hist["pcg2"].append(step.iterations)
+        hist["eta"].append(eta)
+        if not step.converged:
+            return DDOutcome.BUDGET, f"PCG of interface Newton step {k + 1} did not converge in {step.iterations} iterations", U
+        t = 1.0
+        while True:
+            r, ref, free, error = residual(U + t * step.x)
+            if r is None or np.linalg.norm(r) <= (1 - 1e-4 * t * (1 - eta)) * nr:
+                break
+            t /= 2
+            if t < 2.0 ** -30:
+                return DDOutcome.STAGNATED, (f"interface Newton stagnated at step {k + 1}: no step along the Newton "
+                                             f"direction decreases the residual {nr / ref:.3g}"), U
+        hist["step"].append(t)
+        U = U + t * step.x
+    return DDOutcome.BUDGET, (f"interface Newton did not reach {tol:g} in {o['max_iterations']} steps "
+                              f"(residual {hist['residual'][-1]:.3g})"), U
+
+
 # ---- the thermal step -------------------------------------------------------------------------
 def build_heat_decomposition(model, options) -> Decomposition:
     """Units of the heat equation: every subdomain of the elastic partition, all linear
@@ -585,16 +800,17 @@ def build_heat_decomposition(model, options) -> Decomposition:
     th = heat_of_node[mesh.t]
     T = model.heat_elim.T
     _, node_dofs = dofs_of_nodes(T, 1)
-    units = []
+    units, traces = [], []
     for s in range(part.nsub):
         cells = part.cells(s)
         comps = facet_components(cells, mesh.f2t)
-        _, dofs, Tloc, op, modes = _local_pieces(th, cells, 1, T, node_dofs, model.H.local,
-                                                 smesh.cell_region, mesh.p, comps)
+        _, dofs, Tloc, op, modes, trace = _local_pieces(th, cells, 1, T, node_dofs, model.H.local,
+                                                        smesh.cell_region, mesh.p, comps)
         Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
         units.append(Unit(s, (s,), dofs, op, Tloc, Z, None))
+        traces.append(trace)
     nif = _interface(units, T.shape[1])
-    return Decomposition(part, units, nif, T.shape[1])
+    return Decomposition(part, units, nif, T.shape[1], traces)
 
 
 def solve_heat_dd(model, c, options=None, *, comm=None):
@@ -623,7 +839,7 @@ def solve_heat_dd(model, c, options=None, *, comm=None):
     D = _distribute_load(dec, rho, rhs, team)
     info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif, "nranks": team.size}
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D, team)
+        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team)
     except CoarseSingular as exc:
         return None, info, DDOutcome.SETUP_FAILED, f"thermal interface operator singular: {exc}"
     info["coarse"] = S.coarse.size

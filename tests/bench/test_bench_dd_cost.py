@@ -1,0 +1,110 @@
+"""Serial cost of one DD solve against a warm monolithic evaluation of the same scene
+(issue 12, goal ≤ 3×), measured in one run: the tunnel (studies/tunnel-fault.yaml, 12
+subdomains, tolerance 1e-6) and Hertz (studies/validation/hertz.yaml with its mesh sizes
+× 0.53: ≈ 1.05e5 unknowns, 12 subdomains, tolerance 1e-6), both with the default outer
+iteration (step auto: interface Newton on both).
+
+Both solvers are warmed first (the DD's partition and symbolic analyses, the monolithic
+factor's pattern), then each is timed `REPEAT` times on the nominal data (both keep their
+factors: `ratio`) and on new material data each time (every Young modulus × 1.01, 1.02, …:
+numeric refactors in both, as in a study that samples materials: `ratio_new`); the best
+time is kept (the machine is shared). Also printed: the DD's phases (assembly = the local
+factorizations, Dirichlet and Neumann applications, contact solves) and the agreement with
+the monolithic answer.
+
+Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
+.venv/bin/python tests/bench/test_bench_dd_cost.py
+"""
+import copy
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from common import write_table  # noqa: E402
+from dd_bench import _scale_mesh  # noqa: E402
+from dd_common import build  # noqa: E402
+from wcs.dd import solver as dds  # noqa: E402
+
+REPEAT = 3
+CASES = [("tunnel", "tunnel-fault.yaml", 1.0, {"subdomains": 12}),
+         ("hertz", "validation/hertz.yaml", 0.53, {"subdomains": 12})]
+FIELDS = ["case", "ndof", "units", "largest_unit", "status", "pcg1", "successive", "pcg2", "time_dd", "time_mono",
+          "ratio", "time_dd_new", "time_mono_new", "ratio_new", "assemble", "dirichlet", "neumann", "coarse", "contact", "err_u", "err_lam_n"]
+
+
+def best(f, n=REPEAT):
+    times, out = [], None
+    for _ in range(n):
+        t = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def measure(name, study_file, scale, dd):
+    with tempfile.TemporaryDirectory() as tmp:
+        study, model = build(study_file, Path(tmp), lambda doc: _scale_mesh(doc, scale))
+    options = {"tolerance": 1e-6, "max_iterations": 200, "dd": dd}
+
+    def scene_of(k):
+        """The nominal scene with every Young modulus × (1 + 0.01 k): new matrices for both."""
+        scene = copy.deepcopy(study.scene)
+        for m in scene["materials"].values():
+            m["E"] *= 1 + 0.01 * k
+        return scene
+
+    def dd_solve(scene):
+        c = model.coefficients(scene)
+        _, Kr, rhs, u0 = model.reduced_system(c, None)
+        return dds.solve_dd(model, scene, Kr, rhs, u0, options, coefficients=c)
+
+    nominal = study.scene
+    dd_solve(nominal), model.solve(nominal)                         # warm both
+    t_dd, res = best(lambda: dd_solve(nominal))                     # same data: no refactor
+    t_mono, mono = best(lambda: model.solve(nominal))
+    rank = res.info["ranks"][0]
+    k = iter(range(1, 100))
+    t_dd_new, _ = best(lambda: dd_solve(scene_of(next(k))))        # new data: numeric refactors
+    k = iter(range(1, 100))
+    t_mono_new, _ = best(lambda: model.solve(scene_of(next(k))))
+    dec = dds.decomposition(model, options)
+    row = {"case": name, "ndof": dec.ndof, "units": len(dec.units),
+           "largest_unit": max(u.dofs.size for u in dec.units) / dec.ndof, "status": res.status.value,
+           "pcg1": res.info.get("pcg1"), "successive": res.info.get("successive"), "pcg2": res.info.get("pcg2"),
+           "time_dd": t_dd, "time_mono": t_mono, "ratio": t_dd / t_mono,
+           "time_dd_new": t_dd_new, "time_mono_new": t_mono_new, "ratio_new": t_dd_new / t_mono_new,
+           **{k: rank.get(k, 0.0) for k in ("assemble", "dirichlet", "neumann", "coarse", "contact")}}
+    if res.u is not None:
+        row["err_u"] = float(np.linalg.norm(res.u - mono.u) / np.linalg.norm(mono.u))
+        row["err_lam_n"] = float(np.linalg.norm(res.lam_n - mono.contact.force_n)
+                                 / np.linalg.norm(mono.contact.force_n))
+    print({k: (f"{v:.3g}" if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
+    return row
+
+
+def main():
+    rows = [measure(*case) for case in CASES]
+    write_table("dd_cost", FIELDS, [[r.get(k, "") for k in FIELDS] for r in rows])
+    return rows
+
+
+@pytest.mark.bench
+def test_one_dd_solve_against_a_warm_monolithic_evaluation():
+    rows = main()
+    for r in rows:
+        assert r["status"] == "converged", r
+        assert r["err_u"] <= 1e-4, r
+    hertz = next(r for r in rows if r["case"] == "hertz")
+    assert hertz["ndof"] >= 1e5
+    for r in rows:
+        assert r["ratio"] <= 3.0, f"{r['case']}: one DD solve {r['ratio']:.1f}× a warm monolithic evaluation"
+        assert r["ratio_new"] <= 3.0, f"{r['case']}: on new data {r['ratio_new']:.1f}×"
+
+
+if __name__ == "__main__":
+    main()
