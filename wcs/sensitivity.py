@@ -79,7 +79,11 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
     # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
     # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
-    keep = np.setdiff1d(np.arange(N.shape[0]), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:]))
+    # A closed or stuck row that vanishes (a node held by supports on both sides: W's row is 0)
+    # cannot move the solution either: its adjoint multiplier is 0 and the row dropped too
+    held = np.diag(cf.W) <= 1e-14 * max(np.diag(cf.W).max(initial=0.0), 1e-300)
+    drop = np.r_[np.flatnonzero(held & free), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:])]
+    keep = np.setdiff1d(np.arange(N.shape[0]), drop)
     mu = np.zeros(N.shape[0])
     mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
     if mu_keep is None:
