@@ -258,18 +258,20 @@ def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, pat
     of x_i is x_i + gap_i n_i, interpolated along the edge), so a region on either side of a
     contact, open or closed, catches the same part of it. Each edge is cut where it or its
     projection crosses the boundary of G_r (a boundary G_r: at its facets' ends), and each piece
-    is in or out by its midpoint."""
+    is in or out by its midpoint: in G_r up to 1e-6 of the contact's extent (round-off), next
+    to a boundary G_r up to a tenth of the edge more (the chord between two projections on a
+    curved master side leaves it by about L²/8R)."""
     seg = slave_segments(zone, scene, smesh)
     normal = np.concatenate([p.normal for p in zone.pairs])
     ends = [(zone.coords[seg[:, 0]], zone.coords[seg[:, 1]]),
             (zone.coords[seg[:, 0]] + (zone.gap[:, None] * normal)[seg[:, 0]],
              zone.coords[seg[:, 1]] + (zone.gap[:, None] * normal)[seg[:, 1]])]
     length = np.hypot(*(ends[0][1] - ends[0][0]).T)
-    scale = max(np.ptp(np.vstack([zone.coords, ends[1][0], ends[1][1]]), axis=0).max(), 1e-300)
+    tol = 1e-6 * max(np.ptp(np.vstack([zone.coords, ends[1][0], ends[1][1]]), axis=0).max(), 1e-300)
     if sel.kind == "facets":
         mesh = smesh.mesh
         fa, fb = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
-        corners = np.vstack([fa, fb])
+        corners, tol = np.vstack([fa, fb]), tol + 0.1 * length[:, None]
 
         def dist(x, y):
             return np.min([dist_segment(x, y, fa[i], fb[i]) for i in range(len(fa))], axis=0)
@@ -289,8 +291,7 @@ def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, pat
     inside = np.zeros(mid.shape, dtype=bool)
     for a, b in ends:
         x = a[:, None, :] + mid[..., None] * (b - a)[:, None, :]
-        inside |= dist(x[..., 0].ravel(), x[..., 1].ravel()).reshape(mid.shape) \
-            <= 1e-6 * scale + 1e-3 * length[:, None]
+        inside |= dist(x[..., 0].ravel(), x[..., 1].ravel()).reshape(mid.shape) <= tol
     piece = np.where(inside, np.nan_to_num(t1 - t0), 0.0) * length[:, None]
     meas = float(piece.sum())
     if meas <= 0:
