@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from scenes import load
+from test_gradients import TOL, check_against_fd
 from wcs.evaluation import Evaluator
 from wcs.meshcheck import richardson
 
@@ -67,3 +68,18 @@ def test_hertz_mean_pressure_converges_with_the_mesh():
     est = richardson(*f, 1e-9)
     assert f[0] < f[1] < f[2] < exact and f[2] - f[1] < (f[1] - f[0]) / 4
     assert 1 / 1.5 < est.error / (exact - f[0]) < 1.5
+
+
+def test_gradient_on_clipped_edges_of_a_mortar_contact():
+    """∂Φ6/∂λ_n (ℓ_r) through the adjoint against central finite differences (the rule of
+    test_gradients.py) on the non-matching mortar Hertz, the box cutting slave edges; the load
+    and both moduli move the pressure under the box."""
+    def coarse(doc):
+        doc["scene"]["bodies"]["cylinder"]["mesh"]["refine"][0]["size"] = 0.008
+        doc["scene"]["bodies"]["block"]["mesh"]["refine"][0]["size"] = 0.024
+        doc["uncertain"] |= {"materials.steel.E": [1.8e11, 2.2e11], "materials.steel.nu": [0.25, 0.35]}
+        doc["solver"] = {"method": "monolithic", "tolerance": TOL}
+    study = load("hertz-mortar", coarse)
+    crit = Evaluator(study).criteria[0]
+    assert 0 < (crit.functionals[0] > 0).sum() < crit.functionals[0].size
+    assert check_against_fd(study) < 1e-5
