@@ -277,7 +277,8 @@ def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, pat
             return np.min([dist_segment(x, y, fa[i], fb[i]) for i in range(len(fa))], axis=0)
 
         def cuts(a, b):                         # where the facets' ends project on the edge
-            return ((corners[None] - a[:, None]) * (b - a)[:, None]).sum(axis=2) / ((b - a) ** 2).sum(axis=1)[:, None]
+            d = b - a
+            return ((corners[None] - a[:, None]) * d[:, None]).sum(axis=2) / (d * d).sum(axis=1)[:, None]
     else:
         spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
         dist = distance_function(spec, path)
