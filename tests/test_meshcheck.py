@@ -164,18 +164,22 @@ def test_cooled_layer_mesh_share_is_nil(tmp_path):
 
 
 @pytest.mark.slow
-def test_hertz_mesh_check_sees_no_asymptotic_range(tmp_path):
-    """Hertz's mean pressure over the box depends on which contact nodes fall in the box and
-    where the contact edge falls between nodes: it does not converge monotonically (measured
-    2.7770e9, 2.7846e9, 2.7795e9 against the closed form 2.7847e9). The check says so and
-    takes the spread of the three values as the error, which is then within a factor 3 of the
-    true error."""
+def test_hertz_mesh_check_sees_the_mesh_share_not_the_model_error(tmp_path):
+    """Φ6 is the mean of the pressure field over the box (not over the contact nodes that fall
+    in it): on h = 0.004 ≈ a/13, h/2, h/4 the three values agree to 5e-5 (measured 2.78345e9,
+    2.78333e9, 2.78336e9; before 2.77701e9, 2.78463e9, 2.77951e9, 2.7e-3 apart). All three lie
+    5.4e-4 below the closed form 2.78488e9, where the values of seven base meshes from h = 0.02
+    to 0.001 gather (2.7830e9-2.7834e9 on the finest): Hertz's half-planes with a parabolic gap
+    are not this cylinder on its 40 R block, a model error that no refinement sees, ten times the
+    mesh's share here. So the check's estimate (the spread: the differences still change sign,
+    the discrete contact edge moving between nodes) is the mesh's share, not the error to the
+    closed form; where the mesh's share dominates (h = 0.016) it matches that error
+    (test_contact_pressure.py::test_hertz_mean_pressure_converges_with_the_mesh)."""
     ds = _run(tmp_path, VALIDATION / "hertz.yaml")
     P = 2 * float(ds["worst_x"].values[0, 0])                     # load per unit length, R = 1 m
     a = math.sqrt(4 * P / (math.pi * 2e11 / (2 * (1 - 0.3**2))))
     p0, s = 2 * P / (math.pi * a), 0.025 / a
     exact = p0 * 0.5 * (s * math.sqrt(1 - s * s) + math.asin(s)) / s
     f = ds["mesh_check_value"].values[0, 0]
-    assert "do not shrink" in str(ds["mesh_check_note"].values[0, 0])
-    spread = np.abs(f - f[0]).max()
-    assert 1 / 3 < spread / abs(exact - f[0]) < 3
+    assert np.abs(f - f[0]).max() < 1e-4 * exact
+    assert np.all((4e-4 * exact < exact - f) & (exact - f < 7e-4 * exact))

@@ -9,7 +9,8 @@ regions). The schema, the adjoint and the report read it; a new kind is one entr
 Linear criteria (temperature, normal displacement) keep their functional as
 a vector ℓ_r (Φ_r = ℓ_r · field), which is also the adjoint load of the
 criterion. Stress criteria average a cell density ψ(τ) over G_r; contact
-criteria a nodal quantity over the contact rows next to G_r.
+criteria a nodal quantity along the contact (Φ6: the mean of the interpolated pressure
+over Γc ∩ G_r, again a vector ℓ_r, on λ_n).
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contact.zone import slave_segments
 from .errors import StudyError
 from .fem.stress import principal, shear_intensity, von_mises
 from .scene.selectors import (Selection, boundary_facets, dist_segment, distance_function, facet_lengths,
@@ -46,6 +48,7 @@ class Kind:
     partials: Callable
     reads: str = "cells"                 # "cells": G_r embedded in the mesh; "contact": the contact rows next to G_r
     functional: Callable | None = None   # (smesh, spec, selection, path, roi) -> ℓ_r of a linear kind
+    contact_functional: Callable | None = None   # (smesh, scene, zone, roi, selection, path) -> (ℓ_r on λ_n, meas)
     needs: str | None = None             # the scene block the kind needs: "thermal", "contacts"
     options: tuple[str, ...] = ()        # criterion keys beyond name, kind, regions
 
@@ -57,7 +60,7 @@ class Criterion:
     rois: list[str]
     selections: list[Selection]
     functionals: list[np.ndarray] | None     # linear kinds: one ℓ_r per region of interest
-    measures: np.ndarray                      # meas G_r (contact kinds: of its contact rows)
+    measures: np.ndarray                      # meas G_r (contact kinds: of Γc ∩ G_r, slip: of its rows)
     contact_masks: list[np.ndarray] | None = None   # contact kinds: contact rows next to G_r
 
     @property
@@ -84,7 +87,13 @@ def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) ->
             masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
                      for r, s in zip(spec["regions"], sels)]
             measures = np.array([zone.weight[m].sum() for m in masks])
-            out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, None, measures, masks))
+            functionals = None
+            if kind.contact_functional is not None:
+                lm = [kind.contact_functional(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
+                      for r, s in zip(spec["regions"], sels)]
+                functionals, measures = [ell for ell, _ in lm], np.array([m for _, m in lm])
+            out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures,
+                                 masks))
             continue
         sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
         functionals = None if kind.functional is None else \
@@ -214,10 +223,86 @@ def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: s
     return mask
 
 
-def _contact_mean(state, mask: np.ndarray) -> float:
-    """Mean contact pressure over the contact nodes in G_r: transmitted force / length."""
-    c = state.contact
-    return float(c.force_n[mask].sum() / c.weight[mask].sum())
+def _crossings(spec: dict, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(s, K) parameters t ∈ [0, 1] where the edges a + t (b − a) cross the boundary of a box,
+    disc or polygon (NaN: none); between two of them an edge is wholly inside or outside."""
+    d = b - a
+    if spec.get("disc") is not None:
+        c, r = np.asarray(spec["disc"]["center"], float), float(spec["disc"]["radius"])
+        e = a - c
+        qa, qb, qc = (d * d).sum(axis=1), 2 * (d * e).sum(axis=1), (e * e).sum(axis=1) - r * r
+        disc = qb * qb - 4 * qa * qc
+        root = np.sqrt(np.where(disc > 0, disc, np.nan))
+        t = np.stack([(-qb - root) / (2 * qa), (-qb + root) / (2 * qa)], axis=1)
+    else:
+        if spec.get("box") is not None:
+            x0, y0, x1, y1 = map(float, spec["box"])
+            pts = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        else:
+            pts = np.asarray(spec["polygon"], float)
+        c, e = np.roll(pts, 1, axis=0), pts - np.roll(pts, 1, axis=0)       # the polygon's edges c + u e
+        det = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+        w = c[None] - a[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / det
+            u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / det
+        t = np.where((u >= 0) & (u <= 1), t, np.nan)                       # parallel edges: NaN
+    return np.where((t > 0) & (t < 1), t, np.nan)
+
+
+def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, path: str):
+    """(ℓ_r, meas Γc ∩ G_r) with ℓ_r · λ_n = (meas Γc ∩ G_r)⁻¹ ∫_{Γc ∩ G_r} p_h ds, Φ6 [68, (4.34)]:
+    p_h the piecewise linear interpolant along the slave side of the nodal pressures
+    p_i = λ_i / w_i (w_i: the row's weight, node-to-node or mortar), integrated exactly.
+    A point of a slave edge lies in G_r when it or its master projection does (the projection
+    of x_i is x_i + gap_i n_i, interpolated along the edge), so a region on either side of a
+    contact, open or closed, catches the same part of it. Each edge is cut where it or its
+    projection crosses the boundary of G_r (a boundary G_r: at its facets' ends), and each piece
+    is in or out by its midpoint: in G_r up to 1e-6 of the contact's extent (round-off), next
+    to a boundary G_r up to a tenth of the edge more (the chord between two projections on a
+    curved master side leaves it by about L²/8R)."""
+    seg = slave_segments(zone, scene, smesh)
+    normal = np.concatenate([p.normal for p in zone.pairs])
+    ends = [(zone.coords[seg[:, 0]], zone.coords[seg[:, 1]]),
+            (zone.coords[seg[:, 0]] + (zone.gap[:, None] * normal)[seg[:, 0]],
+             zone.coords[seg[:, 1]] + (zone.gap[:, None] * normal)[seg[:, 1]])]
+    length = np.hypot(*(ends[0][1] - ends[0][0]).T)
+    tol = 1e-6 * max(np.ptp(np.vstack([zone.coords, ends[1][0], ends[1][1]]), axis=0).max(), 1e-300)
+    if sel.kind == "facets":
+        mesh = smesh.mesh
+        fa, fb = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
+        corners, tol = np.vstack([fa, fb]), tol + 0.1 * length[:, None]
+
+        def dist(x, y):
+            return np.min([dist_segment(x, y, fa[i], fb[i]) for i in range(len(fa))], axis=0)
+
+        def cuts(a, b):                         # where the facets' ends project on the edge
+            d = b - a
+            return ((corners[None] - a[:, None]) * d[:, None]).sum(axis=2) / (d * d).sum(axis=1)[:, None]
+    else:
+        spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
+        dist = distance_function(spec, path)
+
+        def cuts(a, b):
+            return _crossings(spec, a, b)
+    t = np.hstack([np.zeros((len(seg), 1)), np.ones((len(seg), 1))] + [cuts(a, b) for a, b in ends])
+    t = np.sort(np.where((t >= 0) & (t <= 1), t, np.nan), axis=1)           # NaN last
+    t0, t1 = t[:, :-1], t[:, 1:]
+    mid = np.nan_to_num(0.5 * (t0 + t1))
+    inside = np.zeros(mid.shape, dtype=bool)
+    for a, b in ends:
+        x = a[:, None, :] + mid[..., None] * (b - a)[:, None, :]
+        inside |= dist(x[..., 0].ravel(), x[..., 1].ravel()).reshape(mid.shape) <= tol
+    piece = np.where(inside, np.nan_to_num(t1 - t0), 0.0) * length[:, None]
+    meas = float(piece.sum())
+    if meas <= 0:
+        raise StudyError(f"region of interest '{roi}' covers no length of a contact's slave side "
+                         "(nor of its master projection): a contact pressure criterion needs one",
+                         path=path)
+    ell = np.zeros(zone.gap.size)
+    np.add.at(ell, seg[:, 0], (piece * (1 - mid)).sum(axis=1))
+    np.add.at(ell, seg[:, 1], (piece * mid).sum(axis=1))
+    return ell / zone.weight / meas, meas
 
 
 # ---------------------------------------------------------------- the kinds
@@ -311,11 +396,6 @@ def _area_kind(label: str, units: str, density: Callable, ddensity: Callable,
                 value=lambda crit, model, state, r: _cell_mean(model, crit.selections[r], density(state.stress)))
 
 
-def _contact_pressure_partials(crit, model, state, r):
-    mask = crit.contact_masks[r]
-    return Partials(lam_n=np.where(mask, 1.0 / state.contact.weight[mask].sum(), 0.0)), False
-
-
 def _slip_mean(crit, model, state, r) -> float:
     """Mean |relative tangential displacement| over the contact nodes next to G_r: Σ w|s| / Σ w."""
     mask, c = crit.contact_masks[r], state.contact
@@ -353,8 +433,9 @@ KINDS: dict[str, Kind] = {
     "shear_stress_intensity": _area_kind("shear stress intensity I₂² (Φ5)", "Pa^2", shear_intensity, _dI2),
     "contact_pressure": Kind(
         "contact pressure (Φ6)", "Pa",
-        value=lambda crit, model, state, r: _contact_mean(state, crit.contact_masks[r]),
-        partials=_contact_pressure_partials, reads="contact", needs="contacts"),
+        value=lambda crit, model, state, r: crit.functionals[r] @ state.contact.force_n,
+        partials=lambda crit, model, state, r: (Partials(lam_n=crit.functionals[r].copy()), False),
+        contact_functional=_pressure_functional, reads="contact", needs="contacts"),
     "von_mises": _area_kind("von Mises stress", "Pa", von_mises, _dvon_mises),
     "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),

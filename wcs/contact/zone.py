@@ -128,3 +128,16 @@ class ContactState:
             "contact_slip": (("contact_node",), self.slip, {"units": "m", "long_name": "relative tangential displacement"}),
             "contact_shear": (("contact_node",), self.shear, {"units": "Pa", "long_name": "tangential traction tau_t"}),
         }
+
+
+def slave_segments(zone: ContactZone, scene: dict, smesh: SceneMesh) -> np.ndarray:
+    """(s, 2) the contact rows at the two ends of each slave-side edge whose ends are both rows
+    (an edge reaching a dropped node, which has no master opposite, carries no contact)."""
+    segments, offset = [], 0
+    for name, pr in zip(zone.names, zone.pairs):
+        row = np.full(smesh.mesh.p.shape[1], -1)
+        row[pr.slave] = offset + np.arange(len(pr))
+        ends = row[smesh.mesh.facets[:, smesh.boundaries[scene["contacts"][name]["slave"]]]].T
+        segments.append(ends[(ends >= 0).all(axis=1)])
+        offset += len(pr)
+    return np.vstack(segments)
