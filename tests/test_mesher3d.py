@@ -148,6 +148,8 @@ def test_sphere_on_an_extruded_block_two_bodies_and_regions():
      "scene.boundaries.none"),
     (lambda s: s["bodies"]["foot"]["regions"][0]["shape"].update(box=[0, 0, 0, 2, 1, -1]),
      "scene.bodies.foot.regions.0.shape.box"),
+    (lambda s: s["bodies"]["foot"]["regions"][0].update(
+        shape={"box": [3, 0, 0, 4, 1, 1], "minus": [{"box": [3.4, -1, -1, 3.6, 2, 2]}]}), "scene.bodies.foot"),
     (lambda s: s["boundaries"].update(c={"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0], "radius": 1}}),
      "scene.boundaries.c.cylinder"),
 ])

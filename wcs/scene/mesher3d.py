@@ -331,8 +331,8 @@ def build_mesh3d(scene: dict) -> SceneMesh:
     negative = np.einsum("ie,ie->e", e[:, 0], np.cross(e[:, 1], e[:, 2], axis=0)) < 0
     t[1, negative], t[2, negative] = t[2, negative], t[1, negative].copy()
 
-    sm = SceneMesh(mesh=skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False), bodies=bodies,
-                   regions=regions, cell_body=cell_body, cell_region=cell_region)
+    sm = check_connected(SceneMesh(mesh=skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False), bodies=bodies,
+                                   regions=regions, cell_body=cell_body, cell_region=cell_region))
     bnd = {name: select_faces(sm, spec, f"scene.boundaries.{name}")
            for name, spec in (scene.get("boundaries") or {}).items()}
     roi_cells = {}
@@ -344,7 +344,7 @@ def build_mesh3d(scene: dict) -> SceneMesh:
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
         if roi_cells[name].size == 0:
             raise StudyError("the region of interest holds no cell (of its body)", path=f"scene.regions_of_interest.{name}")
-    return check_connected(dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells))
+    return dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells)
 
 
 def check_connected(sm: SceneMesh) -> SceneMesh:
