@@ -31,7 +31,8 @@ longest edge (plus ``ABS_TOL`` times the scene size) or the ``tolerance`` a plan
 Region selectors (``REGION_SELECTOR``), with optional ``body``: ``box: [six numbers]``,
 ``ball: {center, radius}``, ``cylinder: {start, end, radius}`` are solids fragmented with the
 bodies, so G_r is a union of cells (``SceneMesh.roi_cells``; a ball or cylinder: its polyhedral
-mesh); ``boundary: NAME`` is the facets of a named boundary (a facet region, nothing embedded).
+mesh); ``boundary: NAME`` (the facets of a named boundary, nothing embedded) is
+``wcs.scene.selectors.select_region``'s, which takes this mesh as it is.
 
 How it is done (as the 2D ``wcs.scene.mesher``): every region solid and every embedded region
 of interest goes through one ``occ.fragment``, so regions of a body share nodes and touching
@@ -58,6 +59,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..choose import MeshFacts, mesh_size
 from ..errors import StudyError
+from . import selectors
 from .geometry import _kernel, _number_list, _shape_list, make_shape
 from .meshdata import SceneMesh
 from .mesher import region_names
@@ -338,7 +340,7 @@ def build_mesh3d(scene: dict) -> SceneMesh:
     roi_cells = {}
     for j, name in enumerate(embed):
         mask = in_roi[j]
-        body = _body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
+        body = selectors._body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
         if body is not None:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
@@ -363,23 +365,6 @@ def check_connected(sm: SceneMesh) -> SceneMesh:
 
 # ---------------------------------------------------------------------------
 # selectors
-
-
-def _body_index(sm: SceneMesh, spec: dict, path: str):
-    if spec.get("body") is None:
-        return None
-    if spec["body"] not in sm.bodies:
-        raise StudyError(f"unknown body {spec['body']!r} (bodies: {', '.join(sm.bodies)})", path=f"{path}.body")
-    return sm.bodies.index(spec["body"])
-
-
-def _kind(spec, kinds, path: str) -> str:
-    if not isinstance(spec, dict):
-        raise StudyError(f"a selector must be a mapping, got {spec!r}", path=path)
-    found = [k for k in kinds if spec.get(k) is not None]
-    if len(found) != 1:
-        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got keys {sorted(spec)}", path=path)
-    return found[0]
 
 
 def surface_distance(kind: str, value, path: str, x: np.ndarray) -> np.ndarray:
@@ -408,11 +393,11 @@ def select_faces(sm: SceneMesh, spec: dict, path: str, *, allow_empty: bool = Fa
     """Sorted indices into ``sm.mesh.facets`` of the boundary facets whose three nodes lie on the
     face selector's set (plane / box / cylinder / sphere, optional body)."""
     mesh = sm.mesh
-    kind = _kind(spec, FACE_KINDS, path)
-    body = _body_index(sm, spec, path)
+    kind = selectors._kind(spec, FACE_KINDS, path)
+    body = selectors._body_index(sm, spec, path)
     bf = mesh.boundary_facets()
     if body is not None:
-        bf = bf[sm.node_body[mesh.facets[0, bf]] == body]
+        bf = bf[selectors.facet_body(sm, bf) == body]
     x = mesh.p[:, mesh.facets[:, bf]]                         # (3, 3 nodes, nfacets)
     edges = np.linalg.norm(x - np.roll(x, 1, axis=1), axis=0).max(axis=0)
     scale = float(np.linalg.norm(mesh.p.max(axis=1) - mesh.p.min(axis=1))) or 1.0
