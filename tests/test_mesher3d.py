@@ -144,6 +144,33 @@ def test_sphere_on_an_extruded_block_two_bodies_and_regions():
     assert np.intersect1d(lower, upper).size > 0                      # regions of a body: one mesh
 
 
+def test_bodies_with_their_own_sizes_have_nonmatching_faces():
+    """A block on a block, sizes 1:3: the common face z = 0 is meshed once per body (different
+    nodes), both sides cover it exactly; regions of interest are embedded in each body."""
+    scene = {
+        "bodies": {"top": {"regions": [{"shape": {"box": [0, 0, 0, 1, 1, 0.5]}}], "mesh": {"size": 0.75}},
+                   "base": {"regions": [{"shape": {"box": [-0.5, -0.5, -0.5, 1.5, 1.5, 0]}}]}},
+        "boundaries": {"lower": {"plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}, "body": "top"},
+                       "upper": {"box": [-1, -1, 0, 2, 2, 0], "body": "base"}},
+        "regions_of_interest": {"under": {"box": [0.2, 0.2, -0.2, 0.8, 0.8, 0.0], "body": "base"}},
+        "mesh": {"size": 0.25},
+    }
+    sm = build_mesh3d(scene)
+    m = sm.mesh
+    lower, upper = (np.unique(m.facets[:, sm.boundaries[k]]) for k in ("lower", "upper"))
+    inside = upper[(m.p[:2, upper] >= 0).all(axis=0) & (m.p[:2, upper] <= 1).all(axis=0)]
+    assert 2 * lower.size < inside.size                              # a coarser side
+    assert facet_areas(m, sm.boundaries["lower"]).sum() == pytest.approx(1.0, rel=1e-12)
+    # the base is meshed without the top's imprint: its whole top face, 2 × 2
+    assert facet_areas(m, sm.boundaries["upper"]).sum() == pytest.approx(4.0, rel=1e-12)
+    vol = volumes(m.p, m.t)
+    assert np.bincount(sm.cell_body, weights=vol) == pytest.approx([0.5, 2.0], rel=1e-12)
+    assert vol[sm.roi_cells["under"]].sum() == pytest.approx(0.6 * 0.6 * 0.2, rel=1e-12)
+    assert (sm.cell_body[sm.roi_cells["under"]] == 1).all()
+    again = build_mesh3d(scene)
+    assert np.array_equal(again.mesh.p, m.p) and np.array_equal(again.mesh.t, m.t)
+
+
 @pytest.mark.parametrize("change, path", [
     (lambda s: s["bodies"]["foot"]["regions"][0].update(shape={"box": BLOCK}), "scene.bodies.foot"),
     (lambda s: s["bodies"]["foot"]["regions"][0].update(shape={"halfspace": FAULT}),
@@ -154,6 +181,7 @@ def test_sphere_on_an_extruded_block_two_bodies_and_regions():
      "scene.bodies.foot.regions.0.shape.box"),
     (lambda s: s["bodies"]["foot"]["regions"][0].update(
         shape={"box": [3, 0, 0, 4, 1, 1], "minus": [{"box": [3.4, -1, -1, 3.6, 2, 2]}]}), "scene.bodies.foot"),
+    (lambda s: s["bodies"]["foot"].update(mesh={"size": -1.0}), "scene.bodies.foot.mesh.size"),
     (lambda s: s["boundaries"].update(c={"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0], "radius": 1}}),
      "scene.boundaries.c.cylinder"),
 ])

@@ -2,10 +2,12 @@
 
 ``build_mesh3d(scene)`` takes a dict of the form (the study schema comes later)::
 
-    {"bodies": {NAME: {"regions": [{"name": REGION, "shape": SOLID}, ...]}, ...},
+    {"bodies": {NAME: {"regions": [{"name": REGION, "shape": SOLID}, ...], "mesh": {"size": h}}, ...},
      "boundaries": {NAME: FACE_SELECTOR, ...},
      "regions_of_interest": {NAME: REGION_SELECTOR, ...},
      "mesh": {"size": h}}
+
+(``name``, a body's ``mesh`` and the scene's ``mesh`` are optional.)
 
 Solids (``SOLID``), each with optional, recursive ``intersect: [SOLID, ...]`` (applied
 first, in turn) and ``minus: [SOLID, ...]`` (cut by their union):
@@ -41,7 +43,11 @@ order) covering it; a piece covered by two bodies is an overlap (``StudyError`` 
 ``scene.bodies.<later body>``); a region left with no volume is a ``StudyError`` at its path.
 Each body gets its own copy of the nodes on faces shared with another body. The size is uniform,
 ``mesh.size`` (``Mesh.MeshSizeMax``; default: the rule of ``wcs.choose.mesh_size`` with the
-bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc.
+bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc. If any body
+has its own ``bodies.<b>.mesh: {size}``, every body is meshed in a gmsh model of its own after the
+global fragment (which still decides ownership and overlaps), with its size or the scene's: the
+faces it shares with other bodies are then nonmatching (mortar contact) and carry no imprint
+of the other body's outline.
 Deterministic: one gmsh session (``wcs.scene.session``), one thread, Delaunay 3D
 (``Mesh.Algorithm3D = 1``), nodes and cells numbered from gmsh's order; cells grouped by
 body, region, gmsh volume; nodes by body, then gmsh order; positively oriented cells.
@@ -282,6 +288,40 @@ def _extract(owner: dict, inside: dict):
     return xyz, np.concatenate(tets), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
 
 
+def _size(value, path: str) -> float:
+    (h,) = _number_list([value], 1, path, "mesh size")
+    if not h > 0:
+        raise StudyError(f"mesh size must be > 0, got {h}", path=path)
+    return h
+
+
+def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list):
+    """Each body meshed in a gmsh model of its own (its regions and the embedded regions of
+    interest fragmented together), with its ``mesh.size`` or the scene's; the concatenation,
+    bodies in scene order, as `_extract` gives it."""
+    base = gmsh.model.getCurrent()
+    parts, offset, r = [], 0, 0
+    for b, body in enumerate(bodies):
+        gmsh.model.add(f"{base}_body{b}")
+        bspec = scene["bodies"][body]
+        solids = [make_solid(reg["shape"], f"scene.bodies.{body}.regions.{i}.shape")
+                  for i, reg in enumerate(bspec["regions"])]
+        covered, inside = _pieces(solids, [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
+                                           for n in embed])
+        owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
+        own = (bspec.get("mesh") or {}).get("size")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size if own is None else _size(own, f"scene.bodies.{body}.mesh.size"))
+        gmsh.model.mesh.generate(3)
+        xyz, tet, cb, cr, ci = _extract(owner, inside)
+        gmsh.model.remove()
+        gmsh.model.setCurrent(base)
+        parts.append((xyz, tet + offset, cb, cr, ci))
+        offset += xyz.shape[0]
+        r += len(solids)
+    xyz, tet, cb, cr, ci = zip(*parts)
+    return np.concatenate(xyz), np.concatenate(tet), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
+
+
 def build_mesh3d(scene: dict) -> SceneMesh:
     """Mesh a 3D scene dict (see the module docstring) into a :class:`SceneMesh` holding one
     ``skfem.MeshTet``; ``boundaries`` and ``roi_cells`` as in 2D (``boundaries``: sorted indices
@@ -312,12 +352,14 @@ def build_mesh3d(scene: dict) -> SceneMesh:
             owner = _owners(covered, inputs, bodies, regions)
             lo, hi = np.array(gmsh.model.getBoundingBox(-1, -1)).reshape(2, 3)
             size = (scene.get("mesh") or {}).get("size")
-            size = float(size) if size is not None else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0]
-            if not (size > 0 and math.isfinite(size)):
-                raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
-            gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-            gmsh.model.mesh.generate(3)
-            xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
+            size = (_size(size, "scene.mesh.size") if size is not None
+                    else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
+            if not any(bodies_spec[body].get("mesh") for body in bodies):
+                gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+                gmsh.model.mesh.generate(3)
+                xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
+            else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching
+                xyz, tet, cell_body, cell_region, in_roi = _mesh_bodies_separately(scene, bodies, size, embed)
         finally:
             gmsh.option.setNumber("Mesh.Algorithm3D", previous)
     if (tet < 0).any():
