@@ -5,37 +5,51 @@ a new coefficient table costs one weighted scatter into a fixed pattern
 (O(cells), no quadrature), and every K(c) has the same CSR pattern so a
 sparse factorization reuses its symbolic analysis.
 
-Vector fields use 2×2 node blocks (dof = 2·node + component, scikit-fem's
-order for ElementVector(ElementTriP1)): the pattern is built on node pairs
-(9 per cell) and expanded through a block-sparse (BSR) matrix.
+Cells are triangles (p of shape (2, n)) or tetrahedra (p of shape (3, n), `wcs.fem.tet`).
+Vector fields use d×d node blocks (dof = d·node + component, scikit-fem's
+order for ElementVector(ElementTriP1 / ElementTetP1)): the pattern is built on node pairs
+(9 per triangle, 16 per tetrahedron) and expanded through a block-sparse (BSR) matrix.
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
+from . import tet
 from .stress import gradient_operator
 
 
-def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(2, ncells, 3, 3, 2, 2): the λ-piece |T| div φ_a div φ_b and the μ-piece
-    |T| 2 e(φ_a) : e(φ_b), by node pair (a, b) and components (i, j)."""
+def gradients(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ncells, n, d) gradients ∇N_a of the P1 shape functions and (ncells,) cell measures:
+    triangles in 2D, tetrahedra in 3D (the dimension is p's first axis)."""
+    if p.shape[0] == 3:
+        return tet.gradient_operator(p, t)
     (dx, dy), area = gradient_operator(p, t)
-    g = np.stack([dx, dy], axis=-1)                           # (nc, 3, 2): ∇N_a
+    return np.stack([dx, dy], axis=-1), area
+
+
+def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(2, ncells, n, n, d, d): the λ-piece |T| div φ_a div φ_b and the μ-piece
+    |T| 2 e(φ_a) : e(φ_b), by node pair (a, b) and components (i, j)."""
+    g, area = gradients(p, t)                                 # (nc, n, d): ∇N_a
+    nc, n, d = g.shape
     a = area[:, None, None, None, None]
-    out = np.empty((2, len(area), 3, 3, 2, 2))                # written in place: no stacked copy
+    out = np.empty((2, nc, n, n, d, d))                       # written in place: no stacked copy
     np.multiply(a * g[:, :, None, :, None], g[:, None, :, None, :], out=out[0])
     # 2 e(φ_ai):e(φ_bj) = δ_ij ∇N_a·∇N_b + ∂_j N_a ∂_i N_b
     dot = np.einsum("eak,ebk->eab", g, g)
-    mu = dot[:, :, :, None, None] * np.eye(2) + g[:, :, None, None, :] * g[:, None, :, :, None]
+    mu = dot[:, :, :, None, None] * np.eye(d) + g[:, :, None, None, :] * g[:, None, :, :, None]
     np.multiply(a, mu, out=out[1])
     return out
 
 
 def conduction_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(1, ncells, 3, 3, 1, 1): |T| ∇N_a · ∇N_b."""
-    (dx, dy), area = gradient_operator(p, t)
-    k = area[:, None, None] * (dx[:, :, None] * dx[:, None, :] + dy[:, :, None] * dy[:, None, :])
+    """(1, ncells, n, n, 1, 1): |T| ∇N_a · ∇N_b."""
+    g, area = gradients(p, t)
+    dot = g[:, :, None, 0] * g[:, None, :, 0]
+    for i in range(1, g.shape[2]):                            # in order: the 2D bits are kept
+        dot = dot + g[:, :, None, i] * g[:, None, :, i]
+    k = area[:, None, None] * dot
     return k[None, :, :, :, None, None]
 
 
@@ -43,13 +57,13 @@ class CellAffineOperator:
     """K(c) = Σ_k Σ_cells c[group(cell), k] · local[k, cell]."""
 
     def __init__(self, t: np.ndarray, nnodes: int, local: np.ndarray, group: np.ndarray):
-        self.local = local                                    # (npieces, nc, 3, 3, b, b)
+        self.local = local                                    # (npieces, nc, n, n, b, b)
         self._t = np.asarray(t)
         self.group = np.asarray(group)
         self.block = local.shape[-1]
-        nc = t.shape[1]
-        rows = np.repeat(t.T, 3, axis=1).ravel().astype(np.int64)   # (nc·9,) node a
-        cols = np.tile(t.T, (1, 3)).ravel().astype(np.int64)        # node b
+        n, nc = t.shape                                       # n nodes per cell
+        rows = np.repeat(t.T, n, axis=1).ravel().astype(np.int64)   # (nc·n²,) node a
+        cols = np.tile(t.T, (1, n)).ravel().astype(np.int64)        # node b
         nodes = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nnodes, nnodes))
         nodes.sum_duplicates()                                 # sorted node-pair pattern
         keys = np.repeat(np.arange(nnodes, dtype=np.int64), np.diff(nodes.indptr)) * nnodes + nodes.indices
@@ -88,7 +102,7 @@ class CellAffineOperator:
         the derivative of aᵀ K(c) b with respect to each coefficient (K is affine in c)."""
         bl = self.block
         t = self._t
-        ae = np.asarray(a).reshape(-1, bl)[t.T]              # (nc, 3, b)
+        ae = np.asarray(a).reshape(-1, bl)[t.T]              # (nc, n, b)
         be = np.asarray(b).reshape(-1, bl)[t.T]
         per_cell = np.einsum("keabij,eai,ebj->ek", self.local, ae, be)
         ngroups = int(self.group.max()) + 1

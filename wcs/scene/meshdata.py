@@ -30,7 +30,7 @@ class SceneMesh:
     def node_body(self) -> np.ndarray:
         """(nnodes,) body index of every node (each node belongs to one body)."""
         nb = np.full(self.mesh.p.shape[1], -1, dtype=np.int64)
-        nb[self.mesh.t.ravel()] = np.tile(self.cell_body, 3)
+        nb[self.mesh.t.ravel()] = np.tile(self.cell_body, self.mesh.t.shape[0])
         return nb
 
     def boundary_nodes(self, name: str) -> np.ndarray:

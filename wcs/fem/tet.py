@@ -1,0 +1,85 @@
+"""Linear tetrahedra (P1 in 3D): shape-function gradients, strains, stresses and invariants.
+
+Nodes are p (3, nnodes), cells t (4, ncells); a vector field is node-interleaved
+(dof = 3·node + component, scikit-fem's order for ElementVector(ElementTetP1)).
+Stress components are ordered (xx, yy, zz, yz, xz, xy):
+τ = λ div u I + 2μ e − β ΔT I. The cell matrices of elasticity and conduction
+are `wcs.fem.affine.elastic_cell_matrices` / `conduction_cell_matrices`, which
+take tetrahedra through `gradient_operator` here.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+COMPONENTS = ("xx", "yy", "zz", "yz", "xz", "xy")
+SHEAR_PAIRS = ((1, 2), (0, 2), (0, 1))          # (yz, xz, xy): the derivative pairs of γ
+
+
+def gradient_operator(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ncells, 4, 3) gradients ∇N_a of the barycentric coordinates and (ncells,) volumes.
+
+    With e_k = x_k − x_0, ∇N_1 = e_2×e_3 / D, ∇N_2 = e_3×e_1 / D, ∇N_3 = e_1×e_2 / D
+    (the rows of the inverse Jacobian, D = e_1·(e_2×e_3) = 6·signed volume) and
+    ∇N_0 = −(∇N_1 + ∇N_2 + ∇N_3)."""
+    x = np.moveaxis(p[:, t], 0, -1)                           # (4, ncells, 3)
+    e1, e2, e3 = x[1] - x[0], x[2] - x[0], x[3] - x[0]
+    c1, c2, c3 = np.cross(e2, e3), np.cross(e3, e1), np.cross(e1, e2)
+    det = np.einsum("ek,ek->e", e1, c1)
+    g = np.stack([c1, c2, c3], axis=1) / det[:, None, None]
+    return np.concatenate([-g.sum(axis=1, keepdims=True), g], axis=1), np.abs(det) / 6.0
+
+
+def volumes(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(ncells,) cell volumes |T|."""
+    return gradient_operator(p, t)[1]
+
+
+def strain_operator(p: np.ndarray, t: np.ndarray) -> sp.csr_matrix:
+    """G with (G u) reshaped (6, ncells) = (e_xx, e_yy, e_zz, γ_yz, γ_xz, γ_xy), γ_ij = 2 e_ij;
+    u node-interleaved (3 per node)."""
+    g, _ = gradient_operator(p, t)
+    nc = t.shape[1]
+    cells = np.repeat(np.arange(nc), 4)
+    dof = 3 * t.T                                             # (ncells, 4): x-dof of each node
+    rows, cols, vals = [], [], []
+    for i in range(3):                                        # e_ii = ∂_i u_i
+        rows.append(i * nc + cells); cols.append((dof + i).ravel()); vals.append(g[:, :, i].ravel())
+    for k, (i, j) in enumerate(SHEAR_PAIRS):                  # γ_ij = ∂_j u_i + ∂_i u_j
+        rows += [(3 + k) * nc + cells] * 2
+        cols += [(dof + i).ravel(), (dof + j).ravel()]
+        vals += [g[:, :, j].ravel(), g[:, :, i].ravel()]
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(6 * nc, 3 * p.shape[1]))
+
+
+def stresses(strain: np.ndarray, lam: np.ndarray, mu: np.ndarray, beta: np.ndarray,
+             dT: np.ndarray) -> np.ndarray:
+    """(6, ncells) stress (xx, yy, zz, yz, xz, xy) from strain (6, ncells) and cell-wise λ, μ, β, ΔT."""
+    normal, shear = strain[:3], strain[3:]
+    iso = lam * normal.sum(axis=0) - beta * dT
+    return np.concatenate([iso + 2 * mu * normal, mu * shear])
+
+
+def shear_intensity(s: np.ndarray) -> np.ndarray:
+    """I₂² = τᴰ:τᴰ = (2/3)[τ11²+τ22²+τ33² − (τ11τ22+τ11τ33+τ22τ33) + 3(τ23²+τ13²+τ12²)]."""
+    xx, yy, zz, yz, xz, xy = s
+    return (2.0 / 3.0) * (xx**2 + yy**2 + zz**2 - (xx * yy + xx * zz + yy * zz)
+                          + 3 * (yz**2 + xz**2 + xy**2))
+
+
+def von_mises(s: np.ndarray) -> np.ndarray:
+    """√(3/2 · I₂²)."""
+    return np.sqrt(1.5 * shear_intensity(s))
+
+
+def tensor(s: np.ndarray) -> np.ndarray:
+    """(ncells, 3, 3) symmetric tensors from the (6, ncells) components."""
+    xx, yy, zz, yz, xz, xy = s
+    return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1),
+                     np.stack([xz, yz, zz], -1)], -2)
+
+
+def principal(s: np.ndarray) -> np.ndarray:
+    """(ncells, 3) principal stresses, largest first."""
+    return np.linalg.eigvalsh(tensor(s))[:, ::-1]
