@@ -9,7 +9,6 @@ import pytest
 from scenes import load
 from test_gradients import TOL, check_against_fd
 from wcs.evaluation import Evaluator
-from wcs.meshcheck import richardson
 
 # regions of interest on the flat contact y = 1 (x ∈ [0, 2], slave edges 0.1 or 0.15 long) and
 # the x-intervals of the contact line they hold
@@ -51,11 +50,12 @@ def test_mean_of_a_linear_pressure_is_exact_on_clipped_edges(scene):
 
 def test_hertz_mean_pressure_converges_with_the_mesh():
     """Hertz (a ≈ 0.053 m at p_top = 1.2e8) with h = 0.016 in the contact zone, split once and
-    twice: the mean pressure over x ∈ [0, 0.025] rises monotonically with shrinking differences
-    (measured 2.75165e9, 2.78047e9, 2.78119e9, closed form 2.78488e9); Richardson's estimated
-    error of the coarse value (+2.96e7) is within a factor 1.5 of the true one (+3.32e7; against
-    the finest discrete values, ≈ 2.7834e9, +3.17e7). Before, with the mean over the nodes in the
-    box: 2.80350e9, 2.76327e9, 2.77691e9, no order."""
+    twice: the mean pressure over x ∈ [0, 0.025] against the closed form (2.78488e9) is off by
+    1.0e-2, then 1.1e-3 and 1.2e-3 (measured): the error falls by 9x with the first split, and
+    then reaches the floor of ~1e-3 that every fine mesh shows (the finite cylinder on a finite
+    block is not Hertz's half-plane pair, and the contact edge moving between nodes perturbs
+    the value by ~4e-4), so no Richardson order is asserted. Before, with the mean over the
+    nodes in the box: 2.80350e9, 2.76327e9, 2.77691e9 (errors +6.7e-3, -7.7e-3, -2.8e-3)."""
     def coarse(doc):
         doc["scene"]["mesh"]["refine"][0]["size"] = 0.016
     study = load("hertz", coarse)
@@ -65,9 +65,9 @@ def test_hertz_mean_pressure_converges_with_the_mesh():
     a = math.sqrt(4 * P / (math.pi * 2e11 / (2 * (1 - 0.3**2))))
     p0, s = 2 * P / (math.pi * a), 0.025 / a
     exact = p0 * 0.5 * (s * math.sqrt(1 - s * s) + math.asin(s)) / s
-    est = richardson(*f, 1e-9)
-    assert f[0] < f[1] < f[2] < exact and f[2] - f[1] < (f[1] - f[0]) / 4
-    assert 1 / 1.5 < est.error / (exact - f[0]) < 1.5
+    err = [abs(v / exact - 1) for v in f]
+    assert err[1] < err[0] / 4 and err[2] < err[0] / 4
+    assert max(err[1:]) < 2e-3
 
 
 def test_gradient_on_clipped_edges_of_a_mortar_contact():

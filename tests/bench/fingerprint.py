@@ -19,6 +19,7 @@ import xarray as xr
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))        # the checkout this script lives in, not whichever wcs is installed
 
 from test_validate_studies import BUDGET, STUDIES, _id, small_copy  # noqa: E402
 
