@@ -15,7 +15,8 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    inner cut moved to the same bound of this cut (`_carry`; for a monotone
    criterion: the vertex of the same signs), the others kept.
 2. Corners (one batch per round, up to 4 rounds): for each criterion not yet
-   certified (and not carried to a non-vertex: its maximum is inside in some datum), v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
+   certified (and not carried to a non-vertex point: a maximum inside in some
+   datum), v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
    also from the centre when its gradient has an opposite sign somewhere) — the gradient-sign corner on a box, an LP vertex
    under A x ≤ b. New vertices of all criteria are evaluated together.
    Rounds 2–4 are the KKT check and flip: at a vertex, KKT means
@@ -77,6 +78,8 @@ def auto(problem, config, rng):
                   for c in archive.criteria if not archive.certified(c, tol)}
             recs = yield from archive.ask(list(zs.values()), "carried")
             carried = {c: r for c, r in zip(zs, recs) if r is not None}
+            for c in carried:
+                archive.note("the inner level's best point carried out to this cut's bounds", c)
     else:
         yield from archive.ask([centre, *lhs(space, s, rng)], "sample")
     for _ in range(0 if warm else FLAT_RETRIES):
@@ -116,7 +119,8 @@ def auto(problem, config, rng):
     kept = [c for c in rest if c in carried and archive.certified(c, tol)
             and np.array_equal(_active(space, archive.best_record(c).z), _active(space, carried[c].z))]
     for c in kept:
-        archive.note("restarts skipped: the maximum kept the active bounds of the inner level's, carried out", c)
+        archive.note("restarts skipped: the maximum has the active bounds of the inner level's, carried out "
+                     "(a maximum that first appears between the levels is not looked for)", c)
     rest = [c for c in rest if c not in kept]
     if rest and archive.remaining:
         yield from restart(archive, rest, tol)
@@ -174,7 +178,7 @@ def _bases(archive, c):
 def _carry(space, rec, c, inner):
     """The point of rec carried out of the inner cut (`inner`: its bounds in this cut's z):
     z_i → 0 where it sits at the inner lower bound, → 1 at the inner upper bound; where the inner
-    cut is one value, to the side dΦ_c/dz_i points to (ties to the lower bound, as `lp_vertex`);
+    cut is one value, to the side dΦ_c/dz_i points to (the lower one where it is 0 or unknown);
     the other coordinates kept."""
     lo, hi = inner
     z = rec.z.copy()
