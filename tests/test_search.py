@@ -193,15 +193,16 @@ def assert_interior_maxima(tp, cuts, ext):
         assert trade.certificate == quad.certificate == "local-kkt", a
 
 
-def test_fuzzy_levels_carry_an_interior_maximum_out_for_one_solve_a_level():
+def test_fuzzy_levels_carry_an_interior_maximum_out_for_two_solves_a_level():
     """Issue 14 item 2: trade's maximum sits at r's upper bound and inside in θ, q at every level:
-    carried out to the next cut's bound it is that cut's maximum (one solve, KKT there, no restarts);
-    quad's lies inside every cut and keeps its certificate without a solve."""
+    each level outside the core tries the corner its gradient's signs point to (worse), then the
+    inner maximum carried out to the cut's bound, which is the cut's maximum (KKT there, no ascent,
+    no restarts); quad's lies inside every cut and keeps its certificate without a solve."""
     tp, cuts = interior_cuts((-0.1, 0.4))
     ext, solves = drive_levels(tp, cuts)
     assert_interior_maxima(tp, cuts, ext)
     _, core = drive_levels(tp, cuts[-1:])
-    assert solves == core + 4                             # before: 147 (restarted ascents at every level)
+    assert solves == core + 2 * 4                         # before: 147 (restarted ascents at every level)
     for a, _, _ in cuts[:-1]:
         assert "carried out" in ext["trade", a].note and "restart" not in ext["trade", a].note, a
 

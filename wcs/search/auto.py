@@ -9,14 +9,10 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    turns it off), and at most (budget − 1)/2. If some criterion has shown
    no variation at all (equal values, zero gradients: e.g. contact pressure
    where contact is open), up to two more hypercubes of s points are drawn.
-   A fuzzy level (`Problem.known`, `Problem.inner`: the inner α-cut, searched
-   before) draws none: each criterion not certified at the inner level's best
-   point starts from that point carried out, each coordinate at a bound of the
-   inner cut moved to the same bound of this cut (`_carry`; for a monotone
-   criterion: the vertex of the same signs), the others kept.
+   A fuzzy level (`Problem.known`: the inner levels' evaluations) draws none
+   and starts from their best points.
 2. Corners (one batch per round, up to 4 rounds): for each criterion not yet
-   certified (and not carried to a non-vertex point: a maximum inside in some
-   datum), v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
+   certified, v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
    also from the centre when its gradient has an opposite sign somewhere) — the gradient-sign corner on a box, an LP vertex
    under A x ≤ b. New vertices of all criteria are evaluated together.
    Rounds 2–4 are the KKT check and flip: at a vertex, KKT means
@@ -27,6 +23,11 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    maximum inside, or a non-smooth point) leaves the corner phase.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
+   On a fuzzy level (`Problem.inner`: the inner α-cut) the inner level's best
+   point is first carried out, each coordinate at a bound of the inner cut
+   moved to the same bound of this cut, the others kept (`_carry`): a maximum
+   inside in some data and at the bounds in the others moves so as the cut
+   grows, and the ascent from there has the inner level's active bounds.
 4. A local maximum is not the maximum: for the criteria that needed step 3,
    restarts from the one-flip neighbours of the best point and the best
    vertices (`restart`), then an ascent from the best point if it is still
@@ -69,17 +70,9 @@ def auto(problem, config, rng):
     s = max(0, min(s, (archive.remaining - 1) // 2))
     centre = space.centre()
     warm = bool(problem.known) and all(archive.best_record(c) is not None for c in archive.criteria)
-    carried = {}
+    inner_best = {c: archive.best_record(c) for c in archive.criteria}
     if warm:
         archive.note(f"started from the best of {len(problem.known)} evaluations made before (inner levels)")
-        if problem.inner is not None:
-            inner = [space.to_z(b) for b in problem.inner]
-            zs = {c: _carry(space, archive.best_record(c), c, inner)
-                  for c in archive.criteria if not archive.certified(c, tol)}
-            recs = yield from archive.ask(list(zs.values()), "carried")
-            carried = {c: r for c, r in zip(zs, recs) if r is not None}
-            for c in carried:
-                archive.note("the inner level's best point carried out to this cut's bounds", c)
     else:
         yield from archive.ask([centre, *lhs(space, s, rng)], "sample")
     for _ in range(0 if warm else FLAT_RETRIES):
@@ -90,8 +83,7 @@ def auto(problem, config, rng):
         yield from archive.ask(list(lhs(space, s, rng)), "sample")
 
     # 2. gradient-sign corners, KKT check and flips
-    open_ = [c for c in archive.criteria if not archive.certified(c, tol)
-             and (c not in carried or space.is_vertex(carried[c].z))]
+    open_ = [c for c in archive.criteria if not archive.certified(c, tol)]
     for round_ in range(CORNER_ROUNDS):
         if not open_ or archive.remaining == 0:
             break
@@ -108,8 +100,17 @@ def auto(problem, config, rng):
         yield from archive.ask(proposals, "corner")
         open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
 
-    # 3. local ascent where the corners did not certify
+    # 3. local ascent where the corners did not certify (a fuzzy level: first carry the inner maxima out)
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
+    carried = {}
+    if warm and problem.inner is not None and rest and archive.remaining:
+        inner = [space.to_z(b) for b in problem.inner]
+        zs = {c: _carry(space, inner_best[c], c, inner) for c in rest}
+        recs = yield from archive.ask(list(zs.values()), "carried")
+        carried = {c: r for c, r in zip(zs, recs) if r is not None}
+        for c in carried:
+            archive.note("the inner level's best point carried out to this cut's bounds", c)
+        rest = [c for c in rest if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol)
 
