@@ -26,8 +26,8 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    On a fuzzy level (`Problem.inner`: the inner α-cut) the inner level's best
    point is first carried out, each coordinate at a bound of the inner cut
    moved to the same bound of this cut, the others kept (`_carry`): a maximum
-   inside in some data and at the bounds in the others moves so as the cut
-   grows, and the ascent from there has the inner level's active bounds.
+   inside in some data and at bounds in the others follows those bounds as
+   the cut grows, and the ascent from there keeps the inner level's active set.
 4. A local maximum is not the maximum: for the criteria that needed step 3,
    restarts from the one-flip neighbours of the best point and the best
    vertices (`restart`), then an ascent from the best point if it is still

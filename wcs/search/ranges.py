@@ -12,8 +12,9 @@ its range over each α-cut of the data. The levels are searched from the core (t
 α) outwards, each on its α-cut (a box; the Lipschitz rows A x ≤ b are the same at every
 level). The cuts are nested, so every evaluation made so far lies in the next cut: each
 level's problem carries them all (`Problem.known`, reused, not solved again) and its search
-starts from the previous level's extremes, moved out to its own bounds where they sat at the
-inner cut's (`Problem.inner`, the inner cut; auto.py). The budget is one, over all levels.
+starts from the previous level's extremes; where its corners do not certify them, they are
+moved out to its own bounds where they sat at the inner cut's (`Problem.inner`, the inner cut;
+auto.py). The budget is one, over all levels.
 """
 from __future__ import annotations
 
