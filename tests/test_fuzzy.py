@@ -150,14 +150,24 @@ def test_a_budget_spent_at_the_core_leaves_the_outer_levels_uncertified_and_says
     assert np.all(np.diff(ds["worst_value"].values, axis=0) <= 0)       # still nested: lower bounds of the ranges
 
 
-def test_cooled_layer_each_level_finds_its_interior_maximum():
+COOLED_FUZZY = {"materials.polymer.nu": {"support": [0.05, 0.45], "core": [0.3, 0.4]},
+                "materials.polymer.E": {"support": [1.9e9, 2.1e9], "core": [2.0e9, 2.0e9]},
+                "loads.top.pressure": {"support": [0.95e7, 1.05e7], "core": [1.0e7, 1.0e7]}}
+
+
+def test_cooled_layer_each_level_finds_its_interior_maximum_at_a_fraction_of_the_cost():
+    """The maximum sits inside in ν and at the cut's lowest E and highest p at every level: each
+    level after the core carries the inner level's maximum out to its own bounds and ascends in ν
+    from there, without the restarts (the active bounds are kept)."""
     doc = _read_yaml(COOLED)[0]
-    doc["uncertain"] = {"materials.polymer.nu": {"support": [0.05, 0.45], "core": [0.3, 0.4]},
-                        "materials.polymer.E": {"support": [1.9e9, 2.1e9], "core": [2.0e9, 2.0e9]},
-                        "loads.top.pressure": {"support": [0.95e7, 1.05e7], "core": [1.0e7, 1.0e7]}}
     doc["search"]["budget"] = 200
+    crisp = wcs.run(load(doc, COOLED), output=False)
+    doc["uncertain"] = {path: dict(spec) for path, spec in COOLED_FUZZY.items()}
     study = load(doc, COOLED)
     ds = wcs.run(study, output=False)
+    # five levels cost at most 2.5 times one search on the support box (solves counted; before: 145 against 39)
+    assert ds.sizes["eval"] <= 2.5 * crisp.sizes["eval"], (ds.sizes["eval"], crisp.sizes["eval"])
+    assert float(crisp["worst_value"].values[0]) == pytest.approx(float(ds["worst_value"].values[0, 0]), rel=1e-9)
     for i, alpha in enumerate(study.levels):
         lower, upper = alpha_cut(study, alpha)
         E, p = lower[1], upper[2]
@@ -168,6 +178,9 @@ def test_cooled_layer_each_level_finds_its_interior_maximum():
         assert x[0] == pytest.approx(nu, rel=1e-4) and (x[1], x[2]) == (E, p), alpha
         assert float(ds["worst_value"].values[i, 0]) == pytest.approx(exact, rel=1e-6), alpha
         assert str(ds["certificate"].values[i, 0]) == "local-kkt", alpha
+        if alpha < 1:
+            note = str(ds["certificate_note"].values[i, 0])
+            assert "carried out" in note and "restarts skipped" in note, alpha
 
 
 def test_a_lipschitz_profile_keeps_its_slope_bound_at_every_level(monkeypatch):

@@ -15,11 +15,12 @@ import pytest
 
 from scipy.optimize import minimize
 
-from search_problems import (PROBLEMS, AnalyticProblem, drive, flat, interior, interior_dense_grid,
+from search_problems import (PROBLEMS, X_STAR, AnalyticProblem, drive, flat, interior, interior_dense_grid,
                              lipschitz, monotone, relative_error, two_bumps)
 from wcs.search import Outcome, Problem, STRATEGIES
 from wcs.search.compare import compare_with_lhs
 from wcs.search.designs import design
+from wcs.search.ranges import ranges
 from wcs.search.scaling import Space
 
 METHODS = ["auto", "local", "global", "sample"]
@@ -151,6 +152,69 @@ def test_auto_restarts_reach_what_an_attack_from_one_flip_neighbours_finds(seed)
     assert run.worst.value[c] <= tp.optimum[c] * (1 + 1e-12)
     assert run.worst.certificate[c] == "local-kkt"
     assert any(b.stage == "restart" for b in run.batches)
+
+
+# ------------------------------------------------- fuzzy levels (ranges.py)
+def drive_levels(tp, cuts, budget=300):
+    """Play `ranges` with `auto` over the α-cuts [(α, lower, upper)]: ({(criterion, α): Extreme}, solves)."""
+    gen = ranges(STRATEGIES["auto"], tp.problem, cfg("auto", budget=budget), np.random.default_rng(0),
+                 {c: "max" for c in tp.problem.criteria}, cuts)
+    solves = 0
+    try:
+        batch = next(gen)
+        while True:
+            outs = [tp.outcome(x, batch.gradients) for x in batch.points]
+            solves += len(outs)
+            batch = gen.send(outs)
+    except StopIteration as stop:
+        return {(e.criterion, e.level): e for e in stop.value}, solves
+
+
+def interior_cuts(core_q):
+    """The α-cuts at 0, 0.25, …, 1 of trapezoids from the `interior` box to the core
+    θ ∈ [0.45, 0.65], r ∈ [0.7, 0.9], q ∈ core_q."""
+    tp = interior()
+    lo, hi = tp.problem.lower, tp.problem.upper
+    c, d = np.array([0.45, 0.7, core_q[0]]), np.array([0.65, 0.9, core_q[1]])
+    return tp, [(a, lo + a * (c - lo), hi - a * (hi - d)) for a in (0.0, 0.25, 0.5, 0.75, 1.0)]
+
+
+def assert_interior_maxima(tp, cuts, ext):
+    """trade = r (cos θ + 0.6 sin θ) − 0.3 q² is largest at θ = atan 0.6, r at its upper bound and
+    q nearest 0; quad at X_STAR, inside every cut. Points to 1e-5 (the KKT tolerance 1e-6 of a
+    gap linear in the distance), values to 1e-12 (their error is quadratic in it)."""
+    for a, lower, upper in cuts:
+        q = min(max(0.0, lower[2]), upper[2])
+        trade, quad = ext["trade", a], ext["quad", a]
+        np.testing.assert_allclose(trade.x, [np.arctan(0.6), upper[1], q], atol=1e-5)
+        assert trade.value == pytest.approx(upper[1] * np.sqrt(1.36) - 0.3 * q * q, rel=1e-12), a
+        np.testing.assert_allclose(quad.x, X_STAR, atol=1e-5)
+        assert quad.value == pytest.approx(1.0, rel=1e-12), a
+        assert trade.certificate == quad.certificate == "local-kkt", a
+
+
+def test_fuzzy_levels_carry_an_interior_maximum_out_for_two_solves_a_level():
+    """Issue 14 item 2: trade's maximum sits at r's upper bound and inside in θ, q at every level:
+    each level outside the core tries the corner its gradient's signs point to (worse), then the
+    inner maximum carried out to the cut's bound, which is the cut's maximum (KKT there, no ascent,
+    no restarts); quad's lies inside every cut and keeps its certificate without a solve."""
+    tp, cuts = interior_cuts((-0.1, 0.4))
+    ext, solves = drive_levels(tp, cuts)
+    assert_interior_maxima(tp, cuts, ext)
+    _, core = drive_levels(tp, cuts[-1:])
+    assert solves == core + 2 * 4                         # before: 147 (restarted ascents at every level)
+    for a, _, _ in cuts[:-1]:
+        assert "carried out" in ext["trade", a].note and "restart" not in ext["trade", a].note, a
+
+
+def test_fuzzy_level_whose_maximum_leaves_a_bound_restarts():
+    """At the core q ≥ 0.1 holds trade's maximum at q's lower bound; from α = 0.75 on q = 0 is inside
+    the cut: the active set changes there, and that level restarts its ascents; the next ones keep it."""
+    tp, cuts = interior_cuts((0.1, 0.4))
+    ext, _ = drive_levels(tp, cuts)
+    assert_interior_maxima(tp, cuts, ext)
+    assert "restarted ascent" in ext["trade", 0.75].note
+    assert all("restart" not in ext["trade", a].note for a in (0.0, 0.25, 0.5))
 
 
 # ---------------------------------------------------------------- (c) flat

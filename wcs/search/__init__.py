@@ -17,7 +17,8 @@ as a hard cap and sends back only the outcomes it could afford (a shorter
 list) when a batch would overrun, and the strategy then returns. When done, it
 returns `Worst`: per criterion the best point found and its certificate.
 `Problem.known` holds evaluations made before (an inner α-level's, ranges.py): a strategy
-counts them as its own without asking for them, and `auto` then starts from them.
+counts them as its own without asking for them, and `auto` then starts from them;
+`Problem.inner` is that level's box, where those starting points sit at its bounds.
 Determinism: all randomness comes from `rng`; the same problem, config and
 outcomes give the same batches, bit for bit.
 """
@@ -37,6 +38,7 @@ class Problem:
     A_ub: np.ndarray | None = None   # (k, n) linear constraints A x ≤ b (Lipschitz slip-limit
     b_ub: np.ndarray | None = None   #  profiles), physical units; None when there are none
     known: tuple = ()                # Outcomes already solved inside the box: reused, not charged to the budget
+    inner: tuple | None = None       # (lower, upper) of the inner α-level's box, searched before (ranges.py)
 
     @property
     def dimension(self) -> int:

@@ -9,6 +9,8 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    turns it off), and at most (budget − 1)/2. If some criterion has shown
    no variation at all (equal values, zero gradients: e.g. contact pressure
    where contact is open), up to two more hypercubes of s points are drawn.
+   A fuzzy level (`Problem.known`: the inner levels' evaluations) draws none
+   and starts from their best points.
 2. Corners (one batch per round, up to 4 rounds): for each criterion not yet
    certified, v = argmax_{z∈P} g·z with g = dΦ/dz at its best point (round 1
    also from the centre when its gradient has an opposite sign somewhere) — the gradient-sign corner on a box, an LP vertex
@@ -21,11 +23,21 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    maximum inside, or a non-smooth point) leaves the corner phase.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
+   On a fuzzy level (`Problem.inner`: the inner α-cut) the inner level's best
+   point is first carried out, each coordinate at a bound of the inner cut
+   moved to the same bound of this cut, the others kept (`_carry`): a maximum
+   inside in some data and at bounds in the others follows those bounds as
+   the cut grows, and the ascent from there keeps the inner level's active set.
 4. A local maximum is not the maximum: for the criteria that needed step 3,
    restarts from the one-flip neighbours of the best point and the best
    vertices (`restart`), then an ascent from the best point if it is still
    uncertified. The corners' certificates end the search earlier; the budget
-   caps it all.
+   caps it all. On a fuzzy level, a criterion whose ascent from its carried
+   point ends at a KKT point with the carried point's active bounds skips the
+   restarts, as a corner certificate does: its maximum is the inner level's,
+   followed out with the bounds (the restarts of the levels inside looked for
+   others; a maximum that first appears, or overtakes, between two levels is
+   not looked for — the certificate is local, as ever, and the note says so).
 Every outcome updates every criterion's best. Certificates: archive.py.
 """
 from __future__ import annotations
@@ -36,6 +48,7 @@ from ..study import Search
 from .archive import Archive
 from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
+from .scaling import TOL
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
@@ -57,6 +70,7 @@ def auto(problem, config, rng):
     s = max(0, min(s, (archive.remaining - 1) // 2))
     centre = space.centre()
     warm = bool(problem.known) and all(archive.best_record(c) is not None for c in archive.criteria)
+    inner_best = {c: archive.best_record(c) for c in archive.criteria}
     if warm:
         archive.note(f"started from the best of {len(problem.known)} evaluations made before (inner levels)")
     else:
@@ -86,13 +100,29 @@ def auto(problem, config, rng):
         yield from archive.ask(proposals, "corner")
         open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
 
-    # 3. local ascent where the corners did not certify
+    # 3. local ascent where the corners did not certify (a fuzzy level: first carry the inner maxima out)
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
+    carried = {}
+    if warm and problem.inner is not None and rest and archive.remaining:
+        inner = [space.to_z(b) for b in problem.inner]
+        zs = {c: _carry(space, inner_best[c], c, inner) for c in rest}
+        recs = yield from archive.ask(list(zs.values()), "carried")
+        carried = {c: r for c, r in zip(zs, recs) if r is not None}
+        for c in carried:
+            archive.note("the inner level's best point carried out to this cut's bounds", c)
+        rest = [c for c in rest if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol)
 
     # 4. a local maximum is not the maximum: restart the ascents from one-flip neighbours,
-    #    then go on from the best point of a criterion that is still uncertified
+    #    then go on from the best point of a criterion that is still uncertified; on a fuzzy
+    #    level not for a maximum that kept its carried active bounds
+    kept = [c for c in rest if c in carried and archive.certified(c, tol)
+            and np.array_equal(_active(space, archive.best_record(c).z), _active(space, carried[c].z))]
+    for c in kept:
+        archive.note("restarts skipped: the maximum has the active bounds of the inner level's, carried out "
+                     "(a maximum that first appears between the levels is not looked for)", c)
+    rest = [c for c in rest if c not in kept]
     if rest and archive.remaining:
         yield from restart(archive, rest, tol)
     rest = [c for c in rest if not archive.certified(c, tol)]
@@ -144,6 +174,30 @@ def _bases(archive, c):
     vs = [r for r in archive.records if r.ok[c] and r is not best and archive.space.is_vertex(r.z)]
     vs.sort(key=lambda r: -r.phi[c])
     return ([] if best is None else [best] + vs)[:RESTART_BASES]
+
+
+def _carry(space, rec, c, inner):
+    """The point of rec carried out of the inner cut (`inner`: its bounds in this cut's z):
+    z_i → 0 where it sits at the inner lower bound, → 1 at the inner upper bound; where the inner
+    cut is one value, to the side dΦ_c/dz_i points to (the lower one where it is 0 or unknown);
+    the other coordinates kept."""
+    lo, hi = inner
+    z = rec.z.copy()
+    g = rec.grad.get(c)
+    up = np.zeros(space.n, bool) if g is None else g > 0
+    at_lo, at_hi = np.abs(z - lo) <= TOL, np.abs(z - hi) <= TOL
+    one = at_lo & at_hi
+    z[at_lo & ~one] = 0.0
+    z[at_hi & ~one] = 1.0
+    z[one] = up[one]
+    return z
+
+
+def _active(space, z) -> np.ndarray:
+    """The active set at z: −1 / +1 per coordinate at its lower / upper bound (0 inside), then
+    1 per active row of A z ≤ b."""
+    side = np.where(z <= TOL, -1, np.where(z >= 1 - TOL, 1, 0))
+    return side if space.A is None else np.concatenate([side, space.A @ z >= space.b - TOL])
 
 
 def _disagree(a, b, c) -> bool:

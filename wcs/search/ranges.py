@@ -12,7 +12,9 @@ its range over each α-cut of the data. The levels are searched from the core (t
 α) outwards, each on its α-cut (a box; the Lipschitz rows A x ≤ b are the same at every
 level). The cuts are nested, so every evaluation made so far lies in the next cut: each
 level's problem carries them all (`Problem.known`, reused, not solved again) and its search
-starts from the previous level's extremes. The budget is one, over all levels.
+starts from the previous level's extremes; where its corners do not certify them, they are
+moved out to its own bounds where they sat at the inner cut's (`Problem.inner`, the inner cut;
+auto.py). The budget is one, over all levels.
 """
 from __future__ import annotations
 
@@ -85,11 +87,12 @@ def ranges(factory, problem, config, rng, senses: dict[str, str], cuts=None):
     cfg = Search.of(config)
     levels = [(None, problem.lower, problem.upper)] if cuts is None else sorted(cuts, key=lambda t: -t[0])
     seen: dict[bytes, Outcome] = {o.x.tobytes(): o for o in problem.known}
-    spent, extremes = 0, []
+    spent, extremes, inner = 0, [], None
     for alpha, lower, upper in levels:
         known = tuple(signed(o, objs) for o in seen.values() if in_box(o.x, lower, upper))
         sub = dataclasses.replace(problem, lower=np.asarray(lower, float), upper=np.asarray(upper, float),
-                                  criteria=[name for name, _, _ in objs], known=known)
+                                  criteria=[name for name, _, _ in objs], known=known, inner=inner)
+        inner = (sub.lower, sub.upper) if cuts is not None else None
         left = max(cfg.budget - spent, 0)
         gen = factory(sub, cfg if spent == 0 else cfg.model_copy(update={"budget": left}), rng)
         worst, n = yield from _drive(gen, seen, objs)
