@@ -198,6 +198,8 @@ def _unbalanced_socp(BnR, BtR, e, gw):
     prob = cp.Problem(cp.Maximize((e / s) @ a - (gw / s) @ cp.norm(slips, 2, axis=0)),
                       [BnR @ a <= 0, cp.norm(a, 2) <= 1])
     prob.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise RuntimeError(f"the solvability SOCP ended with status {prob.status}")
     return s * prob.value, np.asarray(a.value, float)
 
 
