@@ -276,3 +276,22 @@ def test_non_unique_and_non_converging_status():
     full = cs.solve_contact(*args(Q), g=np.full(m, 0.004), max_iter=1)   # the SOCP restart, then a polish
     ref = cs.solve_contact(*args(Q), g=np.full(m, 0.004))
     assert full.status == Status.SOLVED and rel(full.u, ref.u) < 1e-8
+
+
+def test_coulomb_floating_pad_matches_socp_and_slides_along_the_load_past_F_p():
+    """A floating pad under a tangential traction t_t and pressure p = 0.01: held by Coulomb
+    friction while |t_t| < F p (Newton = the SOCP fixed point; the soft rigid modes as in the
+    Tresca case), unbalanced past it, with the free motion along t_t."""
+    P = pad_on_base(floating=True, load=(0.001, -0.0015, -0.01))
+    m = len(P["w"])
+    F = np.full(m, 0.3)
+    r, q = cs.solve_contact(*args(P), F=F, R=P["R"]), solve_contact_qp(*args(P), F=F, **REF)
+    assert r.status == Status.SOLVED and q.status == Status.SOLVED and {cs.STICK, cs.SLIP} <= set(r.active)
+    assert_kkt(P, r, F * r.lam_n, bound_tol=10 * 1e-8)
+    assert rel(r.u, q.u) < 1e-6
+    P = pad_on_base(floating=True, load=(0.003, -0.0015, -0.01))         # |t_t| = 0.0034 > F p = 0.003
+    r = cs.solve_contact(*args(P), F=np.full(m, 0.3), R=P["R"])
+    assert r.status == Status.UNSOLVABLE and "Coulomb" in r.message
+    # the last iterate's pressures are not uniform (the oblique load tilts them), so the free
+    # motion may turn a little about z (measured 1e-6); lift and tilt stay 0
+    np.testing.assert_allclose(r.alpha / np.linalg.norm(r.alpha), [2, -1, 0, 0, 0, 0] / np.sqrt(5), atol=1e-5)
