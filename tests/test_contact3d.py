@@ -34,12 +34,13 @@ def _sorted_face(mesh, nodes):
     return nodes[np.lexsort((mesh.p[0, nodes], mesh.p[1, nodes]))]
 
 
-def pad_on_base(N=4, *, rigid_base=False, floating=False, top=(0.004, 0.0, -0.01), twist=0.0,
+def pad_on_base(N=4, *, rigid_base=False, floating=False, top=(0.004, 0.0, -0.01), twist=0.0, tilt=0.0,
                 load=(0.0, 0.0, -0.01), nu=0.3):
     """Pad (N×N×N/2 cells) on a base (2N×2N×N cells, bottom fixed) or on a rigid base.
 
     Held pad: its top displaced by `top` plus a rotation `twist` about the pad's vertical
-    axis (slip directions then vary over the face), eliminated into f. Floating pad: a
+    axis (slip directions then vary over the face) and a tilt about the y axis (u_z += tilt·x:
+    the x > 0.5 side lifts off where tilt·0.25 approaches the press), eliminated into f. Floating pad: a
     uniform traction `load` on its top, R = its 6 rigid modes. Returns dict(K, f, Bn, Bt, d,
     w, R) on the free DOFs."""
     h = 0.5 / N
@@ -87,7 +88,7 @@ def pad_on_base(N=4, *, rigid_base=False, floating=False, top=(0.004, 0.0, -0.01
         d = [nb + bp.nodal_dofs[j, top_p] for j in range(3)]
         ud[d[0]] = top[0] - twist * y[top_p]
         ud[d[1]] = top[1] + twist * x[top_p]
-        ud[d[2]] = top[2]
+        ud[d[2]] = top[2] + tilt * x[top_p]
         fixed += [i for dj in d for i in dj]
     free = np.setdiff1d(np.arange(n), fixed)
     f = f - K @ ud
@@ -180,12 +181,15 @@ def test_coulomb_matches_socp():
 
 
 def test_random_problems_match_socp():
-    """Random loads, friction and Poisson ratios, frictionless, Tresca and Coulomb: Newton
-    and the SOCP agree (`AGREE`) and Newton's answer satisfies the disc KKT conditions."""
+    """Random shears, twists, tilts (part of the face lifts off), friction and Poisson ratios,
+    frictionless, Tresca and Coulomb: Newton and the SOCP agree (`AGREE`), Newton's answer
+    satisfies the disc KKT conditions, and open, stuck and slipping nodes all occur."""
     rng = np.random.default_rng(7)
+    states = set()
     for trial in range(3):
         sx, sy = rng.uniform(-0.004, 0.004, 2)
-        P = pad_on_base(top=(sx, sy, -rng.uniform(0.005, 0.015)), twist=rng.uniform(-0.03, 0.03),
+        press = rng.uniform(0.005, 0.015)
+        P = pad_on_base(top=(sx, sy, -press), twist=rng.uniform(-0.03, 0.03), tilt=rng.uniform(3, 6) * press,
                         nu=rng.uniform(0.1, 0.4))
         m = len(P["w"])
         for law in ({}, {"g": rng.uniform(0.005, 0.02, m)}, {"F": np.full(m, rng.uniform(0.2, 0.6))}):
@@ -194,6 +198,8 @@ def test_random_problems_match_socp():
             gw = law["g"] * P["w"] if "g" in law else (law["F"] * r.lam_n if "F" in law else np.zeros(m))
             assert_kkt(P, r, gw, bound_tol=10 * 1e-8 if "F" in law else 0.0)
             assert rel(r.u, q.u) < (AGREE if law else 1e-10), (trial, list(law))
+            states |= set(r.active)
+    assert states == {cs.OPEN, cs.STICK, cs.SLIP}
 
 
 def test_floating_pad_matches_socp():
