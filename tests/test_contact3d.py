@@ -305,3 +305,15 @@ def test_coulomb_floating_pad_matches_socp_and_slides_along_the_load_past_F_p():
     # the last iterate's pressures are not uniform (the oblique load tilts them), so the free
     # motion may turn a little about z (measured 1e-6); lift and tilt stay 0
     np.testing.assert_allclose(r.alpha / np.linalg.norm(r.alpha), [2, -1, 0, 0, 0, 0] / np.sqrt(5), atol=1e-5)
+
+
+def test_sliding_at_the_limit_is_free_only_along_the_slip():
+    """τ = g exactly: every node slips along the load and the pad may slide along it
+    (NOT_UNIQUE), but not across it: a motion across the slip would change the slip direction
+    and the friction energy gw|s| with it. β is the translation along (cos θ, sin θ)."""
+    theta, p, g = 0.6, 0.01, 0.004
+    P = pad_on_base(rigid_base=True, floating=True, load=(g * np.cos(theta), g * np.sin(theta), -p))
+    r = cs.solve_contact(*args(P), g=np.full(len(P["w"]), g), R=P["R"])
+    assert r.status == Status.NOT_UNIQUE and "not unique" in r.message
+    np.testing.assert_allclose(r.alpha / np.linalg.norm(r.alpha), [np.cos(theta), np.sin(theta), 0, 0, 0, 0],
+                               atol=1e-10)
