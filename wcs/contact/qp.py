@@ -8,7 +8,10 @@ r"""Reference contact solver: the same problem as a convex program in cvxpy (Cla
 The epigraph variables s ≥ |Bt u| make the friction multiplier recoverable:
 stationarity in u gives K u + Bnᵀλn + Btᵀ(μ⁺ − μ⁻) = f, so λt = μ⁺ − μ⁻,
 and stationarity in s gives μ⁺ + μ⁻ = gw, hence |λt| ≤ gw — the sign
-conventions of `wcs.contact.solver`. K may be singular (floating bodies):
+conventions of `wcs.contact.solver`. In 3D (two tangent rows per node, stacked by
+component as in `wcs.contact.solver`) s_i ≥ |(Bt u)_i| is a second-order cone and
+the program an SOCP: with the cone's dual (ν_i, μ_i), stationarity in u gives
+λt,i = −μ_i and in s gives ν_i = gw_i ≥ |μ_i|, the disc condition. K may be singular (floating bodies):
 `psd_wrap` skips cvxpy's eigenvalue check; an unbalanced load makes the
 program unbounded, reported as UNSOLVABLE. Coulomb (slip limit g + F p) by the
 same fixed point as the Newton solver, started from a stuck state (a slip limit
@@ -35,14 +38,20 @@ def _tresca_qp(K, f, Bn, Bt, d, gw, tol):
     """
     n, m = K.shape[0], Bn.shape[0]
     a = max(np.abs(f).max(), 1e-300) / K.diagonal().mean()
+    k = Bt.shape[0] // m if m else 1
     v, s = cp.Variable(n), cp.Variable(m)
-    cons = [Bn @ v <= d / a, Bt @ v <= s, -Bt @ v <= s]
+    if k == 1:
+        cons = [Bn @ v <= d / a, Bt @ v <= s, -Bt @ v <= s]
+    else:
+        cons = [Bn @ v <= d / a, cp.SOC(s, cp.reshape(Bt @ v, (k, m), order="C"), axis=0)]
     obj = 0.5 * cp.quad_form(v, cp.psd_wrap(K)) - (f / a) @ v + (gw / a) @ s
     prob = cp.Problem(cp.Minimize(obj), cons)
     prob.solve(solver=cp.CLARABEL, tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=tol)
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
         return None, None, None, prob.status
-    return a * v.value, a * cons[0].dual_value, a * (cons[1].dual_value - cons[2].dual_value), prob.status
+    lt = (cons[1].dual_value - cons[2].dual_value if k == 1
+          else -np.asarray(cons[1].dual_value[1], float).reshape(k * m))
+    return a * v.value, a * cons[0].dual_value, a * lt, prob.status
 
 
 def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,

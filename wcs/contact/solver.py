@@ -21,19 +21,28 @@ so the contact displacements are affine in (λ, α):
 
 with the equilibrium of the rigid modes G λ = e, e = Rᵀ f. The conditions of
 Hüeber–Stadler–Wohlmuth, C_n = λn − max(0, λn + c_n r_n) = 0 and
-C_t = max(gw, |λt + c_t r_t|) λt − gw (λt + c_t r_t) = 0, are in 2D (scalar
-tangent) the projection equations
+C_t = max(gw, |λt + c_t r_t|) λt − gw (λt + c_t r_t) = 0, are the projection
+equations
 
-    Φ(λ, α) = λ − Π_B(λ + c ⊙ r(λ, α)) = 0,   B = {λn ≥ 0, |λt| ≤ gw},
+    Φ(λ, α) = λ − Π_B(λ + c ⊙ r(λ, α)) = 0,   B = {λn ≥ 0, |λt,i| ≤ gw_i},
 
-i.e. the optimality conditions of the dual box-constrained QP
-min ½λᵀWλ − qᵀλ over B with Gλ = e. Semismooth Newton on Φ is the
-primal–dual active set method: components with λ + c r inside the box are
-free (contact closed / stick: r_i = 0), the others are fixed at the bound
-they project to (open: λn = 0; slip: λt = ±gw). Full steps; a free set
-seen before (a cycle) or `max_iter` restarts Newton from the dual QP's
-solution (`_newton`).
-The constants c = 1 / diag(W) turn displacements into forces node by node.
+i.e. the optimality conditions of the dual QP min ½λᵀWλ − qᵀλ over B with
+Gλ = e. Dimension d: each node has d − 1 tangent rows; Bt stacks them by
+component (row j·m + i is tangent j of node i), and |λt,i| is the 2-norm of
+node i's d − 1 components, so B is a box in 2D and a product of discs in 3D
+(the dual problem is then a second-order-cone program). Semismooth Newton on Φ
+is the primal–dual active set method: components with λ + c r inside B are
+free (contact closed / stick: r_i = 0), the others are held at their
+projection (open: λn = 0; slip: λt = gw z/|z|, z = λt + c r_t). In 2D the
+projection onto the interval is piecewise constant (λt = ±gw); on a disc it
+is not, and a slipping node's row is the linearization with the generalized
+Jacobian of the disc projection, D = gw/|z| (I − z zᵀ/|z|²) (Hüeber, Stadler,
+Wohlmuth, SIAM J. Sci. Comput. 30 (2008), the 3D semismooth Newton). Full
+steps; an active pattern seen before (a cycle, where the step is determined
+by the pattern: no slip on a disc) or `max_iter` restarts Newton from the dual
+QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
+a node the mean of its d − 1 diagonal entries, one c per disc) turn
+displacements into forces node by node.
 
 The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
 which PARDISO returns as the inverse of the Schur complement of K on S
@@ -60,6 +69,7 @@ from wcs import linalg
 from wcs.status import Status
 
 OPEN, STICK, SLIP = 0, 1, 2
+CLARABEL_TIGHT = {k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")}
 
 
 @dataclass
@@ -77,7 +87,7 @@ class ContactResult:
     factor: "ContactFactor | None" = None
     alpha: np.ndarray | None = None  # rigid amplitudes; for UNSOLVABLE the unbalanced direction
     timings: dict = field(default_factory=dict)
-    free: np.ndarray | None = None   # (2m,) final Newton free set: closed normals, stuck tangents
+    free: np.ndarray | None = None   # (d·m,) final Newton free set: closed normals, stuck tangents
     gw: np.ndarray | None = None     # (m,) final slip bounds g·w (+ F·λn for Coulomb)
 
 
@@ -157,18 +167,40 @@ def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> Conta
 
 
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
-    """max fᵀRα − Σ gw|Bt Rα| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r.
+    """max fᵀRα − Σ gw_i |(Bt Rα)_i| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r
+    (3D: |α| ≤ 1).
 
     The problem is solvable only if this maximum is 0 (L(w) ≤ j(w) for rigid w ∈ K, [21, Remark 2.1]).
-    Linear program in (α, s) with s ≥ |Bt Rα|. Returns (value, α).
+    2D: a linear program in (α, s) with s ≥ |Bt Rα|. 3D: |(Bt Rα)_i| is the 2-norm of node i's
+    two tangential slips, and the exact problem is a second-order-cone program (a polyhedral
+    norm would not be exact: the 1-norm overstates the friction's hold and can pass an
+    unbalanced load, the ∞-norm understates it); α in the unit ball there, so that the
+    unbalanced motion follows the load (a box would bend it to a corner). Returns (value, α).
     """
     r, m = R.shape[1], Bn.shape[0]
     BnR, BtR, e = Bn @ R, Bt @ R, R.T @ f
+    if Bt.shape[0] > m:
+        return _unbalanced_socp(BnR, BtR, e, gw)
     I = np.eye(m)
     A_ub = np.block([[BnR, np.zeros((m, m))], [BtR, -I], [-BtR, -I]])
     res = sopt.linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
                        bounds=[(-1, 1)] * r + [(0, None)] * m, method="highs")
     return -res.fun, res.x[:r]
+
+
+def _unbalanced_socp(BnR, BtR, e, gw):
+    """`unbalanced_rigid_motion` with disc friction: Clarabel on the data scaled by Σ|e|."""
+    import cvxpy as cp
+    m, r = BnR.shape
+    s = max(np.abs(e).sum(), np.abs(gw).max(initial=0.0), 1e-300)
+    a = cp.Variable(r)
+    slips = cp.reshape(BtR @ a, (BtR.shape[0] // m, m), order="C")
+    prob = cp.Problem(cp.Maximize((e / s) @ a - (gw / s) @ cp.norm(slips, 2, axis=0)),
+                      [BnR @ a <= 0, cp.norm(a, 2) <= 1])
+    prob.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise RuntimeError(f"the solvability SOCP ended with status {prob.status}")
+    return s * prob.value, np.asarray(a.value, float)
 
 
 def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
@@ -198,32 +230,92 @@ def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
     return beta / beta[np.argmax(np.abs(beta))]
 
 
-def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True):
-    """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_[lo,hi](λ + c ⊙ r) = 0, Gλ = e.
+def project(z, lo, hi, k=1):
+    """Π_B(z): the normals clipped at lo = 0, each node's k tangent components (rows j·m + i)
+    onto the disc of radius hi (the same on a node's components). For k = 1 this is the clip
+    onto [−gw, gw] to the bit: the norm of one component is its absolute value and z/|z| = ±1."""
+    out = np.clip(z, lo, hi)
+    m = len(z) // (1 + k)
+    t, r = z[m:].reshape(k, m), hi[m:m + m]
+    norm = np.linalg.norm(t, axis=0)
+    slip = norm > r
+    nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
+    out[m:] = np.where(slip, np.where(slip, r, 0.0) * nu, t).ravel()
+    return out
+
+
+def inside(z, lo, hi, k=1):
+    """Components whose z lies inside B (the free set): z_n > 0, |z_t,i| < gw_i on each of the
+    node's k tangent components."""
+    m = len(z) // (1 + k)
+    return np.r_[(z[:m] > lo[:m]) & (z[:m] < hi[:m]),
+                 np.tile(np.linalg.norm(z[m:].reshape(k, m), axis=0) < hi[m:m + m], k)]
+
+
+def disc_slips(z, hi, k):
+    """Slipping nodes on a disc (k ≥ 2, |z_t,i| > gw_i > 0): their component indices (n, k) and
+    the generalized Jacobian of the projection there, D = gw/|z| (I − ννᵀ), ν = z/|z| (n, k, k)."""
+    m = len(z) // (1 + k)
+    t, r = z[m:].reshape(k, m), hi[m:m + m]
+    norm = np.linalg.norm(t, axis=0)
+    nodes = np.flatnonzero((norm > r) & (r > 0)) if k > 1 else np.zeros(0, dtype=int)
+    nu = (t[:, nodes] / norm[nodes]).T
+    D = (r[nodes] / norm[nodes])[:, None, None] * (np.eye(k) - nu[:, :, None] * nu[:, None, :])
+    return m + nodes[:, None] + m * np.arange(k), D
+
+
+def _across_slip(G, lam_t, free, k):
+    """On a disc a slipping node holds the motion across its slip: the friction energy
+    gw|s + tδ| is linear in t only for δ ∥ s, so a rigid motion changing the slip direction is
+    no free motion. The rows ν⊥ᵀ(C R)_t of each node, ν = λt/|λt| (zero rows where the node
+    sticks or opens); (r, m) for the two tangents of 3D, (r, 0) for k = 1."""
+    m = len(lam_t) // k
+    if k == 1:
+        return np.zeros((G.shape[0], 0))
+    t = lam_t.reshape(2, m)
+    norm = np.linalg.norm(t, axis=0)
+    slip = (~free[m:m + m]) & (norm > 0)
+    nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
+    return G[:, 2 * m:3 * m] * nu[0] - G[:, m:2 * m] * nu[1]
+
+
+def scales(W, k=1):
+    """c = 1 / diag(W), on a node's k tangent components 1 / their mean diagonal (one c per disc)."""
+    m = W.shape[0] // (1 + k)
+    dW = np.diag(W).copy()
+    dW[m:] = np.tile(dW[m:].reshape(k, m).mean(axis=0), k)
+    return 1.0 / np.where(dW > 0, dW, 1.0)
+
+
+def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True, k=1):
+    """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_B(λ + c ⊙ r) = 0, Gλ = e.
 
     Full (undamped) steps: each step solves the active-set system of the predicted
-    free set exactly, so the iteration ends when a free set reproduces itself. A step is
-    determined by its free set and the bound each other component is held at (λn = 0;
-    λt = −gw or +gw), so that pattern seen before without convergence means a cycle (the
-    free set alone is not: the same free set with a slip of the other sign is another
-    step — counted as a cycle, it sent 14 % of granite's solves to the QP); then (and at
-    `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over the box
-    with Gλ = e is solved by an interior-point method and Newton restarts from it to
-    polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖² — stalled on
-    floating bodies: its short first step leaves the rigid amplitudes α at zero and the
-    next prediction opens every contact.)
+    free set exactly, so the iteration ends when a free set reproduces itself. In 2D a
+    step is determined by its free set and the bound each other component is held at
+    (λn = 0; λt = −gw or +gw), so that pattern seen before without convergence means a
+    cycle (the free set alone is not: the same free set with a slip of the other sign is
+    another step — counted as a cycle, it sent 14 % of granite's solves to the QP); on a
+    disc (k = 2 tangent components) a slipping node's step depends on its slip direction
+    too, and a pattern repeats while Newton converges: there a cycle is only counted
+    while no node slips on a disc. Then (and at `max_iter`) the convex dual QP
+    min ½λᵀWλ − qᵀλ over B with Gλ = e is solved by an interior-point method and Newton
+    restarts from it to polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖²
+    — stalled on floating bodies: its short first step leaves the rigid amplitudes α at
+    zero and the next prediction opens every contact.)
 
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
+    k: tangent components per node (d − 1); lo, hi: the bounds of B per component.
     Returns (λ, α, free, iterations, converged).
     """
-    c = 1.0 / np.where(np.diag(W) > 0, np.diag(W), 1.0)
-    redundant = redundant_pairs(W)
+    c = scales(W, k)
+    redundant = redundant_pairs(W, k)
     force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def check(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
-        phi, eq = lam - np.clip(z, lo, hi), G @ lam - e
+        phi, eq = lam - project(z, lo, hi, k), G @ lam - e
         scale = max(force, np.abs(lam).max(initial=0.0))
         ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
         return z, ok
@@ -231,27 +323,31 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     seen = set()
     for it in range(max_iter + 1):
         z, ok = check(lam, alpha)
-        predicted = (z > lo) & (z < hi)
+        predicted = inside(z, lo, hi, k)
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
         free = predicted if (it > 0 or free0 is None) else free0
+        J, D = disc_slips(z, hi, k)
+        slips = ~free[J[:, 0]]                                   # not stuck by the prescribed set
+        J, D = J[slips], D[slips]
         key = np.where(free, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()
-        if it == max_iter or key in seen:
+        if it == max_iter or (key in seen and not len(J)):
             break
         if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
             seen.add(key)
-        lam, alpha = _newton_point(W, q, G, e, free, np.clip(z, lo, hi), redundant)
+        lam, alpha = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
     if not fallback:
         return lam, alpha, free, it, False
-    qp = _dual_qp(W, q, G, e, lo, hi, force)
+    qp = _dual_qp(W, q, G, e, lo, hi, force, k)
     if qp is None:
         return lam, alpha, free, it, False
-    lam2, alpha2, free2, k, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False)
-    return lam2, alpha2, free2, it + k, ok
+    lam2, alpha2, free2, n, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False, k=k)
+    return lam2, alpha2, free2, it + n, ok
 
 
-def _dual_qp(W, q, G, e, lo, hi, force):
-    """The condensed dual problem as a dense convex QP (Clarabel): (λ, α), or None.
+def _dual_qp(W, q, G, e, lo, hi, force, k=1):
+    """The condensed dual problem as a dense convex QP (Clarabel): (λ, α), or None. With discs
+    (k = 2) the tangential bounds are second-order cones |λt,i| ≤ gw_i: an SOCP.
 
     Scaled to O(1) data: λ = s μ with the force scale s, objective divided by s²·max|W|.
     The equality's dual y (∇f + Gᵀy = 0 in the scaled problem) gives α = −s·max|W|·y
@@ -260,13 +356,19 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     1e-5 of the force scale, and Newton restarted from there cycled again."""
     import cvxpy as cp
     n, s, wmax = W.shape[0], force, np.abs(W).max()
+    m = n // (1 + k)
     mu = cp.Variable(n)
     cons = []
-    flo, fhi = np.flatnonzero(np.isfinite(lo)), np.flatnonzero(np.isfinite(hi))
+    box = n if k == 1 else m                 # the components bounded one by one
+    flo, fhi = np.flatnonzero(np.isfinite(lo[:box])), np.flatnonzero(np.isfinite(hi[:box]))
     if flo.size:
         cons.append(mu[flo] >= lo[flo] / s)
     if fhi.size:
         cons.append(mu[fhi] <= hi[fhi] / s)
+    discs = np.flatnonzero(np.isfinite(hi[m:m + m])) if k > 1 else np.zeros(0, dtype=int)
+    if discs.size:
+        t = cp.reshape(mu[m:], (k, m), order="C")
+        cons.append(cp.SOC(hi[m + discs] / s, t[:, discs], axis=0))
     eq = None
     if G.shape[0]:
         eq = G @ mu == e / s
@@ -275,7 +377,7 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(mu, cp.psd_wrap(0.5 * (Wn + Wn.T)))
                                   - (q / (s * wmax)) @ mu), cons)
     try:
-        prob.solve(solver=cp.CLARABEL, **{k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")})
+        prob.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
     except cp.SolverError:
         return None
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
@@ -284,17 +386,23 @@ def _dual_qp(W, q, G, e, lo, hi, force):
     return mu.value * s, alpha
 
 
-def redundant_pairs(W: np.ndarray) -> np.ndarray:
-    """Nodes whose normal and tangential rows are parallel (rollers on both sides of the node:
-    both rows act on one relative motion): the 2×2 block of W on the pair is singular,
-    det ≤ 1e-10 W_nn W_tt (an angle below 1e-5 rad between the rows in the W-metric)."""
-    m = W.shape[0] // 2
-    dn, dt, nt = np.diag(W)[:m], np.diag(W)[m:], np.diag(W, m)
+def redundant_pairs(W: np.ndarray, k: int = 1) -> np.ndarray:
+    """Tangent rows parallel to their node's normal row (rollers on both sides of the node:
+    both rows act on one relative motion), one flag per tangent row (j·m + i): the 2×2 block
+    of W on the pair is singular, det ≤ 1e-10 W_nn W_tt (an angle below 1e-5 rad between the
+    rows in the W-metric)."""
+    m = W.shape[0] // (1 + k)
+    node, row = np.tile(np.arange(m), k), m + np.arange(k * m)
+    dn, dt, nt = np.diag(W)[node], np.diag(W)[row], W[node, row]
     return dn * dt - nt * nt <= 1e-10 * dn * dt
 
 
-def _newton_point(W, q, G, e, free, fixed_values, redundant):
+def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α).
+
+    disc: (J, D) for nodes slipping on a disc, their tangent components J (n, k) and the
+    Jacobians D of the projection there (`disc_slips`); their rows are the linearized
+    projection λ_J − D(λ_J + c r_J) = Π(z)_J (D z = 0), unknowns beside the free ones.
 
     The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
     node of `redundant_pairs` that is closed and stuck carries a pair (λn, λt) of which
@@ -304,20 +412,32 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant):
     cycle). Such a tangent's equation (κ times the normal one, κ = W_nt / W_nn) is dropped
     with λt = 0, and the pair is then moved along the null direction (κ, −1) to the minimum
     norm split λn + κλt = const: λ = (λn, 0) / (1 + κ²) · (1, κ) — the least-squares
-    solution at the cost of one LU. A system singular otherwise (a node held by supports on
-    both sides has zero rows) is solved by least squares. α is scaled by max|W| so that
-    both blocks are of one size.
+    solution at the cost of one LU (one tangent per node is taken to be so tied). A system
+    singular otherwise (a node held by supports on both sides has zero rows) is solved by
+    least squares. α is scaled by max|W| so that both blocks are of one size.
     """
-    m = len(redundant)
+    n_t = len(redundant)
+    m = len(free) - n_t
+    k = n_t // m if m else 1
     tied = np.zeros_like(free)
-    tied[m:] = redundant & free[:m] & free[m:]
-    solve = free & ~tied
+    tied[m:] = redundant & np.tile(free[:m], k) & free[m:]
+    unknown = free.copy()
+    if disc is not None and len(disc[0]):
+        unknown[disc[0].ravel()] = True
+    solve = unknown & ~tied
     F = np.flatnonzero(solve)
-    lam = np.where(free, 0.0, fixed_values)
+    lam = np.where(unknown, 0.0, fixed_values)
     r = G.shape[0]
     s = max(np.abs(W).max(initial=0.0), 1e-300)
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
+    if disc is not None and len(disc[0]):
+        J, D = disc
+        P = np.searchsorted(F, J)                               # their rows and columns in M
+        cD = c[J[:, :1, None]] * D
+        rows = np.einsum("sij,sjc->sic", cD, M[P])
+        rows[np.arange(len(J))[:, None, None], np.arange(k)[None, :, None], P[:, None, :]] += np.eye(k) - D
+        M[P], rhs[P] = rows, np.einsum("sij,sj->si", cD, rhs[P]) + fixed_values[J]
     try:
         x = np.linalg.solve(M, rhs)
         if not np.all(np.isfinite(x)):
@@ -325,13 +445,14 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant):
     except np.linalg.LinAlgError:
         x = np.linalg.lstsq(M, rhs, rcond=None)[0]
     lam[F] = x[: len(F)]
-    pair = np.flatnonzero(tied[m:] & (np.diag(W)[:m] > 0))
-    kappa = np.diag(W, m)[pair] / np.diag(W)[pair]
-    lam[pair], lam[m + pair] = lam[pair] / (1 + kappa**2), kappa * lam[pair] / (1 + kappa**2)
+    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k))
+    node = pair % m
+    kappa = W[node, m + pair] / np.diag(W)[node]
+    lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)
     return lam, s * x[len(F):]
 
 
-def _first_free_set(warm, gw):
+def _first_free_set(warm, gw, k=1):
     """Free set of the first Newton step: the warm result's active set, else all closed and stuck.
 
     Predicting it from the warm multipliers instead (λ + c r with the new data) marks most
@@ -340,15 +461,15 @@ def _first_free_set(warm, gw):
     acts) stick if their old |λt| was below the bound.
     """
     if warm is None or warm.active is None:
-        return np.r_[np.ones(len(gw), dtype=bool), gw > 0]
+        return np.r_[np.ones(len(gw), dtype=bool), np.tile(gw > 0, k)]
     open_ = warm.active == OPEN
-    stick = (warm.active == STICK) | (open_ & (np.abs(warm.lam_t) < gw))
-    return np.r_[~open_, stick & (gw > 0)]
+    stick = (warm.active == STICK) | (open_ & (np.linalg.norm(warm.lam_t.reshape(k, -1), axis=0) < gw))
+    return np.r_[~open_, np.tile(stick & (gw > 0), k)]
 
 
 def _states(free, m, gw):
     """Node states from the final free set: open / stick / slip."""
-    closed, stick = free[:m], free[m:] & (gw > 0)
+    closed, stick = free[:m], free[m:m + m] & (gw > 0)
     return np.where(~closed, OPEN, np.where(stick, STICK, SLIP))
 
 
@@ -374,6 +495,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     t0 = time.perf_counter()
     timings = {}
     m = Bn.shape[0]
+    k = Bt.shape[0] // m if m else 1                  # tangent components per node: d − 1
     f, d, w = (np.asarray(a, dtype=float) for a in (f, d, w))
     C = sp.vstack([Bn, Bt]).tocsr()
     R = None if R is None else np.asarray(R, dtype=float).reshape(len(f), -1)
@@ -404,25 +526,26 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
 
     t = time.perf_counter()
     W = cf.W
-    q = C @ u0 - np.r_[d, np.zeros(m)]
-    G = (C @ R).T if R is not None else np.zeros((0, 2 * m))
+    q = C @ u0 - np.r_[d, np.zeros(k * m)]
+    G = (C @ R).T if R is not None else np.zeros((0, (1 + k) * m))
     e = R.T @ f if R is not None else np.zeros(0)
-    lam = np.zeros(2 * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
+    lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
-    lo = np.r_[np.zeros(m), -gw]
-    hi = np.r_[np.full(m, np.inf), gw]
-    no_qp = {} if qp else {"fallback": False}
-    lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter,
-                                          _first_free_set(warm, gw), **no_qp)
+    lo = np.r_[np.zeros(m), -np.tile(gw, k)]
+    hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
+    no_qp = {"k": k} if qp else {"fallback": False, "k": k}
+    lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, project(lam, lo, hi, k), alpha, tol, max_iter,
+                                          _first_free_set(warm, gw, k), **no_qp)
     fp_iters, fp_ok = 0, True
     if coulomb:
         fp_ok = False
         while ok and fp_iters < max_fp_iter and not fp_ok:
             p_old = lam[:m] / w
             gw = gw_fixed + Fc * lam[:m]
-            lo[m:], hi[m:] = -gw, gw
-            lam, alpha, free, k, ok = _newton(W, q, G, e, lo, hi, np.clip(lam, lo, hi), alpha, tol, max_iter, **no_qp)
-            iters += k
+            lo[m:], hi[m:] = -np.tile(gw, k), np.tile(gw, k)
+            lam, alpha, free, n, ok = _newton(W, q, G, e, lo, hi, project(lam, lo, hi, k), alpha, tol, max_iter,
+                                              **no_qp)
+            iters += n
             fp_iters += 1
             p = lam[:m] / w
             fp_ok = np.linalg.norm(p - p_old) <= tol_fp * max(np.linalg.norm(p), 1e-300)
@@ -440,7 +563,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     if ok and R is not None:
         r = q - W @ lam + G.T @ alpha                     # C u − [d; 0]: −gap on the normal rows
         touching = np.abs(r[:m]) <= tol * max(np.abs(r).max(), 1e-300)
-        beta = free_rigid_motion(G, free | np.r_[touching, np.zeros(m, bool)])
+        held = free | np.r_[touching, np.zeros(k * m, bool)]
+        beta = free_rigid_motion(np.c_[G, _across_slip(G, lam[m:], free, k)], np.r_[held, np.ones(m * (k > 1), bool)])
     if beta is not None:
         return ContactResult(None, None, None, Status.NOT_UNIQUE,
                              f"the solution is not unique: the rigid motion v = Rβ, β = "
