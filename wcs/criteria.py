@@ -72,35 +72,36 @@ class Criterion:
         return float(np.max(self.region_values(model, state)))
 
 
-def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) -> list[Criterion]:
-    rois = scene.get("regions_of_interest") or {}
+def build_criteria(study_criteria, scene, smesh, zone=None) -> list[Criterion]:
+    """The study's criteria (validated specs: name, kind, regions, options) on the mesh."""
+    rois = scene.regions_of_interest
     out = []
     for k, spec in enumerate(study_criteria):
-        path, kind = f"criteria.{k}", KINDS[spec["kind"]]
+        path, kind = f"criteria.{k}", KINDS[spec.kind]
         if kind.reads == "contact":             # only the contact rows next to G_r matter
             sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}")
-                    if "boundary" in rois[r] else Selection("cells", np.zeros(0, dtype=np.int64))
-                    for r in spec["regions"]]
+                    if rois[r].boundary is not None else Selection("cells", np.zeros(0, dtype=np.int64))
+                    for r in spec.regions]
             masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
-                     for r, s in zip(spec["regions"], sels)]
+                     for r, s in zip(spec.regions, sels)]
             measures = np.array([zone.weight[m].sum() for m in masks])
-            out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, None, measures, masks))
+            out.append(Criterion(spec.name, spec.kind, list(spec.regions), sels, None, measures, masks))
             continue
-        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
+        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec.regions]
         functionals = None if kind.functional is None else \
-            [kind.functional(smesh, spec, s, path, r) for r, s in zip(spec["regions"], sels)]
+            [kind.functional(smesh, spec, s, path, r) for r, s in zip(spec.regions, sels)]
         measures = np.array([_measure(smesh.mesh, s) for s in sels])
-        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures))
+        out.append(Criterion(spec.name, spec.kind, list(spec.regions), sels, functionals, measures))
     return out
 
 
-def embedded_rois(study_criteria: list[dict]) -> list[str]:
+def embedded_rois(study_criteria) -> list[str]:
     """The regions of interest whose cells a criterion integrates over (every kind but the
     contact ones, which take the contact rows next to G_r): the mesh embeds them."""
-    return sorted({r for c in study_criteria if KINDS[c["kind"]].reads == "cells" for r in c["regions"]})
+    return sorted({r for c in study_criteria if KINDS[c.kind].reads == "cells" for r in c.regions})
 
 
-def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
+def _roi_selection(smesh, name: str, spec, path: str) -> Selection:
     """G_r as mesh entities: the cells of a box / disc / polygon embedded in the mesh (exactly
     G_r, the disc as the mesh's polygon), else `select_region` (boundary facets; on a mesh file
     the cells cut exactly by a box or polygon)."""
@@ -108,7 +109,7 @@ def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
         return select_region(smesh, spec, path)
     sel = Selection("cells", smesh.roi_cells[name])
     if len(sel) == 0:
-        where = f" of body {spec['body']!r}" if spec.get("body") is not None else ""
+        where = f" of body {spec.body!r}" if spec.body is not None else ""
         raise StudyError(f"the region of interest covers no part of the scene{where}", path=path)
     return sel
 
@@ -144,17 +145,17 @@ def _mean_weights(mesh, sel: Selection) -> np.ndarray:
     return w / L.sum()
 
 
-def _direction(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+def _direction(smesh, spec, sel: Selection, path: str, roi: str) -> np.ndarray:
     """The fixed direction n(X_r): given, the outward normal of the boundary of the region's
     body at `point` X_r (X_r must lie on it, up to half an edge; at a node between edges that
     turn by at most 30° their length-weighted mean normal, at a sharper corner refused), or the
     mean outward normal of a boundary region of interest."""
     mesh = smesh.mesh
-    if spec.get("direction") is not None:
-        d = np.asarray(spec["direction"], float)
+    if spec.direction is not None:
+        d = np.asarray(spec.direction, float)
         return d / np.linalg.norm(d)
-    if spec.get("point") is not None:
-        X = np.asarray(spec["point"], float)
+    if spec.point is not None:
+        X = np.asarray(spec.point, float)
         facets = boundary_facets(mesh)
         owners = smesh.cell_body[sel.index] if sel.kind == "cells" else smesh.cell_body[mesh.f2t[0, sel.index]]
         facets = facets[np.isin(smesh.cell_body[mesh.f2t[0, facets]], owners)]   # the ROI's own body
@@ -191,7 +192,7 @@ def _cell_mean(model, sel: Selection, density: np.ndarray) -> float:
     return float(a @ density[cells] / a.sum())
 
 
-def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: str) -> np.ndarray:
+def _contact_rows_in(smesh, scene, zone, roi: str, sel: Selection, path: str) -> np.ndarray:
     """Contact rows (slave nodes) next to G_r: the slave node x or its master projection
     x + gap·n lies in G_r, so a region on either side of a contact, open or closed, matching
     or not, catches the same rows. A boundary G_r is its facets; an area one its shape."""
@@ -202,8 +203,7 @@ def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: s
         a, b = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
         dist = np.min([dist_segment(pts[:, 0], pts[:, 1], a[i], b[i]) for i in range(len(a))], axis=0)
     else:
-        spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
-        dist = distance_function(spec, path)(pts[:, 0], pts[:, 1])
+        dist = distance_function(scene.regions_of_interest[roi], path)(pts[:, 0], pts[:, 1])
     scale = max(np.ptp(pts, axis=0).max(), 1e-300)
     near = dist <= 1e-6 * scale + 1e-3 * np.tile(zone.weight, 2)
     mask = near[:zone.gap.size] | near[zone.gap.size:]
