@@ -878,6 +878,25 @@ def _recorded_text(base: Path, text: str, extra: list[tuple[Path, str]]) -> str:
     return text
 
 
+def _checked_scene(raw, src: _Source) -> tuple[Scene, list[tuple[Path, str]], list[str], float | None]:
+    """The scene of a study (inline, or a file name relative to `src`), resolved and checked;
+    the files it came from, the notes on it and its estimated cell count."""
+    scene, scene_src, extra, notes = _load_scene(raw, src)
+    _check_regions(scene, scene_src)
+    _check_references(scene, scene_src)
+    _check_contacts(scene, scene_src)
+    notes = notes + _check_thermal(scene, scene_src)
+    return scene, extra, notes, _check_mesh(scene, scene_src)
+
+
+def load_scene(mapping: Mapping, base_dir=None) -> Scene:
+    """The `scene:` block of a study given as the mapping its YAML parses to, resolved and
+    checked as `load_study` does (file names relative to `base_dir`, default the current
+    directory); StudyError names `<mapping>` and the key path (`scene.…`)."""
+    doc, _ = _mapping_yaml(mapping)
+    return _checked_scene(doc, _Source(MAPPING, (), Path.cwd() if base_dir is None else Path(base_dir)))[0]
+
+
 def load_study(path_or_mapping, base_dir=None) -> Study:
     """Read and validate a study file, or a study given as the mapping its YAML parses to;
     StudyError names the file (`<mapping>`), key path and fault. The files the study names
@@ -895,12 +914,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
     top = src.validate(_STUDY, doc)
-    scene, scene_src, extra, notes = _load_scene(top.scene, src)
-    _check_regions(scene, scene_src)
-    _check_references(scene, scene_src)
-    _check_contacts(scene, scene_src)
-    notes = notes + _check_thermal(scene, scene_src)
-    cells = _check_mesh(scene, scene_src)
+    scene, extra, notes, cells = _checked_scene(top.scene, src)
     uncertain = _parse_uncertain(top.uncertain, scene, src)
     criteria = top.criteria
     _check_criteria(criteria, scene, src)

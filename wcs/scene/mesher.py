@@ -164,9 +164,9 @@ def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entit
     refs = _refinements(scene, mspec.refine, "scene.mesh.refine")
     if body is not None:
         bmesh = scene.bodies[body].mesh
-        if bmesh.size is not None:
+        if bmesh is not None and bmesh.size is not None:
             size = float(bmesh.size)
-        refs += _refinements(scene, bmesh.refine, f"scene.bodies.{body}.mesh.refine")
+        refs += _refinements(scene, bmesh.refine if bmesh else [], f"scene.bodies.{body}.mesh.refine")
     entity_size = entity_size or {}
     if not refs and not entity_size:
         return size, None
