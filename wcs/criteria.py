@@ -222,7 +222,7 @@ def _contact_mean(state, mask: np.ndarray) -> float:
 
 # ---------------------------------------------------------------- the kinds
 
-def _normal_functional(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+def _normal_functional(smesh, spec, sel: Selection, path: str, roi: str) -> np.ndarray:
     """ℓ_r with ℓ_r · u = mean over G_r of u · n(X_r)."""
     d = _direction(smesh, spec, sel, path, roi)
     nodal = _mean_weights(smesh.mesh, sel)

@@ -612,7 +612,7 @@ def _range_text(bounds: dict) -> str:
     return " and ".join(f"{words[k]} {v:g}" for k, v in bounds.items())
 
 
-def _nominal_number(scene: dict, path: str, src: _Source, where) -> float:
+def _nominal_number(scene: Scene, path: str, src: _Source, where) -> float:
     """The scene's number at an addressable path, or a StudyError at `where`."""
     if _address(path) is None:
         forms = ", ".join(_ADDRESSES)

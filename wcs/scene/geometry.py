@@ -24,7 +24,6 @@ from ..errors import StudyError
 DimTags = list[tuple[int, int]]
 
 SHAPE_KINDS = ("rectangle", "polygon", "disc")
-SHAPE_MODIFIERS = ("minus", "intersect")
 
 
 def _number_list(value, n: int | None, path: str, what: str) -> list[float]:

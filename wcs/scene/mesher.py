@@ -154,7 +154,7 @@ def _discs(node):
             yield from _discs(v)
 
 
-def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entity_size=None):
+def _size_function(scene, bbox_diag: float, body: str | None = None, entity_size=None):
     """The size and the size callback (None when the size is uniform). ``body``: a body meshed
     on its own (its ``mesh: {size, refine}`` overrides / adds to the scene's). ``entity_size``:
     {(dim, tag): size} of entities inside regions with their own ``mesh: {size}``."""
