@@ -4,6 +4,7 @@ from pathlib import Path
 import yaml
 
 import wcs
+from wcs.study import load_scene
 
 VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
 
@@ -20,3 +21,11 @@ def solve(name, edit=None):
     ev = study.evaluate(study.nominal())
     assert ev.status == 0, ev.message
     return study, ev
+
+
+def typed_scene(scene: dict, base_dir=None):
+    """A test's scene mapping as the loader hands it on (`wcs.study.load_scene`: validated,
+    checked, regions named); a scene without `materials` gets one (steel-like) for each name
+    its regions use."""
+    used = {r["material"] for body in scene["bodies"].values() for r in body["regions"]}
+    return load_scene({"materials": {m: {"E": 2.0e11, "nu": 0.3} for m in sorted(used)}} | scene, base_dir)

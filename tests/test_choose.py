@@ -1,6 +1,7 @@
 """The benchmark-derived choices of `auto` (wcs/choose.py) and their wiring."""
 from pathlib import Path
 
+from scenes import typed_scene
 import wcs
 from wcs.choose import MeshFacts, SearchFacts, SolverFacts, mesh_size, search_method, solver_method
 
@@ -35,8 +36,9 @@ def test_auto_solver_is_resolved_and_reported():
 
 def test_default_mesh_size_follows_the_rule():
     from wcs.scene.mesher import default_size
-    scene = {"bodies": {"rock": {"regions": [{"shape": {"rectangle": [-60, -60, 60, 60],
-                                                        "minus": [{"disc": {"center": [0, 0], "radius": 5.0}}]}}]}}}
+    def rock(**shape):
+        return typed_scene({"mesh": {"size": 1.0}, "bodies": {"rock": {"regions": [
+            {"material": "m", "shape": {"rectangle": [-60, -60, 60, 60], **shape}}]}}})
     diag = 120 * 2 ** 0.5
-    assert default_size(scene, diag) == min(diag / 20, 5.0 / 10)
-    assert default_size({"bodies": {}}, diag) == diag / 20
+    assert default_size(rock(minus=[{"disc": {"center": [0, 0], "radius": 5.0}}]), diag) == min(diag / 20, 5.0 / 10)
+    assert default_size(rock(), diag) == diag / 20

@@ -23,7 +23,7 @@ def plate():
 
 def test_uniform_heating_of_constrained_plate(plate):
     study, ev, res = plate
-    mat = study.scene["materials"]["steel"]
+    mat = study.scene.materials["steel"].model_dump(by_alias=True, exclude_none=True)
     lam, mu = lame(mat)
     dT = 343.0 - 293.0
     beta = thermal_beta(mat, "strain")
@@ -47,9 +47,9 @@ def test_confined_compression_of_glued_layers():
     study = wcs.load_study(STUDIES / "glued-layers.yaml")
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
-    mats = study.scene["materials"]
+    mats = study.scene.materials
     pres = 1.0e6
-    lm = {m: lame(mats[m]) for m in ("concrete", "steel")}
+    lm = {m: lame(mats[m].model_dump(by_alias=True, exclude_none=True)) for m in ("concrete", "steel")}
     eyy = {m: -pres / (l + 2 * mu) for m, (l, mu) in lm.items()}
     p = ev.smesh.mesh.p
     uy = res.state.u[1::2]

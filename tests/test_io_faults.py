@@ -12,6 +12,7 @@ ends in one clear line and a defined exit status, and loses nothing already stor
 - the study's warnings and every fallback of the solver are shown in the file and the report.
 """
 import contextlib
+import dataclasses
 import os
 import resource
 import shutil
@@ -332,8 +333,8 @@ def test_a_run_in_which_no_evaluation_solved_exits_1(tmp_path, capsys):
 
 
 def test_study_warnings_and_fallbacks_reach_the_file_and_the_report(tmp_path):
-    study = wcs.load_study(plate(tmp_path, budget=3))
-    study.warnings = ["materials.steel.nu: ν = 0.49 ≥ 0.45: P1 elements lock", "a second warning"]
+    study = dataclasses.replace(wcs.load_study(plate(tmp_path, budget=3)),
+                                warnings=["materials.steel.nu: ν = 0.49 ≥ 0.45: P1 elements lock", "a second warning"])
     ds = wcs.run(study, tmp_path / "w.nc")
     with xr.open_dataset(tmp_path / "w.nc", engine="h5netcdf") as f:
         assert f.attrs["warnings"] == "materials.steel.nu: ν = 0.49 ≥ 0.45: P1 elements lock\na second warning"

@@ -8,12 +8,27 @@ import numpy as np
 import pytest
 import yaml
 
+from scenes import typed_scene
 from wcs.errors import StudyError
-from wcs.scene.mesher import build_mesh
-from wcs.scene.selectors import (Selection, facet_lengths, facet_normals, nodal_normals,
-                                 select_boundary, select_region)
+from wcs.scene import mesher
+from wcs.scene import selectors
+from wcs.scene.selectors import Selection, facet_lengths, facet_normals, nodal_normals
+from wcs.scene.spec import Boundary, RegionOfInterest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def build_mesh(sc, *args, **kw):
+    """The mesh of a test's scene mapping, typed as the loader hands it on."""
+    return mesher.build_mesh(typed_scene(sc), *args, **kw)
+
+
+def select_region(sm, spec, path, **kw):
+    return selectors.select_region(sm, RegionOfInterest.model_validate(spec), path, **kw)
+
+
+def select_boundary(sm, spec, path, **kw):
+    return selectors.select_boundary(sm, Boundary.model_validate(spec), path, **kw)
 
 
 def scene(bodies, size=0.25, boundaries=None, refine=None):
@@ -74,7 +89,9 @@ def test_shapes(shape, area, rtol):
 
 
 def test_coarse_disc_is_round():
-    sc = one(DISC, size=10.0, boundaries={"rim": {"circle": {"center": [0, 0], "radius": 1.0}}})
+    # size 0.5, the coarsest the loader allows on a disc of diameter 2, gives ~13 edges; the
+    # curvature rule gives the circle its 24
+    sc = one(DISC, size=0.5, boundaries={"rim": {"circle": {"center": [0, 0], "radius": 1.0}}})
     sm = build_mesh(sc)
     n = len(sm.boundaries["rim"])
     assert n >= 24

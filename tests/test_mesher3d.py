@@ -10,6 +10,7 @@ from wcs.errors import StudyError
 from wcs.fem.tet import volumes
 from wcs.scene import selectors
 from wcs.scene.mesher3d import build_mesh3d
+from wcs.scene.spec import RegionOfInterest
 
 FAULT = {"point": [1.0, 0.0, 0.5], "normal": [1.0, 0.0, -1.0]}    # the plane x − z = 0.5
 BLOCK = [0.0, 0.0, 0.0, 2.0, 1.0, 1.0]
@@ -73,7 +74,7 @@ def test_face_selectors_pick_the_right_faces(fault):
     assert np.allclose(m.p[0, m.facets[:, r]], 2.0, atol=1e-12)
     assert (fault.node_body[m.facets[0, r]] == 1).all()               # x = 2 is the foot's
     # a boundary as a region of interest, restricted to a body (the 2D selector, unchanged)
-    sel = selectors.select_region(fault, {"boundary": "bottom", "body": "foot"}, "roi")
+    sel = selectors.select_region(fault, RegionOfInterest.model_validate({"boundary": "bottom", "body": "foot"}), "roi")
     assert sel.kind == "facets" and np.array_equal(sel.index, fault.boundaries["bottom_foot"])
 
 

@@ -10,6 +10,7 @@ import yaml
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.scene.mesher import build_mesh
+from wcs.scene.spec import GroupBoundary
 from wcs.study import load_study
 
 STUDIES = Path(__file__).resolve().parent.parent / "studies"
@@ -113,7 +114,7 @@ GOOD_GROUPS = {"left": (2, 1), "right": (2, 2), "bottom": (1, 3), "left:side_l":
 def test_small_file_two_bodies_touching(tmp_path):
     path = make(tmp_path, groups=GOOD_GROUPS)
     study = load_study(path)
-    assert study.scene["boundaries"]["side_l"] == {"group": "left:side_l", "body": "left"}
+    assert study.scene.boundaries["side_l"] == GroupBoundary(group="left:side_l", body="left")
     sm = build_mesh(study.scene)
     assert sm.mesh.p.shape[1] == 8                      # nodes 2 and 3 doubled
     assert len(sm.boundaries["bottom"]) == 2

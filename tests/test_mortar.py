@@ -20,7 +20,7 @@ from wcs.contact.mortar import mortar_integrals, sides_match
 from wcs.fem.gluing import build_glue, substitution
 from wcs.scene.mesher import build_mesh
 
-from scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
+from scenes import VALIDATION, load, solve, typed_scene  # noqa: F401 - shared scene helpers
 
 
 
@@ -29,12 +29,12 @@ from scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
 
 
 def _two_sides(hs, hm, curved=False):
-    scene = {"mesh": {"size": 1.0},
+    scene = {"mesh": {"size": 0.5},                 # unused: each body has its own size
              "bodies": {"s": {"mesh": {"size": hs}, "regions": [{"material": "m", "shape": {"rectangle": [0, 1, 2, 1.5]}}]},
                         "m": {"mesh": {"size": hm}, "regions": [{"material": "m", "shape": {"rectangle": [0, 0, 2, 1]}}]}},
              "boundaries": {"S": {"body": "s", "segment": [[0, 1], [2, 1]]},
                             "M": {"body": "m", "segment": [[0, 1], [2, 1]]}}}
-    sm = build_mesh(scene)
+    sm = build_mesh(typed_scene(scene))
     return sm, sm.boundaries["S"], sm.boundaries["M"]
 
 
@@ -56,7 +56,7 @@ def test_region_mesh_size():
              "bodies": {"b": {"regions": [
                  {"material": "m", "name": "coarse", "shape": {"rectangle": [0, 0, 1, 1]}},
                  {"material": "m", "name": "fine", "mesh": {"size": 0.05}, "shape": {"rectangle": [1, 0, 2, 1]}}]}}}
-    sm = build_mesh(scene)
+    sm = build_mesh(typed_scene(scene))
     n = np.bincount(sm.cell_region)
     assert n[1] > 4 * n[0]            # (0.2 / 0.05)² = 16 far from the interface; the coarse side grades
 
@@ -217,7 +217,7 @@ def _poisson_scene(hs, one_body=False):
                 "g2": {"slave": "C_left", "master": "A_right"},
                 "g3": {"slave": "C_bottom", "master": "B_top"}}
     bnd = {"left": {"segment": [[0, 0], [0, 2]]}, "right": {"segment": [[2, 0], [2, 2]]}, **extra}
-    return {"mesh": {"size": min(hs)}, "bodies": bodies, "boundaries": bnd, "glue": glue}
+    return typed_scene({"mesh": {"size": min(hs)}, "bodies": bodies, "boundaries": bnd, "glue": glue})
 
 
 def _poisson(scene):

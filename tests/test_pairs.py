@@ -11,7 +11,10 @@ import yaml
 from wcs.contact.pairs import (normal_jump_matrix, pair_contact, pair_sides,
                                tangent_jump_matrix)
 from wcs.errors import StudyError
+from scenes import typed_scene
 from wcs.scene.mesher import build_mesh
+from wcs.scene.selectors import select_boundary
+from wcs.scene.spec import Boundary, Contact
 
 ROOT = Path(__file__).resolve().parents[1]
 R = 1.0
@@ -20,7 +23,7 @@ R = 1.0
 @pytest.fixture(scope="module")
 def demo():
     sc = yaml.safe_load((ROOT / "studies" / "two-blocks-demo.yaml").read_text())["scene"]
-    return build_mesh(sc)
+    return build_mesh(typed_scene(sc))
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +33,7 @@ def hertz():
                      "block": {"regions": [{"material": "m", "shape": {"rectangle": [-1.5, -1, 1.5, 0]}}]}},
           "boundaries": {"rim": {"body": "disc", "box": [-0.5, -0.01, 0.5, 0.3]},
                          "top": {"body": "block", "segment": [[-1.5, 0], [1.5, 0]]}}}
-    return build_mesh(sc)
+    return build_mesh(typed_scene(sc))
 
 
 def vector_basis(mesh):
@@ -39,7 +42,7 @@ def vector_basis(mesh):
 
 def test_coincident_sides(demo):
     sm = demo
-    pr = pair_contact(sm, {"slave": "pad_bottom", "master": "base_top"}, "scene.contacts.interface")
+    pr = pair_contact(sm, Contact(**{"slave": "pad_bottom", "master": "base_top"}), "scene.contacts.interface")
     p = sm.mesh.p
     slave_nodes = sm.boundary_nodes("pad_bottom")
     assert np.array_equal(pr.slave, slave_nodes) and pr.dropped.size == 0
@@ -58,7 +61,7 @@ def test_coincident_sides(demo):
 
 def test_hertz_gaps(hertz):
     sm = hertz
-    pr = pair_contact(sm, {"slave": "rim", "master": "top"}, "scene.contacts.c")
+    pr = pair_contact(sm, Contact(**{"slave": "rim", "master": "top"}), "scene.contacts.c")
     x = sm.mesh.p[:, pr.slave]
     assert len(pr) > 50 and pr.dropped.size == 0
     expected = R - np.sqrt(R**2 - x[0] ** 2)
@@ -78,7 +81,7 @@ def test_hertz_gaps(hertz):
 
 def test_jumps_rigid_translation(hertz):
     sm = hertz
-    pr = pair_contact(sm, {"slave": "rim", "master": "top"}, "c")
+    pr = pair_contact(sm, Contact(**{"slave": "rim", "master": "top"}), "c")
     mesh = sm.mesh
     nd = vector_basis(mesh).nodal_dofs
     nn = mesh.p.shape[1]
@@ -118,8 +121,8 @@ def test_initial_gap_closes():
                      "pad": {"regions": [{"material": "m", "shape": {"rectangle": [0.5, 1.01, 1.5, 1.5]}}]}},
           "boundaries": {"base_top": {"body": "base", "segment": [[0, 1], [2, 1]]},
                          "pad_bottom": {"body": "pad", "segment": [[0.5, 1.01], [1.5, 1.01]]}}}
-    sm = build_mesh(sc)
-    pr = pair_contact(sm, {"slave": "pad_bottom", "master": "base_top"}, "c")
+    sm = build_mesh(typed_scene(sc))
+    pr = pair_contact(sm, Contact(**{"slave": "pad_bottom", "master": "base_top"}), "c")
     assert np.allclose(pr.gap, 0.01, rtol=1e-9)
     nn = sm.mesh.p.shape[1]
     u = np.zeros(2 * nn)
@@ -129,8 +132,7 @@ def test_initial_gap_closes():
 
 def test_projection_outside_master_is_dropped(demo):
     sm = demo
-    from wcs.scene.selectors import select_boundary
-    master = select_boundary(sm, {"body": "base", "segment": [[0.8, 1.0], [1.2, 1.0]]}, "m")
+    master = select_boundary(sm, Boundary(body="base", segment=[[0.8, 1.0], [1.2, 1.0]]), "m")
     xs = sm.mesh.p[0, np.unique(sm.mesh.facets[:, master])]
     pr = pair_sides(sm.mesh, sm.boundaries["pad_bottom"], master, "c")
     assert pr.dropped.size > 0
@@ -142,16 +144,16 @@ def test_projection_outside_master_is_dropped(demo):
 def test_sides_not_facing(demo):
     sm = demo
     with pytest.raises(StudyError) as e:
-        pair_contact(sm, {"slave": "pad_left", "master": "base_top"}, "scene.contacts.bad")
+        pair_contact(sm, Contact(**{"slave": "pad_left", "master": "base_top"}), "scene.contacts.bad")
     assert e.value.path == "scene.contacts.bad"
     with pytest.raises(StudyError) as e:
-        pair_contact(sm, {"slave": "pad_top", "master": "base_bottom"}, "scene.contacts.far")
+        pair_contact(sm, Contact(**{"slave": "pad_top", "master": "base_bottom"}), "scene.contacts.far")
     assert e.value.path == "scene.contacts.far"
     with pytest.raises(StudyError):
-        pair_contact(sm, {"slave": "base_top", "master": "base_bottom"}, "scene.contacts.same")
+        pair_contact(sm, Contact(**{"slave": "base_top", "master": "base_bottom"}), "scene.contacts.same")
 
 
 def test_sides_sharing_nodes(demo):
     with pytest.raises(StudyError, match="share nodes") as e:
-        pair_contact(demo, {"slave": "pad_left", "master": "pad_bottom"}, "scene.contacts.x")
+        pair_contact(demo, Contact(**{"slave": "pad_left", "master": "pad_bottom"}), "scene.contacts.x")
     assert e.value.path == "scene.contacts.x"

@@ -42,7 +42,7 @@ def synthetic_run(study_path, n=6, seed=0, failures=(), limits=None, stage=None,
     rng = np.random.default_rng(seed)
     xs = p.lower + rng.random((n, len(p))) * (p.upper - p.lower)
     xs[-1] = p.upper
-    names = [c["name"] for c in study.criteria]
+    names = [c.name for c in study.criteria]
     phi = np.full((n, len(names)), np.nan)
     status = np.zeros(n, np.int32)
     iterations = np.zeros(n, np.int32)

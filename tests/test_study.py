@@ -1,4 +1,5 @@
 """The study loader: every broken rule gives one clear StudyError; good studies load."""
+import dataclasses
 import hashlib
 import math
 from pathlib import Path
@@ -6,10 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from pydantic import BaseModel, ValidationError
 
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
-from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, get_path, load_study, set_path
+from wcs.scene.spec import Material, Scene, Shape
+from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, Uncertain, get_path, load_study
 
 SLIP = "contacts.interface.friction.slip_limit"
 
@@ -36,9 +39,9 @@ def demo():
 def test_demo_loads(demo):
     assert demo.name == "two-blocks-demo"
     assert demo.output == "results/two-blocks-demo.nc"
-    assert demo.scene["plane"] == "strain"
-    assert demo.scene["bodies"]["pad"]["regions"][0]["name"] == "pad_0"
-    assert demo.scene["bodies"]["pad"]["regions"][0]["shape"] == {"rectangle": [0.5, 1.0, 1.5, 1.5]}
+    assert demo.scene.plane == "strain"
+    assert demo.scene.bodies["pad"].regions[0].name == "pad_0"
+    assert demo.scene.bodies["pad"].regions[0].shape == Shape(rectangle=[0.5, 1.0, 1.5, 1.5])
     assert demo.sha256 == hashlib.sha256(demo.text.encode()).hexdigest()
     assert demo.text == DEMO.read_text()
     assert demo.search == Search(sample=SampleDesign(seed=7))      # the rest: the defaults
@@ -47,7 +50,7 @@ def test_demo_loads(demo):
     assert demo.solver.dd.pair_size == 1.0 and demo.solver.dd.relaxation == "aitken" and demo.solver.fallback is True
     assert demo.limits == {"shear": 4.0e12}
     assert demo.sweep is None
-    assert demo.criteria[0]["point"] == [1.0, 1.0] and "point" not in demo.criteria[1]
+    assert demo.criteria[0].point == [1.0, 1.0] and demo.criteria[1].point is None
 
 
 def test_parameters_in_file_order_with_profile_expanded(demo):
@@ -57,7 +60,7 @@ def test_parameters_in_file_order_with_profile_expanded(demo):
     assert len(demo.parameters) == 9
     np.testing.assert_array_equal(demo.parameters.lower, [0.8e7, 0.40, 1.5e6] + [0.5e5] * 6)
     np.testing.assert_array_equal(demo.parameters.upper, [1.2e7, 0.48, 2.5e6] + [1.5e5] * 6)
-    assert demo.uncertain[3] == {"path": SLIP, "lower": 0.5e5, "upper": 1.5e5, "lipschitz": 2.0e5, "points": 6}
+    assert demo.uncertain[3] == Uncertain(SLIP, 0.5e5, 1.5e5, lipschitz=2.0e5, points=6)
 
 
 def test_nominal_is_the_scene(demo):
@@ -85,13 +88,15 @@ def test_data_set_rejects_unknown_names_and_wrong_length(demo):
         demo.data_set(np.zeros(3))
 
 
-def test_get_and_set_path():
-    scene = {"loads": {"top": {"traction": [1.0, 2.0]}}}
-    assert get_path(scene, "loads.top.traction.1") == 2.0
-    set_path(scene, "loads.top.traction.0", 5.0)
-    assert scene["loads"]["top"]["traction"] == [5.0, 2.0]
-    with pytest.raises(KeyError, match="did you mean 'top'"):
-        get_path(scene, "loads.tp.pressure")
+def test_get_path_reads_the_typed_scene(demo):
+    assert get_path(demo.scene, "materials.rubber.E") == 1.0e7
+    assert get_path(demo.scene, f"{SLIP}") == 1.0e5
+    lame = load_study(_lame_doc()).scene
+    assert get_path(lame, "materials.rubber.lambda") == 3.1e7            # the file's name of `lam`
+    with pytest.raises(KeyError, match="did you mean 'pad_top'"):
+        get_path(demo.scene, "loads.pad_tp.pressure")
+    with pytest.raises(KeyError, match="no 'traction' under 'loads.pad_top'"):   # a field the scene leaves out
+        get_path(demo.scene, "loads.pad_top.traction.0")
 
 
 def test_unknown_key_hint():
@@ -137,7 +142,7 @@ def test_not_a_mapping(tmp_path):
 def test_exponent_without_dot_is_a_number(tmp_path):
     path = tmp_path / "exp.yaml"
     path.write_text(DEMO.read_text().replace("{E: 1.0e7,", "{E: 1e7,"))
-    assert load_study(path).scene["materials"]["rubber"]["E"] == 1.0e7
+    assert load_study(path).scene.materials["rubber"].E == 1.0e7
 
 
 def test_mapping_loads_as_its_file(demo):
@@ -202,8 +207,8 @@ def test_base_dir_of_a_study_file(tmp_path):
     del doc["scene"]["thermal"]
     doc["uncertain"] = {}
     path = write_study(doc, tmp_path)
-    assert load_study(path).scene["materials"]["uhmwpe"]["E"] == 3.4e8                   # shipped
-    assert load_study(path, base_dir=tmp_path / "libs").scene["materials"]["uhmwpe"]["E"] == 3.6e8
+    assert load_study(path).scene.materials["uhmwpe"].E == 3.4e8                   # shipped
+    assert load_study(path, base_dir=tmp_path / "libs").scene.materials["uhmwpe"].E == 3.6e8
 
 
 def _scene_file_study(tmp_path, materials="materials-implants.yaml"):
@@ -221,7 +226,7 @@ def _scene_file_study(tmp_path, materials="materials-implants.yaml"):
 
 def test_scene_file_and_material_library_shipped(tmp_path):
     study = load_study(_scene_file_study(tmp_path))
-    assert study.scene["materials"]["uhmwpe"] == {"E": 3.4e8, "nu": 0.4}
+    assert study.scene.materials["uhmwpe"] == Material(E=3.4e8, nu=0.4)
     assert study.parameters.names[0] == "materials.uhmwpe.E"
     assert study.text.count("\n---\n") == 2
     assert "scene.yaml" in study.text and "materials-implants.yaml" in study.text
@@ -232,7 +237,7 @@ def test_scene_file_and_material_library_shipped(tmp_path):
 def test_material_library_next_to_the_scene_wins(tmp_path):
     (tmp_path / "materials-implants.yaml").write_text("uhmwpe: {E: 3.5e8, nu: 0.4}\ncocrmo: {E: 2e11, nu: 0.3}\n")
     study = load_study(_scene_file_study(tmp_path))
-    assert study.scene["materials"]["uhmwpe"]["E"] == 3.5e8
+    assert study.scene.materials["uhmwpe"].E == 3.5e8
 
 
 def test_errors_in_scene_file_name_that_file(tmp_path):
@@ -265,15 +270,19 @@ def test_shipped_material_libraries_load(library):
     del doc["scene"]["thermal"]
     doc["uncertain"] = {}
     study = load_study(doc)
-    assert set(study.scene["materials"]) == set(materials)
+    assert set(study.scene.materials) == set(materials)
 
 
-def test_lame_material_with_lame_box():
+def _lame_doc():
     doc = demo_doc()
     doc["scene"]["materials"]["rubber"] = {"lambda": 3.1e7, "mu": 3.4e6, "conductivity": 0.2}
     del doc["uncertain"]["materials.rubber.E"], doc["uncertain"]["materials.rubber.nu"]
     doc["uncertain"]["materials.rubber.mu"] = [3.0e6, 4.0e6]
-    study = load_study(doc)
+    return doc
+
+
+def test_lame_material_with_lame_box():
+    study = load_study(_lame_doc())
     assert study.parameters.names[-1] == "materials.rubber.mu"
     assert any("rubber" in note and "expansion" in note for note in study.notes)
 
@@ -285,7 +294,7 @@ def test_defaults_when_optional_blocks_are_absent(tmp_path):
     del doc["scene"]["plane"]
     study = load_study(write_study(doc, tmp_path, "plain.yaml"))
     assert study.name == "plain" and study.output == "results/plain.nc"
-    assert study.scene["plane"] == "strain"
+    assert study.scene.plane == "strain"
     assert study.search.sample == SampleDesign(design="lhs", n=32, seed=0)
     assert study.solver.tolerance == 1e-8 and study.solver.max_iterations == 200
     assert len(study.parameters) == 0 and study.nominal().shape == (0,)
@@ -297,6 +306,46 @@ def test_sweep_and_named_regions():
     doc["scene"]["bodies"]["pad"]["regions"][0]["name"] = "pad"
     doc["scene"]["body_forces"]["pad"] = [0.0, -1.0e4]
     study = load_study(doc)
-    assert study.sweep == doc["sweep"]
-    assert study.scene["bodies"]["pad"]["regions"][0]["name"] == "pad"
-    assert math.isclose(study.scene["body_forces"]["pad"][1], -1.0e4)
+    assert study.sweep.grid == doc["sweep"]["grid"]
+    assert study.scene.bodies["pad"].regions[0].name == "pad"
+    assert math.isclose(study.scene.body_forces["pad"][1], -1.0e4)
+
+
+def _dicts_of_entries(node, where="study"):
+    """Key paths below `node` where a plain dict or list holds a dict or list: the YAML shape
+    the loader once handed on. A frozen model's mapping fields hold models or numbers."""
+    found = []
+    if isinstance(node, BaseModel):
+        found += [f"{where}: not frozen"] if not node.model_config.get("frozen") else []
+        children = {name: getattr(node, name) for name in type(node).model_fields}
+    elif dataclasses.is_dataclass(node) and not isinstance(node, type):
+        children = {f.name: getattr(node, f.name) for f in dataclasses.fields(node)}
+    elif isinstance(node, (dict, list, tuple)):
+        items = node.items() if isinstance(node, dict) else enumerate(node)
+        children = dict(items)
+        found += [f"{where}.{k}" for k, v in children.items() if isinstance(v, (dict, list)) and
+                  any(isinstance(w, (dict, list)) for w in (v.values() if isinstance(v, dict) else v))]
+    else:
+        return found
+    for key, value in children.items():
+        found += _dicts_of_entries(value, f"{where}.{key}")
+    return found
+
+
+@pytest.mark.parametrize("path", [DEMO, DEMO.parent / "user-mesh-demo.yaml", DEMO.parent / "tunnel-thermal.yaml"],
+                         ids=lambda p: p.stem)
+def test_the_study_below_the_loader_is_frozen_typed_data(path):
+    """Nothing downstream of loading reads a dict: the study, its scene (down to every shape,
+    region and selector), criteria, sweep and uncertain entries are frozen objects."""
+    study = load_study(path)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        study.scene = None
+    with pytest.raises(ValidationError, match="frozen"):
+        study.scene.plane = "stress"
+    body = next(iter(study.scene.bodies.values()))
+    with pytest.raises(ValidationError, match="frozen"):
+        body.regions[0].material = "other"
+    assert isinstance(study.scene, Scene)
+    assert _dicts_of_entries(study.scene.model_dump()) != []           # the finder sees the YAML shape
+    assert _dicts_of_entries(study) == []
+    assert all(isinstance(e, Uncertain) for e in study.uncertain)

@@ -28,16 +28,21 @@ def _cell_sizes(mesh) -> tuple[float, float]:
     return float(h.min()), float(h.max())
 
 
+def _words(value):
+    """A scene entry as the study file writes it (a model: its given keys)."""
+    return value.model_dump(by_alias=True, exclude_none=True) if hasattr(value, "model_dump") else value
+
+
 def summary(study, ev) -> str:
     """What the study will do, in the words of the study file."""
     from .scene.estimate import DEFAULT_MAX_CELLS
     scene, sm = study.scene, ev.smesh
     mesh = sm.mesh
     lines = [f"study {study.name}  ({study.file})",
-             f"  model: {scene.get('dimension', 2)}D plane {scene.get('plane', 'strain')}, P1 triangles, "
+             f"  model: {scene.dimension}D plane {scene.plane}, P1 triangles, "
              f"{mesh.p.shape[1]} nodes, {mesh.t.shape[1]} cells, "
-             f"{'thermal step + ' if scene.get('thermal') else ''}elasticity"
-             f"{' with contact' if scene.get('contacts') else ''}"]
+             f"{'thermal step + ' if scene.thermal else ''}elasticity"
+             f"{' with contact' if scene.contacts else ''}"]
     lines.append("  bodies:")
     for b, name in enumerate(sm.bodies):
         regs = [(j, r) for j, (bb, r) in enumerate(sm.regions) if bb == name]
@@ -45,45 +50,45 @@ def summary(study, ev) -> str:
         held = ev.model.free_modes[name].shape[1]
         lines.append(f"    {name}: {desc}" + ("" if held == 0 else f"  (held by contact only: {held} rigid modes free)"))
     sizes = _cell_sizes(mesh)
-    m = scene.get("mesh") or {}
-    lines.append(f"  mesh: target size {m.get('size', 'per body')}"
-                 + (f", {len(m.get('refine') or [])} refinement zone(s)" if m.get("refine") else "")
-                 + "".join(f", body {b}: {v['mesh']}" for b, v in scene["bodies"].items() if v.get("mesh"))
+    m = scene.mesh
+    lines.append(f"  mesh: target size {'per body' if m.size is None else m.size}"
+                 + (f", {len(m.refine)} refinement zone(s)" if m.refine else "")
+                 + "".join(f", body {b}: {_words(v.mesh)}" for b, v in scene.bodies.items() if v.mesh)
                  + f"; cells from {sizes[0]:.3g} m to {sizes[1]:.3g} m")
     if study.estimated_cells is not None:
         lines.append(f"  mesh size: estimated {study.estimated_cells:.3g} cells before meshing "
-                     f"(limit mesh.max_cells = {m.get('max_cells', DEFAULT_MAX_CELLS):g}), "
+                     f"(limit mesh.max_cells = {DEFAULT_MAX_CELLS if m.max_cells is None else m.max_cells:g}), "
                      f"{mesh.t.shape[1]} meshed, {2 * mesh.p.shape[1]} unknowns")
     lines.append("  boundaries:")
     for name, facets in sm.boundaries.items():
         lines.append(f"    {name}: {len(facets)} edges")
     for key, label in (("supports", "supports"), ("loads", "loads"), ("body_forces", "body forces")):
-        for name, v in (scene.get(key) or {}).items():
-            lines.append(f"  {label[:-1] if label.endswith('s') else label} {name}: {v}")
+        for name, v in getattr(scene, key).items():
+            lines.append(f"  {label[:-1] if label.endswith('s') else label} {name}: {_words(v)}")
     zone = ev.model.zone
-    for k, (name, c) in enumerate((scene.get("contacts") or {}).items()):
-        fr = c.get("friction") or {}
+    for k, (name, c) in enumerate(scene.contacts.items()):
+        fr = c.friction
         how = zone.discretization[k] if zone is not None and getattr(zone, "discretization", None) else "node-to-node"
         nodes = int((zone.contact_of_node == k).sum()) if zone is not None else 0
-        lines.append(f"  contact {name} ({how}, {nodes} contact nodes): slave {c['slave']} / master {c['master']}, "
-                     + (f"Tresca g = {_fmt(fr['slip_limit'])}" if "slip_limit" in fr else
-                        f"Coulomb F = {_fmt(fr['coefficient'])}" if "coefficient" in fr else "frictionless"))
-    if scene.get("thermal"):
-        th = scene["thermal"]
-        lines.append(f"  thermal: T0 = {th.get('reference')}, temperature on {list((th.get('temperature') or {}))}, "
-                     f"sources {th.get('sources') or {}}")
+        lines.append(f"  contact {name} ({how}, {nodes} contact nodes): slave {c.slave} / master {c.master}, "
+                     + ("frictionless" if fr is None else f"Tresca g = {_fmt(fr.slip_limit)}"
+                        if fr.slip_limit is not None else f"Coulomb F = {_fmt(fr.coefficient)}"))
+    if scene.thermal:
+        th = scene.thermal
+        lines.append(f"  thermal: T0 = {th.reference}, temperature on {list(th.temperature)}, "
+                     f"sources {th.sources}")
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
     nominal = study.nominal()
     for n, lo, hi, x0 in zip(p.names, p.lower, p.upper, nominal):
         lines.append(f"    {n}: [{_fmt(lo)}, {_fmt(hi)}]  nominal {_fmt(x0)}")
     if study.levels is not None:
-        cores = ", ".join(f"{e['path']} [{_fmt(e['core'][0])}, {_fmt(e['core'][1])}]"
-                          for e in study.uncertain if "core" in e) or "none (every number crisp)"
+        cores = ", ".join(f"{e.path} [{_fmt(e.core[0])}, {_fmt(e.core[1])}]"
+                          for e in study.uncertain if e.core is not None) or "none (every number crisp)"
         lines.append(f"  fuzzy: levels {', '.join(f'{a:g}' for a in study.levels)}, searched from the core "
                      f"(α = 1) outwards; the boxes above are the supports; cores: {cores}")
     lines.append("  criteria:")
-    senses = {c["name"]: c.get("sense", "max") for c in study.criteria}
+    senses = {c.name: c.sense for c in study.criteria}
     for c in ev.criteria:
         lim, low = study.limits.get(c.name), study.lower_limits.get(c.name)
         lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
@@ -94,7 +99,7 @@ def summary(study, ev) -> str:
     method = study.solver.method
     solver = method if method != "auto" else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})"
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
-                 + ("" if scene.get("contacts") else " (no contact: one direct solve per data set)"))
+                 + ("" if scene.contacts else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")
     return "\n".join(lines)
 
@@ -130,9 +135,9 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
     """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
     from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
     from .meshcheck import cost, max_cells
-    if (study.scene.get("mesh") or {}).get("file"):
+    if study.scene.mesh.file is not None:
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
-    n_ext = sum(2 if c.get("sense") == "both" else 1 for c in study.criteria)
+    n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
     levels = cost(ev, warm_solve, n_ext)
     cells = ev.smesh.mesh.t.shape[1] * 4 ** levels[-1][0]
     if cells > max_cells(study):

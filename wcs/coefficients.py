@@ -64,50 +64,52 @@ def flatten(c: Coefficients) -> tuple[np.ndarray, dict[str, slice]]:
     return np.concatenate(parts), slices
 
 
-def scene_numbers(scene: dict):
+def scene_numbers(scene):
     """(dotted path, value) of every number of the scene a data set can change, in a fixed
     order: materials, loads, body forces, supports, contacts, thermal data."""
-    for m, mat in scene["materials"].items():
+    for m, mat in scene.materials.items():
         for key in _MATERIAL_KEYS:
-            if mat.get(key) is not None:
-                yield f"materials.{m}.{key}", mat[key]
-    for b, load in (scene.get("loads") or {}).items():
-        if "pressure" in load:
-            yield f"loads.{b}.pressure", load["pressure"]
+            value = getattr(mat, "lam" if key == "lambda" else key)
+            if value is not None:
+                yield f"materials.{m}.{key}", value
+    for b, load in scene.loads.items():
+        if load.pressure is not None:
+            yield f"loads.{b}.pressure", load.pressure
         else:
-            for i, v in enumerate(load["traction"]):
+            for i, v in enumerate(load.traction):
                 yield f"loads.{b}.traction.{i}", v
-    for t, force in (scene.get("body_forces") or {}).items():
+    for t, force in scene.body_forces.items():
         for i, v in enumerate(force):
             yield f"body_forces.{t}.{i}", v
-    for b, sup in (scene.get("supports") or {}).items():
-        if "u" in sup:
-            for i, v in enumerate(sup["u"]):
+    for b, sup in scene.supports.items():
+        if sup.u is not None:
+            for i, v in enumerate(sup.u):
                 if v is not None:
                     yield f"supports.{b}.u.{i}", v
         else:
-            yield f"supports.{b}.normal", sup["normal"]
-    for name, contact in (scene.get("contacts") or {}).items():
-        for key, v in (contact.get("friction") or {}).items():
-            if v is not None:
-                yield f"contacts.{name}.friction.{key}", v
-    thermal = scene.get("thermal") or {}
-    if thermal.get("reference") is not None:
-        yield "thermal.reference", thermal["reference"]
-    for b, v in (thermal.get("temperature") or {}).items():
-        yield f"thermal.temperature.{b}", v
-    for t, v in (thermal.get("sources") or {}).items():
-        yield f"thermal.sources.{t}", v
+            yield f"supports.{b}.normal", sup.normal
+    for name, contact in scene.contacts.items():
+        friction = contact.friction
+        for key in ("slip_limit", "coefficient"):
+            if friction is not None and getattr(friction, key) is not None:
+                yield f"contacts.{name}.friction.{key}", getattr(friction, key)
+    thermal = scene.thermal
+    if thermal is not None:
+        yield "thermal.reference", thermal.reference
+        for b, v in thermal.temperature.items():
+            yield f"thermal.temperature.{b}", v
+        for t, v in thermal.sources.items():
+            yield f"thermal.sources.{t}", v
 
 
 class ParameterMap:
     """x → Coefficients for one model and one study's uncertain data, with ∂c/∂x.
 
     `model` gives the layout (regions and their materials, load, support and temperature
-    names, the contact zone); `scene` the nominal numbers; `uncertain` the study's entries
-    (`path`, and `points` for a slip-limit profile) in parameter order."""
+    names, the contact zone); `scene` (a `Scene`) the nominal numbers; `uncertain` the study's
+    entries (`path`, `points`, and `lipschitz` for a slip-limit profile) in parameter order."""
 
-    def __init__(self, model, scene: dict, uncertain=()):
+    def __init__(self, model, scene, uncertain=()):
         self.plane = model.plane
         numbers = list(scene_numbers(scene))
         self.index = {path: k for k, (path, _) in enumerate(numbers)}
@@ -132,16 +134,16 @@ class ParameterMap:
         self.param_slots, self.profiles, start = [], [], 0
         profiled = set()
         for entry in uncertain:
-            if "points" in entry:
-                contact = entry["path"].split(".")[1]
+            if entry.lipschitz is not None:
+                contact = entry.path.split(".")[1]
                 rows = np.flatnonzero(zone.contact_of_node == zone.names.index(contact))
-                weights = np.array([np.interp(zone.arc[rows], np.linspace(0, 1, entry["points"]), e)
-                                    for e in np.eye(entry["points"])]).T
-                self.profiles.append((slice(start, start + entry["points"]), rows, zone.arc[rows], weights))
+                weights = np.array([np.interp(zone.arc[rows], np.linspace(0, 1, entry.points), e)
+                                    for e in np.eye(entry.points)]).T
+                self.profiles.append((slice(start, start + entry.points), rows, zone.arc[rows], weights))
                 profiled.add(contact)
-                start += entry["points"]
+                start += entry.points
             else:
-                self.param_slots.append((start, self.index[entry["path"]]))
+                self.param_slots.append((start, self.index[entry.path]))
                 start += 1
         self.nparam = start
 
@@ -158,12 +160,11 @@ class ParameterMap:
         for j, mat in enumerate(model.region_material):
             add("kappa", j, f"materials.{mat}.conductivity")
             add("body_force", 2 * j + 1, f"materials.{mat}.density_weight", -1.0)
-        for t, force in (scene.get("body_forces") or {}).items():
+        for t, force in scene.body_forces.items():
             for j in targets[t]:
                 for i in range(len(force)):
                     add("body_force", 2 * j + i, f"body_forces.{t}.{i}")
-        thermal = scene.get("thermal") or {}
-        for t in thermal.get("sources") or {}:
+        for t in scene.thermal.sources if scene.thermal else {}:
             for j in targets[t]:
                 add("source", j, f"thermal.sources.{t}")
         for k, b in enumerate(sorted(self.pressure_names)):

@@ -75,41 +75,42 @@ class Criterion:
         return float(np.max(self.region_values(model, state)))
 
 
-def build_criteria(study_criteria: list[dict], scene: dict, smesh, zone=None) -> list[Criterion]:
-    rois = scene.get("regions_of_interest") or {}
+def build_criteria(study_criteria, scene, smesh, zone=None) -> list[Criterion]:
+    """The study's criteria (validated specs: name, kind, regions, options) on the mesh."""
+    rois = scene.regions_of_interest
     out = []
     for k, spec in enumerate(study_criteria):
-        path, kind = f"criteria.{k}", KINDS[spec["kind"]]
+        path, kind = f"criteria.{k}", KINDS[spec.kind]
         if kind.reads == "contact":             # only the contact rows next to G_r matter
             sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}")
-                    if "boundary" in rois[r] else Selection("cells", np.zeros(0, dtype=np.int64))
-                    for r in spec["regions"]]
+                    if rois[r].boundary is not None else Selection("cells", np.zeros(0, dtype=np.int64))
+                    for r in spec.regions]
             masks = [_contact_rows_in(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
-                     for r, s in zip(spec["regions"], sels)]
+                     for r, s in zip(spec.regions, sels)]
             measures = np.array([zone.weight[m].sum() for m in masks])
             functionals = None
             if kind.contact_functional is not None:
                 lm = [kind.contact_functional(smesh, scene, zone, r, s, f"scene.regions_of_interest.{r}")
-                      for r, s in zip(spec["regions"], sels)]
+                      for r, s in zip(spec.regions, sels)]
                 functionals, measures = [ell for ell, _ in lm], np.array([m for _, m in lm])
-            out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures,
+            out.append(Criterion(spec.name, spec.kind, list(spec.regions), sels, functionals, measures,
                                  masks))
             continue
-        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec["regions"]]
+        sels = [_roi_selection(smesh, r, rois[r], f"scene.regions_of_interest.{r}") for r in spec.regions]
         functionals = None if kind.functional is None else \
-            [kind.functional(smesh, spec, s, path, r) for r, s in zip(spec["regions"], sels)]
+            [kind.functional(smesh, spec, s, path, r) for r, s in zip(spec.regions, sels)]
         measures = np.array([_measure(smesh.mesh, s) for s in sels])
-        out.append(Criterion(spec["name"], spec["kind"], list(spec["regions"]), sels, functionals, measures))
+        out.append(Criterion(spec.name, spec.kind, list(spec.regions), sels, functionals, measures))
     return out
 
 
-def embedded_rois(study_criteria: list[dict]) -> list[str]:
+def embedded_rois(study_criteria) -> list[str]:
     """The regions of interest whose cells a criterion integrates over (every kind but the
     contact ones, which take the contact rows next to G_r): the mesh embeds them."""
-    return sorted({r for c in study_criteria if KINDS[c["kind"]].reads == "cells" for r in c["regions"]})
+    return sorted({r for c in study_criteria if KINDS[c.kind].reads == "cells" for r in c.regions})
 
 
-def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
+def _roi_selection(smesh, name: str, spec, path: str) -> Selection:
     """G_r as mesh entities: the cells of a box / disc / polygon embedded in the mesh (exactly
     G_r, the disc as the mesh's polygon), else `select_region` (boundary facets; on a mesh file
     the cells cut exactly by a box or polygon)."""
@@ -117,7 +118,7 @@ def _roi_selection(smesh, name: str, spec: dict, path: str) -> Selection:
         return select_region(smesh, spec, path)
     sel = Selection("cells", smesh.roi_cells[name])
     if len(sel) == 0:
-        where = f" of body {spec['body']!r}" if spec.get("body") is not None else ""
+        where = f" of body {spec.body!r}" if spec.body is not None else ""
         raise StudyError(f"the region of interest covers no part of the scene{where}", path=path)
     return sel
 
@@ -153,17 +154,17 @@ def _mean_weights(mesh, sel: Selection) -> np.ndarray:
     return w / L.sum()
 
 
-def _direction(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+def _direction(smesh, spec, sel: Selection, path: str, roi: str) -> np.ndarray:
     """The fixed direction n(X_r): given, the outward normal of the boundary of the region's
     body at `point` X_r (X_r must lie on it, up to half an edge; at a node between edges that
     turn by at most 30° their length-weighted mean normal, at a sharper corner refused), or the
     mean outward normal of a boundary region of interest."""
     mesh = smesh.mesh
-    if spec.get("direction") is not None:
-        d = np.asarray(spec["direction"], float)
+    if spec.direction is not None:
+        d = np.asarray(spec.direction, float)
         return d / np.linalg.norm(d)
-    if spec.get("point") is not None:
-        X = np.asarray(spec["point"], float)
+    if spec.point is not None:
+        X = np.asarray(spec.point, float)
         facets = boundary_facets(mesh)
         owners = smesh.cell_body[sel.index] if sel.kind == "cells" else smesh.cell_body[mesh.f2t[0, sel.index]]
         facets = facets[np.isin(smesh.cell_body[mesh.f2t[0, facets]], owners)]   # the ROI's own body
@@ -200,7 +201,7 @@ def _cell_mean(model, sel: Selection, density: np.ndarray) -> float:
     return float(a @ density[cells] / a.sum())
 
 
-def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: str) -> np.ndarray:
+def _contact_rows_in(smesh, scene, zone, roi: str, sel: Selection, path: str) -> np.ndarray:
     """Contact rows (slave nodes) next to G_r: the slave node x or its master projection
     x + gap·n lies in G_r, so a region on either side of a contact, open or closed, matching
     or not, catches the same rows. A boundary G_r is its facets; an area one its shape."""
@@ -211,8 +212,7 @@ def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: s
         a, b = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
         dist = np.min([dist_segment(pts[:, 0], pts[:, 1], a[i], b[i]) for i in range(len(a))], axis=0)
     else:
-        spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
-        dist = distance_function(spec, path)(pts[:, 0], pts[:, 1])
+        dist = distance_function(scene.regions_of_interest[roi], path)(pts[:, 0], pts[:, 1])
     scale = max(np.ptp(pts, axis=0).max(), 1e-300)
     near = dist <= 1e-6 * scale + 1e-3 * np.tile(zone.weight, 2)
     mask = near[:zone.gap.size] | near[zone.gap.size:]
@@ -223,23 +223,23 @@ def _contact_rows_in(smesh, scene: dict, zone, roi: str, sel: Selection, path: s
     return mask
 
 
-def _crossings(spec: dict, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _crossings(spec, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(s, K) parameters t ∈ [0, 1] where the edges a + t (b − a) cross the boundary of a box,
     disc or polygon (NaN: none); between two of them an edge is wholly inside or outside."""
     d = b - a
-    if spec.get("disc") is not None:
-        c, r = np.asarray(spec["disc"]["center"], float), float(spec["disc"]["radius"])
+    if spec.disc is not None:
+        c, r = np.asarray(spec.disc.center, float), float(spec.disc.radius)
         e = a - c
         qa, qb, qc = (d * d).sum(axis=1), 2 * (d * e).sum(axis=1), (e * e).sum(axis=1) - r * r
         disc = qb * qb - 4 * qa * qc
         root = np.sqrt(np.where(disc > 0, disc, np.nan))
         t = np.stack([(-qb - root) / (2 * qa), (-qb + root) / (2 * qa)], axis=1)
     else:
-        if spec.get("box") is not None:
-            x0, y0, x1, y1 = map(float, spec["box"])
+        if spec.box is not None:
+            x0, y0, x1, y1 = map(float, spec.box)
             pts = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
         else:
-            pts = np.asarray(spec["polygon"], float)
+            pts = np.asarray(spec.polygon, float)
         c, e = np.roll(pts, 1, axis=0), pts - np.roll(pts, 1, axis=0)       # the polygon's edges c + u e
         det = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
         w = c[None] - a[:, None]
@@ -250,7 +250,7 @@ def _crossings(spec: dict, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where((t > 0) & (t < 1), t, np.nan)
 
 
-def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, path: str):
+def _pressure_functional(smesh, scene, zone, roi: str, sel: Selection, path: str):
     """(ℓ_r, meas Γc ∩ G_r) with ℓ_r · λ_n = (meas Γc ∩ G_r)⁻¹ ∫_{Γc ∩ G_r} p_h ds, Φ6 [68, (4.34)]:
     p_h the piecewise linear interpolant along the slave side of the nodal pressures
     p_i = λ_i / w_i (w_i: the row's weight, node-to-node or mortar), integrated exactly.
@@ -280,7 +280,7 @@ def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, pat
             d = b - a
             return ((corners[None] - a[:, None]) * d[:, None]).sum(axis=2) / (d * d).sum(axis=1)[:, None]
     else:
-        spec = {k: v for k, v in scene["regions_of_interest"][roi].items() if k != "body"}
+        spec = scene.regions_of_interest[roi]
         dist = distance_function(spec, path)
 
         def cuts(a, b):
@@ -307,7 +307,7 @@ def _pressure_functional(smesh, scene: dict, zone, roi: str, sel: Selection, pat
 
 # ---------------------------------------------------------------- the kinds
 
-def _normal_functional(smesh, spec: dict, sel: Selection, path: str, roi: str) -> np.ndarray:
+def _normal_functional(smesh, spec, sel: Selection, path: str, roi: str) -> np.ndarray:
     """ℓ_r with ℓ_r · u = mean over G_r of u · n(X_r)."""
     d = _direction(smesh, spec, sel, path, roi)
     nodal = _mean_weights(smesh.mesh, sel)

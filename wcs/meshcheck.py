@@ -96,7 +96,7 @@ def refined_nodes(mesh, splits: int) -> int:
 
 
 def max_cells(study) -> float:
-    return float((study.scene.get("mesh") or {}).get("max_cells", DEFAULT_MAX_CELLS))
+    return float(DEFAULT_MAX_CELLS if study.scene.mesh.max_cells is None else study.scene.mesh.max_cells)
 
 
 def cost(evaluator, warm_solve: float, n_extremes: int) -> list[tuple[int, int, float]]:

@@ -87,11 +87,11 @@ class Model:
     options: the study's `solver` options (a mapping is validated); comm: the MPI
     communicator whose ranks share each DD solve (None: serial)."""
 
-    def __init__(self, scene: dict, smesh: SceneMesh, options=None, comm=None):
+    def __init__(self, scene, smesh: SceneMesh, options=None, comm=None):
         self.options = Solver.of(options)             # the study's `solver` options (a mapping is validated)
         self.scene = scene
         self.smesh = smesh
-        self.plane = scene.get("plane", "strain")
+        self.plane = scene.plane
         mesh = smesh.mesh
         self.nnodes = mesh.p.shape[1]
         self.region_cells = [np.flatnonzero(smesh.cell_region == j) for j in range(len(smesh.regions))]
@@ -112,14 +112,14 @@ class Model:
 
         self.pressure_vectors = {}
         self.traction_vectors = {}
-        for name, load in (scene.get("loads") or {}).items():
+        for name, load in scene.loads.items():
             facets = smesh.boundaries[name]
-            if "pressure" in load:
+            if load.pressure is not None:
                 self.pressure_vectors[name] = forms.pressure_vector(mesh, facets)
             else:
                 self.traction_vectors[name] = forms.traction_vectors(mesh, facets)
 
-        self.thermal = scene.get("thermal") is not None
+        self.thermal = scene.thermal is not None
         if self.thermal:
             self._init_thermal(scene)
 
@@ -158,17 +158,20 @@ class Model:
         """(nregions, 2, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
         return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
-    def _choose_solver(self, scene: dict) -> tuple[str, str]:
+    def _choose_solver(self, scene) -> tuple[str, str]:
         """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
         method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
-        mats = [scene["materials"][m] for m in set(self.region_material)]
-        moduli = [lame(m)[1] for m in mats]
-        nus = [lam / (2 * (lam + mu)) for lam, mu in (lame(m) for m in mats)]
-        contacts = scene.get("contacts") or {}
-        friction = ("coulomb" if any((c.get("friction") or {}).get("coefficient") for c in contacts.values())
-                    else "tresca" if any((c.get("friction") or {}).get("slip_limit") for c in contacts.values())
+        mats = [scene.materials[m] for m in set(self.region_material)]
+        pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
+                 for m in mats]
+        moduli = [mu for _, mu in pairs]
+        nus = [lam / (2 * (lam + mu)) for lam, mu in pairs]
+        contacts = scene.contacts
+        laws = [c.friction for c in contacts.values() if c.friction is not None]
+        friction = ("coulomb" if any(f.coefficient for f in laws)
+                    else "tresca" if any(f.slip_limit for f in laws)
                     else "none")
         facts = SolverFacts(unknowns=2 * self.nnodes, contact=bool(contacts), friction=friction,
                             stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus))
@@ -176,16 +179,9 @@ class Model:
 
     # ---- structure -----------------------------------------------------------------
     def _region_materials(self, scene) -> list[str]:
-        mats = []
-        for body, region in self.smesh.regions:
-            for r in scene["bodies"][body]["regions"]:
-                if r.get("name") == region:
-                    mats.append(r["material"])
-                    break
-            else:  # default-named regions: body_i
-                i = int(region.rsplit("_", 1)[1])
-                mats.append(scene["bodies"][body]["regions"][i]["material"])
-        return mats
+        """The material of each mesh region (the loader names every region)."""
+        material = {(body, r.name): r.material for body, spec in scene.bodies.items() for r in spec.regions}
+        return [material[key] for key in self.smesh.regions]
 
     def _name_targets(self) -> dict[str, list[int]]:
         """Body or region name -> region indices (for body forces and heat sources)."""
@@ -199,11 +195,11 @@ class Model:
     def _support_constraints(self, scene) -> tuple[list[tuple[str, str]], list[Constraint]]:
         keys, constraints = [], []
         mesh = self.smesh.mesh
-        for name, sup in (scene.get("supports") or {}).items():
+        for name, sup in scene.supports.items():
             facets = self.smesh.boundaries[name]
-            if "u" in sup:
+            if sup.u is not None:
                 nodes = np.unique(mesh.facets[:, facets])
-                for comp, value in enumerate(sup["u"]):
+                for comp, value in enumerate(sup.u):
                     if value is None:
                         continue
                     a = np.zeros((nodes.size, 2))
@@ -253,7 +249,7 @@ class Model:
         Pt = self.P.T.tocsr()
         t_heat = heat_of_node[mesh.t]
         self.H = CellAffineOperator(t_heat, nheat, conduction_cell_matrices(mesh.p, mesh.t), self.smesh.cell_region)
-        self.temperature_keys = list((scene["thermal"].get("temperature") or {}).keys())
+        self.temperature_keys = list(scene.thermal.temperature)
         constraints = []
         for k, name in enumerate(self.temperature_keys):
             nodes = np.unique(heat_of_node[mesh.facets[:, self.smesh.boundaries[name]]])
@@ -269,7 +265,7 @@ class Model:
         self.coupling = [forms.coupling_piece(mesh, c) for c in self.region_cells]
 
     # ---- numbers of a data set -------------------------------------------------------
-    def coefficients(self, scene: dict) -> Coefficients:
+    def coefficients(self, scene) -> Coefficients:
         """The coefficients of a scene's own numbers (a study's data go through its `ParameterMap`)."""
         return ParameterMap(self, scene).coefficients()
 

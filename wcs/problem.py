@@ -16,7 +16,7 @@ from .search import Problem
 def contact_length(evaluator, contact: str) -> float:
     """Length of the slave side of a contact pair (sum of its facet lengths)."""
     scene = evaluator.study.scene
-    slave = scene["contacts"][contact]["slave"]
+    slave = scene.contacts[contact].slave
     mesh = evaluator.smesh.mesh
     facets = mesh.facets[:, evaluator.smesh.boundaries[slave]]
     d = mesh.p[:, facets[1]] - mesh.p[:, facets[0]]
@@ -28,11 +28,11 @@ def lipschitz_constraints(study, evaluator):
     rows, rhs, start = [], [], 0
     n = len(study.parameters)
     for entry in study.uncertain:
-        count = entry.get("points", 1)
-        if "points" in entry and "lipschitz" in entry:
-            contact = entry["path"].split(".")[1]
+        count = entry.points
+        if entry.lipschitz is not None:
+            contact = entry.path.split(".")[1]
             ds = contact_length(evaluator, contact) / (count - 1)
-            bound = float(entry["lipschitz"]) * ds
+            bound = float(entry.lipschitz) * ds
             for i in range(start, start + count - 1):
                 for sign in (1.0, -1.0):
                     a = np.zeros(n)

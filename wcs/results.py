@@ -43,7 +43,7 @@ def provenance(study, evaluator) -> dict:
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "solver": f"{study.solver.method} ({linalg.backend()})",
-        "plane": study.scene.get("plane", "strain"),
+        "plane": study.scene.plane,
         "mesh_nodes": int(mesh.p.shape[1]),
         "mesh_cells": int(mesh.t.shape[1]),
         "warnings": "\n".join(getattr(study, "warnings", None) or []),   # what `wcs check` warns of, one a line

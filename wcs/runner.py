@@ -108,7 +108,7 @@ class Runner:
         self.split_batches = self.comm is not None and self.evaluator.model.solver_method != "dd"
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
-        self.sweep_paths = list((study.sweep or {}).get("grid", {})) if kind == "sweep" else None
+        self.sweep_paths = list(study.sweep.grid if study.sweep else {}) if kind == "sweep" else None
         self.progress = progress if self.root else None
         self.final: Final | None = None        # set when the run is finished
         self.stats = {"solved": 0, "from_store": 0, "solve_time": 0.0, "write_time": 0.0, "writes": 0,
@@ -250,7 +250,7 @@ class Runner:
         budget = search.budget
         factory = strategy or get_strategy(search.method)
         problem = build_problem(self.study, self.evaluator)
-        senses = {c["name"]: c.get("sense", "max") for c in self.study.criteria}
+        senses = {c.name: c.sense for c in self.study.criteria}
         levels = self.study.levels
         cuts = None if levels is None else [(a, *alpha_cut(self.study, a)) for a in levels]
         gen = ranges(factory, problem, search, np.random.default_rng(search.sample.seed),
@@ -279,7 +279,7 @@ class Runner:
         return self.finish(result)
 
     def _sweep(self) -> xr.Dataset:
-        grid = (self.study.sweep or {}).get("grid")
+        grid = self.study.sweep.grid if self.study.sweep else None
         if not grid:
             raise StudyError("the study has no `sweep:` block with a `grid`", file=str(self.study.file), path="sweep")
         paths = list(grid)

@@ -2,8 +2,10 @@
 
 `load_study(path_or_mapping)` reads a study file, or takes the mapping YAML would
 parse one into, checks it with typed models and cross-reference rules, and
-returns a `Study` whose `scene` is plain dicts and lists in the YAML shape,
-resolved: scene and material files inlined, region names and defaults filled in.
+returns a frozen `Study` whose `scene` is the frozen `wcs.scene.spec.Scene`, resolved:
+scene and material files inlined, region names and defaults filled in. The criteria,
+the sweep and the uncertain entries are frozen objects too: nothing downstream of
+loading reads a dict.
 Every bad input raises `StudyError` naming the file (`<mapping>` for a mapping),
 the dotted key path and the fault.
 
@@ -13,7 +15,8 @@ when given (the current directory for a mapping). A material library not found
 there is looked up among the libraries shipped in the package (`wcs/library/`).
 
 Dotted paths are relative to the scene (`materials.rubber.E`,
-`loads.pad_top.traction.1`, ...). `get_path` / `set_path` read and write them.
+`loads.pad_top.traction.1`, ...); `get_path` reads them (a key is a field's name as the
+file writes it, `lambda` included).
 
 A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
@@ -28,6 +31,7 @@ import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
 
@@ -50,6 +54,9 @@ from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Se
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, shape_box
+from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
+                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Direction, Frozen, GroupBoundary, Material,
+                         Name, Point, Scene, XY)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -194,321 +201,13 @@ class _Source:
 
 # ---------------------------------------------------------------- typed models
 
-# Physical ranges, shared by the models and by the boxes of uncertain data. The bounds lie
-# beyond any solid (moduli from gels, ~1e2 Pa, to diamond, 1.2e12 Pa; conductivities from
-# aerogels to diamond; expansions of polymers, ~1e-3/K) yet keep every product of the solve
-# (u ~ load * length / E) far inside double precision: E = 1e-300 would give u ~ 1e306.
-_MODULUS = {"ge": 1.0, "le": 1e13}                 # E, mu [Pa]
-_LAME = {"ge": -1e13, "le": 1e17}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
-_POISSON = {"gt": -1, "lt": 0.5}
-_CONDUCTIVITY = {"ge": 1e-6, "le": 1e6}           # [W/(m K)]
-_EXPANSION = {"ge": -1e-2, "le": 1e-2}            # [1/K]
-_WEIGHT = {"ge": 0, "le": 1e7}                     # density_weight [N/m^3]
-_STRESS = {"ge": -1e12, "le": 1e12}               # pressure, traction [Pa]
-_SLIP = {"ge": 0, "le": 1e12}                      # Tresca slip limit [Pa]
-_COEFFICIENT = {"ge": 0, "le": 10}                 # Coulomb friction coefficient
-_BODY_FORCE = {"ge": -1e10, "le": 1e10}           # [N/m^3]
-_SOURCE = {"ge": -1e12, "le": 1e12}               # heat source [W/m^3]
-_LENGTH = {"ge": -1e6, "le": 1e6}                 # coordinates, prescribed displacements [m]
-_KELVIN = {"gt": 0, "le": 1e5}
-# OpenCASCADE merges points closer than its tolerance (1e-7): sides, radii, edges and mesh
-# sizes below FEATURE_MIN fail inside gmsh ("Could not create line")
-FEATURE_MIN = 1e-6
-_FEATURE = {"ge": FEATURE_MIN, "le": 1e6}
 MAX_NESTING = 50                                   # levels of a study file (shapes nest)
 MAX_PROFILE_POINTS = 1000
-
-def _valid_name(name: str) -> str:
-    if not name or re.search(r"[.\s\[\]]", name):
-        raise ValueError("a name may not contain dots, spaces or brackets")
-    return name
-
-
-Name = Annotated[str, AfterValidator(_valid_name)]
-Point = Annotated[list[float], Field(min_length=2, max_length=2)]
-Coordinate = Annotated[float, Field(**_LENGTH)]
-XY = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
-Corners = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
-
-
-def _ordered(corners: list[float], strict: bool) -> list[float]:
-    x0, y0, x1, y1 = corners
-    if (x0 >= x1 or y0 >= y1) if strict else (x0 > x1 or y0 > y1):
-        relation = "<" if strict else "<="
-        raise ValueError(f"corners must be [x0, y0, x1, y1] with x0 {relation} x1 and y0 {relation} y1")
-    if strict and min(x1 - x0, y1 - y0) < FEATURE_MIN:
-        raise ValueError(f"a side of {min(x1 - x0, y1 - y0):.3g} is below {FEATURE_MIN:g}, "
-                         "the smallest length the geometry kernel resolves")
-    return corners
-
-
-Rectangle = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=True))]
-BoxCorners = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=False))]
-
-
-def _simple(points: list[list[float]]) -> list[list[float]]:
-    """A simple polygon: no repeated vertex, no edge shorter than FEATURE_MIN, no two edges
-    crossing or touching (other than neighbours at their common vertex), nonzero area."""
-    ring = points[:-1] if len(points) > 3 and points[0] == points[-1] else points   # a closed ring
-    P = np.array(ring, dtype=float)
-    A, B = P, np.roll(P, -1, axis=0)
-    n = len(P)
-    short = np.flatnonzero(np.hypot(*(B - A).T) < FEATURE_MIN)
-    if short.size:
-        i = int(short[0])
-        raise ValueError(f"vertices {i} and {(i + 1) % n} coincide (a repeated vertex) or are closer "
-                         f"than {FEATURE_MIN:g}")
-    i, j = np.triu_indices(n, 1)
-    far = (j - i > 1) & ~((i == 0) & (j == n - 1))            # non-neighbouring edges
-    i, j = i[far], j[far]
-
-    def orient(a, b, c):
-        return np.sign((b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
-                       - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
-    d1, d2 = orient(A[j], B[j], A[i]), orient(A[j], B[j], B[i])
-    d3, d4 = orient(A[i], B[i], A[j]), orient(A[i], B[i], B[j])
-    cross = (d1 * d2 <= 0) & (d3 * d4 <= 0)
-    collinear = (d1 == 0) & (d2 == 0)                          # overlap only if the spans meet
-    lo = lambda a, b: np.minimum(a, b)                          # noqa: E731
-    hi = lambda a, b: np.maximum(a, b)                          # noqa: E731
-    span = np.all((lo(A[i], B[i]) <= hi(A[j], B[j])) & (lo(A[j], B[j]) <= hi(A[i], B[i])), axis=1)
-    hit = np.flatnonzero(cross & (~collinear | span))
-    if hit.size:
-        k = int(hit[0])
-        raise ValueError(f"the polygon is self-intersecting (edge {i[k]}-{(i[k] + 1) % n} meets "
-                         f"edge {j[k]}-{(j[k] + 1) % n})")
-    xs, ys = P.T
-    if np.dot(xs, np.roll(ys, -1)) == np.dot(ys, np.roll(xs, -1)):
-        raise ValueError("the polygon has zero area")
-    return points
-
-
-Polygon = Annotated[list[XY], Field(min_length=3), AfterValidator(_simple)]
-
-
-def _has_length(ends: list[list[float]]) -> list[list[float]]:
-    if np.hypot(ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]) < FEATURE_MIN:
-        raise ValueError(f"the segment's two ends coincide (closer than {FEATURE_MIN:g})")
-    return ends
-
-
-Segment = Annotated[list[XY], Field(min_length=2, max_length=2), AfterValidator(_has_length)]
-
-
-def _nonzero(direction: list[float]) -> list[float]:
-    if direction == [0, 0]:
-        raise ValueError("the direction must not be [0, 0]")
-    return direction
-
-
-Direction = Annotated[XY, AfterValidator(_nonzero)]
-
-
-def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
-    given = [k for k in keys if getattr(model, k) is not None]
-    if len(given) != 1:
-        found = f"got {', '.join(given)}" if given else "got none"
-        raise ValueError(f"give exactly one of {', '.join(keys)} ({found})")
-
-
-class Material(_Strict):
-    E: Optional[float] = Field(None, **_MODULUS)
-    nu: Optional[float] = Field(None, **_POISSON)
-    lam: Optional[float] = Field(None, alias="lambda", **_LAME)
-    mu: Optional[float] = Field(None, **_MODULUS)
-    conductivity: Optional[float] = Field(None, **_CONDUCTIVITY)
-    expansion: Optional[float] = Field(None, **_EXPANSION)
-    density_weight: Optional[float] = Field(None, **_WEIGHT)
-
-    @model_validator(mode="after")
-    def _one_elastic_pair(self):
-        engineering = {"E": self.E, "nu": self.nu}
-        lame = {"lambda": self.lam, "mu": self.mu}
-        uses = [pair for pair in (engineering, lame) if any(v is not None for v in pair.values())]
-        if len(uses) != 1:
-            raise ValueError("give the elastic constants as E, nu or as lambda, mu (exactly one pair)")
-        missing = [k for k, v in uses[0].items() if v is None]
-        if missing:
-            raise ValueError(f"'{missing[0]}' is missing: {' and '.join(uses[0])} go together")
-        if self.lam is not None and self.lam + self.mu <= 0:
-            raise ValueError("lambda + mu must be > 0 (positive bulk modulus)")
-        return self
-
-
-class Disc(_Strict):
-    center: XY
-    radius: float = Field(**_FEATURE)
-
-
-class Shape(_Strict):
-    rectangle: Optional[Rectangle] = None
-    polygon: Optional[Polygon] = None
-    disc: Optional[Disc] = None
-    minus: Optional[list[Shape]] = None
-    intersect: Optional[list[Shape]] = None
-
-    @model_validator(mode="after")
-    def _one_primitive(self):
-        _exactly_one(self, ("rectangle", "polygon", "disc"))
-        return self
-
-
-class RegionMesh(_Strict):
-    size: float = Field(**_FEATURE)        # target element size inside the region
-
-
-class Region(_Strict):
-    material: str
-    shape: Optional[Shape] = None          # required unless the scene's mesh is a file
-    name: Optional[Name] = None
-    mesh: Optional[RegionMesh] = None
-
-
-class BodyMesh(_Strict):
-    """A body's own mesh sizes: the body is meshed on its own (nodes on curves it shares
-    with other bodies do not match theirs: contacts and glue there use mortar)."""
-    size: Optional[float] = Field(None, **_FEATURE)
-    refine: list["Refinement"] = []
-
-
-class Body(_Strict):
-    regions: Annotated[list[Region], Field(min_length=1)]
-    mesh: Optional[BodyMesh] = None
-
-
-class Boundary(_Strict):
-    body: Optional[str] = None
-    segment: Optional[Segment] = None
-    circle: Optional[Disc] = None
-    box: Optional[BoxCorners] = None
-
-    @model_validator(mode="after")
-    def _one_selector(self):
-        _exactly_one(self, ("segment", "circle", "box"))
-        return self
-
-
-class Support(_Strict):
-    u: Optional[Annotated[list[Optional[Coordinate]], Field(min_length=2, max_length=2)]] = None
-    normal: Optional[float] = Field(None, **_LENGTH)
-
-    @model_validator(mode="after")
-    def _holds_something(self):
-        _exactly_one(self, ("u", "normal"))
-        if self.u is not None and all(c is None for c in self.u):
-            raise ValueError("u: [null, null] holds nothing; give at least one component")
-        return self
-
-
-class Load(_Strict):
-    pressure: Optional[float] = Field(None, **_STRESS)
-    traction: Optional[Annotated[list[Annotated[float, Field(**_STRESS)]], Field(min_length=2, max_length=2)]] = None
-
-    @model_validator(mode="after")
-    def _one_kind(self):
-        _exactly_one(self, ("pressure", "traction"))
-        return self
-
-
-class Friction(_Strict):
-    slip_limit: Optional[float] = Field(None, **_SLIP)
-    coefficient: Optional[float] = Field(None, **_COEFFICIENT)
-
-    @model_validator(mode="after")
-    def _one_law(self):
-        _exactly_one(self, ("slip_limit", "coefficient"))
-        return self
-
-
-class Contact(_Strict):
-    slave: str
-    master: str
-    friction: Optional[Friction] = None
-    # node-to-node (paired nodes) | mortar (dual mortar) | auto: node-to-node when the sides match
-    discretization: Literal["auto", "node-to-node", "mortar"] = "auto"
-
-
-class Glue(_Strict):
-    """Two sides of different bodies tied together (mortar: the slave side follows the master)."""
-    slave: str
-    master: str
-
-
-class Thermal(_Strict):
-    reference: float = Field(**_KELVIN)
-    temperature: Annotated[dict[str, Annotated[float, Field(**_KELVIN)]], Field(min_length=1)]
-    sources: dict[str, Annotated[float, Field(**_SOURCE)]] = {}
-
-
-class RegionSelector(_Strict):
-    box: Optional[Rectangle] = None
-    disc: Optional[Disc] = None
-    polygon: Optional[Polygon] = None
-    boundary: Optional[str] = None
-
-    @model_validator(mode="after")
-    def _one_selector(self):
-        _exactly_one(self, ("box", "disc", "polygon", "boundary"))
-        return self
-
-
-class RegionOfInterest(RegionSelector):
-    body: Optional[str] = None
-
-
-class Refinement(RegionSelector):
-    size: float = Field(**_FEATURE)
-
-
-BodyMesh.model_rebuild()
-Body.model_rebuild()
-
-
-class Mesh(_Strict):
-    size: Optional[float] = Field(None, **_FEATURE)
-    grading: Optional[float] = Field(None, ge=0, le=1e3)
-    refine: list[Refinement] = []
-    file: Optional[str] = None             # a mesh file (gmsh .msh, ...) instead of shapes
-    max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
-
-    @model_validator(mode="after")
-    def _size_or_file(self):
-        if self.file is None and self.size is None:
-            raise ValueError("give `size` (the target element size) or `file` (a mesh file)")
-        if self.file is not None and (self.size is not None or self.refine or self.grading is not None
-                                      or self.max_cells is not None):
-            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading`, `refine` and `max_cells`")
-        return self
-
-
-class Scene(_Strict):
-    dimension: int = 2
-    plane: Literal["strain", "stress"] = "strain"
-    mesh: Mesh
-    materials: Annotated[dict[Name, Material], Field(min_length=1)]
-    bodies: Annotated[dict[Name, Body], Field(min_length=1)]
-    boundaries: dict[Name, Boundary] = {}
-    supports: dict[str, Support] = {}
-    loads: dict[str, Load] = {}
-    body_forces: dict[str, Annotated[list[Annotated[float, Field(**_BODY_FORCE)]],
-                                     Field(min_length=2, max_length=2)]] = {}
-    contacts: dict[Name, Contact] = {}
-    glue: dict[Name, Glue] = {}
-    thermal: Optional[Thermal] = None
-    regions_of_interest: dict[Name, RegionOfInterest] = {}
-
-    @field_validator("dimension")
-    @classmethod
-    def _two_dimensional(cls, dimension):
-        if dimension != 2:
-            raise ValueError("only dimension 2 is supported")
-        return dimension
-
 
 CriterionKind = Literal[tuple(KINDS)]
 
 
-class Criterion(_Strict):
+class Criterion(Frozen):
     name: Name
     kind: CriterionKind
     regions: Annotated[list[str], Field(min_length=1)]
@@ -555,7 +254,7 @@ class Fuzzy(Options):
         list(DEFAULT_LEVELS), description="the α-levels whose cuts are searched (membership ≥ α)")
 
 
-class Sweep(_Strict):
+class Sweep(Frozen):
     grid: Annotated[dict[str, Annotated[list[float], Field(min_length=1)]], Field(min_length=1)]
 
 
@@ -608,17 +307,11 @@ _BOX = TypeAdapter(Point, config=_CONFIG)
 _LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
 
 
-def _dump(model) -> Any:
-    if isinstance(model, BaseModel):
-        return model.model_dump(by_alias=True, exclude_none=True)
-    return {k: _dump(v) for k, v in model.items()}
-
-
 # ---------------------------------------------------------------- the scene
 
 
-def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path, str]]]:
-    """The validated scene, where it lives, and the extra files it came from."""
+def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Path, str]], list[str]]:
+    """The validated scene, where it lives, the extra files it came from, and notes on it."""
     extra = []
     src = _Source(study_src.file, ("scene",), study_src.folder)
     if isinstance(raw, str):
@@ -628,42 +321,53 @@ def _load_scene(raw, study_src: _Source) -> tuple[dict, _Source, list[tuple[Path
         extra.append((path, text))
     if isinstance(raw, dict) and isinstance(raw.get("materials"), str):
         raw = dict(raw)
-        raw["materials"], library = _load_materials(raw["materials"], src)
+        raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
-    scene = _dump(src.validate(_SCENE, raw))
-    if "file" in scene["mesh"]:                # regions come from the file's physical groups
+    scene = src.validate(_SCENE, raw)
+    notes = []
+    if scene.mesh.file is not None:            # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
-        scene["mesh"]["notes"] = prepare_scene(scene, src.base, src.error)  # popped by load_study
+        file, names, groups, notes = prepare_scene(scene, src.base, src.error)
+        scene = scene.model_copy(update={
+            "mesh": scene.mesh.model_copy(update={"file": file}),
+            "bodies": {b: _named(body, names[b]) for b, body in scene.bodies.items()},
+            "boundaries": scene.boundaries | {piece: GroupBoundary(group=group, body=body)
+                                              for piece, group, body in groups}})
     else:
         _require_shapes(scene, src)
-    _name_regions(scene)
-    return scene, src, extra
+        scene = scene.model_copy(update={"bodies": {
+            b: _named(body, [r.name or f"{b}_{i}" for i, r in enumerate(body.regions)])
+            for b, body in scene.bodies.items()}})
+    return scene, src, extra, notes
 
 
-def _require_shapes(scene: dict, src: _Source) -> None:
-    for body, spec in scene["bodies"].items():
-        for i, region in enumerate(spec["regions"]):
-            if "shape" not in region:
-                raise src.error(("bodies", body, "regions", i, "shape"),
+def _named(body, names: list[str]):
+    """The body with its regions named `names` (in order)."""
+    return body.model_copy(update={"regions": [r.model_copy(update={"name": n}) for r, n in zip(body.regions, names)]})
+
+
+def _require_shapes(scene: Scene, src: _Source) -> None:
+    for name, body in scene.bodies.items():
+        for i, region in enumerate(body.regions):
+            if region.shape is None:
+                raise src.error(("bodies", name, "regions", i, "shape"),
                                 "required key is missing (a region needs a shape unless the "
                                 "scene's mesh is a file: `mesh: {file: ...}`)")
 
 
-def _load_materials(name: str, src: _Source) -> tuple[dict, tuple[Path, str]]:
+def _load_materials(name: str, src: _Source) -> tuple[dict[str, Material], tuple[Path, str]]:
     path = _locate(name, src, "materials", shipped=True)
     raw, text = _read_yaml(path)
-    materials = _dump(_Source(path).validate(_LIBRARY, raw))
-    return materials, (path, text)
+    return _Source(path).validate(_LIBRARY, raw), (path, text)
 
 
-def _name_regions(scene: dict) -> None:
-    for body, spec in scene["bodies"].items():
-        for i, region in enumerate(spec["regions"]):
-            region.setdefault("name", f"{body}_{i}")
+def _region_names(scene: Scene) -> list[str]:
+    return [r.name for body in scene.bodies.values() for r in body.regions]
 
 
-def _region_names(scene: dict) -> list[str]:
-    return [r["name"] for spec in scene["bodies"].values() for r in spec["regions"]]
+def _used_materials(scene: Scene) -> list[str]:
+    """The materials the regions use, each once, in scene order."""
+    return list(dict.fromkeys(r.material for body in scene.bodies.values() for r in body.regions))
 
 
 def _require(name: str, known, what: str, src: _Source, path) -> None:
@@ -671,104 +375,104 @@ def _require(name: str, known, what: str, src: _Source, path) -> None:
         raise src.error(path, f"unknown {what} '{name}'{_did_you_mean(name, known)}")
 
 
-def _check_regions(scene: dict, src: _Source) -> None:
+def _check_regions(scene: Scene, src: _Source) -> None:
     """Materials exist; region names are unique and differ from other bodies' names."""
     seen = set()
-    for body, spec in scene["bodies"].items():
-        for i, region in enumerate(spec["regions"]):
+    for body, spec in scene.bodies.items():
+        for i, region in enumerate(spec.regions):
             path = ("bodies", body, "regions", i)
-            _require(region["material"], scene["materials"], "material", src, path + ("material",))
-            name = region["name"]
+            _require(region.material, scene.materials, "material", src, path + ("material",))
+            name = region.name
             if name in seen:
                 raise src.error(path + ("name",), f"region name '{name}' is used twice")
-            own_name = name == body and len(spec["regions"]) == 1
-            if name in scene["bodies"] and not own_name:
+            own_name = name == body and len(spec.regions) == 1
+            if name in scene.bodies and not own_name:
                 raise src.error(path + ("name",), f"region name '{name}' is also a body's name")
             seen.add(name)
 
 
-def _check_references(scene: dict, src: _Source) -> None:
+def _check_references(scene: Scene, src: _Source) -> None:
     """Every boundary, body and region a scene key refers to exists."""
-    bodies, boundaries = scene["bodies"], scene["boundaries"]
+    bodies, boundaries = scene.bodies, scene.boundaries
     parts = set(bodies) | set(_region_names(scene))
     for name, spec in boundaries.items():
-        if "body" in spec:
-            _require(spec["body"], bodies, "body", src, ("boundaries", name, "body"))
+        if spec.body is not None:
+            _require(spec.body, bodies, "body", src, ("boundaries", name, "body"))
     for block in ("supports", "loads"):
-        for name in scene[block]:
+        for name in getattr(scene, block):
             _require(name, boundaries, "boundary", src, (block, name))
-    for name in scene["body_forces"]:
+    for name in scene.body_forces:
         _require(name, parts, "body or region", src, ("body_forces", name))
-    for i, refinement in enumerate(scene["mesh"]["refine"]):
-        if "boundary" in refinement:
-            _require(refinement["boundary"], boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
+    for i, refinement in enumerate(scene.mesh.refine):
+        if refinement.boundary is not None:
+            _require(refinement.boundary, boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
     for body, spec in bodies.items():
-        for i, refinement in enumerate((spec.get("mesh") or {}).get("refine", [])):
-            if "boundary" in refinement:
-                _require(refinement["boundary"], boundaries, "boundary", src,
+        for i, refinement in enumerate(spec.mesh.refine if spec.mesh else []):
+            if refinement.boundary is not None:
+                _require(refinement.boundary, boundaries, "boundary", src,
                          ("bodies", body, "mesh", "refine", i, "boundary"))
-        if "file" in scene["mesh"]:
-            if "mesh" in spec:
+        if scene.mesh.file is not None:
+            if spec.mesh is not None:
                 raise src.error(("bodies", body, "mesh"), "the scene's mesh is a file: a body "
                                 "cannot have its own mesh sizes")
-            for i, region in enumerate(spec["regions"]):
-                if "mesh" in region:
+            for i, region in enumerate(spec.regions):
+                if region.mesh is not None:
                     raise src.error(("bodies", body, "regions", i, "mesh"), "the scene's mesh is a "
                                     "file: a region cannot have its own mesh size")
-    for name, roi in scene["regions_of_interest"].items():
+    for name, roi in scene.regions_of_interest.items():
         path = ("regions_of_interest", name)
-        if "boundary" in roi:
-            _require(roi["boundary"], boundaries, "boundary", src, path + ("boundary",))
-        if "body" in roi:
-            _require(roi["body"], bodies, "body", src, path + ("body",))
+        if roi.boundary is not None:
+            _require(roi.boundary, boundaries, "boundary", src, path + ("boundary",))
+        if roi.body is not None:
+            _require(roi.body, bodies, "body", src, path + ("body",))
 
 
-def _check_contacts(scene: dict, src: _Source) -> None:
+def _check_contacts(scene: Scene, src: _Source) -> None:
     """Both sides of a contact (or a glued interface) are boundaries, of two different
     bodies when they say which; a side is not both contact and glue."""
-    boundaries = scene["boundaries"]
+    boundaries = scene.boundaries
     glued = {}
-    for name, glue in scene.get("glue", {}).items():
-        for side in ("slave", "master"):
-            glued.setdefault(glue[side], name)
-    for name, contact in scene["contacts"].items():
-        for side in ("slave", "master"):
-            if contact[side] in glued:
-                raise src.error(("contacts", name, side), f"boundary '{contact[side]}' is glued "
-                                f"(glue '{glued[contact[side]]}'); a side is either in contact or glued")
-    blocks = [("contacts", n, c) for n, c in scene["contacts"].items()]
-    blocks += [("glue", n, g) for n, g in scene.get("glue", {}).items()]
+    for name, glue in scene.glue.items():
+        for side in (glue.slave, glue.master):
+            glued.setdefault(side, name)
+    for name, contact in scene.contacts.items():
+        for key in ("slave", "master"):
+            side = getattr(contact, key)
+            if side in glued:
+                raise src.error(("contacts", name, key), f"boundary '{side}' is glued "
+                                f"(glue '{glued[side]}'); a side is either in contact or glued")
+    blocks = [("contacts", n, c) for n, c in scene.contacts.items()]
+    blocks += [("glue", n, g) for n, g in scene.glue.items()]
     for block, name, contact in blocks:
         path = (block, name)
-        for side in ("slave", "master"):
-            _require(contact[side], boundaries, "boundary", src, path + (side,))
-        slave, master = boundaries[contact["slave"]], boundaries[contact["master"]]
-        if contact["slave"] == contact["master"]:
+        for key in ("slave", "master"):
+            _require(getattr(contact, key), boundaries, "boundary", src, path + (key,))
+        slave, master = boundaries[contact.slave], boundaries[contact.master]
+        if contact.slave == contact.master:
             raise src.error(path + ("master",), "slave and master are the same boundary")
-        if "body" in slave and slave.get("body") == master.get("body"):
+        if slave.body is not None and slave.body == master.body:
             raise src.error(path + ("master",),
-                            f"slave and master both belong to body '{slave['body']}'; "
+                            f"slave and master both belong to body '{slave.body}'; "
                             f"a {'contact' if block == 'contacts' else 'glue'} joins two different bodies")
 
 
-def _check_thermal(scene: dict, src: _Source) -> list[str]:
+def _check_thermal(scene: Scene, src: _Source) -> list[str]:
     """Thermal references exist and used materials conduct; notes on materials without expansion."""
-    thermal = scene.get("thermal")
+    thermal = scene.thermal
     if thermal is None:
         return []
-    for name in thermal["temperature"]:
-        _require(name, scene["boundaries"], "boundary", src, ("thermal", "temperature", name))
-    parts = set(scene["bodies"]) | set(_region_names(scene))
-    for name in thermal["sources"]:
+    for name in thermal.temperature:
+        _require(name, scene.boundaries, "boundary", src, ("thermal", "temperature", name))
+    parts = set(scene.bodies) | set(_region_names(scene))
+    for name in thermal.sources:
         _require(name, parts, "body or region", src, ("thermal", "sources", name))
-    used = dict.fromkeys(r["material"] for b in scene["bodies"].values() for r in b["regions"])
     notes = []
-    for name in used:
-        material = scene["materials"][name]
-        if "conductivity" not in material:
+    for name in _used_materials(scene):
+        material = scene.materials[name]
+        if material.conductivity is None:
             raise src.error(("materials", name),
                             "needs 'conductivity' because the scene has a thermal block")
-        if "expansion" not in material:
+        if material.expansion is None:
             notes.append(f"material '{name}' has no 'expansion': no thermal strain in it")
     return notes
 
@@ -778,23 +482,23 @@ def _check_thermal(scene: dict, src: _Source) -> list[str]:
 MIN_CELLS_ALONG = 4     # a mesh size gives at least this many cells along the longest side
 
 
-def _check_mesh(scene: dict, src: _Source) -> float | None:
+def _check_mesh(scene: Scene, src: _Source) -> float | None:
     """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
     when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
     cells along the longest side of the scene (or of a body with its own size)."""
-    if "file" in scene["mesh"]:
+    if scene.mesh.file is not None:
         return None
-    boxes = {b: [shape_box(r["shape"]) for r in spec["regions"]] for b, spec in scene["bodies"].items()}
-    sizes = [(("mesh", "size"), scene["mesh"]["size"], "the scene", sum(boxes.values(), []))]
-    sizes += [(("bodies", b, "mesh", "size"), spec["mesh"]["size"], f"body '{b}'", boxes[b])
-              for b, spec in scene["bodies"].items() if (spec.get("mesh") or {}).get("size")]
+    boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
+    sizes = [(("mesh", "size"), scene.mesh.size, "the scene", sum(boxes.values(), []))]
+    sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
+              for b, spec in scene.bodies.items() if spec.mesh is not None and spec.mesh.size]
     for where, h, what, bx in sizes:
         longest = max(max(b[2] for b in bx) - min(b[0] for b in bx), max(b[3] for b in bx) - min(b[1] for b in bx))
         if h > longest / MIN_CELLS_ALONG:
             raise src.error(where, f"size {h:g} leaves fewer than {MIN_CELLS_ALONG} cells along the longest "
                                    f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
     cells, path = estimate_cells(scene)
-    limit = scene["mesh"].get("max_cells", DEFAULT_MAX_CELLS)
+    limit = DEFAULT_MAX_CELLS if scene.mesh.max_cells is None else scene.mesh.max_cells
     if cells > limit:
         raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} cells "
                         f"({cells:.3g} unknowns), more than mesh.max_cells = {limit:g} (this size contributes "
@@ -806,19 +510,18 @@ LOCKING_NU = 0.45       # P1 triangles lock as nu -> 0.5
 NO_CRITERIA = "no criteria: `run` and `sweep` solve but measure nothing (`solve` writes the fields)"
 
 
-def _locking_warnings(scene: dict, uncertain: list[dict]) -> list[str]:
+def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
     """A warning per material whose Poisson ratio (nominal or anywhere in its box) is >= LOCKING_NU:
     P1 triangles lock (Hertz peak-pressure error 2 % at nu = 0.45, 8 % at 0.49, 135 % at 0.4999)."""
-    box = {e["path"]: (e["lower"], e["upper"]) for e in uncertain}
-    used = dict.fromkeys(r["material"] for b in scene["bodies"].values() for r in b["regions"])
+    box = {e.path: (e.lower, e.upper) for e in uncertain}
     out = []
-    for name in used:
-        m = scene["materials"][name]
-        if "nu" in m:
-            top = box.get(f"materials.{name}.nu", (m["nu"], m["nu"]))[1]
+    for name in _used_materials(scene):
+        m = scene.materials[name]
+        if m.nu is not None:
+            top = box.get(f"materials.{name}.nu", (m.nu, m.nu))[1]
         else:                                      # nu = lambda / (2 (lambda + mu)), largest at max lambda, min mu
-            lam = box.get(f"materials.{name}.lambda", (m["lambda"], m["lambda"]))[1]
-            mu = box.get(f"materials.{name}.mu", (m["mu"], m["mu"]))[0]
+            lam = box.get(f"materials.{name}.lambda", (m.lam, m.lam))[1]
+            mu = box.get(f"materials.{name}.mu", (m.mu, m.mu))[0]
             top = lam / (2 * (lam + mu))
         if top >= LOCKING_NU:
             out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 triangles "
@@ -830,7 +533,7 @@ def _locking_warnings(scene: dict, uncertain: list[dict]) -> list[str]:
 # ---------------------------------------------------------------- dotted paths
 
 
-def get_path(scene: dict, path: str):
+def get_path(scene: Scene, path: str):
     """The value at a dotted path of the scene; KeyError (with a hint) if there is none."""
     node = scene
     keys = path.split(".")
@@ -839,19 +542,15 @@ def get_path(scene: dict, path: str):
     return node
 
 
-def set_path(scene: dict, path: str, value) -> None:
-    """Put `value` at a dotted path of the scene (in place); KeyError if its parent is missing."""
-    parent, _, key = path.rpartition(".")
-    node = get_path(scene, parent) if parent else scene
-    if isinstance(node, list) and key.isdigit() and int(key) < len(node):
-        node[int(key)] = value
-    elif isinstance(node, dict):
-        node[key] = value
-    else:
-        raise KeyError(f"cannot set '{key}' under '{parent}'")
-
-
 def _child(node, key: str, where: str):
+    """The child `key` of a model (a field the scene gives, by its name in the file), a
+    mapping or a list."""
+    if isinstance(node, BaseModel):
+        given = {f.alias or name: getattr(node, name) for name, f in type(node).model_fields.items()
+                 if getattr(node, name) is not None}
+        if key in given:
+            return given[key]
+        raise KeyError(f"no '{key}' under '{where}'{_did_you_mean(key, given)}")
     if isinstance(node, dict):
         if key in node:
             return node[key]
@@ -864,23 +563,23 @@ def _child(node, key: str, where: str):
 # What can be uncertain (or swept), each with its physical range.
 # `<i>` is a vector component (0 or 1), any other `<...>` a name.
 _ADDRESSES = {
-    "materials.<m>.E": _MODULUS,
-    "materials.<m>.nu": _POISSON,
-    "materials.<m>.lambda": _LAME,  # lambda + mu > 0 is checked on the pair
-    "materials.<m>.mu": _MODULUS,
-    "materials.<m>.conductivity": _CONDUCTIVITY,
-    "materials.<m>.expansion": _EXPANSION,
-    "materials.<m>.density_weight": _WEIGHT,
-    "loads.<boundary>.pressure": _STRESS,
-    "loads.<boundary>.traction.<i>": _STRESS,
-    "body_forces.<body or region>.<i>": _BODY_FORCE,
-    "supports.<boundary>.u.<i>": _LENGTH,
-    "supports.<boundary>.normal": _LENGTH,
-    "contacts.<c>.friction.slip_limit": _SLIP,
-    "contacts.<c>.friction.coefficient": _COEFFICIENT,
-    "thermal.reference": _KELVIN,
-    "thermal.temperature.<boundary>": _KELVIN,
-    "thermal.sources.<body or region>": _SOURCE,
+    "materials.<m>.E": MODULUS,
+    "materials.<m>.nu": POISSON,
+    "materials.<m>.lambda": LAME,  # lambda + mu > 0 is checked on the pair
+    "materials.<m>.mu": MODULUS,
+    "materials.<m>.conductivity": CONDUCTIVITY,
+    "materials.<m>.expansion": EXPANSION,
+    "materials.<m>.density_weight": WEIGHT,
+    "loads.<boundary>.pressure": STRESS,
+    "loads.<boundary>.traction.<i>": STRESS,
+    "body_forces.<body or region>.<i>": BODY_FORCE,
+    "supports.<boundary>.u.<i>": LENGTH,
+    "supports.<boundary>.normal": LENGTH,
+    "contacts.<c>.friction.slip_limit": SLIP,
+    "contacts.<c>.friction.coefficient": COEFFICIENT,
+    "thermal.reference": KELVIN,
+    "thermal.temperature.<boundary>": KELVIN,
+    "thermal.sources.<body or region>": SOURCE,
 }
 _PROFILE_ADDRESS = "contacts.<c>.friction.slip_limit"
 
@@ -913,7 +612,7 @@ def _range_text(bounds: dict) -> str:
     return " and ".join(f"{words[k]} {v:g}" for k, v in bounds.items())
 
 
-def _nominal_number(scene: dict, path: str, src: _Source, where) -> float:
+def _nominal_number(scene: Scene, path: str, src: _Source, where) -> float:
     """The scene's number at an addressable path, or a StudyError at `where`."""
     if _address(path) is None:
         forms = ", ".join(_ADDRESSES)
@@ -938,67 +637,79 @@ def _check_values(path: str, values, src: _Source, where) -> None:
 # ---------------------------------------------------------------- uncertain data, sweep
 
 
-def _parse_uncertain(doc: dict, scene: dict, src: _Source) -> list[dict]:
+@dataclass(frozen=True)
+class Uncertain:
+    """One entry of `uncertain:`: the dotted path of the scene's number, its box [lower, upper]
+    (a fuzzy number's support), the core (c, d) of a fuzzy number (None: crisp), and for a
+    Lipschitz profile its slope bound and its number of points (else 1: one parameter)."""
+
+    path: str
+    lower: float
+    upper: float
+    core: tuple[float, float] | None = None
+    lipschitz: float | None = None
+    points: int = 1
+
+
+def _parse_uncertain(doc: dict, scene: Scene, src: _Source) -> list[Uncertain]:
     """The boxes of `uncertain:` in file order, each checked against the scene."""
     entries = [_parse_box(path, spec, scene, src) for path, spec in doc.items()]
     _check_bulk_modulus(entries, scene, src)
     return entries
 
 
-def _parse_box(path: str, spec, scene: dict, src: _Source) -> dict:
+def _parse_box(path: str, spec, scene: Scene, src: _Source) -> Uncertain:
     where = ("uncertain", path)
     nominal = _nominal_number(scene, path, src, where)
     if isinstance(spec, dict) and not {"range", "lipschitz", "points"} & set(spec):
         fuzzy = src.validate(_FUZZY, spec, where)
-        entry = {"path": path, "lower": fuzzy.support[0], "upper": fuzzy.support[1], "core": list(fuzzy.core)}
+        entry = Uncertain(path, fuzzy.support[0], fuzzy.support[1], core=tuple(fuzzy.core))
     elif isinstance(spec, dict):
         if _address(path) != _PROFILE_ADDRESS:
             raise src.error(where, "a {range, lipschitz, points} profile is only allowed "
                                    f"on {_PROFILE_ADDRESS}")
         profile = src.validate(_PROFILE, spec, where)
         bounds = profile.range or profile.support
-        entry = {"path": path, "lower": bounds[0], "upper": bounds[1],
-                 "lipschitz": profile.lipschitz, "points": profile.points}
-        if profile.core is not None:
-            entry["core"] = list(profile.core)
+        entry = Uncertain(path, bounds[0], bounds[1], core=None if profile.core is None else tuple(profile.core),
+                          lipschitz=profile.lipschitz, points=profile.points)
     elif isinstance(spec, list):
         lower, upper = src.validate(_BOX, spec, where)
-        entry = {"path": path, "lower": lower, "upper": upper}
+        entry = Uncertain(path, lower, upper)
     else:
         raise src.error(where, "must be [lower, upper], {support: [a, b], core: [c, d]} or "
                                "{range: [lower, upper], lipschitz, points}")
-    if entry["lower"] > entry["upper"]:
-        raise src.error(where, f"lower bound {entry['lower']} is above upper bound {entry['upper']}")
-    _check_values(path, (entry["lower"], entry["upper"]), src, where)
-    if "core" in entry:
-        c, d = entry["core"]
-        if not entry["lower"] <= c <= d <= entry["upper"]:
+    if entry.lower > entry.upper:
+        raise src.error(where, f"lower bound {entry.lower} is above upper bound {entry.upper}")
+    _check_values(path, (entry.lower, entry.upper), src, where)
+    if entry.core is not None:
+        c, d = entry.core
+        if not entry.lower <= c <= d <= entry.upper:
             raise src.error(where + ("core",), f"the core [{c}, {d}] must be an interval inside the "
-                                               f"support [{entry['lower']}, {entry['upper']}]")
+                                               f"support [{entry.lower}, {entry.upper}]")
         if not c <= nominal <= d:
             raise src.error(where, f"the scene's value {nominal} lies outside the core [{c}, {d}] "
                                    "(the nominal data must have membership 1)")
-    elif not entry["lower"] <= nominal <= entry["upper"]:
+    elif not entry.lower <= nominal <= entry.upper:
         raise src.error(where, f"the scene's value {nominal} lies outside the box "
-                               f"[{entry['lower']}, {entry['upper']}]")
+                               f"[{entry.lower}, {entry.upper}]")
     return entry
 
 
-def _check_bulk_modulus(entries: list[dict], scene: dict, src: _Source) -> None:
+def _check_bulk_modulus(entries: list[Uncertain], scene: Scene, src: _Source) -> None:
     """Lame boxes keep lambda + mu > 0 at their lowest corner."""
-    lowest = {e["path"]: e["lower"] for e in entries}
-    for name, material in scene["materials"].items():
-        if "lambda" not in material:
+    lowest = {e.path: e.lower for e in entries}
+    for name, material in scene.materials.items():
+        if material.lam is None:
             continue
         lam_path, mu_path = f"materials.{name}.lambda", f"materials.{name}.mu"
-        if lowest.get(lam_path, material["lambda"]) + lowest.get(mu_path, material["mu"]) <= 0:
+        if lowest.get(lam_path, material.lam) + lowest.get(mu_path, material.mu) <= 0:
             where = lam_path if lam_path in lowest else mu_path
             raise src.error(("uncertain", where), "the box allows lambda + mu <= 0 "
                                                   "(the bulk modulus must stay positive)")
 
 
-def _check_sweep(sweep: dict | None, scene: dict, src: _Source) -> None:
-    for path, values in (sweep or {}).get("grid", {}).items():
+def _check_sweep(sweep: Sweep | None, scene: Scene, src: _Source) -> None:
+    for path, values in (sweep.grid if sweep else {}).items():
         where = ("sweep", "grid", path)
         _nominal_number(scene, path, src, where)
         _check_values(path, values, src, where)
@@ -1007,27 +718,27 @@ def _check_sweep(sweep: dict | None, scene: dict, src: _Source) -> None:
 # ---------------------------------------------------------------- criteria, limits
 
 
-def _check_criteria(criteria: list[dict], scene: dict, src: _Source) -> None:
+def _check_criteria(criteria: list[Criterion], scene: Scene, src: _Source) -> None:
     names = set()
     for i, criterion in enumerate(criteria):
-        if criterion["name"] in names:
-            raise src.error(("criteria", i, "name"), f"criterion name '{criterion['name']}' is used twice")
-        names.add(criterion["name"])
-        for j, roi in enumerate(criterion["regions"]):
-            _require(roi, scene["regions_of_interest"], "region of interest", src,
+        if criterion.name in names:
+            raise src.error(("criteria", i, "name"), f"criterion name '{criterion.name}' is used twice")
+        names.add(criterion.name)
+        for j, roi in enumerate(criterion.regions):
+            _require(roi, scene.regions_of_interest, "region of interest", src,
                      ("criteria", i, "regions", j))
-        needs = KINDS[criterion["kind"]].needs
-        if needs == "thermal" and "thermal" not in scene:
-            raise src.error(("criteria", i, "kind"), f"{criterion['kind']} needs a thermal block in the scene")
-        if needs == "contacts" and not scene["contacts"]:
-            raise src.error(("criteria", i, "kind"), f"{criterion['kind']} needs a contact in the scene")
+        needs = KINDS[criterion.kind].needs
+        if needs == "thermal" and scene.thermal is None:
+            raise src.error(("criteria", i, "kind"), f"{criterion.kind} needs a thermal block in the scene")
+        if needs == "contacts" and not scene.contacts:
+            raise src.error(("criteria", i, "kind"), f"{criterion.kind} needs a contact in the scene")
 
 
-def _split_limits(limits: dict, criteria: list[dict], src: _Source) -> tuple[dict, dict]:
+def _split_limits(limits: dict, criteria: list[Criterion], src: _Source) -> tuple[dict, dict]:
     """(upper limits, lower limits) by criterion name. A bound is checked against the end of the
     range the criterion's search finds: an upper limit needs sense max or both, a lower one min
     or both (otherwise the verdict would read a value nobody searched for)."""
-    senses = {c["name"]: c.get("sense", "max") for c in criteria}
+    senses = {c.name: c.sense for c in criteria}
     upper, lower = {}, {}
     for name, limit in limits.items():
         _require(name, list(senses), "criterion", src, ("limits", name))
@@ -1050,11 +761,11 @@ def _split_limits(limits: dict, criteria: list[dict], src: _Source) -> tuple[dic
 # ---------------------------------------------------------------- fuzzy admissible sets
 
 
-def _levels(top: StudyFile, uncertain: list[dict]) -> tuple[float, ...] | None:
+def _levels(top: StudyFile, uncertain: list[Uncertain]) -> tuple[float, ...] | None:
     """The α-levels of a fuzzy study (None: a crisp one, no `fuzzy:` and no fuzzy number)."""
     if top.fuzzy is not None:
         return tuple(top.fuzzy.levels)
-    return DEFAULT_LEVELS if any("core" in e for e in uncertain) else None
+    return DEFAULT_LEVELS if any(e.core is not None for e in uncertain) else None
 
 
 def alpha_cut(study: "Study", alpha: float) -> tuple[np.ndarray, np.ndarray]:
@@ -1064,13 +775,12 @@ def alpha_cut(study: "Study", alpha: float) -> tuple[np.ndarray, np.ndarray]:
     the rounded formula is monotone in α."""
     lower, upper = [], []
     for entry in study.uncertain:
-        a, b = entry["lower"], entry["upper"]
-        c, d = entry.get("core", (a, b))
+        a, b = entry.lower, entry.upper
+        c, d = entry.core or (a, b)
         lo = c if alpha == 1 else a if alpha == 0 else min(max(a + alpha * (c - a), a), c)
         hi = d if alpha == 1 else b if alpha == 0 else max(min(b - alpha * (b - d), b), d)
-        count = entry.get("points", 1)
-        lower += [lo] * count
-        upper += [hi] * count
+        lower += [lo] * entry.points
+        upper += [hi] * entry.points
     return np.array(lower, dtype=float), np.array(upper, dtype=float)
 
 
@@ -1089,34 +799,34 @@ class Parameters:
         return len(self.names)
 
 
-def _parameters(uncertain: list[dict]) -> Parameters:
+def _parameters(uncertain: list[Uncertain]) -> Parameters:
     names, lower, upper = [], [], []
     for entry in uncertain:
-        if "points" in entry:
-            names += [f"{entry['path']}[{i}]" for i in range(entry["points"])]
+        if entry.lipschitz is not None:
+            names += [f"{entry.path}[{i}]" for i in range(entry.points)]
         else:
-            names.append(entry["path"])
-        count = entry.get("points", 1)
-        lower += [entry["lower"]] * count
-        upper += [entry["upper"]] * count
+            names.append(entry.path)
+        lower += [entry.lower] * entry.points
+        upper += [entry.upper] * entry.points
     return Parameters(names, np.array(lower, dtype=float), np.array(upper, dtype=float))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Study:
-    """A validated study. `scene` is resolved plain data in the YAML shape."""
+    """A validated study, frozen; `scene` is the resolved typed scene. A variant is another
+    study: `load_study(mapping)`."""
 
     name: str
     file: Path                                          # Path("<mapping>") for a study given as a mapping
     text: str
     sha256: str
-    scene: dict
-    uncertain: list[dict]
-    criteria: list[dict]
+    scene: Scene
+    uncertain: list[Uncertain]
+    criteria: list[Criterion]
     limits: dict                                        # criterion -> upper limit
     search: Search
     solver: Solver
-    sweep: dict | None
+    sweep: Sweep | None
     output: str
     parameters: Parameters
     notes: list[str]
@@ -1124,15 +834,17 @@ class Study:
     estimated_cells: float | None = None                # before meshing; None for a mesh file
     lower_limits: dict = field(default_factory=dict)    # criterion -> lower limit
     levels: tuple[float, ...] | None = None             # α-levels of a fuzzy study, ascending; None: crisp
-    _evaluator: Any = field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def _evaluator(self):
+        """The evaluator of this study, built on the first solve."""
+        from .evaluation import Evaluator   # the solvers (gmsh, scikit-fem, PARDISO) load on the first solve
+        return Evaluator(self)
 
     def evaluate(self, values, gradients: bool = False):
         """One forward solve at a data vector (or {dotted path: value}); the mesh and the
         assembled model are built on the first call and reused. With `gradients`, the
         evaluation also carries dΦ/dx of every criterion (adjoint)."""
-        from .evaluation import Evaluator   # the solvers (gmsh, scikit-fem, PARDISO) load on the first solve
-        if self._evaluator is None:
-            self._evaluator = Evaluator(self)
         return self._evaluator.evaluate(values, gradients=gradients)
 
     def data_set(self, values) -> tuple[np.ndarray, dict[str, float]]:
@@ -1151,7 +863,7 @@ class Study:
         """The scene's own values in parameter order (a profile repeats the constant value)."""
         values = []
         for entry in self.uncertain:
-            values += [get_path(self.scene, entry["path"])] * entry.get("points", 1)
+            values += [get_path(self.scene, entry.path)] * entry.points
         return np.array(values, dtype=float)
 
 
@@ -1164,6 +876,25 @@ def _recorded_text(base: Path, text: str, extra: list[tuple[Path, str]]) -> str:
         name = f"shipped library {path.name}" if shipped else os.path.relpath(path, base)
         text = f"{text.rstrip()}\n---\n# {name}\n{more}"
     return text
+
+
+def _checked_scene(raw, src: _Source) -> tuple[Scene, list[tuple[Path, str]], list[str], float | None]:
+    """The scene of a study (inline, or a file name relative to `src`), resolved and checked;
+    the files it came from, the notes on it and its estimated cell count."""
+    scene, scene_src, extra, notes = _load_scene(raw, src)
+    _check_regions(scene, scene_src)
+    _check_references(scene, scene_src)
+    _check_contacts(scene, scene_src)
+    notes = notes + _check_thermal(scene, scene_src)
+    return scene, extra, notes, _check_mesh(scene, scene_src)
+
+
+def load_scene(mapping: Mapping, base_dir=None) -> Scene:
+    """The `scene:` block of a study given as the mapping its YAML parses to, resolved and
+    checked as `load_study` does (file names relative to `base_dir`, default the current
+    directory); StudyError names `<mapping>` and the key path (`scene.…`)."""
+    doc, _ = _mapping_yaml(mapping)
+    return _checked_scene(doc, _Source(MAPPING, (), Path.cwd() if base_dir is None else Path(base_dir)))[0]
 
 
 def load_study(path_or_mapping, base_dir=None) -> Study:
@@ -1183,17 +914,12 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
     top = src.validate(_STUDY, doc)
-    scene, scene_src, extra = _load_scene(top.scene, src)
-    _check_regions(scene, scene_src)
-    _check_references(scene, scene_src)
-    _check_contacts(scene, scene_src)
-    notes = scene["mesh"].pop("notes", []) + _check_thermal(scene, scene_src)
-    cells = _check_mesh(scene, scene_src)
+    scene, extra, notes, cells = _checked_scene(top.scene, src)
     uncertain = _parse_uncertain(top.uncertain, scene, src)
-    criteria = [_dump(c) for c in top.criteria]
+    criteria = top.criteria
     _check_criteria(criteria, scene, src)
     upper_limits, lower_limits = _split_limits(top.limits, criteria, src)
-    sweep = _dump(top.sweep) if top.sweep else None
+    sweep = top.sweep
     _check_sweep(sweep, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, extra)
@@ -1242,7 +968,6 @@ def _split_mapping(study: Study, values: Mapping) -> tuple[np.ndarray, dict]:
 def _entry_slices(study: Study) -> dict[str, slice]:
     slices, start = {}, 0
     for entry in study.uncertain:
-        count = entry.get("points", 1)
-        slices[entry["path"]] = slice(start, start + count)
-        start += count
+        slices[entry.path] = slice(start, start + entry.points)
+        start += entry.points
     return slices

@@ -87,7 +87,7 @@ def extremes_of(study, records: list, criteria: list[str], kind: str, found: lis
     when the search (`found`, its `Extreme`s) ended at that value or data set, else
     `heuristic`; `grid` for a sweep; `in-progress` while the run goes (`found` None); `none`
     without a successful evaluation."""
-    senses = {c["name"]: c.get("sense", "max") for c in study.criteria}
+    senses = {c.name: c.sense for c in study.criteria}
     n, p = len(records), len(study.parameters)
     X = np.array([r["x"] for r in records], float).reshape(n, p)
     P = np.array([r["phi"] for r in records], float).reshape(n, len(criteria))
@@ -176,7 +176,7 @@ class Writer:
                  "worst_fields": "re-solved from a cold start at the end of the run" if complete == "yes"
                  else "fields of the best evaluation solved in this session so far"}
         if self.kind == "sweep":
-            attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in (self.study.sweep or {})["grid"].items())
+            attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in self.study.sweep.grid.items())
         return run_dataset(self.study, self.evaluator, records, worst=worst, certificate=certificate,
                            notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=self.sweep_paths,
                            provenance_attrs=self.provenance, extremes=extremes)

@@ -58,7 +58,7 @@ def test_first_solve_and_resolve_against_one_superlu_solve(tmp_path):
         x = study.nominal().copy()
         x[names.index("contacts.interface.friction.slip_limit")] *= 1.0 + 0.1 * k
         x[names.index("loads.pad_top.traction.0")] *= 0.9 + 0.05 * k
-        E = study.scene["materials"]["rubber"]["E"] * (1.1 + 0.05 * k)   # new material data too
+        E = study.scene.materials["rubber"].E * (1.1 + 0.05 * k)   # new material data too
         data.append(pmap.coefficients(x, {"materials.rubber.E": E}))
     times, iters = [], []
     for s in data:

@@ -315,11 +315,11 @@ def mortar_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Mo
                        gap=gap, weight=mi.D.copy(), dropped=mi.dropped, C=mi.C, master=mi.master)
 
 
-def mortar_contact(sm, spec: dict, path: str) -> MortarPairs:
+def mortar_contact(sm, spec, path: str) -> MortarPairs:
     for side in ("slave", "master"):
-        if spec.get(side) not in sm.boundaries:
-            raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
-    return mortar_sides(sm.mesh, sm.boundaries[spec["slave"]], sm.boundaries[spec["master"]], path)
+        if getattr(spec, side) not in sm.boundaries:
+            raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
+    return mortar_sides(sm.mesh, sm.boundaries[spec.slave], sm.boundaries[spec.master], path)
 
 
 def directional_rows(C: sp.csr_matrix, direction: np.ndarray, nnodes: int) -> sp.csr_matrix:

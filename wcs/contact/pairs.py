@@ -179,12 +179,12 @@ def check_penetration(gap: np.ndarray, coords: np.ndarray, h: float, path: str) 
             f"touch, each with its outward normal towards the other body", path=path)
 
 
-def pair_contact(sm, spec: dict, path: str) -> ContactPairs:
-    """Pairs of a scene contact ``{slave: NAME, master: NAME, ...}`` on a SceneMesh."""
+def pair_contact(sm, spec, path: str) -> ContactPairs:
+    """Pairs of a scene `Contact` (slave and master boundary names) on a SceneMesh."""
     for side in ("slave", "master"):
-        if spec.get(side) not in sm.boundaries:
-            raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
-    return pair_sides(sm.mesh, sm.boundaries[spec["slave"]], sm.boundaries[spec["master"]], path)
+        if getattr(spec, side) not in sm.boundaries:
+            raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
+    return pair_sides(sm.mesh, sm.boundaries[spec.slave], sm.boundaries[spec.master], path)
 
 
 # ---------------------------------------------------------------------------

@@ -38,20 +38,20 @@ class ContactZone:
         return np.concatenate([p.slave for p in self.pairs])
 
 
-def contact_discretization(smesh: SceneMesh, spec: dict, path: str) -> str:
+def contact_discretization(smesh: SceneMesh, spec, path: str) -> str:
     """The discretization a contact uses: its `discretization` key, `auto` (the default)
     meaning node-to-node when the two sides match (mortar.sides_match), mortar otherwise."""
-    kind = spec.get("discretization") or "auto"
+    kind = spec.discretization
     if kind not in DISCRETIZATIONS:
         raise StudyError(f"unknown discretization {kind!r} (one of {', '.join(DISCRETIZATIONS)})",
                          path=f"{path}.discretization")
     if kind != "auto":
         return kind
     for side in ("slave", "master"):
-        if spec.get(side) not in smesh.boundaries:
-            raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
+        if getattr(spec, side) not in smesh.boundaries:
+            raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
     try:
-        match = sides_match(smesh.mesh, smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]], path)
+        match = sides_match(smesh.mesh, smesh.boundaries[spec.slave], smesh.boundaries[spec.master], path)
     except StudyError:              # node-to-node pairing impossible: let mortar try (and report)
         match = False
     return "node-to-node" if match else "mortar"
@@ -64,8 +64,8 @@ def _rows(pr, nn: int):
     return normal_jump_matrix(pr, nn), tangent_jump_matrix(pr, nn)
 
 
-def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
-    contacts = scene.get("contacts") or {}
+def build_zone(scene, smesh: SceneMesh) -> ContactZone | None:
+    contacts = scene.contacts
     if not contacts:
         return None
     mesh = smesh.mesh
@@ -79,7 +79,7 @@ def build_zone(scene: dict, smesh: SceneMesh) -> ContactZone | None:
         pairs.append(pr)
         kinds.append(kind)
         owner.append(np.full(len(pr), k))
-        arcs.append(arc_coordinate(mesh, smesh.boundaries[spec["slave"]], pr.slave))
+        arcs.append(arc_coordinate(mesh, smesh.boundaries[spec.slave], pr.slave))
     slaves = np.concatenate([p.slave for p in pairs])
     rows = [_rows(p, nn) for p in pairs]
     return ContactZone(
@@ -130,14 +130,14 @@ class ContactState:
         }
 
 
-def slave_segments(zone: ContactZone, scene: dict, smesh: SceneMesh) -> np.ndarray:
+def slave_segments(zone: ContactZone, scene, smesh: SceneMesh) -> np.ndarray:
     """(s, 2) the contact rows at the two ends of each slave-side edge whose ends are both rows
     (an edge reaching a dropped node, which has no master opposite, carries no contact)."""
     segments, offset = [], 0
     for name, pr in zip(zone.names, zone.pairs):
         row = np.full(smesh.mesh.p.shape[1], -1)
         row[pr.slave] = offset + np.arange(len(pr))
-        ends = row[smesh.mesh.facets[:, smesh.boundaries[scene["contacts"][name]["slave"]]]].T
+        ends = row[smesh.mesh.facets[:, smesh.boundaries[scene.contacts[name].slave]]].T
         segments.append(ends[(ends >= 0).all(axis=1)])
         offset += len(pr)
     return np.vstack(segments)

@@ -313,7 +313,7 @@ def _distribute_load(dec, rho, rhs: np.ndarray, team) -> list:
     return D
 
 
-def solve_dd(model, scene: dict, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
+def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
              *, coefficients=None, comm=None) -> DDResult:
     """Solve the model's reduced contact problem (Kr, rhs, u = T w + u0) by the DD method.
 

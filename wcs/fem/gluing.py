@@ -52,7 +52,7 @@ class Glue:
     rows: MortarIntegrals
 
 
-def build_glue(scene: dict, smesh, supported_nodes=()) -> list[Glue]:
+def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
     """The mortar rows of every ``glue`` entry of the scene, in scene order.
 
     Slave nodes with a support are excluded (they keep the support). A slave node
@@ -62,12 +62,12 @@ def build_glue(scene: dict, smesh, supported_nodes=()) -> list[Glue]:
     out = []
     nb = smesh.node_body
     taken = set(np.asarray(supported_nodes, dtype=np.int64).tolist())
-    for name, spec in (scene.get("glue") or {}).items():
+    for name, spec in scene.glue.items():
         path = f"scene.glue.{name}"
         for side in ("slave", "master"):
-            if spec.get(side) not in smesh.boundaries:
-                raise StudyError(f"unknown boundary {spec.get(side)!r}", path=f"{path}.{side}")
-        sf, mf = smesh.boundaries[spec["slave"]], smesh.boundaries[spec["master"]]
+            if getattr(spec, side) not in smesh.boundaries:
+                raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
+        sf, mf = smesh.boundaries[spec.slave], smesh.boundaries[spec.master]
         mi = mortar_integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
         if mi.slave.size == 0:
             raise StudyError("the glued sides do not face each other (no slave edge projects "

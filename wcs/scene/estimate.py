@@ -19,31 +19,31 @@ DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives 
 DEFAULT_GRADING = 0.5                   # size growth per unit distance away from a refine zone (the mesher's)
 
 
-def shape_box(shape: dict) -> tuple[float, float, float, float]:
-    """Bounding box (x0, y0, x1, y1) of a validated shape (intersections narrow it)."""
-    if "rectangle" in shape:
-        box = tuple(shape["rectangle"])
-    elif "disc" in shape:
-        (cx, cy), r = shape["disc"]["center"], shape["disc"]["radius"]
+def shape_box(shape) -> tuple[float, float, float, float]:
+    """Bounding box (x0, y0, x1, y1) of a validated `Shape` (intersections narrow it)."""
+    if shape.rectangle is not None:
+        box = tuple(shape.rectangle)
+    elif shape.disc is not None:
+        (cx, cy), r = shape.disc.center, shape.disc.radius
         box = (cx - r, cy - r, cx + r, cy + r)
     else:
-        xs, ys = zip(*shape["polygon"])
+        xs, ys = zip(*shape.polygon)
         box = (min(xs), min(ys), max(xs), max(ys))
-    for other in shape.get("intersect") or []:
+    for other in shape.intersect or []:
         o = shape_box(other)
         box = (max(box[0], o[0]), max(box[1], o[1]), min(box[2], o[2]), min(box[3], o[3]))
     return box
 
 
-def _primitive_area(shape: dict) -> float:
-    if "rectangle" in shape:
-        x0, y0, x1, y1 = shape["rectangle"]
+def _primitive_area(shape) -> float:
+    if shape.rectangle is not None:
+        x0, y0, x1, y1 = shape.rectangle
         area = (x1 - x0) * (y1 - y0)
-    elif "disc" in shape:
-        area = math.pi * shape["disc"]["radius"] ** 2
+    elif shape.disc is not None:
+        area = math.pi * shape.disc.radius ** 2
     else:
-        area = abs(_shoelace(shape["polygon"]))
-    return min([area] + [_primitive_area(o) for o in shape.get("intersect") or []])
+        area = abs(_shoelace(shape.polygon))
+    return min([area] + [_primitive_area(o) for o in shape.intersect or []])
 
 
 def _shoelace(points) -> float:
@@ -55,22 +55,22 @@ def _perimeter(points) -> float:
     return sum(math.dist(points[i - 1], points[i]) for i in range(len(points)))
 
 
-def _zone(selector: dict, scene: dict) -> tuple[float, float]:
+def _zone(selector, scene) -> tuple[float, float]:
     """Area and perimeter of a refine selector (a boundary: no area, both sides of its length)."""
-    if "box" in selector:
-        x0, y0, x1, y1 = selector["box"]
+    if selector.box is not None:
+        x0, y0, x1, y1 = selector.box
         return (x1 - x0) * (y1 - y0), 2 * ((x1 - x0) + (y1 - y0))
-    if "disc" in selector:
-        r = selector["disc"]["radius"]
+    if selector.disc is not None:
+        r = selector.disc.radius
         return math.pi * r * r, 2 * math.pi * r
-    if "polygon" in selector:
-        return abs(_shoelace(selector["polygon"])), _perimeter(selector["polygon"])
-    spec = scene["boundaries"][selector["boundary"]]
-    if "segment" in spec:
-        return 0.0, 2 * math.dist(*spec["segment"])
-    if "circle" in spec:
-        return 0.0, 4 * math.pi * spec["circle"]["radius"]
-    x0, y0, x1, y1 = spec["box"]
+    if selector.polygon is not None:
+        return abs(_shoelace(selector.polygon)), _perimeter(selector.polygon)
+    spec = scene.boundaries[selector.boundary]
+    if spec.segment is not None:
+        return 0.0, 2 * math.dist(*spec.segment)
+    if spec.circle is not None:
+        return 0.0, 4 * math.pi * spec.circle.radius
+    x0, y0, x1, y1 = spec.box
     return 0.0, 4 * ((x1 - x0) + (y1 - y0))
 
 
@@ -84,27 +84,28 @@ def _refined(area: float, perimeter: float, s: float, h: float, g: float, body_a
     return CELLS_PER_H2 * min(inside + halo, body_area / s**2)
 
 
-def estimate_cells(scene: dict) -> tuple[float, str]:
+def estimate_cells(scene) -> tuple[float, str]:
     """About how many cells the scene's mesh will have, and the key path of the size that
-    contributes most, relative to the scene (to name in a refusal). `scene` is validated (shapes, not a mesh file)."""
-    mesh = scene["mesh"]
-    grading = mesh.get("grading", DEFAULT_GRADING)
+    contributes most, relative to the scene (to name in a refusal). `scene` is a validated
+    `Scene` of shapes (not a mesh file)."""
+    mesh = scene.mesh
+    grading = DEFAULT_GRADING if mesh.grading is None else mesh.grading
     parts = []
-    for body, spec in scene["bodies"].items():
-        own = spec.get("mesh") or {}
-        h = own.get("size", mesh["size"])
-        h_path = f"bodies.{body}.mesh.size" if "size" in own else "mesh.size"
-        area = sum(_primitive_area(r["shape"]) for r in spec["regions"])
+    for body, spec in scene.bodies.items():
+        own = spec.mesh
+        h = own.size if own is not None and own.size is not None else mesh.size
+        h_path = f"bodies.{body}.mesh.size" if own is not None and own.size is not None else "mesh.size"
+        area = sum(_primitive_area(r.shape) for r in spec.regions)
         parts.append((CELLS_PER_H2 * area / h**2, h_path))
-        for i, region in enumerate(spec["regions"]):
-            s = (region.get("mesh") or {}).get("size", h)
+        for i, region in enumerate(spec.regions):
+            s = h if region.mesh is None else region.mesh.size
             if s < h:
-                parts.append((CELLS_PER_H2 * _primitive_area(region["shape"]) * (1 / s**2 - 1 / h**2),
+                parts.append((CELLS_PER_H2 * _primitive_area(region.shape) * (1 / s**2 - 1 / h**2),
                               f"bodies.{body}.regions.{i}.mesh.size"))
-        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(mesh.get("refine") or [])]
-        zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(own.get("refine") or [])]
+        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(mesh.refine)]
+        zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(own.refine if own else [])]
         for ref, path in zones:
-            if ref["size"] < h:
+            if ref.size < h:
                 a, p = _zone(ref, scene)
-                parts.append((_refined(a, p, ref["size"], h, grading, area), path))
+                parts.append((_refined(a, p, ref.size, h, grading, area), path))
     return sum(c for c, _ in parts), max(parts)[1]

@@ -24,10 +24,9 @@ from ..errors import StudyError
 DimTags = list[tuple[int, int]]
 
 SHAPE_KINDS = ("rectangle", "polygon", "disc")
-SHAPE_MODIFIERS = ("minus", "intersect")
 
 
-def _number_list(value, n: int | None, path: str, what: str) -> list[float]:
+def number_list(value, n: int | None, path: str, what: str) -> list[float]:
     try:
         out = [float(v) for v in value]
     except (TypeError, ValueError):
@@ -39,32 +38,28 @@ def _number_list(value, n: int | None, path: str, what: str) -> list[float]:
     return out
 
 
-def _primitive(shape: dict, path: str) -> DimTags:
+def _primitive(shape, path: str) -> DimTags:
     occ = gmsh.model.occ
-    kinds = [k for k in SHAPE_KINDS if shape.get(k) is not None]
+    kinds = [k for k in SHAPE_KINDS if getattr(shape, k) is not None]
     if len(kinds) != 1:
-        raise StudyError(
-            f"a shape needs exactly one of {', '.join(SHAPE_KINDS)}; got keys {sorted(shape)}",
-            path=path)
+        raise StudyError(f"a shape needs exactly one of {', '.join(SHAPE_KINDS)}; got {shape!r}", path=path)
     kind = kinds[0]
-    spec = shape[kind]
+    spec = getattr(shape, kind)
     if kind == "rectangle":
-        x0, y0, x1, y1 = _number_list(spec, 4, f"{path}.rectangle", "rectangle")
+        x0, y0, x1, y1 = number_list(spec, 4, f"{path}.rectangle", "rectangle")
         if not (x1 > x0 and y1 > y0):
             raise StudyError(f"rectangle [x0, y0, x1, y1] needs x0 < x1 and y0 < y1, got {spec}",
                              path=f"{path}.rectangle")
         return [(2, occ.addRectangle(x0, y0, 0.0, x1 - x0, y1 - y0))]
     if kind == "disc":
-        if not isinstance(spec, dict) or "center" not in spec or "radius" not in spec:
-            raise StudyError("disc needs {center: [x, y], radius: r}", path=f"{path}.disc")
-        cx, cy = _number_list(spec["center"], 2, f"{path}.disc.center", "center")
-        (r,) = _number_list([spec["radius"]], 1, f"{path}.disc.radius", "radius")
+        cx, cy = number_list(spec.center, 2, f"{path}.disc.center", "center")
+        (r,) = number_list([spec.radius], 1, f"{path}.disc.radius", "radius")
         if r <= 0:
             raise StudyError(f"disc radius must be > 0, got {r}", path=f"{path}.disc.radius")
         return [(2, occ.addDisk(cx, cy, 0.0, r, r))]
     # polygon
     try:
-        pts = [_number_list(p, 2, f"{path}.polygon.{i}", "polygon vertex") for i, p in enumerate(spec)]
+        pts = [number_list(p, 2, f"{path}.polygon.{i}", "polygon vertex") for i, p in enumerate(spec)]
     except TypeError:
         raise StudyError("polygon must be a list of [x, y] points", path=f"{path}.polygon") from None
     if len(pts) >= 2 and pts[0] == pts[-1]:
@@ -80,35 +75,34 @@ def _primitive(shape: dict, path: str) -> DimTags:
     return [(2, occ.addPlaneSurface([loop]))]
 
 
-def make_shape(shape: dict, path: str) -> DimTags:
-    """Create ``shape`` in the current OCC model; return its surfaces (dim 2 dimtags).
+def make_shape(shape, path: str) -> DimTags:
+    """Create ``shape`` (a validated `Shape`) in the current OCC model; return its surfaces
+    (dim 2 dimtags).
 
-    Raises StudyError (with ``path``) on a malformed or empty shape, and on a shape the
-    geometry kernel refuses (gmsh raises a bare Exception, e.g. "Could not create line").
+    Raises StudyError (with ``path``) on an empty shape, and on a shape the geometry kernel
+    refuses (gmsh raises a bare Exception, e.g. "Could not create line").
     """
-    if not isinstance(shape, dict):
-        raise StudyError(f"a shape must be a mapping, got {shape!r}", path=path)
     occ = gmsh.model.occ
-    out = _kernel(path, _primitive, shape, path)
-    for i, sub in enumerate(_shape_list(shape.get("intersect"), f"{path}.intersect")):
+    out = kernel(path, _primitive, shape, path)
+    for i, sub in enumerate(shape.intersect or []):
         tool = make_shape(sub, f"{path}.intersect.{i}")
-        out, _ = _kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
+        out, _ = kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 2]
         if not out:
             raise StudyError("the intersection is empty", path=f"{path}.intersect.{i}")
-    minus = _shape_list(shape.get("minus"), f"{path}.minus")
+    minus = shape.minus or []
     if minus:
         tools: DimTags = []
         for i, sub in enumerate(minus):
             tools += make_shape(sub, f"{path}.minus.{i}")
-        out, _ = _kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
+        out, _ = kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 2]
         if not out:
             raise StudyError("the shape is empty after `minus`", path=path)
     return out
 
 
-def _kernel(path: str, call, *args, **kwargs):
+def kernel(path: str, call, *args, **kwargs):
     """``call(*args, **kwargs)``; an exception of the geometry kernel as a StudyError at ``path``."""
     try:
         return call(*args, **kwargs)
@@ -117,13 +111,3 @@ def _kernel(path: str, call, *args, **kwargs):
     except Exception as exc:  # noqa: BLE001 - gmsh raises a bare Exception
         raise StudyError(f"the geometry kernel (OpenCASCADE) cannot build this shape: {exc}",
                          path=path) from None
-
-
-def _shape_list(value, path: str) -> list:
-    if value is None:
-        return []
-    if isinstance(value, dict):                    # a single shape is accepted too
-        return [value]
-    if not isinstance(value, list):
-        raise StudyError(f"expected a list of shapes, got {value!r}", path=path)
-    return value

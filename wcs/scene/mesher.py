@@ -1,7 +1,7 @@
-"""Scene dict (the ``scene:`` block of a study) -> gmsh (OpenCASCADE) -> :class:`SceneMesh`.
+"""The typed scene (`wcs.scene.spec.Scene`) -> gmsh (OpenCASCADE) -> :class:`SceneMesh`.
 
-``build_mesh(scene)`` takes the ``scene:`` block of a study, already validated
-by the loader, and returns one ``skfem.MeshTri`` holding every body.
+``build_mesh(scene)`` takes the ``scene:`` block of a study, validated by the loader,
+and returns one ``skfem.MeshTri`` holding every body.
 
 How it is done
 --------------
@@ -58,6 +58,7 @@ import gmsh
 import numpy as np
 import scipy.sparse as sp
 import skfem
+from pydantic import BaseModel
 from scipy.sparse.csgraph import connected_components
 
 from ..choose import MeshFacts, mesh_size
@@ -68,27 +69,25 @@ from .geometry import make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
 from .session import OPTIONS, Session
+from .spec import Shape
 
 ROI_SHAPES = {"box": "rectangle", "disc": "disc", "polygon": "polygon"}   # region of interest -> shape
 
 
-def region_names(scene: dict) -> list[tuple[str, str]]:
-    """(body, region name) in scene order; default name ``<body>_<i>`` (0-based i)."""
-    out = []
-    for body, bspec in (scene.get("bodies") or {}).items():
-        for i, reg in enumerate(bspec.get("regions") or []):
-            out.append((body, reg.get("name") or f"{body}_{i}"))
-    return out
+def region_names(scene) -> list[tuple[str, str]]:
+    """(body, region name) in scene order (the loader names every region)."""
+    return [(body, reg.name) for body, bspec in scene.bodies.items() for reg in bspec.regions]
 
 
 # ---------------------------------------------------------------------------
 # sizes
 
 
-def _scalar_distance(spec: dict, path: str):
-    """A fast scalar ``d(x, y)`` for the size callback (called ~1e5 times)."""
+def _scalar_distance(spec, path: str):
+    """A fast scalar ``d(x, y)`` for the size callback (called ~1e5 times): the distance to
+    a refine selector's set (`kind` of `spec`, a validated model)."""
     kind = selectors._kind(spec, ("box", "disc", "polygon", "segment", "circle"), path)
-    val = spec[kind]
+    val = getattr(spec, kind)
     p = f"{path}.{kind}"
     hypot = math.hypot
     if kind == "box":
@@ -118,41 +117,36 @@ def _scalar_distance(spec: dict, path: str):
     return lambda x, y: float(selectors.dist_polygon(x, y, pts))
 
 
-def _refinements(scene: dict, entries, path0: str, grading_path: str):
+def _refinements(scene, entries, path0: str):
+    """(size, distance function) of each refine entry (the geometry of its selector, or of the
+    boundary it names; a `body:` key is ignored)."""
     refs = []
-    for i, ref in enumerate(entries or []):
-        path = f"{path0}.{i}"
-        if not isinstance(ref, dict) or "size" not in ref:
-            raise StudyError("a refine entry needs a region selector and `size`", path=path)
-        s = float(ref["size"])
-        if not (s > 0 and math.isfinite(s)):
-            raise StudyError(f"size must be > 0, got {s}", path=f"{path}.size")
-        sel = {k: v for k, v in ref.items() if k not in ("size", "body") and v is not None}
-        if "boundary" in sel:
-            name = sel["boundary"]
-            bspec = (scene.get("boundaries") or {}).get(name)
-            if bspec is None:
-                raise StudyError(f"unknown boundary {name!r}", path=f"{path}.boundary")
-            gsel = {k: v for k, v in bspec.items() if k != "body" and v is not None}
-            d = _scalar_distance(gsel, f"scene.boundaries.{name}")
+    for i, ref in enumerate(entries):
+        if ref.boundary is not None:
+            d = _scalar_distance(scene.boundaries[ref.boundary], f"scene.boundaries.{ref.boundary}")
         else:
-            d = _scalar_distance(sel, path)
-        refs.append((s, d))
+            d = _scalar_distance(ref, f"{path0}.{i}")
+        refs.append((float(ref.size), d))
     return refs
 
 
-def default_size(scene: dict, bbox_diag: float) -> float:
+def default_size(scene, bbox_diag: float) -> float:
     """`mesh.size` when the study gives none: the benchmark rule of `wcs.choose.mesh_size`
     (diagonal/20, and a tenth of the smallest disc radius, e.g. a tunnel)."""
-    radii = [float(r["radius"]) for r in _discs(scene)]
+    radii = [float(r.radius) for r in _discs(scene)]
     return mesh_size(MeshFacts(diagonal=bbox_diag, feature=min(radii) if radii else None))[0]
 
 
 def _discs(node):
-    """Every `disc: {center, radius}` in a (nested) scene structure."""
-    if isinstance(node, dict):
-        if isinstance(node.get("disc"), dict) and "radius" in node["disc"]:
-            yield node["disc"]
+    """Every `disc: {center, radius}` in a (nested) scene: the `disc` field of any model
+    (shapes, regions of interest, refinements; a boundary's `circle` is not one)."""
+    if isinstance(node, BaseModel):
+        for name in type(node).model_fields:
+            value = getattr(node, name)
+            if name == "disc" and value is not None:
+                yield value
+            yield from _discs(value)
+    elif isinstance(node, dict):
         for v in node.values():
             yield from _discs(v)
     elif isinstance(node, list):
@@ -160,24 +154,19 @@ def _discs(node):
             yield from _discs(v)
 
 
-def _size_function(scene: dict, bbox_diag: float, body: str | None = None, entity_size=None):
+def _size_function(scene, bbox_diag: float, body: str | None = None, entity_size=None):
     """The size and the size callback (None when the size is uniform). ``body``: a body meshed
     on its own (its ``mesh: {size, refine}`` overrides / adds to the scene's). ``entity_size``:
     {(dim, tag): size} of entities inside regions with their own ``mesh: {size}``."""
-    mspec = scene.get("mesh") or {}
-    size = mspec.get("size")
-    size = float(size) if size is not None else default_size(scene, bbox_diag)
-    if not (size > 0 and math.isfinite(size)):
-        raise StudyError(f"mesh size must be > 0, got {size}", path="scene.mesh.size")
-    grading = float(mspec.get("grading", DEFAULT_GRADING))
-    if not grading >= 0:
-        raise StudyError(f"grading must be >= 0, got {grading}", path="scene.mesh.grading")
-    refs = _refinements(scene, mspec.get("refine"), "scene.mesh.refine", "scene.mesh.grading")
+    mspec = scene.mesh
+    size = float(mspec.size) if mspec.size is not None else default_size(scene, bbox_diag)
+    grading = float(DEFAULT_GRADING if mspec.grading is None else mspec.grading)
+    refs = _refinements(scene, mspec.refine, "scene.mesh.refine")
     if body is not None:
-        bmesh = (scene["bodies"][body].get("mesh") or {})
-        if bmesh.get("size") is not None:
-            size = float(bmesh["size"])
-        refs += _refinements(scene, bmesh.get("refine"), f"scene.bodies.{body}.mesh.refine", "")
+        bmesh = scene.bodies[body].mesh
+        if bmesh is not None and bmesh.size is not None:
+            size = float(bmesh.size)
+        refs += _refinements(scene, bmesh.refine if bmesh else [], f"scene.bodies.{body}.mesh.refine")
     entity_size = entity_size or {}
     if not refs and not entity_size:
         return size, None
@@ -199,14 +188,14 @@ def _set_sizes(size: float, callback) -> None:
         gmsh.model.mesh.setSizeCallback(callback)
 
 
-def _region_entity_sizes(scene: dict, owner: dict, regions_flat: list) -> dict:
+def _region_entity_sizes(owner: dict, regions_flat: list) -> dict:
     """{(dim, tag): size} for the surfaces of regions with ``mesh: {size}`` and their
     boundary curves / points (the smallest size of the surfaces around them)."""
     sizes = {}
     for tag, (_, rg) in owner.items():
-        rs = regions_flat[rg].get("mesh") if isinstance(regions_flat[rg], dict) else None
-        if rs and rs.get("size") is not None:
-            s = float(rs["size"])
+        rs = regions_flat[rg].mesh
+        if rs is not None:
+            s = float(rs.size)
             sizes[(2, tag)] = s
             for dim, t in gmsh.model.getBoundary([(2, tag)], combined=False, oriented=False, recursive=False):
                 sizes[(1, abs(t))] = min(sizes.get((1, abs(t)), s), s)
@@ -249,22 +238,22 @@ def _extract(owner: dict, inside: dict, offset: int = 0):
     return xy, tris, cb, cr, ci
 
 
-def _roi_shapes(scene: dict, names: list[str]) -> list:
+def _roi_shapes(scene, names: list[str]) -> list:
     """Surfaces of the regions of interest ``names`` (box, disc, polygon), created in the current
     model: fragmented with the bodies, they make G_r a union of cells."""
     out = []
     for name in names:
-        spec = scene["regions_of_interest"][name]
-        kind = next(k for k in ROI_SHAPES if spec.get(k) is not None)
-        out.append(make_shape({ROI_SHAPES[kind]: spec[kind]}, f"scene.regions_of_interest.{name}"))
+        spec = scene.regions_of_interest[name]
+        kind = next(k for k in ROI_SHAPES if getattr(spec, k) is not None)
+        out.append(make_shape(Shape(**{ROI_SHAPES[kind]: getattr(spec, kind)}), f"scene.regions_of_interest.{name}"))
     return out
 
 
-def area_rois(scene: dict, names=None) -> list[str]:
+def area_rois(scene, names=None) -> list[str]:
     """Names of the regions of interest given by a box, disc or polygon, in scene order
     (only those in ``names`` if given)."""
-    return [name for name, spec in (scene.get("regions_of_interest") or {}).items()
-            if isinstance(spec, dict) and any(spec.get(k) is not None for k in ROI_SHAPES)
+    return [name for name, spec in scene.regions_of_interest.items()
+            if any(getattr(spec, k) is not None for k in ROI_SHAPES)
             and (names is None or name in names)]
 
 
@@ -309,11 +298,11 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed, sp
     offset = 0
     for b, body in enumerate(bodies):
         gmsh.model.add(f"{base}_body{b}")
-        mine = [(rg, make_shape(regions_flat[rg]["shape"], f"scene.bodies.{body}.regions.{i}.shape"))
+        mine = [(rg, make_shape(regions_flat[rg].shape, f"scene.bodies.{body}.regions.{i}.shape"))
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
         covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
-        _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(scene, owner, regions_flat)))
+        _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(owner, regions_flat)))
         _generate(splits)
         xy, t, c1, c2, c3 = _extract(owner, inside, offset)
         gmsh.model.mesh.removeSizeCallback()
@@ -334,10 +323,10 @@ def _fragment(dimtags: list) -> list:
     return outmap
 
 
-def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
-    """Mesh a validated scene dict (the ``scene:`` block) into a :class:`SceneMesh`.
+def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
+    """Mesh a validated `Scene` (the ``scene:`` block) into a :class:`SceneMesh`.
 
-    ``boundaries`` of the result holds, for every entry of ``scene["boundaries"]``,
+    ``boundaries`` of the result holds, for every entry of ``scene.boundaries``,
     the sorted facet indices its selector picks (an empty selection raises
     ``StudyError`` at ``scene.boundaries.<name>``).  The regions of interest
     ``rois`` given by a box, disc or polygon (default: all of them) are embedded
@@ -347,14 +336,12 @@ def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
     ``splits``: the mesh refined that many times by splitting every triangle into four
     (uniform refinement of the same geometry, h halved each time; not for a mesh file).
     """
-    bodies_spec = scene.get("bodies") or {}
-    if not bodies_spec:
-        raise StudyError("the scene has no bodies", path="scene.bodies")
-    if (scene.get("mesh") or {}).get("file"):       # the user's own mesh (wcs.scene.meshfile)
+    bodies_spec = scene.bodies
+    if scene.mesh.file is not None:        # the user's own mesh (wcs.scene.meshfile)
         if splits:
             raise StudyError("a mesh file is used as it is: it has no geometry to refine on",
                              path="scene.mesh.file")
-        return check_connected(read_mesh_file(scene["mesh"]["file"], scene, "scene.mesh.file"), "scene.mesh.file")
+        return check_connected(read_mesh_file(scene.mesh.file, scene, "scene.mesh.file"), "scene.mesh.file")
     bodies = list(bodies_spec)
     regions = region_names(scene)
     embed = area_rois(scene, rois)
@@ -364,14 +351,8 @@ def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
         inputs: list[tuple[int, int, list]] = []
         r = 0
         for b, body in enumerate(bodies):
-            regs = bodies_spec[body].get("regions") or []
-            if not regs:
-                raise StudyError("a body needs at least one region", path=f"scene.bodies.{body}.regions")
-            for i, reg in enumerate(regs):
-                path = f"scene.bodies.{body}.regions.{i}.shape"
-                if not isinstance(reg, dict) or "shape" not in reg:
-                    raise StudyError("a region needs a `shape`", path=f"scene.bodies.{body}.regions.{i}")
-                inputs.append((b, r, make_shape(reg["shape"], path)))
+            for i, reg in enumerate(bodies_spec[body].regions):
+                inputs.append((b, r, make_shape(reg.shape, f"scene.bodies.{body}.regions.{i}.shape")))
                 r += 1
 
         # -- one fragment of everything (regions of interest included) -> conforming pieces
@@ -398,9 +379,9 @@ def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
         # -- sizes and meshing
         xmin, ymin, _, xmax, ymax, _ = gmsh.model.getBoundingBox(-1, -1)
         diag = math.hypot(xmax - xmin, ymax - ymin)
-        regions_flat = [reg for body in bodies for reg in bodies_spec[body].get("regions") or []]
-        if not any(bodies_spec[body].get("mesh") for body in bodies):
-            _set_sizes(*_size_function(scene, diag, None, _region_entity_sizes(scene, owner, regions_flat)))
+        regions_flat = [reg for body in bodies for reg in bodies_spec[body].regions]
+        if all(bodies_spec[body].mesh is None for body in bodies):
+            _set_sizes(*_size_function(scene, diag, None, _region_entity_sizes(owner, regions_flat)))
             _generate(splits)
             xy, tris, cb, cr, ci = _extract(owner, inside)
             gmsh.model.mesh.removeSizeCallback()
@@ -433,12 +414,12 @@ def build_mesh(scene: dict, rois=None, splits: int = 0) -> SceneMesh:
     sm = SceneMesh(mesh=mesh, bodies=bodies, regions=regions,
                    cell_body=cell_body, cell_region=cell_region, boundaries={})
     bnd = {}
-    for name, spec in (scene.get("boundaries") or {}).items():
+    for name, spec in scene.boundaries.items():
         bnd[name] = selectors.select_boundary(sm, spec, f"scene.boundaries.{name}")
     roi_cells = {}
     for j, name in enumerate(embed):
         mask = in_roi[j]
-        body = selectors._body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
+        body = selectors._body_index(sm, scene.regions_of_interest[name], f"scene.regions_of_interest.{name}")
         if body is not None:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)

@@ -34,7 +34,7 @@ Region selectors (``REGION_SELECTOR``), with optional ``body``: ``box: [six numb
 ``ball: {center, radius}``, ``cylinder: {start, end, radius}`` are solids fragmented with the
 bodies, so G_r is a union of cells (``SceneMesh.roi_cells``; a ball or cylinder: its polyhedral
 mesh); ``boundary: NAME`` (the facets of a named boundary, nothing embedded) is
-``wcs.scene.selectors.select_region``'s, which takes this mesh as it is.
+``wcs.scene.selectors.select_region``'s (given a typed ``RegionOfInterest``), which takes this mesh as it is.
 
 How it is done (as the 2D ``wcs.scene.mesher``): every region solid and every embedded region
 of interest goes through one ``occ.fragment``, so regions of a body share nodes and touching
@@ -61,15 +61,16 @@ import gmsh
 import numpy as np
 import scipy.sparse as sp
 import skfem
+from pydantic import ValidationError
 from scipy.sparse.csgraph import connected_components
 
 from ..choose import MeshFacts, mesh_size
 from ..errors import StudyError
 from . import selectors
-from .geometry import _kernel, _number_list, _shape_list, make_shape
+from .geometry import kernel, make_shape, number_list
 from .meshdata import SceneMesh
-from .mesher import region_names
 from .session import Session
+from .spec import Shape
 
 SOLID_KINDS = ("box", "cylinder", "sphere", "extrude", "halfspace")
 FACE_KINDS = ("plane", "box", "cylinder", "sphere")
@@ -86,7 +87,7 @@ DimTags = list[tuple[int, int]]
 
 
 def _vector(value, path: str, what: str) -> np.ndarray:
-    return np.array(_number_list(value, 3, path, what))
+    return np.array(number_list(value, 3, path, what))
 
 
 def _mapping(spec, keys: tuple[str, ...], path: str, kind: str) -> dict:
@@ -96,7 +97,7 @@ def _mapping(spec, keys: tuple[str, ...], path: str, kind: str) -> dict:
 
 
 def _positive(value, path: str, what: str) -> float:
-    (r,) = _number_list([value], 1, path, what)
+    (r,) = number_list([value], 1, path, what)
     if not r > 0:
         raise StudyError(f"{what} must be > 0, got {r}", path=path)
     return r
@@ -104,7 +105,7 @@ def _positive(value, path: str, what: str) -> float:
 
 def _box(spec, path: str, solid: bool = True) -> np.ndarray:
     """A solid box needs min < max; a face selector's box may be flat (min ≤ max)."""
-    b = np.array(_number_list(spec, 6, path, "box"))
+    b = np.array(number_list(spec, 6, path, "box"))
     if not (np.all(b[3:] > b[:3]) if solid else np.all(b[3:] >= b[:3])):
         raise StudyError(f"box [xmin, ymin, zmin, xmax, ymax, zmax] needs min {'<' if solid else '<='} max, "
                          f"got {spec}", path=path)
@@ -170,10 +171,27 @@ def _primitive(shape: dict, path: str) -> DimTags:
     if kind == "extrude":
         _mapping(spec, ("shape", "vector"), p, "extrude")
         v = _vector(spec["vector"], f"{p}.vector", "vector")
-        base = make_shape(spec["shape"], f"{p}.shape")
-        out = _kernel(p, occ.extrude, base, *v)
+        try:
+            shape2d = Shape.model_validate(spec["shape"])
+        except ValidationError as err:
+            first = err.errors()[0]
+            where = ".".join(str(k) for k in (f"{p}.shape", *first["loc"]))
+            raise StudyError(f"not a 2D shape: {first['msg']}", path=where) from None
+        base = make_shape(shape2d, f"{p}.shape")
+        out = kernel(p, occ.extrude, base, *v)
         return [dt for dt in out if dt[0] == 3]
     raise StudyError("a halfspace is unbounded: use it inside `intersect` or `minus` of a solid", path=p)
+
+
+def _shape_list(value, path: str) -> list:
+    """`intersect` / `minus`: a list of solids (one solid alone is accepted too)."""
+    if value is None:
+        return []
+    if isinstance(value, dict):
+        return [value]
+    if not isinstance(value, list):
+        raise StudyError(f"expected a list of solids, got {value!r}", path=path)
+    return value
 
 
 def _tool(shape, path: str, cut: DimTags) -> DimTags:
@@ -188,17 +206,17 @@ def make_solid(shape: dict, path: str) -> DimTags:
     if not isinstance(shape, dict):
         raise StudyError(f"a solid must be a mapping, got {shape!r}", path=path)
     occ = gmsh.model.occ
-    out = _kernel(path, _primitive, shape, path)
+    out = kernel(path, _primitive, shape, path)
     for i, sub in enumerate(_shape_list(shape.get("intersect"), f"{path}.intersect")):
         tool = _tool(sub, f"{path}.intersect.{i}", out)
-        out, _ = _kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
+        out, _ = kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 3]
         if not out:
             raise StudyError("the intersection is empty", path=f"{path}.intersect.{i}")
     minus = _shape_list(shape.get("minus"), f"{path}.minus")
     if minus:
         tools = [dt for i, sub in enumerate(minus) for dt in _tool(sub, f"{path}.minus.{i}", out)]
-        out, _ = _kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
+        out, _ = kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 3]
         if not out:
             raise StudyError("the solid is empty after `minus`", path=path)
@@ -289,7 +307,7 @@ def _extract(owner: dict, inside: dict):
 
 
 def _size(value, path: str) -> float:
-    (h,) = _number_list([value], 1, path, "mesh size")
+    (h,) = number_list([value], 1, path, "mesh size")
     if not h > 0:
         raise StudyError(f"mesh size must be > 0, got {h}", path=path)
     return h
@@ -320,6 +338,34 @@ def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list)
         r += len(solids)
     xyz, tet, cb, cr, ci = zip(*parts)
     return np.concatenate(xyz), np.concatenate(tet), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
+
+
+
+# The 3D scene is still given as plain mappings (its typed schema is the next step of the 3D
+# work); these read them as the 2D helpers read the typed 2D scene.
+
+def region_names(scene: dict) -> list[tuple[str, str]]:
+    """(body, region name) in scene order; default name ``<body>_<i>`` (0-based i)."""
+    return [(body, reg.get("name") or f"{body}_{i}")
+            for body, bspec in (scene.get("bodies") or {}).items()
+            for i, reg in enumerate(bspec.get("regions") or [])]
+
+
+def _kind(spec: dict, kinds, path: str) -> str:
+    """The one of `kinds` a selector mapping gives."""
+    found = [k for k in kinds if isinstance(spec, dict) and spec.get(k) is not None]
+    if len(found) != 1:
+        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got {spec!r}", path=path)
+    return found[0]
+
+
+def _body_index(sm: SceneMesh, spec: dict, path: str) -> int | None:
+    body = spec.get("body") if isinstance(spec, dict) else None
+    if body is None:
+        return None
+    if body not in sm.bodies:
+        raise StudyError(f"unknown body {body!r} (bodies: {', '.join(sm.bodies)})", path=f"{path}.body")
+    return sm.bodies.index(body)
 
 
 def build_mesh3d(scene: dict) -> SceneMesh:
@@ -382,7 +428,7 @@ def build_mesh3d(scene: dict) -> SceneMesh:
     roi_cells = {}
     for j, name in enumerate(embed):
         mask = in_roi[j]
-        body = selectors._body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
+        body = _body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
         if body is not None:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
@@ -435,8 +481,8 @@ def select_faces(sm: SceneMesh, spec: dict, path: str, *, allow_empty: bool = Fa
     """Sorted indices into ``sm.mesh.facets`` of the boundary facets whose three nodes lie on the
     face selector's set (plane / box / cylinder / sphere, optional body)."""
     mesh = sm.mesh
-    kind = selectors._kind(spec, FACE_KINDS, path)
-    body = selectors._body_index(sm, spec, path)
+    kind = _kind(spec, FACE_KINDS, path)
+    body = _body_index(sm, spec, path)
     bf = mesh.boundary_facets()
     if body is not None:
         bf = bf[selectors.facet_body(sm, bf) == body]

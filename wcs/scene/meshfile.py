@@ -46,6 +46,7 @@ import skfem
 from ..errors import StudyError
 from . import selectors
 from .meshdata import SceneMesh
+from .spec import GroupBoundary
 
 AREA_TOL = 1e-12            # |area| <= AREA_TOL * (bounding-box diagonal)^2 -> degenerate
 
@@ -277,12 +278,13 @@ def file_regions(raw: RawMesh) -> dict[str, dict[str, int]]:
     return out
 
 
-def prepare_scene(scene: dict, base_dir: Path, error) -> list[str]:
-    """Resolve ``scene.mesh.file`` (in place: absolute path), match bodies and regions
-    with the file's 2D groups (filling region names), and add a boundary entry
-    ``{group: NAME[, body: BODY]}`` for each 1D group. ``error(keys, message)``
-    makes the StudyError of the study file. Returns notes for ``Study.notes``."""
-    name = scene["mesh"]["file"]
+def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str]], list[tuple], list[str]]:
+    """What a validated `Scene` meshed by ``mesh.file`` takes from the file: the file's
+    absolute path, each body's region names (matched with the file's 2D groups, filled in
+    where the study gives none), a boundary (piece, group, body or None) for each 1D group,
+    and notes for ``Study.notes``. ``error(keys, message)`` makes the StudyError of the
+    study file."""
+    name = scene.mesh.file
     path = Path(name) if os.path.isabs(name) else Path(base_dir) / name
     if not path.is_file():
         raise error(("mesh", "file"), f"mesh file '{name}' not found (looked for {path})")
@@ -290,39 +292,43 @@ def prepare_scene(scene: dict, base_dir: Path, error) -> list[str]:
         raw = load_raw(path)
     except StudyError as exc:
         raise error(("mesh", "file"), f"{path}: {exc.fault}") from None
-    scene["mesh"]["file"] = str(path.resolve())
     regions = file_regions(raw)
     have = ", ".join(raw.groups2d)
-    for body, spec in scene["bodies"].items():
+    names = {}
+    for body, spec in scene.bodies.items():
         if body not in regions:
             raise error(("bodies", body), f"no 2D physical group '{body}' or '{body}:REGION' in "
                                           f"{path.name} (it has: {have})")
         fregs = regions[body]
-        for i, region in enumerate(spec["regions"]):
-            if "shape" in region:
+        named = []
+        for i, region in enumerate(spec.regions):
+            if region.shape is not None:
                 raise error(("bodies", body, "regions", i, "shape"),
                             "the regions come from the mesh file; drop `shape`")
-            if "name" not in region:
-                if len(fregs) != 1 or len(spec["regions"]) != 1:
+            if region.name is None:
+                if len(fregs) != 1 or len(spec.regions) != 1:
                     raise error(("bodies", body, "regions", i),
                                 f"give the region's `name` (regions of '{body}' in {path.name}: "
                                 f"{', '.join(fregs)})")
-                region["name"] = next(iter(fregs))
-            elif region["name"] not in fregs:
+                named.append(next(iter(fregs)))
+            elif region.name not in fregs:
                 raise error(("bodies", body, "regions", i, "name"),
-                            f"no 2D physical group '{body}:{region['name']}' in {path.name} "
+                            f"no 2D physical group '{body}:{region.name}' in {path.name} "
                             f"(regions of '{body}': {', '.join(fregs)})")
-        named = [r["name"] for r in spec["regions"]]
+            else:
+                named.append(region.name)
+        names[body] = named
         missing = [r for r in fregs if r not in named]
         if missing:
             raise error(("bodies", body, "regions"),
                         f"region '{missing[0]}' of body '{body}' in {path.name} has no material; "
                         "list every region of the file")
-    extra = [b for b in regions if b not in scene["bodies"]]
+    extra = [b for b in regions if b not in scene.bodies]
     if extra:
         raise error(("bodies",), f"the mesh file has body '{extra[0]}' (physical group) that the "
                                  "study does not list; give it a material")
     seen: dict[str, str] = {}
+    groups = []
     for group in raw.lines:
         body, piece = split_name(group)
         if not piece or body == "":
@@ -330,24 +336,24 @@ def prepare_scene(scene: dict, base_dir: Path, error) -> list[str]:
         if piece in seen:
             raise error(("mesh", "file"), f"{path.name}: 1D groups {seen[piece]!r} and {group!r} both "
                                           f"make boundary '{piece}'")
-        if body is not None and body not in scene["bodies"]:
+        if body is not None and body not in scene.bodies:
             raise error(("mesh", "file"), f"{path.name}: 1D group {group!r} names unknown body '{body}'")
-        if piece in scene["boundaries"]:
+        if piece in scene.boundaries:
             raise error(("boundaries", piece), f"'{piece}' is also a 1D physical group of "
                                                f"{path.name}; use another name")
         seen[piece] = group
-        scene["boundaries"][piece] = {"group": group} | ({"body": body} if body else {})
+        groups.append((piece, group, body))
     notes = []
     if raw.reoriented:
         notes.append(f"{path.name}: {raw.reoriented} clockwise triangle(s) reoriented counter-clockwise")
-    return notes
+    return str(path.resolve()), names, groups, notes
 
 
 # ---------------------------------------------------------------------------
 # the SceneMesh
 
 
-def read_mesh_file(path, scene: dict, keypath: str = "scene.mesh.file") -> SceneMesh:
+def read_mesh_file(path, scene, keypath: str = "scene.mesh.file") -> SceneMesh:
     """The :class:`SceneMesh` of a prepared scene (see :func:`prepare_scene`) whose
     ``mesh.file`` is ``path``: bodies and regions in scene order, one copy of each
     node per body, counter-clockwise cells, ``boundaries`` for every scene boundary
@@ -357,11 +363,11 @@ def read_mesh_file(path, scene: dict, keypath: str = "scene.mesh.file") -> Scene
     except StudyError as exc:
         raise StudyError(exc.fault, file=exc.file, path=keypath) from None
     fregs = file_regions(raw)
-    bodies = list(scene["bodies"])
+    bodies = list(scene.bodies)
     regions, group_of = [], []
     for body in bodies:
-        for i, reg in enumerate(scene["bodies"][body]["regions"]):
-            rname = reg.get("name") or next(iter(fregs.get(body, {body: 0})))
+        for i, reg in enumerate(scene.bodies[body].regions):
+            rname = reg.name
             if body not in fregs or rname not in fregs[body]:
                 raise StudyError(f"no 2D physical group for region '{rname}' of body '{body}'",
                                  file=raw.file, path=f"scene.bodies.{body}.regions.{i}")
@@ -397,19 +403,19 @@ def read_mesh_file(path, scene: dict, keypath: str = "scene.mesh.file") -> Scene
     fkey = np.minimum(fa, fb) * nn + np.maximum(fa, fb)
     fbody = selectors.facet_body(sm, bf)
     bnd = {}
-    for name, spec in (scene.get("boundaries") or {}).items():
+    for name, spec in scene.boundaries.items():
         kp = f"scene.boundaries.{name}"
-        if "group" in spec:
-            lines = raw.lines.get(spec["group"])
+        if isinstance(spec, GroupBoundary):
+            lines = raw.lines.get(spec.group)
             if lines is None:
-                raise StudyError(f"no 1D physical group {spec['group']!r}", file=raw.file, path=kp)
+                raise StudyError(f"no 1D physical group {spec.group!r}", file=raw.file, path=kp)
             lkey = np.minimum(lines[:, 0], lines[:, 1]) * nn + np.maximum(lines[:, 0], lines[:, 1])
             ok = np.isin(fkey, lkey)
-            if spec.get("body") is not None:
-                ok &= fbody == bodies.index(spec["body"])
+            if spec.body is not None:
+                ok &= fbody == bodies.index(spec.body)
             if not ok.any():
-                where = f" of body '{spec['body']}'" if spec.get("body") else ""
-                raise StudyError(f"1D physical group {spec['group']!r} lies on no boundary edge{where}",
+                where = f" of body '{spec.body}'" if spec.body else ""
+                raise StudyError(f"1D physical group {spec.group!r} lies on no boundary edge{where}",
                                  file=raw.file, path=kp)
             bnd[name] = np.sort(bf[ok])
         else:

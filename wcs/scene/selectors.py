@@ -29,9 +29,9 @@ Region selectors (choose cells, or facets):
 * ``disc: {center, radius}`` -- only embedded (a disc cannot be cut exactly by
   straight clipping): refused here,
 * ``boundary: NAME`` -- the facets of the named boundary (a facet selection),
-* ``region: NAME`` -- the cells of a named region (extension),
-* ``body: NAME`` alone -- all cells of that body; with any of the above it
-  restricts the selection to that body.
+* ``body: NAME`` with any of the above restricts the selection to that body.
+
+Selectors are the scene's validated models (`wcs.scene.spec`), read by attribute.
 
 A selector that selects nothing raises :class:`wcs.errors.StudyError` naming
 the caller's key path.
@@ -48,7 +48,7 @@ REL_TOL = 1e-3          # "on the curve": distance <= REL_TOL * facet length (+ 
 ABS_TOL = 1e-12
 
 BOUNDARY_KINDS = ("segment", "circle", "box")
-REGION_KINDS = ("box", "disc", "polygon", "boundary", "region")
+REGION_KINDS = ("box", "disc", "polygon", "boundary")
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,10 +219,8 @@ def _box(spec, path):
 
 
 def _circle(spec, path):
-    if not isinstance(spec, dict) or "center" not in spec or "radius" not in spec:
-        raise StudyError("expected {center: [x, y], radius: r}", path=path)
-    c = _floats(spec["center"], 2, f"{path}.center", "center")
-    r = float(_floats([spec["radius"]], 1, f"{path}.radius", "radius")[0])
+    c = _floats(spec.center, 2, f"{path}.center", "center")
+    r = float(_floats([spec.radius], 1, f"{path}.radius", "radius")[0])
     if r <= 0:
         raise StudyError(f"radius must be > 0, got {r}", path=f"{path}.radius")
     return c, r
@@ -291,14 +289,14 @@ def dist_polygon(x, y, pts):
     return np.where(inside_polygon(x, y, pts), 0.0, d)
 
 
-def distance_function(spec: dict, path: str, kinds=("box", "disc", "polygon", "segment", "circle")):
+def distance_function(spec, path: str, kinds=("box", "disc", "polygon", "segment", "circle")):
     """A vectorised ``d(x, y)``: distance to the geometric set of a selector.
 
     Region kinds (box, disc, polygon) are filled sets (distance 0 inside);
     boundary kinds (segment, circle) are curves.  Used for mesh refinement.
     """
     kind = _kind(spec, kinds, path)
-    val = spec[kind]
+    val = getattr(spec, kind)
     p = f"{path}.{kind}"
     if kind == "box":
         box = _box(val, p)
@@ -317,22 +315,21 @@ def distance_function(spec: dict, path: str, kinds=("box", "disc", "polygon", "s
 
 
 def _kind(spec, kinds, path):
-    if not isinstance(spec, dict):
-        raise StudyError(f"a selector must be a mapping, got {spec!r}", path=path)
-    found = [k for k in kinds if spec.get(k) is not None]
+    """The one of `kinds` a selector (a validated model of the scene) gives."""
+    found = [k for k in kinds if getattr(spec, k, None) is not None]
     if len(found) != 1:
-        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got keys {sorted(spec)}",
-                         path=path)
+        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got {spec!r}", path=path)
     return found[0]
 
 
 def _body_index(sm, spec, path):
-    if spec.get("body") is None:
+    body = getattr(spec, "body", None)
+    if body is None:
         return None
     try:
-        return sm.bodies.index(spec["body"])
+        return sm.bodies.index(body)
     except ValueError:
-        raise StudyError(f"unknown body {spec['body']!r} (bodies: {', '.join(sm.bodies)})",
+        raise StudyError(f"unknown body {body!r} (bodies: {', '.join(sm.bodies)})",
                          path=f"{path}.body") from None
 
 
@@ -345,9 +342,9 @@ def _scene_scale(mesh) -> float:
 # selectors
 
 
-def select_boundary(sm, spec: dict, path: str, *, allow_empty: bool = False) -> np.ndarray:
+def select_boundary(sm, spec, path: str, *, allow_empty: bool = False) -> np.ndarray:
     """Sorted indices into ``sm.mesh.facets`` of the boundary facets chosen by a
-    boundary selector (segment / circle / box, optional body)."""
+    boundary selector (a `Boundary`: segment / circle / box, optional body)."""
     mesh = sm.mesh
     kind = _kind(spec, BOUNDARY_KINDS, path)
     body = _body_index(sm, spec, path)
@@ -357,7 +354,7 @@ def select_boundary(sm, spec: dict, path: str, *, allow_empty: bool = False) -> 
     a, b = mesh.facets[0, bf], mesh.facets[1, bf]
     xa, ya, xb, yb = mesh.p[0, a], mesh.p[1, a], mesh.p[0, b], mesh.p[1, b]
     tol = REL_TOL * np.hypot(xb - xa, yb - ya) + ABS_TOL * _scene_scale(mesh)
-    val = spec[kind]
+    val = getattr(spec, kind)
     p = f"{path}.{kind}"
     if kind == "segment":
         s0, s1 = _segment(val, p)
@@ -371,25 +368,20 @@ def select_boundary(sm, spec: dict, path: str, *, allow_empty: bool = False) -> 
         ok = (dist_box(xa, ya, box) <= tol) & (dist_box(xb, yb, box) <= tol)
     out = np.sort(bf[ok])
     if out.size == 0 and not allow_empty:
-        where = f" of body {spec['body']!r}" if body is not None else ""
+        where = f" of body {spec.body!r}" if body is not None else ""
         raise StudyError(f"the {kind} selector selects no boundary edge{where}", path=path)
     return out
 
 
-def select_region(sm, spec: dict, path: str, *, allow_empty: bool = False) -> Selection:
-    """Cells (by centroid) or facets chosen by a region selector.
-
-    ``box`` / ``disc`` / ``polygon`` / ``region`` / lone ``body`` -> cells;
-    ``boundary: NAME`` -> the facets of ``sm.boundaries[NAME]``.
+def select_region(sm, spec, path: str, *, allow_empty: bool = False) -> Selection:
+    """Cells or facets chosen by a region selector (a `RegionOfInterest`, optional body):
+    ``box`` / ``polygon`` -> the cells they cut (`cut_cells`); ``boundary: NAME`` -> the
+    facets of ``sm.boundaries[NAME]``.
     """
     mesh = sm.mesh
-    if isinstance(spec, dict) and set(spec) <= {"body"} and spec.get("body") is not None:
-        body = _body_index(sm, spec, path)
-        sel = Selection("cells", np.nonzero(sm.cell_body == body)[0].astype(np.int64))
-        return _nonempty(sel, spec, path, allow_empty)
     kind = _kind(spec, REGION_KINDS, path)
     body = _body_index(sm, spec, path)
-    val = spec[kind]
+    val = getattr(spec, kind)
     p = f"{path}.{kind}"
     if kind == "boundary":
         if val not in sm.boundaries:
@@ -399,14 +391,6 @@ def select_region(sm, spec: dict, path: str, *, allow_empty: bool = False) -> Se
         if body is not None:
             f = f[facet_body(sm, f) == body]
         return _nonempty(Selection("facets", np.sort(f)), spec, path, allow_empty)
-    if kind == "region":
-        idx = [i for i, (_, r) in enumerate(sm.regions) if r == val]
-        if not idx:
-            raise StudyError(f"unknown region {val!r}", path=p)
-        mask = np.isin(sm.cell_region, idx)
-        if body is not None:
-            mask &= sm.cell_body == body
-        return _nonempty(Selection("cells", np.nonzero(mask)[0].astype(np.int64)), spec, path, allow_empty)
     if kind == "disc":
         raise StudyError("a disc cannot be cut exactly from the cells of a mesh file (scenes built "
                          "from shapes embed it in the mesh): give a polygon, whose cells are cut "

@@ -1,0 +1,337 @@
+"""The typed scene: frozen pydantic models of a study's `scene:` block (shapes, materials,
+bodies and their regions, boundaries, supports, loads, contacts, glue, thermal data, regions
+of interest, the mesh), the physical range of every number, and the geometric checks of a
+shape. The loader (`wcs.study`) validates a scene into a `Scene`; everything below it (mesher,
+model, parameter map, criteria) reads the same frozen objects by attribute."""
+from __future__ import annotations
+
+import re
+from typing import Annotated, Literal, Optional
+
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ..options import CONFIG
+from ..options import Strict
+
+
+class Frozen(Strict):
+    """A strict model that cannot be changed once validated."""
+
+    model_config = ConfigDict(**CONFIG, frozen=True)
+
+# Physical ranges, shared by the models and by the boxes of uncertain data. The bounds lie
+# beyond any solid (moduli from gels, ~1e2 Pa, to diamond, 1.2e12 Pa; conductivities from
+# aerogels to diamond; expansions of polymers, ~1e-3/K) yet keep every product of the solve
+# (u ~ load * length / E) far inside double precision: E = 1e-300 would give u ~ 1e306.
+MODULUS = {"ge": 1.0, "le": 1e13}                 # E, mu [Pa]
+LAME = {"ge": -1e13, "le": 1e17}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
+POISSON = {"gt": -1, "lt": 0.5}
+CONDUCTIVITY = {"ge": 1e-6, "le": 1e6}           # [W/(m K)]
+EXPANSION = {"ge": -1e-2, "le": 1e-2}            # [1/K]
+WEIGHT = {"ge": 0, "le": 1e7}                     # density_weight [N/m^3]
+STRESS = {"ge": -1e12, "le": 1e12}               # pressure, traction [Pa]
+SLIP = {"ge": 0, "le": 1e12}                      # Tresca slip limit [Pa]
+COEFFICIENT = {"ge": 0, "le": 10}                 # Coulomb friction coefficient
+BODY_FORCE = {"ge": -1e10, "le": 1e10}           # [N/m^3]
+SOURCE = {"ge": -1e12, "le": 1e12}               # heat source [W/m^3]
+LENGTH = {"ge": -1e6, "le": 1e6}                 # coordinates, prescribed displacements [m]
+KELVIN = {"gt": 0, "le": 1e5}
+# OpenCASCADE merges points closer than its tolerance (1e-7): sides, radii, edges and mesh
+# sizes below FEATURE_MIN fail inside gmsh ("Could not create line")
+FEATURE_MIN = 1e-6
+FEATURE = {"ge": FEATURE_MIN, "le": 1e6}
+
+def _valid_name(name: str) -> str:
+    if not name or re.search(r"[.\s\[\]]", name):
+        raise ValueError("a name may not contain dots, spaces or brackets")
+    return name
+
+
+Name = Annotated[str, AfterValidator(_valid_name)]
+Point = Annotated[list[float], Field(min_length=2, max_length=2)]
+Coordinate = Annotated[float, Field(**LENGTH)]
+XY = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
+Corners = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
+
+
+def _ordered(corners: list[float], strict: bool) -> list[float]:
+    x0, y0, x1, y1 = corners
+    if (x0 >= x1 or y0 >= y1) if strict else (x0 > x1 or y0 > y1):
+        relation = "<" if strict else "<="
+        raise ValueError(f"corners must be [x0, y0, x1, y1] with x0 {relation} x1 and y0 {relation} y1")
+    if strict and min(x1 - x0, y1 - y0) < FEATURE_MIN:
+        raise ValueError(f"a side of {min(x1 - x0, y1 - y0):.3g} is below {FEATURE_MIN:g}, "
+                         "the smallest length the geometry kernel resolves")
+    return corners
+
+
+Rectangle = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=True))]
+BoxCorners = Annotated[Corners, AfterValidator(lambda v: _ordered(v, strict=False))]
+
+
+def _simple(points: list[list[float]]) -> list[list[float]]:
+    """A simple polygon: no repeated vertex, no edge shorter than FEATURE_MIN, no two edges
+    crossing or touching (other than neighbours at their common vertex), nonzero area."""
+    ring = points[:-1] if len(points) > 3 and points[0] == points[-1] else points   # a closed ring
+    P = np.array(ring, dtype=float)
+    A, B = P, np.roll(P, -1, axis=0)
+    n = len(P)
+    short = np.flatnonzero(np.hypot(*(B - A).T) < FEATURE_MIN)
+    if short.size:
+        i = int(short[0])
+        raise ValueError(f"vertices {i} and {(i + 1) % n} coincide (a repeated vertex) or are closer "
+                         f"than {FEATURE_MIN:g}")
+    i, j = np.triu_indices(n, 1)
+    far = (j - i > 1) & ~((i == 0) & (j == n - 1))            # non-neighbouring edges
+    i, j = i[far], j[far]
+
+    def orient(a, b, c):
+        return np.sign((b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
+                       - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
+    d1, d2 = orient(A[j], B[j], A[i]), orient(A[j], B[j], B[i])
+    d3, d4 = orient(A[i], B[i], A[j]), orient(A[i], B[i], B[j])
+    cross = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    collinear = (d1 == 0) & (d2 == 0)                          # overlap only if the spans meet
+    lo = lambda a, b: np.minimum(a, b)                          # noqa: E731
+    hi = lambda a, b: np.maximum(a, b)                          # noqa: E731
+    span = np.all((lo(A[i], B[i]) <= hi(A[j], B[j])) & (lo(A[j], B[j]) <= hi(A[i], B[i])), axis=1)
+    hit = np.flatnonzero(cross & (~collinear | span))
+    if hit.size:
+        k = int(hit[0])
+        raise ValueError(f"the polygon is self-intersecting (edge {i[k]}-{(i[k] + 1) % n} meets "
+                         f"edge {j[k]}-{(j[k] + 1) % n})")
+    xs, ys = P.T
+    if np.dot(xs, np.roll(ys, -1)) == np.dot(ys, np.roll(xs, -1)):
+        raise ValueError("the polygon has zero area")
+    return points
+
+
+Polygon = Annotated[list[XY], Field(min_length=3), AfterValidator(_simple)]
+
+
+def _has_length(ends: list[list[float]]) -> list[list[float]]:
+    if np.hypot(ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]) < FEATURE_MIN:
+        raise ValueError(f"the segment's two ends coincide (closer than {FEATURE_MIN:g})")
+    return ends
+
+
+Segment = Annotated[list[XY], Field(min_length=2, max_length=2), AfterValidator(_has_length)]
+
+
+def _nonzero(direction: list[float]) -> list[float]:
+    if direction == [0, 0]:
+        raise ValueError("the direction must not be [0, 0]")
+    return direction
+
+
+Direction = Annotated[XY, AfterValidator(_nonzero)]
+
+
+def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
+    given = [k for k in keys if getattr(model, k) is not None]
+    if len(given) != 1:
+        found = f"got {', '.join(given)}" if given else "got none"
+        raise ValueError(f"give exactly one of {', '.join(keys)} ({found})")
+
+
+class Material(Frozen):
+    E: Optional[float] = Field(None, **MODULUS)
+    nu: Optional[float] = Field(None, **POISSON)
+    lam: Optional[float] = Field(None, alias="lambda", **LAME)
+    mu: Optional[float] = Field(None, **MODULUS)
+    conductivity: Optional[float] = Field(None, **CONDUCTIVITY)
+    expansion: Optional[float] = Field(None, **EXPANSION)
+    density_weight: Optional[float] = Field(None, **WEIGHT)
+
+    @model_validator(mode="after")
+    def _one_elastic_pair(self):
+        engineering = {"E": self.E, "nu": self.nu}
+        lame = {"lambda": self.lam, "mu": self.mu}
+        uses = [pair for pair in (engineering, lame) if any(v is not None for v in pair.values())]
+        if len(uses) != 1:
+            raise ValueError("give the elastic constants as E, nu or as lambda, mu (exactly one pair)")
+        missing = [k for k, v in uses[0].items() if v is None]
+        if missing:
+            raise ValueError(f"'{missing[0]}' is missing: {' and '.join(uses[0])} go together")
+        if self.lam is not None and self.lam + self.mu <= 0:
+            raise ValueError("lambda + mu must be > 0 (positive bulk modulus)")
+        return self
+
+
+class Disc(Frozen):
+    center: XY
+    radius: float = Field(**FEATURE)
+
+
+class Shape(Frozen):
+    rectangle: Optional[Rectangle] = None
+    polygon: Optional[Polygon] = None
+    disc: Optional[Disc] = None
+    minus: Optional[list[Shape]] = None
+    intersect: Optional[list[Shape]] = None
+
+    @model_validator(mode="after")
+    def _one_primitive(self):
+        _exactly_one(self, ("rectangle", "polygon", "disc"))
+        return self
+
+
+class RegionMesh(Frozen):
+    size: float = Field(**FEATURE)        # target element size inside the region
+
+
+class Region(Frozen):
+    material: str
+    shape: Optional[Shape] = None          # required unless the scene's mesh is a file
+    name: Optional[Name] = None
+    mesh: Optional[RegionMesh] = None
+
+
+class BodyMesh(Frozen):
+    """A body's own mesh sizes: the body is meshed on its own (nodes on curves it shares
+    with other bodies do not match theirs: contacts and glue there use mortar)."""
+    size: Optional[float] = Field(None, **FEATURE)
+    refine: list["Refinement"] = []
+
+
+class Body(Frozen):
+    regions: Annotated[list[Region], Field(min_length=1)]
+    mesh: Optional[BodyMesh] = None
+
+
+class Boundary(Frozen):
+    body: Optional[str] = None
+    segment: Optional[Segment] = None
+    circle: Optional[Disc] = None
+    box: Optional[BoxCorners] = None
+
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("segment", "circle", "box"))
+        return self
+
+
+class GroupBoundary(Frozen):
+    """A boundary that is a 1D physical group of the scene's mesh file (`NAME` or `BODY:NAME`):
+    the loader adds one per group; a study does not write it."""
+    group: str
+    body: Optional[str] = None
+
+
+class Support(Frozen):
+    u: Optional[Annotated[list[Optional[Coordinate]], Field(min_length=2, max_length=2)]] = None
+    normal: Optional[float] = Field(None, **LENGTH)
+
+    @model_validator(mode="after")
+    def _holds_something(self):
+        _exactly_one(self, ("u", "normal"))
+        if self.u is not None and all(c is None for c in self.u):
+            raise ValueError("u: [null, null] holds nothing; give at least one component")
+        return self
+
+
+class Load(Frozen):
+    pressure: Optional[float] = Field(None, **STRESS)
+    traction: Optional[Annotated[list[Annotated[float, Field(**STRESS)]], Field(min_length=2, max_length=2)]] = None
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        _exactly_one(self, ("pressure", "traction"))
+        return self
+
+
+class Friction(Frozen):
+    slip_limit: Optional[float] = Field(None, **SLIP)
+    coefficient: Optional[float] = Field(None, **COEFFICIENT)
+
+    @model_validator(mode="after")
+    def _one_law(self):
+        _exactly_one(self, ("slip_limit", "coefficient"))
+        return self
+
+
+class Contact(Frozen):
+    slave: str
+    master: str
+    friction: Optional[Friction] = None
+    # node-to-node (paired nodes) | mortar (dual mortar) | auto: node-to-node when the sides match
+    discretization: Literal["auto", "node-to-node", "mortar"] = "auto"
+
+
+class Glue(Frozen):
+    """Two sides of different bodies tied together (mortar: the slave side follows the master)."""
+    slave: str
+    master: str
+
+
+class Thermal(Frozen):
+    reference: float = Field(**KELVIN)
+    temperature: Annotated[dict[str, Annotated[float, Field(**KELVIN)]], Field(min_length=1)]
+    sources: dict[str, Annotated[float, Field(**SOURCE)]] = {}
+
+
+class RegionSelector(Frozen):
+    box: Optional[Rectangle] = None
+    disc: Optional[Disc] = None
+    polygon: Optional[Polygon] = None
+    boundary: Optional[str] = None
+
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("box", "disc", "polygon", "boundary"))
+        return self
+
+
+class RegionOfInterest(RegionSelector):
+    body: Optional[str] = None
+
+
+class Refinement(RegionSelector):
+    size: float = Field(**FEATURE)
+
+
+BodyMesh.model_rebuild()
+Body.model_rebuild()
+
+
+class Mesh(Frozen):
+    size: Optional[float] = Field(None, **FEATURE)
+    grading: Optional[float] = Field(None, ge=0, le=1e3)
+    refine: list[Refinement] = []
+    file: Optional[str] = None             # a mesh file (gmsh .msh, ...) instead of shapes
+    max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
+
+    @model_validator(mode="after")
+    def _size_or_file(self):
+        if self.file is None and self.size is None:
+            raise ValueError("give `size` (the target element size) or `file` (a mesh file)")
+        if self.file is not None and (self.size is not None or self.refine or self.grading is not None
+                                      or self.max_cells is not None):
+            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading`, `refine` and `max_cells`")
+        return self
+
+
+class Scene(Frozen):
+    dimension: int = 2
+    plane: Literal["strain", "stress"] = "strain"
+    mesh: Mesh
+    materials: Annotated[dict[Name, Material], Field(min_length=1)]
+    bodies: Annotated[dict[Name, Body], Field(min_length=1)]
+    boundaries: dict[Name, Boundary] = {}           # and a GroupBoundary per 1D group of a mesh file
+    supports: dict[str, Support] = {}
+    loads: dict[str, Load] = {}
+    body_forces: dict[str, Annotated[list[Annotated[float, Field(**BODY_FORCE)]],
+                                     Field(min_length=2, max_length=2)]] = {}
+    contacts: dict[Name, Contact] = {}
+    glue: dict[Name, Glue] = {}
+    thermal: Optional[Thermal] = None
+    regions_of_interest: dict[Name, RegionOfInterest] = {}
+
+    @field_validator("dimension")
+    @classmethod
+    def _two_dimensional(cls, dimension):
+        if dimension != 2:
+            raise ValueError("only dimension 2 is supported")
+        return dimension
+
