@@ -215,7 +215,7 @@ def test_a_geometry_kernel_exception_names_the_shape():
     def refuse():
         raise Exception("Could not create line")
     with pytest.raises(StudyError) as info:
-        geometry._kernel("scene.bodies.b.regions.0.shape", refuse)
+        geometry.kernel("scene.bodies.b.regions.0.shape", refuse)
     assert info.value.path == "scene.bodies.b.regions.0.shape" and "Could not create line" in info.value.fault
 
 

@@ -257,24 +257,25 @@ def area_rois(scene, names=None) -> list[str]:
             and (names is None or name in names)]
 
 
-def _pieces(region_shapes: list, roi_shapes: list):
-    """Fragment region and region-of-interest surfaces together; remove the pieces no region
-    covers (parts of a region of interest outside every body). Returns {piece: [region input
-    indices]} and {piece: [covered by region of interest j, for every j]}."""
+def fragment_pieces(region_shapes: list, roi_shapes: list, dim: int = 2):
+    """Fragment region and region-of-interest shapes of dimension `dim` (surfaces in 2D, solids
+    in 3D) together; remove the pieces no region covers (parts of a region of interest outside
+    every body). Returns {piece: [region input indices]} and {piece: [covered by region of
+    interest j, for every j]}."""
     flat = [(k, dt) for k, dts in enumerate(region_shapes) for dt in dts]
     flat += [(-1 - j, dt) for j, dts in enumerate(roi_shapes) for dt in dts]
     outmap = _fragment([dt for _, dt in flat])
     covered: dict[int, list[int]] = {}
     rois: dict[int, set[int]] = {}
     for (k, _), pieces in zip(flat, outmap):
-        for dim, tag in pieces:
-            if dim == 2 and k >= 0:
+        for d, tag in pieces:
+            if d == dim and k >= 0:
                 covered.setdefault(tag, [])
                 if k not in covered[tag]:
                     covered[tag].append(k)
-            elif dim == 2:
+            elif d == dim:
                 rois.setdefault(tag, set()).add(-1 - k)
-    outside = [(2, tag) for tag in rois if tag not in covered]
+    outside = [(dim, tag) for tag in rois if tag not in covered]
     if outside:
         gmsh.model.occ.remove(outside, recursive=True)
         gmsh.model.occ.synchronize()
@@ -300,7 +301,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed, sp
         gmsh.model.add(f"{base}_body{b}")
         mine = [(rg, make_shape(regions_flat[rg].shape, f"scene.bodies.{body}.regions.{i}.shape"))
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
-        covered, inside = _pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
+        covered, inside = fragment_pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
         _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(owner, regions_flat)))
         _generate(splits)
@@ -356,7 +357,7 @@ def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
                 r += 1
 
         # -- one fragment of everything (regions of interest included) -> conforming pieces
-        covered, inside = _pieces([dts for _, _, dts in inputs], _roi_shapes(scene, embed))
+        covered, inside = fragment_pieces([dts for _, _, dts in inputs], _roi_shapes(scene, embed))
 
         owner: dict[int, tuple[int, int]] = {}      # piece tag -> (body, region)
         for tag in sorted(covered):

@@ -69,6 +69,7 @@ from ..errors import StudyError
 from . import selectors
 from .geometry import kernel, make_shape, number_list
 from .meshdata import SceneMesh
+from .mesher import fragment_pieces
 from .session import Session
 from .spec import Shape
 
@@ -238,34 +239,6 @@ def _roi_solid(spec: dict, path: str) -> DimTags:
     return make_solid({ROI_SOLIDS[kind]: spec[kind]}, path)
 
 
-def _pieces(region_solids: list, roi_solids: list):
-    """One fragment of the region and region-of-interest solids; pieces no region covers removed.
-    Returns {piece: [region input indices]} and {piece: [covered by region of interest j]}."""
-    flat = [(k, dt) for k, dts in enumerate(region_solids) for dt in dts]
-    flat += [(-1 - j, dt) for j, dts in enumerate(roi_solids) for dt in dts]
-    if len(flat) > 1:
-        _, outmap = gmsh.model.occ.fragment([flat[0][1]], [dt for _, dt in flat[1:]])
-    else:
-        outmap = [[flat[0][1]]]
-    gmsh.model.occ.synchronize()
-    covered: dict[int, list[int]] = {}
-    rois: dict[int, set[int]] = {}
-    for (k, _), pieces in zip(flat, outmap):
-        for dim, tag in pieces:
-            if dim == 3 and k >= 0:
-                covered.setdefault(tag, [])
-                if k not in covered[tag]:
-                    covered[tag].append(k)
-            elif dim == 3:
-                rois.setdefault(tag, set()).add(-1 - k)
-    outside = [(3, tag) for tag in rois if tag not in covered]
-    if outside:
-        gmsh.model.occ.remove(outside, recursive=True)
-        gmsh.model.occ.synchronize()
-    inside = {tag: [j in rois.get(tag, ()) for j in range(len(roi_solids))] for tag in covered}
-    return covered, inside
-
-
 def _owners(covered: dict, inputs: list, bodies: list, regions: list) -> dict:
     """piece -> (body, region): the last region covering it; two bodies on a piece: an overlap."""
     owner = {}
@@ -324,8 +297,8 @@ def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list)
         bspec = scene["bodies"][body]
         solids = [make_solid(reg["shape"], f"scene.bodies.{body}.regions.{i}.shape")
                   for i, reg in enumerate(bspec["regions"])]
-        covered, inside = _pieces(solids, [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
-                                           for n in embed])
+        covered, inside = fragment_pieces(solids, [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
+                                                   for n in embed], dim=3)
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
         own = (bspec.get("mesh") or {}).get("size")
         gmsh.option.setNumber("Mesh.MeshSizeMax", size if own is None else _size(own, f"scene.bodies.{body}.mesh.size"))
@@ -394,7 +367,7 @@ def build_mesh3d(scene: dict) -> SceneMesh:
                     r += 1
             roi_solids = [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
                           for n in embed]
-            covered, inside = _pieces([dts for _, _, dts in inputs], roi_solids)
+            covered, inside = fragment_pieces([dts for _, _, dts in inputs], roi_solids, dim=3)
             owner = _owners(covered, inputs, bodies, regions)
             lo, hi = np.array(gmsh.model.getBoundingBox(-1, -1)).reshape(2, 3)
             size = (scene.get("mesh") or {}).get("size")
