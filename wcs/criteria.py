@@ -22,7 +22,7 @@ import numpy as np
 from .contact.zone import slave_segments
 from .errors import StudyError
 from .fem.stress import principal, shear_intensity, von_mises
-from .scene.selectors import (Selection, boundary_facets, dist_segment, distance_function, facet_lengths,
+from .scene.selectors import (Selection, boundary_facets, dist_segments, distance_function, facet_lengths,
                               facet_normals, select_region)
 
 CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
@@ -210,7 +210,7 @@ def _contact_rows_in(smesh, scene, zone, roi: str, sel: Selection, path: str) ->
     if sel.kind == "facets":
         mesh = smesh.mesh
         a, b = mesh.p[:, mesh.facets[0, sel.index]].T, mesh.p[:, mesh.facets[1, sel.index]].T
-        dist = np.min([dist_segment(pts[:, 0], pts[:, 1], a[i], b[i]) for i in range(len(a))], axis=0)
+        dist = dist_segments(pts[:, 0], pts[:, 1], a, b)
     else:
         dist = distance_function(scene.regions_of_interest[roi], path)(pts[:, 0], pts[:, 1])
     scale = max(np.ptp(pts, axis=0).max(), 1e-300)
@@ -274,7 +274,7 @@ def _pressure_functional(smesh, scene, zone, roi: str, sel: Selection, path: str
         corners, tol = np.vstack([fa, fb]), tol + 0.1 * length[:, None]
 
         def dist(x, y):
-            return np.min([dist_segment(x, y, fa[i], fb[i]) for i in range(len(fa))], axis=0)
+            return dist_segments(x, y, fa, fb)
 
         def cuts(a, b):                         # where the facets' ends project on the edge
             d = b - a

@@ -8,11 +8,14 @@ the widest box (`support_extremes`).
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from .search.ranges import Extreme
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 KINDS = ("worst", "best")
 

@@ -23,15 +23,18 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from .errors import StudyError
 from .evaluation import Evaluator
 from .extremes import Extreme, kinds, pairs
 from .scene.estimate import DEFAULT_MAX_CELLS
 from .store import key
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 SPLITS = (1, 2)                 # the refined meshes: split once (h/2) and twice (h/4)
 ORDER_RANGE = (0.5, 4.0)        # observed orders outside it: the extrapolation is not to be trusted
@@ -213,11 +216,13 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dat
     coords = {"extreme": np.array(ext, dtype=object), "refinement": np.array(levels, dtype=np.int32)}
     said = status if status != "done" else (f"done: the extreme data sets re-solved on the mesh split once "
                                             f"and twice ({nodes[1]} and {nodes[2]} nodes)")
+    import xarray as xr     # lazy: xarray costs 0.25 s of `wcs check`'s start-up (it prints this module's cost)
     return xr.Dataset(variables, coords=coords, attrs={"mesh_check": said})
 
 
 def skipped(why: str) -> xr.Dataset:
     """The attribute of a results file whose mesh check was not run."""
+    import xarray as xr     # lazy: as in mesh_check
     return xr.Dataset(attrs={"mesh_check": why})
 
 

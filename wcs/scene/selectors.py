@@ -256,6 +256,21 @@ def dist_segment(x, y, a, b):
     return np.hypot(x - a[0] - s * d[0], y - a[1] - s * d[1])
 
 
+def dist_segments(x, y, a: np.ndarray, b: np.ndarray, chunk: int = 256):
+    """Distance of points (x, y) to the nearest of the segments a[i] b[i] ((k, 2) each): the
+    minimum of `dist_segment` over them, the same numbers, `chunk` segments at a time."""
+    x, y = np.asarray(x, float)[:, None], np.asarray(y, float)[:, None]
+    d = b - a
+    dd = np.array([di @ di for di in d])            # as dist_segment forms it (a dot, not a sum)
+    out = np.full(x.shape[0], np.inf)
+    for i in range(0, len(a), chunk):
+        a0, a1 = a[i:i + chunk, 0], a[i:i + chunk, 1]
+        d0, d1 = d[i:i + chunk, 0], d[i:i + chunk, 1]
+        s = np.clip(((x - a0) * d0 + (y - a1) * d1) / dd[i:i + chunk], 0.0, 1.0)
+        out = np.minimum(out, np.hypot(x - a0 - s * d0, y - a1 - s * d1).min(axis=1))
+    return out
+
+
 def dist_box(x, y, box):
     """Distance to the closed box (0 inside)."""
     x0, y0, x1, y1 = box

@@ -21,7 +21,6 @@ import math
 import warnings
 
 import numpy as np
-from scipy.stats import qmc
 
 DESIGNS = ("lhs", "sobol", "vertices", "grid")
 
@@ -35,6 +34,8 @@ def design(name: str, space, n: int, rng: np.random.Generator, cap: int | None =
     free = np.flatnonzero(space.width > 0)
     d = free.size
     note = ""
+    if name in ("lhs", "sobol"):
+        from scipy.stats import qmc     # lazy: scipy.stats costs 0.5 s of start-up that `wcs check` does not need
     if d == 0:
         Z = np.zeros((1, 0))
     elif name == "lhs":
