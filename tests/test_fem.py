@@ -167,3 +167,16 @@ def test_reduction_keeps_one_pattern_whatever_the_data():
         direct = el.T.T @ K @ el.T
         assert abs(Kr - direct).max() <= 1e-12 * abs(direct).max()
         assert np.array_equal(Kr.indptr, red.pattern.indptr) and np.array_equal(Kr.indices, red.pattern.indices)
+
+
+def test_unique_inverse_is_numpy_unique():
+    """The reduction's stable-sort unique (nearly sorted keys in, as Tᵀ K T gives them) is
+    np.unique's, values and inverse."""
+    from wcs.fem.constraints import _unique_inverse
+    rng = np.random.default_rng(3)
+    keys = np.sort(rng.integers(0, 5000, 20000)).astype(np.int64)
+    keys[rng.integers(0, keys.size, 500)] = rng.integers(0, 5000, 500)      # local disorder
+    for k in (keys, keys[:1], keys[::-1].copy()):
+        u, inv = _unique_inverse(k)
+        u0, inv0 = np.unique(k, return_inverse=True)
+        assert np.array_equal(u, u0) and np.array_equal(inv, inv0.ravel())
