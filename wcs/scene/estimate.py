@@ -109,3 +109,55 @@ def estimate_cells(scene) -> tuple[float, str]:
                 a, p = _zone(ref, scene)
                 parts.append((_refined(a, p, ref.size, h, grading, area), path))
     return sum(c for c, _ in parts), max(parts)[1]
+
+
+# 3D: a regular tetrahedron of side h has volume h^3 / (6 sqrt 2), so a solid of volume V meshed
+# at size h has about 6 sqrt(2) V / h^3 = 8.49 V / h^3 cells (volumes of the primitives, a `minus`
+# not subtracted, an intersection the smallest of its solids': an upper estimate).
+CELLS_PER_H3 = 6.0 * math.sqrt(2.0)
+
+
+def solid_box(solid) -> tuple[float, ...]:
+    """Bounding box (xmin, ymin, zmin, xmax, ymax, zmax) of a validated 3D `Solid` that is not a
+    halfspace (intersections narrow it)."""
+    if solid.box is not None:
+        box = tuple(solid.box)
+    elif solid.sphere is not None:
+        c, r = solid.sphere.center, solid.sphere.radius
+        box = tuple(x - r for x in c) + tuple(x + r for x in c)
+    elif solid.cylinder is not None:
+        a, b, r = solid.cylinder.start, solid.cylinder.end, solid.cylinder.radius
+        box = tuple(min(p, q) - r for p, q in zip(a, b)) + tuple(max(p, q) + r for p, q in zip(a, b))
+    else:
+        x0, y0, x1, y1 = shape_box(solid.extrude.shape)
+        v = solid.extrude.vector
+        lo, hi = (x0, y0, 0.0), (x1, y1, 0.0)
+        box = tuple(min(p, p + d) for p, d in zip(lo, v)) + tuple(max(p, p + d) for p, d in zip(hi, v))
+    for other in solid.intersect:
+        if other.halfspace is None:
+            o = solid_box(other)
+            box = tuple(max(box[i], o[i]) for i in range(3)) + tuple(min(box[i], o[i]) for i in range(3, 6))
+    return box
+
+
+def _primitive_volume(solid) -> float:
+    if solid.box is not None:
+        b = solid.box
+        volume = (b[3] - b[0]) * (b[4] - b[1]) * (b[5] - b[2])
+    elif solid.sphere is not None:
+        volume = 4 / 3 * math.pi * solid.sphere.radius ** 3
+    elif solid.cylinder is not None:
+        volume = math.pi * solid.cylinder.radius ** 2 * math.dist(solid.cylinder.start, solid.cylinder.end)
+    else:
+        volume = _primitive_area(solid.extrude.shape) * abs(solid.extrude.vector[2])
+    return min([volume] + [_primitive_volume(o) for o in solid.intersect if o.halfspace is None])
+
+
+def estimate_cells3d(scene, size: float) -> tuple[float, str]:
+    """About how many tetrahedra a 3D scene's mesh will have at the scene size `size`, and the
+    key path of the size that contributes most (relative to the scene)."""
+    parts = []
+    for body, spec in scene.bodies.items():
+        h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
+        parts.append((CELLS_PER_H3 * sum(_primitive_volume(r.shape) for r in spec.regions) / h**3, path))
+    return sum(c for c, _ in parts), max(parts)[1]
