@@ -27,6 +27,14 @@ def _nonzero(v: list[float]) -> list[float]:
 Vector = Annotated[XYZ, AfterValidator(_nonzero)]
 
 
+def _not_yet(data, keys: dict[str, str]):
+    """Refuse, by name, the keys of the 2D format that 3D does not support yet."""
+    for key, what in keys.items():
+        if isinstance(data, dict) and key in data:
+            raise ValueError(f"3D does not support {what} yet (`{key}`)")
+    return data
+
+
 def _ordered(b: list[float], strict: bool) -> list[float]:
     lo, hi = np.array(b[:3]), np.array(b[3:])
     if (np.any(hi - lo < FEATURE_MIN) if strict else np.any(hi < lo)):
@@ -102,11 +110,21 @@ class Region(Frozen):
     shape: Solid
     name: Optional[Name] = None
 
+    @model_validator(mode="before")
+    @classmethod
+    def _sizes_not_yet(cls, data):
+        return _not_yet(data, {"mesh": "a region's own mesh size"})
+
 
 class BodyMesh(Frozen):
     """A body's own mesh size: the body is meshed on its own (faces it shares with other bodies
     are nonmatching)."""
     size: float = Field(**FEATURE)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _refine_not_yet(cls, data):
+        return _not_yet(data, {"refine": "refinement zones"})
 
 
 class Body(Frozen):
@@ -167,6 +185,11 @@ class Load(Frozen):
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)      # default: wcs.choose.mesh_size of the diagonal
     max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
+
+    @model_validator(mode="before")
+    @classmethod
+    def _file_not_yet(cls, data):
+        return _not_yet(data, {"file": "a mesh file", "refine": "refinement zones", "grading": "mesh grading"})
 
 
 class Scene(Frozen):
