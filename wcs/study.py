@@ -47,13 +47,13 @@ from pydantic import (
     model_validator,
 )
 
+from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
 from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
-from .choose import MeshFacts, mesh_size
 from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
@@ -329,7 +329,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     scene = src.validate(_SCENE3D if three else _SCENE, raw)
     notes = []
-    if not three and scene.mesh.file is not None:            # regions come from the file's physical groups
+    if not three and scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
         file, names, groups, notes = prepare_scene(scene, src.base, src.error)
         scene = scene.model_copy(update={
@@ -407,14 +407,14 @@ def _check_references(scene: Scene, src: _Source) -> None:
             _require(name, boundaries, "boundary", src, (block, name))
     for name in scene.body_forces:
         _require(name, parts, "body or region", src, ("body_forces", name))
+    if scene.dimension == 2:
+        _check_mesh_references(scene, src)
     for name, roi in scene.regions_of_interest.items():
         path = ("regions_of_interest", name)
         if roi.boundary is not None:
             _require(roi.boundary, boundaries, "boundary", src, path + ("boundary",))
         if roi.body is not None:
             _require(roi.body, bodies, "body", src, path + ("body",))
-    if scene.dimension == 2:
-        _check_mesh_references(scene, src)
 
 
 def _check_mesh_references(scene: Scene, src: _Source) -> None:
