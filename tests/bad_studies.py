@@ -85,7 +85,7 @@ CASES = [
     ("materials-file-missing", put(SCENE + ["materials"], "no-such-library.yaml"), "scene.materials"),
     ("name-with-dot", rename(STEEL, "steel.v2"), "scene.materials.steel.v2"),
     # scene header and mesh
-    ("dimension-3", put(SCENE + ["dimension"], 3), "scene.dimension"),
+    ("dimension-4", put(SCENE + ["dimension"], 4), "scene.dimension"),
     ("plane-unknown", put(SCENE + ["plane"], "axisymmetric"), "scene.plane"),
     ("mesh-size-zero", put(SCENE + ["mesh", "size"], 0.0), "scene.mesh.size"),
     ("refine-size-missing", drop(SCENE + ["mesh", "refine", 0, "size"]), "scene.mesh.refine.0.size"),

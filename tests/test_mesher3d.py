@@ -9,8 +9,9 @@ import pytest
 from wcs.errors import StudyError
 from wcs.fem.tet import volumes
 from wcs.scene import selectors
-from wcs.scene.mesher3d import build_mesh3d
+from wcs.scene.mesher3d import build_mesh3d as mesh_typed
 from wcs.scene.spec import RegionOfInterest
+from wcs.study import load_scene
 
 FAULT = {"point": [1.0, 0.0, 0.5], "normal": [1.0, 0.0, -1.0]}    # the plane x − z = 0.5
 BLOCK = [0.0, 0.0, 0.0, 2.0, 1.0, 1.0]
@@ -31,6 +32,14 @@ def fault_scene(size=0.3):
         },
         "mesh": {"size": size},
     }
+
+
+def build_mesh3d(scene):
+    """The scene (geometry only) as a study's 3D scene block, loaded by the study loader and meshed."""
+    bodies = {b: {**spec, "regions": [{**r, "material": "m"} for r in spec["regions"]]}
+              for b, spec in scene["bodies"].items()}
+    return mesh_typed(load_scene({**scene, "dimension": 3, "bodies": bodies,
+                                  "materials": {"m": {"E": 1e9, "nu": 0.3}}}))
 
 
 def facet_areas(mesh, facets):
@@ -146,15 +155,15 @@ def test_sphere_on_an_extruded_block_two_bodies_and_regions():
 
 
 def test_bodies_with_their_own_sizes_have_nonmatching_faces():
-    """A block on a block, sizes 1:3: the common face z = 0 is meshed once per body (different
+    """A block on a block, sizes 2:1: the common face z = 0 is meshed once per body (different
     nodes), both sides cover it exactly; regions of interest are embedded in each body."""
     scene = {
-        "bodies": {"top": {"regions": [{"shape": {"box": [0, 0, 0, 1, 1, 0.5]}}], "mesh": {"size": 0.75}},
+        "bodies": {"top": {"regions": [{"shape": {"box": [0, 0, 0, 1, 1, 0.5]}}], "mesh": {"size": 0.25}},
                    "base": {"regions": [{"shape": {"box": [-0.5, -0.5, -0.5, 1.5, 1.5, 0]}}]}},
         "boundaries": {"lower": {"plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}, "body": "top"},
                        "upper": {"box": [-1, -1, 0, 2, 2, 0], "body": "base"}},
         "regions_of_interest": {"under": {"box": [0.2, 0.2, -0.2, 0.8, 0.8, 0.0], "body": "base"}},
-        "mesh": {"size": 0.25},
+        "mesh": {"size": 0.125},
     }
     sm = build_mesh3d(scene)
     m = sm.mesh
@@ -187,7 +196,7 @@ def test_bodies_with_their_own_sizes_have_nonmatching_faces():
      "scene.boundaries.c.cylinder"),
 ])
 def test_bad_input_is_a_study_error_at_its_path(change, path):
-    scene = fault_scene(size=0.6)
+    scene = fault_scene(size=0.5)
     change(scene)
     with pytest.raises(StudyError) as err:
         build_mesh3d(scene)

@@ -12,9 +12,10 @@ import numpy as np
 
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
-from .errors import SolveError
+from .errors import SolveError, StudyError
 from .model import Model, Solution
 from .scene.mesher import build_mesh
+from .scene.spec3d import UNSUPPORTED
 from .sensitivity import gradients as adjoint_gradients
 from .status import Status
 
@@ -48,6 +49,8 @@ class Evaluator:
     `wcs/meshcheck.py`)."""
 
     def __init__(self, study, comm=None, splits: int = 0):
+        if study.scene.dimension == 3:
+            raise StudyError(UNSUPPORTED, file=str(study.file), path="scene.dimension")
         t0 = time.perf_counter()
         self.study = study
         self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)

@@ -47,13 +47,15 @@ from pydantic import (
     model_validator,
 )
 
+from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
 from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
-from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, shape_box
+from .scene import spec3d
+from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
                          POISSON, SLIP, SOURCE, STRESS, WEIGHT, Direction, Frozen, GroupBoundary, Material,
                          Name, Point, Scene, XY)
@@ -299,6 +301,7 @@ class Profile(_Strict):
 
 _STUDY = TypeAdapter(StudyFile)
 _SCENE = TypeAdapter(Scene)
+_SCENE3D = TypeAdapter(spec3d.Scene)
 _PROFILE = TypeAdapter(Profile)
 _FUZZY = TypeAdapter(FuzzyNumber)
 _LIMIT = TypeAdapter(Limit)
@@ -323,9 +326,10 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw = dict(raw)
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
-    scene = src.validate(_SCENE, raw)
+    three = isinstance(raw, dict) and raw.get("dimension") == 3
+    scene = src.validate(_SCENE3D if three else _SCENE, raw)
     notes = []
-    if scene.mesh.file is not None:            # regions come from the file's physical groups
+    if not three and scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
         file, names, groups, notes = prepare_scene(scene, src.base, src.error)
         scene = scene.model_copy(update={
@@ -403,6 +407,19 @@ def _check_references(scene: Scene, src: _Source) -> None:
             _require(name, boundaries, "boundary", src, (block, name))
     for name in scene.body_forces:
         _require(name, parts, "body or region", src, ("body_forces", name))
+    if scene.dimension == 2:
+        _check_mesh_references(scene, src)
+    for name, roi in scene.regions_of_interest.items():
+        path = ("regions_of_interest", name)
+        if roi.boundary is not None:
+            _require(roi.boundary, boundaries, "boundary", src, path + ("boundary",))
+        if roi.body is not None:
+            _require(roi.body, bodies, "body", src, path + ("body",))
+
+
+def _check_mesh_references(scene: Scene, src: _Source) -> None:
+    """The boundaries refine zones name exist; a mesh file leaves no size to the bodies."""
+    bodies, boundaries = scene.bodies, scene.boundaries
     for i, refinement in enumerate(scene.mesh.refine):
         if refinement.boundary is not None:
             _require(refinement.boundary, boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
@@ -419,12 +436,6 @@ def _check_references(scene: Scene, src: _Source) -> None:
                 if region.mesh is not None:
                     raise src.error(("bodies", body, "regions", i, "mesh"), "the scene's mesh is a "
                                     "file: a region cannot have its own mesh size")
-    for name, roi in scene.regions_of_interest.items():
-        path = ("regions_of_interest", name)
-        if roi.boundary is not None:
-            _require(roi.boundary, boundaries, "boundary", src, path + ("boundary",))
-        if roi.body is not None:
-            _require(roi.body, bodies, "body", src, path + ("body",))
 
 
 def _check_contacts(scene: Scene, src: _Source) -> None:
@@ -486,6 +497,8 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
     when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
     cells along the longest side of the scene (or of a body with its own size)."""
+    if scene.dimension == 3:
+        return _check_mesh3d(scene, src)
     if scene.mesh.file is not None:
         return None
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
@@ -503,6 +516,40 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
         raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} cells "
                         f"({cells:.3g} unknowns), more than mesh.max_cells = {limit:g} (this size contributes "
                         "most); coarsen the mesh or raise `mesh.max_cells`")
+    return cells
+
+
+def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
+    """`_check_mesh` of a 3D scene: a region shape that is a halfspace alone is refused (it is
+    unbounded), sizes leave MIN_CELLS_ALONG cells along the longest side, and the estimated
+    tetrahedra (wcs.scene.estimate.estimate_cells3d) stay within `mesh.max_cells`."""
+    boxes = {}
+    for b, spec in scene.bodies.items():
+        for i, region in enumerate(spec.regions):
+            if region.shape.halfspace is not None:
+                raise src.error(("bodies", b, "regions", i, "shape", "halfspace"), "a halfspace is unbounded: "
+                                "use it inside `intersect` or `minus` of a solid")
+        boxes[b] = [solid_box(r.shape) for r in spec.regions]
+    lo = lambda bx: np.min([x[:3] for x in bx], axis=0)       # noqa: E731
+    hi = lambda bx: np.max([x[3:] for x in bx], axis=0)       # noqa: E731
+    everything = sum(boxes.values(), [])
+    size = scene.mesh.size
+    if size is None:                                          # the mesher's default
+        size = mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi(everything) - lo(everything)))))[0]
+    sizes = [] if scene.mesh.size is None else [(("mesh", "size"), size, "the scene", everything)]
+    sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
+              for b, spec in scene.bodies.items() if spec.mesh is not None]
+    for where, h, what, bx in sizes:
+        longest = float(np.max(hi(bx) - lo(bx)))
+        if h > longest / MIN_CELLS_ALONG:
+            raise src.error(where, f"size {h:g} leaves fewer than {MIN_CELLS_ALONG} cells along the longest "
+                                   f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
+    cells, path = estimate_cells3d(scene, size)
+    limit = DEFAULT_MAX_CELLS if scene.mesh.max_cells is None else scene.mesh.max_cells
+    if cells > limit:
+        raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} tetrahedra, more than "
+                        f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
+                        "`mesh.max_cells`")
     return cells
 
 

@@ -14,7 +14,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from . import spec3d
+
 CELLS_PER_H2 = 4.0 / math.sqrt(3.0)     # cells per unit area at size 1
+CURVATURE_ELEMENTS = 24                 # Mesh.MeshSizeFromCurvature (the mesher's): elements per 2*pi of arc
 DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives none
 DEFAULT_GRADING = 0.5                   # size growth per unit distance away from a refine zone (the mesher's)
 
@@ -108,4 +113,88 @@ def estimate_cells(scene) -> tuple[float, str]:
             if ref.size < h:
                 a, p = _zone(ref, scene)
                 parts.append((_refined(a, p, ref.size, h, grading, area), path))
+    return sum(c for c, _ in parts), max(parts)[1]
+
+
+# 3D: a regular tetrahedron of side h has volume h^3 / (6 sqrt 2), so a solid of volume V meshed
+# at size h has about 6 sqrt(2) V / h^3 = 8.49 V / h^3 cells (volumes of the primitives, a `minus`
+# not subtracted, an intersection the smallest of its solids': an upper estimate). A curved
+# surface of radius r (every sphere and cylinder of the scene, also inside `minus` / `intersect`,
+# and the embedded balls and cylinders of interest) is meshed at s = min(h, 2 pi r / N), N =
+# Mesh.MeshSizeFromCurvature: the solid's volume at s, and a halo outside where the size grows
+# as s + d up to h, whose surface at distance d has area A(d): 8.49 * integral of A(d) / (s + d)^3.
+CELLS_PER_H3 = 6.0 * math.sqrt(2.0)
+HALO_POINTS = 65
+
+
+def solid_box(solid) -> tuple[float, ...]:
+    """Bounding box (xmin, ymin, zmin, xmax, ymax, zmax) of a validated 3D `Solid` that is not a
+    halfspace (intersections narrow it)."""
+    if solid.box is not None:
+        box = tuple(solid.box)
+    elif solid.sphere is not None:
+        c, r = solid.sphere.center, solid.sphere.radius
+        box = tuple(x - r for x in c) + tuple(x + r for x in c)
+    elif solid.cylinder is not None:
+        a, b, r = solid.cylinder.start, solid.cylinder.end, solid.cylinder.radius
+        box = tuple(min(p, q) - r for p, q in zip(a, b)) + tuple(max(p, q) + r for p, q in zip(a, b))
+    else:
+        x0, y0, x1, y1 = shape_box(solid.extrude.shape)
+        v = solid.extrude.vector
+        lo, hi = (x0, y0, 0.0), (x1, y1, 0.0)
+        box = tuple(min(p, p + d) for p, d in zip(lo, v)) + tuple(max(p, p + d) for p, d in zip(hi, v))
+    for other in solid.intersect:
+        if other.halfspace is None:
+            o = solid_box(other)
+            box = tuple(max(box[i], o[i]) for i in range(3)) + tuple(min(box[i], o[i]) for i in range(3, 6))
+    return box
+
+
+def _primitive_volume(solid) -> float:
+    if solid.box is not None:
+        b = solid.box
+        volume = (b[3] - b[0]) * (b[4] - b[1]) * (b[5] - b[2])
+    elif solid.sphere is not None:
+        volume = 4 / 3 * math.pi * solid.sphere.radius ** 3
+    elif solid.cylinder is not None:
+        volume = math.pi * solid.cylinder.radius ** 2 * math.dist(solid.cylinder.start, solid.cylinder.end)
+    else:
+        volume = _primitive_area(solid.extrude.shape) * abs(solid.extrude.vector[2])
+    return min([volume] + [_primitive_volume(o) for o in solid.intersect if o.halfspace is None])
+
+
+def _curved(solid):
+    """Every sphere and cylinder of a solid's tree."""
+    if solid.sphere is not None or solid.cylinder is not None:
+        yield solid
+    for other in solid.minus + solid.intersect:
+        yield from _curved(other)
+
+
+def _curved_cells(solid, h: float) -> float:
+    """Cells a sphere or cylinder adds at its curvature size (see above)."""
+    if solid.sphere is not None:
+        r, length = solid.sphere.radius, None
+    else:
+        r, length = solid.cylinder.radius, math.dist(solid.cylinder.start, solid.cylinder.end)
+    s = min(h, 2 * math.pi * r / CURVATURE_ELEMENTS)
+    if s >= h:
+        return 0.0
+    volume = 4 / 3 * math.pi * r**3 if length is None else math.pi * r**2 * length
+    d = np.linspace(0.0, h - s, HALO_POINTS)
+    area = 4 * math.pi * (r + d) ** 2 if length is None else 2 * math.pi * (r + d) * length
+    return CELLS_PER_H3 * (volume * (1 / s**3 - 1 / h**3) + float(np.trapezoid(area / (s + d) ** 3, d)))
+
+
+def estimate_cells3d(scene, size: float) -> tuple[float, str]:
+    """About how many tetrahedra a 3D scene's mesh will have at the scene size `size`, and the
+    key path of the size that contributes most (relative to the scene)."""
+    parts = []
+    rois = [spec3d.Solid(sphere=roi.ball) if roi.ball is not None else spec3d.Solid(cylinder=roi.cylinder)
+            for roi in scene.regions_of_interest.values() if roi.ball is not None or roi.cylinder is not None]
+    for body, spec in scene.bodies.items():
+        h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
+        cells = CELLS_PER_H3 * sum(_primitive_volume(r.shape) for r in spec.regions) / h**3
+        curved = [c for r in spec.regions for c in _curved(r.shape)] + rois
+        parts.append((cells + sum(_curved_cells(c, h) for c in curved), path))
     return sum(c for c, _ in parts), max(parts)[1]

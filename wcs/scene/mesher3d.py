@@ -1,15 +1,7 @@
-"""A 3D scene (plain dicts) -> gmsh (OpenCASCADE) solids -> :class:`SceneMesh` with a MeshTet.
+"""A typed 3D scene (`wcs.scene.spec3d.Scene`) -> gmsh (OpenCASCADE) solids -> :class:`SceneMesh`
+with a MeshTet.
 
-``build_mesh3d(scene)`` takes a dict of the form (the study schema comes later)::
-
-    {"bodies": {NAME: {"regions": [{"name": REGION, "shape": SOLID}, ...], "mesh": {"size": h}}, ...},
-     "boundaries": {NAME: FACE_SELECTOR, ...},
-     "regions_of_interest": {NAME: REGION_SELECTOR, ...},
-     "mesh": {"size": h}}
-
-(``name``, a body's ``mesh`` and the scene's ``mesh`` are optional.)
-
-Solids (``SOLID``), each with optional, recursive ``intersect: [SOLID, ...]`` (applied
+Solids (``SOLID``, `spec3d.Solid`), each with optional, recursive ``intersect: [SOLID, ...]`` (applied
 first, in turn) and ``minus: [SOLID, ...]`` (cut by their union):
 
 * ``box: [xmin, ymin, zmin, xmax, ymax, zmax]``,
@@ -61,19 +53,17 @@ import gmsh
 import numpy as np
 import scipy.sparse as sp
 import skfem
-from pydantic import ValidationError
 from scipy.sparse.csgraph import connected_components
 
 from ..choose import MeshFacts, mesh_size
 from ..errors import StudyError
 from . import selectors
-from .geometry import kernel, make_shape, number_list
+from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
-from .mesher import fragment_pieces
+from .mesher import fragment_pieces, region_names
 from .session import Session
-from .spec import Shape
+from .spec3d import Boundary, Plane, RegionOfInterest, Scene, Solid
 
-SOLID_KINDS = ("box", "cylinder", "sphere", "extrude", "halfspace")
 FACE_KINDS = ("plane", "box", "cylinder", "sphere")
 ROI_SOLIDS = {"box": "box", "ball": "sphere", "cylinder": "cylinder"}   # embedded region -> solid
 ALGORITHM_3D = 1                 # Delaunay
@@ -87,59 +77,11 @@ DimTags = list[tuple[int, int]]
 # solids
 
 
-def _vector(value, path: str, what: str) -> np.ndarray:
-    return np.array(number_list(value, 3, path, what))
-
-
-def _mapping(spec, keys: tuple[str, ...], path: str, kind: str) -> dict:
-    if not isinstance(spec, dict) or any(k not in spec for k in keys):
-        raise StudyError(f"{kind} needs {{{', '.join(keys)}}}", path=path)
-    return spec
-
-
-def _positive(value, path: str, what: str) -> float:
-    (r,) = number_list([value], 1, path, what)
-    if not r > 0:
-        raise StudyError(f"{what} must be > 0, got {r}", path=path)
-    return r
-
-
-def _box(spec, path: str, solid: bool = True) -> np.ndarray:
-    """A solid box needs min < max; a face selector's box may be flat (min ≤ max)."""
-    b = np.array(number_list(spec, 6, path, "box"))
-    if not (np.all(b[3:] > b[:3]) if solid else np.all(b[3:] >= b[:3])):
-        raise StudyError(f"box [xmin, ymin, zmin, xmax, ymax, zmax] needs min {'<' if solid else '<='} max, "
-                         f"got {spec}", path=path)
-    return b
-
-
-def _cylinder(spec, path: str) -> tuple[np.ndarray, np.ndarray, float]:
-    _mapping(spec, ("start", "end", "radius"), path, "cylinder")
-    a, b = _vector(spec["start"], f"{path}.start", "start"), _vector(spec["end"], f"{path}.end", "end")
-    if not np.linalg.norm(b - a) > 0:
-        raise StudyError("cylinder start and end must differ", path=path)
-    return a, b, _positive(spec["radius"], f"{path}.radius", "radius")
-
-
-def _sphere(spec, path: str) -> tuple[np.ndarray, float]:
-    _mapping(spec, ("center", "radius"), path, "sphere")
-    return _vector(spec["center"], f"{path}.center", "center"), _positive(spec["radius"], f"{path}.radius", "radius")
-
-
-def _plane(spec, path: str) -> tuple[np.ndarray, np.ndarray]:
-    """(point, unit normal)."""
-    _mapping(spec, ("point", "normal"), path, "a plane")
-    n = _vector(spec["normal"], f"{path}.normal", "normal")
-    if not np.linalg.norm(n) > 0:
-        raise StudyError("normal must not be zero", path=f"{path}.normal")
-    return _vector(spec["point"], f"{path}.point", "point"), n / np.linalg.norm(n)
-
-
-def _halfspace(spec, path: str, cut: DimTags) -> DimTags:
+def _halfspace(plane: Plane, cut: DimTags) -> DimTags:
     """{(p − point)·n ≤ 0} as a box of side 2L, one face on the plane, L ≥ the distance from
     `point` to every point of the solids `cut` (their bounding box)."""
     occ = gmsh.model.occ
-    point, n = _plane(spec, path)
+    point, n = np.array(plane.point), np.array(plane.normal) / np.linalg.norm(plane.normal)
     lo = np.min([occ.getBoundingBox(*dt)[:3] for dt in cut], axis=0)
     hi = np.max([occ.getBoundingBox(*dt)[3:] for dt in cut], axis=0)
     L = float(np.linalg.norm(hi - lo) + np.linalg.norm(0.5 * (lo + hi) - point)) or 1.0
@@ -152,71 +94,44 @@ def _halfspace(spec, path: str, cut: DimTags) -> DimTags:
     return box
 
 
-def _primitive(shape: dict, path: str) -> DimTags:
+def _primitive(shape: Solid, path: str) -> DimTags:
     occ = gmsh.model.occ
-    kinds = [k for k in SOLID_KINDS if shape.get(k) is not None]
-    if len(kinds) != 1:
-        raise StudyError(f"a solid needs exactly one of {', '.join(SOLID_KINDS)}; got keys {sorted(shape)}",
-                         path=path)
-    kind = kinds[0]
-    spec, p = shape[kind], f"{path}.{kind}"
-    if kind == "box":
-        b = _box(spec, p)
+    if shape.box is not None:
+        b = np.array(shape.box)
         return [(3, occ.addBox(*b[:3], *(b[3:] - b[:3])))]
-    if kind == "cylinder":
-        a, b, r = _cylinder(spec, p)
-        return [(3, occ.addCylinder(*a, *(b - a), r))]
-    if kind == "sphere":
-        c, r = _sphere(spec, p)
-        return [(3, occ.addSphere(*c, r))]
-    if kind == "extrude":
-        _mapping(spec, ("shape", "vector"), p, "extrude")
-        v = _vector(spec["vector"], f"{p}.vector", "vector")
-        try:
-            shape2d = Shape.model_validate(spec["shape"])
-        except ValidationError as err:
-            first = err.errors()[0]
-            where = ".".join(str(k) for k in (f"{p}.shape", *first["loc"]))
-            raise StudyError(f"not a 2D shape: {first['msg']}", path=where) from None
-        base = make_shape(shape2d, f"{p}.shape")
-        out = kernel(p, occ.extrude, base, *v)
+    if shape.cylinder is not None:
+        a, b = np.array(shape.cylinder.start), np.array(shape.cylinder.end)
+        return [(3, occ.addCylinder(*a, *(b - a), shape.cylinder.radius))]
+    if shape.sphere is not None:
+        return [(3, occ.addSphere(*shape.sphere.center, shape.sphere.radius))]
+    if shape.extrude is not None:
+        p = f"{path}.extrude"
+        base = make_shape(shape.extrude.shape, f"{p}.shape")
+        out = kernel(p, occ.extrude, base, *shape.extrude.vector)
         return [dt for dt in out if dt[0] == 3]
-    raise StudyError("a halfspace is unbounded: use it inside `intersect` or `minus` of a solid", path=p)
+    raise StudyError("a halfspace is unbounded: use it inside `intersect` or `minus` of a solid",
+                     path=f"{path}.halfspace")
 
 
-def _shape_list(value, path: str) -> list:
-    """`intersect` / `minus`: a list of solids (one solid alone is accepted too)."""
-    if value is None:
-        return []
-    if isinstance(value, dict):
-        return [value]
-    if not isinstance(value, list):
-        raise StudyError(f"expected a list of solids, got {value!r}", path=path)
-    return value
-
-
-def _tool(shape, path: str, cut: DimTags) -> DimTags:
+def _tool(shape: Solid, path: str, cut: DimTags) -> DimTags:
     """A solid used to intersect or cut `cut`: a halfspace is sized to cover `cut`."""
-    if isinstance(shape, dict) and shape.get("halfspace") is not None and not (set(shape) - {"halfspace"}):
-        return _halfspace(shape["halfspace"], f"{path}.halfspace", cut)
+    if shape.halfspace is not None:
+        return _halfspace(shape.halfspace, cut)
     return make_solid(shape, path)
 
 
-def make_solid(shape: dict, path: str) -> DimTags:
+def make_solid(shape: Solid, path: str) -> DimTags:
     """Create the solid ``shape`` in the current OCC model; return its volumes (dim 3 dimtags)."""
-    if not isinstance(shape, dict):
-        raise StudyError(f"a solid must be a mapping, got {shape!r}", path=path)
     occ = gmsh.model.occ
     out = kernel(path, _primitive, shape, path)
-    for i, sub in enumerate(_shape_list(shape.get("intersect"), f"{path}.intersect")):
+    for i, sub in enumerate(shape.intersect):
         tool = _tool(sub, f"{path}.intersect.{i}", out)
         out, _ = kernel(f"{path}.intersect.{i}", occ.intersect, out, tool, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 3]
         if not out:
             raise StudyError("the intersection is empty", path=f"{path}.intersect.{i}")
-    minus = _shape_list(shape.get("minus"), f"{path}.minus")
-    if minus:
-        tools = [dt for i, sub in enumerate(minus) for dt in _tool(sub, f"{path}.minus.{i}", out)]
+    if shape.minus:
+        tools = [dt for i, sub in enumerate(shape.minus) for dt in _tool(sub, f"{path}.minus.{i}", out)]
         out, _ = kernel(f"{path}.minus", occ.cut, out, tools, removeObject=True, removeTool=True)
         out = [dt for dt in out if dt[0] == 3]
         if not out:
@@ -228,15 +143,14 @@ def make_solid(shape: dict, path: str) -> DimTags:
 # build
 
 
-def embedded_rois(scene: dict) -> list[str]:
+def embedded_rois(scene: Scene) -> list[str]:
     """Names of the regions of interest given by a box, ball or cylinder, in scene order."""
-    return [name for name, spec in (scene.get("regions_of_interest") or {}).items()
-            if isinstance(spec, dict) and any(spec.get(k) is not None for k in ROI_SOLIDS)]
+    return [name for name, roi in scene.regions_of_interest.items() if roi.boundary is None]
 
 
-def _roi_solid(spec: dict, path: str) -> DimTags:
-    kind = next(k for k in ROI_SOLIDS if spec.get(k) is not None)
-    return make_solid({ROI_SOLIDS[kind]: spec[kind]}, path)
+def _roi_solid(roi: RegionOfInterest, path: str) -> DimTags:
+    kind = next(k for k in ROI_SOLIDS if getattr(roi, k) is not None)
+    return make_solid(Solid(**{ROI_SOLIDS[kind]: getattr(roi, kind)}), path)
 
 
 def _owners(covered: dict, inputs: list, bodies: list, regions: list) -> dict:
@@ -279,14 +193,7 @@ def _extract(owner: dict, inside: dict):
     return xyz, np.concatenate(tets), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
 
 
-def _size(value, path: str) -> float:
-    (h,) = number_list([value], 1, path, "mesh size")
-    if not h > 0:
-        raise StudyError(f"mesh size must be > 0, got {h}", path=path)
-    return h
-
-
-def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list):
+def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list):
     """Each body meshed in a gmsh model of its own (its regions and the embedded regions of
     interest fragmented together), with its ``mesh.size`` or the scene's; the concatenation,
     bodies in scene order, as `_extract` gives it."""
@@ -294,14 +201,13 @@ def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list)
     parts, offset, r = [], 0, 0
     for b, body in enumerate(bodies):
         gmsh.model.add(f"{base}_body{b}")
-        bspec = scene["bodies"][body]
-        solids = [make_solid(reg["shape"], f"scene.bodies.{body}.regions.{i}.shape")
-                  for i, reg in enumerate(bspec["regions"])]
-        covered, inside = fragment_pieces(solids, [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
+        bspec = scene.bodies[body]
+        solids = [make_solid(reg.shape, f"scene.bodies.{body}.regions.{i}.shape")
+                  for i, reg in enumerate(bspec.regions)]
+        covered, inside = fragment_pieces(solids, [_roi_solid(scene.regions_of_interest[n], f"scene.regions_of_interest.{n}")
                                                    for n in embed], dim=3)
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
-        own = (bspec.get("mesh") or {}).get("size")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size if own is None else _size(own, f"scene.bodies.{body}.mesh.size"))
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size if bspec.mesh is None else bspec.mesh.size)
         gmsh.model.mesh.generate(3)
         xyz, tet, cb, cr, ci = _extract(owner, inside)
         gmsh.model.remove()
@@ -314,26 +220,7 @@ def _mesh_bodies_separately(scene: dict, bodies: list, size: float, embed: list)
 
 
 
-# The 3D scene is still given as plain mappings (its typed schema is the next step of the 3D
-# work); these read them as the 2D helpers read the typed 2D scene.
-
-def region_names(scene: dict) -> list[tuple[str, str]]:
-    """(body, region name) in scene order; default name ``<body>_<i>`` (0-based i)."""
-    return [(body, reg.get("name") or f"{body}_{i}")
-            for body, bspec in (scene.get("bodies") or {}).items()
-            for i, reg in enumerate(bspec.get("regions") or [])]
-
-
-def _kind(spec: dict, kinds, path: str) -> str:
-    """The one of `kinds` a selector mapping gives."""
-    found = [k for k in kinds if isinstance(spec, dict) and spec.get(k) is not None]
-    if len(found) != 1:
-        raise StudyError(f"a selector needs exactly one of {', '.join(kinds)}; got {spec!r}", path=path)
-    return found[0]
-
-
-def _body_index(sm: SceneMesh, spec: dict, path: str) -> int | None:
-    body = spec.get("body") if isinstance(spec, dict) else None
+def _body_index(sm: SceneMesh, body: str | None, path: str) -> int | None:
     if body is None:
         return None
     if body not in sm.bodies:
@@ -341,14 +228,11 @@ def _body_index(sm: SceneMesh, spec: dict, path: str) -> int | None:
     return sm.bodies.index(body)
 
 
-def build_mesh3d(scene: dict) -> SceneMesh:
-    """Mesh a 3D scene dict (see the module docstring) into a :class:`SceneMesh` holding one
+def build_mesh3d(scene: Scene) -> SceneMesh:
+    """Mesh a typed 3D scene (regions named, as the loader gives it) into a :class:`SceneMesh` holding one
     ``skfem.MeshTet``; ``boundaries`` and ``roi_cells`` as in 2D (``boundaries``: sorted indices
     into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path)."""
-    bodies_spec = scene.get("bodies") or {}
-    if not bodies_spec:
-        raise StudyError("the scene has no bodies", path="scene.bodies")
-    bodies = list(bodies_spec)
+    bodies = list(scene.bodies)
     regions = region_names(scene)
     embed = embedded_rois(scene)
     with Session():
@@ -357,23 +241,17 @@ def build_mesh3d(scene: dict) -> SceneMesh:
             gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHM_3D)
             inputs, r = [], 0
             for b, body in enumerate(bodies):
-                regs = bodies_spec[body].get("regions") or []
-                if not regs:
-                    raise StudyError("a body needs at least one region", path=f"scene.bodies.{body}.regions")
-                for i, reg in enumerate(regs):
-                    if not isinstance(reg, dict) or "shape" not in reg:
-                        raise StudyError("a region needs a `shape`", path=f"scene.bodies.{body}.regions.{i}")
-                    inputs.append((b, r, make_solid(reg["shape"], f"scene.bodies.{body}.regions.{i}.shape")))
+                for i, reg in enumerate(scene.bodies[body].regions):
+                    inputs.append((b, r, make_solid(reg.shape, f"scene.bodies.{body}.regions.{i}.shape")))
                     r += 1
-            roi_solids = [_roi_solid(scene["regions_of_interest"][n], f"scene.regions_of_interest.{n}")
+            roi_solids = [_roi_solid(scene.regions_of_interest[n], f"scene.regions_of_interest.{n}")
                           for n in embed]
             covered, inside = fragment_pieces([dts for _, _, dts in inputs], roi_solids, dim=3)
             owner = _owners(covered, inputs, bodies, regions)
             lo, hi = np.array(gmsh.model.getBoundingBox(-1, -1)).reshape(2, 3)
-            size = (scene.get("mesh") or {}).get("size")
-            size = (_size(size, "scene.mesh.size") if size is not None
+            size = (scene.mesh.size if scene.mesh.size is not None
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
-            if not any(bodies_spec[body].get("mesh") for body in bodies):
+            if not any(scene.bodies[body].mesh for body in bodies):
                 gmsh.option.setNumber("Mesh.MeshSizeMax", size)
                 gmsh.model.mesh.generate(3)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
@@ -397,11 +275,11 @@ def build_mesh3d(scene: dict) -> SceneMesh:
     sm = check_connected(SceneMesh(mesh=skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False), bodies=bodies,
                                    regions=regions, cell_body=cell_body, cell_region=cell_region))
     bnd = {name: select_faces(sm, spec, f"scene.boundaries.{name}")
-           for name, spec in (scene.get("boundaries") or {}).items()}
+           for name, spec in scene.boundaries.items()}
     roi_cells = {}
     for j, name in enumerate(embed):
         mask = in_roi[j]
-        body = _body_index(sm, scene["regions_of_interest"][name], f"scene.regions_of_interest.{name}")
+        body = _body_index(sm, scene.regions_of_interest[name].body, f"scene.regions_of_interest.{name}")
         if body is not None:
             mask = mask & (cell_body == body)
         roi_cells[name] = np.flatnonzero(mask).astype(np.int64)
@@ -428,34 +306,32 @@ def check_connected(sm: SceneMesh) -> SceneMesh:
 # selectors
 
 
-def surface_distance(kind: str, value, path: str, x: np.ndarray) -> np.ndarray:
+def surface_distance(spec: Boundary, x: np.ndarray) -> np.ndarray:
     """Distance of the points x (3, ...) to the face selector's set (0 inside a box)."""
-    if kind == "plane":
-        point, n = _plane(value, path)
-        return np.abs(np.einsum("i,i...->...", n, x - point.reshape(3, *[1] * (x.ndim - 1))))
-    if kind == "box":
-        b = _box(value, path, solid=False)
-        shape = (3,) + (1,) * (x.ndim - 1)
-        out = np.maximum(np.maximum(b[:3].reshape(shape) - x, x - b[3:].reshape(shape)), 0.0)
+    col = (3,) + (1,) * (x.ndim - 1)
+    if spec.plane is not None:
+        n = np.array(spec.plane.normal) / np.linalg.norm(spec.plane.normal)
+        return np.abs(np.einsum("i,i...->...", n, x - np.reshape(spec.plane.point, col)))
+    if spec.box is not None:
+        b = np.array(spec.box)
+        out = np.maximum(np.maximum(b[:3].reshape(col) - x, x - b[3:].reshape(col)), 0.0)
         return np.sqrt((out**2).sum(axis=0))
-    if kind == "sphere":
-        c, r = _sphere(value, path)
-        return np.abs(np.linalg.norm(x - c.reshape(3, *[1] * (x.ndim - 1)), axis=0) - r)
-    a, b, r = _cylinder(value, path)                          # lateral surface, start to end
+    if spec.sphere is not None:
+        return np.abs(np.linalg.norm(x - np.reshape(spec.sphere.center, col), axis=0) - spec.sphere.radius)
+    a, b = np.array(spec.cylinder.start), np.array(spec.cylinder.end)   # lateral surface, start to end
     axis = (b - a) / np.linalg.norm(b - a)
-    d = x - a.reshape(3, *[1] * (x.ndim - 1))
+    d = x - a.reshape(col)
     s = np.einsum("i,i...->...", axis, d)
-    radial = np.linalg.norm(d - axis.reshape(3, *[1] * (x.ndim - 1)) * s, axis=0)
+    radial = np.linalg.norm(d - axis.reshape(col) * s, axis=0)
     beyond = np.maximum(np.maximum(-s, s - np.linalg.norm(b - a)), 0.0)
-    return np.hypot(radial - r, beyond)
+    return np.hypot(radial - spec.cylinder.radius, beyond)
 
 
-def select_faces(sm: SceneMesh, spec: dict, path: str, *, allow_empty: bool = False) -> np.ndarray:
+def select_faces(sm: SceneMesh, spec: Boundary, path: str, *, allow_empty: bool = False) -> np.ndarray:
     """Sorted indices into ``sm.mesh.facets`` of the boundary facets whose three nodes lie on the
     face selector's set (plane / box / cylinder / sphere, optional body)."""
     mesh = sm.mesh
-    kind = _kind(spec, FACE_KINDS, path)
-    body = _body_index(sm, spec, path)
+    body = _body_index(sm, spec.body, path)
     bf = mesh.boundary_facets()
     if body is not None:
         bf = bf[selectors.facet_body(sm, bf) == body]
@@ -463,12 +339,12 @@ def select_faces(sm: SceneMesh, spec: dict, path: str, *, allow_empty: bool = Fa
     edges = np.linalg.norm(x - np.roll(x, 1, axis=1), axis=0).max(axis=0)
     scale = float(np.linalg.norm(mesh.p.max(axis=1) - mesh.p.min(axis=1))) or 1.0
     tol = REL_TOL * edges + ABS_TOL * scale
-    value, p = spec[kind], f"{path}.{kind}"
-    if kind == "plane" and isinstance(value, dict) and value.get("tolerance") is not None:
-        tol = np.full(bf.size, _positive(value["tolerance"], f"{p}.tolerance", "tolerance"))
-    ok = (surface_distance(kind, value, p, x) <= tol).all(axis=0)
+    if spec.plane is not None and spec.plane.tolerance is not None:
+        tol = np.full(bf.size, spec.plane.tolerance)
+    ok = (surface_distance(spec, x) <= tol).all(axis=0)
     out = np.sort(bf[ok])
     if out.size == 0 and not allow_empty:
-        where = f" of body {spec['body']!r}" if body is not None else ""
+        kind = next(k for k in FACE_KINDS if getattr(spec, k) is not None)
+        where = f" of body {spec.body!r}" if body is not None else ""
         raise StudyError(f"the {kind} selector selects no boundary face{where}", path=path)
     return out

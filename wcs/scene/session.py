@@ -6,7 +6,7 @@ import threading
 
 import gmsh
 
-CURVATURE_ELEMENTS = 24         # Mesh.MeshSizeFromCurvature: elements per 2*pi of arc
+from .estimate import CURVATURE_ELEMENTS
 ALGORITHM_2D = 6                # Frontal-Delaunay
 
 _lock = threading.Lock()        # gmsh is a process-wide singleton

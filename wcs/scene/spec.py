@@ -331,7 +331,7 @@ class Scene(Frozen):
     @field_validator("dimension")
     @classmethod
     def _two_dimensional(cls, dimension):
-        if dimension != 2:
-            raise ValueError("only dimension 2 is supported")
+        if dimension != 2:             # a 3D scene is `wcs.scene.spec3d.Scene` (the loader's choice)
+            raise ValueError("the dimension is 2 (plane) or 3")
         return dimension
 
