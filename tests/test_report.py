@@ -332,3 +332,38 @@ if __name__ == "__main__":          # write a synthetic run file of a study
     study, out = sys.argv[1], sys.argv[2]
     n = int(sys.argv[3]) if len(sys.argv) > 3 else 6
     print(write_netcdf(synthetic_run(study, n=n, failures=(1,)), out))
+
+
+@pytest.mark.slow
+def test_after_search_sections_render_in_chromium(tmp_path):
+    """A real `wcs run` (the heated plate, the heave's both ends) then `wcs report`: the range
+    against its limits, the mesh check's table and the drivers' bars are on the page Chromium
+    draws (the bars' colours: red grows with x_i, blue falls)."""
+    import yaml
+    from PIL import Image
+    doc = yaml.safe_load((ROOT / "studies/heated-plate.yaml").read_text())
+    doc["criteria"][0]["sense"] = "both"
+    doc["search"] = {**(doc.get("search") or {}), "budget": 40}
+    study = tmp_path / "plate.yaml"
+    study.write_text(yaml.safe_dump(doc))
+    nc, html_path = tmp_path / "plate.nc", tmp_path / "plate.html"
+    assert main(["run", str(study), "-o", str(nc), "--quiet"]) == 0
+    assert main(["report", str(nc), "-o", str(html_path)]) == 0
+    text = html_path.read_text()
+    for sid in ("mesh-check-table", "range-text", 'id="drivers"'):
+        assert sid in text, sid
+    drivers = text[text.index('<section id="drivers">'):]
+    drivers = drivers[:drivers.index("</section>")]
+    assert drivers.count("<img") >= len(doc["criteria"])        # one bar chart per extreme at least
+    arr = np.asarray(Image.open(screenshot(html_path, tmp_path / "shot.png", ensure_chromium(),
+                                           height=9000)).convert("RGB")).astype(int)
+    for colour in ([0xd6, 0x27, 0x28], [0x1f, 0x77, 0xb4]):
+        assert np.all(np.abs(arr - colour) < 12, axis=-1).sum() > 500, colour
+
+
+def test_a_temperature_difference_is_not_shown_in_celsius():
+    """A temperature is also given in °C; a margin or an error (a difference of temperatures)
+    is not: 0.00193 K of error is not −273.1 °C."""
+    from wcs.report.html import number
+    assert number(300.0, "K").endswith("(26.9 °C)")
+    assert "°C" not in number(0.00193, "K", difference=True)

@@ -89,8 +89,9 @@ def param_units(path: str) -> str:
     return "–"
 
 
-def number(v, units: str = "", digits: int = 4) -> str:
-    """A number for people: 4 significant digits, ×10ⁿ for large and small ones, units."""
+def number(v, units: str = "", digits: int = 4, difference: bool = False) -> str:
+    """A number for people: 4 significant digits, ×10ⁿ for large and small ones, units; a
+    temperature in K also in °C, unless it is a `difference` (a margin, an error)."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "—"
     v = float(v)
@@ -108,7 +109,7 @@ def number(v, units: str = "", digits: int = 4) -> str:
             s = f"{m:.{digits - 1}f} × 10{str(e).translate(SUPERSCRIPT)}"
     s = s.replace("-", "−")
     out = f"{s} {u}".strip()
-    if units == "K":
+    if units == "K" and not difference:
         out += f" ({v - 273.15:.1f} °C)"
     return out
 
@@ -244,7 +245,7 @@ class Report:
                 f'<td>{esc(plots.unit_label(c.units))}</td>{low}'
                 f'<td class="num">{number(c.worst, c.units) if c.searched_max else "not searched"}</td>'
                 f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
-                f'<td class="num">{number(margin, c.units) if math.isfinite(margin) else "—"}</td>'
+                f'<td class="num">{number(margin, c.units, difference=True) if math.isfinite(margin) else "—"}</td>'
                 f'<td class="num">{f"{pct:+.1f} %".replace("-", "−") if math.isfinite(pct) else "—"}</td>'
                 f'<td class="{cls} verdict-cell">{label}</td><td>{cert}'
                 f'{"<br><span class=note>" + esc(c.certificate_note) + "</span>" if c.certificate_note else ""}</td></tr>')
@@ -471,7 +472,7 @@ class Report:
                 + "".join(f'<td class="num">{number(v, u, 7)}</td>' for v in f)
                 + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
                 f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
-                f'<td class="num">{number(err, u)}{pct}</td>'
+                f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
                 f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
                 f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         head = "".join(f"<th>{h}</th>" for h in (
