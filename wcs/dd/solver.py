@@ -23,7 +23,8 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
      (injections oD_u (6.4)–(6.6): the ρ-weights over linear subdomains only, so 1 next to
      a pair), warm started from U^{k−1}; S_con by one local contact solve per pair.
      They contract only if ρ(S0⁻¹ dS_con) < 1 ([21, Cor. 7.1]: 2β² < 1); `auto` estimates
-     ρ by a few power steps at U⁰ and takes them below `seed_rho`, else Newton.
+     ρ from below by power steps at U⁰ (stopping once the bound reaches `seed_rho`) and
+     takes them below `seed_rho`, else Newton.
 3. Monitoring of the seed's step ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
    contraction estimate q_k = ‖ΔU^k‖/‖ΔU^{k−1}‖ gives the a-posteriori bound
    q/(1−q)‖ΔU^k‖ (Theorem 7.1: contraction 2β² < 1); q_k ≥ 1 for `patience`
@@ -399,13 +400,15 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     if singular and step == "auto":
         step, prefix = "newton", f"{singular}: newton; "
     if step == "auto":
-        rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
-        if rho is None:
+        estimate = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
+        if estimate is None:
             info["ranks"] = team.report()
             return _fail(info, DDOutcome.LOCAL_FAILED, "a contact solve of the ρ estimate failed")
+        rho, info["rho_steps"] = estimate
         step = "seed" if rho < o["seed_rho"] else "newton"
         info["rho"] = rho
-        prefix = f"ρ(S0⁻¹ dS_con) ≈ {rho:.3g} at U⁰ ({'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; "
+        prefix = (f"ρ(S0⁻¹ dS_con) ≥ {rho:.3g} at U⁰ ({estimate[1]} power steps; "
+                  f"{'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; ")
     info["step"] = step
     if step == "newton":
         status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
@@ -671,22 +674,28 @@ def _pairs_apply(team, lin_pairs, nif, x):
     return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif)
 
 
-def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> float | None:
-    """ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of the local
-    contact solves there) by `rho_steps` power steps x ← S0⁻¹ L x (PCG2 to 1e-2), then the
-    Rayleigh quotient xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint: a lower bound that converges to
-    ρ). The seed's step U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the
-    solution only if ρ < 1 ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
+def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
+    """A lower bound of ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of
+    the local contact solves there), and the power steps it took: the Rayleigh quotient
+    xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint, L ⪰ 0: every x gives a lower bound, power steps
+    x ← S0⁻¹ L x (PCG2 to 1e-2) raise it towards ρ), from a fixed start, after each of at most
+    `rho_steps` steps; it stops as soon as the bound reaches `seed_rho` (the seed's step is
+    then ruled out whatever more steps would give). The seed's step
+    U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
+    ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
     _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
     if free is None:
         return None
     L = _linearised(dec, free, team, cache)
     x = np.random.default_rng(0).standard_normal(dec.nif)       # a fixed start: the same ρ every time
-    for _ in range(o["rho_steps"]):
-        r = pcg(S0.apply, S0.precondition, _pairs_apply(team, L, dec.nif, x), np.zeros(dec.nif), tol=1e-2,
+    for k in range(o["rho_steps"] + 1):
+        Lx = _pairs_apply(team, L, dec.nif, x)
+        q = float(x @ Lx) / max(float(x @ S0.apply(x)), 1e-300)
+        if q >= o["seed_rho"] or k == o["rho_steps"]:
+            return q, k
+        r = pcg(S0.apply, S0.precondition, Lx, np.zeros(dec.nif), tol=1e-2,
                 max_iter=o["pcg_max_iterations"], coarse=S0.coarse)
         x = r.x / max(np.linalg.norm(r.x), 1e-300)
-    return float(x @ _pairs_apply(team, L, dec.nif, x)) / max(float(x @ S0.apply(x)), 1e-300)
 
 
 def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, load):
