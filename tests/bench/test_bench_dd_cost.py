@@ -8,7 +8,8 @@ Both solvers are warmed first (the DD's partition and symbolic analyses, the mon
 factor's pattern), then each is timed `REPEAT` times on the nominal data (both keep their
 factors: `ratio`) and on new material data each time (every Young modulus × 1.01, 1.02, …:
 numeric refactors in both, as in a study that samples materials: `ratio_new`); the best
-time is kept (the machine is shared). Also printed: the DD's phases (assembly = the local
+time is kept (the machine is shared), and the ratios of the best CPU times of the process
+(`ratio_cpu`, `ratio_new_cpu`: less sensitive to other jobs on the machine). Also printed: the DD's phases (assembly = the local
 factorizations, Dirichlet and Neumann applications, contact solves) and the agreement with
 the monolithic answer.
 
@@ -34,16 +35,18 @@ REPEAT = 3
 CASES = [("tunnel", "tunnel-fault.yaml", 1.0, {"subdomains": 12}),
          ("hertz", "validation/hertz.yaml", 0.53, {"subdomains": 12})]
 FIELDS = ["case", "ndof", "units", "largest_unit", "status", "pcg1", "successive", "pcg2", "time_dd", "time_mono",
-          "ratio", "time_dd_new", "time_mono_new", "ratio_new", "assemble", "dirichlet", "neumann", "coarse", "contact", "err_u", "err_lam_n"]
+          "ratio", "time_dd_new", "time_mono_new", "ratio_new", "ratio_cpu", "ratio_new_cpu", "assemble", "dirichlet", "neumann", "coarse", "contact", "err_u", "err_lam_n"]
 
 
 def best(f, n=REPEAT):
-    times, out = [], None
+    """(best wall time, best CPU time of this process, the last result)."""
+    times, cpu, out = [], [], None
     for _ in range(n):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = f()
         times.append(time.perf_counter() - t)
-    return min(times), out
+        cpu.append(time.process_time() - c)
+    return min(times), min(cpu), out
 
 
 def measure(name, study_file, scale, dd):
@@ -61,19 +64,20 @@ def measure(name, study_file, scale, dd):
 
     nominal = model.coefficients(study.scene)
     dd_solve(nominal), model.solve(nominal)                         # warm both
-    t_dd, res = best(lambda: dd_solve(nominal))                     # same data: no refactor
-    t_mono, mono = best(lambda: model.solve(nominal))
+    t_dd, c_dd, res = best(lambda: dd_solve(nominal))                     # same data: no refactor
+    t_mono, c_mono, mono = best(lambda: model.solve(nominal))
     rank = res.info["ranks"][0]
     k = iter(range(1, 100))
-    t_dd_new, _ = best(lambda: dd_solve(data_of(next(k))))        # new data: numeric refactors
+    t_dd_new, c_dd_new, _ = best(lambda: dd_solve(data_of(next(k))))        # new data: numeric refactors
     k = iter(range(1, 100))
-    t_mono_new, _ = best(lambda: model.solve(data_of(next(k))))
+    t_mono_new, c_mono_new, _ = best(lambda: model.solve(data_of(next(k))))
     dec = dds.decomposition(model, options)
     row = {"case": name, "ndof": dec.ndof, "units": len(dec.units),
            "largest_unit": max(u.dofs.size for u in dec.units) / dec.ndof, "status": res.status.value,
            "pcg1": res.info.get("pcg1"), "successive": res.info.get("successive"), "pcg2": res.info.get("pcg2"),
            "time_dd": t_dd, "time_mono": t_mono, "ratio": t_dd / t_mono,
            "time_dd_new": t_dd_new, "time_mono_new": t_mono_new, "ratio_new": t_dd_new / t_mono_new,
+           "ratio_cpu": c_dd / c_mono, "ratio_new_cpu": c_dd_new / c_mono_new,
            **{k: rank.get(k, 0.0) for k in ("assemble", "dirichlet", "neumann", "coarse", "contact")}}
     if res.u is not None:
         row["err_u"] = float(np.linalg.norm(res.u - mono.u) / np.linalg.norm(mono.u))

@@ -379,25 +379,39 @@ class PairUnit(Unit):
     def held_schur(self, rows: np.ndarray) -> np.ndarray:
         """Dense Schur complement on B of the pair with the rows `rows` of [Bn; Bt] held (closed
         normals, stuck tangents: the linearisation at an active set; the glue rows give S⁰_p).
-        Rows among the glue rows: the glued one with the others released, a downdate of rank
-        |R| (R: the released glue rows): S⁰_p − P_R (−H_RR)⁻¹ P_Rᵀ (`_glue_inverse`), no new
-        null basis; else from the null basis of the rows (`_held`). SetupError where the rows
-        leave a floating half free (see `_held`)."""
+        From the inverse of the glued contact block (`_glue_inverse`), no new null basis: the
+        glue rows R not held released, a downdate of rank |R|, S' = S⁰_p − P_R (−H_RR)⁻¹ P_Rᵀ
+        (G' = G − E_R H_RR⁻¹ E_Rᵀ, H_RR negative definite), then the held rows C_T outside the glue added, an update
+        S' + Wᵀ Q⁺ W with W = C_T G' Σ⁰_cB, Q = C_T G' C_Tᵀ (Q⁺: its pseudo-inverse, exact
+        where a row of C_T depends on the others). Where the glue without R is singular (it
+        leaves a floating half to the rows of C_T: −H_RR not positive definite), from the null
+        basis of the rows (`_held`). SetupError where the rows leave a floating half free."""
         rows = np.asarray(rows, dtype=np.int64)
+        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
+            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
         released = ~np.isin(self.glue_rows, rows)
-        if np.isin(rows, self.glue_rows).all():
-            if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
-                raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
-            P = self._P[:, released]
-            M = _cho(-self._H[np.ix_(released, released)], f"the released glue rows of pair {self.index}")
-            S = self.S - P @ sla.cho_solve(M, P.T)
-        else:
+        try:
+            M = sla.cho_factor(-self._H[np.ix_(released, released)])
+        except np.linalg.LinAlgError:
             _, _, T = self._held(rows)
             S = self._Sbb - self._Sbc @ T
+            return 0.5 * (S + S.T)
+        P, E = self._P[:, released], self._E[:, released]
+        S = self.S - P @ sla.cho_solve(M, P.T)
+        added = rows[~np.isin(rows, self.glue_rows)]
+        if added.size:
+            Ct = self._C_c[added]
+            CE = Ct @ E
+            W = Ct @ self._T + CE @ sla.cho_solve(M, P.T)
+            Q = Ct @ self._G @ Ct.T + CE @ sla.cho_solve(M, CE.T)
+            lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
+            keep = lam > 1e-10 * max(lam.max(initial=0.0), 1e-300)
+            VW = V[:, keep].T @ W
+            S = S + VW.T @ (VW / lam[keep][:, None])
         return 0.5 * (S + S.T)
 
     def _glue_inverse(self):
-        """P = Σ⁰_Bc E and H of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
+        """P = Σ⁰_Bc E, H, E and G of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
         K = [[Σ⁰_cc, Cᵀ], [C, 0]] (C: the glue rows): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ,
         E = (I − G Σ⁰_cc) C⁺, H = −C⁺ᵀ Σ⁰_cc E, C⁺ = Cᵀ (C Cᵀ)⁻¹. Releasing glue rows R is the
         inverse of K without R: G_R = G − E_R H_RR⁻¹ E_Rᵀ (the inverse of a principal block
@@ -408,7 +422,7 @@ class PairUnit(Unit):
         G = N @ sla.cho_solve(self._M, N.T)
         E = Cp - G @ (self._Scc @ Cp)
         H = -Cp.T @ (self._Scc @ E)
-        return self._Sbc @ E, 0.5 * (H + H.T)
+        return self._Sbc @ E, 0.5 * (H + H.T), E, G
 
     def _dense(self):
         S0, xB, xc = self._schur0, self.xB, self.xc
@@ -416,7 +430,7 @@ class PairUnit(Unit):
         self._glue_null, self._M, self._T = self._held(self.glue_rows)
         S = self._Sbb - self._Sbc @ self._T
         self.S = 0.5 * (S + S.T)
-        self._P, self._H = self._glue_inverse()
+        self._P, self._H, self._E, self._G = self._glue_inverse()
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
                                   f"the Neumann matrix of pair {self.index}")
         self._cf = None                     # the condensed contact factor of this data set

@@ -221,14 +221,25 @@ class InterfaceOperator:
     ([21, (5.11)] needs those; a subdomain held by a roller or a sliver of a support has a
     small Neumann eigenvalue on the others and needs them too).
     `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
-    each rank solves its own units' local problems, the pieces are summed in unit order."""
+    each rank solves its own units' local problems, the pieces are summed in unit order.
+    `basis`: the orthonormal basis of V_H when known (interface Newton's J_k: the glued
+    operator's, the same units, weights and traces, for every active set)."""
 
     def __init__(self, units, nif: int, weights: list[np.ndarray], traces: list[np.ndarray],
-                 team: Team | None = None):
+                 team: Team | None = None, basis: np.ndarray | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
         self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
         self.applications = 0
+        Z = self._basis(units, nif, weights, traces) if basis is None else basis
+        tm = self.team.timings
+        t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
+        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
+        tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
+
+    @staticmethod
+    def _basis(units, nif, weights, traces) -> np.ndarray:
+        """An orthonormal basis of V_H = span{R_uᵀ D_u Y_u}."""
         Zs = [(u.gamma, w[:, None] * y[u.B]) for u, w, y in zip(units, weights, traces) if y.shape[1] and u.B.size]
         k = sum(z.shape[1] for _, z in Zs)
         Z = np.zeros((nif, k))
@@ -236,11 +247,7 @@ class InterfaceOperator:
         for g, z in Zs:
             Z[g, j:j + z.shape[1]] = z
             j += z.shape[1]
-        Z = _orth(Z)
-        tm = self.team.timings
-        t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
-        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
-        tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
+        return _orth(Z)
 
     def apply(self, U: np.ndarray) -> np.ndarray:
         self.applications += 1
@@ -411,7 +418,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
                   f"{'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; ")
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+        status, message, U, bound = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
                                                     float(np.linalg.norm(rhs)))
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
@@ -698,7 +705,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | 
         x = r.x / max(np.linalg.norm(r.x), 1e-300)
 
 
-def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, load):
+def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, load):
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
@@ -708,7 +715,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
-        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load)
+        status, message, U = _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
             return status, message, U, bound
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
@@ -725,7 +732,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
             f"Tresca problems", U, bound)
 
 
-def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
+def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
     """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
     `bound`; None: all stick): J_k δ = r_k = F − S0 U_k − S_con(U_k) with
     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
@@ -740,9 +747,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
     equilibrium residual on Γ (the units' interiors are solved exactly), `load` the norm of the
     reduced load: a scale that does not vanish where the interface does not move (an open
     contact over an unloaded body). `cache`: see `_linearised`."""
-    hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
-    lin_D = [D[u.index] for u in lin]
-    lin_Y = [dec.traces[u.index] for u in lin]
+    hist, tol, lin = info["history"], o["tolerance"], dec.linear
 
     def residual(U):
         rc, free, error = _contact_residual(dec, U, d, bound, o, team)
@@ -771,8 +776,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
         try:
             lp = _linearised(dec, free, team, cache)
             if "J" not in cache:
-                cache["J"] = InterfaceOperator(lp + lin, dec.nif, [D[p.index] for p in pairs] + lin_D,
-                                               [dec.traces[p.index] for p in pairs] + lin_Y, team)
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=S.coarse.Z)
             J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
             return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U
