@@ -13,6 +13,16 @@ time is kept (the machine is shared), and the ratios of the best CPU times of th
 factorizations, Dirichlet and Neumann applications, contact solves) and the agreement with
 the monolithic answer.
 
+Measured (one BLAS thread, the shared 2 cores; `python tests/bench/test_bench_dd_cost.py`
+on the branch and on its base in one session), ratio same data / new data:
+tunnel 7.7× / 6.3× → 3.0× / 4.2× (DD 0.27 s → 0.10 s), Hertz 11.1× / 5.9× → 7.0× / 3.7×
+(DD 1.61 s → 0.72 s; interface Newton's PCG 71 → 49). What went: the ρ estimate stops at
+the first lower bound ≥ seed_rho (5 power steps → 1 here), a pair's linearisation is an
+update of its glued Schur complement (no QR per active set), its Neumann solve the glued
+one (no eigendecomposition per active set), J the glued coarse basis. What is left on
+Hertz (cProfile): the dense Dirichlet and Neumann products of the ≈ 80 PCG iterations
+(≈ 50 %), the two sparse solves per unit of the load and the interior values (≈ 15 %).
+
 Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py
 """
@@ -30,6 +40,7 @@ from common import write_table  # noqa: E402
 from dd_bench import _scale_mesh  # noqa: E402
 from dd_common import build  # noqa: E402
 from wcs.dd import solver as dds  # noqa: E402
+from wcs.linalg import configure_threads  # noqa: E402
 
 REPEAT = 3
 CASES = [("tunnel", "tunnel-fault.yaml", 1.0, {"subdomains": 12}),
@@ -107,4 +118,5 @@ def test_one_dd_solve_against_a_warm_monolithic_evaluation():
 
 
 if __name__ == "__main__":
-    main()
+    configure_threads()          # one BLAS/MKL thread, as a test session (measured: two threads on the
+    main()                       # shared 2 cores made both solvers 5-10x slower, and the ratios random)
