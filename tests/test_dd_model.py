@@ -56,7 +56,7 @@ def test_dd_agrees_with_monolithic_through_the_model():
     dd = study("contact-patch", {**STRICT, "dd": {"subdomains": 6}})
     a, b = mono.evaluate(mono.nominal()), dd.evaluate(dd.nominal())
     assert b.status == 0 and b.state.solver.startswith("dd: ") and b.iterations >= 1
-    assert "ρ(S0⁻¹ dS_con) ≈" in b.message          # the estimate that chose the step, in the evaluation
+    assert "ρ(S0⁻¹ dS_con) ≥" in b.message          # the bound that chose the step, in the evaluation
     assert_agree(a, b)
 
 
@@ -115,7 +115,7 @@ def test_newton_solves_the_tunnel_where_the_seeds_step_fails():
     dd = tunnel({**STRICT, "dd": {"subdomains": 12}})
     b = dd.evaluate(dd.nominal())
     assert b.status == 0, b.message
-    assert b.state.solver.startswith("dd: ρ(S0⁻¹ dS_con) ≈ ") and ": newton; interface Newton converged" in b.message
+    assert b.state.solver.startswith("dd: ρ(S0⁻¹ dS_con) ≥ ") and ": newton; interface Newton converged" in b.message
     assert_agree(mono.evaluate(mono.nominal()), b)
 
 
@@ -174,7 +174,7 @@ def test_dd_agrees_on_a_thermal_contact_scene():
         s = wcs.load_study(doc, base_dir=ROOT)
         out.append(s.evaluate(s.nominal()))
     assert out[1].state.T is not None and np.any(out[1].state.contact.force_t)
-    assert re.search(r"ρ\(S0⁻¹ dS_con\) ≈ \S+ at U⁰ \(≥ 0.5\): newton; interface Newton converged", out[1].message)
+    assert re.search(r"ρ\(S0⁻¹ dS_con\) ≥ \S+ at U⁰ \(\d power steps; ≥ 0.5\): newton; interface Newton converged", out[1].message)
     assert np.allclose(out[1].state.T, out[0].state.T, rtol=1e-8, atol=0)
     assert_agree(*out)
 
@@ -199,4 +199,4 @@ def test_check_prints_the_rho_estimate(tmp_path, capsys):
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     assert main(["check", str(path)]) == 0
     line = next(s for s in capsys.readouterr().out.splitlines() if "nominal solve" in s)
-    assert "solved (dd: ρ(S0⁻¹ dS_con) ≈ " in line and "interface Newton converged" in line, line
+    assert "solved (dd: ρ(S0⁻¹ dS_con) ≥ " in line and "interface Newton converged" in line, line

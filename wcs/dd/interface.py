@@ -183,16 +183,6 @@ def _pinned_inverse(S: np.ndarray, Z: np.ndarray, what: str) -> np.ndarray:
     return np.triu(inv) + np.triu(inv, 1).T
 
 
-def _pseudo_inverse(S: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
-    """Moore–Penrose inverse of the symmetric S, eigenvalues below rtol·max|λ| taken as its kernel:
-    the Neumann solve of a pair linearised at an active set, whose Schur complement can be
-    singular beyond the halves' rigid motions to rounding (a half held by a few closed nodes:
-    eigenvalues ~1e-16 of the largest, of either sign)."""
-    lam, V = np.linalg.eigh(0.5 * (S + S.T))
-    keep = lam > rtol * max(np.abs(lam).max(initial=0.0), 1e-300)
-    return (V[:, keep] / lam[keep]) @ V[:, keep].T
-
-
 # ---- units -------------------------------------------------------------------------------
 class Unit:
     """A linear subdomain (or, in its linear uses, a pair): local Dirichlet and Neumann solves.
@@ -389,10 +379,50 @@ class PairUnit(Unit):
     def held_schur(self, rows: np.ndarray) -> np.ndarray:
         """Dense Schur complement on B of the pair with the rows `rows` of [Bn; Bt] held (closed
         normals, stuck tangents: the linearisation at an active set; the glue rows give S⁰_p).
-        SetupError where the rows leave a floating half free (see `_held`)."""
-        _, _, T = self._held(np.asarray(rows, dtype=np.int64))
-        S = self._Sbb - self._Sbc @ T
+        From the inverse of the glued contact block (`_glue_inverse`), no new null basis: the
+        glue rows R not held released, a downdate of rank |R|, S' = S⁰_p − P_R (−H_RR)⁻¹ P_Rᵀ
+        (G' = G − E_R H_RR⁻¹ E_Rᵀ, H_RR negative definite), then the held rows C_T outside the glue added, an update
+        S' + Wᵀ Q⁺ W with W = C_T G' Σ⁰_cB, Q = C_T G' C_Tᵀ (Q⁺: its pseudo-inverse, exact
+        where a row of C_T depends on the others). Where the glue without R is singular (it
+        leaves a floating half to the rows of C_T: −H_RR not positive definite), from the null
+        basis of the rows (`_held`). SetupError where the rows leave a floating half free."""
+        rows = np.asarray(rows, dtype=np.int64)
+        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
+            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
+        released = ~np.isin(self.glue_rows, rows)
+        try:
+            M = sla.cho_factor(-self._H[np.ix_(released, released)])
+        except np.linalg.LinAlgError:
+            _, _, T = self._held(rows)
+            S = self._Sbb - self._Sbc @ T
+            return 0.5 * (S + S.T)
+        P, E = self._P[:, released], self._E[:, released]
+        S = self.S - P @ sla.cho_solve(M, P.T)
+        added = rows[~np.isin(rows, self.glue_rows)]
+        if added.size:
+            Ct = self._C_c[added]
+            CE = Ct @ E
+            W = Ct @ self._T + CE @ sla.cho_solve(M, P.T)
+            Q = Ct @ self._G @ Ct.T + CE @ sla.cho_solve(M, CE.T)
+            lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
+            keep = lam > 1e-10 * max(lam.max(initial=0.0), 1e-300)
+            VW = V[:, keep].T @ W
+            S = S + VW.T @ (VW / lam[keep][:, None])
         return 0.5 * (S + S.T)
+
+    def _glue_inverse(self):
+        """P = Σ⁰_Bc E, H, E and G of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
+        K = [[Σ⁰_cc, Cᵀ], [C, 0]] (C: the glue rows): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ,
+        E = (I − G Σ⁰_cc) C⁺, H = −C⁺ᵀ Σ⁰_cc E, C⁺ = Cᵀ (C Cᵀ)⁻¹. Releasing glue rows R is the
+        inverse of K without R: G_R = G − E_R H_RR⁻¹ E_Rᵀ (the inverse of a principal block
+        from the full inverse), so the Schur complement on B becomes S⁰_p + P_R H_RR⁻¹ P_Rᵀ."""
+        C = self._C_c[self.glue_rows]
+        Cp = sla.cho_solve(_cho(C @ C.T, f"the glue rows of pair {self.index}"), C).T
+        N = self._glue_null
+        G = N @ sla.cho_solve(self._M, N.T)
+        E = Cp - G @ (self._Scc @ Cp)
+        H = -Cp.T @ (self._Scc @ E)
+        return self._Sbc @ E, 0.5 * (H + H.T), E, G
 
     def _dense(self):
         S0, xB, xc = self._schur0, self.xB, self.xc
@@ -400,6 +430,7 @@ class PairUnit(Unit):
         self._glue_null, self._M, self._T = self._held(self.glue_rows)
         S = self._Sbb - self._Sbc @ self._T
         self.S = 0.5 * (S + S.T)
+        self._P, self._H, self._E, self._G = self._glue_inverse()
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
                                   f"the Neumann matrix of pair {self.index}")
         self._cf = None                     # the condensed contact factor of this data set
@@ -511,11 +542,14 @@ class PairUnit(Unit):
         of `free` (`ContactResult.free`, (2m,)) held instead of the glue; open and slipping
         rows carry forces that do not vary with V. S_p is affine where the active set holds
         ([21, (4.27)–(4.28)] piece by piece), and this pair's Schur complement `held_schur`
-        is its derivative there, its Neumann solve the pseudo-inverse. The dense operators
-        only with `factor` (the rank that owns the pair, which holds the factor)."""
+        is its derivative there. Its Neumann solve stays the glued pair's generalized inverse
+        (S⁰_p)†: a preconditioner need only be positive definite, and no eigendecomposition
+        per active set is needed (a held half can be singular beyond its rigid motions to
+        rounding; measured: interface Newton's PCG iterations 70 → 49 on Hertz at 1.05e5
+        unknowns, 36 → 39 on the tunnel). The dense operator only with `factor` (the rank that
+        owns the pair, which holds the factor)."""
         lin = copy.copy(self)
         lin.glue = "active set"
         if factor:
             lin.S = self.held_schur(np.flatnonzero(free))
-            lin._N = _pseudo_inverse(lin.S)
         return lin

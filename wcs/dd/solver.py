@@ -23,7 +23,8 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
      (injections oD_u (6.4)–(6.6): the ρ-weights over linear subdomains only, so 1 next to
      a pair), warm started from U^{k−1}; S_con by one local contact solve per pair.
      They contract only if ρ(S0⁻¹ dS_con) < 1 ([21, Cor. 7.1]: 2β² < 1); `auto` estimates
-     ρ by a few power steps at U⁰ and takes them below `seed_rho`, else Newton.
+     ρ from below by power steps at U⁰ (stopping once the bound reaches `seed_rho`) and
+     takes them below `seed_rho`, else Newton.
 3. Monitoring of the seed's step ([21, §7]): stop when ‖U^k − U^{k−1}‖_{S0} ≤ tol ‖U^k‖_{S0}; the
    contraction estimate q_k = ‖ΔU^k‖/‖ΔU^{k−1}‖ gives the a-posteriori bound
    q/(1−q)‖ΔU^k‖ (Theorem 7.1: contraction 2β² < 1); q_k ≥ 1 for `patience`
@@ -220,14 +221,25 @@ class InterfaceOperator:
     ([21, (5.11)] needs those; a subdomain held by a roller or a sliver of a support has a
     small Neumann eigenvalue on the others and needs them too).
     `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
-    each rank solves its own units' local problems, the pieces are summed in unit order."""
+    each rank solves its own units' local problems, the pieces are summed in unit order.
+    `basis`: the orthonormal basis of V_H when known (interface Newton's J_k: the glued
+    operator's, the same units, weights and traces, for every active set)."""
 
     def __init__(self, units, nif: int, weights: list[np.ndarray], traces: list[np.ndarray],
-                 team: Team | None = None):
+                 team: Team | None = None, basis: np.ndarray | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
         self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
         self.applications = 0
+        Z = self._basis(units, nif, weights, traces) if basis is None else basis
+        tm = self.team.timings
+        t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
+        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
+        tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
+
+    @staticmethod
+    def _basis(units, nif, weights, traces) -> np.ndarray:
+        """An orthonormal basis of V_H = span{R_uᵀ D_u Y_u}."""
         Zs = [(u.gamma, w[:, None] * y[u.B]) for u, w, y in zip(units, weights, traces) if y.shape[1] and u.B.size]
         k = sum(z.shape[1] for _, z in Zs)
         Z = np.zeros((nif, k))
@@ -235,11 +247,7 @@ class InterfaceOperator:
         for g, z in Zs:
             Z[g, j:j + z.shape[1]] = z
             j += z.shape[1]
-        Z = _orth(Z)
-        tm = self.team.timings
-        t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
-        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
-        tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
+        return _orth(Z)
 
     def apply(self, U: np.ndarray) -> np.ndarray:
         self.applications += 1
@@ -399,16 +407,18 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     if singular and step == "auto":
         step, prefix = "newton", f"{singular}: newton; "
     if step == "auto":
-        rho = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
-        if rho is None:
+        estimate = _rho_estimate(dec, S0, r1.x, d, None if F.any() else gw, o, team, cache)
+        if estimate is None:
             info["ranks"] = team.report()
             return _fail(info, DDOutcome.LOCAL_FAILED, "a contact solve of the ρ estimate failed")
+        rho, info["rho_steps"] = estimate
         step = "seed" if rho < o["seed_rho"] else "newton"
         info["rho"] = rho
-        prefix = f"ρ(S0⁻¹ dS_con) ≈ {rho:.3g} at U⁰ ({'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; "
+        prefix = (f"ρ(S0⁻¹ dS_con) ≥ {rho:.3g} at U⁰ ({estimate[1]} power steps; "
+                  f"{'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; ")
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, D, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+        status, message, U, bound = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
                                                     float(np.linalg.norm(rhs)))
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
@@ -671,25 +681,31 @@ def _pairs_apply(team, lin_pairs, nif, x):
     return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif)
 
 
-def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> float | None:
-    """ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of the local
-    contact solves there) by `rho_steps` power steps x ← S0⁻¹ L x (PCG2 to 1e-2), then the
-    Rayleigh quotient xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint: a lower bound that converges to
-    ρ). The seed's step U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the
-    solution only if ρ < 1 ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
+def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
+    """A lower bound of ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of
+    the local contact solves there), and the power steps it took: the Rayleigh quotient
+    xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint, L ⪰ 0: every x gives a lower bound, power steps
+    x ← S0⁻¹ L x (PCG2 to 1e-2) raise it towards ρ), from a fixed start, after each of at most
+    `rho_steps` steps; it stops as soon as the bound reaches `seed_rho` (the seed's step is
+    then ruled out whatever more steps would give). The seed's step
+    U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
+    ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
     _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
     if free is None:
         return None
     L = _linearised(dec, free, team, cache)
     x = np.random.default_rng(0).standard_normal(dec.nif)       # a fixed start: the same ρ every time
-    for _ in range(o["rho_steps"]):
-        r = pcg(S0.apply, S0.precondition, _pairs_apply(team, L, dec.nif, x), np.zeros(dec.nif), tol=1e-2,
+    for k in range(o["rho_steps"] + 1):
+        Lx = _pairs_apply(team, L, dec.nif, x)
+        q = float(x @ Lx) / max(float(x @ S0.apply(x)), 1e-300)
+        if q >= o["seed_rho"] or k == o["rho_steps"]:
+            return q, k
+        r = pcg(S0.apply, S0.precondition, Lx, np.zeros(dec.nif), tol=1e-2,
                 max_iter=o["pcg_max_iterations"], coarse=S0.coarse)
         x = r.x / max(np.linalg.norm(r.x), 1e-300)
-    return float(x @ _pairs_apply(team, L, dec.nif, x)) / max(float(x @ S0.apply(x)), 1e-300)
 
 
-def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, load):
+def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, load):
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
@@ -699,7 +715,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
-        status, message, U = _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load)
+        status, message, U = _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
             return status, message, U, bound
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
@@ -716,7 +732,7 @@ def _coulomb_newton(dec, S0, D, F, U, d, gw, Fc, weight, o, info, team, cache, l
             f"Tresca problems", U, bound)
 
 
-def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
+def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
     """Newton on the interface equation S0 U + S_con(U) = F [21, (4.32)] (Tresca, bounds
     `bound`; None: all stick): J_k δ = r_k = F − S0 U_k − S_con(U_k) with
     J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active sets A_k of the
@@ -731,9 +747,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
     equilibrium residual on Γ (the units' interiors are solved exactly), `load` the norm of the
     reduced load: a scale that does not vanish where the interface does not move (an open
     contact over an unloaded body). `cache`: see `_linearised`."""
-    hist, tol, pairs, lin = info["history"], o["tolerance"], dec.pairs, dec.linear
-    lin_D = [D[u.index] for u in lin]
-    lin_Y = [dec.traces[u.index] for u in lin]
+    hist, tol, lin = info["history"], o["tolerance"], dec.linear
 
     def residual(U):
         rc, free, error = _contact_residual(dec, U, d, bound, o, team)
@@ -762,8 +776,7 @@ def _newton(dec, S0, D, F, U, d, bound, o, info, team, cache, load: float):
         try:
             lp = _linearised(dec, free, team, cache)
             if "J" not in cache:
-                cache["J"] = InterfaceOperator(lp + lin, dec.nif, [D[p.index] for p in pairs] + lin_D,
-                                               [dec.traces[p.index] for p in pairs] + lin_Y, team)
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=S.coarse.Z)
             J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
             return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U
