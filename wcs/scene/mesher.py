@@ -212,10 +212,6 @@ def _region_entity_sizes(owner: dict, regions_flat: list) -> dict:
 # build
 
 
-def _area(tag: int) -> float:
-    return float(gmsh.model.occ.getMass(2, tag))
-
-
 def _extract(owner: dict, inside: dict, offset: int = 0):
     """Nodes (k, 2) and, per owned surface in (body, region, tag) order, its cells (global
     numbering = offset + gmsh node order), body and region indices, and (n_roi, cells)
@@ -281,6 +277,31 @@ def fragment_pieces(region_shapes: list, roi_shapes: list, dim: int = 2):
         gmsh.model.occ.synchronize()
     inside = {tag: [j in rois.get(tag, ()) for j in range(len(roi_shapes))] for tag in covered}
     return covered, inside
+
+
+def piece_owners(covered: dict, inputs: list, bodies: list, regions: list, dim: int = 2) -> dict:
+    """piece tag -> (body, region) of the fragment's pieces (surfaces in 2D, volumes in 3D):
+    the last region covering a piece owns it; two bodies on one piece are an overlap, and a
+    region left without a piece is refused (both StudyError at the body's / region's path)."""
+    what, left = ("area", "shape") if dim == 2 else ("volume", "solid")
+    owner: dict[int, tuple[int, int]] = {}
+    for tag in sorted(covered):
+        ks = sorted(covered[tag])
+        bs = sorted({inputs[k][0] for k in ks})
+        if len(bs) > 1:
+            raise StudyError(
+                f"body {bodies[bs[1]]!r} overlaps body {bodies[bs[0]]!r} "
+                f"(common {what} {gmsh.model.occ.getMass(dim, tag):.6g}); bodies may touch but not overlap",
+                path=f"scene.bodies.{bodies[bs[1]]}")
+        owner[tag] = (bs[0], max(inputs[k][1] for k in ks))
+    used = {rg for _, rg in owner.values()}
+    for b, rg, _ in inputs:
+        if rg not in used:
+            i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
+            raise StudyError(
+                f"region {regions[rg][1]!r} has no {what} left (empty {left}, or covered by "
+                f"later regions of the body)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
+    return owner
 
 
 def _generate(splits: int) -> None:
@@ -359,23 +380,7 @@ def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
         # -- one fragment of everything (regions of interest included) -> conforming pieces
         covered, inside = fragment_pieces([dts for _, _, dts in inputs], _roi_shapes(scene, embed))
 
-        owner: dict[int, tuple[int, int]] = {}      # piece tag -> (body, region)
-        for tag in sorted(covered):
-            ks = sorted(covered[tag])
-            bs = sorted({inputs[k][0] for k in ks})
-            if len(bs) > 1:
-                raise StudyError(
-                    f"body {bodies[bs[1]]!r} overlaps body {bodies[bs[0]]!r} "
-                    f"(common area {_area(tag):.6g}); bodies may touch but not overlap",
-                    path=f"scene.bodies.{bodies[bs[1]]}")
-            owner[tag] = (bs[0], max(inputs[k][1] for k in ks))
-        used = set(rg for _, rg in owner.values())
-        for k, (b, rg, _) in enumerate(inputs):
-            if rg not in used:
-                i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
-                raise StudyError(
-                    f"region {regions[rg][1]!r} has no area left (empty shape, or covered by "
-                    f"later regions of the body)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
+        owner = piece_owners(covered, inputs, bodies, regions)
 
         # -- sizes and meshing
         xmin, ymin, _, xmax, ymax, _ = gmsh.model.getBoundingBox(-1, -1)

@@ -60,7 +60,7 @@ from ..errors import StudyError
 from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
-from .mesher import fragment_pieces, region_names
+from .mesher import fragment_pieces, piece_owners, region_names
 from .session import Session
 from .spec3d import Boundary, Plane, RegionOfInterest, Scene, Solid
 
@@ -153,27 +153,6 @@ def _roi_solid(roi: RegionOfInterest, path: str) -> DimTags:
     return make_solid(Solid(**{ROI_SOLIDS[kind]: getattr(roi, kind)}), path)
 
 
-def _owners(covered: dict, inputs: list, bodies: list, regions: list) -> dict:
-    """piece -> (body, region): the last region covering it; two bodies on a piece: an overlap."""
-    owner = {}
-    for tag in sorted(covered):
-        ks = sorted(covered[tag])
-        bs = sorted({inputs[k][0] for k in ks})
-        if len(bs) > 1:
-            raise StudyError(
-                f"body {bodies[bs[1]]!r} overlaps body {bodies[bs[0]]!r} (common volume "
-                f"{gmsh.model.occ.getMass(3, tag):.6g}); bodies may touch but not overlap",
-                path=f"scene.bodies.{bodies[bs[1]]}")
-        owner[tag] = (bs[0], max(inputs[k][1] for k in ks))
-    used = {rg for _, rg in owner.values()}
-    for b, rg, _ in inputs:
-        if rg not in used:
-            i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
-            raise StudyError(f"region {regions[rg][1]!r} has no volume left (empty solid, or covered "
-                             "by later regions of the body)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
-    return owner
-
-
 def _extract(owner: dict, inside: dict):
     """Nodes (k, 3); per owned volume in (body, region, tag) order its tetrahedra (gmsh node
     order), body and region indices, and (n_roi, cells) flags of the regions of interest."""
@@ -247,7 +226,7 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
             roi_solids = [_roi_solid(scene.regions_of_interest[n], f"scene.regions_of_interest.{n}")
                           for n in embed]
             covered, inside = fragment_pieces([dts for _, _, dts in inputs], roi_solids, dim=3)
-            owner = _owners(covered, inputs, bodies, regions)
+            owner = piece_owners(covered, inputs, bodies, regions, dim=3)
             lo, hi = np.array(gmsh.model.getBoundingBox(-1, -1)).reshape(2, 3)
             size = (scene.mesh.size if scene.mesh.size is not None
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
