@@ -505,18 +505,31 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     sizes = [(("mesh", "size"), scene.mesh.size, "the scene", sum(boxes.values(), []))]
     sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
               for b, spec in scene.bodies.items() if spec.mesh is not None and spec.mesh.size]
-    for where, h, what, bx in sizes:
-        longest = max(max(b[2] for b in bx) - min(b[0] for b in bx), max(b[3] for b in bx) - min(b[1] for b in bx))
+    _refuse_coarse([(where, h, what, max(max(b[2] for b in bx) - min(b[0] for b in bx),
+                                         max(b[3] for b in bx) - min(b[1] for b in bx)))
+                    for where, h, what, bx in sizes], src)
+    cells, path = estimate_cells(scene)
+    _refuse_many(scene, cells, path, f"{cells:.3g} cells ({cells:.3g} unknowns)", src)
+    return cells
+
+
+def _refuse_coarse(sizes, src: _Source) -> None:
+    """StudyError where a mesh size (where, h, what, longest side) leaves fewer than
+    MIN_CELLS_ALONG cells along the longest side."""
+    for where, h, what, longest in sizes:
         if h > longest / MIN_CELLS_ALONG:
             raise src.error(where, f"size {h:g} leaves fewer than {MIN_CELLS_ALONG} cells along the longest "
                                    f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
-    cells, path = estimate_cells(scene)
+
+
+def _refuse_many(scene, cells: float, path: str, about: str, src: _Source) -> None:
+    """StudyError at the size contributing most (`path`) when the estimated `cells` exceed
+    `mesh.max_cells`; `about` says what they are."""
     limit = DEFAULT_MAX_CELLS if scene.mesh.max_cells is None else scene.mesh.max_cells
     if cells > limit:
-        raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} cells "
-                        f"({cells:.3g} unknowns), more than mesh.max_cells = {limit:g} (this size contributes "
-                        "most); coarsen the mesh or raise `mesh.max_cells`")
-    return cells
+        raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, more than "
+                        f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
+                        "`mesh.max_cells`")
 
 
 def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
@@ -539,17 +552,9 @@ def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
     sizes = [] if scene.mesh.size is None else [(("mesh", "size"), size, "the scene", everything)]
     sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
               for b, spec in scene.bodies.items() if spec.mesh is not None]
-    for where, h, what, bx in sizes:
-        longest = float(np.max(hi(bx) - lo(bx)))
-        if h > longest / MIN_CELLS_ALONG:
-            raise src.error(where, f"size {h:g} leaves fewer than {MIN_CELLS_ALONG} cells along the longest "
-                                   f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
+    _refuse_coarse([(where, h, what, float(np.max(hi(bx) - lo(bx)))) for where, h, what, bx in sizes], src)
     cells, path = estimate_cells3d(scene, size)
-    limit = DEFAULT_MAX_CELLS if scene.mesh.max_cells is None else scene.mesh.max_cells
-    if cells > limit:
-        raise src.error(tuple(path.split(".")), f"the mesh would have about {cells:.3g} tetrahedra, more than "
-                        f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
-                        "`mesh.max_cells`")
+    _refuse_many(scene, cells, path, f"{cells:.3g} tetrahedra", src)
     return cells
 
 
