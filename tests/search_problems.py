@@ -19,6 +19,7 @@ solves and enforces an optional hard cap of its own (truncating batches).
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -204,3 +205,16 @@ def drive(method: str, tp: AnalyticProblem, config: dict, seed: int = 0, cap: in
 
 def relative_error(tp: AnalyticProblem, worst, c: str) -> float:
     return (tp.optimum[c] - worst.value[c]) / max(abs(tp.optimum[c]), 1e-300)
+
+
+def vertex_ranges(study, lower, upper) -> dict:
+    """criterion -> (min, max) of a study's criteria over every vertex of the box [lower, upper]
+    (the exhaustive reference of a search on a monotone study)."""
+    out = {}
+    for corner in itertools.product(*zip(lower, upper)):
+        ev = study.evaluate(np.array(corner))
+        assert ev.status == 0, ev.message
+        for c, v in ev.phi.items():
+            lo, hi = out.get(c, (np.inf, -np.inf))
+            out[c] = (min(lo, v), max(hi, v))
+    return out

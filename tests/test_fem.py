@@ -7,28 +7,14 @@ L2 error O(h²), energy error O(h); observed rates are asserted within 0.15.
 """
 import numpy as np
 import pytest
-from skfem import Basis, BilinearForm, Functional, LinearForm, MeshTri, asm
-from skfem.helpers import ddot, div, dot, grad, sym_grad
+from skfem import Basis, Functional, LinearForm, MeshTri, asm
+from skfem.helpers import dot
 
+from reference_forms import conduction, div_div, strain_strain
 from wcs import linalg
 from wcs.fem import forms
 from wcs.fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from wcs.fem.constraints import Constraint, eliminate
-
-
-@BilinearForm
-def div_div(u, v, w):
-    return div(u) * div(v)
-
-
-@BilinearForm
-def strain_strain(u, v, w):
-    return 2.0 * ddot(sym_grad(u), sym_grad(v))
-
-
-@BilinearForm
-def conduction(t, s, w):
-    return dot(grad(t), grad(s))
 
 PI = np.pi
 LAM, MU = 2.0, 1.0

@@ -9,19 +9,16 @@ layer the maximum over ν is interior, ν* = 1 − sqrt(1 − α_T |ΔT| E / p) 
 and highest p (its study header)."""
 from __future__ import annotations
 
-import itertools
-import os
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-import xarray as xr
 import yaml
 
 import wcs
+from search_problems import vertex_ranges
+from test_mpi import serial_and_two_ranks
 from wcs import runner
 from wcs.cli import main
 from wcs.report import render_report
@@ -34,7 +31,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PLATE = ROOT / "studies" / "heated-plate.yaml"
 COOLED = ROOT / "studies" / "validation" / "cooled-layer.yaml"
 DEMO = ROOT / "studies" / "two-blocks-demo.yaml"
-BIN = Path(sys.executable).parent
 
 FUZZY_PLATE = {"materials.steel.E": {"support": [1.9e11, 2.3e11], "core": [2.05e11, 2.15e11]},
                "materials.steel.expansion": {"support": [1.0e-5, 1.4e-5], "core": [1.2e-5, 1.2e-5]},
@@ -78,19 +74,6 @@ def test_alpha_cuts_are_the_formula_nested_and_exact_at_the_ends():
     assert all(np.all(p[0] <= q[0]) and np.all(q[1] <= p[1]) for p, q in zip(cuts, cuts[1:]))
 
 
-def vertex_ranges(study, alpha) -> dict:
-    """criterion -> (min, max) over the vertices of the α-cut."""
-    lower, upper = alpha_cut(study, alpha)
-    out = {}
-    for corner in itertools.product(*zip(lower, upper)):
-        ev = study.evaluate(np.array(corner))
-        assert ev.status == 0, ev.message
-        for c, v in ev.phi.items():
-            lo, hi = out.get(c, (np.inf, -np.inf))
-            out[c] = (min(lo, v), max(hi, v))
-    return out
-
-
 def test_monotone_study_levels_equal_vertex_values_nested_at_a_fraction_of_the_cost():
     study = load(plate_doc(), PLATE)
     ds = wcs.run(study, output=False)
@@ -98,7 +81,7 @@ def test_monotone_study_levels_equal_vertex_values_nested_at_a_fraction_of_the_c
     assert list(ds["level"].values) == [0.0, 0.25, 0.5, 0.75, 1.0]
     reference = load(plate_doc(), PLATE)
     for i, alpha in enumerate(study.levels):
-        for c, (lo, hi) in vertex_ranges(reference, alpha).items():
+        for c, (lo, hi) in vertex_ranges(reference, *alpha_cut(reference, alpha)).items():
             pick = {"level": i, "criterion": c}
             assert float(ds["best_value"].isel(level=i).sel(criterion=c)) == pytest.approx(lo, rel=1e-10), pick
             assert float(ds["worst_value"].isel(level=i).sel(criterion=c)) == pytest.approx(hi, rel=1e-10), pick
@@ -133,7 +116,8 @@ def test_triangular_numbers_core_is_one_data_set_and_certified():
     assert np.all(ds["best_certificate"].isel(core).values == "corner-kkt")
     assert "one data set" in str(ds["certificate_note"].isel(core).values[0])
     assert np.array_equal(ds["worst_value"].isel(core).values, ds["best_value"].isel(core).values)
-    for c, (lo, hi) in vertex_ranges(load(doc, PLATE), 0.5).items():
+    plate = load(doc, PLATE)
+    for c, (lo, hi) in vertex_ranges(plate, *alpha_cut(plate, 0.5)).items():
         half = {"level": 2, "criterion": c}
         assert float(ds["worst_value"].sel(criterion=c).isel(level=2)) == pytest.approx(hi, rel=1e-10), half
         assert float(ds["best_value"].sel(criterion=c).isel(level=2)) == pytest.approx(lo, rel=1e-10), half
@@ -230,18 +214,10 @@ def test_resume_of_a_fuzzy_run_is_bitwise(tmp_path):
 
 @pytest.mark.slow
 def test_two_mpi_ranks_give_the_serial_fuzzy_results_bitwise(tmp_path):
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
-    env["PYTHONPATH"] = str(ROOT)                     # this checkout's wcs, on every rank
     doc = plate_doc()
     doc["scene"] = str(PLATE.parent / doc["scene"]) if isinstance(doc["scene"], str) else doc["scene"]
     (tmp_path / "study.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    run = lambda *cmd: subprocess.run([*cmd], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)  # noqa: E731
-    serial = run(str(BIN / "wcs"), "run", "study.yaml", "-o", "serial.nc", "--quiet")
-    assert serial.returncode == 0, serial.stderr
-    parallel = run(str(BIN / "mpiexec"), "-n", "2", str(BIN / "wcs"), "run", "study.yaml", "-o", "mpi.nc", "--quiet")
-    assert parallel.returncode == 0, parallel.stderr + parallel.stdout
-    a = xr.open_dataset(tmp_path / "serial.nc", engine="h5netcdf")
-    b = xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf")
+    a, b = serial_and_two_ranks(tmp_path)
     assert "level" in a.dims and a.sizes["eval"] == b.sizes["eval"]
     for v in ("x", "phi", "grad", "status", "worst_value", "worst_x", "best_value", "best_x", "worst_displacement"):
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v

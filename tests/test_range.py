@@ -9,7 +9,6 @@ values found are evaluations at the very data sets the references evaluate, so t
 round-off; 1e-6 relative is the acceptance of the issue."""
 from __future__ import annotations
 
-import itertools
 import math
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import pytest
 import xarray as xr
 
 import wcs
+from search_problems import vertex_ranges
 from wcs.cli import main
 from wcs.progress import limits_broken, summary_table
 from wcs.report import render_report
@@ -43,18 +43,6 @@ def study_doc(path: Path, sense: str | dict = "both", **top) -> dict:
 
 def load(doc: dict, path: Path):
     return wcs.load_study(doc, base_dir=path.parent)
-
-
-def vertex_range(study) -> dict:
-    """criterion -> (min, max) over every vertex of the box."""
-    out = {}
-    for corner in itertools.product(*zip(study.parameters.lower, study.parameters.upper)):
-        ev = study.evaluate(np.array(corner))
-        assert ev.status == 0, ev.message
-        for c, v in ev.phi.items():
-            lo, hi = out.get(c, (math.inf, -math.inf))
-            out[c] = (min(lo, v), max(hi, v))
-    return out
 
 
 def settlement(nu, E, p, alpha=5.0e-5, dT=60.0, h=1.0):
@@ -85,7 +73,8 @@ def test_cooled_layer_both_ends_equal_the_closed_form():
 def test_monotone_studies_both_ends_equal_the_vertex_values(path):
     study = load(study_doc(path), path)
     ds = wcs.run(study, output=False)
-    reference = vertex_range(load(study_doc(path), path))
+    fresh = load(study_doc(path), path)              # a fresh evaluator for the reference
+    reference = vertex_ranges(fresh, fresh.parameters.lower, fresh.parameters.upper)
     for c, (lo, hi) in reference.items():
         assert float(ds["best_value"].sel(criterion=c)) == pytest.approx(lo, rel=1e-6), c
         assert float(ds["worst_value"].sel(criterion=c)) == pytest.approx(hi, rel=1e-6), c
