@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .errors import StudyError
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
@@ -137,6 +138,8 @@ class ParameterMap:
         profiled = set()
         for entry in uncertain:
             if entry.lipschitz is not None:
+                if zone.arc is None:         # a surface has no arc length: the [nu, nv] grid is not built
+                    raise StudyError("3D does not support a Lipschitz slip limit yet", path=f"uncertain.{entry.path}")
                 contact = entry.path.split(".")[1]
                 rows = np.flatnonzero(zone.contact_of_node == zone.names.index(contact))
                 weights = np.array([np.interp(zone.arc[rows], np.linspace(0, 1, entry.points), e)

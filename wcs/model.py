@@ -175,10 +175,13 @@ class Model:
         return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene) -> tuple[str, str]:
-        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
+        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py); in 3D
+        the monolithic solver (the decomposition is not built for tetrahedra)."""
         method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
+        if self.dim == 3:
+            return "monolithic", "3D: the monolithic solver (the domain decomposition is not built for tetrahedra)"
         mats = [scene.materials[m] for m in set(self.region_material)]
         pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
                  for m in mats]
@@ -198,9 +201,8 @@ class Model:
         """Exit 2, by name, for what a 3D scene asks and the model on tetrahedra does not do yet."""
         if self.dim != 3:
             return
-        for key, what in (("glue", "glued interfaces"), ("contacts", "contact")):
-            if getattr(scene, key):
-                raise StudyError(f"3D does not support {what} yet", path=f"scene.{key}")
+        if scene.glue:
+            raise StudyError("3D does not support glued interfaces yet", path="scene.glue")
         if self.options.method == "dd":
             raise StudyError("3D does not support the domain decomposition yet (solver.method: dd)",
                              path="solver.method")
@@ -451,28 +453,36 @@ class Model:
         work = float(rhs @ (self.elim.T.T @ v))
         nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(best))
         load = self.elim.T @ rhs                                   # the reduced load, back on the dofs
-        force = np.array([load[2 * nodes + i].sum() for i in range(2)])
+        d = self.dim
+        force = np.array([load[d * nodes + i].sum() for i in range(d)])
+        net = ", ".join(f"{f:.4g}" for f in force)
         return (f"body '{best}' is held only by contact and its load is not balanced: "
-                f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
+                f"net load ({net}) {'N' if d == 3 else 'N/m'} drives a rigid motion that friction "
                 f"and contact do not resist (load work {work:.3g} > friction work); "
                 f"solvability L(w) <= j(w) fails ([21, Remark 2.1])")
 
     def _free_motion_message(self, beta: np.ndarray) -> str:
         """Name the floating body whose rigid motion the active contact leaves free, and the motion."""
-        k, parts = 0, []
+        k, parts, d = 0, [], self.dim
         for body, modes in self.floating:
             v = modes @ beta[k:k + modes.shape[1]]
             k += modes.shape[1]
             nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(body))
-            R = rigid_modes(self.smesh.mesh.p, nodes, self.nnodes)[np.r_[2 * nodes, 2 * nodes + 1]]
-            a = np.linalg.lstsq(R, v[np.r_[2 * nodes, 2 * nodes + 1]], rcond=None)[0]
+            dofs = np.concatenate([d * nodes + i for i in range(d)])
+            R = rigid_modes(self.smesh.mesh.p, nodes, self.nnodes)[dofs]
+            a = np.linalg.lstsq(R, v[dofs], rcond=None)[0]
             parts.append((np.abs(a).max(), body, a, self.smesh.mesh.p[:, nodes].mean(axis=1)))
         _, body, a, c = max(parts, key=lambda t: t[0])
         a = a / np.abs(a).max()
         a = np.where(np.abs(a) > 1e-9, a, 0.0) + 0.0
+        if d == 3:
+            motion = (f"translation ({a[0]:.3g}, {a[1]:.3g}, {a[2]:.3g}) m with rotation ({a[3]:.3g}, {a[4]:.3g}, "
+                      f"{a[5]:.3g}) rad about the axes through ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})")
+        else:
+            motion = (f"translation ({a[0]:.3g}, {a[1]:.3g}) m with rotation {a[2]:.3g} rad about "
+                      f"({c[0]:.4g}, {c[1]:.4g})")
         return (f"body '{body}' is not held: its position is not determined — the rigid motion "
-                f"translation ({a[0]:.3g}, {a[1]:.3g}) m with rotation {a[2]:.3g} rad about "
-                f"({c[0]:.4g}, {c[1]:.4g}) moves no closed or stuck contact node, so the solution is not "
+                f"{motion} moves no closed or stuck contact node, so the solution is not "
                 f"unique (add a support, friction, or a contact that holds it)")
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:

@@ -1,0 +1,149 @@
+"""3D node-to-node contact on matching faces: the patch test, a Tresca shear patch with its
+closed form, and the monolithic semismooth Newton against the cvxpy second-order-cone reference.
+
+Tolerances: in the two patches the exact solution is piecewise linear (uniform stress in each
+block, a uniform slip jump), so P1 with node-to-node rows reproduces it to round-off (1e-8
+and 1e-6 relative leave orders of magnitude for the conditioning of a few thousand unknowns
+and the Newton tolerance 1e-10). The cvxpy reference (Clarabel, gaps 1e-12) agrees with the
+Newton to 1e-6 relative: the brief's tolerance, above both solvers' stopping tests.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from wcs.contact.qp import solve_contact_qp
+from wcs.errors import StudyError
+from wcs.evaluation import Evaluator
+from wcs.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"
+
+
+def solve(d):
+    ev = Evaluator(load_study(d))
+    res = ev.evaluate(ev.study.nominal())
+    assert res.status == 0, res.message
+    return ev, res
+
+
+def test_the_3d_contact_patch_passes_the_pressure_uniformly():
+    """Rollers, frictionless matching faces, two materials: τ_zz = −p in both blocks and the
+    contact pressure is p at every contact node; the block is held only by the contact along z."""
+    d = yaml.safe_load(PATCH.read_text())
+    p = float(d["scene"]["loads"]["block_top"]["pressure"])
+    ev, res = solve(d)
+    c = res.state.contact
+    assert ev.model.zone.discretization == ["node-to-node"]
+    assert [m.shape[1] for _, m in ev.model.floating] == [1]        # the block's z-translation
+    assert len(c.pressure) == len(np.unique(ev.smesh.boundary_nodes("block_bottom")))
+    assert np.abs(c.pressure - p).max() < 1e-8 * p
+    assert np.abs(c.gap).max() < 1e-8 * p / 5e9
+    s = res.state.stress
+    assert np.abs(s[2] + p).max() < 1e-8 * p
+    assert np.abs(np.delete(s, 2, axis=0)).max() < 1e-8 * p
+    assert c.weight.sum() == pytest.approx(1.0, rel=1e-12)          # tributary areas: the face
+    fields = res.fields
+    assert fields["contact_coords"].shape == (len(c.pressure), 3)
+    assert fields["contact_tangents"].shape == (len(c.pressure), 2, 3)
+    assert fields["contact_shear"].dims == ("contact_node", "tangent")
+
+
+E_BASE, E_BLOCK, G, P, DELTA, H = 2.0e10, 5.0e9, 3.0e5, 1.0e6, 1.0e-3, 0.5
+
+
+def shear_patch(**friction) -> dict:
+    """Two unit blocks (ν = 0), the base clamped at its bottom, the block's top pressed by P and
+    moved by DELTA along x, the x faces loaded by ±G along z: the uniform stress
+    τ = G (e_x⊗e_z + e_z⊗e_x) − P e_z⊗e_z satisfies every boundary condition, and the block
+    slips along x over the base with |τ_t| = G (Tresca, slip limit G)."""
+    return {
+        "study": "tresca-shear-patch-3d",
+        "scene": {
+            "dimension": 3, "mesh": {"size": 0.25},
+            "materials": {"base": {"E": E_BASE, "nu": 0.0}, "block": {"E": E_BLOCK, "nu": 0.0}},
+            "bodies": {"base": {"regions": [{"material": "base", "shape": {"box": [0, 0, -H, 1, 1, 0]}}]},
+                       "block": {"regions": [{"material": "block", "shape": {"box": [0, 0, 0, 1, 1, H]}}]}},
+            "boundaries": {
+                "base_bottom": {"plane": {"point": [0, 0, -H], "normal": [0, 0, 1]}},
+                "block_top": {"plane": {"point": [0, 0, H], "normal": [0, 0, 1]}},
+                "block_top_load": {"plane": {"point": [0, 0, H], "normal": [0, 0, 1]}},
+                "x0": {"plane": {"point": [0, 0, 0], "normal": [1, 0, 0]}},
+                "x1": {"plane": {"point": [1, 0, 0], "normal": [1, 0, 0]}},
+                "base_top": {"body": "base", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+                "block_bottom": {"body": "block", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}}},
+            "supports": {"base_bottom": {"u": [0.0, 0.0, 0.0]}, "block_top": {"u": [DELTA, 0.0, None]}},
+            "loads": {"block_top_load": {"pressure": P}, "x1": {"traction": [0.0, 0.0, G]},
+                      "x0": {"traction": [0.0, 0.0, -G]}},
+            "contacts": {"interface": {"slave": "block_bottom", "master": "base_top",
+                                       "friction": friction or {"slip_limit": G}}}}}
+
+
+def test_the_tresca_shear_patch_is_the_closed_form():
+    """Slip s = δ − γ_block H − γ_base H (γ = G/μ), contact pressure P, shear G along the slip on
+    every node; the friction force on the slave (−τ_t, wcs's τ_t being the multiplier λt/w, the
+    force the slave exerts on the master) is opposite to its slip."""
+    ev, res = solve(shear_patch())
+    c = res.state.contact
+    mu_base, mu_block = E_BASE / 2, E_BLOCK / 2
+    slip = DELTA - G / mu_block * H - G / mu_base * H
+    tangents = ev.model.zone.tangents
+    assert np.array_equal(tangents[:, 0], np.tile([1.0, 0.0, 0.0], (len(c.pressure), 1)))
+    s, tau = c.by_node(c.slip), c.shear                                 # (m, 2) along the two tangents
+    assert np.abs(c.pressure - P).max() < 1e-6 * P
+    assert np.abs(s - [slip, 0.0]).max() < 1e-6 * slip
+    assert np.abs(tau - [G, 0.0]).max() < 1e-6 * G
+    assert np.all(res.state.raw.active == 2)                            # every node slips
+    assert np.linalg.norm(tau, axis=1) == pytest.approx(G, rel=1e-6)    # |τ_t| = g where it slips
+    cos = np.einsum("ij,ij->i", -tau, s) / (np.linalg.norm(tau, axis=1) * np.linalg.norm(s, axis=1))
+    assert np.all(cos < -1 + 1e-9)                                      # friction on the slave opposes the slip
+    stress = res.state.stress
+    assert np.abs(stress[2] + P).max() < 1e-6 * P and np.abs(stress[4] - G).max() < 1e-6 * G
+
+
+def floating(friction) -> dict:
+    """A block lying free on a clamped base (held only by the contact along z and by friction in
+    its plane: all six rigid motions of the block free), pressed and sheared by a tilted traction,
+    materials of different Poisson ratios so that the edges slip first."""
+    d = shear_patch(**friction)
+    scene = d["scene"]
+    scene["mesh"]["size"] = 0.25
+    scene["materials"] = {"base": {"E": 2.0e10, "nu": 0.1}, "block": {"E": 5.0e9, "nu": 0.4}}
+    scene["supports"] = {"base_bottom": {"u": [0.0, 0.0, 0.0]}}
+    scene["loads"] = {"block_top_load": {"traction": [2.0e5, -1.0e5, -P]}}
+    return d
+
+
+@pytest.mark.parametrize("friction", [{"slip_limit": 3.0e5}, {"coefficient": 0.3}], ids=["tresca", "coulomb"])
+def test_the_newton_agrees_with_the_cvxpy_socp_on_a_floating_block(friction):
+    """The model's reduced system solved by the model (the semismooth Newton, from its first
+    step: the block has all six rigid motions free) and by the SOCP reference at Clarabel
+    tolerance 1e-12 (its own error floors near 1e-8 there)."""
+    ev, res = solve(floating(friction))
+    model, c = ev.model, res.state.coefficients
+    assert [m.shape[1] for _, m in model.floating] == [6]
+    z = model.zone
+    _, Kr, rhs, u0 = model.reduced_system(c, None)
+    ref = solve_contact_qp(Kr, rhs, model.Bn_r, model.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip,
+                           F=c.coulomb if c.coulomb.any() else None, tol=1e-12)
+    a = res.state.raw
+    active = a.active
+    assert (active == 2).any() and (active == 1).any()                  # a partial slip: a real test
+    scale = np.abs(ref.lam_n).max()
+    assert np.abs(a.lam_n - ref.lam_n).max() < 1e-6 * scale
+    assert np.abs(a.lam_t - ref.lam_t).max() < 1e-6 * scale
+    assert np.abs(a.u - ref.u).max() < 1e-6 * np.abs(ref.u).max()
+    # the friction holds the block's in-plane load: Σ λt along x, y = the applied shear (Coulomb:
+    # to 10 × the fixed point's tolerance 1e-8, as tests/test_contact3d.py bounds its slip limits)
+    st = res.state.contact
+    tangential = np.einsum("ik,ikj->j", st.by_node(st.force_t), z.tangents)
+    assert tangential[:2] == pytest.approx([2.0e5, -1.0e5], rel=1e-7 if "coefficient" in friction else 1e-10)
+
+
+def test_nonmatching_3d_faces_are_refused_until_mortar():
+    d = yaml.safe_load(PATCH.read_text())
+    d["scene"]["bodies"]["block"]["mesh"] = {"size": 0.13}                # meshed on its own: nonmatching
+    with pytest.raises(StudyError, match="3D mortar is not built yet"):
+        Evaluator(load_study(d))
