@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from test_mesher3d import BLOCK, FAULT, build_mesh3d, fault_scene
-from wcs.report.plots3d import outer_faces, plane_section, plane_axes, surface_frame
+from wcs.contact.frame import surface_frame
+from wcs.report.plots3d import outer_faces, plane_section, plane_axes
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,8 @@ Matplotlib renders the outer surface as one polygon per boundary triangle, paint
 (no depth buffer): exact for a convex body seen from outside, and close for the scenes here
 (a tunnel seen from outside its block). The geometry functions are pure functions over arrays:
 `outer_faces` (the triangles of a tetrahedral mesh that belong to one cell only), `plane_section`
-(the polygon where a plane cuts each tetrahedron), `surface_frame` (a surface's own two
-coordinates: the principal directions of its points).
+(the polygon where a plane cuts each tetrahedron); a contact surface is drawn in its own two
+coordinates (`wcs.contact.frame.surface_frame`: the principal directions of its points).
 """
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from matplotlib.patches import Patch
 from matplotlib.tri import Triangulation
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+from ..contact.frame import surface_frame
 from .data import Results
 from .plots import length_scale, nice, plt, png, stress_scale
 
@@ -61,15 +62,6 @@ def plane_section(coords: np.ndarray, cells: np.ndarray, point, normal) -> tuple
         polygons.append(p[np.argsort(angle)])
         owner.append(cut[k])
     return polygons, np.asarray(owner, dtype=np.int64)
-
-
-def surface_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(origin, e1, e2): the centroid of a surface's points and its two principal directions
-    (largest spread first), signs fixed so that the largest component of each is positive."""
-    c = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - c, full_matrices=False)
-    e = vt[:2] * np.sign(vt[:2][np.arange(2), np.argmax(np.abs(vt[:2]), axis=1)])[:, None]
-    return c, e[0], e[1]
 
 
 def plane_axes(normal) -> tuple[np.ndarray, np.ndarray]:
