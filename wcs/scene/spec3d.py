@@ -116,15 +116,26 @@ class Region(Frozen):
         return _not_yet(data, {"mesh": "a region's own mesh size"})
 
 
-class BodyMesh(Frozen):
-    """A body's own mesh size: the body is meshed on its own (faces it shares with other bodies
-    are nonmatching)."""
+class Refinement(Frozen):
+    """A zone meshed finer: `size` inside the box, ball or cylinder, or on the named boundary;
+    away from it the size grows by `mesh.grading` per unit distance."""
+    box: Optional[SolidBox] = None
+    ball: Optional[Sphere] = None
+    cylinder: Optional[Cylinder] = None
+    boundary: Optional[str] = None
     size: float = Field(**FEATURE)
 
-    @model_validator(mode="before")
-    @classmethod
-    def _refine_not_yet(cls, data):
-        return _not_yet(data, {"refine": "refinement zones"})
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("box", "ball", "cylinder", "boundary"))
+        return self
+
+
+class BodyMesh(Frozen):
+    """A body's own mesh size (and refinement zones): the body is meshed on its own (faces it
+    shares with other bodies are nonmatching)."""
+    size: float = Field(**FEATURE)
+    refine: list[Refinement] = []
 
 
 class Body(Frozen):
@@ -184,12 +195,14 @@ class Load(Frozen):
 
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)      # default: wcs.choose.mesh_size of the diagonal
+    grading: Optional[float] = Field(None, ge=0, le=1e3)   # size growth per unit distance from a refine zone
+    refine: list[Refinement] = []
     max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
 
     @model_validator(mode="before")
     @classmethod
     def _file_not_yet(cls, data):
-        return _not_yet(data, {"file": "a mesh file", "refine": "refinement zones", "grading": "mesh grading"})
+        return _not_yet(data, {"file": "a mesh file"})
 
 
 class Scene(Frozen):
