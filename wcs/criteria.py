@@ -173,8 +173,9 @@ def _triangle_distances(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(inside, np.abs(h) * np.sqrt(nn), edge)
 
 
-def _distance_to_facets(mesh, facets, x: np.ndarray, chunk: int = 2_000_000) -> np.ndarray:
-    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets."""
+def _distance_to_facets(mesh, facets, x: np.ndarray, chunk: int = 200_000) -> np.ndarray:
+    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets (3D: about
+    `chunk` point-triangle pairs at a time)."""
     if mesh.p.shape[0] == 2:
         a, b = mesh.p[:, mesh.facets[0, facets]].T, mesh.p[:, mesh.facets[1, facets]].T
         return dist_segments(x[:, 0], x[:, 1], a, b)
