@@ -108,7 +108,7 @@ def test_commands_that_solve_refuse_a_3d_study(tmp_path, command):
     d["sweep"] = {"grid": {"materials.soft.E": [0.9e9, 1.1e9]}}
     nc = tmp_path / "out.nc"
     code, _, err = run(command + [str(write(tmp_path, d)), "-o", str(nc)])
-    assert code == 2 and "criteria: 3D does not support criteria yet" in err
+    assert code == 2 and "scene.contacts: 3D does not support contact yet" in err
     assert not nc.exists()
 
 

@@ -92,6 +92,3 @@ def _refuse_3d(study, splits: int) -> None:
     if splits:
         raise StudyError("3D does not support the mesh check (the mesh split into finer tetrahedra) yet: "
                          "run with --no-mesh-check", file=str(study.file), path="scene.dimension")
-    if study.criteria:
-        raise StudyError("3D does not support criteria yet (`solve` of a study without criteria writes "
-                         "the fields)", file=str(study.file), path="criteria")

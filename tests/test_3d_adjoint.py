@@ -1,0 +1,142 @@
+"""Adjoint gradients in 3D against central finite differences.
+
+The contact adjoint on the final active set with two tangents per node: a node slipping on
+the disc |λt| ≤ gw has λt = gw s/|s|, linearized in the frame of its slip (νᵀδλt = δgw, and
+|s| ν⊥ᵀδλt = gw ν⊥ᵀδs). Checked first on the solver's own systems (the pad on a base of
+tests/test_contact3d.py: stuck and slipping nodes whose slip directions vary over the face,
+Tresca and Coulomb, held and floating), then through studies.
+
+Tolerance (the rule of test_gradients.py): 1e-5 relative, plus the finite differences' noise
+floor 10·tol·|Φ|/h (the solver stops at a relative residual `tol`; a difference quotient with
+step h cannot resolve derivatives below that)."""
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import wcs
+from wcs.contact import solver as cs
+from wcs.sensitivity import _contact_adjoint
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_contact3d import args, pad_on_base  # noqa: E402
+from test_gradients import check_against_fd  # noqa: E402
+
+TOL = 1e-13
+REL = 1e-5
+
+
+def _solve(P, g, F, f=None):
+    K, f0, Bn, Bt, d, w = args(P)
+    return cs.solve_contact(K, f0 if f is None else f, Bn, Bt, d, w, g=g, F=F, R=P["R"], tol=TOL, tol_fp=TOL)
+
+
+def _assert_close(ad, fd, phi, h):
+    noise = 10 * TOL * abs(phi) / h
+    assert abs(ad - fd) <= REL * abs(fd) + noise, (ad, fd)
+
+
+@pytest.mark.parametrize("case", ["tresca held", "coulomb held", "coulomb floating"])
+def test_disc_slip_adjoint_on_the_solver_system(case):
+    """Φ = ℓ_w · w + ℓ_λ · λn (random ℓ): the adjoint's z and μ give dΦ/df = z and dΦ/dg_i =
+    μ_ν,i w_i (Tresca) or dΦ/dF_i = μ_ν,i λn,i (Coulomb), against central differences of the
+    solver along random directions. Every case has stuck and slipping nodes (slip directions
+    spread by the twist or the oblique load)."""
+    floating = case.endswith("floating")
+    P = (pad_on_base(floating=True, load=(0.001, -0.0015, -0.01)) if floating
+         else pad_on_base(top=(0.002, 0.001, -0.01), twist=0.03))
+    m, n = len(P["w"]), P["K"].shape[0]
+    coulomb = case.startswith("coulomb")
+    g = np.zeros(m) if coulomb else np.full(m, 0.01)
+    F = np.full(m, 0.3) if coulomb else None
+    r = _solve(P, g, F)
+    assert r.status == 0 and {cs.STICK, cs.SLIP} <= set(r.active)
+    rng = np.random.default_rng(0)
+    lw, ll = rng.standard_normal(n), rng.standard_normal(m)
+
+    def phi(res):
+        return lw @ res.u + ll @ res.lam_n
+
+    model = SimpleNamespace(Bn_r=P["Bn"], Bt_r=P["Bt"], R_r=P["R"])
+    state = SimpleNamespace(raw=r, contact=SimpleNamespace(slip=P["Bt"] @ r.u),
+                            coefficients=SimpleNamespace(coulomb=np.zeros(m) if F is None else F),
+                            contact_factor=lambda model: r.factor)
+    z, mu, sigma = _contact_adjoint(model, state, lw, ll)
+    h = 1e-5
+    df = rng.standard_normal(n) * np.abs(P["f"]).max()
+    fd = (phi(_solve(P, g, F, P["f"] + h * df)) - phi(_solve(P, g, F, P["f"] - h * df))) / (2 * h)
+    _assert_close(z @ df, fd, phi(r), h)
+    tang = np.flatnonzero(~r.free[m:] & (sigma != 0))
+    node = tang % m
+    assert np.array_equal(np.sort(node), np.flatnonzero(r.active == cs.SLIP))   # one ν row per slipping node
+    grad = np.zeros(m)
+    np.add.at(grad, node, mu[m + tang] * sigma[tang] * (r.lam_n if coulomb else P["w"])[node])
+    e = rng.standard_normal(m) * (0.1 if coulomb else 0.001)
+    if coulomb:
+        fd = (phi(_solve(P, g, F + h * e)) - phi(_solve(P, g, F - h * e))) / (2 * h)
+    else:
+        fd = (phi(_solve(P, g + h * e, F)) - phi(_solve(P, g - h * e, F))) / (2 * h)
+    _assert_close(grad @ e, fd, phi(r), h)
+
+
+# ---------------------------------------------------------------- through studies
+
+def _plane(point, normal):
+    return {"plane": {"point": point, "normal": normal}}
+
+
+def two_region_block(size=0.25) -> dict:
+    """A thermo-elastic block [0, 2]×[0, 1]×[0, 1] of two regions (steel below z = 0.5 by λ/μ,
+    aluminium above by E/ν), clamped below, on a roller at x = 0, pressed on top and pulled
+    obliquely at x = 2, with a body force, specific weight, a heat source and regions of
+    interest of every 3D kind (box, ball, cylinder, boundary); every criterion kind but the
+    contact ones, every parameter kind of a scene without contact."""
+    return {
+        "study": "gradients-3d",
+        "scene": {
+            "dimension": 3, "mesh": {"size": size},
+            "materials": {
+                "steel": {"lambda": 1.2e11, "mu": 8.0e10, "conductivity": 45.0, "expansion": 1.2e-5,
+                          "density_weight": 7.7e4},
+                "alu": {"E": 7.0e10, "nu": 0.33, "conductivity": 200.0, "expansion": 2.3e-5}},
+            "bodies": {"block": {"regions": [
+                {"name": "lower", "material": "steel", "shape": {"box": [0, 0, 0, 2, 1, 0.5]}},
+                {"name": "upper", "material": "alu", "shape": {"box": [0, 0, 0.5, 2, 1, 1]}}]}},
+            "boundaries": {"bottom": _plane([0, 0, 0], [0, 0, 1]), "top": _plane([0, 0, 1], [0, 0, 1]),
+                           "left": _plane([0, 0, 0], [1, 0, 0]), "right": _plane([2, 0, 0], [1, 0, 0])},
+            "supports": {"bottom": {"u": [0.0, 0.0, 0.0]}, "left": {"normal": 0.0}},
+            "loads": {"top": {"pressure": 2.0e6}, "right": {"traction": [1.0e5, 2.0e5, -1.0e5]}},
+            "body_forces": {"upper": [0.0, 1.0e4, -1.0e4]},
+            "thermal": {"reference": 293.0, "temperature": {"bottom": 303.0}, "sources": {"upper": 1.0e4}},
+            "regions_of_interest": {
+                "core": {"box": [0.8, 0.3, 0.6, 1.2, 0.7, 0.9]},
+                "knot": {"ball": {"center": [1.4, 0.5, 0.85], "radius": 0.15}},
+                "rod": {"cylinder": {"start": [0.3, 0.5, 0.25], "end": [0.7, 0.5, 0.25], "radius": 0.12}},
+                "top": {"boundary": "top"}}},
+        "uncertain": {
+            "materials.steel.lambda": [1.1e11, 1.3e11], "materials.steel.mu": [7.5e10, 8.5e10],
+            "materials.steel.expansion": [1.0e-5, 1.4e-5], "materials.steel.density_weight": [7.0e4, 8.0e4],
+            "materials.steel.conductivity": [40.0, 50.0],
+            "materials.alu.E": [6.5e10, 7.5e10], "materials.alu.nu": [0.30, 0.36],
+            "loads.top.pressure": [1.5e6, 2.5e6], "loads.right.traction.1": [1.0e5, 3.0e5],
+            "loads.right.traction.2": [-2e5, 0.0], "body_forces.upper.2": [-2.0e4, 0.0],
+            "supports.bottom.u.0": [-1.0e-5, 1.0e-5], "supports.left.normal": [-1.0e-5, 1.0e-5],
+            "thermal.temperature.bottom": [298.0, 308.0], "thermal.sources.upper": [0.5e4, 1.5e4],
+            "thermal.reference": [290.0, 296.0]},
+        "criteria": [
+            {"name": "T_vol", "kind": "mean_temperature", "regions": ["core", "knot"]},
+            {"name": "T_face", "kind": "mean_temperature", "regions": ["top"]},
+            {"name": "settle", "kind": "mean_normal_displacement", "regions": ["knot"], "point": [1.4, 0.5, 1.0]},
+            {"name": "lift", "kind": "mean_normal_displacement", "regions": ["top"]},
+            {"name": "shift", "kind": "mean_normal_displacement", "regions": ["rod"], "direction": [1.0, 1.0, 0.0]},
+            {"name": "shear", "kind": "shear_stress_intensity", "regions": ["core", "rod"]},
+            {"name": "mises", "kind": "von_mises", "regions": ["knot"]},
+            {"name": "s1", "kind": "principal_stress", "regions": ["rod"]}],
+        "solver": {"method": "monolithic", "tolerance": TOL},
+    }
+
+
+def test_every_criterion_and_parameter_kind_without_contact():
+    assert check_against_fd(wcs.load_study(two_region_block())) < REL
