@@ -11,8 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 
+from wcs.cli import main
 from wcs.contact.qp import solve_contact_qp
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
@@ -51,34 +53,16 @@ def test_the_3d_contact_patch_passes_the_pressure_uniformly():
     assert fields["contact_shear"].dims == ("contact_node", "tangent")
 
 
-E_BASE, E_BLOCK, G, P, DELTA, H = 2.0e10, 5.0e9, 3.0e5, 1.0e6, 1.0e-3, 0.5
+SHEAR = ROOT / "studies" / "validation" / "tresca-shear-patch-3d.yaml"
+E_BASE, E_BLOCK, G, P, DELTA, H = 2.0e10, 5.0e9, 3.0e5, 1.0e6, 1.0e-3, 0.5      # the numbers of SHEAR
 
 
 def shear_patch(**friction) -> dict:
-    """Two unit blocks (ν = 0), the base clamped at its bottom, the block's top pressed by P and
-    moved by DELTA along x, the x faces loaded by ±G along z: the uniform stress
-    τ = G (e_x⊗e_z + e_z⊗e_x) − P e_z⊗e_z satisfies every boundary condition, and the block
-    slips along x over the base with |τ_t| = G (Tresca, slip limit G)."""
-    return {
-        "study": "tresca-shear-patch-3d",
-        "scene": {
-            "dimension": 3, "mesh": {"size": 0.25},
-            "materials": {"base": {"E": E_BASE, "nu": 0.0}, "block": {"E": E_BLOCK, "nu": 0.0}},
-            "bodies": {"base": {"regions": [{"material": "base", "shape": {"box": [0, 0, -H, 1, 1, 0]}}]},
-                       "block": {"regions": [{"material": "block", "shape": {"box": [0, 0, 0, 1, 1, H]}}]}},
-            "boundaries": {
-                "base_bottom": {"plane": {"point": [0, 0, -H], "normal": [0, 0, 1]}},
-                "block_top": {"plane": {"point": [0, 0, H], "normal": [0, 0, 1]}},
-                "block_top_load": {"plane": {"point": [0, 0, H], "normal": [0, 0, 1]}},
-                "x0": {"plane": {"point": [0, 0, 0], "normal": [1, 0, 0]}},
-                "x1": {"plane": {"point": [1, 0, 0], "normal": [1, 0, 0]}},
-                "base_top": {"body": "base", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
-                "block_bottom": {"body": "block", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}}},
-            "supports": {"base_bottom": {"u": [0.0, 0.0, 0.0]}, "block_top": {"u": [DELTA, 0.0, None]}},
-            "loads": {"block_top_load": {"pressure": P}, "x1": {"traction": [0.0, 0.0, G]},
-                      "x0": {"traction": [0.0, 0.0, -G]}},
-            "contacts": {"interface": {"slave": "block_bottom", "master": "base_top",
-                                       "friction": friction or {"slip_limit": G}}}}}
+    """SHEAR (its comment gives the closed form), with another friction law if given."""
+    d = yaml.safe_load(SHEAR.read_text())
+    if friction:
+        d["scene"]["contacts"]["interface"]["friction"] = friction
+    return d
 
 
 def test_the_tresca_shear_patch_is_the_closed_form():
@@ -109,7 +93,8 @@ def floating(friction) -> dict:
     materials of different Poisson ratios so that the edges slip first."""
     d = shear_patch(**friction)
     scene = d["scene"]
-    scene["mesh"]["size"] = 0.25
+    d["uncertain"] = {"loads.block_top_load.traction.2": [-1.5e6, -0.5e6]}
+    d["criteria"] = [{"name": "pressure", "kind": "contact_pressure", "regions": ["interface"]}]
     scene["materials"] = {"base": {"E": 2.0e10, "nu": 0.1}, "block": {"E": 5.0e9, "nu": 0.4}}
     scene["supports"] = {"base_bottom": {"u": [0.0, 0.0, 0.0]}}
     scene["loads"] = {"block_top_load": {"traction": [2.0e5, -1.0e5, -P]}}
@@ -147,3 +132,26 @@ def test_nonmatching_3d_faces_are_refused_until_mortar():
     d["scene"]["bodies"]["block"]["mesh"] = {"size": 0.13}                # meshed on its own: nonmatching
     with pytest.raises(StudyError, match="3D mortar is not built yet"):
         Evaluator(load_study(d))
+
+
+def test_wcs_run_and_report_of_the_3d_patch(tmp_path):
+    """`wcs run` of a 3D contact study end to end, then `wcs report`: the worst contact pressure
+    and the worst von Mises stress in the base are both the largest pressure on the top (the
+    patch passes it uniformly), found at that end of its range."""
+    d = yaml.safe_load(PATCH.read_text())
+    d["search"] = {"budget": 8}
+    d["scene"]["mesh"]["size"] = 0.25
+    study = tmp_path / "patch.yaml"
+    study.write_text(yaml.safe_dump(d, sort_keys=False))
+    nc, html = tmp_path / "patch.nc", tmp_path / "patch.html"
+    assert main(["run", str(study), "-o", str(nc), "--quiet"]) == 0
+    with xr.open_dataset(nc, engine="h5netcdf") as ds:
+        assert np.all(ds["status"].values == 0)
+        worst = dict(zip(map(str, ds["criterion"].values), ds["worst_value"].values))
+        assert worst["pressure"] == pytest.approx(3.0e6, rel=1e-8)
+        assert worst["stress"] == pytest.approx(3.0e6, rel=1e-8)
+        assert float(ds["worst_x"].sel(criterion="pressure", param="loads.block_top.pressure")) == 3.0e6
+        assert ds["worst_contact_tangents"].shape[-2:] == (2, 3)
+        assert ds.attrs["mesh_check"].startswith("not available: 3D does not support the mesh check")
+    assert main(["report", str(nc), "-o", str(html), "--quiet"]) == 0
+    assert html.stat().st_size > 0
