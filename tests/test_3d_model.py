@@ -172,9 +172,11 @@ A = np.array([1.0, 0.5, -0.8])       # u = φ a with φ = sin πx sin πy sin π
 
 
 def manufactured(size):
-    """(h, L2 error, stress error) of the P1 solution of −div τ(u) = f with u = φ a:
-    τ = λ (∇φ·a) I + μ (a ⊗ ∇φ + ∇φ ⊗ a), so f = −(λ+μ) H(φ) a − μ Δφ a."""
-    study = load_study(cube(size))
+    """(h, L2 error, stress error, L2 error of T, H1 error of T) of the P1 solutions of
+    −div τ(u) = f with u = φ a: τ = λ (∇φ·a) I + μ (a ⊗ ∇φ + ∇φ ⊗ a), so
+    f = −(λ+μ) H(φ) a − μ Δφ a; and of −κ ΔT = 3π²κ φ with T = φ (both zero on the faces),
+    through the model's stiffness, stress and conduction pieces."""
+    study = load_study(cube(size, thermal={"reference": 293.0, "temperature": {"x0": 293.0}}))
     model = Model(study.scene, build_mesh3d(study.scene))
     mesh = model.smesh.mesh
     c = model.nominal
@@ -202,15 +204,28 @@ def manufactured(size):
              MU * (A[0] * g[2] + A[2] * g[0]), MU * (A[0] * g[1] + A[1] * g[0])]
     s = model.cell_stress(u, None, c)                                # (6, ncells), constant per cell
     energy = sum(np.sum(dx * (s[k][:, None] - exact[k]) ** 2) for k in range(6))
-    return mesh.t.shape[1] ** (-1 / 3), np.sqrt(l2), np.sqrt(energy)
+
+    kappa = c.kappa[0]
+    scalar = basis.with_element(ElementTetP1())
+    Kh = model.H(c.kappa).tocsr()                                   # on the heat nodes: T = P θ
+    q = model.P.T @ asm(LinearForm(lambda v, w: 3 * np.pi**2 * kappa * phi(w.x) * v), scalar)
+    hot = np.setdiff1d(np.arange(Kh.shape[0]), model.P[boundary].indices)
+    theta = np.zeros(Kh.shape[0])
+    theta[hot] = spla.spsolve(Kh[hot][:, hot].tocsc(), q[hot])
+    Th = scalar.interpolate(model.P @ theta)
+    l2_T = np.sum(dx * (np.asarray(Th) - phi(x)) ** 2)
+    h1_T = np.sum(dx * ((np.asarray(Th.grad) - g) ** 2).sum(axis=0))
+    return mesh.t.shape[1] ** (-1 / 3), np.sqrt(l2), np.sqrt(energy), np.sqrt(l2_T), np.sqrt(h1_T)
 
 
-def test_manufactured_elasticity_converges_at_the_p1_rates():
+def test_manufactured_elasticity_and_heat_converge_at_the_p1_rates():
     runs = [manufactured(h) for h in (0.25, 0.125, 0.0625)]
-    h, l2, energy = np.array(runs).T
+    h, l2, energy, l2_T, h1_T = np.array(runs).T
     rate = lambda e: np.polyfit(np.log(h), np.log(e), 1)[0]
     assert rate(l2) == pytest.approx(2.0, abs=0.15), (h, l2)
     assert rate(energy) == pytest.approx(1.0, abs=0.15), (h, energy)
+    assert rate(l2_T) == pytest.approx(2.0, abs=0.15), (h, l2_T)
+    assert rate(h1_T) == pytest.approx(1.0, abs=0.15), (h, h1_T)
 
 
 def test_wcs_solve_of_a_3d_study_writes_the_3d_layout(tmp_path):
