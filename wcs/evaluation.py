@@ -77,9 +77,6 @@ class Evaluator:
             return Evaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
         phi = {c.name: c.value(self.model, state) for c in self.criteria}
         grad, nonsmooth = None, False
-        if gradients and self.model.dim == 3:
-            raise StudyError("3D does not support adjoint gradients yet (a search that needs them cannot run: "
-                             "`search: {method: sample}` does not)", file=str(self.study.file), path="search.method")
         if gradients:
             grad, nonsmooth = adjoint_gradients(self, state, x, others)
         message = "solved" if state.solver in ("direct", "monolithic", "dd") else f"solved ({state.solver})"
