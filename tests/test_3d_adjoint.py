@@ -147,7 +147,8 @@ def pad_on_base_study(friction: dict, size=0.125) -> dict:
     node-to-node), its top pressed down and shifted by support values, pulled by a body force:
     stuck in the middle, slipping near its edges in directions that vary along them. Criteria
     of every kind on either side of the contact; parameters: λ/μ and E/ν, support values (a
-    component and a roller), body force, and the friction's slip limit or coefficient."""
+    component and a roller), body force, and the friction's coefficient or its slip limit (a
+    Lipschitz function on the contact surface: its values on a 3×2 grid, bilinear between)."""
     return {
         "study": "contact-gradients-3d",
         "scene": {
@@ -176,7 +177,8 @@ def pad_on_base_study(friction: dict, size=0.125) -> dict:
             "supports.pad_top.u.0": [0.8e-4, 1.2e-4], "supports.pad_top.u.2": [-1.1e-3, -0.9e-3],
             "supports.base_side.normal": [-1.0e-5, 1.0e-5], "body_forces.pad.1": [0.5e5, 1.5e5],
             **({"contacts.interface.friction.coefficient": [0.25, 0.35]} if "coefficient" in friction
-               else {"contacts.interface.friction.slip_limit": [0.8e6, 1.2e6]})},
+               else {"contacts.interface.friction.slip_limit":              # bilinear on a 3×2 grid
+                     {"range": [0.8e6, 1.2e6], "lipschitz": 4.0e6, "points": [3, 2]}})},
         "criteria": [
             {"name": "pressure", "kind": "contact_pressure", "regions": ["corner", "edge"]},
             {"name": "pressure_all", "kind": "contact_pressure", "regions": ["interface"]},
