@@ -140,3 +140,68 @@ def two_region_block(size=0.25) -> dict:
 
 def test_every_criterion_and_parameter_kind_without_contact():
     assert check_against_fd(wcs.load_study(two_region_block())) < REL
+
+
+def pad_on_base_study(friction: dict, size=0.125) -> dict:
+    """A soft pad [0.25, 0.75]²×[0, 0.25] on a clamped base [0, 1]²×[−0.5, 0] (matching faces:
+    node-to-node), its top pressed down and shifted by support values, pulled by a body force, heated:
+    stuck in the middle, slipping near its edges in directions that vary along them. Criteria
+    of every kind on either side of the contact; parameters: λ/μ and E/ν, support values (a
+    component and a roller), a pressure, a body force, heating (a source in the pad, a cooled
+    base: expansion, conductivity, temperature), and the friction's coefficient or its slip limit (a
+    Lipschitz function on the contact surface: its values on a 3×2 grid, bilinear between)."""
+    return {
+        "study": "contact-gradients-3d",
+        "scene": {
+            "dimension": 3, "mesh": {"size": size},
+            "materials": {"stiff": {"lambda": 8.0e9, "mu": 8.0e9, "conductivity": 40.0, "expansion": 1.0e-5},
+                          "soft": {"E": 1.0e9, "nu": 0.3, "conductivity": 0.5, "expansion": 2.0e-5}},
+            "bodies": {"base": {"regions": [{"material": "stiff", "shape": {"box": [0, 0, -0.5, 1, 1, 0]}}]},
+                       "pad": {"regions": [{"material": "soft", "shape": {"box": [0.25, 0.25, 0, 0.75, 0.75, 0.25]}}]}},
+            "boundaries": {
+                "base_bottom": _plane([0, 0, -0.5], [0, 0, 1]),
+                "base_side": _plane([1, 0, 0], [1, 0, 0]),
+                "base_front": _plane([0, 0, 0], [0, 1, 0]),
+                "base_top": {"body": "base", "box": [0.25, 0.25, 0, 0.75, 0.75, 0]},
+                "pad_bottom": {"body": "pad", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+                "pad_top": _plane([0, 0, 0.25], [0, 0, 1])},
+            "supports": {"base_bottom": {"u": [0.0, 0.0, 0.0]}, "base_side": {"normal": 0.0},
+                         "pad_top": {"u": [1.0e-4, 0.5e-4, -1.0e-3]}},
+            "body_forces": {"pad": [2.0e5, 1.0e5, -1.0e5]},
+            "loads": {"base_front": {"pressure": 1.0e6}},
+            "thermal": {"reference": 293.0, "temperature": {"base_bottom": 283.0}, "sources": {"pad": 1.0e2}},
+            "contacts": {"interface": {"slave": "pad_bottom", "master": "base_top", "friction": friction}},
+            "regions_of_interest": {
+                "corner": {"box": [0.5, 0.5, -0.1, 0.75, 0.75, 0.1]},
+                "edge": {"box": [0.25, 0.25, -0.1, 0.5, 0.75, 0.0], "body": "base"},
+                "interface": {"boundary": "base_top"},
+                "heel": {"ball": {"center": [0.4, 0.4, 0.1], "radius": 0.08}}}},
+        "uncertain": {
+            "materials.stiff.lambda": [7.0e9, 9.0e9], "materials.stiff.mu": [7.0e9, 9.0e9],
+            "materials.soft.E": [0.8e9, 1.2e9], "materials.soft.nu": [0.25, 0.35],
+            "supports.pad_top.u.0": [0.8e-4, 1.2e-4], "supports.pad_top.u.2": [-1.1e-3, -0.9e-3],
+            "supports.base_side.normal": [-1.0e-5, 1.0e-5], "body_forces.pad.1": [0.5e5, 1.5e5],
+            "loads.base_front.pressure": [0.5e6, 1.5e6], "materials.soft.expansion": [1.5e-5, 2.5e-5],
+            "materials.soft.conductivity": [0.4, 0.6], "thermal.sources.pad": [0.5e2, 1.5e2],
+            "thermal.temperature.base_bottom": [278.0, 288.0],
+            **({"contacts.interface.friction.coefficient": [0.25, 0.35]} if "coefficient" in friction
+               else {"contacts.interface.friction.slip_limit":              # bilinear on a 3×2 grid
+                     {"range": [0.8e6, 1.2e6], "lipschitz": 4.0e6, "points": [3, 2]}})},
+        "criteria": [
+            {"name": "pressure", "kind": "contact_pressure", "regions": ["corner", "edge"]},
+            {"name": "pressure_all", "kind": "contact_pressure", "regions": ["interface"]},
+            {"name": "slip", "kind": "contact_slip", "regions": ["corner"]},
+            {"name": "mises", "kind": "von_mises", "regions": ["heel"]},
+            {"name": "s1", "kind": "principal_stress", "regions": ["heel"]},
+            {"name": "sink", "kind": "mean_normal_displacement", "regions": ["interface"]}],
+        "solver": {"method": "monolithic", "tolerance": TOL},
+    }
+
+
+@pytest.mark.parametrize("friction", [{"slip_limit": 1.0e6}, {"coefficient": 0.3}], ids=["tresca", "coulomb"])
+def test_every_criterion_kind_with_frictional_contact(friction):
+    """Node-to-node Tresca and Coulomb contact (the Coulomb fixed point: ~25 Tresca solves)."""
+    study = wcs.load_study(pad_on_base_study(friction))
+    ev = study.evaluate(study.nominal())
+    assert {1, 2} <= set(ev.state.raw.active.tolist())      # stuck and slipping nodes
+    assert check_against_fd(study) < REL
