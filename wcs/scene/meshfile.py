@@ -213,7 +213,7 @@ def load_raw(path, dim: int = 2) -> RawMesh:
     return raw
 
 
-def signed_measure(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
+def _signed_measure(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """d! times the signed area (2D) or volume (3D) of each cell: positive for counter-clockwise
     triangles and for tetrahedra whose edges from node 0 form a right-handed triple."""
     e = [x[cells[:, i]] - x[cells[:, 0]] for i in range(1, cells.shape[1])]
@@ -254,7 +254,7 @@ def _assemble(path: Path, xyz: np.ndarray, groups, kind: Kind) -> RawMesh:
     cell = np.concatenate(cells)
     cg = np.concatenate(cgroup)
     # -- orientation and degeneracy
-    measure = signed_measure(x, cell)
+    measure = _signed_measure(x, cell)
     bad = np.abs(measure) <= math.factorial(d) * AREA_TOL * span ** d
     if bad.any():
         k = int(np.nonzero(bad)[0][0])
