@@ -8,7 +8,7 @@ import pytest
 
 from test_mesher3d import BLOCK, FAULT, build_mesh3d, fault_scene
 from wcs.errors import StudyError
-from wcs.scene.estimate import estimate_cells3d
+from wcs.scene.estimate import estimate_cells3d, plane_box_area
 from wcs.study import load_scene
 
 
@@ -76,3 +76,13 @@ def test_an_unknown_refine_boundary_is_a_study_error_at_its_path():
     with pytest.raises(StudyError) as e:
         build_mesh3d(scene)
     assert "scene.mesh.refine.0.boundary" in str(e.value) and "unknown boundary" in str(e.value)
+
+
+@pytest.mark.parametrize("point, normal, box, area", [
+    ([0, 0, 0.5], [0, 0, 1], [0, 0, 0, 2, 1, 1], 2.0),                          # across z
+    ([1, 1, 1], [1, 1, 1], [0, 0, 0, 2, 2, 2], 3 * np.sqrt(3.0)),               # a regular hexagon of side √2
+    ([0, 0, 0], [-2, 3, 0], [-60, -60, 0, 60, 60, 4], 4 * np.hypot(120, 80)),   # the tunnel's fault
+    ([0, 0, 5], [0, 0, 1], [0, 0, 0, 1, 1, 1], 0.0),                            # misses the box
+])
+def test_the_area_of_a_plane_in_a_box_the_estimate_uses(point, normal, box, area):
+    assert plane_box_area(point, normal, box) == pytest.approx(area, rel=1e-12, abs=1e-12)

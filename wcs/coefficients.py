@@ -12,7 +12,8 @@ set changes is one flat coefficient vector c (`Coefficients`, laid out by `FIELD
 3. the moduli on top: per material (E, ν) or (λ, μ), and α, give the λ, μ of the 2D
    stiffness (λ* = 2λμ/(λ + 2μ) in plane stress) and β (`wcs.materials`);
 4. a Lipschitz slip-limit profile: g per contact node interpolated linearly in arc length
-   from the profile's points (the seed's Tresca data g ∈ U_ad, a Lipschitz set).
+   from the profile's points (the seed's Tresca data g ∈ U_ad, a Lipschitz set); on a 3D
+   contact surface bilinearly from a grid over the face (`wcs.contact.frame`).
 
 The Jacobian ∂c/∂x is exact: A, the interpolation weights and the derivatives of the
 material formulas. Nothing is copied per evaluation.
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .contact.frame import grid_weights, surface_grid
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
@@ -137,9 +139,13 @@ class ParameterMap:
             if entry.lipschitz is not None:
                 contact = entry.path.split(".")[1]
                 rows = np.flatnonzero(zone.contact_of_node == zone.names.index(contact))
-                weights = np.array([np.interp(zone.arc[rows], np.linspace(0, 1, entry.points), e)
-                                    for e in np.eye(entry.points)]).T
-                self.profiles.append((slice(start, start + entry.points), rows, zone.arc[rows], weights))
+                if entry.grid is not None:       # on a 3D contact surface: bilinear on its own grid
+                    arc, weights = None, grid_weights(surface_grid(zone.coords[rows])[0], entry.grid)
+                else:
+                    arc = zone.arc[rows]
+                    weights = np.array([np.interp(arc, np.linspace(0, 1, entry.points), e)
+                                        for e in np.eye(entry.points)]).T
+                self.profiles.append((slice(start, start + entry.points), rows, arc, weights))
                 profiled.add(contact)
                 start += entry.points
             else:
@@ -217,8 +223,9 @@ class ParameterMap:
             c[sl["mu"].start + regions] = mu
             c[sl["beta"].start + regions] = thermal_beta(material, self.plane)
         x = np.asarray(x, dtype=float)
-        for chunk, rows, arc, _ in self.profiles:
-            c[sl["slip"].start + rows] = np.interp(arc, np.linspace(0, 1, chunk.stop - chunk.start), x[chunk])
+        for chunk, rows, arc, weights in self.profiles:
+            c[sl["slip"].start + rows] = (weights @ x[chunk] if arc is None else
+                                          np.interp(arc, np.linspace(0, 1, chunk.stop - chunk.start), x[chunk]))
         return c
 
     def coefficients(self, x=(), others=None) -> Coefficients:

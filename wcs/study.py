@@ -22,7 +22,10 @@ A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
 `<path>[points-1]`: values of g at equally spaced points along the contact
 (`wcs.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
-needs the contact length (ds = length / (points - 1)), so it is only stored here.
+needs the contact length (ds = length / (points - 1)), so it is only stored here. In 3D a
+profile is a Lipschitz function on the contact surface: `points: [nu, nv]` values on a grid over
+the slave face in its two principal directions (`wcs.contact.frame`), bilinear in between,
+named `<path>[i,j]`, the slope bound in both directions.
 """
 from __future__ import annotations
 
@@ -290,13 +293,24 @@ class Profile(_Strict):
     support: Optional[Point] = None
     core: Optional[Point] = None
     lipschitz: float = Field(gt=0)
-    points: int = Field(ge=2, le=MAX_PROFILE_POINTS)
+    points: Any                 # an integer (2D), or [nu, nv] (a grid on a 3D contact surface)
 
     @model_validator(mode="after")
     def _crisp_or_fuzzy(self):
         if (self.range is None) == (self.support is None) or (self.support is None) != (self.core is None):
             raise ValueError("give either range: [lower, upper] or support: [a, b] with core: [c, d]")
         return self
+
+    @field_validator("points")
+    @classmethod
+    def _count_or_grid(cls, p):
+        whole = lambda v: isinstance(v, int) and not isinstance(v, bool)      # noqa: E731
+        if not (whole(p) or (isinstance(p, list) and len(p) == 2 and all(whole(v) for v in p))):
+            raise ValueError(f"points must be an integer (2D) or [nu, nv] (3D), got {p!r}")
+        if min(p if isinstance(p, list) else [p]) < 2 or int(np.prod(p)) > MAX_PROFILE_POINTS:
+            raise ValueError(f"points needs at least 2 values per direction and at most {MAX_PROFILE_POINTS} "
+                             f"in all, got {p!r}")
+        return p
 
 
 _STUDY = TypeAdapter(StudyFile)
@@ -698,6 +712,7 @@ class Uncertain:
     core: tuple[float, float] | None = None
     lipschitz: float | None = None
     points: int = 1
+    grid: tuple[int, int] | None = None     # a profile on a 3D contact surface: (nu, nv), points = nu·nv
 
 
 def _parse_uncertain(doc: dict, scene: Scene, src: _Source) -> list[Uncertain]:
@@ -719,8 +734,15 @@ def _parse_box(path: str, spec, scene: Scene, src: _Source) -> Uncertain:
                                    f"on {_PROFILE_ADDRESS}")
         profile = src.validate(_PROFILE, spec, where)
         bounds = profile.range or profile.support
+        grid = isinstance(profile.points, list)
+        if grid != (scene.dimension == 3):
+            raise src.error(where + ("points",), "a slip limit on a 3D contact surface takes points: [nu, nv] "
+                                                 "(a grid over the face)" if scene.dimension == 3 else
+                            "points is the number of values along the contact (one integer) in 2D")
         entry = Uncertain(path, bounds[0], bounds[1], core=None if profile.core is None else tuple(profile.core),
-                          lipschitz=profile.lipschitz, points=profile.points)
+                          lipschitz=profile.lipschitz,
+                          points=profile.points[0] * profile.points[1] if grid else profile.points,
+                          grid=tuple(profile.points) if grid else None)
     elif isinstance(spec, list):
         lower, upper = src.validate(_BOX, spec, where)
         entry = Uncertain(path, lower, upper)
@@ -851,7 +873,9 @@ class Parameters:
 def _parameters(uncertain: list[Uncertain]) -> Parameters:
     names, lower, upper = [], [], []
     for entry in uncertain:
-        if entry.lipschitz is not None:
+        if entry.grid is not None:
+            names += [f"{entry.path}[{i},{j}]" for i in range(entry.grid[0]) for j in range(entry.grid[1])]
+        elif entry.lipschitz is not None:
             names += [f"{entry.path}[{i}]" for i in range(entry.points)]
         else:
             names.append(entry.path)

@@ -207,10 +207,35 @@ def _zone3d(ref, scene) -> tuple[float, object]:
         area = 4 * math.pi * face.sphere.radius ** 2
     else:
         boxes = [solid_box(r.shape) for b in scene.bodies.values() for r in b.regions]
-        box = face.box if face.box is not None else (np.min(boxes, axis=0)[:3].tolist() + np.max(boxes, axis=0)[3:].tolist())
-        a, b, c = sorted(box[i + 3] - box[i] for i in range(3))
-        area = c * b
+        box = np.concatenate([np.min(boxes, axis=0)[:3], np.max(boxes, axis=0)[3:]])
+        if face.box is not None:
+            a, b, c = sorted(face.box[i + 3] - face.box[i] for i in range(3))
+            area = c * b
+        else:
+            area = plane_box_area(face.plane.point, face.plane.normal, box)
     return 0.0, lambda d: 2 * area + 4 * math.pi * d**2
+
+
+def plane_box_area(point, normal, box) -> float:
+    """The area of the polygon where a plane cuts the box [xmin, ymin, zmin, xmax, ymax, zmax]
+    (its corners: where the plane crosses the box's 12 edges, ordered about their centroid)."""
+    lo, hi = np.asarray(box[:3], float), np.asarray(box[3:], float)
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    corners = np.array([[(lo, hi)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+    d = (corners - np.asarray(point, float)) @ n
+    pts = [corners[a] + d[a] / (d[a] - d[b]) * (corners[b] - corners[a])
+           for a in range(8) for b in range(a + 1, 8)
+           if bin(a ^ b).count("1") == 1 and d[a] * d[b] < 0]
+    pts += [corners[a] for a in range(8) if d[a] == 0]
+    if len(pts) < 3:
+        return 0.0
+    p = np.array(pts)
+    c = p.mean(axis=0)
+    e1 = p[np.argmax(np.linalg.norm(p - c, axis=1))] - c
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    p = p[np.argsort(np.arctan2((p - c) @ e2, (p - c) @ e1))]
+    return 0.5 * float(np.abs(sum(np.cross(p[i] - c, p[(i + 1) % len(p)] - c) @ n for i in range(len(p)))))
 
 
 def _refined3d(ref, scene, h: float, g: float, body_volume: float) -> float:
