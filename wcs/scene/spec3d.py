@@ -227,7 +227,7 @@ class Scene(Frozen):
 Solid.model_rebuild()
 
 
-# What `wcs check` of a 3D study does not do yet: the nominal solve (`wcs solve` solves a 3D study;
-# what the model on tetrahedra does not build yet, it refuses by name).
+# What `wcs check` of a 3D study does not do yet: the nominal solve (`wcs solve` and `wcs run`
+# solve a 3D study; what the model on tetrahedra does not build yet they refuse by name).
 UNSUPPORTED = ("`wcs check` does not solve a 3D study yet: it meshes the scene and prints what the study "
-               "holds; `wcs solve` solves it (3D without contact, glue or criteria so far)")
+               "holds; `wcs solve` and `wcs run` solve it")
