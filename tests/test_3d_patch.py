@@ -7,6 +7,7 @@ and 1e-6 relative leave orders of magnitude for the conditioning of a few thousa
 and the Newton tolerance 1e-10). The cvxpy reference (Clarabel, gaps 1e-12) agrees with the
 Newton to 1e-6 relative: the brief's tolerance, above both solvers' stopping tests.
 """
+import re
 from pathlib import Path
 
 import numpy as np
@@ -155,3 +156,22 @@ def test_wcs_run_and_report_of_the_3d_patch(tmp_path):
         assert ds.attrs["mesh_check"].startswith("not available: 3D does not support the mesh check")
     assert main(["report", str(nc), "-o", str(html), "--quiet"]) == 0
     assert html.stat().st_size > 0
+
+
+@pytest.mark.parametrize("load, status, words", [
+    ([1.0e5, 0.0, -P], 3, r"net load \(1e\+05, 0, -1e\+06\) N drives a rigid motion"),
+    ([0.0, 0.0, -P], 7, r"translation \([-\d.e+]+, [-\d.e+]+, 0\) m with rotation \(0, 0, [-\d.e+]+\) rad "
+                        r"about the axes through \(0.\d+, 0.\d+, 0.25\d*\)"),
+])
+def test_a_floating_block_without_friction_is_refused_with_its_3d_motion(load, status, words):
+    """Frictionless, nothing holds the block in its plane: a tangential load is unbalanced
+    (status 3, the net load named), a normal one leaves the in-plane motions free (status 7, a
+    free motion named: in the plane, no lift, no tilt)."""
+    d = floating({"slip_limit": 3.0e5})
+    del d["scene"]["contacts"]["interface"]["friction"]
+    d["uncertain"] = {"loads.block_top_load.traction.2": [-1.5e6, -0.5e6]}
+    d["scene"]["loads"] = {"block_top_load": {"traction": load}}
+    ev = Evaluator(load_study(d))
+    res = ev.evaluate(ev.study.nominal())
+    assert res.status == status
+    assert re.search(words, res.message), res.message

@@ -6,9 +6,10 @@ exist) and is read-only once built; `Model.solve(c)` takes the `Coefficients` of
 set (`wcs.coefficients.ParameterMap`) and combines the pieces: the data are piecewise
 constant on regions and boundary parts, so every operator is an affine combination of
 fixed matrices. The mesh gives the dimension: P1 triangles (plane strain or stress) or P1
-tetrahedra (3D), dof = d·node + component either way. A solve returns a `Solution` that owns its fields and the matrices its
-adjoint needs; the factor objects behind them are caches that keep their analysis and
-are refactored whenever a solution asks for a matrix they no longer hold.
+tetrahedra (3D), dof = d·node + component either way. A solve returns a `Solution` that
+owns its fields and the matrices its adjoint needs; the factor objects behind them are
+caches that keep their analysis and are refactored whenever a solution asks for a matrix
+they no longer hold.
 """
 from __future__ import annotations
 
@@ -78,14 +79,10 @@ def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
     c = p[:, nodes].mean(axis=1)
     if p.shape[0] == 3:
         R = np.zeros((3 * nnodes, 6))
-        r = p[:, nodes] - c[:, None]
-        for k in range(3):
+        r = (p[:, nodes] - c[:, None]).T                      # (n, 3)
+        for k, e in enumerate(np.eye(3)):
             R[3 * nodes + k, k] = 1.0
-            e = np.zeros(3)
-            e[k] = 1.0
-            rot = np.cross(e, r.T)                            # (n, 3)
-            for i in range(3):
-                R[3 * nodes + i, 3 + k] = rot[:, i]
+            R[(3 * nodes[:, None] + np.arange(3)).ravel(), 3 + k] = np.cross(e, r).ravel()
         return R
     R = np.zeros((2 * nnodes, 3))
     R[2 * nodes, 0] = 1.0
