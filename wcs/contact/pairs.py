@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from ..fem import tet
@@ -283,7 +284,6 @@ def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> Fac
     triangles whose three nodes pair onto a master triangle to cover the smaller of the two
     faces (to 1e-9 of its area). Slave nodes with no master node (off a smaller master face) are
     dropped; a paired node whose slave and master normals do not oppose is a StudyError."""
-    from scipy.spatial import cKDTree          # scipy.spatial loads for a 3D contact only
     slave_facets = np.unique(np.asarray(slave_facets, dtype=np.int64))
     master_facets = np.unique(np.asarray(master_facets, dtype=np.int64))
     if slave_facets.size == 0 or master_facets.size == 0:
