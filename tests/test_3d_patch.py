@@ -54,6 +54,24 @@ def test_the_3d_contact_patch_passes_the_pressure_uniformly():
     assert fields["contact_shear"].dims == ("contact_node", "tangent")
 
 
+def test_a_slave_face_larger_than_its_master_keeps_the_nodes_on_the_master_face():
+    """The base's whole top as the slave under a block of a quarter of its area: the slave nodes
+    off the block are dropped, the tributary areas add up to the block's face, and the contact
+    transmits the load on the block."""
+    d = yaml.safe_load(PATCH.read_text())
+    scene = d["scene"]
+    scene["bodies"]["block"]["regions"][0]["shape"]["box"] = [0, 0, 0, 0.5, 0.5, 0.5]
+    scene["contacts"]["interface"] = {"slave": "base_top", "master": "block_bottom"}
+    ev, res = solve(d)
+    z = ev.model.zone
+    x = ev.smesh.mesh.p
+    kept, dropped = z.pairs[0].slave, z.pairs[0].dropped
+    assert np.all(x[:2, kept] <= 0.5 + 1e-12) and np.all(x[:2, dropped].max(axis=0) > 0.5)
+    assert z.weight.sum() == pytest.approx(0.25, rel=1e-12)
+    assert res.state.contact.force_n.sum() == pytest.approx(float(scene["loads"]["block_top"]["pressure"]) * 0.25,
+                                                            rel=1e-10)
+
+
 SHEAR = ROOT / "studies" / "validation" / "tresca-shear-patch-3d.yaml"
 E_BASE, E_BLOCK, G, P, DELTA, H = 2.0e10, 5.0e9, 3.0e5, 1.0e6, 1.0e-3, 0.5      # the numbers of SHEAR
 

@@ -261,7 +261,7 @@ class FacePairs:
     normal: np.ndarray           # (m, 3) out of the slave: its area-weighted nodal normal
     tangent: np.ndarray          # (m, 2, 3) t¹, t² with (t¹, t², n) right-handed orthonormal
     gap: np.ndarray              # (m,) 0: the nodes coincide
-    weight: np.ndarray           # (m,) tributary area: one third of each adjacent slave triangle
+    weight: np.ndarray           # (m,) tributary area: one third of each adjacent slave triangle on the master face
     dropped: np.ndarray          # slave node ids with no master node there
     discretization: str = "node-to-node"
 
@@ -282,8 +282,10 @@ def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> Fac
     """Pair each slave node of a ``MeshTet`` with the master node at the same point (within
     COINCIDENT × the mean slave edge); None when the faces do not match: a match needs the slave
     triangles whose three nodes pair onto a master triangle to cover the smaller of the two
-    faces (to 1e-9 of its area). Slave nodes with no master node (off a smaller master face) are
-    dropped; a paired node whose slave and master normals do not oppose is a StudyError."""
+    faces (to 1e-9 of its area). Those triangles are the contact surface: a slave node is kept
+    when it is a corner of one, with one third of the area of each as its tributary area; the
+    others (off a smaller master face) are dropped. A kept node whose slave and master normals do
+    not oppose is a StudyError."""
     slave_facets = np.unique(np.asarray(slave_facets, dtype=np.int64))
     master_facets = np.unique(np.asarray(master_facets, dtype=np.int64))
     if slave_facets.size == 0 or master_facets.size == 0:
@@ -309,17 +311,18 @@ def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> Fac
     onto = np.array([tuple(k) in master_keys for k in np.sort(image, axis=0).T.tolist()]) & whole
     if sarea[onto].sum() < (1 - 1e-9) * min(sarea.sum(), marea.sum()):
         return None
-    n = snormal[paired]
-    opposed = np.einsum("ij,ij->i", n, mnormal[j[paired]]) < 0.0
+    idx = np.searchsorted(snodes, sf)
+    weight = sum(np.bincount(idx[a, onto], sarea[onto], snodes.size) for a in range(3)) / 3.0
+    keep = weight > 0.0
+    n = snormal[keep]
+    opposed = np.einsum("ij,ij->i", n, mnormal[j[keep]]) < 0.0
     if not opposed.all():
-        x = p[:, snodes[paired][~opposed][0]]
+        x = p[:, snodes[keep][~opposed][0]]
         raise StudyError(f"the slave and master sides do not face each other at ({x[0]:.4g}, {x[1]:.4g}, "
                          f"{x[2]:.4g}): their outward normals do not oppose; a contact joins the two sides "
                          "that touch, each with its outward normal towards the other body", path=path)
-    idx = np.searchsorted(snodes, sf)
-    weight = sum(np.bincount(idx[a], sarea, snodes.size) for a in range(3)) / 3.0
-    return FacePairs(slave=snodes[paired], master=partner[snodes[paired]], normal=n, tangent=tangents(n),
-                     gap=np.zeros(int(paired.sum())), weight=weight[paired], dropped=snodes[~paired])
+    return FacePairs(slave=snodes[keep], master=partner[snodes[keep]], normal=n, tangent=tangents(n),
+                     gap=np.zeros(int(keep.sum())), weight=weight[keep], dropped=snodes[~keep])
 
 
 def jump_rows3d(pr: FacePairs, nnodes: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
