@@ -622,7 +622,7 @@ KINDS: dict[str, Kind] = {
         partials=lambda crit, model, state, r: (Partials(lam_n=crit.functionals[r].copy()), False),
         contact_functional=_pressure_functional, reads="contact", needs="contacts"),
     "von_mises": _area_kind("von Mises stress", "Pa", _von_mises, _dvon_mises),
-    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
+    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane in 2D)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),
     "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m",
                          value=_slip_mean, partials=_slip_partials, reads="contact", needs="contacts"),
