@@ -157,7 +157,7 @@ BAD = [
     (_put(["supports", "lid"], {"u": [0, 0, 0]}), "scene.supports.lid", "unknown boundary"),
     (_put(["mesh", "size"], 0.3), "scene.mesh.size", "fewer than 4 cells"),
     (_put(["mesh", "max_cells"], 100), "scene.mesh.size", "more than mesh.max_cells = 100"),
-    (_put(["mesh", "file"], "block.msh"), "scene.mesh", "3D does not support a mesh file yet"),
+    (_put(["mesh", "file"], "block.msh"), "scene.mesh", "a mesh `file` is used as it is: drop `size`"),
     (_put(["mesh", "refine"], [{"boundary": "nowhere", "size": 0.1}]), "scene.mesh.refine.0.boundary",
      "unknown boundary"),
     (_put(["mesh", "refine"], [{"disc": {"center": [0, 0], "radius": 1}, "size": 0.1}]), "scene.mesh.refine.0.disc",

@@ -350,7 +350,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     scene = src.validate(_SCENE3D if three else _SCENE, raw)
     notes = []
-    if not three and scene.mesh.file is not None:   # regions come from the file's physical groups
+    if scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
         file, names, groups, notes = prepare_scene(scene, src.base, src.error)
         scene = scene.model_copy(update={
@@ -449,10 +449,7 @@ def _check_mesh_references(scene: Scene, src: _Source) -> None:
             if refinement.boundary is not None:
                 _require(refinement.boundary, boundaries, "boundary", src,
                          ("bodies", body, "mesh", "refine", i, "boundary"))
-        if scene.mesh.file is not None:
-            if spec.mesh is not None:
-                raise src.error(("bodies", body, "mesh"), "the scene's mesh is a file: a body "
-                                "cannot have its own mesh sizes")
+        if scene.mesh.file is not None:     # (a body's own mesh: refused by prepare_scene)
             for i, region in enumerate(spec.regions):
                 if region.mesh is not None:
                     raise src.error(("bodies", body, "regions", i, "mesh"), "the scene's mesh is a "
@@ -518,10 +515,10 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
     when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
     cells along the longest side of the scene (or of a body with its own size)."""
-    if scene.dimension == 3:
-        return _check_mesh3d(scene, src)
     if scene.mesh.file is not None:
         return None
+    if scene.dimension == 3:
+        return _check_mesh3d(scene, src)
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
     sizes = [(("mesh", "size"), scene.mesh.size, "the scene", sum(boxes.values(), []))]
     sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])

@@ -62,6 +62,7 @@ from ..errors import StudyError
 from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
+from .meshfile import read_mesh_file
 from .mesher import fragment_pieces, piece_owners, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
@@ -280,7 +281,10 @@ def _body_index(sm: SceneMesh, body: str | None, path: str) -> int | None:
 def build_mesh3d(scene: Scene) -> SceneMesh:
     """Mesh a typed 3D scene (regions named, as the loader gives it) into a :class:`SceneMesh` holding one
     ``skfem.MeshTet``; ``boundaries`` and ``roi_cells`` as in 2D (``boundaries``: sorted indices
-    into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path)."""
+    into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path). A scene with
+    ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``)."""
+    if scene.mesh.file is not None:
+        return _from_file(scene)
     bodies = list(scene.bodies)
     regions = region_names(scene)
     embed = embedded_rois(scene)
@@ -336,6 +340,18 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
         if roi_cells[name].size == 0:
             raise StudyError("the region of interest holds no cell (of its body)", path=f"scene.regions_of_interest.{name}")
     return dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells)
+
+
+def _from_file(scene: Scene) -> SceneMesh:
+    """The user's own mesh: bodies and regions from its 3D groups, faces from its 2D groups or
+    the face selectors. A box, ball or cylinder of interest is embedded by the mesher, so a mesh
+    file (whose cells cannot be cut into it exactly) refuses it."""
+    for name in embedded_rois(scene):
+        kind = next(k for k in ROI_SOLIDS if getattr(scene.regions_of_interest[name], k) is not None)
+        raise StudyError(f"a {kind} cannot be cut from the cells of a mesh file (a mesh built from "
+                         "solids embeds it): use `boundary: NAME` here, or mesh the scene from solids",
+                         path=f"scene.regions_of_interest.{name}.{kind}")
+    return check_connected(read_mesh_file(scene.mesh.file, scene, dim=3, select=select_faces))
 
 
 def check_connected(sm: SceneMesh) -> SceneMesh:

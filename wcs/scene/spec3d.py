@@ -107,7 +107,7 @@ class Solid(Frozen):
 
 class Region(Frozen):
     material: str
-    shape: Solid
+    shape: Optional[Solid] = None          # required unless the scene's mesh is a file
     name: Optional[Name] = None
 
     @model_validator(mode="before")
@@ -197,12 +197,15 @@ class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)      # default: wcs.choose.mesh_size of the diagonal
     grading: Optional[float] = Field(None, ge=0, le=1e3)   # size growth per unit distance from a refine zone
     refine: list[Refinement] = []
+    file: Optional[str] = None             # a 3D mesh file (gmsh .msh, ...) instead of solids
     max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
 
-    @model_validator(mode="before")
-    @classmethod
-    def _file_not_yet(cls, data):
-        return _not_yet(data, {"file": "a mesh file"})
+    @model_validator(mode="after")
+    def _file_as_it_is(self):
+        if self.file is not None and (self.size is not None or self.refine or self.grading is not None
+                                      or self.max_cells is not None):
+            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading`, `refine` and `max_cells`")
+        return self
 
 
 class Scene(Frozen):
