@@ -21,6 +21,7 @@ from wcs.contact import solver as cs
 from wcs.sensitivity import _contact_adjoint
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_3d_patch import E_BASE, E_BLOCK, G, H, shear_patch  # noqa: E402
 from test_contact3d import args, pad_on_base  # noqa: E402
 from test_gradients import check_against_fd  # noqa: E402
 
@@ -205,3 +206,22 @@ def test_every_criterion_kind_with_frictional_contact(friction):
     ev = study.evaluate(study.nominal())
     assert {1, 2} <= set(ev.state.raw.active.tolist())      # stuck and slipping nodes
     assert check_against_fd(study) < REL
+
+
+@pytest.mark.parametrize("delta, flagged", [(2.0e-3, False), (None, True)], ids=["slipping", "at the switch"])
+def test_a_node_at_the_disc_boundary_is_flagged_non_smooth(delta, flagged):
+    """The Tresca shear patch (every node under the shear g, tests/test_3d_patch.py): with the
+    block's top moved by more than the elastic shift γH of both blocks, every node slips (s > 0,
+    |λt| = gw): smooth. Moved by exactly that shift, the nodes are at the switch between stick
+    and slip (s = 0 and |λt| = gw at once): the gradient is one-sided, flagged non-smooth."""
+    d = shear_patch()
+    shift = G / (E_BLOCK / 2) * H + G / (E_BASE / 2) * H
+    d["scene"]["supports"]["block_top"]["u"][0] = delta if delta is not None else shift
+    d["scene"]["regions_of_interest"] = {"face": {"boundary": "base_top"}}
+    d["uncertain"] = {"loads.block_top_load.pressure": [0.9e6, 1.1e6]}
+    d["criteria"] = [{"name": "p", "kind": "contact_pressure", "regions": ["face"]}]
+    d["solver"] = {"method": "monolithic", "tolerance": TOL}
+    study = wcs.load_study(d)
+    ev = study.evaluate(study.nominal(), gradients=True)
+    assert ev.status == 0 and ev.nonsmooth is flagged
+    assert ev.grad["p"][0] == pytest.approx(1.0, rel=1e-9)       # the mean pressure is the applied one

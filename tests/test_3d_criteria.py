@@ -200,3 +200,24 @@ def test_contact_pressure_refuses_a_region_that_cuts_slave_triangles():
         criteria._pressure_functional(sm, other, _zone(sm), "r", Selection("cells", np.zeros(0, int)),
                                       "scene.regions_of_interest.r")
     assert e.value.path == "scene.regions_of_interest.r"
+
+
+@pytest.mark.parametrize("roi, exact", [
+    ({"ball": {"center": [0.5, 0.5, 1.0], "radius": 0.3}}, np.pi * 0.3**2),
+    ({"cylinder": {"start": [0.5, 0.5, 0.8], "end": [0.5, 0.5, 1.2], "radius": 0.3}}, np.pi * 0.3**2),
+    ({"cylinder": {"start": [0.2, 0.5, 1.0], "end": [0.8, 0.5, 1.0], "radius": 0.2}}, 0.6 * 0.4)])
+def test_contact_pressure_over_an_embedded_ball_or_cylinder(roi, exact):
+    """A ball or cylinder embedded in the mesh meets the contact face in the mesh's polygon
+    inscribed in its trace (a disc, or a 0.6 × 0.4 rectangle for the lying cylinder): no slave
+    triangle is cut, Γc ∩ G_r is that polygon (its area just below the disc's, the rectangle's
+    exactly) and a uniform pressure has that mean exactly."""
+    scene, sm = _contact_mesh(roi)
+    zone = _zone(sm)
+    ell, meas = criteria._pressure_functional(sm, scene, zone, "r", Selection("cells", sm.roi_cells["r"]),
+                                              "scene.regions_of_interest.r")
+    assert 0.97 * exact < meas <= exact * (1 + 1e-12)
+    assert ell @ (2.5e6 * zone.weight) == pytest.approx(2.5e6, rel=1e-12)
+    inside = ell > 0
+    c = zone.coords[inside]
+    level = criteria._region_level(scene.regions_of_interest["r"], c)
+    assert level.max() <= 1e-9                         # every node carrying the mean is in G_r

@@ -1,6 +1,6 @@
 """The 3D study format (`scene.dimension: 3`): a block pressed on a block is loaded into the typed
-3D scene, `wcs check` meshes it and prints its mesh and what the study holds (it does not solve
-it yet), and `solve`, `run` and `sweep` solve it. Every bad input is exit 2 with its key path; seeded mutations never fail inside.
+3D scene, `wcs check` meshes it and prints its mesh and what the study holds, and the commands
+that solve it (solve, run, sweep) write their results. Every bad input is exit 2 with its key path; seeded mutations never fail inside.
 
 The printed volumes and areas are those of the boxes, exact to round-off: planar solids are
 meshed exactly."""
@@ -102,7 +102,7 @@ def test_check_prints_the_mesh_and_refuses_to_solve(tmp_path):
 
 
 @pytest.mark.parametrize("command", [["solve"], ["run"], ["sweep"]])
-def test_commands_that_solve_solve_a_3d_study(tmp_path, command):
+def test_commands_that_solve_run_a_3d_study(tmp_path, command):
     d = doc()
     d["sweep"] = {"grid": {"materials.soft.E": [0.9e9, 1.1e9]}}
     nc = tmp_path / "out.nc"

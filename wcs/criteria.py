@@ -570,7 +570,7 @@ def _area_kind(label: str, units: str, density: Callable, ddensity: Callable,
                 value=lambda crit, model, state, r: _cell_mean(model, crit.selections[r], density(state.stress)))
 
 
-def _node_norm(v: np.ndarray, m: int) -> np.ndarray:
+def node_norm(v: np.ndarray, m: int) -> np.ndarray:
     """(m,) the norm of each contact node's tangent components (rows j·m + i; one in 2D: its
     absolute value)."""
     return np.abs(v) if v.size == m else np.linalg.norm(v.reshape(-1, m), axis=0)
@@ -580,7 +580,7 @@ def _slip_mean(crit, model, state, r) -> float:
     """Mean |relative tangential displacement| over the contact nodes next to G_r: Σ w|s| / Σ w
     (3D: |s| the length of the node's two-component slip)."""
     mask, c = crit.contact_masks[r], state.contact
-    return float(c.weight[mask] @ _node_norm(c.slip, mask.size)[mask] / c.weight[mask].sum())
+    return float(c.weight[mask] @ node_norm(c.slip, mask.size)[mask] / c.weight[mask].sum())
 
 
 def _slip_partials(crit, model, state, r):
@@ -592,7 +592,7 @@ def _slip_partials(crit, model, state, r):
     mask, c = crit.contact_masks[r], state.contact
     m = mask.size
     k = c.slip.size // m
-    norm = _node_norm(c.slip, m)
+    norm = node_norm(c.slip, m)
     w = np.where(mask, c.weight, 0.0)
     nu = np.divide(c.slip, np.tile(norm, k), out=np.zeros_like(c.slip), where=np.tile(norm > 0, k))
     dslip = np.tile(w, k) * nu / w.sum()
@@ -622,7 +622,7 @@ KINDS: dict[str, Kind] = {
         partials=lambda crit, model, state, r: (Partials(lam_n=crit.functionals[r].copy()), False),
         contact_functional=_pressure_functional, reads="contact", needs="contacts"),
     "von_mises": _area_kind("von Mises stress", "Pa", _von_mises, _dvon_mises),
-    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane)", "Pa", _principal_max,
+    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane in 2D)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),
     "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m",
                          value=_slip_mean, partials=_slip_partials, reads="contact", needs="contacts"),

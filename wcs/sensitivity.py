@@ -42,7 +42,7 @@ import scipy.sparse as sp
 
 from .coefficients import flatten
 from .contact.solver import redundant_pairs
-from .criteria import KINDS, REL_TOL, Partials, _node_norm
+from .criteria import KINDS, REL_TOL, Partials, node_norm
 
 
 def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
@@ -80,9 +80,9 @@ def _slip_frame(model, state, m: int, k: int):
     sigma = np.zeros(k * m)
     sigma[turn] = 1.0
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)[turn]
-    held = gw > 0
-    free[b[held]] = True
-    compliance[b[held]] = (nu * slip[:, turn]).sum(axis=0)[held] / gw[held]
+    rubs = gw > 0
+    free[b[rubs]] = True
+    compliance[b[rubs]] = (nu * slip[:, turn]).sum(axis=0)[rubs] / gw[rubs]
     return Q, sigma, compliance, free
 
 
@@ -171,8 +171,8 @@ def contact_nonsmooth(model, state) -> bool:
     weak_closed = closed & (res.lam_n <= REL_TOL * fs)
     weak_open = ~closed & (np.abs(c.gap) <= REL_TOL * us)
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
-    weak_stick = stick & (gw > 0) & (_node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
-    weak_slip = ~stick & (gw > 0) & (_node_norm(c.slip, m) <= REL_TOL * us)
+    weak_stick = stick & (gw > 0) & (node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
+    weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
     # constraints that cannot move the solution: a node held by supports on both sides (its
     # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
     n2 = np.asarray(model.Bn_r.multiply(model.Bn_r).sum(axis=1)).ravel()
