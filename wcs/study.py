@@ -22,7 +22,10 @@ A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
 `<path>[points-1]`: values of g at equally spaced points along the contact
 (`wcs.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
-needs the contact length (ds = length / (points - 1)), so it is only stored here.
+needs the contact length (ds = length / (points - 1)), so it is only stored here. In 3D a
+profile is a Lipschitz function on the contact surface: `points: [nu, nv]` values on a grid over
+the slave face in its two principal directions (`wcs.contact.frame`), bilinear in between,
+named `<path>[i,j]`, the slope bound in both directions.
 """
 from __future__ import annotations
 
@@ -57,8 +60,8 @@ from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
-                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Direction, Frozen, GroupBoundary, Material,
-                         Name, Point, Scene, XY)
+                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
+                         Name, Point, Scene)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -207,14 +210,21 @@ MAX_NESTING = 50                                   # levels of a study file (sha
 MAX_PROFILE_POINTS = 1000
 
 CriterionKind = Literal[tuple(KINDS)]
+Coordinates = Annotated[list[Coordinate], Field(min_length=2, max_length=3)]   # the scene's dimension: _check_criteria
+
+
+def _nonzero_direction(direction: list[float]) -> list[float]:
+    if not any(direction):
+        raise ValueError(f"the direction must not be {[0] * len(direction)}")
+    return direction
 
 
 class Criterion(Frozen):
     name: Name
     kind: CriterionKind
     regions: Annotated[list[str], Field(min_length=1)]
-    point: Optional[XY] = None
-    direction: Optional[Direction] = None
+    point: Optional[Coordinates] = None
+    direction: Optional[Annotated[Coordinates, AfterValidator(_nonzero_direction)]] = None
     sense: Literal["max", "min", "both"] = Field(
         "max", description="which end of the range the search finds: the maximum (the worst "
         "scenario), the minimum (the best), or both")
@@ -290,13 +300,24 @@ class Profile(_Strict):
     support: Optional[Point] = None
     core: Optional[Point] = None
     lipschitz: float = Field(gt=0)
-    points: int = Field(ge=2, le=MAX_PROFILE_POINTS)
+    points: Any                 # an integer (2D), or [nu, nv] (a grid on a 3D contact surface)
 
     @model_validator(mode="after")
     def _crisp_or_fuzzy(self):
         if (self.range is None) == (self.support is None) or (self.support is None) != (self.core is None):
             raise ValueError("give either range: [lower, upper] or support: [a, b] with core: [c, d]")
         return self
+
+    @field_validator("points")
+    @classmethod
+    def _count_or_grid(cls, p):
+        whole = lambda v: isinstance(v, int) and not isinstance(v, bool)      # noqa: E731
+        if not (whole(p) or (isinstance(p, list) and len(p) == 2 and all(whole(v) for v in p))):
+            raise ValueError(f"points must be an integer (2D) or [nu, nv] (3D), got {p!r}")
+        if min(p if isinstance(p, list) else [p]) < 2 or int(np.prod(p)) > MAX_PROFILE_POINTS:
+            raise ValueError(f"points needs at least 2 values per direction and at most {MAX_PROFILE_POINTS} "
+                             f"in all, got {p!r}")
+        return p
 
 
 _STUDY = TypeAdapter(StudyFile)
@@ -329,7 +350,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     scene = src.validate(_SCENE3D if three else _SCENE, raw)
     notes = []
-    if not three and scene.mesh.file is not None:   # regions come from the file's physical groups
+    if scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
         file, names, groups, notes = prepare_scene(scene, src.base, src.error)
         scene = scene.model_copy(update={
@@ -428,10 +449,7 @@ def _check_mesh_references(scene: Scene, src: _Source) -> None:
             if refinement.boundary is not None:
                 _require(refinement.boundary, boundaries, "boundary", src,
                          ("bodies", body, "mesh", "refine", i, "boundary"))
-        if scene.mesh.file is not None:
-            if spec.mesh is not None:
-                raise src.error(("bodies", body, "mesh"), "the scene's mesh is a file: a body "
-                                "cannot have its own mesh sizes")
+        if scene.mesh.file is not None:     # (a body's own mesh: refused by prepare_scene)
             for i, region in enumerate(spec.regions):
                 if region.mesh is not None:
                     raise src.error(("bodies", body, "regions", i, "mesh"), "the scene's mesh is a "
@@ -497,10 +515,10 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
     when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
     cells along the longest side of the scene (or of a body with its own size)."""
-    if scene.dimension == 3:
-        return _check_mesh3d(scene, src)
     if scene.mesh.file is not None:
         return None
+    if scene.dimension == 3:
+        return _check_mesh3d(scene, src)
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
     sizes = [(("mesh", "size"), scene.mesh.size, "the scene", sum(boxes.values(), []))]
     sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
@@ -701,6 +719,7 @@ class Uncertain:
     core: tuple[float, float] | None = None
     lipschitz: float | None = None
     points: int = 1
+    grid: tuple[int, int] | None = None     # a profile on a 3D contact surface: (nu, nv), points = nu·nv
 
 
 def _parse_uncertain(doc: dict, scene: Scene, src: _Source) -> list[Uncertain]:
@@ -722,8 +741,15 @@ def _parse_box(path: str, spec, scene: Scene, src: _Source) -> Uncertain:
                                    f"on {_PROFILE_ADDRESS}")
         profile = src.validate(_PROFILE, spec, where)
         bounds = profile.range or profile.support
+        grid = isinstance(profile.points, list)
+        if grid != (scene.dimension == 3):
+            raise src.error(where + ("points",), "a slip limit on a 3D contact surface takes points: [nu, nv] "
+                                                 "(a grid over the face)" if scene.dimension == 3 else
+                            "points is the number of values along the contact (one integer) in 2D")
         entry = Uncertain(path, bounds[0], bounds[1], core=None if profile.core is None else tuple(profile.core),
-                          lipschitz=profile.lipschitz, points=profile.points)
+                          lipschitz=profile.lipschitz,
+                          points=profile.points[0] * profile.points[1] if grid else profile.points,
+                          grid=tuple(profile.points) if grid else None)
     elif isinstance(spec, list):
         lower, upper = src.validate(_BOX, spec, where)
         entry = Uncertain(path, lower, upper)
@@ -779,6 +805,11 @@ def _check_criteria(criteria: list[Criterion], scene: Scene, src: _Source) -> No
         for j, roi in enumerate(criterion.regions):
             _require(roi, scene.regions_of_interest, "region of interest", src,
                      ("criteria", i, "regions", j))
+        for key in ("point", "direction"):
+            value = getattr(criterion, key)
+            if value is not None and len(value) != scene.dimension:
+                raise src.error(("criteria", i, key), f"{key} needs {scene.dimension} coordinates in a "
+                                f"{scene.dimension}D scene, got {len(value)}")
         needs = KINDS[criterion.kind].needs
         if needs == "thermal" and scene.thermal is None:
             raise src.error(("criteria", i, "kind"), f"{criterion.kind} needs a thermal block in the scene")
@@ -854,7 +885,9 @@ class Parameters:
 def _parameters(uncertain: list[Uncertain]) -> Parameters:
     names, lower, upper = [], [], []
     for entry in uncertain:
-        if entry.lipschitz is not None:
+        if entry.grid is not None:
+            names += [f"{entry.path}[{i},{j}]" for i in range(entry.grid[0]) for j in range(entry.grid[1])]
+        elif entry.lipschitz is not None:
             names += [f"{entry.path}[{i}]" for i in range(entry.points)]
         else:
             names.append(entry.path)

@@ -61,12 +61,16 @@ class Levels:
 
 @dataclass
 class Mesh:
-    coords: np.ndarray     # (node, 2)
-    cells: np.ndarray      # (cell, 3)
+    coords: np.ndarray     # (node, dim)
+    cells: np.ndarray      # (cell, dim + 1): triangles in 2D, tetrahedra in 3D
     cell_body: np.ndarray | None
     cell_region: np.ndarray | None
     bodies: list[str]
     regions: list[str]
+
+    @property
+    def dim(self) -> int:
+        return self.cells.shape[1] - 1
 
 
 @dataclass
@@ -89,6 +93,7 @@ class Fields:
     contact: dict = field(default_factory=dict)   # name -> (contact_node,) array
     contact_coords: np.ndarray | None = None
     contact_pair: np.ndarray | None = None
+    contact_tangents: np.ndarray | None = None    # 3D: (contact_node, tangent, 3) the directions of slip/shear
 
 
 @dataclass
@@ -336,8 +341,8 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
     if "coords" in ds and "cells" in ds:
         bodies = [_text(b) for b in ds["body"].values.tolist()] if "body" in ds.coords else []
         regions = [_text(r) for r in ds["region"].values.tolist()] if "region" in ds.coords else []
-        coords = ds["coords"].values.astype(float)
-        mesh = Mesh(coords[:, :2], ds["cells"].values.astype(np.int64),
+        coords, cells = ds["coords"].values.astype(float), ds["cells"].values.astype(np.int64)
+        mesh = Mesh(coords[:, :cells.shape[1] - 1], cells,
                     ds["cell_body"].values.astype(int) if "cell_body" in ds else None,
                     ds["cell_region"].values.astype(int) if "cell_region" in ds else None,
                     bodies, regions)
@@ -389,7 +394,7 @@ def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:
         v = _get(ds, f"worst_{f}")
         if v is not None:
             return (v.isel(criterion=j) if "criterion" in v.dims else v).values
-        if prefixed and f not in ("contact_coords", "contact_pair"):
+        if prefixed and f not in ("contact_coords", "contact_pair", "contact_tangents"):
             return None       # a run file without worst-case fields
         v = _get(ds, f)       # a solve file; or contact geometry stored once
         return None if v is None or "eval" in v.dims else v.values
@@ -405,6 +410,8 @@ def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:
     if cc is not None and cp is not None:
         out.contact_coords = np.asarray(cc, float)
         out.contact_pair = np.array([_text(p) for p in np.asarray(cp).tolist()])
+        ct = pick("contact_tangents")
+        out.contact_tangents = None if ct is None else np.asarray(ct, float)
         for f in ("contact_pressure", "contact_gap", "contact_slip", "contact_shear"):
             v = pick(f)
             if v is not None:

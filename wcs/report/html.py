@@ -13,7 +13,7 @@ import numpy as np
 
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
-from . import plots
+from . import plots, plots3d
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
@@ -294,12 +294,14 @@ class Report:
             return '<p class="note">The results file holds no mesh.</p>'
         a = r.attrs
         rois = r.scene.get("regions_of_interest") or {}
-        text = (f'<p>{r.mesh.coords.shape[0]} nodes, {r.mesh.cells.shape[0]} triangles'
+        text = (f'<p>{r.mesh.coords.shape[0]} nodes, {r.mesh.cells.shape[0]} '
+                f'{"tetrahedra" if r.mesh.dim == 3 else "triangles"}'
                 f'{", plane " + esc(a["plane"]) if "plane" in a else ""}; '
                 f'bodies: {", ".join(esc(b) for b in r.mesh.bodies) or "—"}; '
                 f'regions: {", ".join(esc(x) for x in r.mesh.regions) or "—"}; '
                 f'regions of interest: {", ".join(esc(x) for x in rois) or "—"}.</p>')
-        return text + img(plots.scene_figure(r), "scene and mesh")
+        figure = plots3d.scene_figure3d(r) if r.mesh.dim == 3 else plots.scene_figure(r)
+        return text + img(figure, "scene and mesh")
 
     def worst_data(self) -> str:
         r = self.res
@@ -352,7 +354,8 @@ class Report:
                            f'{esc(done[key])}: see above.</p>')
                 continue
             done[key] = c.name
-            data, mag = plots.worst_case_figure(r, j)
+            data, mag = (plots3d.surface_figure if r.mesh.dim == 3 else plots.worst_case_figure)(r, j)
+            cut = plots3d.cut_figure(r, j) if r.mesh.dim == 3 else None
             label = "the nominal data" if r.kind == "solve" else f"the worst case of {esc(c.name)}"
             extra = []
             if f.von_mises is not None:
@@ -367,10 +370,14 @@ class Report:
                              f"{number(float(np.nanmax(f.temperature)), 'K')}")
             out.append(f'<h3>{esc(c.name)}: {label}</h3>'
                        f'<p>Displacements magnified × {mag:g}. {"; ".join(extra)}.</p>'
-                       + img(data, f"worst case of {c.name}"))
+                       + img(data, f"worst case of {c.name}")
+                       + ("" if cut is None else '<p>Cuts through the regions of interest (undeformed; the '
+                          'cells of each region outlined).</p>' + img(cut, f"cuts at the worst case of {c.name}")))
         return "".join(out)
 
     def contact(self) -> str:
+        if self.res.mesh is not None and self.res.mesh.dim == 3:
+            return self.contact3d()
         data = plots.contact_figure(self.res)
         if data is None:
             return '<p class="note">No contact in this study (or no contact fields in the file).</p>'
@@ -378,6 +385,16 @@ class Report:
         return (f'<p>Along each contact ({", ".join(esc(p) for p in pairs)}), on the slave nodes, at the worst '
                 'case of each criterion: the contact pressure −τₙ (zero where the contact opens) and the relative '
                 'tangential displacement (slip).</p>' + img(data, "contact pressure and slip"))
+
+    def contact3d(self) -> str:
+        maps = [(label, plots3d.contact_maps_figure(self.res, j)) for j, label in plots.distinct_cases(self.res)]
+        maps = [(label, data) for label, data in maps if data is not None]
+        if not maps:
+            return '<p class="note">No contact in this study (or no contact fields in the file).</p>'
+        return ('<p>On each contact surface, on the slave nodes, in the surface\'s own coordinates (its two '
+                'principal directions): the contact pressure −τₙ (zero where the contact opens) and the '
+                'tangential slip |s| with its direction.</p>'
+                + "".join(f"<h3>{esc(label)}</h3>" + img(data, f"contact maps, {label}") for label, data in maps))
 
     def scatter(self) -> str:
         r = self.res

@@ -356,7 +356,7 @@ def contact_figure(res: Results) -> bytes | None:
     contacts = contacts_of(res)
     if not contacts:
         return None
-    cases = _distinct_cases(res)
+    cases = distinct_cases(res)
     quantities = [q for q in ("contact_pressure", "contact_slip") if any(q in res.worst_fields[j].contact for j, _ in cases)]
     if not quantities:
         return None
@@ -381,7 +381,7 @@ def contact_figure(res: Results) -> bytes | None:
     return png(fig)
 
 
-def _distinct_cases(res: Results) -> list[tuple[int, str]]:
+def distinct_cases(res: Results) -> list[tuple[int, str]]:
     """(criterion index, label) of the worst cases with fields, one per distinct data set."""
     out, seen = [], []
     for j, c in enumerate(res.criteria):

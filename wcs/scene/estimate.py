@@ -186,15 +186,87 @@ def _curved_cells(solid, h: float) -> float:
     return CELLS_PER_H3 * (volume * (1 / s**3 - 1 / h**3) + float(np.trapezoid(area / (s + d) ** 3, d)))
 
 
+def _zone3d(ref, scene) -> tuple[float, object]:
+    """(volume, A) of a 3D refine zone: its volume and the area A(d) of the surface at distance
+    d outside it (Steiner's formula for a box, ball, cylinder; a face: both sides of its area,
+    a plane taken as the scene's largest bounding-box face)."""
+    if ref.box is not None:
+        a, b, c = (ref.box[i + 3] - ref.box[i] for i in range(3))
+        return a * b * c, lambda d: 2 * (a * b + b * c + c * a) + 2 * math.pi * (a + b + c) * d + 4 * math.pi * d**2
+    if ref.ball is not None:
+        r = ref.ball.radius
+        return 4 / 3 * math.pi * r**3, lambda d: 4 * math.pi * (r + d) ** 2
+    if ref.cylinder is not None:
+        r, L = ref.cylinder.radius, math.dist(ref.cylinder.start, ref.cylinder.end)
+        return math.pi * r**2 * L, lambda d: (2 * math.pi * r * L + 2 * math.pi * r**2
+                                              + 2 * (math.pi**2 * r + math.pi * L) * d + 4 * math.pi * d**2)
+    face = scene.boundaries[ref.boundary]
+    if face.cylinder is not None:
+        area = 2 * math.pi * face.cylinder.radius * math.dist(face.cylinder.start, face.cylinder.end)
+    elif face.sphere is not None:
+        area = 4 * math.pi * face.sphere.radius ** 2
+    else:
+        boxes = [solid_box(r.shape) for b in scene.bodies.values() for r in b.regions]
+        box = np.concatenate([np.min(boxes, axis=0)[:3], np.max(boxes, axis=0)[3:]])
+        if face.box is not None:
+            a, b, c = sorted(face.box[i + 3] - face.box[i] for i in range(3))
+            area = c * b
+        else:
+            area = plane_box_area(face.plane.point, face.plane.normal, box)
+    return 0.0, lambda d: 2 * area + 4 * math.pi * d**2
+
+
+def plane_box_area(point, normal, box) -> float:
+    """The area of the polygon where a plane cuts the box [xmin, ymin, zmin, xmax, ymax, zmax]
+    (its corners: where the plane crosses the box's 12 edges, ordered about their centroid)."""
+    lo, hi = np.asarray(box[:3], float), np.asarray(box[3:], float)
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    corners = np.array([[(lo, hi)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+    d = (corners - np.asarray(point, float)) @ n
+    pts = [corners[a] + d[a] / (d[a] - d[b]) * (corners[b] - corners[a])
+           for a in range(8) for b in range(a + 1, 8)
+           if bin(a ^ b).count("1") == 1 and d[a] * d[b] < 0]
+    pts += [corners[a] for a in range(8) if d[a] == 0]
+    if len(pts) < 3:
+        return 0.0
+    p = np.array(pts)
+    c = p.mean(axis=0)
+    e1 = p[np.argmax(np.linalg.norm(p - c, axis=1))] - c
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    p = p[np.argsort(np.arctan2((p - c) @ e2, (p - c) @ e1))]
+    return 0.5 * float(np.abs(sum(np.cross(p[i] - c, p[(i + 1) % len(p)] - c) @ n for i in range(len(p)))))
+
+
+def _refined3d(ref, scene, h: float, g: float, body_volume: float) -> float:
+    """Tetrahedra a refine zone of size s < h adds to a body meshed at h: the zone at s, and the
+    halo where the size grows as s + g d up to h (clipped to the body's volume at s)."""
+    s = ref.size
+    volume, A = _zone3d(ref, scene)
+    inside = min(volume, body_volume) * (1 / s**3 - 1 / h**3)
+    if g > 0:
+        d = np.linspace(0.0, (h - s) / g, HALO_POINTS)
+        halo = float(np.trapezoid(A(d) * (1 / (s + g * d) ** 3 - 1 / h**3), d))
+    else:
+        halo = 0.0
+    return CELLS_PER_H3 * min(inside + halo, body_volume / s**3)
+
+
 def estimate_cells3d(scene, size: float) -> tuple[float, str]:
     """About how many tetrahedra a 3D scene's mesh will have at the scene size `size`, and the
     key path of the size that contributes most (relative to the scene)."""
     parts = []
+    grading = DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading
     rois = [spec3d.Solid(sphere=roi.ball) if roi.ball is not None else spec3d.Solid(cylinder=roi.cylinder)
             for roi in scene.regions_of_interest.values() if roi.ball is not None or roi.cylinder is not None]
     for body, spec in scene.bodies.items():
         h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
-        cells = CELLS_PER_H3 * sum(_primitive_volume(r.shape) for r in spec.regions) / h**3
+        volume = sum(_primitive_volume(r.shape) for r in spec.regions)
+        cells = CELLS_PER_H3 * volume / h**3
         curved = [c for r in spec.regions for c in _curved(r.shape)] + rois
         parts.append((cells + sum(_curved_cells(c, h) for c in curved), path))
+        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine)]
+        zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(spec.mesh.refine if spec.mesh else [])]
+        parts += [(_refined3d(ref, scene, h, grading, volume), p) for ref, p in zones
+                  if ref.size < h and (ref.boundary is None or ref.boundary in scene.boundaries)]
     return sum(c for c, _ in parts), max(parts)[1]

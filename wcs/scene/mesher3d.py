@@ -33,10 +33,12 @@ of interest goes through one ``occ.fragment``, so regions of a body share nodes 
 bodies have matching triangles on their common faces; a piece belongs to the last region (scene
 order) covering it; a piece covered by two bodies is an overlap (``StudyError`` at
 ``scene.bodies.<later body>``); a region left with no volume is a ``StudyError`` at its path.
-Each body gets its own copy of the nodes on faces shared with another body. The size is uniform,
+Each body gets its own copy of the nodes on faces shared with another body. The size is
 ``mesh.size`` (``Mesh.MeshSizeMax``; default: the rule of ``wcs.choose.mesh_size`` with the
-bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc. If any body
-has its own ``bodies.<b>.mesh: {size}``, every body is meshed in a gmsh model of its own after the
+bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc, and finer
+in the ``mesh.refine`` zones ``{box | ball | cylinder | boundary, size}``: the size at x is
+``min(size, min_r (size_r + grading · dist_r(x)))`` (``mesh.grading``, default 0.5), as in 2D.
+If any body has its own ``bodies.<b>.mesh: {size, refine}``, every body is meshed in a gmsh model of its own after the
 global fragment (which still decides ownership and overlaps), with its size or the scene's: the
 faces it shares with other bodies are then nonmatching (mortar contact) and carry no imprint
 of the other body's outline.
@@ -60,9 +62,11 @@ from ..errors import StudyError
 from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
+from .meshfile import read_mesh_file
 from .mesher import fragment_pieces, piece_owners, region_names
 from .session import Session
-from .spec3d import Boundary, Plane, RegionOfInterest, Scene, Solid
+from .estimate import DEFAULT_GRADING
+from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
 
 FACE_KINDS = ("plane", "box", "cylinder", "sphere")
 ROI_SOLIDS = {"box": "box", "ball": "sphere", "cylinder": "cylinder"}   # embedded region -> solid
@@ -140,6 +144,73 @@ def make_solid(shape: Solid, path: str) -> DimTags:
 
 
 # ---------------------------------------------------------------------------
+# sizes
+
+
+def _solid_distance(ref: Refinement):
+    """A scalar ``d(x, y, z)``: the distance to the refine zone's box, ball or cylinder (0 inside)."""
+    if ref.box is not None:
+        x0, y0, z0, x1, y1, z1 = (float(v) for v in ref.box)
+        return lambda x, y, z: math.sqrt(max(x0 - x, x - x1, 0.0) ** 2 + max(y0 - y, y - y1, 0.0) ** 2
+                                         + max(z0 - z, z - z1, 0.0) ** 2)
+    if ref.ball is not None:
+        cx, cy, cz = (float(v) for v in ref.ball.center)
+        r = float(ref.ball.radius)
+        return lambda x, y, z: max(math.sqrt((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) - r, 0.0)
+    a, b = np.array(ref.cylinder.start, dtype=float), np.array(ref.cylinder.end, dtype=float)
+    length = float(np.linalg.norm(b - a))
+    ax, ay, az = (float(v) for v in (b - a) / length)
+    sx, sy, sz = (float(v) for v in a)
+    r = float(ref.cylinder.radius)
+
+    def d(x, y, z):
+        dx, dy, dz = x - sx, y - sy, z - sz
+        s = dx * ax + dy * ay + dz * az
+        radial = math.sqrt(max(dx * dx + dy * dy + dz * dz - s * s, 0.0))
+        return math.hypot(max(radial - r, 0.0), max(-s, s - length, 0.0))
+    return d
+
+
+def _refinements(scene: Scene, entries: list[Refinement], path0: str):
+    """(size, distance function) of each refine entry: its solid, or the face set of the
+    boundary it names (`surface_distance`)."""
+    refs = []
+    for i, ref in enumerate(entries):
+        if ref.boundary is None:
+            d = _solid_distance(ref)
+        elif ref.boundary in scene.boundaries:
+            spec = scene.boundaries[ref.boundary]
+            d = (lambda spec: lambda x, y, z: float(surface_distance(spec, np.array([x, y, z]))))(spec)
+        else:
+            raise StudyError(f"unknown boundary {ref.boundary!r} (boundaries: {', '.join(scene.boundaries) or 'none'})",
+                             path=f"{path0}.{i}.boundary")
+        refs.append((float(ref.size), d))
+    return refs
+
+
+def _set_sizes(scene: Scene, size: float, body: str | None = None) -> None:
+    """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
+    zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`);
+    a uniform size is gmsh's own bound ``Mesh.MeshSizeMax``."""
+    grading = float(DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading)
+    refs = _refinements(scene, scene.mesh.refine, "scene.mesh.refine")
+    if body is not None and scene.bodies[body].mesh is not None:
+        refs += _refinements(scene, scene.bodies[body].mesh.refine, f"scene.bodies.{body}.mesh.refine")
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    if not refs:
+        gmsh.model.mesh.removeSizeCallback()
+        return
+
+    def callback(dim, tag, x, y, z, lc):
+        h = min(lc, size)
+        for s, d in refs:
+            if s < h:
+                h = min(h, s + grading * d(x, y, z))
+        return h
+    gmsh.model.mesh.setSizeCallback(callback)
+
+
+# ---------------------------------------------------------------------------
 # build
 
 
@@ -186,7 +257,7 @@ def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list
         covered, inside = fragment_pieces(solids, [_roi_solid(scene.regions_of_interest[n], f"scene.regions_of_interest.{n}")
                                                    for n in embed], dim=3)
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size if bspec.mesh is None else bspec.mesh.size)
+        _set_sizes(scene, size if bspec.mesh is None else bspec.mesh.size, body)
         gmsh.model.mesh.generate(3)
         xyz, tet, cb, cr, ci = _extract(owner, inside)
         gmsh.model.remove()
@@ -210,7 +281,10 @@ def _body_index(sm: SceneMesh, body: str | None, path: str) -> int | None:
 def build_mesh3d(scene: Scene) -> SceneMesh:
     """Mesh a typed 3D scene (regions named, as the loader gives it) into a :class:`SceneMesh` holding one
     ``skfem.MeshTet``; ``boundaries`` and ``roi_cells`` as in 2D (``boundaries``: sorted indices
-    into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path)."""
+    into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path). A scene with
+    ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``)."""
+    if scene.mesh.file is not None:
+        return _from_file(scene)
     bodies = list(scene.bodies)
     regions = region_names(scene)
     embed = embedded_rois(scene)
@@ -231,13 +305,14 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
             size = (scene.mesh.size if scene.mesh.size is not None
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
             if not any(scene.bodies[body].mesh for body in bodies):
-                gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+                _set_sizes(scene, size)
                 gmsh.model.mesh.generate(3)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
             else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching
                 xyz, tet, cell_body, cell_region, in_roi = _mesh_bodies_separately(scene, bodies, size, embed)
         finally:
             gmsh.option.setNumber("Mesh.Algorithm3D", previous)
+            gmsh.model.mesh.removeSizeCallback()
     if (tet < 0).any():
         raise RuntimeError("gmsh returned a cell with an unknown node")
 
@@ -265,6 +340,18 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
         if roi_cells[name].size == 0:
             raise StudyError("the region of interest holds no cell (of its body)", path=f"scene.regions_of_interest.{name}")
     return dataclasses.replace(sm, boundaries=bnd, roi_cells=roi_cells)
+
+
+def _from_file(scene: Scene) -> SceneMesh:
+    """The user's own mesh: bodies and regions from its 3D groups, faces from its 2D groups or
+    the face selectors. A box, ball or cylinder of interest is embedded by the mesher, so a mesh
+    file (whose cells cannot be cut into it exactly) refuses it."""
+    for name in embedded_rois(scene):
+        kind = next(k for k in ROI_SOLIDS if getattr(scene.regions_of_interest[name], k) is not None)
+        raise StudyError(f"a {kind} cannot be cut from the cells of a mesh file (a mesh built from "
+                         "solids embeds it): use `boundary: NAME` here, or mesh the scene from solids",
+                         path=f"scene.regions_of_interest.{name}.{kind}")
+    return check_connected(read_mesh_file(scene.mesh.file, scene, dim=3, select=select_faces))
 
 
 def check_connected(sm: SceneMesh) -> SceneMesh:

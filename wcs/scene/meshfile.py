@@ -1,67 +1,106 @@
-"""Scenes from the user's own mesh: ``scene.mesh: {file: knee.msh}``.
+"""Scenes from the user's own mesh: ``scene.mesh: {file: knee.msh}``, in 2D and in 3D.
 
 A gmsh ``.msh`` file (any version gmsh reads), or any file meshio reads, gives
 the bodies, regions and boundary pieces of the scene by the NAMES of its
 physical groups; the study only assigns materials and boundary conditions.
 
-Naming rule
+Naming rule (a scene of dimension d = 2 or 3: its cells are the d-dimensional elements,
+its facets the (d-1)-dimensional ones)
 -----------
-* 2D physical group ``BODY``        -> body ``BODY`` with a single region, also named ``BODY``;
-* 2D physical group ``BODY:REGION`` -> region ``REGION`` of body ``BODY`` (a body is glued
+* dD physical group ``BODY``          -> body ``BODY`` with a single region, also named ``BODY``;
+* dD physical group ``BODY:REGION``   -> region ``REGION`` of body ``BODY`` (a body is glued
   from its regions; a body uses either the plain form or the ``BODY:REGION`` form);
-* 1D physical group ``NAME``        -> boundary piece ``NAME``: the boundary edges (of any
-  body) lying on the group's line elements;
-* 1D physical group ``BODY:NAME``   -> boundary piece ``NAME``, only the edges of body
-  ``BODY`` -- needed where two bodies touch: put the common curve into two groups,
-  e.g. ``pad:pad_bottom`` and ``base:base_top``, the two sides of a contact.
+* (d-1)D physical group ``NAME``      -> boundary piece ``NAME``: the boundary facets (of any
+  body) lying on the group's elements;
+* (d-1)D physical group ``BODY:NAME`` -> boundary piece ``NAME``, only the facets of body
+  ``BODY`` -- needed where two bodies touch: put the common curve (2D) or surface (3D) into
+  two groups, e.g. ``pad:pad_bottom`` and ``base:base_top``, the two sides of a contact.
 
-Only 3-node triangles (2D) and 2-node lines (1D) are used; points (0D groups) are
-ignored.  Every 2D element must be in a physical group of a body listed in the study,
+In 2D only 3-node triangles (2D) and 2-node lines (1D) are used, in 3D only 4-node
+tetrahedra (3D) and 3-node triangles (2D); groups of lower dimension (points; in 3D also
+lines) are ignored.  Every cell must be in a physical group of a body listed in the study,
 and every body and region the study lists must be in the file.  Boundary pieces may
-still be chosen geometrically in ``scene.boundaries`` (segment / circle / box), by
-names that are not also group names.
+still be chosen geometrically in ``scene.boundaries`` (2D: segment / circle / box; 3D: plane
+/ box / cylinder / sphere), by names that are not also group names.
 
 Where two bodies share nodes in the file, each body gets its own copy (as
-``build_mesh`` does), so the bodies touch and contact couples them.
+``build_mesh`` and ``build_mesh3d`` do), so the bodies touch and contact couples them.
 
 Checks (``StudyError`` naming the study file or the mesh file and the key path):
-missing or unreadable file, planar coordinates, unsupported element types, groups the
-study names that the file lacks (and bodies of the file the study forgets),
-degenerate triangles (zero area: an error), clockwise triangles (reoriented, with a
-note in ``Study.notes``), and overlapping cells (a cell centroid inside a cell of
-another region or body, or overlapping cells inside one region: an error).
+missing or unreadable file, planar coordinates (2D), unsupported element types, groups the
+study names that the file lacks (and bodies of the file the study forgets), degenerate
+cells (zero area or volume: an error), clockwise triangles and negatively oriented
+tetrahedra (reoriented, with a note in ``Study.notes``), overlapping cells (a cell centroid
+inside a cell of another region or body, or overlapping cells inside one region: an error),
+and a facet group that lies on no boundary facet (of its body).
 """
 from __future__ import annotations
 
 import contextlib
 import dataclasses
 import io
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import skfem
+from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from . import selectors
 from .meshdata import SceneMesh
 from .spec import GroupBoundary
 
-AREA_TOL = 1e-12            # |area| <= AREA_TOL * (bounding-box diagonal)^2 -> degenerate
+AREA_TOL = 1e-12            # |area| (|volume|) <= AREA_TOL * (bounding-box diagonal)^d -> degenerate
+INSIDE_TOL = 1e-9           # a point is inside a tetrahedron when its barycentric coordinates exceed this
+CHUNK = 100_000             # tetrahedra per batch of the overlap check
+
+
+@dataclass(frozen=True)
+class Kind:
+    """What a mesh file of a d-dimensional scene holds, and the words its messages use."""
+
+    dim: int
+    cell_type: int              # gmsh element type of the cells (2 triangle, 4 tetrahedron)
+    facet_type: int             # ... and of the facets (1 line, 2 triangle)
+    meshio: dict[str, int]      # meshio cell type -> dimension
+    ignored: tuple[str, ...]    # meshio cell types of lower dimension, skipped
+    supported: str
+    cells: str                  # the cells, plural
+    counted: str                # "<n> <counted>"
+    measure: str
+    facet: str                  # a boundary facet
+    reoriented: str
+    mesh_type: type
+
+
+KINDS = {
+    2: Kind(2, 2, 1, {"triangle": 2, "line": 1}, ("vertex",), "3-node triangles (2D) and 2-node lines (1D)",
+            "triangles", "triangle(s)", "area", "edge", "clockwise triangle(s) reoriented counter-clockwise",
+            skfem.MeshTri),
+    3: Kind(3, 4, 2, {"tetra": 3, "triangle": 2}, ("vertex", "line"),
+            "4-node tetrahedra (3D) and 3-node triangles (2D)", "tetrahedra", "tetrahedron(s)", "volume",
+            "face", "negatively oriented tetrahedron(s) reoriented", skfem.MeshTet),
+}
 
 
 @dataclass(frozen=True, eq=False)
 class RawMesh:
-    """The file's triangles and line groups, in the file's node numbering."""
+    """The file's cells and facet groups, in the file's node numbering."""
 
-    xy: np.ndarray                      # (n, 2) node coordinates
-    tris: np.ndarray                    # (m, 3) node indices, counter-clockwise
-    tri_group: np.ndarray               # (m,) index into groups2d
-    groups2d: list[str]                 # 2D physical group names
-    lines: dict[str, np.ndarray]        # 1D group name -> (k, 2) node indices
-    reoriented: int                     # triangles turned from clockwise
+    x: np.ndarray                       # (n, d) node coordinates
+    cells: np.ndarray                   # (m, d + 1) node indices, positively oriented
+    cell_group: np.ndarray              # (m,) index into groups
+    groups: list[str]                   # dD physical group names
+    facets: dict[str, np.ndarray]       # (d-1)D group name -> (k, d) node indices
+    reoriented: int                     # cells turned from negative orientation
     file: str
+
+    @property
+    def kind(self) -> Kind:
+        return KINDS[self.x.shape[1]]
 
 
 _CACHE: dict[tuple, RawMesh] = {}
@@ -75,8 +114,9 @@ def _fail(file, message, path="scene.mesh.file"):
     return StudyError(message, file=str(file), path=path)
 
 
-def _read_gmsh(path: Path):
-    """(xy, [(group, dim, (k, nv) node tags)], tag -> index) via the gmsh API."""
+def _read_gmsh(path: Path, kind: Kind):
+    """(xyz, [(group, dim, (k, dim + 1) node indices)]) of the groups of dimensions d and
+    d - 1, via the gmsh API."""
     import gmsh                     # gmsh loads only to read a gmsh file
 
     from .session import Session    # (it loads gmsh)
@@ -90,10 +130,10 @@ def _read_gmsh(path: Path):
         xyz = np.asarray(coords, dtype=float).reshape(-1, 3)
         groups = []
         for dim, tag in gmsh.model.getPhysicalGroups():
-            if dim not in (1, 2):
+            if dim not in (kind.dim - 1, kind.dim):
                 continue
             name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
-            want = 2 if dim == 2 else 1            # gmsh element type: 2 triangle, 1 line
+            want = kind.cell_type if dim == kind.dim else kind.facet_type
             blocks = []
             for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
                 types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
@@ -101,9 +141,9 @@ def _read_gmsh(path: Path):
                     if t != want:
                         props = gmsh.model.mesh.getElementProperties(t)
                         raise _fail(path, f"physical group {name!r} holds {props[0]!r} elements; "
-                                          f"only 3-node triangles (2D) and 2-node lines (1D) are supported")
-                    blocks.append(np.asarray(nd, dtype=np.int64).reshape(-1, 3 if dim == 2 else 2))
-            conn = np.concatenate(blocks) if blocks else np.zeros((0, 3 if dim == 2 else 2), np.int64)
+                                          f"only {kind.supported} are supported")
+                    blocks.append(np.asarray(nd, dtype=np.int64).reshape(-1, dim + 1))
+            conn = np.concatenate(blocks) if blocks else np.zeros((0, dim + 1), np.int64)
             groups.append((name, dim, conn))
     if ntags.size == 0:
         raise _fail(path, "the file holds no mesh nodes")
@@ -113,7 +153,7 @@ def _read_gmsh(path: Path):
     return xyz, groups
 
 
-def _read_meshio(path: Path):
+def _read_meshio(path: Path, kind: Kind):
     import meshio                   # only for a mesh file gmsh does not read
     sink = io.StringIO()
     try:
@@ -126,19 +166,17 @@ def _read_meshio(path: Path):
     if xyz.shape[1] == 2:
         xyz = np.column_stack([xyz, np.zeros(len(xyz))])
     groups: dict[tuple[str, int], list] = {}
-    kinds = {"triangle": 2, "line": 1}
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
     phys = m.cell_data.get("gmsh:physical")
     for b, block in enumerate(m.cells):
-        if block.type not in kinds:
-            if block.type in ("vertex",):
+        if block.type not in kind.meshio:
+            if block.type in kind.ignored:
                 continue
             if phys is not None or any(b < len(s) and s[b] is not None and len(s[b])
                                        for s in (m.cell_sets or {}).values()):
-                raise _fail(path, f"the file holds {block.type!r} cells; only 3-node triangles (2D) "
-                                  "and 2-node lines (1D) are supported")
+                raise _fail(path, f"the file holds {block.type!r} cells; only {kind.supported} are supported")
             continue
-        dim = kinds[block.type]
+        dim = kind.meshio[block.type]
         if phys is not None:
             tags = np.asarray(phys[b], dtype=np.int64)
             for t in np.unique(tags):
@@ -149,8 +187,9 @@ def _read_meshio(path: Path):
     return xyz, [(n, d, np.concatenate(c).astype(np.int64)) for (n, d), c in groups.items()]
 
 
-def load_raw(path) -> RawMesh:
-    """Read (and check) a mesh file; cached by path, size and modification time."""
+def load_raw(path, dim: int = 2) -> RawMesh:
+    """Read (and check) the mesh file of a ``dim``-dimensional scene; cached by path, size,
+    modification time and dimension."""
     path = Path(path)
     try:
         st = path.stat()
@@ -158,72 +197,98 @@ def load_raw(path) -> RawMesh:
         raise _fail(path, "mesh file not found") from None
     except OSError as exc:
         raise _fail(path, f"cannot read the mesh file: {exc}") from None
-    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns, dim)
     if key in _CACHE:
         return _CACHE[key]
     if not path.is_file():
         raise _fail(path, "not a file")
+    kind = KINDS[dim]
     if path.suffix.lower() == ".msh":
-        xyz, groups = _read_gmsh(path)
+        xyz, groups = _read_gmsh(path, kind)
     else:
-        xyz, groups = _read_meshio(path)
-    raw = _assemble(path, xyz, groups)
+        xyz, groups = _read_meshio(path, kind)
+    raw = _assemble(path, xyz, groups, kind)
     _CACHE.clear()
     _CACHE[key] = raw
     return raw
 
 
-def _assemble(path: Path, xyz: np.ndarray, groups) -> RawMesh:
+def _signed_measure(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """d! times the signed area (2D) or volume (3D) of each cell: positive for counter-clockwise
+    triangles and for tetrahedra whose edges from node 0 form a right-handed triple."""
+    e = [x[cells[:, i]] - x[cells[:, 0]] for i in range(1, cells.shape[1])]
+    if len(e) == 2:
+        return e[0][:, 0] * e[1][:, 1] - e[0][:, 1] * e[1][:, 0]
+    return np.einsum("ij,ij->i", e[0], np.cross(e[1], e[2]))
+
+
+def _at(c) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in c) + ")"
+
+
+def _assemble(path: Path, xyz: np.ndarray, groups, kind: Kind) -> RawMesh:
+    d = kind.dim
     if not np.all(np.isfinite(xyz)):
         raise _fail(path, "node coordinates must be finite numbers")
-    xy = np.ascontiguousarray(xyz[:, :2])
-    span = float(np.hypot(*(xy.max(0) - xy.min(0)))) if len(xy) else 0.0
-    if xyz.shape[1] > 2 and np.abs(xyz[:, 2]).max(initial=0.0) > 1e-9 * max(span, 1e-300):
+    x = np.ascontiguousarray(xyz[:, :d])
+    span = float(np.linalg.norm(x.max(0) - x.min(0))) if len(x) else 0.0
+    if d == 2 and xyz.shape[1] > 2 and np.abs(xyz[:, 2]).max(initial=0.0) > 1e-9 * max(span, 1e-300):
         raise _fail(path, "the mesh is not planar (z != 0); wcs scenes are 2D in the (x, y) plane")
-    names2d, tris, tgroup, lines = [], [], [], {}
+    names, cells, cgroup, facets = [], [], [], {}
     for name, dim, conn in groups:
         if (conn < 0).any():
             raise _fail(path, f"physical group {name!r} refers to unknown nodes")
-        if dim == 2:
-            if name in names2d:
-                raise _fail(path, f"two 2D physical groups are named {name!r}")
-            tris.append(conn)
-            tgroup.append(np.full(len(conn), len(names2d), dtype=np.int64))
-            names2d.append(name)
+        if dim == d:
+            if name in names:
+                raise _fail(path, f"two {d}D physical groups are named {name!r}")
+            cells.append(conn)
+            cgroup.append(np.full(len(conn), len(names), dtype=np.int64))
+            names.append(name)
         else:
-            if name in lines:
-                raise _fail(path, f"two 1D physical groups are named {name!r}")
-            lines[name] = conn
-    if not names2d or sum(len(t) for t in tris) == 0:
-        raise _fail(path, "the file has no 2D physical group with triangles (name the surfaces "
-                          "after the bodies: `BODY` or `BODY:REGION`)")
-    tri = np.concatenate(tris)
-    tg = np.concatenate(tgroup)
+            if name in facets:
+                raise _fail(path, f"two {d - 1}D physical groups are named {name!r}")
+            facets[name] = conn
+    if not names or sum(len(t) for t in cells) == 0:
+        raise _fail(path, f"the file has no {d}D physical group with {kind.cells} (name the "
+                          f"{'surfaces' if d == 2 else 'volumes'} after the bodies: `BODY` or `BODY:REGION`)")
+    cell = np.concatenate(cells)
+    cg = np.concatenate(cgroup)
     # -- orientation and degeneracy
-    d1 = xy[tri[:, 1]] - xy[tri[:, 0]]
-    d2 = xy[tri[:, 2]] - xy[tri[:, 0]]
-    area2 = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    bad = np.abs(area2) <= 2 * AREA_TOL * span ** 2
+    measure = _signed_measure(x, cell)
+    bad = np.abs(measure) <= math.factorial(d) * AREA_TOL * span ** d
     if bad.any():
         k = int(np.nonzero(bad)[0][0])
-        c = xy[tri[k]].mean(0)
-        raise _fail(path, f"{int(bad.sum())} degenerate triangle(s) (zero area), e.g. in group "
-                          f"{names2d[tg[k]]!r} at ({c[0]:.6g}, {c[1]:.6g})")
-    cw = area2 < 0
-    tri = tri.copy()
-    tri[cw, 1], tri[cw, 2] = tri[cw, 2], tri[cw, 1].copy()
-    raw = RawMesh(xy=xy, tris=tri, tri_group=tg, groups2d=names2d, lines=lines,
-                  reoriented=int(cw.sum()), file=str(path))
-    _check_overlap(raw)
+        raise _fail(path, f"{int(bad.sum())} degenerate {kind.counted} (zero {kind.measure}), e.g. in group "
+                          f"{names[cg[k]]!r} at {_at(x[cell[k]].mean(0))}")
+    negative = measure < 0
+    cell = cell.copy()
+    cell[negative, 1], cell[negative, 2] = cell[negative, 2], cell[negative, 1].copy()
+    raw = RawMesh(x=x, cells=cell, cell_group=cg, groups=names, facets=facets,
+                  reoriented=int(negative.sum()), file=str(path))
+    (_check_overlap if d == 2 else _check_overlap3d)(raw)
     return raw
+
+
+def _self_overlap(raw: RawMesh, name: str) -> StudyError:
+    return _fail(raw.file, f"the {raw.kind.cells} of group {name!r} overlap each other (or repeat)")
+
+
+def _overlap(raw: RawMesh, inner: int, outer: int) -> StudyError:
+    """The error for the centroid of cell `inner` lying inside cell `outer`."""
+    name, other = raw.groups[raw.cell_group[outer]], raw.groups[raw.cell_group[inner]]
+    if name == other:
+        return _self_overlap(raw, name)
+    return _fail(raw.file, f"groups {name!r} and {other!r} overlap (a cell of {other!r} at "
+                           f"{_at(raw.x[raw.cells[inner]].mean(0))} lies inside {name!r}); "
+                           "bodies and regions may touch but not overlap")
 
 
 def _check_overlap(raw: RawMesh) -> None:
     """No cell centroid of one group inside a cell of another; no overlap inside a group."""
     from matplotlib.tri import Triangulation    # matplotlib: only to check a mesh file's overlaps
-    xy, tri, tg = raw.xy, raw.tris, raw.tri_group
+    xy, tri, tg = raw.x, raw.cells, raw.cell_group
     cent = xy[tri].mean(axis=1)
-    for g, name in enumerate(raw.groups2d):
+    for g, name in enumerate(raw.groups):
         own = tg == g
         if not own.any():
             continue
@@ -233,8 +298,7 @@ def _check_overlap(raw: RawMesh) -> None:
         try:
             finder = Triangulation(xy[used, 0], xy[used, 1], local).get_trifinder()
         except (RuntimeError, ValueError):
-            raise _fail(raw.file, f"the triangles of group {name!r} overlap each other "
-                                  "(or repeat)") from None
+            raise _self_overlap(raw, name) from None
         lo, hi = xy[used].min(0), xy[used].max(0)
         others = np.nonzero(~own & np.all((cent >= lo) & (cent <= hi), axis=1))[0]
         if others.size == 0:
@@ -242,9 +306,37 @@ def _check_overlap(raw: RawMesh) -> None:
         hit = finder(cent[others, 0], cent[others, 1]) >= 0
         if hit.any():
             k = others[np.nonzero(hit)[0][0]]
-            raise _fail(raw.file, f"groups {name!r} and {raw.groups2d[tg[k]]!r} overlap (a cell of "
-                                  f"{raw.groups2d[tg[k]]!r} at ({cent[k, 0]:.6g}, {cent[k, 1]:.6g}) lies "
-                                  f"inside {name!r}); bodies and regions may touch but not overlap")
+            raise _overlap(raw, k, np.nonzero(own)[0][0])
+
+
+def _check_overlap3d(raw: RawMesh) -> None:
+    """No cell centroid strictly inside another tetrahedron (of any group, its own included).
+
+    The centroid of a tetrahedron is inside it, so two tetrahedra whose interiors overlap enough
+    to hold either one's centroid are caught (one inside another, a repeated cell, two groups
+    meshing the same volume, cells crossing each other deeply); a sliver-thin overlap that holds
+    neither centroid is not. Touching cells (a shared face, edge or node) never are. The
+    candidates of a tetrahedron are the centroids (a `cKDTree`) within the distance of its
+    farthest vertex from its own centroid; each is tested by its barycentric coordinates."""
+    x, tet = raw.x, raw.cells
+    corners = x[tet]                                            # (m, 4, 3)
+    cent = corners.mean(axis=1)
+    reach = np.linalg.norm(corners - cent[:, None], axis=2).max(axis=1)
+    inverse = np.linalg.inv(np.transpose(corners[:, 1:] - corners[:, :1], (0, 2, 1)))  # edges as columns
+    tree = cKDTree(cent)
+    for lo in range(0, len(tet), CHUNK):
+        near = tree.query_ball_point(cent[lo:lo + CHUNK], reach[lo:lo + CHUNK])
+        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
+        outer = np.repeat(np.arange(lo, lo + len(near)), counts)
+        inner = np.fromiter((i for n in near for i in n), dtype=np.int64, count=int(counts.sum()))
+        other = inner != outer
+        outer, inner = outer[other], inner[other]
+        lam = np.einsum("kij,kj->ki", inverse[outer], cent[inner] - corners[outer, 0])
+        inside = (lam > INSIDE_TOL).all(axis=1) & (lam.sum(axis=1) < 1 - INSIDE_TOL)
+        if inside.any():
+            k = np.nonzero(inside)[0]
+            k = k[np.lexsort((inner[k], outer[k]))[0]]
+            raise _overlap(raw, inner[k], outer[k])
 
 
 # ---------------------------------------------------------------------------
@@ -260,16 +352,16 @@ def split_name(name: str) -> tuple[str | None, str]:
 
 
 def file_regions(raw: RawMesh) -> dict[str, dict[str, int]]:
-    """body -> {region name: 2D group index}, in file order."""
+    """body -> {region name: cell group index}, in file order."""
     out: dict[str, dict[str, int]] = {}
     plain: set[str] = set()
-    for g, name in enumerate(raw.groups2d):
+    for g, name in enumerate(raw.groups):
         body, region = split_name(name)
         if body is None:
             body = region
             plain.add(body)
         if not body or not region:
-            raise _fail(raw.file, f"2D physical group {name!r}: use `BODY` or `BODY:REGION`")
+            raise _fail(raw.file, f"{raw.kind.dim}D physical group {name!r}: use `BODY` or `BODY:REGION`")
         regs = out.setdefault(body, {})
         if body in plain and len(regs) >= 1:
             raise _fail(raw.file, f"body {body!r} has a plain group {body!r} and other groups; "
@@ -279,26 +371,30 @@ def file_regions(raw: RawMesh) -> dict[str, dict[str, int]]:
 
 
 def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str]], list[tuple], list[str]]:
-    """What a validated `Scene` meshed by ``mesh.file`` takes from the file: the file's
-    absolute path, each body's region names (matched with the file's 2D groups, filled in
-    where the study gives none), a boundary (piece, group, body or None) for each 1D group,
-    and notes for ``Study.notes``. ``error(keys, message)`` makes the StudyError of the
+    """What a validated `Scene` (2D or 3D) meshed by ``mesh.file`` takes from the file: the
+    file's absolute path, each body's region names (matched with the file's cell groups, filled
+    in where the study gives none), a boundary (piece, group, body or None) for each facet
+    group, and notes for ``Study.notes``. ``error(keys, message)`` makes the StudyError of the
     study file."""
     name = scene.mesh.file
+    d = scene.dimension
     path = Path(name) if os.path.isabs(name) else Path(base_dir) / name
     if not path.is_file():
         raise error(("mesh", "file"), f"mesh file '{name}' not found (looked for {path})")
     try:
-        raw = load_raw(path)
+        raw = load_raw(path, d)
     except StudyError as exc:
         raise error(("mesh", "file"), f"{path}: {exc.fault}") from None
     regions = file_regions(raw)
-    have = ", ".join(raw.groups2d)
+    have = ", ".join(raw.groups)
     names = {}
     for body, spec in scene.bodies.items():
         if body not in regions:
-            raise error(("bodies", body), f"no 2D physical group '{body}' or '{body}:REGION' in "
+            raise error(("bodies", body), f"no {d}D physical group '{body}' or '{body}:REGION' in "
                                           f"{path.name} (it has: {have})")
+        if spec.mesh is not None:
+            raise error(("bodies", body, "mesh"), "the scene's mesh is a file: a body "
+                        "cannot have its own mesh sizes")
         fregs = regions[body]
         named = []
         for i, region in enumerate(spec.regions):
@@ -313,7 +409,7 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
                 named.append(next(iter(fregs)))
             elif region.name not in fregs:
                 raise error(("bodies", body, "regions", i, "name"),
-                            f"no 2D physical group '{body}:{region.name}' in {path.name} "
+                            f"no {d}D physical group '{body}:{region.name}' in {path.name} "
                             f"(regions of '{body}': {', '.join(fregs)})")
             else:
                 named.append(region.name)
@@ -329,23 +425,23 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
                                  "study does not list; give it a material")
     seen: dict[str, str] = {}
     groups = []
-    for group in raw.lines:
+    for group in raw.facets:
         body, piece = split_name(group)
         if not piece or body == "":
-            raise error(("mesh", "file"), f"{path.name}: 1D physical group {group!r}: use `NAME` or `BODY:NAME`")
+            raise error(("mesh", "file"), f"{path.name}: {d - 1}D physical group {group!r}: use `NAME` or `BODY:NAME`")
         if piece in seen:
-            raise error(("mesh", "file"), f"{path.name}: 1D groups {seen[piece]!r} and {group!r} both "
+            raise error(("mesh", "file"), f"{path.name}: {d - 1}D groups {seen[piece]!r} and {group!r} both "
                                           f"make boundary '{piece}'")
         if body is not None and body not in scene.bodies:
-            raise error(("mesh", "file"), f"{path.name}: 1D group {group!r} names unknown body '{body}'")
+            raise error(("mesh", "file"), f"{path.name}: {d - 1}D group {group!r} names unknown body '{body}'")
         if piece in scene.boundaries:
-            raise error(("boundaries", piece), f"'{piece}' is also a 1D physical group of "
+            raise error(("boundaries", piece), f"'{piece}' is also a {d - 1}D physical group of "
                                                f"{path.name}; use another name")
         seen[piece] = group
         groups.append((piece, group, body))
     notes = []
     if raw.reoriented:
-        notes.append(f"{path.name}: {raw.reoriented} clockwise triangle(s) reoriented counter-clockwise")
+        notes.append(f"{path.name}: {raw.reoriented} {raw.kind.reoriented}")
     return str(path.resolve()), names, groups, notes
 
 
@@ -353,15 +449,25 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
 # the SceneMesh
 
 
-def read_mesh_file(path, scene, keypath: str = "scene.mesh.file") -> SceneMesh:
-    """The :class:`SceneMesh` of a prepared scene (see :func:`prepare_scene`) whose
-    ``mesh.file`` is ``path``: bodies and regions in scene order, one copy of each
-    node per body, counter-clockwise cells, ``boundaries`` for every scene boundary
-    (1D groups and geometric selectors)."""
+def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Which rows of ``a`` are rows of ``b`` (rows of node indices, each sorted)."""
+    _, inv = np.unique(np.concatenate([a, b]), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    return np.isin(inv[:len(a)], inv[len(a):])
+
+
+def read_mesh_file(path, scene, keypath: str = "scene.mesh.file", dim: int = 2,
+                   select=selectors.select_boundary) -> SceneMesh:
+    """The :class:`SceneMesh` of a prepared ``dim``-dimensional scene (see :func:`prepare_scene`)
+    whose ``mesh.file`` is ``path``: bodies and regions in scene order, one copy of each
+    node per body, positively oriented cells (a ``MeshTri`` or a ``MeshTet``), ``boundaries``
+    for every scene boundary (facet groups, and geometric selectors by
+    ``select(scene mesh, spec, key path)``)."""
     try:
-        raw = load_raw(path)
+        raw = load_raw(path, dim)
     except StudyError as exc:
         raise StudyError(exc.fault, file=exc.file, path=keypath) from None
+    kind = raw.kind
     fregs = file_regions(raw)
     bodies = list(scene.bodies)
     regions, group_of = [], []
@@ -369,55 +475,53 @@ def read_mesh_file(path, scene, keypath: str = "scene.mesh.file") -> SceneMesh:
         for i, reg in enumerate(scene.bodies[body].regions):
             rname = reg.name
             if body not in fregs or rname not in fregs[body]:
-                raise StudyError(f"no 2D physical group for region '{rname}' of body '{body}'",
+                raise StudyError(f"no {dim}D physical group for region '{rname}' of body '{body}'",
                                  file=raw.file, path=f"scene.bodies.{body}.regions.{i}")
             regions.append((body, rname))
             group_of.append(fregs[body][rname])
-    region_of_group = np.full(len(raw.groups2d), -1, dtype=np.int64)
+    region_of_group = np.full(len(raw.groups), -1, dtype=np.int64)
     region_of_group[group_of] = np.arange(len(group_of))
-    reg = region_of_group[raw.tri_group]
+    reg = region_of_group[raw.cell_group]
     if (reg < 0).any():
-        g = raw.groups2d[raw.tri_group[np.nonzero(reg < 0)[0][0]]]
-        raise StudyError(f"2D physical group {g!r} is not a region of the scene",
+        g = raw.groups[raw.cell_group[np.nonzero(reg < 0)[0][0]]]
+        raise StudyError(f"{dim}D physical group {g!r} is not a region of the scene",
                          file=raw.file, path="scene.bodies")
     body_of_region = np.array([bodies.index(b) for b, _ in regions], dtype=np.int64)
     order = np.argsort(reg, kind="stable")
     cell_region = reg[order]
     cell_body = body_of_region[cell_region]
-    tri = raw.tris[order]
+    cells = raw.cells[order]
 
     # -- one copy of each node per body, unused nodes dropped (as build_mesh)
-    nn = raw.xy.shape[0]
-    key = cell_body[:, None] * nn + tri
+    nn = raw.x.shape[0]
+    key = cell_body[:, None] * nn + cells
     uniq, inv = np.unique(key.ravel(), return_inverse=True)
-    t = inv.reshape(-1, 3).T.astype(np.int64)
+    t = inv.reshape(-1, dim + 1).T.astype(np.int64)
     orig = uniq % nn
-    p = np.ascontiguousarray(raw.xy[orig].T)
-    mesh = skfem.MeshTri(p, np.ascontiguousarray(t), sort_t=False)
+    p = np.ascontiguousarray(raw.x[orig].T)
+    mesh = kind.mesh_type(p, np.ascontiguousarray(t), sort_t=False)
     sm = SceneMesh(mesh=mesh, bodies=bodies, regions=regions,
                    cell_body=cell_body, cell_region=cell_region, boundaries={})
 
-    # -- boundaries: 1D groups by their line elements, others by selector
+    # -- boundaries: facet groups by their elements, others by selector
     bf = selectors.boundary_facets(mesh)
-    fa, fb = orig[mesh.facets[0, bf]], orig[mesh.facets[1, bf]]
-    fkey = np.minimum(fa, fb) * nn + np.maximum(fa, fb)
+    fnodes = np.sort(orig[mesh.facets[:, bf]].T, axis=1)
     fbody = selectors.facet_body(sm, bf)
     bnd = {}
     for name, spec in scene.boundaries.items():
         kp = f"scene.boundaries.{name}"
         if isinstance(spec, GroupBoundary):
-            lines = raw.lines.get(spec.group)
-            if lines is None:
-                raise StudyError(f"no 1D physical group {spec.group!r}", file=raw.file, path=kp)
-            lkey = np.minimum(lines[:, 0], lines[:, 1]) * nn + np.maximum(lines[:, 0], lines[:, 1])
-            ok = np.isin(fkey, lkey)
+            elements = raw.facets.get(spec.group)
+            if elements is None:
+                raise StudyError(f"no {dim - 1}D physical group {spec.group!r}", file=raw.file, path=kp)
+            ok = _rows_in(fnodes, np.sort(elements, axis=1))
             if spec.body is not None:
                 ok &= fbody == bodies.index(spec.body)
             if not ok.any():
                 where = f" of body '{spec.body}'" if spec.body else ""
-                raise StudyError(f"1D physical group {spec.group!r} lies on no boundary edge{where}",
-                                 file=raw.file, path=kp)
+                raise StudyError(f"{dim - 1}D physical group {spec.group!r} lies on no boundary "
+                                 f"{kind.facet}{where}", file=raw.file, path=kp)
             bnd[name] = np.sort(bf[ok])
         else:
-            bnd[name] = selectors.select_boundary(sm, spec, kp)
+            bnd[name] = select(sm, spec, kp)
     return dataclasses.replace(sm, boundaries=bnd)

@@ -3,7 +3,7 @@
 `normal`), solids (box, cylinder, sphere, extrude, halfspace, with `minus` / `intersect`), face
 selectors (plane, box, cylinder, sphere) and region selectors (box, ball, cylinder, boundary).
 Materials, contacts, glue and thermal data are the 2D models. `wcs.scene.mesher3d` reads these
-objects by attribute; `UNSUPPORTED` says what a 3D study cannot do yet."""
+objects by attribute; `UNSUPPORTED` says what `wcs check` of a 3D study does not do yet."""
 from __future__ import annotations
 
 from typing import Annotated, Literal, Optional
@@ -107,7 +107,7 @@ class Solid(Frozen):
 
 class Region(Frozen):
     material: str
-    shape: Solid
+    shape: Optional[Solid] = None          # required unless the scene's mesh is a file
     name: Optional[Name] = None
 
     @model_validator(mode="before")
@@ -116,15 +116,26 @@ class Region(Frozen):
         return _not_yet(data, {"mesh": "a region's own mesh size"})
 
 
-class BodyMesh(Frozen):
-    """A body's own mesh size: the body is meshed on its own (faces it shares with other bodies
-    are nonmatching)."""
+class Refinement(Frozen):
+    """A zone meshed finer: `size` inside the box, ball or cylinder, or on the named boundary;
+    away from it the size grows by `mesh.grading` per unit distance."""
+    box: Optional[SolidBox] = None
+    ball: Optional[Sphere] = None
+    cylinder: Optional[Cylinder] = None
+    boundary: Optional[str] = None
     size: float = Field(**FEATURE)
 
-    @model_validator(mode="before")
-    @classmethod
-    def _refine_not_yet(cls, data):
-        return _not_yet(data, {"refine": "refinement zones"})
+    @model_validator(mode="after")
+    def _one_selector(self):
+        _exactly_one(self, ("box", "ball", "cylinder", "boundary"))
+        return self
+
+
+class BodyMesh(Frozen):
+    """A body's own mesh size (and refinement zones): the body is meshed on its own (faces it
+    shares with other bodies are nonmatching)."""
+    size: float = Field(**FEATURE)
+    refine: list[Refinement] = []
 
 
 class Body(Frozen):
@@ -184,12 +195,17 @@ class Load(Frozen):
 
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)      # default: wcs.choose.mesh_size of the diagonal
+    grading: Optional[float] = Field(None, ge=0, le=1e3)   # size growth per unit distance from a refine zone
+    refine: list[Refinement] = []
+    file: Optional[str] = None             # a 3D mesh file (gmsh .msh, ...) instead of solids
     max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
 
-    @model_validator(mode="before")
-    @classmethod
-    def _file_not_yet(cls, data):
-        return _not_yet(data, {"file": "a mesh file", "refine": "refinement zones", "grading": "mesh grading"})
+    @model_validator(mode="after")
+    def _file_as_it_is(self):
+        if self.file is not None and (self.size is not None or self.refine or self.grading is not None
+                                      or self.max_cells is not None):
+            raise ValueError("a mesh `file` is used as it is: drop `size`, `grading`, `refine` and `max_cells`")
+        return self
 
 
 class Scene(Frozen):
@@ -211,7 +227,7 @@ class Scene(Frozen):
 Solid.model_rebuild()
 
 
-# What a 3D study cannot do yet: the model on tetrahedra is not wired to the study, so no solve.
-UNSUPPORTED = ("3D does not support solving yet: the model on tetrahedra (elasticity, heat, supports, "
-               "loads, contact) is not built from a 3D scene; `wcs check` meshes the scene and prints "
-               "what the study holds, `solve`, `run` and `sweep` refuse")
+# What `wcs check` of a 3D study does not do yet: the nominal solve (`wcs solve` and `wcs run`
+# solve a 3D study; what the model on tetrahedra does not build yet they refuse by name).
+UNSUPPORTED = ("`wcs check` does not solve a 3D study yet: it meshes the scene and prints what the study "
+               "holds; `wcs solve` and `wcs run` solve it")

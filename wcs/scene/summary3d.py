@@ -37,11 +37,13 @@ def summary3d(study, sm: SceneMesh) -> str:
             f"{r} [{material[r]}, {int(np.sum(sm.cell_region == j))} cells, volume {vol[sm.cell_region == j].sum():.4g}]"
             for j, r in regs))
     m = scene.mesh
-    lines.append(f"  mesh: target size {'default' if m.size is None else m.size}"
+    made = f"file {m.file}" if m.file else f"target size {'default' if m.size is None else m.size}"
+    lines.append(f"  mesh: {made}"
                  + "".join(f", body {b}: {_words(v.mesh)}" for b, v in scene.bodies.items() if v.mesh)
-                 + f"; cell diameters from {edges.min():.3g} m to {edges.max():.3g} m; estimated "
-                 f"{study.estimated_cells:.3g} cells before meshing (limit mesh.max_cells = "
-                 f"{DEFAULT_MAX_CELLS if m.max_cells is None else m.max_cells:g})")
+                 + f"; cell diameters from {edges.min():.3g} m to {edges.max():.3g} m"
+                 + ("" if study.estimated_cells is None else
+                    f"; estimated {study.estimated_cells:.3g} cells before meshing (limit mesh.max_cells = "
+                    f"{DEFAULT_MAX_CELLS if m.max_cells is None else m.max_cells:g})"))
     lines.append("  boundaries:")
     for name, facets in sm.boundaries.items():
         lines.append(f"    {name}: {len(facets)} triangles, area {_areas(mesh, facets):.4g}")

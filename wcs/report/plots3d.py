@@ -1,0 +1,295 @@
+"""The report's figures of a 3D case (matplotlib, Agg), readable without ParaView: the deformed
+outer surface coloured by von Mises, cuts through each region of interest, and maps of contact
+pressure and slip on each contact surface in its own coordinates.
+
+Matplotlib renders the outer surface as one polygon per boundary triangle, painter-sorted
+(no depth buffer): exact for a convex body seen from outside, and close for the scenes here
+(a tunnel seen from outside its block). The geometry functions are pure functions over arrays:
+`outer_faces` (the triangles of a tetrahedral mesh that belong to one cell only), `plane_section`
+(the polygon where a plane cuts each tetrahedron); a contact surface is drawn in its own two
+coordinates (`wcs.contact.frame.surface_frame`: the principal directions of its points).
+"""
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import PolyCollection
+from matplotlib.patches import Patch
+from matplotlib.tri import Triangulation
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+from ..contact.frame import surface_frame
+from .data import Results
+from .plots import length_scale, nice, plt, png, stress_scale
+
+FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])   # face k: opposite vertex k, outward for positive tets
+EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+VIEWS = ((25.0, -60.0), (25.0, 120.0))       # (elevation, azimuth) of the two views of the surface
+
+
+def outer_faces(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 3) vertex triples of the faces that belong to one tetrahedron only, oriented as
+    that tetrahedron's outward faces, and (k,) the cell each belongs to."""
+    tri = cells[:, FACES].reshape(-1, 3)                     # (4 ncells, 3), cell-major
+    key = np.sort(tri, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = counts[inverse.ravel()] == 1
+    return tri[once], np.flatnonzero(once) // 4
+
+
+def plane_section(coords: np.ndarray, cells: np.ndarray, point, normal) -> tuple[list[np.ndarray], np.ndarray]:
+    """The polygons (each (3 or 4, 3), ordered counter-clockwise in the plane's `plane_axes`) where the plane through
+    `point` with normal `normal` cuts the tetrahedra, and the index of each polygon's cell.
+    Cells touching the plane only in a vertex, an edge or a face are left out."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    d = (coords - np.asarray(point, float)) @ n                 # signed distance of every node
+    dc = d[cells]                                                # (ncells, 4)
+    cut = np.flatnonzero((dc.min(axis=1) < 0) & (dc.max(axis=1) > 0))
+    a, b = cells[cut][:, EDGES[:, 0]], cells[cut][:, EDGES[:, 1]]          # (k, 6)
+    da, db = d[a], d[b]
+    crosses = (da < 0) != (db < 0)
+    crosses &= (da != 0) | (db != 0)
+    s = np.where(crosses, da / np.where(crosses, da - db, 1.0), 0.0)
+    pts = coords[a] + s[..., None] * (coords[b] - coords[a])               # (k, 6, 3)
+    e1, e2 = plane_axes(n)
+    polygons, owner = [], []
+    for k in range(cut.size):
+        p = pts[k, crosses[k]]
+        p = p[np.unique(np.round(p / (np.abs(p).max() + 1e-300), 12), axis=0, return_index=True)[1]]
+        if len(p) < 3:
+            continue
+        c = p.mean(axis=0)
+        angle = np.arctan2((p - c) @ e2, (p - c) @ e1)
+        polygons.append(p[np.argsort(angle)])
+        owner.append(cut[k])
+    return polygons, np.asarray(owner, dtype=np.int64)
+
+
+def plane_axes(normal) -> tuple[np.ndarray, np.ndarray]:
+    """Two orthonormal directions (e1, e2) of the plane with normal `normal`, read as the
+    coordinate axes are: e1 the first axis (x, y, z order) not along the normal, projected onto
+    the plane, e2 the next one made orthogonal to it (a cut across z is seen in x and y)."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    axes = [a for a in np.eye(3) if abs(a @ n) < 0.9]
+    e1 = axes[0] - (axes[0] @ n) * n
+    e1 /= np.linalg.norm(e1)
+    e2 = axes[1] - (axes[1] @ n) * n - (axes[1] @ e1) * e1
+    return e1, e2 / np.linalg.norm(e2)
+
+
+def _von_mises(f) -> np.ndarray | None:
+    if f.von_mises is not None:
+        return f.von_mises
+    if f.stress is None:
+        return None
+    s = f.stress                                                # xx, yy, zz, yz, xz, xy
+    return np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
+                   + 3 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2))
+
+
+def magnification3d(coords: np.ndarray, u: np.ndarray) -> float:
+    """A round factor that makes the largest displacement 6 % of the scene's extent."""
+    umax = float(np.nanmax(np.linalg.norm(u, axis=1))) if u is not None and len(u) else 0.0
+    if umax <= 0 or not np.isfinite(umax):
+        return 1.0
+    return nice(0.06 * float(np.ptp(coords, axis=0).max()) / umax)
+
+
+# ---------------------------------------------------------------- regions of interest
+
+def _thin_axis(coords: np.ndarray) -> np.ndarray:
+    return np.eye(3)[int(np.argmin(np.ptp(coords, axis=0)))]
+
+
+def _inside(spec: dict, x: np.ndarray) -> np.ndarray | None:
+    """Points x (k, 3) inside a region selector's solid (box, ball, cylinder); None for others."""
+    if "box" in spec:
+        b = np.asarray(spec["box"], float)
+        return np.all((x >= b[:3]) & (x <= b[3:]), axis=1)
+    if "ball" in spec:
+        return np.linalg.norm(x - np.asarray(spec["ball"]["center"], float), axis=1) <= spec["ball"]["radius"]
+    if "cylinder" in spec:
+        a, b = np.asarray(spec["cylinder"]["start"], float), np.asarray(spec["cylinder"]["end"], float)
+        axis = (b - a) / np.linalg.norm(b - a)
+        t = (x - a) @ axis
+        radial = np.linalg.norm(x - a - t[:, None] * axis, axis=1)
+        return (t >= 0) & (t <= np.linalg.norm(b - a)) & (radial <= spec["cylinder"]["radius"])
+    return None
+
+
+def section_plane(spec: dict, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(point, normal, half width of the view) of the cut through a region of interest (or a
+    face selector): a cylinder is cut across its axis at mid-length; a ball, sphere, box or
+    plane through its centre, across the scene's thinnest direction."""
+    thin = _thin_axis(coords)
+    if "cylinder" in spec:
+        a, b = np.asarray(spec["cylinder"]["start"], float), np.asarray(spec["cylinder"]["end"], float)
+        return 0.5 * (a + b), (b - a) / np.linalg.norm(b - a), 1.6 * spec["cylinder"]["radius"]
+    for key in ("ball", "sphere"):
+        if key in spec:
+            return np.asarray(spec[key]["center"], float), thin, 1.6 * spec[key]["radius"]
+    if "box" in spec:
+        b = np.asarray(spec["box"], float)
+        return 0.5 * (b[:3] + b[3:]), thin, 0.8 * float(np.max(b[3:] - b[:3])) + 1e-9
+    if "plane" in spec:
+        n = np.asarray(spec["plane"]["normal"], float)
+        n /= np.linalg.norm(n)
+        normal = thin if abs(thin @ n) < 0.9 else np.eye(3)[int(np.argsort(np.abs(n))[0])]
+        return np.asarray(spec["plane"]["point"], float), normal, 0.6 * float(np.ptp(coords, axis=0).max())
+    return coords.mean(axis=0), thin, 0.6 * float(np.ptp(coords, axis=0).max())
+
+
+def _roi_spec(res: Results, name: str) -> dict:
+    roi = dict((res.scene.get("regions_of_interest") or {}).get(name) or {})
+    if "boundary" in roi:
+        return dict((res.scene.get("boundaries") or {}).get(roi["boundary"]) or {})
+    return roi
+
+
+# ---------------------------------------------------------------- figures
+
+def _views(fig, x: np.ndarray, faces: np.ndarray, colours: np.ndarray, ncols: int = 2):
+    """The surface triangles x[faces] in their colours, from the two `VIEWS`."""
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    for k, (elev, azim) in enumerate(VIEWS):
+        ax = fig.add_subplot(1, ncols, k + 1, projection="3d")
+        ax.add_collection3d(Poly3DCollection(x[faces], facecolors=colours, edgecolors="none", linewidths=0))
+        ax.set_xlim(lo[0], hi[0]), ax.set_ylim(lo[1], hi[1]), ax.set_zlim(lo[2], hi[2])
+        ax.set_box_aspect(np.maximum(hi - lo, 1e-3 * (hi - lo).max()))
+        ax.view_init(elev=elev, azim=azim)
+        ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.set_zlabel("z [m]")
+        ax.set_title(f"seen from azimuth {azim:g}°, elevation {elev:g}°")
+
+
+def scene_figure3d(res: Results) -> bytes:
+    """The outer surface of the scene coloured by region (or body), seen from two sides."""
+    mesh = res.mesh
+    faces, owner = outer_faces(mesh.cells)
+    if mesh.cell_region is not None and len(mesh.regions) > 1:
+        labels, of = [f"region {r}" for r in mesh.regions], mesh.cell_region
+    elif mesh.cell_body is not None and mesh.bodies:
+        labels, of = [f"body {b}" for b in mesh.bodies], mesh.cell_body
+    else:
+        labels, of = ["mesh"], np.zeros(len(mesh.cells), int)
+    cmap = plt.get_cmap("Pastel1" if len(labels) <= 9 else "tab20")
+    fig = plt.figure(figsize=(11.0, 5.0))
+    _views(fig, mesh.coords, faces, cmap(of[owner] % cmap.N))
+    fig.legend(handles=[Patch(facecolor=cmap(i % cmap.N), edgecolor="0.4", label=l) for i, l in enumerate(labels)],
+               loc="lower center", ncol=min(4, len(labels)), frameon=False)
+    fig.suptitle(f"the scene: {len(mesh.cells)} tetrahedra, {len(faces)} outer triangles")
+    return png(fig)
+
+
+def surface_figure(res: Results, j: int) -> tuple[bytes, float]:
+    """The deformed outer surface coloured by the von Mises stress of the cell under each
+    triangle, seen from two sides; and the magnification used."""
+    mesh, f = res.mesh, res.worst_fields[j]
+    u = f.displacement if f.displacement is not None else np.zeros_like(mesh.coords)
+    mag = magnification3d(mesh.coords, u)
+    x = mesh.coords + mag * u
+    faces, owner = outer_faces(mesh.cells)
+    vm = _von_mises(f)
+    fig = plt.figure(figsize=(11.0, 5.0))
+    sc, su = stress_scale(vm if vm is not None else [0.0])
+    top = float(np.nanpercentile(vm, 99.5)) if vm is not None else 1.0
+    cmap = plt.get_cmap("viridis")
+    colours = cmap(np.clip(vm[owner] / (top or 1.0), 0, 1)) if vm is not None else np.full((len(faces), 4), 0.8)
+    _views(fig, x, faces, colours)
+    if vm is not None:
+        m = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, top * sc))
+        fig.colorbar(m, ax=fig.axes, shrink=0.7, extend="max" if np.nanmax(vm) > top else "neither",
+                     label=f"von Mises stress [{su}]")
+    fig.suptitle(f"deformed outer surface (displacement × {mag:g}), von Mises")
+    return png(fig), mag
+
+
+def cut_figure(res: Results, j: int) -> bytes | None:
+    """For each region of interest of criterion j, the von Mises stress on a plane cut through
+    it (undeformed), the cells of the region outlined."""
+    mesh, f = res.mesh, res.worst_fields[j]
+    vm = _von_mises(f)
+    names = res.criteria[j].regions or list((res.scene.get("regions_of_interest") or {}))
+    if vm is None or not names:
+        return None
+    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.6), squeeze=False)
+    centroids = mesh.coords[mesh.cells].mean(axis=1)
+    for ax, name in zip(axes[0], names):
+        spec = _roi_spec(res, name)
+        point, normal, half = section_plane(spec, mesh.coords)
+        polygons, owner = plane_section(mesh.coords, mesh.cells, point, normal)
+        e1, e2 = plane_axes(normal)
+        flat = [np.column_stack([(p - point) @ e1, (p - point) @ e2]) for p in polygons]
+        near = [k for k, q in enumerate(flat) if np.abs(q).max() <= 1.5 * half]
+        if not near:
+            ax.set_title(f"{name}: the cut misses the mesh")
+            continue
+        sc, su = stress_scale(vm[owner[near]])
+        pc = PolyCollection([flat[k] for k in near], array=vm[owner[near]] * sc, cmap="viridis", edgecolors="face")
+        ax.add_collection(pc)
+        fig.colorbar(pc, ax=ax, shrink=0.85, label=f"von Mises stress [{su}]")
+        inside = _inside(dict((res.scene.get("regions_of_interest") or {}).get(name) or {}), centroids[owner[near]])
+        if inside is not None and inside.any():
+            ax.add_collection(PolyCollection([flat[near[k]] for k in np.flatnonzero(inside)], facecolors="none",
+                                             edgecolors="k", linewidths=0.5))
+        ax.set_xlim(-half, half), ax.set_ylim(-half, half), ax.set_aspect("equal")
+        ax.set_xlabel(f"along ({e1[0]:.2g}, {e1[1]:.2g}, {e1[2]:.2g}) [m]")
+        ax.set_ylabel(f"along ({e2[0]:.2g}, {e2[1]:.2g}, {e2[2]:.2g}) [m]")
+        ax.set_title(f"{name}: cut through ({point[0]:.3g}, {point[1]:.3g}, {point[2]:.3g})")
+    fig.tight_layout()
+    return png(fig)
+
+
+def _surface_triangulation(q: np.ndarray) -> Triangulation:
+    """Delaunay triangles of a surface's points in its own coordinates, without the long
+    triangles that bridge a hole or a concave edge (longest edge > 3 × the median edge)."""
+    tri = Triangulation(q[:, 0], q[:, 1])
+    e = np.linalg.norm(q[tri.triangles] - q[np.roll(tri.triangles, 1, axis=1)], axis=2).max(axis=1)
+    tri.set_mask(e > 3 * np.median(e))
+    return tri
+
+
+def contact_maps_figure(res: Results, j: int) -> bytes | None:
+    """Contact pressure and slip of criterion j's worst case on each contact surface, in the
+    surface's own coordinates (`surface_frame`); slip arrows are the tangential slip vectors
+    projected onto the surface's plane."""
+    f = res.worst_fields[j]
+    if f is None or f.contact_coords is None or "contact_pressure" not in f.contact:
+        return None
+    pairs = list(dict.fromkeys(f.contact_pair.tolist()))
+    slip = f.contact.get("contact_slip")
+    tangents = f.contact_tangents
+    panels = 2 if slip is not None and tangents is not None else 1
+    fig, axes = plt.subplots(panels, len(pairs), figsize=(5.4 * len(pairs), 4.4 * panels), squeeze=False)
+    for c, pair in enumerate(pairs):
+        idx = np.flatnonzero(f.contact_pair == pair)
+        x = f.contact_coords[idx]
+        origin, e1, e2 = surface_frame(x)
+        q = np.column_stack([(x - origin) @ e1, (x - origin) @ e2])
+        tri = _surface_triangulation(q) if len(idx) >= 3 else None
+        p = f.contact["contact_pressure"][idx]
+        sc, su = stress_scale(p)
+        ax = axes[0, c]
+        if tri is not None:
+            pc = ax.tripcolor(tri, p * sc, shading="gouraud", cmap="magma")
+        else:
+            pc = ax.scatter(q[:, 0], q[:, 1], c=p * sc, cmap="magma")
+        fig.colorbar(pc, ax=ax, shrink=0.85, label=f"contact pressure [{su}]")
+        ax.set_title(f"{pair}: pressure −τₙ")
+        if panels == 2:
+            s = slip[idx]
+            vec = s[:, 0, None] * tangents[idx, 0] + s[:, 1, None] * tangents[idx, 1]
+            mag = np.linalg.norm(s, axis=1)
+            lsc, lsu = length_scale(mag)
+            ax2 = axes[1, c]
+            pc2 = (ax2.tripcolor(tri, mag * lsc, shading="gouraud", cmap="cividis") if tri is not None
+                   else ax2.scatter(q[:, 0], q[:, 1], c=mag * lsc, cmap="cividis"))
+            fig.colorbar(pc2, ax=ax2, shrink=0.85, label=f"slip |s| [{lsu}]")
+            step = max(1, len(idx) // 150)
+            ax2.quiver(q[::step, 0], q[::step, 1], (vec @ e1)[::step], (vec @ e2)[::step], color="w",
+                       angles="xy", pivot="mid", width=0.004)
+            ax2.set_title(f"{pair}: slip (arrows: direction)")
+        for a in axes[:, c]:
+            a.set_aspect("equal")
+            a.set_xlabel(f"along ({e1[0]:.2g}, {e1[1]:.2g}, {e1[2]:.2g}) [m]")
+            a.set_ylabel(f"along ({e2[0]:.2g}, {e2[1]:.2g}, {e2[2]:.2g}) [m]")
+    fig.tight_layout()
+    return png(fig)
