@@ -17,7 +17,6 @@ import yaml
 
 from wcs.cli import main
 from wcs.contact.qp import solve_contact_qp
-from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
@@ -144,13 +143,6 @@ def test_the_newton_agrees_with_the_cvxpy_socp_on_a_floating_block(friction):
     st = res.state.contact
     tangential = np.einsum("ik,ikj->j", st.by_node(st.force_t), z.tangents)
     assert tangential[:2] == pytest.approx([2.0e5, -1.0e5], rel=1e-7 if "coefficient" in friction else 1e-10)
-
-
-def test_nonmatching_3d_faces_are_refused_until_mortar():
-    d = yaml.safe_load(PATCH.read_text())
-    d["scene"]["bodies"]["block"]["mesh"] = {"size": 0.13}                # meshed on its own: nonmatching
-    with pytest.raises(StudyError, match="3D mortar is not built yet"):
-        Evaluator(load_study(d))
 
 
 def test_wcs_run_and_report_of_the_3d_patch(tmp_path):

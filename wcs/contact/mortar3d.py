@@ -2,7 +2,7 @@ r"""Segment-based dual mortar contact of two nonmatching triangulated surfaces (
 
 The 3D form of `wcs.contact.mortar` (seed [101, (16)–(26)]; the segment-based
 integration of Puso & Laursen, CMAME 193 (2004), with the dual basis of Popp,
-Gee & Wall, IJNME 79 (2009)): rows of the same form, so the solver, the
+Gitterle, Gee & Wall, IJNME 83 (2010)): rows of the same form, so the solver, the
 criteria and the adjoint gradients see only ``Bn, Bt, gap, weight``.
 
 The integrals
@@ -40,7 +40,7 @@ normal is ``n_j = −∫φ_j ν_m ds / |·|`` (the master's outward normal avera
 over the support of φ_j, reversed: out of the slave; on a flat master exactly
 the master normal, on matching sides the area-weighted slave nodal normal), the
 tangents ``t_j¹, t_j²`` complete it to a right-handed orthonormal frame
-(`tangents`), the weighted gap is ``g̃_j = −(C x)_j · n_j`` and the weight is
+(`pairs.tangents`), the weighted gap is ``g̃_j = −(C x)_j · n_j`` and the weight is
 ``w_j = D_jj`` (the covered tributary area): λn_j = w_j p_j carries the pressure
 p_j. ``Bn`` has one row per kept slave node, ``Bt`` two, stacked by component
 (row k·m + j is tangent k of node j), on node-interleaved DOFs (3i, 3i+1, 3i+2).
@@ -54,7 +54,7 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from ..scene.selectors import _clip
-from .pairs import check_penetration
+from .pairs import check_penetration, tangents
 
 FACING = 1e-3               # a master triangle faces a slave one when ν_m · n_T < −FACING
 MIN_COVER = 1e-6            # a covered fraction of a slave triangle / tributary area below this is ignored
@@ -83,15 +83,6 @@ def triangle_normals(x: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.nda
     c = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
     a = np.linalg.norm(c, axis=1)
     return c / a[:, None], 0.5 * a
-
-
-def tangents(normal: np.ndarray) -> np.ndarray:
-    """(m, 2, 3) unit tangents t¹, t² with (t¹, t², n) right-handed orthonormal: t¹ is the
-    coordinate axis least aligned with n (the first on ties) made orthogonal to n."""
-    axis = np.eye(3)[np.argmin(np.abs(normal), axis=1)]
-    t1 = axis - np.einsum("ij,ij->i", axis, normal)[:, None] * normal
-    t1 /= np.linalg.norm(t1, axis=1)[:, None]
-    return np.stack([t1, np.cross(normal, t1)], axis=1)
 
 
 def _area2(poly: np.ndarray) -> float:

@@ -5,7 +5,8 @@ Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
 is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`). In 3D each
 row has two tangents and Bt stacks them by component over the whole zone (row j·m + i
 is tangent j of row i), as `wcs.contact.solver` reads it; the rows of a contact are
-node-to-node where its faces match (`pairs.match_faces`).
+node-to-node where its faces match (`pairs.match_faces`), dual mortar (`mortar3d`) where they
+do not (`auto`) or when asked.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from ..errors import StudyError
 from ..scene.meshdata import SceneMesh
 from ..scene.selectors import arc_coordinate
 from .mortar import directional_rows, mortar_contact, sides_match
+from .mortar3d import jump_rows, mortar_sides3d
 from .pairs import ContactPairs, jump_rows3d, match_faces, normal_jump_matrix, pair_contact, tangent_jump_matrix
 
 DISCRETIZATIONS = ("auto", "node-to-node", "mortar")
@@ -111,15 +113,15 @@ def _pairs3d(smesh: SceneMesh, spec, path: str):
     pr = None if kind == "mortar" else match_faces(smesh.mesh, *faces, path)
     if pr is not None:
         return pr
-    # the 3D dual mortar's rows plug in here: an object with the fields of `pairs.FacePairs`
-    # (slave, normal, tangent, gap, weight, dropped, discretization) and its rows in `_rows3d`
-    why = "asked for" if kind == "mortar" else "needed: the faces do not match (a master node at every slave node)"
-    raise StudyError(f"3D mortar is not built yet ({why})", path=path)
+    if kind == "node-to-node":
+        raise StudyError("node-to-node contact in 3D needs matching faces (a master node at every slave "
+                         "node); these do not match: use discretization mortar (or auto)", path=f"{path}.discretization")
+    return mortar_sides3d(smesh.mesh, *faces, path)
 
 
 def _rows3d(pr, nn: int):
     """(Bn (m, 3 nn), Bt (2m, 3 nn) stacked by component) of one 3D contact."""
-    return jump_rows3d(pr, nn)
+    return jump_rows(pr) if pr.discretization == "mortar" else jump_rows3d(pr, nn)
 
 
 def _build_zone3d(contacts, smesh: SceneMesh) -> ContactZone:
