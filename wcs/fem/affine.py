@@ -66,8 +66,8 @@ class CellAffineOperator:
         cols = np.tile(t.T, (1, n)).ravel().astype(np.int64)        # node b
         nodes = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nnodes, nnodes))
         nodes.sum_duplicates()                                 # sorted node-pair pattern
-        keys = np.repeat(np.arange(nnodes, dtype=np.int64), np.diff(nodes.indptr)) * nnodes + nodes.indices
-        self.position = np.searchsorted(keys, rows * nnodes + cols)
+        number = sp.csr_array((np.arange(nodes.nnz), nodes.indices, nodes.indptr), shape=nodes.shape)
+        self.position = number[rows, cols]                     # each pair's place in it (a per-row lookup)
         self.indptr, self.indices = nodes.indptr, nodes.indices
         self.nblocks = nodes.nnz
         self.shape = (self.block * nnodes,) * 2

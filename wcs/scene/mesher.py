@@ -406,8 +406,10 @@ def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
     # -- one copy of each node per body, unused nodes dropped, compact numbering
     nn = xy.shape[0]
     key = cell_body[:, None] * nn + tri
-    uniq, inv = np.unique(key.ravel(), return_inverse=True)
-    t = inv.reshape(-1, 3).T.astype(np.int64)
+    used = np.zeros(len(bodies) * nn, dtype=bool)
+    used[key] = True
+    uniq = np.flatnonzero(used)                    # the (body, node) keys in use, in order
+    t = (np.cumsum(used) - 1)[key].T.astype(np.int64)
     p = np.ascontiguousarray(xy[uniq % nn].T)
 
     # -- counter-clockwise cells
