@@ -38,8 +38,9 @@ def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
     np.multiply(a * g[:, :, None, :, None], g[:, None, :, None, :], out=out[0])
     # 2 e(φ_ai):e(φ_bj) = δ_ij ∇N_a·∇N_b + ∂_j N_a ∂_i N_b
     dot = np.einsum("eak,ebk->eab", g, g)
-    mu = dot[:, :, :, None, None] * np.eye(d) + g[:, :, None, None, :] * g[:, None, :, :, None]
-    np.multiply(a, mu, out=out[1])
+    np.multiply(dot[:, :, :, None, None], np.eye(d), out=out[1])
+    out[1] += g[:, :, None, None, :] * g[:, None, :, :, None]
+    out[1] *= a
     return out
 
 
