@@ -4,13 +4,15 @@ A fresh process does what `wcs run` does first: imports, reading the study, mesh
 assembly and the first evaluation at the nominal data. Its time, against one SuperLU
 factorization and solve (tuned: MMD_AT_PLUS_A, diag_pivot_thresh=0, SymmetricMode) of
 the reduced stiffness of the same mesh measured in the same process, must be at most 3x
-at ~8.6e4 unknowns (the contact pad). The breakdown (imports, mesh, assembly, first
+at ~8.6e4 unknowns (the contact pad): the median over three fresh processes (the machine is
+shared: one process alone swings 2x-3.7x). The breakdown (imports, mesh, assembly, first
 solve) and the modules the first evaluation loaded are printed and written to
 results/bench/cold_start.csv; the 9.4e3-unknown Hertz case is reported alongside."""
 from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import textwrap
@@ -78,8 +80,8 @@ def test_first_evaluation_against_one_superlu_solve(tmp_path):
     pad["scene"]["mesh"] = {"size": 0.0083}                 # ~8.6e4 unknowns
     hertz = yaml.safe_load((STUDIES / "validation" / "hertz.yaml").read_text())
     hertz["scene"]["mesh"]["refine"][0]["size"] = 0.008     # ~9.4e3 unknowns
-    rows = []
-    for name, doc in (("pad", pad), ("hertz", hertz)):
+    rows, pad_ratios = [], []
+    for name, doc in (("pad", pad), ("pad", pad), ("pad", pad), ("hertz", hertz)):
         r = cold_start(doc, tmp_path, name)
         assert r["status"] == 0
         r["ratio"] = r["total"] / r["superlu"]
@@ -92,10 +94,12 @@ def test_first_evaluation_against_one_superlu_solve(tmp_path):
               f"loaded on the first evaluation: {', '.join(r['loaded'])}")
         if name == "pad":
             pad_result = r
+            pad_ratios.append(r["ratio"])
     write_table("cold_start", ["scene", "unknowns", "imports_s", "read_s", "mesh_s", "assembly_s",
                                "first_solve_s", "total_s", "superlu_s", "ratio", "loaded"], rows)
     assert 8.0e4 <= pad_result["unknowns"] <= 9.2e4, pad_result["unknowns"]
-    assert pad_result["ratio"] <= 3.0, pad_result
+    print(f"\npad: median {statistics.median(pad_ratios):.2f}x of {', '.join(f'{q:.2f}' for q in pad_ratios)}")
+    assert statistics.median(pad_ratios) <= 3.0, pad_ratios
 
 
 @pytest.mark.parametrize("args", [["--help"], ["check", "studies/validation/tresca-pad.yaml"]],
