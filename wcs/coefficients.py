@@ -10,7 +10,8 @@ set changes is one flat coefficient vector c (`Coefficients`, laid out by `FIELD
    specific weights, support values, temperatures, heat sources, friction data — with A
    one sparse matrix;
 3. the moduli on top: per material (E, ν) or (λ, μ), and α, give the λ, μ of the 2D
-   stiffness (λ* = 2λμ/(λ + 2μ) in plane stress) and β (`wcs.materials`);
+   stiffness (λ* = 2λμ/(λ + 2μ) in plane stress) and β (`wcs.materials`); in 3D the λ, μ and
+   β = (3λ + 2μ)α of the full Hooke law, the ones plane strain keeps;
 4. a Lipschitz slip-limit profile: g per contact node interpolated linearly in arc length
    from the profile's points (the seed's Tresca data g ∈ U_ad, a Lipschitz set); on a 3D
    contact surface bilinearly from a grid over the face (`wcs.contact.frame`).
@@ -42,9 +43,9 @@ class Coefficients:
     beta: np.ndarray           # (nregions,) thermal stress coefficient
     kappa: np.ndarray          # (nregions,) conductivity (thermal scenes)
     source: np.ndarray         # (nregions,) heat source W
-    body_force: np.ndarray     # (nregions, 2)
+    body_force: np.ndarray     # (nregions, d)
     pressure: dict             # boundary -> p
-    traction: dict             # boundary -> (tx, ty)
+    traction: dict             # boundary -> (tx, ty) or (tx, ty, tz)
     support_values: np.ndarray # values of the elastic constraints, model order
     temperature_values: np.ndarray
     reference: float
@@ -112,7 +113,8 @@ class ParameterMap:
     entries (`path`, `points`, and `lipschitz` for a slip-limit profile) in parameter order."""
 
     def __init__(self, model, scene, uncertain=()):
-        self.plane = model.plane
+        self.plane = "strain" if model.dim == 3 else model.plane   # 3D: plane strain's (the full) Hooke law
+        self.dim = d = model.dim
         numbers = list(scene_numbers(scene))
         self.index = {path: k for k, (path, _) in enumerate(numbers)}
         self.nominal = np.array([float(v) for _, v in numbers])
@@ -122,8 +124,8 @@ class ParameterMap:
         temperature_keys = getattr(model, "temperature_keys", [])
         zone = model.zone
         m = 0 if zone is None else zone.gap.size
-        sizes = {"lam": nr, "mu": nr, "beta": nr, "kappa": nr, "source": nr, "body_force": 2 * nr,
-                 "pressure": len(self.pressure_names), "traction": 2 * len(self.traction_names),
+        sizes = {"lam": nr, "mu": nr, "beta": nr, "kappa": nr, "source": nr, "body_force": d * nr,
+                 "pressure": len(self.pressure_names), "traction": d * len(self.traction_names),
                  "support_values": len(model.support_keys), "temperature_values": len(temperature_keys),
                  "reference": 1, "slip": m, "coulomb": m}
         self.slices, k = {}, 0
@@ -165,19 +167,19 @@ class ParameterMap:
         targets = model.targets
         for j, mat in enumerate(model.region_material):
             add("kappa", j, f"materials.{mat}.conductivity")
-            add("body_force", 2 * j + 1, f"materials.{mat}.density_weight", -1.0)
+            add("body_force", d * j + d - 1, f"materials.{mat}.density_weight", -1.0)   # along −y (2D), −z (3D)
         for t, force in scene.body_forces.items():
             for j in targets[t]:
                 for i in range(len(force)):
-                    add("body_force", 2 * j + i, f"body_forces.{t}.{i}")
+                    add("body_force", d * j + i, f"body_forces.{t}.{i}")
         for t in scene.thermal.sources if scene.thermal else {}:
             for j in targets[t]:
                 add("source", j, f"thermal.sources.{t}")
         for k, b in enumerate(sorted(self.pressure_names)):
             add("pressure", k, f"loads.{b}.pressure")
         for k, b in enumerate(sorted(self.traction_names)):
-            for i in range(2):
-                add("traction", 2 * k + i, f"loads.{b}.traction.{i}")
+            for i in range(d):
+                add("traction", d * k + i, f"loads.{b}.traction.{i}")
         for k, (b, key) in enumerate(model.support_keys):
             add("support_values", k, f"supports.{b}.normal" if key == "normal" else f"supports.{b}.{key}")
         for k, b in enumerate(temperature_keys):
@@ -235,10 +237,10 @@ class ParameterMap:
     def unflatten(self, c: np.ndarray) -> Coefficients:
         sl = self.slices
         pressure = dict(zip(sorted(self.pressure_names), c[sl["pressure"]]))
-        traction = dict(zip(sorted(self.traction_names), c[sl["traction"]].reshape(-1, 2)))
+        traction = dict(zip(sorted(self.traction_names), c[sl["traction"]].reshape(-1, self.dim)))
         return Coefficients(
             lam=c[sl["lam"]], mu=c[sl["mu"]], beta=c[sl["beta"]], kappa=c[sl["kappa"]],
-            source=c[sl["source"]], body_force=c[sl["body_force"]].reshape(-1, 2),
+            source=c[sl["source"]], body_force=c[sl["body_force"]].reshape(-1, self.dim),
             pressure={b: float(pressure[b]) for b in self.pressure_names},
             traction={b: traction[b].copy() for b in self.traction_names},
             support_values=c[sl["support_values"]], temperature_values=c[sl["temperature_values"]],

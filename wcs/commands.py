@@ -180,7 +180,7 @@ def solve_nominal(args) -> int:
         return 2 if Status(res.status).scene_fault else 1
     m = ev.smesh.mesh
     return _write_scenario(study, ev, res, out, args, [
-        f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {2 * m.p.shape[1]} unknowns",
+        f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {m.p.shape[0] * m.p.shape[1]} unknowns",
         f"  mesh {ev.timings['mesh']:.2f} s, assembly {ev.timings['assembly']:.2f} s, "
         f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s"])
 

@@ -1,25 +1,31 @@
-"""The solution fields of one evaluation as an xarray.Dataset (the fields a results file holds)."""
+"""The solution fields of one evaluation as an xarray.Dataset (the fields a results file holds):
+triangles with stress (xx, yy, zz, xy) in 2D, tetrahedra with (xx, yy, zz, yz, xz, xy) in 3D."""
 from __future__ import annotations
 
 import numpy as np
 import xarray as xr
 
-from .fem.stress import COMPONENTS, principal, shear_intensity, von_mises
+from .fem import stress, tet
 
 
 def fields_dataset(model, state) -> xr.Dataset:
     mesh = model.smesh.mesh
     s = state.stress
+    d = model.dim
+    law = tet if d == 3 else stress
+    principal, shear_intensity, von_mises = law.principal, law.shear_intensity, law.von_mises
+    cells = "tetrahedron" if d == 3 else "triangle"
     data = {
         "coords": (("node", "dim"), mesh.p.T.copy(), {"units": "m", "long_name": "node coordinates"}),
-        "cells": (("cell", "vertex"), mesh.t.T.astype(np.int64), {"long_name": "triangle vertices (0-based)"}),
+        "cells": (("cell", "vertex"), mesh.t.T.astype(np.int64), {"long_name": f"{cells} vertices (0-based)"}),
         "cell_body": (("cell",), model.smesh.cell_body.astype(np.int32), {"long_name": "body index"}),
         "cell_region": (("cell",), model.smesh.cell_region.astype(np.int32), {"long_name": "region index"}),
-        "displacement": (("node", "dim"), state.u.reshape(-1, 2), {"units": "m", "long_name": "displacement"}),
+        "displacement": (("node", "dim"), state.u.reshape(-1, d), {"units": "m", "long_name": "displacement"}),
         "stress": (("cell", "component"), s.T.copy(), {"units": "Pa", "long_name": "Cauchy stress"}),
         "von_mises": (("cell",), von_mises(s), {"units": "Pa", "long_name": "von Mises stress"}),
         "principal_stress": (("cell", "principal"), principal(s),
-                             {"units": "Pa", "long_name": "in-plane principal stresses, largest first"}),
+                             {"units": "Pa", "long_name": ("principal stresses, largest first" if d == 3 else
+                                                           "in-plane principal stresses, largest first")}),
         "shear_stress_intensity": (("cell",), shear_intensity(s),
                                    {"units": "Pa^2", "long_name": "shear stress intensity I2^2"}),
     }
@@ -27,7 +33,8 @@ def fields_dataset(model, state) -> xr.Dataset:
         data["temperature"] = (("node",), state.T, {"units": "K", "long_name": "temperature"})
     if state.contact is not None:
         data.update(state.contact.fields())
-    ds = xr.Dataset(data, coords={"dim": ["x", "y"], "component": list(COMPONENTS), "principal": [1, 2],
+    ds = xr.Dataset(data, coords={"dim": ["x", "y", "z"][:d], "component": list(law.COMPONENTS),
+                                  "principal": list(range(1, d + 1)),
                                   "body": model.smesh.bodies,
                                   "region": [r for _, r in model.smesh.regions]})
     return ds

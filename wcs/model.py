@@ -5,9 +5,11 @@ thermal solve and one elastic solve per data set.
 exist) and is read-only once built; `Model.solve(c)` takes the `Coefficients` of a data
 set (`wcs.coefficients.ParameterMap`) and combines the pieces: the data are piecewise
 constant on regions and boundary parts, so every operator is an affine combination of
-fixed matrices. A solve returns a `Solution` that owns its fields and the matrices its
-adjoint needs; the factor objects behind them are caches that keep their analysis and
-are refactored whenever a solution asks for a matrix they no longer hold.
+fixed matrices. The mesh gives the dimension: P1 triangles (plane strain or stress) or P1
+tetrahedra (3D), dof = d·node + component either way. A solve returns a `Solution` that
+owns its fields and the matrices its adjoint needs; the factor objects behind them are
+caches that keep their analysis and are refactored whenever a solution asks for a matrix
+they no longer hold.
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, solve_contact
 from .contact.zone import ContactState, build_zone
 from .errors import SolveError, StudyError
-from .fem import forms
+from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from .fem.constraints import Constraint, Elimination, Reduction, eliminate
 from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
@@ -40,9 +42,9 @@ from .options import Solver
 @dataclass(frozen=True)
 class Solution:
     """A solved data set: nodal fields, cell-wise stresses, and what its adjoint needs."""
-    u: np.ndarray              # (2 nnodes,) node-interleaved displacement
+    u: np.ndarray              # (d nnodes,) node-interleaved displacement
     T: np.ndarray | None       # (nnodes,) temperature, None without a thermal step
-    stress: np.ndarray         # (4, ncells) xx, yy, zz, xy
+    stress: np.ndarray         # (4, ncells) xx, yy, zz, xy in 2D; (6, ncells) xx, yy, zz, yz, xz, xy in 3D
     coefficients: Coefficients
     iterations: int = 1
     solver: str = "direct"                 # what actually solved it (e.g. "dd", "monolithic after dd stagnated")
@@ -71,9 +73,18 @@ class Solution:
 
 
 def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
-    """(2 nnodes, 3): x-translation, y-translation, rotation about the nodes' centroid."""
-    R = np.zeros((2 * nnodes, 3))
+    """(2 nnodes, 3): x-translation, y-translation, rotation about the nodes' centroid; in 3D
+    (p of shape (3, n)) (3 nnodes, 6): the translations along x, y, z, then the rotations
+    e_k × (x − c) about the axes x, y, z through the centroid c."""
     c = p[:, nodes].mean(axis=1)
+    if p.shape[0] == 3:
+        R = np.zeros((3 * nnodes, 6))
+        r = (p[:, nodes] - c[:, None]).T                      # (n, 3)
+        for k, e in enumerate(np.eye(3)):
+            R[3 * nodes + k, k] = 1.0
+            R[(3 * nodes[:, None] + np.arange(3)).ravel(), 3 + k] = np.cross(e, r).ravel()
+        return R
+    R = np.zeros((2 * nnodes, 3))
     R[2 * nodes, 0] = 1.0
     R[2 * nodes + 1, 1] = 1.0
     R[2 * nodes, 2] = -(p[1, nodes] - c[1])
@@ -91,8 +102,10 @@ class Model:
         self.options = Solver.of(options)             # the study's `solver` options (a mapping is validated)
         self.scene = scene
         self.smesh = smesh
-        self.plane = scene.plane
         mesh = smesh.mesh
+        self.dim = d = mesh.p.shape[0]                # 2: triangles, 3: tetrahedra
+        self.plane = scene.plane if d == 2 else None  # 3D: the full Hooke law
+        self._refuse_3d(scene)
         self.nnodes = mesh.p.shape[1]
         self.region_cells = [np.flatnonzero(smesh.cell_region == j) for j in range(len(smesh.regions))]
         self.region_material = self._region_materials(scene)
@@ -105,7 +118,7 @@ class Model:
         supported = np.unique(np.concatenate([c.nodes for c in constraints])) if constraints else ()
         self.glue = build_glue(scene, smesh, supported)
         self.elim: Elimination = glue_elimination(
-            eliminate(self.nnodes, 2, constraints, len(self.support_keys)), self.glue, self.nnodes, 2)
+            eliminate(self.nnodes, d, constraints, len(self.support_keys)), self.glue, self.nnodes, d)
         self.Tt = self.elim.T.T.tocsr()
         self.reduce = Reduction(self.K.pattern(), self.elim.T)
         self.free_modes = self._free_rigid_modes(constraints)
@@ -133,8 +146,8 @@ class Model:
         self.solver_method, self.solver_reason = self._choose_solver(scene)
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
 
-        self.G = strain_operator(mesh.p, mesh.t)
-        _, self.cell_area = gradient_operator(mesh.p, mesh.t)
+        self.G = (tet.strain_operator if d == 3 else strain_operator)(mesh.p, mesh.t)
+        _, self.cell_area = (tet.gradient_operator if d == 3 else gradient_operator)(mesh.p, mesh.t)   # areas or volumes
         self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
         # caches: they change the speed of a solve, never its answer (see `solve`)
         self._cache = SimpleNamespace(
@@ -155,14 +168,17 @@ class Model:
 
     @functools.cached_property
     def body_force_vectors(self) -> np.ndarray:
-        """(nregions, 2, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
+        """(nregions, d, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
         return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene) -> tuple[str, str]:
-        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py)."""
+        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py); in 3D
+        the monolithic solver (the decomposition is not built for tetrahedra)."""
         method = self.options.method
         if method != "auto":
             return method, "chosen in the study"
+        if self.dim == 3:
+            return "monolithic", "3D: the monolithic solver (the domain decomposition is not built for tetrahedra)"
         mats = [scene.materials[m] for m in set(self.region_material)]
         pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
                  for m in mats]
@@ -173,11 +189,21 @@ class Model:
         friction = ("coulomb" if any(f.coefficient for f in laws)
                     else "tresca" if any(f.slip_limit for f in laws)
                     else "none")
-        facts = SolverFacts(unknowns=2 * self.nnodes, contact=bool(contacts), friction=friction,
+        facts = SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
                             stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus))
         return solver_method(facts)
 
     # ---- structure -----------------------------------------------------------------
+    def _refuse_3d(self, scene) -> None:
+        """Exit 2, by name, for what a 3D scene asks and the model on tetrahedra does not do yet."""
+        if self.dim != 3:
+            return
+        if scene.glue:
+            raise StudyError("3D does not support glued interfaces yet", path="scene.glue")
+        if self.options.method == "dd":
+            raise StudyError("3D does not support the domain decomposition yet (solver.method: dd)",
+                             path="solver.method")
+
     def _region_materials(self, scene) -> list[str]:
         """The material of each mesh region (the loader names every region)."""
         material = {(body, r.name): r.material for body, spec in scene.bodies.items() for r in spec.regions}
@@ -202,24 +228,25 @@ class Model:
                 for comp, value in enumerate(sup.u):
                     if value is None:
                         continue
-                    a = np.zeros((nodes.size, 2))
+                    a = np.zeros((nodes.size, self.dim))
                     a[:, comp] = 1.0
                     constraints.append(Constraint(nodes, a, len(keys)))
                     keys.append((name, f"u.{comp}"))
             else:
-                nodes, normals = nodal_normals(mesh, facets)
+                nodes, normals = (tet.nodal_normals if self.dim == 3 else nodal_normals)(mesh, facets)
                 constraints.append(Constraint(nodes, normals, len(keys)))
                 keys.append((name, "normal"))
         return keys, constraints
 
     def _free_rigid_modes(self, constraints: list[Constraint]) -> dict[str, np.ndarray]:
-        """Per body: the rigid motions no support stops, as (2 nnodes, k) columns (k = 0 when held)."""
+        """Per body: the rigid motions no support stops, as (d nnodes, k) columns (k = 0 when held)."""
         node_body = self.smesh.node_body
         rows = {n: [] for n in range(len(self.smesh.bodies))}
         for c in constraints:
             for node, a in zip(c.nodes, c.directions):
                 rows[node_body[node]].append((node, a))
         p = self.smesh.mesh.p
+        d = self.dim
         free = {}
         for cluster in glued_clusters(len(self.smesh.bodies), self.glue):   # glued bodies move together
             name = self.smesh.bodies[cluster[0]]
@@ -227,15 +254,15 @@ class Model:
             R = rigid_modes(p, nodes, self.nnodes)
             held = [r for bb in cluster for r in rows[bb]]
             if held:
-                A = np.array([[a @ R[2 * n:2 * n + 2, k] for k in range(3)] for n, a in held])
+                A = np.array([[a @ R[d * n:d * n + d, k] for k in range(R.shape[1])] for n, a in held])
                 _, s, vt = np.linalg.svd(A)
                 rank = int(np.sum(s > 1e-10 * max(s[0], 1e-300)))
                 z = vt[rank:].T
             else:
-                z = np.eye(3)
+                z = np.eye(R.shape[1])
             free[name] = R @ z
             for other in cluster[1:]:          # a glued cluster's modes are listed once, under its first body
-                free[self.smesh.bodies[other]] = np.zeros((2 * self.nnodes, 0))
+                free[self.smesh.bodies[other]] = np.zeros((d * self.nnodes, 0))
         return free
 
     def _init_thermal(self, scene):
@@ -274,7 +301,7 @@ class Model:
 
     def mechanical_load(self, c: Coefficients, T: np.ndarray | None) -> np.ndarray:
         f = (np.einsum("ji,jid->d", c.body_force, self.body_force_vectors) if np.any(c.body_force)
-             else np.zeros(2 * self.nnodes))
+             else np.zeros(self.dim * self.nnodes))
         for b, v in self.pressure_vectors.items():
             f += c.pressure[b] * v
         for b, v in self.traction_vectors.items():
@@ -322,7 +349,7 @@ class Model:
         floating = {b: m for b, m in self.free_modes.items() if m.shape[1]}
         if floating and self.zone is None:
             body, modes = next(iter(floating.items()))
-            raise StudyError(f"body '{body}' is not held: {_describe_modes(modes)} are free "
+            raise StudyError(f"body '{body}' is not held: {_describe_modes(modes, self.dim)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
         K, Kr, rhs, u0 = self.reduced_system(c, T)
         own = dict(coefficients=c, theta=theta, conduction=Kh, factors=cache)
@@ -423,34 +450,45 @@ class Model:
         work = float(rhs @ (self.elim.T.T @ v))
         nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(best))
         load = self.elim.T @ rhs                                   # the reduced load, back on the dofs
-        force = np.array([load[2 * nodes + i].sum() for i in range(2)])
+        d = self.dim
+        force = np.array([load[d * nodes + i].sum() for i in range(d)])
+        net = ", ".join(f"{f:.4g}" for f in force)
         return (f"body '{best}' is held only by contact and its load is not balanced: "
-                f"net load ({force[0]:.4g}, {force[1]:.4g}) N/m drives a rigid motion that friction "
+                f"net load ({net}) {'N' if d == 3 else 'N/m'} drives a rigid motion that friction "
                 f"and contact do not resist (load work {work:.3g} > friction work); "
                 f"solvability L(w) <= j(w) fails ([21, Remark 2.1])")
 
     def _free_motion_message(self, beta: np.ndarray) -> str:
         """Name the floating body whose rigid motion the active contact leaves free, and the motion."""
-        k, parts = 0, []
+        k, parts, d = 0, [], self.dim
         for body, modes in self.floating:
             v = modes @ beta[k:k + modes.shape[1]]
             k += modes.shape[1]
             nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(body))
-            R = rigid_modes(self.smesh.mesh.p, nodes, self.nnodes)[np.r_[2 * nodes, 2 * nodes + 1]]
-            a = np.linalg.lstsq(R, v[np.r_[2 * nodes, 2 * nodes + 1]], rcond=None)[0]
+            dofs = np.concatenate([d * nodes + i for i in range(d)])
+            R = rigid_modes(self.smesh.mesh.p, nodes, self.nnodes)[dofs]
+            a = np.linalg.lstsq(R, v[dofs], rcond=None)[0]
             parts.append((np.abs(a).max(), body, a, self.smesh.mesh.p[:, nodes].mean(axis=1)))
         _, body, a, c = max(parts, key=lambda t: t[0])
         a = a / np.abs(a).max()
         a = np.where(np.abs(a) > 1e-9, a, 0.0) + 0.0
+        if d == 3:
+            motion = (f"translation ({a[0]:.3g}, {a[1]:.3g}, {a[2]:.3g}) m with rotation ({a[3]:.3g}, {a[4]:.3g}, "
+                      f"{a[5]:.3g}) rad about the axes through ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})")
+        else:
+            motion = (f"translation ({a[0]:.3g}, {a[1]:.3g}) m with rotation {a[2]:.3g} rad about "
+                      f"({c[0]:.4g}, {c[1]:.4g})")
         return (f"body '{body}' is not held: its position is not determined — the rigid motion "
-                f"translation ({a[0]:.3g}, {a[1]:.3g}) m with rotation {a[2]:.3g} rad about "
-                f"({c[0]:.4g}, {c[1]:.4g}) moves no closed or stuck contact node, so the solution is not "
+                f"{motion} moves no closed or stuck contact node, so the solution is not "
                 f"unique (add a support, friction, or a contact that holds it)")
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
+        """(4, ncells) in 2D (`wcs.fem.stress`), (6, ncells) in 3D (`wcs.fem.tet`)."""
         reg = self.smesh.cell_region
-        strain = (self.G @ u).reshape(3, -1)
         dT = cell_mean(self.smesh.mesh.t, T) - c.reference if T is not None else np.zeros(reg.size)
+        if self.dim == 3:
+            return tet.stresses((self.G @ u).reshape(6, -1), c.lam[reg], c.mu[reg], c.beta[reg], dT)
+        strain = (self.G @ u).reshape(3, -1)
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
 
 
@@ -497,6 +535,10 @@ def _same_data(a: Coefficients, b: Coefficients) -> bool:
     return True
 
 
-def _describe_modes(modes: np.ndarray) -> str:
+def _describe_modes(modes: np.ndarray, dim: int = 2) -> str:
     k = modes.shape[1]
+    if dim == 3:
+        return {1: "one rigid motion", 2: "two rigid motions", 3: "three rigid motions", 4: "four rigid motions",
+                5: "five rigid motions",
+                6: "all six rigid motions (translations along x, y, z, rotations about them)"}[k]
     return {1: "one rigid motion", 2: "two rigid motions", 3: "all three rigid motions (x, y, rotation)"}[k]

@@ -43,7 +43,7 @@ def provenance(study, evaluator) -> dict:
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "solver": f"{study.solver.method} ({linalg.backend()})",
-        "plane": study.scene.plane,
+        **({"dimension": 3} if study.scene.dimension == 3 else {"plane": study.scene.plane}),
         "mesh_nodes": int(mesh.p.shape[1]),
         "mesh_cells": int(mesh.t.shape[1]),
         "warnings": "\n".join(getattr(study, "warnings", None) or []),   # what `wcs check` warns of, one a line
@@ -94,23 +94,25 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
 
 
 def write_vtu(ds: xr.Dataset, path: str | Path) -> Path:
+    """The fields of `ds` as a .vtu: triangles (points lifted to z = 0) or tetrahedra."""
     import meshio
     p = ds["coords"].values
-    points = np.column_stack([p, np.zeros(len(p))])
     u = ds["displacement"].values
-    point_data = {"displacement": np.column_stack([u, np.zeros(len(u))])}
+    three = p.shape[1] == 3
+    points = p if three else np.column_stack([p, np.zeros(len(p))])
+    point_data = {"displacement": u if three else np.column_stack([u, np.zeros(len(u))])}
     if "temperature" in ds:
         point_data["temperature"] = ds["temperature"].values
     s = ds["stress"].values
-    cell_data = {
-        "stress_xx": [s[:, 0]], "stress_yy": [s[:, 1]], "stress_zz": [s[:, 2]], "stress_xy": [s[:, 3]],
+    cell_data = {f"stress_{c}": [s[:, k]] for k, c in enumerate(ds["component"].values)}
+    cell_data.update({
         "von_mises": [ds["von_mises"].values],
-        "shear_stress_intensity": [ds["shear_stress_intensity"].values],
-        "principal_1": [ds["principal_stress"].values[:, 0]],
-        "principal_2": [ds["principal_stress"].values[:, 1]],
-        "body": [ds["cell_body"].values], "region": [ds["cell_region"].values],
-    }
-    mesh = meshio.Mesh(points, [("triangle", ds["cells"].values)], point_data=point_data, cell_data=cell_data)
+        "shear_stress_intensity": [ds["shear_stress_intensity"].values]})
+    cell_data.update({f"principal_{k + 1}": [ds["principal_stress"].values[:, k]]
+                      for k in range(ds["principal_stress"].shape[1])})
+    cell_data.update({"body": [ds["cell_body"].values], "region": [ds["cell_region"].values]})
+    mesh = meshio.Mesh(points, [("tetra" if three else "triangle", ds["cells"].values)],
+                       point_data=point_data, cell_data=cell_data)
     from .store import WriteError
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.part")

@@ -10,6 +10,13 @@ Forward (reduced unknowns w, full u = T w + U0 c_U; heat unknowns θ = T_h w_T +
     contact:  per component, an equality C_i u = d_i (closed normal / stuck tangent)
               or a fixed multiplier λ_t,i − s_i F_i λ_n,i = s_i g_i w_i (slip; λ_n,i = 0 open).
 
+In 3D a node has two tangent rows and a slipping node's λ_t = gw ν, ν = s/|s| (the projection
+onto the disc |λ_t| ≤ gw, gw = g w + F λ_n). Its linearization, from the projection's Jacobian
+D = gw/|z| (I − ννᵀ), is two rows in the frame (ν, ν⊥) of the slip: νᵀ δλ_t = δgw, a fixed
+multiplier as in 2D, and |s| ν⊥ᵀ δλ_t = gw ν⊥ᵀ δs, which divided by gw is the equality row of
+ν⊥ᵀ C with the compliance |s|/gw on its own multiplier. The adjoint below works in that frame
+(the rows of C turned by Q, W by Q W Qᵀ; Q = I for the stuck and open nodes and in 2D).
+
 With K⁺ the generalized inverse the contact solver factored and R the rigid modes of
 floating bodies, u = K⁺(f − Cᵀλ) + Rα and the multipliers solve a small system
 N [λ; α] = [d_A − C_A K⁺ f; h; Rᵀ f] (equalities A, fixed rows B, equilibrium of the
@@ -35,7 +42,7 @@ import scipy.sparse as sp
 
 from .coefficients import flatten
 from .contact.solver import redundant_pairs
-from .criteria import KINDS, REL_TOL, Partials
+from .criteria import KINDS, REL_TOL, Partials, node_norm
 
 
 def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
@@ -49,40 +56,77 @@ def criterion_partials(criterion, model, state) -> tuple[Partials, bool]:
     return P, bool(tie or kink)
 
 
+def _slip_frame(model, state, m: int, k: int):
+    """(Q, σ, compliance, free) of the adjoint's frame: Q turns each node slipping on a disc
+    (3D) to the rows (ν, ν⊥), ν = λ_t/|λ_t| (the slip's direction; where λ_t = 0, gw = 0: the
+    slip's own); σ (k m,) the sign of λ_t,i = σ_i gw_i on the fixed tangent rows (2D: sign(s);
+    3D: 1 on ν, 0 on ν⊥); the compliance |s|/gw on the ν⊥ rows, which become equality rows
+    (free) where gw > 0. Q is None in 2D (the identity, untouched)."""
+    res = state.raw
+    free = res.free.copy()
+    compliance = np.zeros((1 + k) * m)
+    if k == 1:
+        return None, np.sign(state.contact.slip), compliance, free
+    lam_t = res.lam_t.reshape(k, m)
+    slip = (model.Bt_r @ res.u).reshape(k, m)                  # the solver's r_t (d_t = 0)
+    along = np.where(np.linalg.norm(lam_t, axis=0) > 0, lam_t, slip)
+    norm = np.linalg.norm(along, axis=0)
+    turn = np.flatnonzero(~free[m:2 * m] & (norm > 0))
+    nu = along[:, turn] / norm[turn]
+    a, b = m + turn, 2 * m + turn                              # the node's ν and ν⊥ rows
+    keep = np.setdiff1d(np.arange((1 + k) * m), np.r_[a, b])
+    Q = sp.csr_matrix((np.r_[np.ones(keep.size), nu[0], nu[1], -nu[1], nu[0]],
+                       (np.r_[keep, a, a, b, b], np.r_[keep, a, b, a, b])), shape=((1 + k) * m,) * 2)
+    sigma = np.zeros(k * m)
+    sigma[turn] = 1.0
+    gw = np.where(np.isfinite(res.gw), res.gw, 0.0)[turn]
+    rubs = gw > 0
+    free[b[rubs]] = True
+    compliance[b[rubs]] = (nu * slip[:, turn]).sum(axis=0)[rubs] / gw[rubs]
+    return Q, sigma, compliance, free
+
+
 def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None):
-    """(z, μ, s) of the module docstring on the final active set; None when N is singular."""
+    """(z, μ, σ) of the module docstring on the final active set, μ in the slip frame
+    (`_slip_frame`); None when N is singular."""
     res = state.raw
     cf, m = state.contact_factor(model), res.lam_n.size
     C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
+    n = C.shape[0]
+    k = n // m - 1
+    Q, sigma, compliance, free = _slip_frame(model, state, m, k)
+    W = cf.W
+    if Q is not None:
+        C, W = (Q @ C).tocsr(), np.asarray(Q @ cf.W @ Q.T)
     R = model.R_r
     r = 0 if R is None else R.shape[1]
-    free = res.free
-    slip = state.contact.slip
-    s = np.sign(slip)
     Kp_phi = cf.factor.solve(phi_w)
     g_lam = -(C @ Kp_phi)
     if phi_lam_n is not None:
         g_lam[:m] += phi_lam_n
     g = np.r_[g_lam, R.T @ phi_w] if r else g_lam
-    N = np.zeros((2 * m + r, 2 * m + r))
-    CR = C @ R if r else np.zeros((2 * m, 0))
+    N = np.zeros((n + r, n + r))
+    CR = C @ R if r else np.zeros((n, 0))
     A = np.flatnonzero(free)
     B = np.flatnonzero(~free)
-    N[np.ix_(A, np.arange(2 * m))] = -cf.W[A]
+    N[np.ix_(A, np.arange(n))] = -W[A]
+    N[A, A] -= compliance[A]
     if r:
-        N[np.ix_(A, 2 * m + np.arange(r))] = CR[A]
-        N[2 * m:, :2 * m] = CR.T
+        N[np.ix_(A, n + np.arange(r))] = CR[A]
+        N[n:, :n] = CR.T
     N[B, B] = 1.0
     tang = B[B >= m]
-    N[tang, tang - m] = -s[tang - m] * np.asarray(state.coefficients.coulomb, float)[tang - m]
+    node = (tang - m) % m
+    N[tang, node] = -sigma[tang - m] * np.asarray(state.coefficients.coulomb, float)[node]
     # a closed and stuck node whose rows are parallel (rollers on both sides): its tangential
     # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
     # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
     # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
     # A closed or stuck row that vanishes (a node held by supports on both sides: W's row is 0)
     # cannot move the solution either: its adjoint multiplier is 0 and the row dropped too
-    held = np.diag(cf.W) <= 1e-14 * max(np.diag(cf.W).max(initial=0.0), 1e-300)
-    drop = np.r_[np.flatnonzero(held & free), m + np.flatnonzero(redundant_pairs(cf.W) & free[:m] & free[m:])]
+    held = np.diag(W) <= 1e-14 * max(np.diag(W).max(initial=0.0), 1e-300)
+    parallel = redundant_pairs(W, k) & np.tile(free[:m], k) & free[m:] & (compliance[m:] == 0)
+    drop = np.r_[np.flatnonzero(held & free & (compliance == 0)), m + np.flatnonzero(parallel)]
     keep = np.setdiff1d(np.arange(N.shape[0]), drop)
     mu = np.zeros(N.shape[0])
     mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
@@ -91,8 +135,8 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     mu[keep] = mu_keep
     z = cf.factor.solve(phi_w - C[A].T @ mu[A])
     if r:
-        z = z + R @ mu[2 * m:]
-    return z, mu, s
+        z = z + R @ mu[n:]
+    return z, mu, sigma
 
 
 def _consistent_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
@@ -114,27 +158,31 @@ def _consistent_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
 
 
 def contact_nonsmooth(model, state) -> bool:
-    """An active-set change within reach: weakly active normals or tangents at the switch."""
+    """An active-set change within reach: weakly active normals or tangents at the switch
+    (3D: |λ_t| at the disc's radius gw on a stuck node, |s| ≈ 0 on a slipping one)."""
     res, c = state.raw, state.contact
     m = res.lam_n.size
     if m == 0:
         return False
+    k = c.slip.size // m
     fs = max(np.abs(res.lam_n).max(), 1e-300)
     us = max(np.abs(c.gap).max(), np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
-    closed, stick = res.free[:m], res.free[m:]
+    closed, stick = res.free[:m], res.free[m:2 * m]
     weak_closed = closed & (res.lam_n <= REL_TOL * fs)
     weak_open = ~closed & (np.abs(c.gap) <= REL_TOL * us)
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
-    weak_stick = stick & (gw > 0) & (np.abs(res.lam_t) >= (1 - REL_TOL) * gw)
-    weak_slip = ~stick & (gw > 0) & (np.abs(c.slip) <= REL_TOL * us)
+    weak_stick = stick & (gw > 0) & (node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
+    weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
     # constraints that cannot move the solution: a node held by supports on both sides (its
     # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
     n2 = np.asarray(model.Bn_r.multiply(model.Bn_r).sum(axis=1)).ravel()
-    nt = np.asarray(model.Bn_r.multiply(model.Bt_r).sum(axis=1)).ravel()
-    t2 = np.asarray(model.Bt_r.multiply(model.Bt_r).sum(axis=1)).ravel()
+    tangents = [model.Bt_r[j * m:(j + 1) * m] for j in range(k)]
+    nt = np.array([np.asarray(model.Bn_r.multiply(t).sum(axis=1)).ravel() for t in tangents])
+    t2 = np.array([np.asarray(t.multiply(t).sum(axis=1)).ravel() for t in tangents])
     moves = n2 > 0
     # parallel rows leave ~1e-16 t2 of round-off; 1e-10: an angle below 1e-5 rad (as `redundant_pairs`)
-    tangent_free = t2 - np.divide(nt**2, n2, out=np.zeros_like(n2), where=moves) > 1e-10 * np.maximum(t2, 1e-300)
+    tangent_free = (t2 - np.divide(nt**2, n2, out=np.zeros_like(nt), where=moves)
+                    > 1e-10 * np.maximum(t2, 1e-300)).any(axis=0)
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
@@ -149,14 +197,14 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     T, Tt = model.elim.T, model.Tt
     phi_u = np.zeros(T.shape[0]) if P.u is None else P.u
     phi_w = Tt @ phi_u
-    mu = s = None
+    mu = sigma = None
     if state.raw is None:
         z = state.factor().solve(phi_w)
     else:
         out = _contact_adjoint(model, state, phi_w, P.lam_n)
         if out is None:
             return None
-        z, mu, s = out
+        z, mu, sigma = out
     Z = T @ z
     u = state.u
     K = model.K(model.stiffness_coefficients(c))
@@ -174,10 +222,11 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
         m = state.raw.lam_n.size
         A = np.flatnonzero(state.raw.free[:m])                      # closed normals carry d
         g_sup += -(model.zone.Bn[A] @ U0).T @ mu[A]
-        tang = np.flatnonzero(~state.raw.free[m:])
+        tang = np.flatnonzero(~state.raw.free[m:] & (sigma != 0))  # fixed tangent rows λ_t = σ gw
+        node = tang % m
         w = model.zone.weight
-        grad[sl["slip"].start + tang] += mu[m + tang] * s[tang] * w[tang]
-        grad[sl["coulomb"].start + tang] += mu[m + tang] * s[tang] * state.raw.lam_n[tang]
+        np.add.at(grad, sl["slip"].start + node, mu[m + tang] * sigma[tang] * w[node])
+        np.add.at(grad, sl["coulomb"].start + node, mu[m + tang] * sigma[tang] * state.raw.lam_n[node])
     grad[sl["support_values"]] += g_sup
     if model.thermal:
         dT = state.T - c.reference

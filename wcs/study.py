@@ -60,8 +60,8 @@ from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
-                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Direction, Frozen, GroupBoundary, Material,
-                         Name, Point, Scene, XY)
+                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
+                         Name, Point, Scene)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -210,14 +210,21 @@ MAX_NESTING = 50                                   # levels of a study file (sha
 MAX_PROFILE_POINTS = 1000
 
 CriterionKind = Literal[tuple(KINDS)]
+Coordinates = Annotated[list[Coordinate], Field(min_length=2, max_length=3)]   # the scene's dimension: _check_criteria
+
+
+def _nonzero_direction(direction: list[float]) -> list[float]:
+    if not any(direction):
+        raise ValueError(f"the direction must not be {[0] * len(direction)}")
+    return direction
 
 
 class Criterion(Frozen):
     name: Name
     kind: CriterionKind
     regions: Annotated[list[str], Field(min_length=1)]
-    point: Optional[XY] = None
-    direction: Optional[Direction] = None
+    point: Optional[Coordinates] = None
+    direction: Optional[Annotated[Coordinates, AfterValidator(_nonzero_direction)]] = None
     sense: Literal["max", "min", "both"] = Field(
         "max", description="which end of the range the search finds: the maximum (the worst "
         "scenario), the minimum (the best), or both")
@@ -798,6 +805,11 @@ def _check_criteria(criteria: list[Criterion], scene: Scene, src: _Source) -> No
         for j, roi in enumerate(criterion.regions):
             _require(roi, scene.regions_of_interest, "region of interest", src,
                      ("criteria", i, "regions", j))
+        for key in ("point", "direction"):
+            value = getattr(criterion, key)
+            if value is not None and len(value) != scene.dimension:
+                raise src.error(("criteria", i, key), f"{key} needs {scene.dimension} coordinates in a "
+                                f"{scene.dimension}D scene, got {len(value)}")
         needs = KINDS[criterion.kind].needs
         if needs == "thermal" and scene.thermal is None:
             raise src.error(("criteria", i, "kind"), f"{criterion.kind} needs a thermal block in the scene")

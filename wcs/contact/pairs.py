@@ -1,4 +1,5 @@
-"""Node-to-segment contact pairs between a slave and a master boundary side.
+"""Node-to-segment contact pairs between a slave and a master boundary side (2D), and
+node-to-node pairs on matching faces (3D, `match_faces`).
 
 Sign conventions (used everywhere in wcs.contact)
 -------------------------------------------------
@@ -44,8 +45,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from ..errors import StudyError
+from ..fem import tet
 from ..scene.selectors import facet_lengths, facet_normals, nodal_normals
 
 SNAP = 1e-9             # |s| (facet parameter) below this -> the projection is the master node
@@ -241,3 +244,97 @@ def tangent_jump_matrix(pairs: ContactPairs, nnodes: int, nodal_dofs=None) -> sp
     """(m, ndofs) ``B_t`` with ``(B_t u)_i = (u_slave - sum_k w_ik u_master_k) · t_i``:
     the relative tangential displacement (slip) of the slave node."""
     return _jump_matrix(pairs, pairs.tangent, nnodes, nodal_dofs)
+
+
+# ---------------------------------------------------------------------------
+# 3D: node-to-node pairs on matching faces
+
+
+@dataclass(frozen=True, eq=False)
+class FacePairs:
+    """Node-to-node pairs of a 3D contact whose faces match (coincident nodes, the bodies' own
+    copies); row ``i`` is one kept slave node (sorted ids). The fields a 3D contact's rows have
+    (`jump_rows3d`), node-to-node or mortar."""
+
+    slave: np.ndarray            # (m,) slave node ids, sorted
+    master: np.ndarray           # (m,) the coincident master node
+    normal: np.ndarray           # (m, 3) out of the slave: its area-weighted nodal normal
+    tangent: np.ndarray          # (m, 2, 3) t¹, t² with (t¹, t², n) right-handed orthonormal
+    gap: np.ndarray              # (m,) 0: the nodes coincide
+    weight: np.ndarray           # (m,) tributary area: one third of each adjacent slave triangle on the master face
+    dropped: np.ndarray          # slave node ids with no master node there
+    discretization: str = "node-to-node"
+
+    def __len__(self) -> int:
+        return int(self.slave.size)
+
+
+def tangents(normal: np.ndarray) -> np.ndarray:
+    """(m, 2, 3) unit tangents t¹, t² with (t¹, t², n) right-handed orthonormal: t¹ is the
+    coordinate axis least aligned with n (the first on ties) made orthogonal to n, t² = n × t¹."""
+    axis = np.eye(3)[np.argmin(np.abs(normal), axis=1)]
+    t1 = axis - np.einsum("ij,ij->i", axis, normal)[:, None] * normal
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return np.stack([t1, np.cross(normal, t1)], axis=1)
+
+
+def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> FacePairs | None:
+    """Pair each slave node of a ``MeshTet`` with the master node at the same point (within
+    COINCIDENT × the mean slave edge); None when the faces do not match: a match needs the slave
+    triangles whose three nodes pair onto a master triangle to cover the smaller of the two
+    faces (to 1e-9 of its area). Those triangles are the contact surface: a slave node is kept
+    when it is a corner of one, with one third of the area of each as its tributary area; the
+    others (off a smaller master face) are dropped. A kept node whose slave and master normals do
+    not oppose is a StudyError."""
+    slave_facets = np.unique(np.asarray(slave_facets, dtype=np.int64))
+    master_facets = np.unique(np.asarray(master_facets, dtype=np.int64))
+    if slave_facets.size == 0 or master_facets.size == 0:
+        raise StudyError("a contact side has no face", path=path)
+    p = mesh.p
+    snodes, snormal = tet.nodal_normals(mesh, slave_facets)
+    mnodes, mnormal = tet.nodal_normals(mesh, master_facets)
+    if np.intersect1d(snodes, mnodes).size:
+        raise StudyError("the slave and master sides share nodes (same body?); a contact needs "
+                         "two sides of different bodies", path=path)
+    sf, mf = mesh.facets[:, slave_facets], mesh.facets[:, master_facets]
+    edges = np.concatenate([np.linalg.norm(p[:, sf[a]] - p[:, sf[(a + 1) % 3]], axis=0) for a in range(3)])
+    h = float(edges.mean())
+    dist, j = cKDTree(p[:, mnodes].T).query(p[:, snodes].T)
+    paired = dist <= COINCIDENT * h
+    partner = np.full(p.shape[1], -1)
+    partner[snodes[paired]] = mnodes[j[paired]]
+    _, sarea = tet.face_normals(mesh, slave_facets)
+    _, marea = tet.face_normals(mesh, master_facets)
+    image = partner[sf]                                        # (3, S) master nodes of each slave triangle
+    whole = (image >= 0).all(axis=0)
+    master_keys = {tuple(k) for k in np.sort(mf, axis=0).T.tolist()}
+    onto = np.array([tuple(k) in master_keys for k in np.sort(image, axis=0).T.tolist()]) & whole
+    if sarea[onto].sum() < (1 - 1e-9) * min(sarea.sum(), marea.sum()):
+        return None
+    idx = np.searchsorted(snodes, sf)
+    weight = sum(np.bincount(idx[a, onto], sarea[onto], snodes.size) for a in range(3)) / 3.0
+    keep = weight > 0.0
+    n = snormal[keep]
+    opposed = np.einsum("ij,ij->i", n, mnormal[j[keep]]) < 0.0
+    if not opposed.all():
+        x = p[:, snodes[keep][~opposed][0]]
+        raise StudyError(f"the slave and master sides do not face each other at ({x[0]:.4g}, {x[1]:.4g}, "
+                         f"{x[2]:.4g}): their outward normals do not oppose; a contact joins the two sides "
+                         "that touch, each with its outward normal towards the other body", path=path)
+    return FacePairs(slave=snodes[keep], master=partner[snodes[keep]], normal=n, tangent=tangents(n),
+                     gap=np.zeros(int(keep.sum())), weight=weight[keep], dropped=snodes[~keep])
+
+
+def jump_rows3d(pr: FacePairs, nnodes: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """(Bn, Bt) of node-to-node pairs on node-interleaved DOFs (3 per node): (Bn u)_i =
+    (u_slave − u_master)·n_i, (m, 3 nnodes); Bt (2m, 3 nnodes) stacked by component (row
+    k·m + i is tangent k of node i), as `wcs.contact.solver` reads them."""
+    m = len(pr)
+
+    def rows(direction):
+        cols = np.concatenate([3 * pr.slave[:, None] + np.arange(3), 3 * pr.master[:, None] + np.arange(3)], axis=1)
+        vals = np.concatenate([direction, -direction], axis=1)
+        B = sp.csr_matrix((vals.ravel(), (np.repeat(np.arange(m), 6), cols.ravel())), shape=(m, 3 * nnodes))
+        B.eliminate_zeros()
+        return B
+    return rows(pr.normal), sp.vstack([rows(pr.tangent[:, k]) for k in range(2)]).tocsr()

@@ -2,7 +2,10 @@
 of jump operators (the friction data per node are coefficients: `wcs.coefficients`).
 
 Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
-is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`).
+is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`). In 3D each
+row has two tangents and Bt stacks them by component over the whole zone (row j·m + i
+is tangent j of row i), as `wcs.contact.solver` reads it; the rows of a contact are
+node-to-node where its faces match (`pairs.match_faces`).
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ from ..errors import StudyError
 from ..scene.meshdata import SceneMesh
 from ..scene.selectors import arc_coordinate
 from .mortar import directional_rows, mortar_contact, sides_match
-from .pairs import ContactPairs, normal_jump_matrix, pair_contact, tangent_jump_matrix
+from .pairs import ContactPairs, jump_rows3d, match_faces, normal_jump_matrix, pair_contact, tangent_jump_matrix
 
 DISCRETIZATIONS = ("auto", "node-to-node", "mortar")
 
@@ -26,12 +29,13 @@ class ContactZone:
     pairs: list[ContactPairs]    # ContactPairs (node-to-node) or mortar.MortarPairs, per contact
     contact_of_node: np.ndarray  # (m,) index into names
     Bn: sp.csr_matrix            # (m, ndof)
-    Bt: sp.csr_matrix
+    Bt: sp.csr_matrix            # ((d − 1) m, ndof), stacked by component
     gap: np.ndarray              # (m,) initial gaps
-    weight: np.ndarray           # (m,) tributary lengths
-    arc: np.ndarray              # (m,) normalised position along its contact's slave side
-    coords: np.ndarray           # (m, 2)
+    weight: np.ndarray           # (m,) tributary lengths (2D), areas (3D)
+    arc: np.ndarray | None       # (m,) normalised position along its contact's slave side (2D; None in 3D)
+    coords: np.ndarray           # (m, d)
     discretization: list[str] | None = None   # per contact: "node-to-node" or "mortar"
+    tangents: np.ndarray | None = None        # (m, d − 1, d) the tangent directions of each row
 
     @property
     def nodes(self) -> np.ndarray:
@@ -68,6 +72,8 @@ def build_zone(scene, smesh: SceneMesh) -> ContactZone | None:
     contacts = scene.contacts
     if not contacts:
         return None
+    if smesh.mesh.p.shape[0] == 3:
+        return _build_zone3d(contacts, smesh)
     mesh = smesh.mesh
     nn = mesh.p.shape[1]
     names, pairs, owner, arcs, kinds = [], [], [], [], []
@@ -88,6 +94,49 @@ def build_zone(scene, smesh: SceneMesh) -> ContactZone | None:
         Bt=sp.vstack([r[1] for r in rows]).tocsr(),
         gap=np.concatenate([p.gap for p in pairs]), weight=np.concatenate([p.weight for p in pairs]),
         arc=np.concatenate(arcs), coords=mesh.p[:, slaves].T.copy(), discretization=kinds,
+        tangents=np.concatenate([p.tangent for p in pairs])[:, None, :],
+    )
+
+
+def _pairs3d(smesh: SceneMesh, spec, path: str):
+    """The rows of one 3D contact: node-to-node where its faces match (`auto` or `node-to-node`)."""
+    kind = spec.discretization
+    if kind not in DISCRETIZATIONS:
+        raise StudyError(f"unknown discretization {kind!r} (one of {', '.join(DISCRETIZATIONS)})",
+                         path=f"{path}.discretization")
+    for side in ("slave", "master"):
+        if getattr(spec, side) not in smesh.boundaries:
+            raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
+    faces = smesh.boundaries[spec.slave], smesh.boundaries[spec.master]
+    pr = None if kind == "mortar" else match_faces(smesh.mesh, *faces, path)
+    if pr is not None:
+        return pr
+    # the 3D dual mortar's rows plug in here: an object with the fields of `pairs.FacePairs`
+    # (slave, normal, tangent, gap, weight, dropped, discretization) and its rows in `_rows3d`
+    why = "asked for" if kind == "mortar" else "needed: the faces do not match (a master node at every slave node)"
+    raise StudyError(f"3D mortar is not built yet ({why})", path=path)
+
+
+def _rows3d(pr, nn: int):
+    """(Bn (m, 3 nn), Bt (2m, 3 nn) stacked by component) of one 3D contact."""
+    return jump_rows3d(pr, nn)
+
+
+def _build_zone3d(contacts, smesh: SceneMesh) -> ContactZone:
+    mesh = smesh.mesh
+    nn = mesh.p.shape[1]
+    pairs = [_pairs3d(smesh, spec, f"scene.contacts.{name}") for name, spec in contacts.items()]
+    rows = [_rows3d(p, nn) for p in pairs]
+    sizes = [len(p) for p in pairs]
+    slaves = np.concatenate([p.slave for p in pairs])
+    return ContactZone(
+        names=list(contacts), pairs=pairs,
+        contact_of_node=np.concatenate([np.full(n, k) for k, n in enumerate(sizes)]),
+        Bn=sp.vstack([bn for bn, _ in rows]).tocsr(),
+        Bt=sp.vstack([bt[j * n:(j + 1) * n] for j in range(2) for (_, bt), n in zip(rows, sizes)]).tocsr(),
+        gap=np.concatenate([p.gap for p in pairs]), weight=np.concatenate([p.weight for p in pairs]),
+        arc=None, coords=mesh.p[:, slaves].T.copy(), discretization=[p.discretization for p in pairs],
+        tangents=np.concatenate([p.tangent for p in pairs]),
     )
 
 
@@ -95,10 +144,10 @@ def build_zone(scene, smesh: SceneMesh) -> ContactZone | None:
 class ContactState:
     """Contact tractions of a solution on the slave nodes (the results file's `contact_*` fields)."""
     zone: ContactZone
-    force_n: np.ndarray      # λn ≥ 0, nodal normal force [N/m]
-    force_t: np.ndarray      # λt
+    force_n: np.ndarray      # λn ≥ 0, nodal normal force [N/m in 2D, N in 3D]
+    force_t: np.ndarray      # λt ((d − 1) m,), stacked by component as Bt
     gap: np.ndarray          # deformed gap ≥ 0 where open
-    slip: np.ndarray         # relative tangential displacement
+    slip: np.ndarray         # relative tangential displacement, as force_t
     status: np.ndarray | None = None
 
     @property
@@ -113,12 +162,35 @@ class ContactState:
     def pressure(self):
         return self.force_n / self.zone.weight
 
+    def by_node(self, v: np.ndarray) -> np.ndarray:
+        """A tangential vector as the rows have it: (m,) in 2D, (m, 2) in 3D (from the stacking by
+        component)."""
+        m = self.zone.gap.size
+        return v if v.size == m else v.reshape(-1, m).T
+
     @property
     def shear(self):
-        return self.force_t / self.zone.weight
+        """τ_t: (m,) in 2D, (m, 2) along the row's two tangents in 3D."""
+        w = self.zone.weight
+        return self.by_node(self.force_t) / (w if self.force_t.size == w.size else w[:, None])
 
     def fields(self) -> dict:
         z = self.zone
+        if z.coords.shape[1] == 3:
+            tangential = ("contact_node", "tangent")
+            return {
+                "contact_coords": (("contact_node", "dim"), z.coords, {"units": "m"}),
+                "contact_pair": (("contact_node",), np.array([z.names[k] for k in z.contact_of_node], dtype=object),
+                                 {"long_name": "contact name"}),
+                "contact_pressure": (("contact_node",), self.pressure, {"units": "Pa", "long_name": "contact pressure -tau_n"}),
+                "contact_gap": (("contact_node",), self.gap, {"units": "m", "long_name": "normal gap (>= 0 open)"}),
+                "contact_slip": (tangential, self.by_node(self.slip),
+                                 {"units": "m", "long_name": "relative tangential displacement along contact_tangents"}),
+                "contact_shear": (tangential, self.shear,
+                                  {"units": "Pa", "long_name": "tangential traction tau_t along contact_tangents"}),
+                "contact_tangents": (("contact_node", "tangent", "dim"), z.tangents,
+                                     {"long_name": "the two unit tangents of each contact node"}),
+            }
         return {
             "contact_coords": (("contact_node", "dim"), z.coords, {"units": "m"}),
             "contact_pair": (("contact_node",), np.array([z.names[k] for k in z.contact_of_node], dtype=object),

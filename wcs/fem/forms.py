@@ -1,4 +1,4 @@
-"""Load and coupling forms, written as the math reads (P1 triangles, scikit-fem).
+"""Load and coupling forms, written as the math reads (P1 triangles or tetrahedra, scikit-fem).
 
 Each form is one parameter-free piece; the data (β, loads, sources) multiply
 the assembled pieces later. The stiffness and conduction operators are in
@@ -8,11 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import Basis, BilinearForm, ElementTriP1, ElementVector, FacetBasis, LinearForm, asm
+from skfem import (Basis, BilinearForm, ElementTetP1, ElementTriP1, ElementVector, FacetBasis, LinearForm,
+                   MeshTet, asm)
 from skfem.helpers import div, dot
 
 SCALAR = ElementTriP1()
 VECTOR = ElementVector(ElementTriP1())
+SCALAR3 = ElementTetP1()
+VECTOR3 = ElementVector(ElementTetP1())
+
+
+def _elements(mesh):
+    """(scalar, vector) P1 elements of the mesh: triangles, or tetrahedra on a MeshTet."""
+    return (SCALAR3, VECTOR3) if isinstance(mesh, MeshTet) else (SCALAR, VECTOR)
 
 
 @BilinearForm
@@ -48,25 +56,27 @@ def facet_basis(mesh, element, facets: np.ndarray, intorder: int = 2) -> FacetBa
 
 
 def coupling_piece(mesh, cells: np.ndarray) -> sp.csr_matrix:
-    """(2 nnodes × nnodes): f_th = β B (T − T0) on the region."""
-    return asm(thermal_coupling, region_basis(mesh, SCALAR, cells), region_basis(mesh, VECTOR, cells)).tocsr()
+    """(d nnodes × nnodes): f_th = β B (T − T0) on the region."""
+    scalar, vector = _elements(mesh)
+    return asm(thermal_coupling, region_basis(mesh, scalar, cells), region_basis(mesh, vector, cells)).tocsr()
 
 
 def source_vector(mesh, cells: np.ndarray) -> np.ndarray:
     """∫_region s dx: the load of a unit heat source W."""
-    return asm(unit_scalar, region_basis(mesh, SCALAR, cells))
+    return asm(unit_scalar, region_basis(mesh, _elements(mesh)[0], cells))
 
 
 def body_force_vectors(mesh, cells: np.ndarray) -> np.ndarray:
-    """(2, ndof): ∫_region e_i · v dx for i = x, y."""
-    b = region_basis(mesh, VECTOR, cells)
-    return np.array([asm(component_form(i), b) for i in range(2)])
+    """(d, ndof): ∫_region e_i · v dx for i = x, y (, z)."""
+    b = region_basis(mesh, _elements(mesh)[1], cells)
+    return np.array([asm(component_form(i), b) for i in range(mesh.dim())])
 
 
 def pressure_vector(mesh, facets: np.ndarray) -> np.ndarray:
-    return asm(outward_pressure, facet_basis(mesh, VECTOR, facets))
+    return asm(outward_pressure, facet_basis(mesh, _elements(mesh)[1], facets))
 
 
 def traction_vectors(mesh, facets: np.ndarray) -> np.ndarray:
-    b = facet_basis(mesh, VECTOR, facets)
-    return np.array([asm(component_form(i), b) for i in range(2)])
+    """(d, ndof): ∫_facets e_i · v ds for i = x, y (, z)."""
+    b = facet_basis(mesh, _elements(mesh)[1], facets)
+    return np.array([asm(component_form(i), b) for i in range(mesh.dim())])

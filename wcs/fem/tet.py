@@ -83,3 +83,32 @@ def tensor(s: np.ndarray) -> np.ndarray:
 def principal(s: np.ndarray) -> np.ndarray:
     """(ncells, 3) principal stresses, largest first."""
     return np.linalg.eigvalsh(tensor(s))[:, ::-1]
+
+
+def face_normals(mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) outward unit normals and (n,) areas of boundary triangles of a MeshTet, outward
+    w.r.t. the owning cell (``mesh.f2t[0]``)."""
+    facets = np.asarray(facets, dtype=np.int64)
+    f = mesh.facets[:, facets]
+    x0, x1, x2 = (mesh.p[:, f[k]].T for k in range(3))
+    n = np.cross(x1 - x0, x2 - x0)
+    twice = np.linalg.norm(n, axis=1)
+    n /= twice[:, None]
+    cell = mesh.t[:, mesh.f2t[0, facets]]
+    other = cell.sum(axis=0) - f.sum(axis=0)                  # the cell's vertex off the facet
+    flip = np.einsum("ij,ij->i", mesh.p[:, other].T - x0, n) > 0.0
+    n[flip] *= -1.0
+    return n, 0.5 * twice
+
+
+def nodal_normals(mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes, normals): the sorted nodes of a set of boundary triangles and their outward unit
+    normals, the area-weighted mean of the adjacent triangles' normals."""
+    facets = np.asarray(facets, dtype=np.int64)
+    nodes, inv = np.unique(mesh.facets[:, facets], return_inverse=True)
+    inv = inv.reshape(3, -1)
+    n, area = face_normals(mesh, facets)
+    acc = np.zeros((nodes.size, 3))
+    for k in range(3):
+        np.add.at(acc, inv[k], n * area[:, None])
+    return nodes, acc / np.linalg.norm(acc, axis=1)[:, None]
