@@ -279,6 +279,19 @@ def _across_slip(G, lam_t, free, k):
     return G[:, 2 * m:3 * m] * nu[0] - G[:, m:2 * m] * nu[1]
 
 
+NULL_ROW = 1e-20     # W_ii below this share of the largest: a row of round-off (‖row‖ ~ 1e-10 relative)
+
+
+def null_rows(W) -> np.ndarray:
+    """The contact rows that act on nothing but round-off: W_ii ≤ NULL_ROW · max W_jj. (A 3D
+    fault node held by supports on both sides keeps components ~1e-17 of its normal and
+    tangents after the elimination: W_ii ~ 1e-41 against 1e-9, and c = 1/W_ii ~ 1e40 would
+    swamp Newton's scaled residual.) Such a row is solved as an exactly null one (a node held
+    on both sides in 2D): its λ is the least-squares zero and its gap is what the supports leave."""
+    dW = np.diag(W)
+    return dW <= NULL_ROW * max(dW.max(initial=0.0), 1e-300)
+
+
 def scales(W, k=1):
     """c = 1 / diag(W), on a node's k tangent components 1 / their mean diagonal (one c per disc)."""
     m = W.shape[0] // (1 + k)
@@ -553,6 +566,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     W = cf.W
     q = C @ u0 - np.r_[d, np.zeros(k * m)]
     G = (C @ R).T if R is not None else np.zeros((0, (1 + k) * m))
+    null = null_rows(W)
+    if null.any():                 # rows of round-off: exactly null, as a node held on both sides
+        W = W.copy()               # (the factor's W stays as it is: it serves later solves)
+        W[null], W[:, null], G[:, null] = 0.0, 0.0, 0.0
+        q[null] = -np.r_[d, np.zeros(k * m)][null]
     e = R.T @ f if R is not None else np.zeros(0)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
