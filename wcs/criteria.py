@@ -382,9 +382,11 @@ def _pressure_functional(smesh, scene, zone, roi: str, sel: Selection, path: str
     t0, t1 = t[:, :-1], t[:, 1:]
     mid = np.nan_to_num(0.5 * (t0 + t1))
     inside = np.zeros(mid.shape, dtype=bool)
+    real = ~np.isnan(t1)                        # the pieces (the NaN-padded ones have no length)
+    e, tol = np.nonzero(real)[0], np.broadcast_to(tol, mid.shape)[real]
     for a, b in ends:
-        x = a[:, None, :] + mid[..., None] * (b - a)[:, None, :]
-        inside |= dist(x[..., 0].ravel(), x[..., 1].ravel()).reshape(mid.shape) <= tol
+        x = a[e] + mid[real][:, None] * (b - a)[e]
+        inside[real] |= dist(x[:, 0], x[:, 1]) <= tol
     piece = np.where(inside, np.nan_to_num(t1 - t0), 0.0) * length[:, None]
     meas = float(piece.sum())
     if meas <= 0:

@@ -4,13 +4,19 @@ A fresh process does what `wcs run` does first: imports, reading the study, mesh
 assembly and the first evaluation at the nominal data. Its time, against one SuperLU
 factorization and solve (tuned: MMD_AT_PLUS_A, diag_pivot_thresh=0, SymmetricMode) of
 the reduced stiffness of the same mesh measured in the same process, must be at most 3x
-at ~8.6e4 unknowns (the contact pad). The breakdown (imports, mesh, assembly, first
-solve) and the modules the first evaluation loaded are printed and written to
-results/bench/cold_start.csv; the 9.4e3-unknown Hertz case is reported alongside."""
+at ~8.6e4 unknowns (the contact pad): the median over three fresh processes. Times are the
+process's CPU seconds: every step runs on one thread (gmsh's General.NumThreads 1, one
+BLAS/OpenMP thread as the test session sets, SuperLU sequential), so on a quiet machine they
+are its wall seconds, and on the shared machine they do not count the waits for a core
+(wall ratios of one process swing 2x-6x there; they are printed too). The breakdown
+(imports, mesh, assembly, first solve) and the modules the first evaluation loaded are
+printed and written to results/bench/cold_start.csv; the 9.4e3-unknown Hertz case is
+reported alongside."""
 from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import textwrap
@@ -25,17 +31,19 @@ pytestmark = pytest.mark.bench
 
 COLD = textwrap.dedent("""
     import json, sys, time
-    t0 = time.perf_counter()
+    def clock():
+        return time.perf_counter(), time.process_time()
+    t0 = clock()
     import wcs
     from wcs.evaluation import Evaluator
-    t1 = time.perf_counter()
+    t1 = clock()
     study = wcs.load_study(sys.argv[1])
-    t2 = time.perf_counter()
+    t2 = clock()
     before = set(sys.modules)
     ev = Evaluator(study)
-    t3 = time.perf_counter()
+    t3 = clock()
     e = ev.evaluate(study.nominal())
-    t4 = time.perf_counter()
+    t4 = clock()
     loaded = sorted({".".join(m.split(".")[:2 if m.startswith("scipy.") else 1])
                      for m in set(sys.modules) - before if not m.startswith(("wcs", "_"))})
     import scipy.sparse.linalg as spla
@@ -44,14 +52,17 @@ COLD = textwrap.dedent("""
     Kr = Kr.tocsc()
     lu = []
     for _ in range(2):
-        t = time.perf_counter()
+        t = clock()
         spla.splu(Kr, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                   options={"SymmetricMode": True}).solve(rhs)
-        lu.append(time.perf_counter() - t)
-    print(json.dumps({"status": e.status, "unknowns": 2 * ev.smesh.mesh.p.shape[1],
-                      "imports": t1 - t0, "read": t2 - t1, "mesh": ev.timings["mesh"],
-                      "assembly": ev.timings["assembly"], "first_solve": t4 - t3, "total": t4 - t0,
-                      "superlu": min(lu), "loaded": loaded}))
+        lu.append([b - a for a, b in zip(t, clock())])
+    out = {"status": e.status, "unknowns": 2 * ev.smesh.mesh.p.shape[1], "loaded": loaded,
+           "mesh_wall": ev.timings["mesh"], "assembly_wall": ev.timings["assembly"]}
+    for c, clk in enumerate(("wall", "cpu")):
+        out.update({f"{k}_{clk}": b[c] - a[c] for k, a, b in (("imports", t0, t1), ("read", t1, t2),
+                    ("mesh_assembly", t2, t3), ("first_solve", t3, t4), ("total", t0, t4))})
+        out[f"superlu_{clk}"] = min(x[c] for x in lu)
+    print(json.dumps(out))
 """)
 
 
@@ -78,24 +89,32 @@ def test_first_evaluation_against_one_superlu_solve(tmp_path):
     pad["scene"]["mesh"] = {"size": 0.0083}                 # ~8.6e4 unknowns
     hertz = yaml.safe_load((STUDIES / "validation" / "hertz.yaml").read_text())
     hertz["scene"]["mesh"]["refine"][0]["size"] = 0.008     # ~9.4e3 unknowns
-    rows = []
-    for name, doc in (("pad", pad), ("hertz", hertz)):
+    rows, ratios = [], {"cpu": [], "wall": []}
+    for name, doc in (("pad", pad), ("pad", pad), ("pad", pad), ("hertz", hertz)):
         r = cold_start(doc, tmp_path, name)
         assert r["status"] == 0
-        r["ratio"] = r["total"] / r["superlu"]
-        rows.append([name, r["unknowns"]] + [f"{r[k]:.3f}" for k in
-                    ("imports", "read", "mesh", "assembly", "first_solve", "total", "superlu", "ratio")]
-                    + [" ".join(r["loaded"])])
-        print(f"\n{name}: {r['unknowns']} unknowns, first evaluation {r['total']:.2f} s (imports {r['imports']:.2f}, "
-              f"read {r['read']:.2f}, mesh {r['mesh']:.2f}, assembly {r['assembly']:.2f}, first solve "
-              f"{r['first_solve']:.2f}) = {r['ratio']:.2f}x one SuperLU factor + solve ({r['superlu']:.2f} s); "
+        for clk in ratios:
+            r[f"ratio_{clk}"] = r[f"total_{clk}"] / r[f"superlu_{clk}"]
+        rows.append([name, r["unknowns"]] + [f"{r[f'{k}_{clk}']:.3f}" for clk in ("cpu", "wall") for k in
+                    ("imports", "read", "mesh_assembly", "first_solve", "total", "superlu", "ratio")]
+                    + [f"{r['mesh_wall']:.3f}", f"{r['assembly_wall']:.3f}", " ".join(r["loaded"])])
+        print(f"\n{name}: {r['unknowns']} unknowns, first evaluation {r['total_cpu']:.2f} s of CPU (imports "
+              f"{r['imports_cpu']:.2f}, read {r['read_cpu']:.2f}, mesh and assembly {r['mesh_assembly_cpu']:.2f}, "
+              f"first solve {r['first_solve_cpu']:.2f}) = {r['ratio_cpu']:.2f}x one SuperLU factor + solve "
+              f"({r['superlu_cpu']:.2f} s); wall {r['total_wall']:.2f} s (mesh {r['mesh_wall']:.2f}, assembly "
+              f"{r['assembly_wall']:.2f}) = {r['ratio_wall']:.2f}x ({r['superlu_wall']:.2f} s); "
               f"loaded on the first evaluation: {', '.join(r['loaded'])}")
         if name == "pad":
             pad_result = r
-    write_table("cold_start", ["scene", "unknowns", "imports_s", "read_s", "mesh_s", "assembly_s",
-                               "first_solve_s", "total_s", "superlu_s", "ratio", "loaded"], rows)
+            for clk in ratios:
+                ratios[clk].append(r[f"ratio_{clk}"])
+    write_table("cold_start", ["scene", "unknowns"] + [f"{k}_{clk}" for clk in ("cpu", "wall") for k in
+                ("imports_s", "read_s", "mesh_assembly_s", "first_solve_s", "total_s", "superlu_s", "ratio")]
+                + ["mesh_wall_s", "assembly_wall_s", "loaded"], rows)
     assert 8.0e4 <= pad_result["unknowns"] <= 9.2e4, pad_result["unknowns"]
-    assert pad_result["ratio"] <= 3.0, pad_result
+    for clk, q in ratios.items():
+        print(f"pad: median {statistics.median(q):.2f}x of {', '.join(f'{x:.2f}' for x in q)} ({clk})")
+    assert statistics.median(ratios["cpu"]) <= 3.0, ratios
 
 
 @pytest.mark.parametrize("args", [["--help"], ["check", "studies/validation/tresca-pad.yaml"]],

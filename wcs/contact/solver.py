@@ -279,6 +279,19 @@ def _across_slip(G, lam_t, free, k):
     return G[:, 2 * m:3 * m] * nu[0] - G[:, m:2 * m] * nu[1]
 
 
+NULL_ROW = 1e-20     # W_ii below this share of the largest: a row of round-off (‖row‖ ~ 1e-10 relative)
+
+
+def null_rows(W) -> np.ndarray:
+    """The contact rows that act on nothing but round-off: W_ii ≤ NULL_ROW · max W_jj. (A 3D
+    fault node held by supports on both sides keeps components ~1e-17 of its normal and
+    tangents after the elimination: W_ii ~ 1e-41 against 1e-9, and c = 1/W_ii ~ 1e40 would
+    swamp Newton's scaled residual.) Such a row is solved as an exactly null one (a node held
+    on both sides in 2D): its λ is the least-squares zero and its gap is what the supports leave."""
+    dW = np.diag(W)
+    return dW <= NULL_ROW * max(dW.max(initial=0.0), 1e-300)
+
+
 def scales(W, k=1):
     """c = 1 / diag(W), on a node's k tangent components 1 / their mean diagonal (one c per disc)."""
     m = W.shape[0] // (1 + k)
@@ -473,6 +486,31 @@ def _states(free, m, gw):
     return np.where(~closed, OPEN, np.where(stick, STICK, SLIP))
 
 
+CERTIFICATE = 1e-6     # relative size of a contact condition's violation that refuses an answer
+
+
+def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1) -> str:
+    """What of the contact conditions an answer breaks ("" if none), checked on the answer
+    itself rather than on Newton's scaled residual: penetration Bn u − d ≤ ε_u, pressure
+    λn ≥ −ε_λ and friction |λt,i| ≤ g_i w_i + ε_λ, with ε_u = `CERTIFICATE` × the largest
+    displacement or gap and ε_λ = `CERTIFICATE` × the largest multiplier or g w. (A
+    convergence test relative to the largest scaled residual passes an answer whose rows are
+    badly scaled against each other, e.g. a near-null row with a huge c = 1/W_ii.)"""
+    m = lam_n.size
+    eu = CERTIFICATE * max(np.abs(u).max(initial=0.0), np.abs(gap_error).max(initial=0.0), 1e-300)
+    finite_gw = gw[np.isfinite(gw)]
+    el = CERTIFICATE * max(np.abs(lam_n).max(initial=0.0), np.abs(lam_t).max(initial=0.0),
+                           finite_gw.max(initial=0.0), 1e-300)
+    lt = np.sqrt((lam_t.reshape(k, m) ** 2).sum(axis=0)) if m else np.zeros(0)
+    if gap_error.max(initial=0.0) > eu:
+        return f"non-penetration (Bn u − d up to {gap_error.max():.3e})"
+    if lam_n.min(initial=0.0) < -el:
+        return f"λn ≥ 0 (down to {lam_n.min():.3e})"
+    if np.any(lt > gw + el):
+        return f"|λt| ≤ g w (by up to {(lt - gw).max():.3e})"
+    return ""
+
+
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
                   tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True) -> ContactResult:
@@ -528,6 +566,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     W = cf.W
     q = C @ u0 - np.r_[d, np.zeros(k * m)]
     G = (C @ R).T if R is not None else np.zeros((0, (1 + k) * m))
+    null = null_rows(W)
+    if null.any():                 # rows of round-off: exactly null, as a node held on both sides
+        W = W.copy()               # (the factor's W stays as it is: it serves later solves)
+        W[null], W[:, null], G[:, null] = 0.0, 0.0, 0.0
+        q[null] = -np.r_[d, np.zeros(k * m)][null]
     e = R.T @ f if R is not None else np.zeros(0)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
@@ -572,7 +615,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                              iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
-    if not ok:
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k) if ok else ""
+    if violation:
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"semismooth Newton stopped at an answer that violates {violation}: not reported")
+    elif not ok:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"semismooth Newton did not converge in {max_iter} iterations" if qp else
             f"semismooth Newton did not converge ({iters} iterations: an active set cycled or the budget of "

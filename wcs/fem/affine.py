@@ -38,8 +38,9 @@ def elastic_cell_matrices(p: np.ndarray, t: np.ndarray) -> np.ndarray:
     np.multiply(a * g[:, :, None, :, None], g[:, None, :, None, :], out=out[0])
     # 2 e(φ_ai):e(φ_bj) = δ_ij ∇N_a·∇N_b + ∂_j N_a ∂_i N_b
     dot = np.einsum("eak,ebk->eab", g, g)
-    mu = dot[:, :, :, None, None] * np.eye(d) + g[:, :, None, None, :] * g[:, None, :, :, None]
-    np.multiply(a, mu, out=out[1])
+    np.multiply(dot[:, :, :, None, None], np.eye(d), out=out[1])
+    out[1] += g[:, :, None, None, :] * g[:, None, :, :, None]
+    out[1] *= a
     return out
 
 
@@ -66,8 +67,8 @@ class CellAffineOperator:
         cols = np.tile(t.T, (1, n)).ravel().astype(np.int64)        # node b
         nodes = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nnodes, nnodes))
         nodes.sum_duplicates()                                 # sorted node-pair pattern
-        keys = np.repeat(np.arange(nnodes, dtype=np.int64), np.diff(nodes.indptr)) * nnodes + nodes.indices
-        self.position = np.searchsorted(keys, rows * nnodes + cols)
+        number = sp.csr_array((np.arange(nodes.nnz), nodes.indices, nodes.indptr), shape=nodes.shape)
+        self.position = number[rows, cols]                     # each pair's place in it (a per-row lookup)
         self.indptr, self.indices = nodes.indptr, nodes.indices
         self.nblocks = nodes.nnz
         self.shape = (self.block * nnodes,) * 2

@@ -115,19 +115,21 @@ class Reduction:
         k = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
         l = K.indices
         start, count = T.indptr[:-1], np.diff(T.indptr)
-        nk, nl = count[k], count[l]
-        rep = nk * nl
+        nl = count[l]
+        rep = count[k] * nl
+        ptr = np.zeros(K.nnz + 1, dtype=np.int64)     # M by columns: entry e of K owns ptr[e]:ptr[e+1]
+        np.cumsum(rep, out=ptr[1:])
         e = np.repeat(np.arange(K.nnz), rep)
-        r = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-        a = start[k][e] + r // nl[e]
-        b = start[l][e] + r % nl[e]
+        r, c = np.divmod(np.arange(ptr[-1]) - ptr[e], nl[e])
+        a, b = start[k][e] + r, start[l][e] + c
         i, j, val = T.indices[a], T.indices[b], T.data[a] * T.data[b]
         n = T.shape[1]
         keys = i.astype(np.int64) * n + j
         uniq, row = _unique_inverse(keys)
-        self.pattern = sp.csr_matrix((np.zeros(uniq.size), (uniq // n, uniq % n)), shape=(n, n))
+        indptr = np.searchsorted(uniq, np.arange(n + 1, dtype=np.int64) * n)   # sorted keys: rows in order
+        self.pattern = sp.csr_matrix((np.zeros(uniq.size), uniq % n, indptr), shape=(n, n))
         self.pattern.sort_indices()
-        self.M = sp.csr_matrix((val, (row, e)), shape=(uniq.size, K.nnz))
+        self.M = sp.csc_matrix((val, row, ptr), shape=(uniq.size, K.nnz)).tocsr()
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
         K = sp.csr_matrix(K)

@@ -406,8 +406,10 @@ def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
     # -- one copy of each node per body, unused nodes dropped, compact numbering
     nn = xy.shape[0]
     key = cell_body[:, None] * nn + tri
-    uniq, inv = np.unique(key.ravel(), return_inverse=True)
-    t = inv.reshape(-1, 3).T.astype(np.int64)
+    used = np.zeros(len(bodies) * nn, dtype=bool)
+    used[key] = True
+    uniq = np.flatnonzero(used)                    # the (body, node) keys in use, in order
+    t = (np.cumsum(used) - 1)[key].T.astype(np.int64)
     p = np.ascontiguousarray(xy[uniq % nn].T)
 
     # -- counter-clockwise cells
@@ -440,7 +442,8 @@ def _with_facets(mesh: skfem.MeshTri) -> skfem.MeshTri:
     skfem's column-wise unique and two more sorts, 5x slower at 1e5 cells."""
     t = mesh.t
     n, nt = np.int64(mesh.p.shape[1]), t.shape[1]
-    e = np.sort(np.hstack([t[[0, 1]], t[[1, 2]], t[[0, 2]]]).astype(np.int64), axis=0)
+    pairs = np.hstack([t[[0, 1]], t[[1, 2]], t[[0, 2]]]).astype(np.int64)
+    e = np.vstack([pairs.min(axis=0), pairs.max(axis=0)])     # each pair sorted
     keys = e[0] * n + e[1]
     order = np.argsort(keys, kind="stable")
     new = np.r_[True, keys[order[1:]] != keys[order[:-1]]]
