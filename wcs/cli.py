@@ -111,15 +111,14 @@ def cmd_check(args) -> int:
     from .evaluation import Evaluator
     from .status import Status
     from .study import load_study
+    from .scene.summary3d import summary3d
     study = load_study(args.study)
-    if study.scene.dimension == 3:
-        return check3d(study, args)
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
     for w in study.warnings:
         print(f"warning: {study.file}: {w}", file=sys.stderr)
     if not args.quiet:
-        print(summary(study, ev))
+        print(summary3d(study, ev.smesh) if study.scene.dimension == 3 else summary(study, ev))
     if res.status != 0:
         print(f"error: {study.file}: the nominal data set cannot be solved "
               f"(status {res.status}, {Status(res.status).description}): {res.message}", file=sys.stderr)
@@ -133,26 +132,14 @@ def cmd_check(args) -> int:
     return 0
 
 
-def check3d(study, args) -> int:
-    """`check` of a 3D study: the scene meshed and what the study holds; no nominal solve (exit 2,
-    naming what 3D does not support yet)."""
-    from .scene.mesher3d import build_mesh3d
-    from .scene.spec3d import UNSUPPORTED
-    from .scene.summary3d import summary3d
-    sm = build_mesh3d(study.scene)
-    for w in study.warnings:
-        print(f"warning: {study.file}: {w}", file=sys.stderr)
-    if not args.quiet:
-        print(summary3d(study, sm))
-    raise StudyError(UNSUPPORTED, file=str(study.file), path="scene.dimension")
-
-
 def mesh_check_cost(study, ev, warm_solve: float) -> str:
     """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
     from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
     from .meshcheck import cost, max_cells
     if study.scene.mesh.file is not None:
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
+    if study.scene.dimension == 3:
+        return "  mesh check: not available in 3D yet (`run` says so in its results)"
     n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
     levels = cost(ev, warm_solve, n_ext)
     cells = ev.smesh.mesh.t.shape[1] * 4 ** levels[-1][0]

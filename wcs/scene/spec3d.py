@@ -3,7 +3,7 @@
 `normal`), solids (box, cylinder, sphere, extrude, halfspace, with `minus` / `intersect`), face
 selectors (plane, box, cylinder, sphere) and region selectors (box, ball, cylinder, boundary).
 Materials, contacts, glue and thermal data are the 2D models. `wcs.scene.mesher3d` reads these
-objects by attribute; `UNSUPPORTED` says what `wcs check` of a 3D study does not do yet."""
+objects by attribute."""
 from __future__ import annotations
 
 from typing import Annotated, Literal, Optional
@@ -225,9 +225,3 @@ class Scene(Frozen):
 
 
 Solid.model_rebuild()
-
-
-# What `wcs check` of a 3D study does not do yet: the nominal solve (`wcs solve` and `wcs run`
-# solve a 3D study; what the model on tetrahedra does not build yet they refuse by name).
-UNSUPPORTED = ("`wcs check` does not solve a 3D study yet: it meshes the scene and prints what the study "
-               "holds; `wcs solve` and `wcs run` solve it")
