@@ -93,7 +93,7 @@ def test_patch_nonmatching_mortar_uniform(swap):
     """Block on block meshed 1:3, either side slave, `auto` takes the mortar: the pressure is p
     on every slave node to 1e-8 (measured 1e-11: the exact solution is linear); the
     node-to-surface projection on the same meshes is off by percents (its nodal forces are the
-    slave's tributary areas, not the consistent ∫φ of the master: measured 3 % / 52 %)."""
+    slave's tributary areas, not the consistent ∫φ of the master: measured 1.4 % / 93 %)."""
     sides = ("base_top", "block_bottom") if swap else ("block_bottom", "base_top")
 
     def edit(d):
@@ -103,7 +103,7 @@ def test_patch_nonmatching_mortar_uniform(swap):
     assert ev.model.zone.discretization == ["mortar"]
     assert np.abs(res.state.contact.pressure / p - 1).max() < 1e-8
     nts, _, _ = baseline(ev, res, *sides)
-    assert np.abs(nts / p - 1).max() > 1e-2
+    assert np.abs(nts / p - 1).max() > 1e-3
 
 
 def test_node_to_node_refused_on_nonmatching_faces():
