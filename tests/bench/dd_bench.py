@@ -53,7 +53,7 @@ from wcs.parallel import world  # noqa: E402
 from wcs.runner import Runner  # noqa: E402
 from wcs.scene.mesher import build_mesh  # noqa: E402
 
-PARTS = ("assemble", "dirichlet", "neumann", "coarse", "contact", "comm")
+PARTS = ("assemble", "dirichlet", "neumann", "coarse", "contact", "comm", "wait")
 
 
 def _scale_mesh(doc: dict, s: float) -> None:

@@ -345,7 +345,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
-    team = Team(comm, dec.units)
+    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
     tm = team.timings
     info["nranks"] = team.size
     z = model.zone
@@ -838,7 +838,7 @@ def solve_heat_dd(model, c, options=None, *, comm=None):
     if key not in per_model:
         per_model[key] = build_heat_decomposition(model, options)
     dec = per_model[key]
-    team = Team(comm, dec.units)
+    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
     Kh = model.H(c.kappa)
     Th0 = model.heat_elim.U0 @ c.temperature_values
     q = model.source_vectors.T @ c.source
