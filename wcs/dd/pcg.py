@@ -31,12 +31,13 @@ class CoarseSingular(RuntimeError):
 class Coarse:
     """S-orthogonal projection onto span Z (Z: (n, k) dense, k small)."""
 
-    def __init__(self, Z: np.ndarray, apply_S, rtol: float = 1e-10):
+    def __init__(self, Z: np.ndarray, apply_S, rtol: float = 1e-10, SZ: np.ndarray | None = None):
+        """`SZ`: S Z when known (else k products with S at once)."""
         self.Z = Z
         if Z.shape[1] == 0:
             self.SZ = Z
             return
-        SZ = apply_S(Z)
+        SZ = apply_S(Z) if SZ is None else SZ
         G = 0.5 * (Z.T @ SZ + SZ.T @ Z)
         ev, V = np.linalg.eigh(G)
         if ev[0] <= rtol * max(ev[-1], 1e-300):

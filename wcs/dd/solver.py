@@ -223,10 +223,11 @@ class InterfaceOperator:
     `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
     each rank solves its own units' local problems, the pieces are summed in unit order.
     `basis`: the orthonormal basis of V_H when known (interface Newton's J_k: the glued
-    operator's, the same units, weights and traces, for every active set)."""
+    operator's, the same units, weights and traces, for every active set), `SZ` its image
+    under this operator when known (J_k Z from the glued S Z and the pairs' changes)."""
 
     def __init__(self, units, nif: int, weights: list[np.ndarray], traces: list[np.ndarray],
-                 team: Team | None = None, basis: np.ndarray | None = None):
+                 team: Team | None = None, basis: np.ndarray | None = None, SZ: np.ndarray | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
         self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
@@ -234,7 +235,7 @@ class InterfaceOperator:
         Z = self._basis(units, nif, weights, traces) if basis is None else basis
         tm = self.team.timings
         t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
-        self.coarse = Coarse(Z, self.apply)                   # ZᵀSZ: k applications of S at once
+        self.coarse = Coarse(Z, self.apply, SZ=SZ)            # ZᵀSZ: k applications of S at once
         tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
 
     @staticmethod
@@ -688,8 +689,9 @@ def _linearised(dec, free, team, cache: dict) -> list:
 
 
 def _pairs_apply(team, lin_pairs, nif, x):
-    """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed)."""
-    return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif)
+    """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed; x may
+    have columns)."""
+    return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif, x.shape[1:])
 
 
 def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
@@ -786,8 +788,10 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
         nr_prev = nr
         try:
             lp = _linearised(dec, free, team, cache)
-            if "J" not in cache:
-                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=S.coarse.Z)
+            if "J" not in cache:           # J Z = S Z + Σ_p R_pᵀ (S_p^A − S⁰_p) R_p Z: products of the pairs only
+                Z = S.coarse.Z
+                JZ = S.coarse.SZ + _pairs_apply(team, lp, dec.nif, Z) - _pairs_apply(team, dec.pairs, dec.nif, Z)
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=Z, SZ=JZ)
             J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
             return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U
