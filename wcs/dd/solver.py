@@ -698,7 +698,9 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | 
     """A lower bound of ρ(S0⁻¹ dS_con) at U⁰ (dS_con: the pairs linearised at the active set of
     the local contact solves there), and the power steps it took: the Rayleigh quotient
     xᵀLx / xᵀS0x (S0⁻¹L is S0-self-adjoint, L ⪰ 0: every x gives a lower bound, power steps
-    x ← S0⁻¹ L x (PCG2 to 1e-2) raise it towards ρ), from a fixed start, after each of at most
+    x ← S0⁻¹ L x (PCG2 to 1e-2) raise it towards ρ), from a fixed start on the pairs'
+    interface DOFs (L applied to a fixed random vector: where L acts and S0 is soft; measured
+    from the random vector itself, one power step on Hertz and the tunnel, 0 from there), after each of at most
     `rho_steps` steps; it stops as soon as the bound reaches `seed_rho` (the seed's step is
     then ruled out whatever more steps would give). The seed's step
     U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
@@ -707,7 +709,8 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | 
     if free is None:
         return None
     L = _linearised(dec, free, team, cache)
-    x = np.random.default_rng(0).standard_normal(dec.nif)       # a fixed start: the same ρ every time
+    x = _pairs_apply(team, L, dec.nif, np.random.default_rng(0).standard_normal(dec.nif))   # fixed: the same ρ
+    x /= max(np.linalg.norm(x), 1e-300)
     for k in range(o["rho_steps"] + 1):
         Lx = _pairs_apply(team, L, dec.nif, x)
         q = float(x @ Lx) / max(float(x @ S0.apply(x)), 1e-300)
