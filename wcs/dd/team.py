@@ -26,7 +26,8 @@ act on identical replicated vectors, so the iterates are identical too.
 `comm=None` (or a communicator of size 1) is the serial case: the same code
 path without messages. Per-rank timings (seconds) accumulate in `timings`:
 `assemble`, `dirichlet`, `neumann`, `coarse`, `contact`, `comm` (gathers,
-including the wait for the slowest rank: load imbalance shows there); with the
+including the wait for the slowest rank: load imbalance shows there), `comm_cpu` (the
+process's CPU time in the gathers: MPI polls while it waits); with the
 environment variable WCS_DD_PROBE set, a Barrier before every gather separates that
 wait (`wait`) from the transfer (diagnostics only: it costs a collective).
 """
@@ -118,7 +119,7 @@ class Team:
         if self.comm is None:
             return dict(pieces)
         from mpi4py import MPI
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         if self.probe:                       # diagnostics: separate the wait (imbalance) from the transfer
             self.comm.Barrier()
             self.timings["wait"] += time.perf_counter() - t
@@ -140,19 +141,21 @@ class Team:
             pos[r] += n
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
+        self.timings["comm_cpu"] += time.process_time() - c
         return allp
 
     def allgather(self, obj) -> list:
         """Python objects of every rank, in rank order (small, rare: status, final pieces)."""
         if self.comm is None:
             return [obj]
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         if self.probe:
             self.comm.Barrier()
             self.timings["wait"] += time.perf_counter() - t
         out = self.comm.allgather(obj)
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
+        self.timings["comm_cpu"] += time.process_time() - c
         return out
 
     def first_error(self, error):
