@@ -4,8 +4,8 @@ Writes results/bench/dd_mpi_solve_*.json and dd_mpi_study.json. Run by `make ben
 
 Measured (one BLAS thread per rank, the 2 shared cores at load 3–5, so lower bounds that vary
 2× between runs; "work": each rank's CPU outside the gathers against the serial CPU), before →
-after this branch: Hertz (1.05e5) 0.63× → 0.5–1.9× (work 1.3–1.6×) on the same data, 0.9–1.4×
-(work 1.3×) on new data; tunnel ×0.55 (4.2e4) 0.49× → 1.1–1.5× (work 1.4×) and 1.3–1.6× (work
+after this branch: Hertz (1.05e5) 0.63× → 0.5–1.9× (work 1.3–1.6×) on the same data, 0.8–1.4×
+(work 1.3×) on new data; tunnel ×0.55 (4.2e4) 0.49× → 1.1–1.3× (work 1.4×) and 1.3–1.6× (work
 1.8×); tunnel ×0.4 (1e5) 0.6–0.9× (work 1.7×) and 0.8–1.3× (work 1.9×). A whole `dd` study of
 the tunnel (22–36 evaluations): 0.50× with every DD solve spread over the ranks → 1.1–1.5×
 with the evaluations spread."""
