@@ -302,3 +302,19 @@ def test_contact_nodes_held_on_both_sides_leave_the_local_contact_problem(tmp_pa
     assert res.lam_n[dead[0]] == 0 and res.lam_t[dead[0]] == 0 and res.info["active"][dead[0]] == 0
     assert mono.contact.status[dead[0]] == 0 and abs(mono.contact.force_n[dead[0]]) <= 1e-9 * np.abs(mono.contact.force_n).max()
     assert eu <= 1e-6, eu
+
+
+def test_injections_weigh_each_interface_node_by_its_own_material(tmp_path):
+    """The knee (CoCrMo 2e11, Ti 1.2e11, bone 1.7e10, UHMWPE 3.4e8 Pa), 20 subdomains: the
+    bisection cuts across the materials, so a unit holds several. ρ-scaling by the stiffness
+    of the unit's cells at each interface node instead of its area mean: PCG1 at the seed's
+    1e-4 64 → 43 (13 subdomains 51 → 50; interface Newton's PCG 322 → 152 and 207 → 142)."""
+    study, model = build("knee-replacement.yaml", tmp_path)
+    Kr, rhs, u0 = reduced_system(model, study.scene)
+    opts = {"tolerance": 1e-4, "max_iterations": 1, "dd": {"subdomains": 20, "step": "seed"}}
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts)
+    assert res.info["pcg1_converged"] and res.info["pcg1"] <= 48, res.info["pcg1"]
+    c = model.coefficients(study.scene)
+    rho = dds.stiffness_measure(c.lam, c.mu)
+    spread = [w.max() / w.min() for w in (dds._unit_rho(u, rho) for u in dds.decomposition(model, opts).units)]
+    assert max(spread) > 100                           # a unit with metal and polyethylene at its interface

@@ -168,7 +168,7 @@ def build_decomposition(model, dd) -> Decomposition:
     dim = mesh.p.shape[0]
     part = model_partition(model, dd)
     T = model.elim.T
-    _, node_dofs = dofs_of_nodes(T, dim)
+    node_of_dof, node_dofs = dofs_of_nodes(T, dim)
     Bn, Bt = model.Bn_r, model.Bt_r
     contact_of_row = model.zone.contact_of_node
     units, traces = [], []
@@ -193,6 +193,7 @@ def build_decomposition(model, dd) -> Decomposition:
         units.append(Unit(len(units), (s,), dofs, op, Tloc, Z, None))
         traces.append(trace)
     nif = _interface(units, T.shape[1])
+    _interface_regions(units, part, mesh.t, node_of_dof, smesh.cell_region)
     return Decomposition(part, units, nif, T.shape[1], traces, {"setup": time.perf_counter() - t0})
 
 
@@ -381,7 +382,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     for u in dec.units:            # each solve starts afresh: the answer must not depend on history
         if hasattr(u, "warm"):
             u.warm, u.qp_restarts = None, 0
-    rho = [_unit_rho(model, u, rho_region, dec.part) for u in dec.units]
+    rho = [_unit_rho(u, rho_region) for u in dec.units]
     D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
@@ -500,11 +501,27 @@ def _sizes(dec: Decomposition) -> dict:
             "glue": [u.glue for u in dec.pairs]}
 
 
-def _unit_rho(model, u, rho_region, part) -> float:
-    """Area-weighted mean stiffness measure over the unit's cells."""
-    cells = np.flatnonzero(np.isin(part.subdomain, u.subdomains))
-    a = model.cell_area[cells]
-    return float((rho_region[model.smesh.cell_region[cells]] * a).sum() / a.sum())
+def _unit_rho(u, rho_region) -> np.ndarray:
+    """The stiffness measure of unit `u` at each of its interface DOFs: the largest of its
+    cells around the DOF's node ([21, (5.5)–(5.7)] with ρ_u taken where the DOF is, so a
+    unit holding several materials weighs each interface node by its own: measured on the
+    knee, 13 / 20 subdomains, PCG1 at 1e-4 51 / 64 with the unit's area-weighted mean)."""
+    b, regions = u.interface_regions
+    rho = np.zeros(u.B.size)
+    np.maximum.at(rho, b, np.asarray(rho_region, float)[regions])
+    return rho
+
+
+def _interface_regions(units, part, t_nodes, node_of_dof, cell_region) -> None:
+    """For every unit, the (interface DOF position, region) pairs of its cells around each
+    interface DOF's node: `u.interface_regions`, for `_unit_rho`."""
+    for u in units:
+        cells = np.flatnonzero(np.isin(part.subdomain, u.subdomains))
+        node_cell = sp.csr_matrix((np.ones(t_nodes.shape[0] * cells.size),
+                                   (t_nodes[:, cells].ravel(), np.tile(np.arange(cells.size), t_nodes.shape[0]))),
+                                  shape=(int(t_nodes.max()) + 1, cells.size))
+        hit = node_cell[node_of_dof[u.dofs[u.B]]].tocoo()
+        u.interface_regions = (hit.row, cell_region[cells][hit.col])
 
 
 def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
@@ -830,7 +847,7 @@ def build_heat_decomposition(model, options) -> Decomposition:
     heat_of_node = model.P.indices                       # P: one entry per row
     th = heat_of_node[mesh.t]
     T = model.heat_elim.T
-    _, node_dofs = dofs_of_nodes(T, 1)
+    node_of_dof, node_dofs = dofs_of_nodes(T, 1)
     units, traces = [], []
     for s in range(part.nsub):
         cells = part.cells(s)
@@ -841,6 +858,7 @@ def build_heat_decomposition(model, options) -> Decomposition:
         units.append(Unit(s, (s,), dofs, op, Tloc, Z, None))
         traces.append(trace)
     nif = _interface(units, T.shape[1])
+    _interface_regions(units, part, th, node_of_dof, smesh.cell_region)
     return Decomposition(part, units, nif, T.shape[1], traces)
 
 
@@ -866,7 +884,7 @@ def solve_heat_dd(model, c, options=None, *, comm=None):
         u.assemble(c.kappa)
     team.timings["assemble"] += time.perf_counter() - t
     kreg = np.asarray(c.kappa, float)
-    rho = [_unit_rho(model, u, kreg, dec.part) for u in dec.units]
+    rho = [_unit_rho(u, kreg) for u in dec.units]
     D = _distribute_load(dec, rho, rhs, team)
     info = {"method": "dd", "subdomains": len(dec.units), "interface_dofs": dec.nif, "nranks": team.size}
     try:
