@@ -75,12 +75,11 @@ class CheckedRunner(Runner):
 
     def finish(self, result) -> xr.Dataset:
         ds = super().finish(result)
-        collective = self.comm is not None and not self.split_batches       # a DD solve spread over the ranks
-        if self.kind != "run" or not (self.root or collective):
+        if self.kind != "run" or not self.root:
             return ds
         found = support_extremes(ds)
         parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers"))]
-        parts.append(meshcheck.mesh_check(self.study, ds, found, self.comm if collective else None)
+        parts.append(meshcheck.mesh_check(self.study, ds, found)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
         for part in parts:
             ds = ds.assign_coords(part.coords).assign(part.data_vars)

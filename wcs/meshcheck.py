@@ -126,10 +126,10 @@ def _limit(ds: xr.Dataset, kind: str, criterion: str) -> float:
     return float(ds[name].sel(criterion=criterion)) if name in ds else math.nan
 
 
-def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dataset:
+def mesh_check(study, ds: xr.Dataset, found: list[Extreme]) -> xr.Dataset:
     """The mesh-check variables (`mesh_check_*`) and attribute (`mesh_check`) of a results file
-    `ds`: the `found` extremes re-solved on the mesh split once and twice. comm: the
-    communicator a DD solve spreads over (None: serial)."""
+    `ds`: the `found` extremes re-solved on the mesh split once and twice (serially, on the root
+    rank)."""
     crit = [str(c) for c in ds["criterion"].values]
     ext = kinds(ds)
     levels = (0, *SPLITS)
@@ -153,7 +153,7 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme], comm=None) -> xr.Dat
         for j, s in enumerate(SPLITS, start=1):
             t0 = time.perf_counter()
             try:
-                ev = Evaluator(study, comm, splits=s)
+                ev = Evaluator(study, splits=s)
             except StudyError as err:
                 status = f"not available: {err.fault}"
                 break

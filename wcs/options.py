@@ -95,7 +95,9 @@ class DomainDecomposition(Options):
     rho_steps: int = Field(5, ge=1, le=100, description="power steps of the ρ estimate (each one PCG2 "
                            "solve to 1e-2)")
     pcg_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="relative tolerance of PCG1 "
-                                           "(the glued start U⁰); null: max(solver.tolerance, 1e-8)")
+                                           "(the glued start U⁰); null: `forcing` for interface Newton "
+                                           "(step newton, auto), max(solver.tolerance, 1e-8) for the seed's "
+                                           "step and the thermal step")
     pcg_max_iterations: int = Field(500, ge=1, le=100_000, description="iteration budget of each PCG solve")
     inner_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="floor of PCG2's relative "
                                              "tolerance; null: solver.tolerance / 10")

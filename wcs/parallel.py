@@ -3,8 +3,10 @@
 Serial runs never import mpi4py (it initialises MPI on import). With N ranks
 every rank meshes and assembles its own copy of the model (deterministic, so
 identical), drives the same deterministic search, and solves every N-th point
-of each batch; the outcomes are gathered to all ranks in batch order, so every
-rank sees exactly what a serial run sees (bitwise), and rank 0 alone writes.
+of each batch — with the DD solver too, serially on each rank (a whole `dd` study
+on the tunnel: 1.5× on 2 ranks, against 0.5× with each DD solve spread over them);
+the outcomes are gathered to all ranks in batch order, so every rank sees exactly
+what a serial run sees (bitwise), and rank 0 alone writes.
 """
 from __future__ import annotations
 
@@ -38,17 +40,3 @@ def agree(comm, error: Exception | None) -> None:
             error = StudyError(fault, file=file, path=path) if study_error else RuntimeError(fault)
     if error is not None:
         raise error
-
-
-def batch_groups(comm, npoints: int):
-    """Split the ranks for one batch of `npoints` evaluations when there are fewer points
-    than ranks: g = min(npoints, size) groups, rank r in group r mod g; group c evaluates
-    points c, c + g, ... and its ranks share each evaluation's DD solve
-    (`solve_dd(..., comm=sub)`). Returns (sub, color, g); only sub.rank == 0 of each group
-    should contribute records to the batch gather. Collective on `comm` (comm.Split):
-    free the sub-communicator with `sub.Free()` after the batch."""
-    if comm is None:
-        return None, 0, 1
-    g = max(1, min(int(npoints), comm.size))
-    color = comm.rank % g
-    return comm.Split(color, comm.rank), color, g

@@ -19,9 +19,15 @@ tunnel 7.7× / 6.3× → 3.0× / 4.2× (DD 0.27 s → 0.10 s), Hertz 11.1× / 5.
 (DD 1.61 s → 0.72 s; interface Newton's PCG 71 → 49). What went: the ρ estimate stops at
 the first lower bound ≥ seed_rho (5 power steps → 1 here), a pair's linearisation is an
 update of its glued Schur complement (no QR per active set), its Neumann solve the glued
-one (no eigendecomposition per active set), J the glued coarse basis. What is left on
-Hertz (cProfile): the dense Dirichlet and Neumann products of the ≈ 80 PCG iterations
-(≈ 50 %), the two sparse solves per unit of the load and the interior values (≈ 15 %).
+one (no eigendecomposition per active set), J the glued coarse basis.
+Then (issue 12, ranks and serial cost; 6 runs, other jobs on the machine at load 3–7:
+CPU-time ratios, steadier than wall): tunnel 2.7–3.2 / 3.0–3.7 → 1.8–2.7 / 2.8–3.2, Hertz
+6.0–7.5 / 3.0–4.1 → 3.9–5.0 / 3.1–3.9. What went: PCG1 of Newton's start to the first forcing (29 → 10
+on Hertz, 32 → 8 on the tunnel), the ρ estimate from the pairs' interface (0 power steps),
+dsymv for the dense products, J_k's coarse image from the glued one, no product for a PCG's
+zero and balanced start, the tunnel pair's
+node held on both sides out of its local contact problem (no least squares). What is left
+on Hertz (cProfile): the dense Dirichlet and Neumann products of ≈ 60 PCG iterations (60 %).
 
 Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py

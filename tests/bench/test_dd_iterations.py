@@ -7,7 +7,8 @@
    studies/knee-replacement.yaml (13), tolerance 1e-4 as in [21, §8]: the seed's successive
    approximations (ω = 1, and Aitken relaxation) and step auto (interface Newton there, ρ ≫ 1);
    outer steps and PCG iterations beside the seed's (tunnel 21 PCG1 / 15 steps / 39 PCG2,
-   knee 19 / 14 / 36).
+   knee 19 / 14 / 36). PCG1 to the seed's 1e-4 in the seed's rows; under step auto
+   (interface Newton) PCG1 stops at the first Newton step's forcing (0.1): its U⁰ is a start.
 
 Writes results/bench/dd_iterations.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_dd_iterations.py

@@ -5,8 +5,8 @@ r"""Preconditioned conjugate gradients on the interface with a balancing coarse 
 
     P = Z (Zᵀ S Z)⁻¹ Zᵀ S,
 
-with the small dense matrix Zᵀ S Z factored once. `balance(U, F)` returns
-U + Z (ZᵀSZ)⁻¹ Zᵀ (F − S U), whose residual is orthogonal to V_H
+with the small dense matrix Zᵀ S Z factored once. `balance(U, SU, F − SU)` returns
+U + Z (ZᵀSZ)⁻¹ Zᵀ (F − S U) (and its image under S from SZ), whose residual is orthogonal to V_H
 ([21, (5.15)]); from there every PCG residual stays in V_H^⊥ (Lemma 5.1) and
 the preconditioner (I − P) Σ_u R_uᵀ D_u S_u† D_u R_u needs no pre-projection.
 
@@ -31,12 +31,13 @@ class CoarseSingular(RuntimeError):
 class Coarse:
     """S-orthogonal projection onto span Z (Z: (n, k) dense, k small)."""
 
-    def __init__(self, Z: np.ndarray, apply_S, rtol: float = 1e-10):
+    def __init__(self, Z: np.ndarray, apply_S, rtol: float = 1e-10, SZ: np.ndarray | None = None):
+        """`SZ`: S Z when known (else k products with S at once)."""
         self.Z = Z
         if Z.shape[1] == 0:
             self.SZ = Z
             return
-        SZ = apply_S(Z)
+        SZ = apply_S(Z) if SZ is None else SZ
         G = 0.5 * (Z.T @ SZ + SZ.T @ Z)
         ev, V = np.linalg.eigh(G)
         if ev[0] <= rtol * max(ev[-1], 1e-300):
@@ -58,11 +59,13 @@ class Coarse:
             return x
         return x - self.Z @ self._solve(self.SZ.T @ x)
 
-    def balance(self, U: np.ndarray, residual: np.ndarray) -> np.ndarray:
-        """U + Z (ZᵀSZ)⁻¹ Zᵀ r: the new residual r − SZ(...) is orthogonal to span Z."""
+    def balance(self, U: np.ndarray, SU: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(U + Z α, S U + SZ α), α = (ZᵀSZ)⁻¹ Zᵀ r: the new residual r − SZ α is orthogonal
+        to span Z; its image under S from SZ, without a product with S."""
         if self.size == 0:
-            return U
-        return U + self.Z @ self._solve(self.Z.T @ residual)
+            return U, SU
+        alpha = self._solve(self.Z.T @ residual)
+        return U + self.Z @ alpha, SU + self.SZ @ alpha
 
 
 @dataclass
@@ -82,10 +85,9 @@ def pcg(apply_S, precondition, F: np.ndarray, U0: np.ndarray, *, tol: float, max
     ‖H‖ ≤ tol·reference uses (default ‖F‖).
     """
     U = U0.copy()
-    SU = apply_S(U)
+    SU = apply_S(U) if np.any(U) else np.zeros_like(F)      # from zero (Newton's steps, PCG1): no product
     if coarse is not None and coarse.size:
-        U = coarse.balance(U, F - SU)
-        SU = apply_S(U)
+        U, SU = coarse.balance(U, SU, F - SU)
     H = F - SU
     ref = np.linalg.norm(F) if reference is None else reference
     hist = [float(np.linalg.norm(H))]

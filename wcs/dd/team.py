@@ -1,13 +1,18 @@
 r"""The units of a decomposition distributed over the ranks of an MPI communicator.
 
-`Team(comm, units)` assigns every unit (linear subdomain or contact pair) to one
-rank — pairs and linear subdomains separately, each by longest-processing-time
-first on an estimated cost (local DOFs^1.5, the cost of a sparse 2D
-factorization and of its solves), ties by unit index — so that every phase of the
-method is balanced: PCG1 (all units), PCG2 (linear subdomains), the contact
-solves (pairs). Every rank holds the whole (small) structure of the
-decomposition, the replicated interface vectors and the coarse problem; a rank
-assembles, factors and solves only the units it owns.
+`Team(comm, units, dim)` assigns every unit (linear subdomain or contact pair) to one
+rank by its estimated cost in each *phase* of an evaluation — the numeric factorization
+with the dense Schur block (`assemble`), the dense Dirichlet and Neumann products of the
+PCG iterations (`iterate`: all units), the local contact solves (`contact`: pairs) —
+counted from the unit's sizes (`phase_costs`), so deterministic. A phase ends at a
+gather, so an evaluation takes Σ_phase max_rank(load) seconds: the units, heaviest first
+(ties by index), each go to the rank that keeps that sum least (ties: the lower rank).
+Per kind longest-processing-time (the earlier rule) put Hertz's one pair (a third of the
+iteration cost) with half of the linear subdomains on one rank.
+
+Every rank holds the whole (small) structure of the decomposition, the replicated
+interface vectors and the coarse problem; a rank assembles, factors and solves only the
+units it owns.
 
 **Deterministic reductions.** An interface vector Σ_u R_uᵀ x_u is not summed by a
 floating-point `Allreduce` (whose order depends on the MPI library and the
@@ -15,13 +20,14 @@ number of ranks). Each rank computes the contributions x_u of its own units,
 the contributions are gathered to every rank (`Allgatherv` of the concatenated
 local pieces, Σ_u |Γ_u| numbers — about twice the interface), and every rank
 adds them **in unit order**, exactly as the serial loop does. The result is
-bitwise the serial one for any number of ranks; the dot products of PCG then
+bitwise the serial one for any number of ranks (and any assignment); the dot products of PCG then
 act on identical replicated vectors, so the iterates are identical too.
 
 `comm=None` (or a communicator of size 1) is the serial case: the same code
 path without messages. Per-rank timings (seconds) accumulate in `timings`:
 `assemble`, `dirichlet`, `neumann`, `coarse`, `contact`, `comm` (gathers,
-including the wait for the slowest rank: load imbalance shows there); with the
+including the wait for the slowest rank: load imbalance shows there), `comm_cpu` (the
+process's CPU time in the gathers: MPI polls while it waits); with the
 environment variable WCS_DD_PROBE set, a Barrier before every gather separates that
 wait (`wait`) from the transfer (diagnostics only: it costs a collective).
 """
@@ -34,31 +40,55 @@ from collections import defaultdict
 import numpy as np
 
 
-def unit_cost(u) -> float:
-    return float(u.dofs.size) ** 1.5
+PHASES = ("assemble", "iterate", "contact")
+FLOPS = 4e9            # dense factorization flops per second (one core, measured on the Schur blocks)
+ENTRIES = 1.25e9       # dense matrix entries per second of a matrix-vector product (memory bound)
+PRODUCTS = 100         # S and S† products per unit in one solve (Hertz, 1e5 unknowns: 111 and 87)
+NEWTON_STEPS = 30      # semismooth Newton steps of a pair's local contact solves in one solve (tunnel: 12 calls)
 
 
-def assign(units, size: int) -> dict:
-    """unit index -> rank: LPT per kind (pairs, linear), deterministic."""
+def phase_costs(u, dim: int) -> np.ndarray:
+    """Estimated seconds of unit `u` in each of `PHASES`: the sparse factor (nested dissection:
+    n^{3(d−1)/d} flops) plus its dense Schur block X (|X|³/3); `PRODUCTS` products with the
+    dense S and S† on B (|B|² entries each); for a pair, the Cholesky factor of its condensed
+    contact block (|c|³/3) and `NEWTON_STEPS` active-set systems on its d·m contact rows.
+    Calibrated on Hertz (1e5 unknowns, 12 subdomains: measured factor times 25–410 ms
+    against 24–390 ms estimated)."""
+    n, x, b = float(u.dofs.size), float(u.X.size), float(u.B.size)
+    assemble = (100 * n ** (3 * (dim - 1) / dim) + x ** 3 / 3) / FLOPS
+    iterate = 2 * PRODUCTS * b * b / ENTRIES
+    contact = 0.0
+    if u.kind == "pair":
+        rows = dim * float(u.rows.size)
+        contact = (float(u.c.size) ** 3 / 3 + NEWTON_STEPS * rows ** 3 / 3) / FLOPS
+    return np.array([assemble, iterate, contact])
+
+
+def assign(units, size: int, dim: int) -> dict:
+    """unit index -> rank: heaviest unit first (total estimated cost, ties by index), each to
+    the rank that keeps Σ_phase max_rank(load) least (ties: the lower rank). Deterministic."""
+    cost = {u.index: phase_costs(u, dim) for u in units}
+    load = np.zeros((size, len(PHASES)))
     owner = {}
-    for kind in ("pair", "linear"):
-        group = sorted((u for u in units if u.kind == kind), key=lambda u: (-unit_cost(u), u.index))
-        load = [0.0] * size
-        for u in group:
-            r = min(range(size), key=lambda i: (load[i], i))
-            owner[u.index] = r
-            load[r] += unit_cost(u)
+    for u in sorted(units, key=lambda u: (-cost[u.index].sum(), u.index)):
+        span = [(load + np.where(np.arange(size)[:, None] == r, cost[u.index], 0.0)).max(axis=0).sum()
+                for r in range(size)]
+        r = int(np.argmin(span))
+        owner[u.index] = r
+        load[r] += cost[u.index]
     return owner
 
 
 class Team:
     """Owner of every unit, the gathers that sum interface vectors in unit order, timings."""
 
-    def __init__(self, comm, units):
+    def __init__(self, comm, units, dim: int = 2):
         self.comm = comm if comm is not None and comm.size > 1 else None
         self.size = 1 if self.comm is None else self.comm.size
         self.rank = 0 if self.comm is None else self.comm.rank
-        self.owner = assign(units, self.size)
+        self.owner = assign(units, self.size, dim)
+        self.cost = sum((phase_costs(u, dim) for u in units if self.owner[u.index] == self.rank),
+                        np.zeros(len(PHASES)))
         self.kinds = {u.index: u.kind for u in units}
         self.timings = defaultdict(float)
         self.messages = 0
@@ -89,7 +119,7 @@ class Team:
         if self.comm is None:
             return dict(pieces)
         from mpi4py import MPI
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         if self.probe:                       # diagnostics: separate the wait (imbalance) from the transfer
             self.comm.Barrier()
             self.timings["wait"] += time.perf_counter() - t
@@ -111,16 +141,21 @@ class Team:
             pos[r] += n
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
+        self.timings["comm_cpu"] += time.process_time() - c
         return allp
 
     def allgather(self, obj) -> list:
         """Python objects of every rank, in rank order (small, rare: status, final pieces)."""
         if self.comm is None:
             return [obj]
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
+        if self.probe:
+            self.comm.Barrier()
+            self.timings["wait"] += time.perf_counter() - t
         out = self.comm.allgather(obj)
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
+        self.timings["comm_cpu"] += time.process_time() - c
         return out
 
     def first_error(self, error):
@@ -133,5 +168,6 @@ class Team:
         mine["units"] = sum(1 for r in self.owner.values() if r == self.rank)
         mine["pairs"] = sum(1 for i, r in self.owner.items() if r == self.rank and self.kinds[i] == "pair")
         mine["messages"] = self.messages
+        mine["estimate"] = dict(zip(PHASES, self.cost.tolist()))      # the assignment's estimated seconds
         mine["rank"] = self.rank
         return self.allgather(mine) if self.comm is not None else [mine]
