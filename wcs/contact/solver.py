@@ -415,7 +415,11 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
 
     disc: (J, D) for nodes slipping on a disc, their tangent components J (n, k) and the
     Jacobians D of the projection there (`disc_slips`); their rows are the linearized
-    projection λ_J − D(λ_J + c r_J) = Π(z)_J (D z = 0), unknowns beside the free ones.
+    projection λ_J − D(λ_J + c r_J) = Π(z)_J (D z = 0), unknowns beside the free ones. These
+    rows are O(1) beside W's O(1/c) (1e-9 on a rock tunnel): partial pivoting takes them as
+    pivots for other nodes' columns and the solution loses about six digits (on the 3D tunnel
+    Newton stalled at 2e-10 of the force scale against the tolerance 1e-10 and ran to
+    `max_iter`); one step of iterative refinement on the residual M x − rhs restores them.
 
     The system [[W_FF, −G_Fᵀ], [G_F, 0]] is singular where constraints are redundant: a
     node of `redundant_pairs` that is closed and stuck carries a pair (λn, λt) of which
@@ -453,10 +457,14 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         M[P], rhs[P] = rows, np.einsum("sij,sj->si", cD, rhs[P]) + fixed_values[J]
     try:
         x = np.linalg.solve(M, rhs)
+        if disc is not None and len(disc[0]):
+            x += np.linalg.solve(M, rhs - M @ x)
         if not np.all(np.isfinite(x)):
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
         x = np.linalg.lstsq(M, rhs, rcond=None)[0]
+        if disc is not None and len(disc[0]):
+            x += np.linalg.lstsq(M, rhs - M @ x, rcond=None)[0]
     lam[F] = x[: len(F)]
     pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k))
     node = pair % m
