@@ -4,18 +4,30 @@
   matrices combined with the data, `wcs.fem.affine`) against scikit-fem's assembly of the same
   matrix (basis + `asm` of linear elasticity); also the once-per-mesh set-up (cell matrices and
   the sparse pattern) against it. Goal: ≤ 0.2×. The matrices agree to round-off.
+- warm evaluation: a second `evaluate` of a 3D contact study (the Tresca shear patch of
+  studies/validation at ≈ 1e5 unknowns) with new materials, loads and slip limits, against
+  one PARDISO analysis + factorization + solve of the same reduced stiffness (`wcs.linalg`).
+  Goal: ≤ 0.5×. The memory peak of the process (resident set, `resource.getrusage`) is
+  reported beside it.
 
-Table: results/bench/bench_3d.csv.
+Tables: results/bench/bench_3d.csv, results/bench/bench_3d_warm.csv.
 """
 from __future__ import annotations
+
+import resource
+import time
 
 import numpy as np
 import pytest
 import skfem
+import yaml
 from skfem.models.elasticity import linear_elasticity
 
-from common import measure, write_table
+from common import STUDIES, measure, write_table
+from wcs import linalg
+from wcs.evaluation import Evaluator
 from wcs.fem.affine import CellAffineOperator, elastic_cell_matrices
+from wcs.study import load_study
 
 pytestmark = pytest.mark.bench
 NODES_PER_SIDE = 33                       # 3 · 33³ = 1.08e5 unknowns, 1.9e5 tetrahedra
@@ -47,3 +59,39 @@ def test_assembly_of_a_data_set_costs_at_most_a_fifth_of_scikit_fems():
     print("\n".join(f"{a}: {b}" for a, b in rows))
     assert t_data <= 0.2 * t_skfem
     assert t_setup <= 0.2 * t_skfem
+
+
+def test_a_warm_evaluation_costs_at_most_half_a_pardiso_analysis_factor_and_solve(tmp_path):
+    doc = yaml.safe_load((STUDIES / "validation" / "tresca-shear-patch-3d.yaml").read_text())
+    doc["scene"]["mesh"]["size"] = 0.04                      # two unit blocks: ≈ 1e5 unknowns
+    doc["uncertain"].update({"materials.block.E": [4.0e9, 6.0e9], "materials.base.E": [1.8e10, 2.2e10],
+                             "loads.block_top_load.pressure": [0.8e6, 1.2e6]})
+    path = tmp_path / "shear-patch-1e5.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    t = time.perf_counter()
+    ev = Evaluator(load_study(path))
+    first = ev.evaluate(ev.study.nominal())
+    t_first = time.perf_counter() - t
+    assert first.status == 0, first.message
+    box = ev.study.parameters
+    rng = np.random.default_rng(7)
+    data = [box.lower + (box.upper - box.lower) * rng.random(len(box)) for _ in range(3)]  # new materials, loads, slip limit
+    t_warm, s_warm, warm = measure(lambda: [ev.evaluate(x) for x in data], 1)
+    assert all(w.status == 0 for w in warm), [w.message for w in warm]
+    assert len({w.phi["slip"] for w in warm}) == 3                # three different answers
+    t_warm /= len(data)
+    c = ev.map.coefficients(*ev.study.data_set(data[-1]))
+    _, Kr, rhs, _ = ev.model.reduced_system(c, None)
+    t_pardiso, s_pardiso, _ = measure(lambda: linalg.factorize(Kr, spd=True).solve(rhs), 3)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20   # kB -> GB (Linux)
+    unknowns = Kr.shape[0]
+    rows = [["unknowns (reduced)", unknowns], ["contact nodes", ev.model.zone.gap.size],
+            ["first evaluation (cold) [s]", f"{t_first:.2f}"],
+            ["warm evaluation [s]", f"{t_warm:.3f} (mean of {len(data)})"],
+            ["PARDISO analysis + factor + solve [s]", f"{t_pardiso:.3f} (spread {s_pardiso:.2f})"],
+            ["ratio warm / PARDISO", f"{t_warm / t_pardiso:.3f}"], ["memory peak (RSS) [GB]", f"{peak:.2f}"],
+            ["backend", linalg.backend()]]
+    write_table("bench_3d_warm", ["quantity", "value"], rows)
+    print("\n".join(f"{a}: {b}" for a, b in rows))
+    assert 0.9e5 <= unknowns <= 1.3e5, unknowns
+    assert t_warm <= 0.5 * t_pardiso
