@@ -287,8 +287,9 @@ def contact_maps_figure(res: Results, j: int) -> bytes | None:
             ax2.quiver(q[::step, 0], q[::step, 1], (vec @ e1)[::step], (vec @ e2)[::step], color="w",
                        angles="xy", pivot="mid", width=0.004)
             ax2.set_title(f"{pair}: slip (arrows: direction)")
-        for a in axes[:, c]:
-            a.set_aspect("equal")
+        span = np.ptp(q, axis=0)
+        for a in axes[:, c]:            # true proportions unless the surface is a long strip
+            a.set_aspect("equal" if span.max() <= 4 * max(span.min(), 1e-300) else "auto")
             a.set_xlabel(f"along ({e1[0]:.2g}, {e1[1]:.2g}, {e1[2]:.2g}) [m]")
             a.set_ylabel(f"along ({e2[0]:.2g}, {e2[1]:.2g}, {e2[2]:.2g}) [m]")
     fig.tight_layout()
