@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .contact.frame import grid_weights, surface_grid
+from .contact.frame import grid_weights, hat_weights, surface_grid
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
@@ -145,8 +145,7 @@ class ParameterMap:
                     arc, weights = None, grid_weights(surface_grid(zone.coords[rows])[0], entry.grid)
                 else:
                     arc = zone.arc[rows]
-                    weights = np.array([np.interp(arc, np.linspace(0, 1, entry.points), e)
-                                        for e in np.eye(entry.points)]).T
+                    weights = hat_weights(arc, entry.points)
                 self.profiles.append((slice(start, start + entry.points), rows, arc, weights))
                 profiled.add(contact)
                 start += entry.points

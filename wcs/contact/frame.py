@@ -31,7 +31,7 @@ def surface_grid(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.clip((q - lo) / np.where(lengths > 0, lengths, 1.0), 0.0, 1.0), lengths
 
 
-def _hat(s: np.ndarray, n: int) -> np.ndarray:
+def hat_weights(s: np.ndarray, n: int) -> np.ndarray:
     """(k, n) the piecewise linear hat functions of n equally spaced nodes on [0, 1] at s."""
     return np.array([np.interp(s, np.linspace(0.0, 1.0, n), e) for e in np.eye(n)]).T
 
@@ -39,4 +39,4 @@ def _hat(s: np.ndarray, n: int) -> np.ndarray:
 def grid_weights(uv: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """(k, nu·nv) bilinear weights of the grid values at the points uv (k, 2) ∈ [0, 1]²."""
     nu, nv = shape
-    return np.einsum("ki,kj->kij", _hat(uv[:, 0], nu), _hat(uv[:, 1], nv)).reshape(len(uv), nu * nv)
+    return np.einsum("ki,kj->kij", hat_weights(uv[:, 0], nu), hat_weights(uv[:, 1], nv)).reshape(len(uv), nu * nv)

@@ -178,30 +178,25 @@ class ContactState:
 
     def fields(self) -> dict:
         z = self.zone
-        if z.coords.shape[1] == 3:
-            tangential = ("contact_node", "tangent")
-            return {
-                "contact_coords": (("contact_node", "dim"), z.coords, {"units": "m"}),
-                "contact_pair": (("contact_node",), np.array([z.names[k] for k in z.contact_of_node], dtype=object),
-                                 {"long_name": "contact name"}),
-                "contact_pressure": (("contact_node",), self.pressure, {"units": "Pa", "long_name": "contact pressure -tau_n"}),
-                "contact_gap": (("contact_node",), self.gap, {"units": "m", "long_name": "normal gap (>= 0 open)"}),
-                "contact_slip": (tangential, self.by_node(self.slip),
-                                 {"units": "m", "long_name": "relative tangential displacement along contact_tangents"}),
-                "contact_shear": (tangential, self.shear,
-                                  {"units": "Pa", "long_name": "tangential traction tau_t along contact_tangents"}),
-                "contact_tangents": (("contact_node", "tangent", "dim"), z.tangents,
-                                     {"long_name": "the two unit tangents of each contact node"}),
-            }
-        return {
+        out = {
             "contact_coords": (("contact_node", "dim"), z.coords, {"units": "m"}),
             "contact_pair": (("contact_node",), np.array([z.names[k] for k in z.contact_of_node], dtype=object),
                              {"long_name": "contact name"}),
             "contact_pressure": (("contact_node",), self.pressure, {"units": "Pa", "long_name": "contact pressure -tau_n"}),
             "contact_gap": (("contact_node",), self.gap, {"units": "m", "long_name": "normal gap (>= 0 open)"}),
-            "contact_slip": (("contact_node",), self.slip, {"units": "m", "long_name": "relative tangential displacement"}),
-            "contact_shear": (("contact_node",), self.shear, {"units": "Pa", "long_name": "tangential traction tau_t"}),
         }
+        if z.coords.shape[1] == 2:
+            out["contact_slip"] = (("contact_node",), self.slip, {"units": "m", "long_name": "relative tangential displacement"})
+            out["contact_shear"] = (("contact_node",), self.shear, {"units": "Pa", "long_name": "tangential traction tau_t"})
+            return out
+        tangential = ("contact_node", "tangent")           # 3D: components along the node's two tangents
+        out["contact_slip"] = (tangential, self.by_node(self.slip),
+                               {"units": "m", "long_name": "relative tangential displacement along contact_tangents"})
+        out["contact_shear"] = (tangential, self.shear,
+                                {"units": "Pa", "long_name": "tangential traction tau_t along contact_tangents"})
+        out["contact_tangents"] = (("contact_node", "tangent", "dim"), z.tangents,
+                                   {"long_name": "the two unit tangents of each contact node"})
+        return out
 
 
 def slave_segments(zone: ContactZone, scene, smesh: SceneMesh) -> np.ndarray:

@@ -18,8 +18,9 @@ from matplotlib.tri import Triangulation
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from ..contact.frame import surface_frame
+from ..fem.tet import von_mises
 from .data import Results
-from .plots import length_scale, nice, plt, png, stress_scale
+from .plots import length_scale, magnification, plt, png, stress_scale
 
 FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])   # face k: opposite vertex k, outward for positive tets
 EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
@@ -81,17 +82,7 @@ def _von_mises(f) -> np.ndarray | None:
         return f.von_mises
     if f.stress is None:
         return None
-    s = f.stress                                                # xx, yy, zz, yz, xz, xy
-    return np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
-                   + 3 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2))
-
-
-def magnification3d(coords: np.ndarray, u: np.ndarray) -> float:
-    """A round factor that makes the largest displacement 6 % of the scene's extent."""
-    umax = float(np.nanmax(np.linalg.norm(u, axis=1))) if u is not None and len(u) else 0.0
-    if umax <= 0 or not np.isfinite(umax):
-        return 1.0
-    return nice(0.06 * float(np.ptp(coords, axis=0).max()) / umax)
+    return von_mises(f.stress.T)                              # (cell, xx yy zz yz xz xy) in the file
 
 
 # ---------------------------------------------------------------- regions of interest
@@ -184,7 +175,7 @@ def surface_figure(res: Results, j: int) -> tuple[bytes, float]:
     triangle, seen from two sides; and the magnification used."""
     mesh, f = res.mesh, res.worst_fields[j]
     u = f.displacement if f.displacement is not None else np.zeros_like(mesh.coords)
-    mag = magnification3d(mesh.coords, u)
+    mag = magnification(mesh, u)
     x = mesh.coords + mag * u
     faces, owner = outer_faces(mesh.cells)
     vm = _von_mises(f)
