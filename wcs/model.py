@@ -31,6 +31,7 @@ from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from .fem.constraints import Constraint, Elimination, Reduction, eliminate
 from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
+from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
 from .scene.meshdata import SceneMesh
@@ -70,26 +71,6 @@ class Solution:
         """The contact factorization (`ContactFactor`) of this solution's reduced stiffness."""
         C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
         return factor_contact(self.stiffness, C, model.R_r, self.factors.contact)
-
-
-def rigid_modes(p: np.ndarray, nodes: np.ndarray, nnodes: int) -> np.ndarray:
-    """(2 nnodes, 3): x-translation, y-translation, rotation about the nodes' centroid; in 3D
-    (p of shape (3, n)) (3 nnodes, 6): the translations along x, y, z, then the rotations
-    e_k × (x − c) about the axes x, y, z through the centroid c."""
-    c = p[:, nodes].mean(axis=1)
-    if p.shape[0] == 3:
-        R = np.zeros((3 * nnodes, 6))
-        r = (p[:, nodes] - c[:, None]).T                      # (n, 3)
-        for k, e in enumerate(np.eye(3)):
-            R[3 * nodes + k, k] = 1.0
-            R[(3 * nodes[:, None] + np.arange(3)).ravel(), 3 + k] = np.cross(e, r).ravel()
-        return R
-    R = np.zeros((2 * nnodes, 3))
-    R[2 * nodes, 0] = 1.0
-    R[2 * nodes + 1, 1] = 1.0
-    R[2 * nodes, 2] = -(p[1, nodes] - c[1])
-    R[2 * nodes + 1, 2] = p[0, nodes] - c[0]
-    return R
 
 
 class Model:
@@ -200,9 +181,6 @@ class Model:
             return
         if scene.glue:
             raise StudyError("3D does not support glued interfaces yet", path="scene.glue")
-        if self.options.method == "dd":
-            raise StudyError("3D does not support the domain decomposition yet (solver.method: dd)",
-                             path="solver.method")
 
     def _region_materials(self, scene) -> list[str]:
         """The material of each mesh region (the loader names every region)."""

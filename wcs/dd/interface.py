@@ -46,6 +46,7 @@ from scipy.linalg import blas, lapack
 
 from wcs import linalg
 from wcs.contact.solver import OPEN, ContactFactor, delassus, pinned_dofs, regularize, solve_contact
+from wcs.fem.rigid import rigid_modes
 from wcs.status import Status
 
 
@@ -55,21 +56,14 @@ class SetupError(RuntimeError):
 
 # ---- kernels -----------------------------------------------------------------------------
 def rigid_basis(p: np.ndarray, nodes: np.ndarray, ncomp: int) -> np.ndarray:
-    """(ncomp·k, r): rigid motions of the nodes, node-interleaved, O(1) scaled columns —
-    r = 1 for a scalar field, else the d translations and d(d − 1)/2 rotations of the
-    dimension d = ncomp (3 in 2D, 6 in 3D)."""
+    """(ncomp·k, r): rigid motions of the nodes, node-interleaved — r = 1 for a scalar field,
+    else the model's rigid modes (`wcs.fem.rigid.rigid_modes`: 3 in 2D, 6 in 3D) on the nodes,
+    the rotations divided by the nodes' largest extent (O(1) columns)."""
     k = nodes.size
     if ncomp == 1:
         return np.ones((k, 1))
-    xy = p[:, nodes].T
-    x = (xy - xy.mean(axis=0)) / max(np.ptp(xy, axis=0).max(), 1e-300)
-    rotations = [(a, b) for a in range(ncomp) for b in range(a + 1, ncomp)]
-    R = np.zeros((ncomp * k, ncomp + len(rotations)))
-    for a in range(ncomp):
-        R[a::ncomp, a] = 1.0
-    for j, (a, b) in enumerate(rotations):        # rotation in the (a, b) plane
-        R[a::ncomp, ncomp + j] = -x[:, b]
-        R[b::ncomp, ncomp + j] = x[:, a]
+    R = rigid_modes(p[:, nodes], np.arange(k), k)
+    R[:, ncomp:] /= max(np.ptp(p[:, nodes].T, axis=0).max(), 1e-300)
     return R
 
 

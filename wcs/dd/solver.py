@@ -67,9 +67,9 @@ from .team import Team
 
 class DDResult(NamedTuple):
     """What `solve_dd` returns; unpacks as (u, lam_n, lam_t, info, status, message)."""
-    u: np.ndarray | None           # (2 nnodes,) full displacement (None on failure)
+    u: np.ndarray | None           # (d nnodes,) full displacement (None on failure)
     lam_n: np.ndarray | None       # (m,) normal contact forces, zone row order
-    lam_t: np.ndarray | None       # (m,) tangential contact forces
+    lam_t: np.ndarray | None       # ((d − 1) m,) tangential contact forces, tangent j of node i at j·m + i
     info: dict                     # iteration counts, history, active set, timings, sizes
     status: DDOutcome
     message: str
@@ -110,6 +110,12 @@ def _local_pieces(t_nodes, cells, ncomp, T, node_dofs, local, group, p, componen
     return nodes, dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
 
 
+def tangent_rows(rows: np.ndarray, m: int, k: int) -> np.ndarray:
+    """The rows of Bt (k tangents per node, stacked by component: tangent j of node i at
+    j·m + i, m nodes) of the nodes `rows`, in the same stacking."""
+    return (np.arange(k)[:, None] * m + rows).ravel()
+
+
 def _interface(units, ndof):
     count = np.zeros(ndof, dtype=np.int64)
     for u in units:
@@ -141,11 +147,15 @@ class Decomposition:
 
 
 def contact_sides(model) -> list[tuple[int, int, np.ndarray]]:
-    """(contact, body, side nodes) for the slave and master sides of every contact."""
-    nb = model.smesh.node_body
+    """(contact, body, side nodes) for the slave and master sides of every contact: the master
+    side is every other node its rows of Bn reach (node-to-segment, node-to-node or mortar, in
+    any dimension; a dual mortar coefficient may be negative)."""
+    nb, z = model.smesh.node_body, model.zone
     sides = []
-    for k, pr in enumerate(model.zone.pairs if model.zone is not None else ()):
-        master = np.unique(pr.master_nodes[pr.master_weights > 0])
+    for k, pr in enumerate(z.pairs if z is not None else ()):
+        rows = z.Bn[np.flatnonzero(z.contact_of_node == k)]
+        rows.eliminate_zeros()
+        master = np.setdiff1d(rows.indices // model.dim, pr.slave)
         sides.append((k, int(nb[pr.slave[0]]), pr.slave))
         sides.append((k, int(nb[master[0]]), master))
     return sides
@@ -182,7 +192,7 @@ def build_decomposition(model, dd) -> Decomposition:
         if outside.size:
             raise SetupError("contact rows reach outside their pair (partition bug)")
         units.append(PairUnit(len(units), subs, dofs, op, Tloc, modes, None, rows,
-                              Bn[rows][:, dofs], Bt[rows][:, dofs]))
+                              Bn[rows][:, dofs], Bt[tangent_rows(rows, Bn.shape[0], dim - 1)][:, dofs]))
         traces.append(trace)
     for s in part.linear:
         cells = part.cells(s)
@@ -473,11 +483,13 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
         return _fail(info, DDOutcome.LOCAL_FAILED, error)
     w = np.zeros(dec.ndof)
     m = z.gap.size
-    lam_n, lam_t, active = np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64)
+    k = model.smesh.mesh.p.shape[0] - 1          # tangents per node
+    lam_n, lam_t, active = np.zeros(m), np.zeros(k * m), np.zeros(m, dtype=np.int64)
     for u in dec.units:                          # unit order, as the serial loop
         loc, ln, lt, act = gathered[u.index]
         if u.kind == "pair":
-            lam_n[u.rows], lam_t[u.rows], active[u.rows] = ln, lt, act
+            lam_n[u.rows], active[u.rows] = ln, act
+            lam_t[tangent_rows(u.rows, m, k)] = lt
         w[u.dofs] = loc
     info["timings"]["solution"] = time.perf_counter() - t
     info["active"] = active
