@@ -383,7 +383,7 @@ class PairUnit(Unit):
         M = _cho(N.T @ self._Scc @ N, f"the contact block of pair {self.index} with {len(rows)} rows held")
         return N, M, N @ sla.cho_solve(M, N.T @ self._Sbc.T)
 
-    def held_schur(self, rows: np.ndarray) -> np.ndarray:
+    def held_schur(self, rows: np.ndarray, springs=None) -> np.ndarray:
         """Dense Schur complement on B of the pair with the rows `rows` of [Bn; Bt] held (closed
         normals, stuck tangents: the linearisation at an active set; the glue rows give S⁰_p).
         From the inverse of the glued contact block (`_glue_inverse`), no new null basis: the
@@ -392,7 +392,10 @@ class PairUnit(Unit):
         S' + Wᵀ Q⁺ W with W = C_T G' Σ⁰_cB, Q = C_T G' C_Tᵀ (Q⁺: its pseudo-inverse, exact
         where a row of C_T depends on the others). Where the glue without R is singular (it
         leaves a floating half to the rows of C_T: −H_RR not positive definite), from the null
-        basis of the rows (`_held`). SetupError where the rows leave a floating half free."""
+        basis of the rows (`_held`). SetupError where the rows leave a floating half free.
+        `springs` (`across_slip`, 3D): rows A with compliances D that act as springs A u = D λ
+        (the slipping nodes' discs), last: S'' + W_Aᵀ (A G'' Aᵀ + D)⁻¹ W_A, W_A = A G'' Σ⁰_cB
+        (Woodbury; G'' the inverse of the contact block with the held rows)."""
         rows = np.asarray(rows, dtype=np.int64)
         if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
             raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
@@ -400,12 +403,19 @@ class PairUnit(Unit):
         try:
             M = sla.cho_factor(-self._H[np.ix_(released, released)])
         except np.linalg.LinAlgError:
-            _, _, T = self._held(rows)
+            N, Mh, T = self._held(rows)
             S = self._Sbb - self._Sbc @ T
+            if springs is not None:
+                A = self._across_rows(springs)
+                S = S + self._springs(A @ T, (A @ N) @ sla.cho_solve(Mh, (A @ N).T), springs[2])
             return 0.5 * (S + S.T)
         P, E = self._P[:, released], self._E[:, released]
         S = self.S - P @ sla.cho_solve(M, P.T)
         added = rows[~np.isin(rows, self.glue_rows)]
+        if springs is not None:                  # products with G' (released glue), of the spring rows
+            A = self._across_rows(springs)
+            AE = A @ E
+            WA, QA = A @ self._T + AE @ sla.cho_solve(M, P.T), A @ self._G @ A.T + AE @ sla.cho_solve(M, AE.T)
         if added.size:
             Ct = self._C_c[added]
             CE = Ct @ E
@@ -415,7 +425,43 @@ class PairUnit(Unit):
             keep = lam > 1e-10 * max(lam.max(initial=0.0), 1e-300)
             VW = V[:, keep].T @ W
             S = S + VW.T @ (VW / lam[keep][:, None])
+            if springs is not None:              # G'' = G' − G' C_Tᵀ Q⁺ C_T G'
+                VA = V[:, keep].T @ (Ct @ self._G @ A.T + CE @ sla.cho_solve(M, AE.T))
+                WA, QA = WA - VA.T @ (VW / lam[keep][:, None]), QA - VA.T @ (VA / lam[keep][:, None])
+        if springs is not None:
+            S = S + self._springs(WA, QA, springs[2])
         return 0.5 * (S + S.T)
+
+    def _across_rows(self, springs) -> np.ndarray:
+        """Rows of the contact DOFs across each slipping node's slip, t⊥ = (−ŝ₂, ŝ₁) in its
+        tangent coordinates (`across_slip`)."""
+        nodes, shat, _ = springs
+        m = self.rows.size
+        return (self.Bt_c[m + nodes].multiply(shat[0][:, None]) - self.Bt_c[nodes].multiply(shat[1][:, None])).toarray()
+
+    def _springs(self, WA, QA, compliance) -> np.ndarray:
+        """W_Aᵀ (Q_A + D)⁻¹ W_A: the change of the Schur complement on B from springs of
+        compliances D on rows A, W_A = A G Σ⁰_cB and Q_A = A G Aᵀ (G the inverse of the contact
+        block with the held rows)."""
+        QA = 0.5 * (QA + QA.T) + np.diag(compliance)
+        return WA.T @ sla.cho_solve(_cho(QA, f"the slip springs of pair {self.index}"), WA)
+
+    def across_slip(self):
+        """The disc's stiffness across the slip of the last local contact solve (3D Tresca): at
+        a node slipping by s with the bound gw, λt = gw s/|s|, so turning the slip by δ⊥ (across
+        it, in the tangent plane) turns λt by gw δ⊥/|s| — a spring of compliance |s|/gw along
+        t⊥ (the generalized Jacobian of the disc projection, Hüeber–Stadler–Wohlmuth, at the
+        solution; in 2D the interval has no such direction). Returns (nodes, ŝ (2, n),
+        compliances (n,)) of the nodes slipping by |s| > 0 under a finite positive bound, None
+        in 2D or without a solution."""
+        res, m = self.result, self.rows.size
+        k = self.Bt.shape[0] // max(m, 1)
+        if k == 1 or res is None or res.u is None:
+            return None
+        s = (self.Bt_c @ res.u).reshape(k, m)
+        size = np.linalg.norm(s, axis=0)
+        nodes = np.flatnonzero(~res.free[m:2 * m] & (res.gw > 0) & np.isfinite(res.gw) & (size > 0))
+        return nodes, s[:, nodes] / size[nodes], size[nodes] / res.gw[nodes]
 
     def _glue_inverse(self):
         """P = Σ⁰_Bc E, H, E and G of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
@@ -577,12 +623,13 @@ class PairUnit(Unit):
         contact solve (one sparse solve)."""
         return self._local(V, self.result.u)
 
-    def linearised(self, free: np.ndarray, factor: bool = True) -> "PairUnit":
+    def linearised(self, free: np.ndarray, factor: bool = True, springs=None) -> "PairUnit":
         """The pair made linear by an active set: the closed normal and stuck tangential rows
-        of `free` (`ContactResult.free`, (2m,)) held instead of the glue; open and slipping
-        rows carry forces that do not vary with V. S_p is affine where the active set holds
+        of `free` (`ContactResult.free`, (d m,)) held instead of the glue; open and slipping
+        rows carry forces that do not vary with V, except across a 3D slip (`springs`: the
+        disc's stiffness there, `across_slip`). In 2D S_p is affine where the active set holds
         ([21, (4.27)–(4.28)] piece by piece), and this pair's Schur complement `held_schur`
-        is its derivative there. Its Neumann solve stays the glued pair's generalized inverse
+        is its derivative there; in 3D with the springs it is the derivative at V. Its Neumann solve stays the glued pair's generalized inverse
         (S⁰_p)†: a preconditioner need only be positive definite, and no eigendecomposition
         per active set is needed (a held half can be singular beyond its rigid motions to
         rounding; measured: interface Newton's PCG iterations 70 → 49 on Hertz at 1.05e5
@@ -591,5 +638,5 @@ class PairUnit(Unit):
         lin = copy.copy(self)
         lin.glue = "active set"
         if factor:
-            lin.S = self.held_schur(np.flatnonzero(free))
+            lin.S = self.held_schur(np.flatnonzero(free), springs)
         return lin

@@ -687,8 +687,9 @@ def _mean_q(qs) -> float:
 # ---- interface Newton ---------------------------------------------------------------------------
 def _contact_residual(dec, U, d, bound, o, team):
     """S_con(U) = Σ_p R_pᵀ S_p(R_p U) of the Tresca problems with slip bounds `bound` (None:
-    all stick), and the active sets {pair index: free} of every pair (gathered); on a failed
-    local solve (None, None, message)."""
+    all stick), and the active sets {pair index: (free, across_slip)} of every pair (gathered:
+    the free rows and, in 3D, the slipping nodes' disc springs); on a failed local solve
+    (None, None, message)."""
     pieces, free, error = {}, {}, None
     t = time.perf_counter()
     for p in team.local(dec.pairs):                  # independent local contact solves
@@ -697,7 +698,7 @@ def _contact_residual(dec, U, d, bound, o, team):
         if res.status != Status.SOLVED:
             error = error or f"contact solve of pair {p.index}: {res.message}"
             r = np.zeros(p.gamma.size)
-        pieces[p.index], free[p.index] = r, res.free
+        pieces[p.index], free[p.index] = r, (res.free, p.across_slip())
     team.timings["contact"] += time.perf_counter() - t
     error = team.first_error(error) if team.comm is not None else error
     if error:
@@ -707,13 +708,17 @@ def _contact_residual(dec, U, d, bound, o, team):
 
 
 def _linearised(dec, free, team, cache: dict) -> list:
-    """The pairs linearised at the active sets `free` ({pair index: free}); the last set's are
-    kept in `cache` (with the operator J built on them, "J"), so a step whose active set did
-    not change refactors nothing."""
-    key = b"".join(free[p.index].tobytes() for p in dec.pairs)
+    """The pairs linearised at the active sets `free` ({pair index: (free, across_slip)}); the
+    last set's are kept in `cache` (with the operator J built on them, "J"), so a step whose
+    active set (and, in 3D, slip springs) did not change refactors nothing."""
+    key = b"".join(a.tobytes() for p in dec.pairs for a in (free[p.index][0], *(free[p.index][1] or ())))
     if cache.get("key") != key:
         cache.clear()
-        cache.update(key=key, pairs=[p.linearised(free[p.index], team.mine(p)) for p in dec.pairs])
+        pairs = []
+        for p in dec.pairs:
+            rows, springs = free[p.index]
+            pairs.append(p.linearised(rows, team.mine(p), springs))
+        cache.update(key=key, pairs=pairs)
     return cache["pairs"]
 
 
