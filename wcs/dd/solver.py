@@ -13,10 +13,11 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
 2. The outer iteration (`step`):
    - interface Newton (`newton`): J_k δ = F − S0 U_k − S_con(U_k) with
      J_k = S0 + Σ_p R_pᵀ S_p^{A_k} R_p, the pairs linearised at the active set A_k of
-     the last local contact solves (closed normal, stuck tangential rows), by PCG with
-     J_k's balancing preconditioner and Eisenstat–Walker tolerances; Tresca is piecewise
+     the last local contact solves (closed normal, stuck tangential rows; in 3D with the
+     stiffness across each slip on the disc, `PairUnit.across_slip`), by PCG with
+     J_k's balancing preconditioner and Eisenstat–Walker tolerances; Tresca in 2D is piecewise
      affine, so it ends once A_k settles (the residual of the interface equation is
-     checked). Coulomb: a fixed point over Tresca problems (slip bound from the last
+     checked); in 3D it converges quadratically near the solution. Coulomb: a fixed point over Tresca problems (slip bound from the last
      pressures, first all stick), as the monolithic solver.
    - the seed's successive approximations (`seed`) (4.37), (6.1):
      S0 U^k = F − S_con(U^{k−1}), each by PCG2 with the reduced preconditioner (6.7)
@@ -789,7 +790,8 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
     local contact solves at U_k, by PCG with J_k's balancing Neumann–Neumann preconditioner,
     from δ = 0 to a tolerance relative to the right-hand side (Eisenstat–Walker:
     η_k = min(forcing, 0.9 (‖r_k‖/‖r_{k−1}‖)²), never below what the outer tolerance needs).
-    S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves.
+    S_con is piecewise affine (Tresca 2D): once A_k is the solution's set one step solves; in
+    3D it is smooth along a slip on the disc and J_k its derivative there (`across_slip`).
     A full step can jump over the solution's piece (a node slipping one way, then the other):
     the step is halved until ‖r‖ decreases by (1 − 1e-4 t (1 − η)) (inexact Newton
     backtracking; δ is a descent direction of ‖r‖², J_k being S_con's derivative).
