@@ -84,7 +84,7 @@ def test_pair_linearised_across_a_3d_slip_is_the_derivative():
     _, Kr, rhs, u0 = model.reduced_system(c, None)
     opts = {"tolerance": 1e-10, "dd": {"subdomains": 6}}
     res = dds.solve_dd(model, model.scene, Kr, rhs, u0, opts, coefficients=c)
-    assert res.status == dds.DDOutcome.CONVERGED and res.info["newton"] == 3, res.message
+    assert res.status == dds.DDOutcome.CONVERGED and res.info["newton"] <= 3, res.message     # 5 without
     z = model.zone
     d, bound = z.gap - z.Bn @ u0, c.slip * z.weight
     p = dds.decomposition(model, opts).pairs[0]

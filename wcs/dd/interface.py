@@ -437,7 +437,8 @@ class PairUnit(Unit):
         tangent coordinates (`across_slip`)."""
         nodes, shat, _ = springs
         m = self.rows.size
-        return (self.Bt_c[m + nodes].multiply(shat[0][:, None]) - self.Bt_c[nodes].multiply(shat[1][:, None])).toarray()
+        t1, t2 = self.Bt_c[nodes], self.Bt_c[m + nodes]
+        return (t2.multiply(shat[0][:, None]) - t1.multiply(shat[1][:, None])).toarray()
 
     def _springs(self, WA, QA, compliance) -> np.ndarray:
         """W_Aᵀ (Q_A + D)⁻¹ W_A: the change of the Schur complement on B from springs of
@@ -629,12 +630,12 @@ class PairUnit(Unit):
         rows carry forces that do not vary with V, except across a 3D slip (`springs`: the
         disc's stiffness there, `across_slip`). In 2D S_p is affine where the active set holds
         ([21, (4.27)–(4.28)] piece by piece), and this pair's Schur complement `held_schur`
-        is its derivative there; in 3D with the springs it is the derivative at V. Its Neumann solve stays the glued pair's generalized inverse
-        (S⁰_p)†: a preconditioner need only be positive definite, and no eigendecomposition
-        per active set is needed (a held half can be singular beyond its rigid motions to
-        rounding; measured: interface Newton's PCG iterations 70 → 49 on Hertz at 1.05e5
-        unknowns, 36 → 39 on the tunnel). The dense operator only with `factor` (the rank that
-        owns the pair, which holds the factor)."""
+        is its derivative there; in 3D with the springs it is the derivative at V. Its Neumann
+        solve stays the glued pair's generalized inverse (S⁰_p)†: a preconditioner need only
+        be positive definite, and no eigendecomposition per active set is needed (a held half
+        can be singular beyond its rigid motions to rounding; measured: interface Newton's PCG
+        iterations 70 → 49 on Hertz at 1.05e5 unknowns, 36 → 39 on the tunnel). The dense
+        operator only with `factor` (the rank that owns the pair, which holds the factor)."""
         lin = copy.copy(self)
         lin.glue = "active set"
         if factor:

@@ -17,8 +17,9 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
      stiffness across each slip on the disc, `PairUnit.across_slip`), by PCG with
      J_k's balancing preconditioner and Eisenstat–Walker tolerances; Tresca in 2D is piecewise
      affine, so it ends once A_k settles (the residual of the interface equation is
-     checked); in 3D it converges quadratically near the solution. Coulomb: a fixed point over Tresca problems (slip bound from the last
-     pressures, first all stick), as the monolithic solver.
+     checked); in 3D it converges quadratically near the solution. Coulomb: a fixed point
+     over Tresca problems (slip bound from the last pressures, first all stick), as the
+     monolithic solver.
    - the seed's successive approximations (`seed`) (4.37), (6.1):
      S0 U^k = F − S_con(U^{k−1}), each by PCG2 with the reduced preconditioner (6.7)
      (injections oD_u (6.4)–(6.6): the ρ-weights over linear subdomains only, so 1 next to
