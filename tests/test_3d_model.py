@@ -136,7 +136,6 @@ def test_six_rigid_modes_span_the_kernel_and_a_free_block_is_refused():
 
 
 @pytest.mark.parametrize("key,value,words", [
-    ("glue", {"g": {"slave": "x0", "master": "x1"}}, "scene.glue: 3D does not support glued interfaces yet"),
     ("solver", {"method": "dd"}, "solver.method: 3D does not support the domain decomposition yet"),
 ])
 def test_what_3d_does_not_build_yet_is_refused_by_name(key, value, words):

@@ -198,8 +198,6 @@ class Model:
         """Exit 2, by name, for what a 3D scene asks and the model on tetrahedra does not do yet."""
         if self.dim != 3:
             return
-        if scene.glue:
-            raise StudyError("3D does not support glued interfaces yet", path="scene.glue")
         if self.options.method == "dd":
             raise StudyError("3D does not support the domain decomposition yet (solver.method: dd)",
                              path="solver.method")
