@@ -15,6 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import gmsh
 import numpy as np
 import pytest
 import yaml
@@ -23,6 +24,7 @@ from wcs.contact.mortar3d import mortar_integrals3d
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.scene.mesher3d import build_mesh3d
+from wcs.scene.session import Session
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,15 +40,15 @@ def plane(point, normal, body=None):
 
 
 def stack(base=0.25, block=None, **scene) -> dict:
-    """A soft block [0,1]² × [0, 0.5] glued on a stiff base [0,1]² × [−0.5, 0] (slave: the block's
+    """A soft block [0,1]² × [0, 0.25] glued on a stiff base [0,1]² × [−0.25, 0] (slave: the block's
     bottom). `block`: the block's own size (the bodies meshed apart: a nonmatching interface)."""
-    bodies = {"base": {"regions": [{"material": "stiff", "shape": {"box": [0, 0, -0.5, 1, 1, 0]}}]},
-              "block": {"regions": [{"material": "soft", "shape": {"box": [0, 0, 0, 1, 1, 0.5]}}]}}
+    bodies = {"base": {"regions": [{"material": "stiff", "shape": {"box": [0, 0, -0.25, 1, 1, 0]}}]},
+              "block": {"regions": [{"material": "soft", "shape": {"box": [0, 0, 0, 1, 1, 0.25]}}]}}
     if block is not None:
         bodies["base"]["mesh"], bodies["block"]["mesh"] = {"size": base}, {"size": block}
     d = {"study": "glue-3d",
          "scene": {"dimension": 3, "mesh": {"size": base}, "materials": MATERIALS, "bodies": bodies,
-                   "boundaries": {"bottom": plane([0, 0, -0.5], [0, 0, 1]), "top": plane([0, 0, 0.5], [0, 0, 1]),
+                   "boundaries": {"bottom": plane([0, 0, -0.25], [0, 0, 1]), "top": plane([0, 0, 0.25], [0, 0, 1]),
                                   "x0": plane([0, 0, 0], [1, 0, 0]), "y0": plane([0, 0, 0], [0, 1, 0]),
                                   "base_top": plane([0, 0, 0], [0, 0, 1], "base"),
                                   "block_bottom": plane([0, 0, 0], [0, 0, 1], "block")},
@@ -74,6 +76,7 @@ def test_a_nonmatching_glued_interface_passes_the_uniform_stress():
     displacement is the closed form u = ε x (ε of each material, u_z continuous at z = 0). The
     slave nodes on the rollers x = 0, y = 0 are excluded and their dual functions merged."""
     ev, res = solve(stack(0.25, 0.25 / 3))
+    assert all(m.shape[1] == 0 for m in ev.model.free_modes.values())   # the block held through the glue
     g = ev.model.glue[0].rows
     x = ev.smesh.mesh.p
     on_rollers = np.isclose(x[0, g.dropped], 0.0) | np.isclose(x[1, g.dropped], 0.0)
@@ -88,8 +91,8 @@ def test_a_nonmatching_glued_interface_passes_the_uniform_stress():
     body = ev.smesh.node_body
     for b, mat in enumerate(("stiff", "soft")):
         eps = strain(mat, tau)
-        exact = eps[:, None] * (x - [[0.0], [0.0], [-0.5]]) if mat == "stiff" else \
-            eps[:, None] * x + [[0.0], [0.0], [0.5 * strain("stiff", tau)[2]]]
+        exact = eps[:, None] * (x - [[0.0], [0.0], [-0.25]]) if mat == "stiff" else \
+            eps[:, None] * x + [[0.0], [0.0], [0.25 * strain("stiff", tau)[2]]]
         assert np.abs(u[:, body == b] - exact[:, body == b]).max() < 1e-8 * np.abs(exact).max()
 
 
@@ -122,12 +125,12 @@ def test_a_glued_stack_under_uniform_heating_expands_freely():
     """The temperature held on the block's top only: heat passes the nonmatching glue (T uniform
     in both bodies), and the stack on rollers expands freely, u = αΔT (x − x_0), no stress."""
     dT = 40.0
-    ev, res = solve(stack(0.25, 0.25 / 3, loads={},
+    ev, res = solve(stack(0.25, 0.125, loads={},
                           thermal={"reference": 290.0, "temperature": {"top": 290.0 + dT}}))
     assert np.abs(res.state.T - (290.0 + dT)).max() < 1e-8 * dT
     alpha = MATERIALS["stiff"]["expansion"]
     u = res.state.u.reshape(-1, 3).T
-    exact = alpha * dT * (ev.smesh.mesh.p - [[0.0], [0.0], [-0.5]])
+    exact = alpha * dT * (ev.smesh.mesh.p - [[0.0], [0.0], [-0.25]])
     assert np.abs(u - exact).max() < 1e-8 * np.abs(exact).max()
     beta = MATERIALS["stiff"]["E"] / (1 - 2 * MATERIALS["stiff"]["nu"]) * alpha      # (3λ + 2μ) α
     assert np.abs(res.state.stress).max() < 1e-8 * beta * dT
@@ -137,8 +140,8 @@ def test_a_body_glued_to_its_partner_moves_with_the_cluster():
     """The block has no support of its own: glued, it takes the cluster's joint rigid modes. With
     the base on the bottom roller only, the x and y translations and the rotation about z of
     both bodies together (listed under the base): rigid for the whole pair (K R = 0) and
-    satisfying the glue rows; with the x = 0 and y = 0 rollers added the pair is held and solves."""
-    ev = Evaluator(load_study(stack(0.25, 0.25 / 3, supports={"bottom": ROLLERS["bottom"]})))
+    satisfying the glue rows (held by the rollers, the pair solves: the patch test above)."""
+    ev = Evaluator(load_study(stack(0.25, 0.125, supports={"bottom": ROLLERS["bottom"]})))
     m = ev.model
     R = m.free_modes["base"]
     assert m.free_modes["block"].shape[1] == 0 and R.shape[1] == 3
@@ -151,8 +154,6 @@ def test_a_body_glued_to_its_partner_moves_with_the_cluster():
         assert np.abs(g.C @ R[k::3]).max() < 1e-12 * np.abs(R).max()   # no jump across the glue
     with pytest.raises(StudyError, match="body 'base' is not held: three rigid motions are free"):
         ev.evaluate(ev.study.nominal())
-    ev, _ = solve(stack(0.25, 0.25 / 3))
-    assert all(v.shape[1] == 0 for v in ev.model.free_modes.values())
 
 
 def test_excluded_slave_nodes_keep_the_rows_affine():
@@ -237,13 +238,13 @@ def test_the_estimate_bounds_the_count_of_finer_regions(L, h, s, shape):
 def test_wcs_check_runs_a_3d_study_with_glue_and_a_region_size(tmp_path):
     """A glued stack whose block has a finer core region: `wcs check` accepts it (exit 0) and
     solves the nominal case."""
-    d = stack(0.25, 0.25 / 3)
+    d = stack(0.25, 0.125)
     d["scene"]["bodies"]["base"]["regions"] = [
-        {"material": "stiff", "shape": {"box": [0, 0, -0.5, 1, 1, 0]}},
-        {"material": "soft", "name": "core", "shape": {"box": [0.25, 0.25, -0.4, 0.75, 0.75, -0.1]},
+        {"material": "stiff", "shape": {"box": [0, 0, -0.25, 1, 1, 0]}},
+        {"material": "soft", "name": "core", "shape": {"box": [0.25, 0.25, -0.2, 0.75, 0.75, -0.05]},
          "mesh": {"size": 0.1}}]
     d["uncertain"] = {"loads.top.traction.2": [-3.0e6, -1.0e6]}
-    d["scene"]["regions_of_interest"] = {"core": {"box": [0.25, 0.25, -0.4, 0.75, 0.75, -0.1], "body": "base"}}
+    d["scene"]["regions_of_interest"] = {"core": {"box": [0.25, 0.25, -0.2, 0.75, 0.75, -0.05], "body": "base"}}
     d["criteria"] = [{"name": "stress", "kind": "von_mises", "regions": ["core"]}]
     study = tmp_path / "glued.yaml"
     study.write_text(yaml.safe_dump(d))
@@ -252,3 +253,21 @@ def test_wcs_check_runs_a_3d_study_with_glue_and_a_region_size(tmp_path):
                          env=env, cwd=tmp_path, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_a_region_size_on_a_mesh_file_is_refused_at_its_key(tmp_path):
+    """A mesh file is used as it is: a region's own size there is exit 2 at its key path (it
+    would be silently ignored)."""
+    with Session():
+        gmsh.model.occ.addBox(0, 0, 0, 1, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(3, [1], name="cube")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
+        gmsh.model.mesh.generate(3)
+        gmsh.write(str(tmp_path / "cube.msh"))
+    d = {"study": "file-3d", "scene": {"dimension": 3, "mesh": {"file": "cube.msh"}, "materials": MATERIALS,
+                                       "bodies": {"cube": {"regions": [{"material": "stiff", "mesh": {"size": 0.1}}]}}}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(d))
+    with pytest.raises(StudyError, match="scene.bodies.cube.regions.0.mesh: the scene's mesh is a file: a region "
+                                         "cannot have its own mesh size"):
+        load_study(tmp_path / "s.yaml")
