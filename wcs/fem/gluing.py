@@ -4,8 +4,9 @@ A scene's ``glue: {NAME: {slave: BOUNDARY, master: BOUNDARY}}`` ties the two
 sides: the weak continuity ``∫ ψ_j [u] ds = 0`` for every dual multiplier ψ_j
 of the slave side ([33] with the dual basis of [101]; `wcs.contact.mortar` on
 the edges of a triangle mesh, `wcs.contact.mortar3d` on the faces of a
-tetrahedral one, the same rows) reads, after division by D_jj, ``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the
-slave DOFs are functions of the master DOFs and are eliminated.
+tetrahedral one: rows of the same form) reads, after division by D_jj,
+``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the slave DOFs are functions of the
+master DOFs and are eliminated.
 
 It composes with the nodal constraint elimination (`wcs.fem.constraints`):
 with ``u = P v`` (``P``: identity on the kept DOFs, the mortar rows on the
@@ -15,8 +16,9 @@ resolved by repeated substitution) and the nodal elimination
 composition is ``u = (P T) w + (P U0) c``, the identity columns of the slave
 DOFs dropped. Slave nodes that carry a support keep their support and are
 left out of the glue (their dual function merged into the neighbours',
-``exclude=`` of `mortar.mortar_integrals` / `mortar3d.side_integrals3d`). On matching sides ``D⁻¹M`` is the
-identity on coincident nodes: the glue is exactly a node-to-node tie.
+``exclude=`` of `mortar.mortar_integrals` / `mortar3d.side_integrals3d`). On
+matching sides ``D⁻¹M`` is the identity on coincident nodes: the glue is
+exactly a node-to-node tie.
 
 The same rows glue the temperature (scalar) across the interface
 (`glue_heat`), so heat flows through glued interfaces as through a body.
