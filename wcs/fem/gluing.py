@@ -77,6 +77,9 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
                 raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
         sf, mf = smesh.boundaries[spec.slave], smesh.boundaries[spec.master]
         mi = integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
+        if mi.slave.size == 0 and taken.issuperset(np.unique(smesh.mesh.facets[:, sf]).tolist()):
+            raise StudyError("every node of the slave side carries a support (or is glued by an earlier "
+                             "glue): nothing is left to glue", path=f"{path}.slave")
         if mi.slave.size == 0:
             raise StudyError(f"the glued sides do not face each other (no slave {side_kind} projects "
                              "onto the master side)", path=path)
