@@ -96,6 +96,17 @@ def test_a_nonmatching_glued_interface_passes_the_uniform_stress():
         assert np.abs(u[:, body == b] - exact[:, body == b]).max() < 1e-8 * np.abs(exact).max()
 
 
+@pytest.mark.slow
+def test_a_coarse_slave_side_passes_the_uniform_stress_too():
+    """The same patch with the roles swapped (slave: the base's coarse top, 3× coarser than its
+    master): the dual mortar patch test holds whichever side is the slave."""
+    ev, res = solve(stack(0.25, 0.25 / 3, glue={"joint": {"slave": "base_top", "master": "block_bottom"}}))
+    assert ev.model.glue[0].rows.slave.size < np.unique(ev.smesh.boundary_nodes("block_bottom")).size / 3
+    s = res.state.stress
+    assert np.abs(s[2] + P).max() < 1e-8 * P
+    assert np.abs(np.delete(s, 2, axis=0)).max() < 1e-8 * P
+
+
 def test_a_glue_on_matching_faces_is_the_one_body_problem():
     """Faces matching (one gmsh fragment), two materials of different ν, a clamped bottom (no
     slave node excluded) and a shear traction: the glued pair's displacement equals that of one
