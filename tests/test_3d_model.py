@@ -135,16 +135,6 @@ def test_six_rigid_modes_span_the_kernel_and_a_free_block_is_refused():
         model.solve(model.nominal)
 
 
-@pytest.mark.parametrize("key,value,words", [
-    ("glue", {"g": {"slave": "x0", "master": "x1"}}, "scene.glue: 3D does not support glued interfaces yet"),
-])
-def test_what_3d_does_not_build_yet_is_refused_by_name(key, value, words):
-    d = cube(supports=ROLLERS)
-    d["scene"][key] = value
-    with pytest.raises(StudyError, match=words):
-        Evaluator(load_study(d))
-
-
 def phi(x):
     return np.sin(np.pi * x[0]) * np.sin(np.pi * x[1]) * np.sin(np.pi * x[2])
 

@@ -165,8 +165,6 @@ BAD = [
      "unknown key"),
     (_put(["mesh", "refine"], [{"ball": {"center": [0.5, 0.5, 0], "radius": 0.1}, "size": 1e-4}]), "scene.mesh.refine.0.size",
      "more than mesh.max_cells"),
-    (_put(["bodies", "block", "regions", 0, "mesh"], {"size": 0.1}), "scene.bodies.block.regions.0",
-     "a region's own mesh size"),
     (_put(["bodies", "block", "regions", 0, "shape", "box"], [0, 0, -0.2, 1, 1, 0.5]), "scene.bodies.block",
      "overlaps body 'base'"),
 ]

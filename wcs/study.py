@@ -428,8 +428,7 @@ def _check_references(scene: Scene, src: _Source) -> None:
             _require(name, boundaries, "boundary", src, (block, name))
     for name in scene.body_forces:
         _require(name, parts, "body or region", src, ("body_forces", name))
-    if scene.dimension == 2:
-        _check_mesh_references(scene, src)
+    _check_mesh_references(scene, src)
     for name, roi in scene.regions_of_interest.items():
         path = ("regions_of_interest", name)
         if roi.boundary is not None:

@@ -28,7 +28,13 @@ whose D_jj is below 1e-6 of its tributary area (a third of its triangles) has no
 row (``dropped``). Slave nodes on the boundary of the slave side or held by a
 support are treated as in the 2D contact mortar: no crosspoint modification (a
 support only removes the constrained DOFs from the rows; a node at the edge of
-the covered zone gets its row from its covered triangles). Master triangles
+the covered zone gets its row from its covered triangles). Excluded slave nodes
+(``exclude``: gluing, a slave node carrying a support) are the 2D glue's
+crosspoint modification: on each slave triangle the dual function of an excluded
+vertex is shared equally by the triangle's kept vertices (ψ̃_i = ψ_i + ψ_a / k, k
+kept vertices; a triangle with no kept vertex contributes nothing), the excluded
+node has no row and a kept row gets ``+S_ia / D_ii`` on it (``S_ia = ∫ψ̃_i φ_a``).
+Σ_i ψ̃_i = Σ_i ψ_i, so the rows still see no jump in a rigid motion. Master triangles
 that overlap in projection (two layers of the master side over one slave
 triangle) are a `StudyError`: the covered area would exceed the triangle's.
 
@@ -112,10 +118,11 @@ class MortarIntegrals3D:
 
 
 def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndarray,
-                       path: str = "mortar") -> MortarIntegrals3D:
+                       exclude=(), path: str = "mortar") -> MortarIntegrals3D:
     """Segment-based dual mortar integrals (see the module doc) of the slave triangles
     ``slave_tri`` (S, 3) and master triangles ``master_tri`` (M, 3), node ids into the points
-    ``x`` (n, 3), each ordered counter-clockwise about its outward normal."""
+    ``x`` (n, 3), each ordered counter-clockwise about its outward normal; the slave nodes
+    ``exclude`` get no row (their dual functions merged into their neighbours')."""
     slave_tri = np.asarray(slave_tri, dtype=np.int64).reshape(-1, 3)
     master_tri = np.asarray(master_tri, dtype=np.int64).reshape(-1, 3)
     if slave_tri.shape[0] == 0 or master_tri.shape[0] == 0:
@@ -127,6 +134,7 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
                          "must belong to different bodies", path=path)
     sn, sarea = triangle_normals(x, slave_tri)
     mnu, _ = triangle_normals(x, master_tri)
+    excluded = np.isin(snodes, np.asarray(exclude, dtype=np.int64))
     mc = x[master_tri].mean(axis=1)
     mrad = np.linalg.norm(x[master_tri] - mc[:, None, :], axis=2).max(axis=1)
 
@@ -135,6 +143,7 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
     Nrow = np.zeros((ns, 3))                     # ∫ φ_j ν_master ds
     covered = np.zeros(slave_tri.shape[0])
     rows, cols, vals = [], [], []                # slave-local row, master node, M value
+    merged = []                                  # (slave-local rows, excluded nodes, S values)
     for e, tri in enumerate(slave_tri):
         xs, n0 = x[tri], sn[e]
         e1 = (xs[1] - xs[0]) / np.linalg.norm(xs[1] - xs[0])
@@ -184,15 +193,24 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
         De = Me.sum(axis=1)
         psi = (De[:, None] * np.linalg.inv(Me)) @ Ns                # ψ = D_T M_T⁻¹ φ
         loc = sloc[e]
+        ex = excluded[loc]
+        if ex.all():
+            continue
         Drow[loc] += De
         Nrow[loc] += Ns @ (w[:, None] * np.concatenate(nus))
+        if ex.any():                                                # ψ̃ = Q ψ: the excluded ψ shared
+            Q = np.diag((~ex).astype(float))
+            Q[np.ix_(~ex, ex)] = 1.0 / np.count_nonzero(~ex)
+            psi = Q @ psi
+            S = Q[:, ex] * De[ex]                                   # S_ia = ∫ψ̃_i φ_a, a excluded
+            merged.append((np.repeat(loc, ex.sum()), np.tile(snodes[loc[ex]], 3), S.ravel()))
         Mval = np.einsum("ig,g,kg->igk", psi, w, Nm)                # (3 slave, G, 3 master)
         rows.append(np.broadcast_to(loc[:, None, None], Mval.shape).ravel())
         cols.append(np.broadcast_to(Mc[None, :, :], Mval.shape).ravel())
         vals.append(Mval.ravel())
 
     trib = np.bincount(sloc.ravel(), np.repeat(sarea / 3.0, 3), ns)
-    keep = Drow > MIN_COVER * trib
+    keep = (Drow > MIN_COVER * trib) & ~excluded
     m = int(keep.sum())
     newrow = np.full(ns, -1)
     newrow[keep] = np.arange(m)
@@ -205,8 +223,12 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
         M = sp.csr_matrix((m, nn))
     M.sum_duplicates()
     Dk = Drow[keep]
-    C = (sp.csr_matrix((np.ones(m), (np.arange(m), snodes[keep])), shape=(m, nn))
-         - sp.diags(1.0 / Dk) @ M).tocsr()
+    C = sp.csr_matrix((np.ones(m), (np.arange(m), snodes[keep])), shape=(m, nn)) - sp.diags(1.0 / Dk) @ M
+    if merged:
+        r, c, v = (np.concatenate(a) for a in zip(*merged))
+        sel = keep[r]
+        C = C + sp.diags(1.0 / Dk) @ sp.csr_matrix((v[sel], (newrow[r[sel]], c[sel])), shape=(m, nn))
+    C = C.tocsr()
     C.data[np.abs(C.data) < 1e-14] = 0.0
     C.eliminate_zeros()
     master = np.setdiff1d(np.unique(C.indices), snodes)
@@ -240,12 +262,18 @@ class MortarPairs3D:
         return int(self.slave.size)
 
 
+def side_integrals3d(mesh, slave_facets, master_facets, exclude=(), path: str = "mortar") -> MortarIntegrals3D:
+    """`mortar_integrals3d` of a slave and a master side of a ``MeshTet`` (boundary facet
+    indices), as `wcs.contact.mortar.mortar_integrals` of a triangle mesh's sides."""
+    return mortar_integrals3d(mesh.p.T, oriented_facets(mesh, np.unique(slave_facets)),
+                              oriented_facets(mesh, np.unique(master_facets)), exclude=exclude, path=path)
+
+
 def mortar_sides3d(mesh, slave_facets, master_facets, path: str = "contact") -> MortarPairs3D:
     """Mortar contact rows between a slave and a master side of a ``MeshTet`` (boundary
     facet indices; see the module doc)."""
     x = mesh.p.T
-    mi = mortar_integrals3d(x, oriented_facets(mesh, np.unique(slave_facets)),
-                            oriented_facets(mesh, np.unique(master_facets)), path=path)
+    mi = side_integrals3d(mesh, slave_facets, master_facets, path=path)
     if mi.slave.size == 0:
         raise StudyError("the slave and master sides do not face each other (no slave triangle "
                          "projects onto the master side along its normal)", path=path)

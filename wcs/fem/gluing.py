@@ -2,9 +2,11 @@ r"""Glued interfaces between bodies meshed independently: dual mortar eliminatio
 
 A scene's ``glue: {NAME: {slave: BOUNDARY, master: BOUNDARY}}`` ties the two
 sides: the weak continuity ``∫ ψ_j [u] ds = 0`` for every dual multiplier ψ_j
-of the slave side ([33] with the dual basis of [101]; `wcs.contact.mortar`)
-reads, after division by D_jj, ``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the
-slave DOFs are functions of the master DOFs and are eliminated.
+of the slave side ([33] with the dual basis of [101]; `wcs.contact.mortar` on
+the edges of a triangle mesh, `wcs.contact.mortar3d` on the faces of a
+tetrahedral one: rows of the same form) reads, after division by D_jj,
+``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the slave DOFs are functions of the
+master DOFs and are eliminated.
 
 It composes with the nodal constraint elimination (`wcs.fem.constraints`):
 with ``u = P v`` (``P``: identity on the kept DOFs, the mortar rows on the
@@ -13,9 +15,10 @@ resolved by repeated substitution) and the nodal elimination
 ``u = T w + U0 c`` built on all nodes (slave nodes carry no support), the
 composition is ``u = (P T) w + (P U0) c``, the identity columns of the slave
 DOFs dropped. Slave nodes that carry a support keep their support and are
-left out of the glue (their dual function merged into the neighbour's,
-`mortar.mortar_integrals(exclude=...)`). On matching sides ``D⁻¹M`` is the
-identity on coincident nodes: the glue is exactly a node-to-node tie.
+left out of the glue (their dual function merged into the neighbours',
+``exclude=`` of `mortar.mortar_integrals` / `mortar3d.side_integrals3d`). On
+matching sides ``D⁻¹M`` is the identity on coincident nodes: the glue is
+exactly a node-to-node tie.
 
 The same rows glue the temperature (scalar) across the interface
 (`glue_heat`), so heat flows through glued interfaces as through a body.
@@ -40,8 +43,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.mortar import MortarIntegrals, mortar_integrals
+from ..contact.mortar3d import MortarIntegrals3D, side_integrals3d
 from ..errors import StudyError
 from .constraints import Elimination
+
+SIDE_INTEGRALS = {2: mortar_integrals, 3: side_integrals3d}     # the dual mortar rows by dimension
 
 
 @dataclass(frozen=True)
@@ -49,7 +55,7 @@ class Glue:
     name: str
     slave_body: int
     master_bodies: tuple          # a master side may run along several bodies
-    rows: MortarIntegrals
+    rows: MortarIntegrals | MortarIntegrals3D
 
 
 def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
@@ -61,6 +67,8 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
     the later glues see it as a known neighbour (substitution resolves the chain)."""
     out = []
     nb = smesh.node_body
+    dim = smesh.mesh.p.shape[0]
+    integrals, side_kind = SIDE_INTEGRALS[dim], ("edge", "triangle")[dim - 2]
     taken = set(np.asarray(supported_nodes, dtype=np.int64).tolist())
     for name, spec in scene.glue.items():
         path = f"scene.glue.{name}"
@@ -68,9 +76,12 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
             if getattr(spec, side) not in smesh.boundaries:
                 raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
         sf, mf = smesh.boundaries[spec.slave], smesh.boundaries[spec.master]
-        mi = mortar_integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
+        mi = integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
+        if mi.slave.size == 0 and taken.issuperset(np.unique(smesh.mesh.facets[:, sf]).tolist()):
+            raise StudyError("every node of the slave side carries a support (or is glued by an earlier "
+                             "glue): nothing is left to glue", path=f"{path}.slave")
         if mi.slave.size == 0:
-            raise StudyError("the glued sides do not face each other (no slave edge projects "
+            raise StudyError(f"the glued sides do not face each other (no slave {side_kind} projects "
                              "onto the master side)", path=path)
         sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])
         mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])

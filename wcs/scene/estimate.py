@@ -123,8 +123,14 @@ def estimate_cells(scene) -> tuple[float, str]:
 # and the embedded balls and cylinders of interest) is meshed at s = min(h, 2 pi r / N), N =
 # Mesh.MeshSizeFromCurvature: the solid's volume at s, and a halo outside where the size grows
 # as s + d up to h, whose surface at distance d has area A(d): 8.49 * integral of A(d) / (s + d)^3.
+# A region's own size s < h is a refine zone of size s on the region's sphere or cylinder (else
+# its bounding box) whose halo grows by REGION_GRADING: gmsh carries the size of the region's
+# faces into the neighbouring volumes at about that rate (measured: the estimate is 1.2-2.5x
+# the meshed count with a box, slab, ball or cylinder region at s = h/2.5 to h/5, whatever
+# `mesh.grading`; tests/test_glue3d.py checks it).
 CELLS_PER_H3 = 6.0 * math.sqrt(2.0)
 HALO_POINTS = 65
+REGION_GRADING = DEFAULT_GRADING
 
 
 def solid_box(solid) -> tuple[float, ...]:
@@ -269,4 +275,16 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
         zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(spec.mesh.refine if spec.mesh else [])]
         parts += [(_refined3d(ref, scene, h, grading, volume), p) for ref, p in zones
                   if ref.size < h and (ref.boundary is None or ref.boundary in scene.boundaries)]
+        parts += [(_refined3d(_region_zone(r.shape, r.mesh.size), scene, h, REGION_GRADING, volume),
+                   f"bodies.{body}.regions.{i}.mesh.size") for i, r in enumerate(spec.regions)
+                  if r.mesh is not None and r.mesh.size < h]
     return sum(c for c, _ in parts), max(parts)[1]
+
+
+def _region_zone(solid, size: float) -> spec3d.Refinement:
+    """A region's own size as a refine zone: its sphere or cylinder, else its bounding box."""
+    if solid.sphere is not None and not solid.intersect:
+        return spec3d.Refinement(ball=solid.sphere, size=size)
+    if solid.cylinder is not None and not solid.intersect:
+        return spec3d.Refinement(cylinder=solid.cylinder, size=size)
+    return spec3d.Refinement(box=list(solid_box(solid)), size=size)

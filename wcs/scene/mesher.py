@@ -188,19 +188,20 @@ def _set_sizes(size: float, callback) -> None:
         gmsh.model.mesh.setSizeCallback(callback)
 
 
-def _region_entity_sizes(owner: dict, regions_flat: list) -> dict:
-    """{(dim, tag): size} for the surfaces of regions with ``mesh: {size}`` and their
-    boundary curves / points (the smallest size of the surfaces around them)."""
+def _region_entity_sizes(owner: dict, regions_flat: list, dim: int = 2) -> dict:
+    """{(dim, tag): size} for the pieces (surfaces in 2D, volumes in 3D) of regions with
+    ``mesh: {size}`` and the entities bounding them, down to the points (the smallest size
+    of the pieces around them)."""
     sizes = {}
     for tag, (_, rg) in owner.items():
         rs = regions_flat[rg].mesh
         if rs is not None:
             s = float(rs.size)
-            sizes[(2, tag)] = s
-            for dim, t in gmsh.model.getBoundary([(2, tag)], combined=False, oriented=False, recursive=False):
-                sizes[(1, abs(t))] = min(sizes.get((1, abs(t)), s), s)
-                for _, pt in gmsh.model.getBoundary([(1, abs(t))], combined=False, oriented=False):
-                    sizes[(0, abs(pt))] = min(sizes.get((0, abs(pt)), s), s)
+            level = [(dim, tag)]
+            while level:
+                for dt in level:
+                    sizes[dt] = min(sizes.get(dt, s), s)
+                level = sorted({(d, abs(t)) for d, t in gmsh.model.getBoundary(level, combined=False, oriented=False)})
     return sizes
 
 

@@ -38,6 +38,8 @@ Each body gets its own copy of the nodes on faces shared with another body. The 
 bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc, and finer
 in the ``mesh.refine`` zones ``{box | ball | cylinder | boundary, size}``: the size at x is
 ``min(size, min_r (size_r + grading · dist_r(x)))`` (``mesh.grading``, default 0.5), as in 2D.
+A region's own ``mesh: {size}`` bounds the size in its volumes and on their faces, edges and
+corners (the smallest of the regions around a shared face), as in 2D: regions stay conforming.
 If any body has its own ``bodies.<b>.mesh: {size, refine}``, every body is meshed in a gmsh model of its own after the
 global fragment (which still decides ownership and overlaps), with its size or the scene's: the
 faces it shares with other bodies are then nonmatching (mortar contact) and carry no imprint
@@ -63,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher import fragment_pieces, piece_owners, region_names
+from .mesher import _region_entity_sizes, fragment_pieces, piece_owners, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -188,21 +190,24 @@ def _refinements(scene: Scene, entries: list[Refinement], path0: str):
     return refs
 
 
-def _set_sizes(scene: Scene, size: float, body: str | None = None) -> None:
+def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=None) -> None:
     """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
-    zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`);
-    a uniform size is gmsh's own bound ``Mesh.MeshSizeMax``."""
+    zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`),
+    and at most a region's own size in its volumes and on their faces, edges and corners
+    (``entity_size``: {(dim, tag): size}, `mesher._region_entity_sizes`); a uniform size is
+    gmsh's own bound ``Mesh.MeshSizeMax``."""
     grading = float(DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading)
     refs = _refinements(scene, scene.mesh.refine, "scene.mesh.refine")
     if body is not None and scene.bodies[body].mesh is not None:
         refs += _refinements(scene, scene.bodies[body].mesh.refine, f"scene.bodies.{body}.mesh.refine")
+    entity_size = entity_size or {}
     gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-    if not refs:
+    if not refs and not entity_size:
         gmsh.model.mesh.removeSizeCallback()
         return
 
     def callback(dim, tag, x, y, z, lc):
-        h = min(lc, size)
+        h = min(lc, size, entity_size.get((dim, tag), size))
         for s, d in refs:
             if s < h:
                 h = min(h, s + grading * d(x, y, z))
@@ -243,7 +248,7 @@ def _extract(owner: dict, inside: dict):
     return xyz, np.concatenate(tets), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
 
 
-def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list):
+def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list, regions_flat: list):
     """Each body meshed in a gmsh model of its own (its regions and the embedded regions of
     interest fragmented together), with its ``mesh.size`` or the scene's; the concatenation,
     bodies in scene order, as `_extract` gives it."""
@@ -257,7 +262,8 @@ def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list
         covered, inside = fragment_pieces(solids, [_roi_solid(scene.regions_of_interest[n], f"scene.regions_of_interest.{n}")
                                                    for n in embed], dim=3)
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
-        _set_sizes(scene, size if bspec.mesh is None else bspec.mesh.size, body)
+        _set_sizes(scene, size if bspec.mesh is None else bspec.mesh.size, body,
+                   _region_entity_sizes(owner, regions_flat, dim=3))
         gmsh.model.mesh.generate(3)
         xyz, tet, cb, cr, ci = _extract(owner, inside)
         gmsh.model.remove()
@@ -304,12 +310,14 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
             lo, hi = np.array(gmsh.model.getBoundingBox(-1, -1)).reshape(2, 3)
             size = (scene.mesh.size if scene.mesh.size is not None
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
+            regions_flat = [reg for body in bodies for reg in scene.bodies[body].regions]
             if not any(scene.bodies[body].mesh for body in bodies):
-                _set_sizes(scene, size)
+                _set_sizes(scene, size, entity_size=_region_entity_sizes(owner, regions_flat, dim=3))
                 gmsh.model.mesh.generate(3)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
             else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching
-                xyz, tet, cell_body, cell_region, in_roi = _mesh_bodies_separately(scene, bodies, size, embed)
+                xyz, tet, cell_body, cell_region, in_roi = _mesh_bodies_separately(scene, bodies, size, embed,
+                                                                                   regions_flat)
         finally:
             gmsh.option.setNumber("Mesh.Algorithm3D", previous)
             gmsh.model.mesh.removeSizeCallback()

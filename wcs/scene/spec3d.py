@@ -2,7 +2,7 @@
 `wcs.scene.spec`, with three-component vectors (`u`, `traction`, `body_forces`, `point`,
 `normal`), solids (box, cylinder, sphere, extrude, halfspace, with `minus` / `intersect`), face
 selectors (plane, box, cylinder, sphere) and region selectors (box, ball, cylinder, boundary).
-Materials, contacts, glue and thermal data are the 2D models. `wcs.scene.mesher3d` reads these
+Materials, a region's `mesh: {size}`, contacts, glue and thermal data are the 2D models. `wcs.scene.mesher3d` reads these
 objects by attribute."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 from pydantic import AfterValidator, Field, model_validator
 
 from .spec import (BODY_FORCE, FEATURE, FEATURE_MIN, LENGTH, STRESS, Contact, Coordinate, Frozen, Glue,
-                   Material, Name, Shape, Thermal, _exactly_one)
+                   Material, Name, RegionMesh, Shape, Thermal, _exactly_one)
 
 XYZ = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 Six = Annotated[list[Coordinate], Field(min_length=6, max_length=6)]
@@ -25,14 +25,6 @@ def _nonzero(v: list[float]) -> list[float]:
 
 
 Vector = Annotated[XYZ, AfterValidator(_nonzero)]
-
-
-def _not_yet(data, keys: dict[str, str]):
-    """Refuse, by name, the keys of the 2D format that 3D does not support yet."""
-    for key, what in keys.items():
-        if isinstance(data, dict) and key in data:
-            raise ValueError(f"3D does not support {what} yet (`{key}`)")
-    return data
 
 
 def _ordered(b: list[float], strict: bool) -> list[float]:
@@ -109,11 +101,7 @@ class Region(Frozen):
     material: str
     shape: Optional[Solid] = None          # required unless the scene's mesh is a file
     name: Optional[Name] = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _sizes_not_yet(cls, data):
-        return _not_yet(data, {"mesh": "a region's own mesh size"})
+    mesh: Optional[RegionMesh] = None      # the size inside the region's volume (and on its faces)
 
 
 class Refinement(Frozen):
