@@ -429,7 +429,10 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     cycle). Such a tangent's equation (κ times the normal one, κ = W_nt / W_nn) is dropped
     with λt = 0, and the pair is then moved along the null direction (κ, −1) to the minimum
     norm split λn + κλt = const: λ = (λn, 0) / (1 + κ²) · (1, κ) — the least-squares
-    solution at the cost of one LU (one tangent per node is taken to be so tied). A free row
+    solution at the cost of one LU (one tangent per node is taken to be so tied). On a disc
+    (k = 2) the split is left at λt = 0 instead, the one that keeps |λt,i| ≤ gw_i most
+    feasible: the minimum norm split puts κλn/(1 + κ²) on the tangent, beyond gw on a fault
+    node held by a roller, and Newton then cycled between stick and slip there. A free row
     that is exactly zero (a node held by supports on both sides, a row of round-off made null
     by `null_rows`) is left out with λ = 0, the least-squares value: on the 3D tunnel 154 of
     789 rows are such (most of them tangents along the axis, held by rollers front and back),
@@ -471,7 +474,7 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         if disc is not None and len(disc[0]):
             x += np.linalg.lstsq(M, rhs - M @ x, rcond=None)[0]
     lam[F] = x[: len(F)]
-    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k))
+    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k)) if k == 1 else np.zeros(0, dtype=int)
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
     lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)

@@ -1,0 +1,36 @@
+"""3D Tresca semismooth Newton on faults held by rollers, and its stopping scale.
+
+The tunnel slice of tests/test_contact3d_robust.py with its fault turned 30° about the vertical
+through the slice's centre (the oblique variant of studies/tunnel-fault-oblique-3d.yaml). Where
+the fault meets the x-roller on the left side, both of its sides have u_x = 0: the fault's normal
+row and its tangent along the dip act on one relative motion (a redundant pair), and the split
+of their force between the two is free. Split at the minimum norm, the tangent carried
+κλn/(1 + κ²) ≈ 0.12 λn, beyond the slip bound g w, so the node was predicted to slip, then to
+stick again: Newton cycled between the two (99 iterations with the dual-QP restart on this
+scene; on the shipped oblique study at 8 m / 1 m, 400 iterations and status 1). With the tied
+tangent at λt = 0 it converges in 7.
+"""
+import numpy as np
+
+from test_contact3d_robust import solve_and_compare, tunnel_fault_3d
+
+
+def oblique(d: dict, strike_deg: float = 30.0) -> dict:
+    """The fault plane of `tunnel_fault_3d` turned by `strike_deg` about the vertical through
+    (0, length/2, 0): normal (−2 cos s, −2 sin s, 3)."""
+    s = np.radians(strike_deg)
+    normal = [float(-2 * np.cos(s)), float(-2 * np.sin(s)), 3.0]
+    length = d["scene"]["boundaries"]["back"]["plane"]["point"][1]
+    point = [0.0, length / 2, 0.0]
+    for body, sign in (("hanging", -1.0), ("footwall", 1.0)):
+        for r in d["scene"]["bodies"][body]["regions"]:
+            r["shape"]["intersect"] = [{"halfspace": {"point": point, "normal": [sign * x for x in normal]}}]
+    for b in ("fault_h", "fault_f"):
+        d["scene"]["boundaries"][b]["plane"] = {"point": point, "normal": normal}
+    return d
+
+
+def test_an_oblique_fault_on_a_roller_converges_without_cycling():
+    a = solve_and_compare(oblique(tunnel_fault_3d(size=20.0, fine=3.0)))
+    assert (a.active == 1).any() and (a.active == 2).any()           # stick and slip on the fault
+    assert a.iterations <= 12
