@@ -11,6 +11,10 @@ scene; on the shipped oblique study at 8 m / 1 m, 400 iterations and status 1). 
 tangent at λt = 0 it converges in 7.
 """
 import numpy as np
+import scipy.sparse as sp
+
+from wcs.contact.solver import OPEN, SLIP, solve_contact
+from wcs.status import Status
 
 from test_contact3d_robust import solve_and_compare, tunnel_fault_3d
 
@@ -34,3 +38,24 @@ def test_an_oblique_fault_on_a_roller_converges_without_cycling():
     a = solve_and_compare(oblique(tunnel_fault_3d(size=20.0, fine=3.0)))
     assert (a.active == 1).any() and (a.active == 2).any()           # stick and slip on the fault
     assert a.iterations <= 12
+
+
+def test_the_stopping_scale_leaves_out_frictionless_tangents():
+    """Two contact nodes coupled along z (stiffness s [[2, −1], [−1, 2]]), pressed by P on node 0
+    and pulled by X on node 1, free along x and y under a tangential load T ≫ P, frictionless.
+    The glued first step gives λn = (P, −X); node 1 then opens: λn = (P − X/2, 0), u_z1 = −X/(2s).
+    A frictionless tangent's c q = T is no force of the answer: counted in the stopping scale
+    (tolerance × T = 10), Newton stopped before its first step, at λ = 0 (|Φ| = c q_n = 6.3),
+    and the penetration u_z0 = 6.3e-9 passed the certificate (1e-6 of max|u| = T/s): a wrong
+    answer reported as solved."""
+    s, P, X, T = 1.0e9, 10.0, 1.0, 1.0e9
+    K = sp.block_diag([s * np.eye(2), s * np.eye(2), s * np.array([[2.0, -1.0], [-1.0, 2.0]])], format="csr")
+    f = np.r_[T, T, 0.0, 0.0, P, -X]
+    Bn = sp.csr_matrix(np.eye(6)[4:])                       # u_z: closing the gap d = 0
+    Bt = sp.csr_matrix(np.eye(6)[:4])                       # u_x of nodes 0, 1, then u_y
+    res = solve_contact(K, f, Bn, Bt, np.zeros(2), np.ones(2), tol=1e-8)
+    assert res.status == Status.SOLVED, res.message
+    assert np.allclose(res.lam_n, [P - X / 2, 0.0], rtol=0, atol=1e-12 * P)
+    assert np.all(res.lam_t == 0.0)
+    assert np.allclose(res.u, [T / s, T / s, 0, 0, 0, -X / (2 * s)], rtol=1e-12, atol=1e-12 * X / s)
+    assert list(res.active) == [SLIP, OPEN]                 # closed and slipping freely; open

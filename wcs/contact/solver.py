@@ -320,11 +320,16 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
     k: tangent components per node (d − 1); lo, hi: the bounds of B per component.
+    The stopping test is relative to the force scale max|c q| over the components B leaves
+    room for (lo < hi), or to max|λ|: a frictionless tangent's c q is a displacement times
+    a stiffness that no multiplier carries (a 3 m support translation on 3D Hertz made it
+    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5).
     Returns (λ, α, free, iterations, converged).
     """
     c = scales(W, k)
     redundant = redundant_pairs(W, k)
-    force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
+    carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
+    force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def check(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
