@@ -5,10 +5,10 @@ through the slice's centre (the oblique variant of studies/tunnel-fault-oblique-
 the fault meets the x-roller on the left side, both of its sides have u_x = 0: the fault's normal
 row and its tangent along the dip act on one relative motion (a redundant pair), and the split
 of their force between the two is free. Split at the minimum norm, the tangent carried
-κλn/(1 + κ²) ≈ 0.12 λn, beyond the slip bound g w, so the node was predicted to slip, then to
-stick again: Newton cycled between the two (99 iterations with the dual-QP restart on this
-scene; on the shipped oblique study at 8 m / 1 m, 400 iterations and status 1). With the tied
-tangent at λt = 0 it converges in 7.
+κλn/(1 + κ²) (0.12 λn on the oblique study at 8 m / 1 m), beyond the slip bound g w, so the
+node was predicted to slip, then to stick again: Newton cycled between the two (99 iterations
+with the dual-QP restart on this scene; on the oblique study at 8 m / 1 m, 400 iterations and
+status 1). With the tied tangent at λt = 0 it converges in 7.
 """
 import numpy as np
 import scipy.sparse as sp
