@@ -320,11 +320,16 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
     k: tangent components per node (d − 1); lo, hi: the bounds of B per component.
+    The stopping test is relative to the force scale max|c q| over the components B leaves
+    room for (lo < hi), or to max|λ|: a frictionless tangent's c q is a displacement times
+    a stiffness that no multiplier carries (a 3 m support translation on 3D Hertz made it
+    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5).
     Returns (λ, α, free, iterations, converged).
     """
     c = scales(W, k)
     redundant = redundant_pairs(W, k)
-    force = max(np.abs(c * q).max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
+    carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
+    force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def check(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
@@ -429,7 +434,10 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     cycle). Such a tangent's equation (κ times the normal one, κ = W_nt / W_nn) is dropped
     with λt = 0, and the pair is then moved along the null direction (κ, −1) to the minimum
     norm split λn + κλt = const: λ = (λn, 0) / (1 + κ²) · (1, κ) — the least-squares
-    solution at the cost of one LU (one tangent per node is taken to be so tied). A free row
+    solution at the cost of one LU (one tangent per node is taken to be so tied). On a disc
+    (k = 2) the split is left at λt = 0 instead, the one that keeps |λt,i| ≤ gw_i most
+    feasible: the minimum norm split puts κλn/(1 + κ²) on the tangent, beyond gw on a fault
+    node held by a roller, and Newton then cycled between stick and slip there. A free row
     that is exactly zero (a node held by supports on both sides, a row of round-off made null
     by `null_rows`) is left out with λ = 0, the least-squares value: on the 3D tunnel 154 of
     789 rows are such (most of them tangents along the axis, held by rollers front and back),
@@ -471,7 +479,7 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         if disc is not None and len(disc[0]):
             x += np.linalg.lstsq(M, rhs - M @ x, rcond=None)[0]
     lam[F] = x[: len(F)]
-    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k))
+    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k)) if k == 1 else np.zeros(0, dtype=int)
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
     lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)
