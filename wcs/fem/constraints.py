@@ -43,18 +43,22 @@ def eliminate(nnodes: int, ncomp: int, constraints: list[Constraint], nvalues: i
     fixed = []
     ncols = 0
     constrained = np.zeros(nnodes, bool)
+    of_matrix: dict[bytes, tuple] = {}    # one SVD per distinct A (a support's nodes share theirs)
     for node in sorted(rows_of):
         constrained[node] = True
         A = np.array([a for a, _ in rows_of[node]])
         idx = [v for _, v in rows_of[node]]
-        _, s, vt = np.linalg.svd(A)
-        rank = int(np.sum(s > 1e-8 * s[0]))
-        pinv = np.linalg.pinv(A, rcond=1e-8)           # u_c = A⁺ c (consistent data: exact)
+        key = A.tobytes()
+        if key not in of_matrix:
+            _, s, vt = np.linalg.svd(A)
+            rank = int(np.sum(s > 1e-8 * s[0]))
+            # u_c = A⁺ c (consistent data: exact); vt[rank:]: the orthonormal free directions
+            of_matrix[key] = rank, np.linalg.pinv(A, rcond=1e-8), vt[rank:]
+        rank, pinv, free = of_matrix[key]
         for comp in range(ncomp):
             for j, v in enumerate(idx):
                 if pinv[comp, j] != 0.0:
                     U_rows.append(ncomp * node + comp); U_cols.append(v); U_vals.append(pinv[comp, j])
-        free = vt[rank:]                                 # orthonormal free directions
         for t in free:
             for comp in range(ncomp):
                 if t[comp] != 0.0:
@@ -65,10 +69,11 @@ def eliminate(nnodes: int, ncomp: int, constraints: list[Constraint], nvalues: i
     # unconstrained nodes: identity columns, in dof order after the constrained ones' columns
     free_nodes = np.flatnonzero(~constrained)
     dofs = (ncomp * free_nodes[:, None] + np.arange(ncomp)).ravel()
-    T_rows.extend(dofs.tolist()); T_cols.extend(range(ncols, ncols + dofs.size)); T_vals.extend([1.0] * dofs.size)
-    ncols += dofs.size
+    rows = np.concatenate([np.array(T_rows, dtype=np.int64), dofs])
+    cols = np.concatenate([np.array(T_cols, dtype=np.int64), np.arange(ncols, ncols + dofs.size)])
+    vals = np.concatenate([np.array(T_vals, dtype=float), np.ones(dofs.size)])
     ndof = ncomp * nnodes
-    T = sp.csr_matrix((T_vals, (T_rows, T_cols)), shape=(ndof, ncols))
+    T = sp.csr_matrix((vals, (rows, cols)), shape=(ndof, ncols + dofs.size))
     T = _order_columns_by_dof(T)
     U0 = sp.csr_matrix((U_vals, (U_rows, U_cols)), shape=(ndof, nvalues))
     return Elimination(T=T, U0=U0, fixed_dofs=np.array(sorted(fixed), dtype=np.int64))
