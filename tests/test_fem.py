@@ -7,6 +7,7 @@ L2 error O(h²), energy error O(h); observed rates are asserted within 0.15.
 """
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from skfem import Basis, Functional, LinearForm, MeshTri, asm
 from skfem.helpers import dot
 
@@ -155,14 +156,22 @@ def test_reduction_keeps_one_pattern_whatever_the_data():
         assert np.array_equal(Kr.indptr, red.pattern.indptr) and np.array_equal(Kr.indices, red.pattern.indices)
 
 
-def test_unique_inverse_is_numpy_unique():
-    """The reduction's stable-sort unique (nearly sorted keys in, as Tᵀ K T gives them) is
-    np.unique's, values and inverse."""
-    from wcs.fem.constraints import _unique_inverse
+def test_reduction_with_rows_of_several_entries():
+    """T rows tying a dof to several columns (mortar gluing) and zero data: M maps K's values to
+    Tᵀ K T's on the structural pattern (a product of the patterns), its rows in CSR order with
+    each row's terms by increasing entry of K (the order its product sums them in)."""
+    from wcs.fem.constraints import Reduction
     rng = np.random.default_rng(3)
-    keys = np.sort(rng.integers(0, 5000, 20000)).astype(np.int64)
-    keys[rng.integers(0, keys.size, 500)] = rng.integers(0, 5000, 500)      # local disorder
-    for k in (keys, keys[:1], keys[::-1].copy()):
-        u, inv = _unique_inverse(k)
-        u0, inv0 = np.unique(k, return_inverse=True)
-        assert np.array_equal(u, u0) and np.array_equal(inv, inv0.ravel())
+    K = sp.random(60, 60, density=0.1, random_state=4, format="csr") + sp.eye(60, format="csr")
+    K = (K + K.T).tocsr()
+    T = sp.random(60, 45, density=0.05, random_state=5, format="csr") + sp.eye(60, 45, format="csr")
+    T = T.tocsr()
+    assert np.diff(T.indptr).max() > 2
+    red = Reduction(K, T)
+    K.data = rng.normal(size=K.nnz)
+    Kr = red(K)
+    direct = (T.T @ K @ T).toarray()
+    assert abs(Kr.toarray() - direct).max() <= 1e-13 * abs(direct).max()
+    ones = abs(T).T @ sp.csr_matrix((np.ones(K.nnz), K.indices, K.indptr), shape=K.shape) @ abs(T)
+    assert np.array_equal(red.pattern.indptr, ones.indptr) and red.pattern.nnz == ones.nnz
+    assert red.M.has_canonical_format

@@ -45,7 +45,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from ..fem import tet
@@ -299,6 +298,7 @@ def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> Fac
     sf, mf = mesh.facets[:, slave_facets], mesh.facets[:, master_facets]
     edges = np.concatenate([np.linalg.norm(p[:, sf[a]] - p[:, sf[(a + 1) % 3]], axis=0) for a in range(3)])
     h = float(edges.mean())
+    from scipy.spatial import cKDTree     # scipy.spatial (~0.1 s) loads only for 3D faces
     dist, j = cKDTree(p[:, mnodes].T).query(p[:, snodes].T)
     paired = dist <= COINCIDENT * h
     partner = np.full(p.shape[1], -1)

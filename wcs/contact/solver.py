@@ -62,14 +62,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.optimize as sopt
 import scipy.sparse as sp
 
 from wcs import linalg
+from wcs.contact.solvability import CLARABEL_TIGHT, unbalanced_rigid_motion
 from wcs.status import Status
 
 OPEN, STICK, SLIP = 0, 1, 2
-CLARABEL_TIGHT = {k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")}
 
 
 @dataclass
@@ -164,43 +163,6 @@ def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> Conta
         return reuse.update(Kr, C_S)
     f = linalg.factorize(Kr, spd=True, block=S)
     return ContactFactor(f, pinned, S, C_S, delassus(f, C_S), Kr.data.copy())
-
-
-def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
-    """max fᵀRα − Σ gw_i |(Bt Rα)_i| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r
-    (3D: |α| ≤ 1).
-
-    The problem is solvable only if this maximum is 0 (L(w) ≤ j(w) for rigid w ∈ K, [21, Remark 2.1]).
-    2D: a linear program in (α, s) with s ≥ |Bt Rα|. 3D: |(Bt Rα)_i| is the 2-norm of node i's
-    two tangential slips, and the exact problem is a second-order-cone program (a polyhedral
-    norm would not be exact: the 1-norm overstates the friction's hold and can pass an
-    unbalanced load, the ∞-norm understates it); α in the unit ball there, so that the
-    unbalanced motion follows the load (a box would bend it to a corner). Returns (value, α).
-    """
-    r, m = R.shape[1], Bn.shape[0]
-    BnR, BtR, e = Bn @ R, Bt @ R, R.T @ f
-    if Bt.shape[0] > m:
-        return _unbalanced_socp(BnR, BtR, e, gw)
-    I = np.eye(m)
-    A_ub = np.block([[BnR, np.zeros((m, m))], [BtR, -I], [-BtR, -I]])
-    res = sopt.linprog(np.r_[-e, gw], A_ub=A_ub, b_ub=np.zeros(3 * m),
-                       bounds=[(-1, 1)] * r + [(0, None)] * m, method="highs")
-    return -res.fun, res.x[:r]
-
-
-def _unbalanced_socp(BnR, BtR, e, gw):
-    """`unbalanced_rigid_motion` with disc friction: Clarabel on the data scaled by Σ|e|."""
-    import cvxpy as cp
-    m, r = BnR.shape
-    s = max(np.abs(e).sum(), np.abs(gw).max(initial=0.0), 1e-300)
-    a = cp.Variable(r)
-    slips = cp.reshape(BtR @ a, (BtR.shape[0] // m, m), order="C")
-    prob = cp.Problem(cp.Maximize((e / s) @ a - (gw / s) @ cp.norm(slips, 2, axis=0)),
-                      [BnR @ a <= 0, cp.norm(a, 2) <= 1])
-    prob.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
-    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-        raise RuntimeError(f"the solvability SOCP ended with status {prob.status}")
-    return s * prob.value, np.asarray(a.value, float)
 
 
 def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:

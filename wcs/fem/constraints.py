@@ -43,18 +43,22 @@ def eliminate(nnodes: int, ncomp: int, constraints: list[Constraint], nvalues: i
     fixed = []
     ncols = 0
     constrained = np.zeros(nnodes, bool)
+    of_matrix: dict[bytes, tuple] = {}    # one SVD per distinct A (a support's nodes share theirs)
     for node in sorted(rows_of):
         constrained[node] = True
         A = np.array([a for a, _ in rows_of[node]])
         idx = [v for _, v in rows_of[node]]
-        _, s, vt = np.linalg.svd(A)
-        rank = int(np.sum(s > 1e-8 * s[0]))
-        pinv = np.linalg.pinv(A, rcond=1e-8)           # u_c = A⁺ c (consistent data: exact)
+        key = A.tobytes()
+        if key not in of_matrix:
+            _, s, vt = np.linalg.svd(A)
+            rank = int(np.sum(s > 1e-8 * s[0]))
+            # u_c = A⁺ c (consistent data: exact); vt[rank:]: the orthonormal free directions
+            of_matrix[key] = rank, np.linalg.pinv(A, rcond=1e-8), vt[rank:]
+        rank, pinv, free = of_matrix[key]
         for comp in range(ncomp):
             for j, v in enumerate(idx):
                 if pinv[comp, j] != 0.0:
                     U_rows.append(ncomp * node + comp); U_cols.append(v); U_vals.append(pinv[comp, j])
-        free = vt[rank:]                                 # orthonormal free directions
         for t in free:
             for comp in range(ncomp):
                 if t[comp] != 0.0:
@@ -65,10 +69,11 @@ def eliminate(nnodes: int, ncomp: int, constraints: list[Constraint], nvalues: i
     # unconstrained nodes: identity columns, in dof order after the constrained ones' columns
     free_nodes = np.flatnonzero(~constrained)
     dofs = (ncomp * free_nodes[:, None] + np.arange(ncomp)).ravel()
-    T_rows.extend(dofs.tolist()); T_cols.extend(range(ncols, ncols + dofs.size)); T_vals.extend([1.0] * dofs.size)
-    ncols += dofs.size
+    rows = np.concatenate([np.array(T_rows, dtype=np.int64), dofs])
+    cols = np.concatenate([np.array(T_cols, dtype=np.int64), np.arange(ncols, ncols + dofs.size)])
+    vals = np.concatenate([np.array(T_vals, dtype=float), np.ones(dofs.size)])
     ndof = ncomp * nnodes
-    T = sp.csr_matrix((T_vals, (T_rows, T_cols)), shape=(ndof, ncols))
+    T = sp.csr_matrix((vals, (rows, cols)), shape=(ndof, ncols + dofs.size))
     T = _order_columns_by_dof(T)
     U0 = sp.csr_matrix((U_vals, (U_rows, U_cols)), shape=(ndof, nvalues))
     return Elimination(T=T, U0=U0, fixed_dofs=np.array(sorted(fixed), dtype=np.int64))
@@ -82,18 +87,21 @@ def _order_columns_by_dof(T: sp.csr_matrix) -> sp.csr_matrix:
     return sp.csr_matrix(Tc[:, np.argsort(first, kind="stable")])
 
 
-def _unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """np.unique(keys, return_inverse=True), by a stable sort: the keys come nearly sorted (the
-    identity rows of T keep K's row order, the columns being numbered by first dof), which a
-    merge sort takes in almost linear time."""
-    perm = np.argsort(keys, kind="stable")
-    ordered = keys[perm]
-    first = np.empty(ordered.size, dtype=bool)
-    first[:1] = True
-    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
-    inverse = np.empty(keys.size, dtype=np.int64)
-    inverse[perm] = np.cumsum(first) - 1
-    return ordered[first], inverse
+def _products(K: sp.csr_matrix, T: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The terms T_ki K_kl T_lj of Tᵀ K T, grouped by the entry e = (k, l) of K (K, T sorted CSR):
+    for each, the key i·n + j of the entry of Tᵀ K T it adds to, its weight T_ki T_lj and e.
+    Only the three results outlive the call (at 1.2e6 entries of K a temporary is 10 MB)."""
+    k = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+    l = K.indices
+    start, count = T.indptr[:-1], np.diff(T.indptr)
+    nl = count[l]
+    rep = count[k] * nl                                   # nnz(T_k) · nnz(T_l) terms per entry
+    e = np.repeat(np.arange(K.nnz), rep)
+    ptr = np.zeros(K.nnz + 1, dtype=np.int64)
+    np.cumsum(rep, out=ptr[1:])
+    r, c = np.divmod(np.arange(e.size) - ptr[e], nl[e])
+    a, b = start[k][e] + r, start[l][e] + c
+    return T.indices[a].astype(np.int64) * T.shape[1] + T.indices[b], T.data[a] * T.data[b], e
 
 
 class Reduction:
@@ -112,24 +120,22 @@ class Reduction:
         T = sp.csr_matrix(T)
         T.sort_indices()
         self.K_indptr, self.K_indices = K.indptr.copy(), K.indices.copy()
-        k = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
-        l = K.indices
-        start, count = T.indptr[:-1], np.diff(T.indptr)
-        nl = count[l]
-        rep = count[k] * nl
-        ptr = np.zeros(K.nnz + 1, dtype=np.int64)     # M by columns: entry e of K owns ptr[e]:ptr[e+1]
-        np.cumsum(rep, out=ptr[1:])
-        e = np.repeat(np.arange(K.nnz), rep)
-        r, c = np.divmod(np.arange(ptr[-1]) - ptr[e], nl[e])
-        a, b = start[k][e] + r, start[l][e] + c
-        i, j, val = T.indices[a], T.indices[b], T.data[a] * T.data[b]
         n = T.shape[1]
-        keys = i.astype(np.int64) * n + j
-        uniq, row = _unique_inverse(keys)
+        keys, weights, e = _products(K, T)
+        # a stable sort by key: M's rows (the entries of Tᵀ K T, in CSR order), each row's terms
+        # by increasing e, as M's CSR stores them; the keys come nearly sorted (the identity rows
+        # of T keep K's row order, the columns being numbered by first dof): merge sort, ~linear
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
+        first = np.empty(keys.size, dtype=bool)
+        first[:1] = True
+        np.not_equal(keys[1:], keys[:-1], out=first[1:])
+        uniq = keys[first]
         indptr = np.searchsorted(uniq, np.arange(n + 1, dtype=np.int64) * n)   # sorted keys: rows in order
         self.pattern = sp.csr_matrix((np.zeros(uniq.size), uniq % n, indptr), shape=(n, n))
         self.pattern.sort_indices()
-        self.M = sp.csc_matrix((val, row, ptr), shape=(uniq.size, K.nnz)).tocsr()
+        self.M = sp.csr_matrix((weights[order], e[order], np.r_[np.flatnonzero(first), keys.size]),
+                               shape=(uniq.size, K.nnz))
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
         K = sp.csr_matrix(K)

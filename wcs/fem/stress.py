@@ -22,16 +22,20 @@ def gradient_operator(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def strain_operator(p: np.ndarray, t: np.ndarray) -> sp.csr_matrix:
-    """G with (G u) reshaped (3, ncells) = (e_xx, e_yy, γ_xy = 2 e_xy); u node-interleaved."""
+    """G with (G u) reshaped (3, ncells) = (e_xx, e_yy, γ_xy = 2 e_xy); u node-interleaved.
+
+    Built as sorted CSR directly: row c of each block holds cell c's dofs in increasing order
+    (its nodes sorted; dof 2n is x, 2n + 1 is y), as a COO build with summed duplicates gives it."""
     (dx, dy), _ = gradient_operator(p, t)
     nc = t.shape[1]
-    cells = np.arange(nc)
-    ux, uy = 2 * t.T, 2 * t.T + 1                            # (ncells, 3) dofs
-    rows = np.concatenate([np.repeat(cells, 3), np.repeat(nc + cells, 3),
-                           np.repeat(2 * nc + cells, 3), np.repeat(2 * nc + cells, 3)])
-    cols = np.concatenate([ux.ravel(), uy.ravel(), ux.ravel(), uy.ravel()])
-    vals = np.concatenate([dx.ravel(), dy.ravel(), dy.ravel(), dx.ravel()])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(3 * nc, 2 * p.shape[1]))
+    order = np.argsort(t.T, axis=1)                              # (ncells, 3) the nodes by number
+    node = np.take_along_axis(t.T, order, axis=1)
+    dx, dy = np.take_along_axis(dx, order, axis=1), np.take_along_axis(dy, order, axis=1)
+    ux, uy = 2 * node, 2 * node + 1
+    cols = np.concatenate([ux.ravel(), uy.ravel(), np.stack([ux, uy], axis=2).ravel()])
+    vals = np.concatenate([dx.ravel(), dy.ravel(), np.stack([dy, dx], axis=2).ravel()])
+    indptr = np.concatenate([np.arange(2 * nc) * 3, 6 * nc + np.arange(nc + 1) * 6])
+    return sp.csr_matrix((vals, cols, indptr), shape=(3 * nc, 2 * p.shape[1]))
 
 
 def cell_mean(t: np.ndarray, nodal: np.ndarray) -> np.ndarray:

@@ -46,7 +46,6 @@ from pathlib import Path
 
 import numpy as np
 import skfem
-from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from . import selectors
@@ -323,6 +322,7 @@ def _check_overlap3d(raw: RawMesh) -> None:
     cent = corners.mean(axis=1)
     reach = np.linalg.norm(corners - cent[:, None], axis=2).max(axis=1)
     inverse = np.linalg.inv(np.transpose(corners[:, 1:] - corners[:, :1], (0, 2, 1)))  # edges as columns
+    from scipy.spatial import cKDTree     # scipy.spatial (~0.1 s) loads only for 3D mesh files
     tree = cKDTree(cent)
     for lo in range(0, len(tet), CHUNK):
         near = tree.query_ball_point(cent[lo:lo + CHUNK], reach[lo:lo + CHUNK])

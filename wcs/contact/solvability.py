@@ -1,0 +1,76 @@
+r"""Solvability of contact with floating bodies: does the load balance on the rigid motions?
+
+A body held by contact only (rigid modes R, KR = 0) has a solution only if no admissible
+rigid motion v = Rα gains work against friction, L(v) ≤ j(v) for rigid v ∈ K
+([21, Remark 2.1]). Both sides are positively homogeneous in α, so the maximum of
+fᵀRα − j(Rα) over the admissible α in a bounded set is 0 exactly when the load is balanced,
+and positive otherwise, at an unbalanced motion.
+
+Both problems are solved by Clarabel, on data scaled to O(1) by s = max(Σ|Rᵀf|, max gw):
+the linear program in 2D directly (a small dense problem: no modelling layer), the
+second-order-cone program in 3D through cvxpy.
+"""
+from __future__ import annotations
+
+import clarabel
+import numpy as np
+import scipy.sparse as sp
+
+CLARABEL_TIGHT = {k: 1e-12 for k in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")}
+
+
+def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
+    """max fᵀRα − Σ gw_i |(Bt Rα)_i| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r
+    (3D: |α| ≤ 1).
+
+    The problem is solvable only if this maximum is 0 (L(w) ≤ j(w) for rigid w ∈ K, [21, Remark 2.1]).
+    2D: a linear program in (α, s) with s ≥ |Bt Rα|. 3D: |(Bt Rα)_i| is the 2-norm of node i's
+    two tangential slips, and the exact problem is a second-order-cone program (a polyhedral
+    norm would not be exact: the 1-norm overstates the friction's hold and can pass an
+    unbalanced load, the ∞-norm understates it); α in the unit ball there, so that the
+    unbalanced motion follows the load (a box would bend it to a corner). Returns (value, α).
+    """
+    m = Bn.shape[0]
+    BnR, BtR, e = Bn @ R, Bt @ R, R.T @ f
+    if Bt.shape[0] > m:
+        return _unbalanced_socp(BnR, BtR, e, gw)
+    return _unbalanced_lp(BnR, BtR, e, gw)
+
+
+def _scale(e, gw) -> float:
+    return max(np.abs(e).sum(), np.abs(gw).max(initial=0.0), 1e-300)
+
+
+def _unbalanced_lp(BnR, BtR, e, gw):
+    """`unbalanced_rigid_motion` in 2D: min −eᵀα/s + gwᵀσ/s over x = (α, σ) subject to
+    Bn Rα ≤ 0, ±Bt Rα − σ ≤ 0, −1 ≤ α ≤ 1 (σ ≥ 0 follows), as Clarabel's A x + z = 0 + b,
+    z ≥ 0."""
+    m, r = BnR.shape
+    I, Zr, Zm = np.eye(m), np.zeros((r, m)), np.zeros((m, m))
+    A = np.block([[BnR, Zm], [BtR, -I], [-BtR, -I], [np.eye(r), Zr], [-np.eye(r), Zr]])
+    b = np.r_[np.zeros(3 * m), np.ones(2 * r)]
+    s = _scale(e, gw)
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    for k, v in CLARABEL_TIGHT.items():
+        setattr(settings, k, v)
+    sol = clarabel.DefaultSolver(sp.csc_matrix((r + m, r + m)), np.r_[-e / s, gw / s], sp.csc_matrix(A), b,
+                                 [clarabel.NonnegativeConeT(A.shape[0])], settings).solve()
+    if sol.status not in (clarabel.SolverStatus.Solved, clarabel.SolverStatus.AlmostSolved):
+        raise RuntimeError(f"the solvability LP ended with status {sol.status}")
+    return -s * sol.obj_val, np.asarray(sol.x[:r], float)
+
+
+def _unbalanced_socp(BnR, BtR, e, gw):
+    """`unbalanced_rigid_motion` with disc friction: Clarabel on the data scaled by Σ|e|."""
+    import cvxpy as cp
+    m, r = BnR.shape
+    s = _scale(e, gw)
+    a = cp.Variable(r)
+    slips = cp.reshape(BtR @ a, (BtR.shape[0] // m, m), order="C")
+    prob = cp.Problem(cp.Maximize((e / s) @ a - (gw / s) @ cp.norm(slips, 2, axis=0)),
+                      [BnR @ a <= 0, cp.norm(a, 2) <= 1])
+    prob.solve(solver=cp.CLARABEL, **CLARABEL_TIGHT)
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise RuntimeError(f"the solvability SOCP ended with status {prob.status}")
+    return s * prob.value, np.asarray(a.value, float)
