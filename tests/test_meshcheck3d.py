@@ -18,8 +18,9 @@ from test_meshfile3d import FILE, write_block_msh
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.fem.tet import volumes
-from wcs.meshcheck import ORDER_RANGE, refined_nodes
-from wcs.report import render_report
+from wcs.meshcheck import MAX_CONTACT_NODES, ORDER_RANGE, planned, refined_nodes
+from wcs.report.data import from_dataset
+from wcs.report.html import Report
 from wcs.scene.mesher import build_mesh
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import load_scene, load_study
@@ -93,36 +94,38 @@ def _run(study: Path) -> xr.Dataset:
 
 # ---------------------------------------------------------------- the refined mesh
 
-# A drum (a cylinder holding a ball as a second region: an embedded region boundary) standing on
-# a base (the shared disc: matching faces), a box of interest embedded in the drum.
+# A quarter drum (a cylinder holding a ball as a second region: an embedded region boundary)
+# standing on a base (the shared quarter disc: matching faces), a box of interest embedded in it.
+QUARTER = {"box": [0, 0, 0, 1, 1, 1]}
 DRUM = {
     "dimension": 3,
-    "mesh": {"size": 0.35},
+    "mesh": {"size": 0.3},
     "materials": {"m": {"E": 1e9, "nu": 0.3}},
     "bodies": {
         "drum": {"regions": [
-            {"material": "m", "shape": {"cylinder": {"start": [0, 0, 0], "end": [0, 0, 1], "radius": 0.5}}},
-            {"material": "m", "shape": {"sphere": {"center": [0, 0, 0.5], "radius": 0.25}}}]},
-        "base": {"regions": [{"material": "m", "shape": {"box": [-0.6, -0.6, -0.4, 0.6, 0.6, 0.0]}}]},
+            {"material": "m", "shape": {"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0.6], "radius": 0.5},
+                                        "intersect": [QUARTER]}},
+            {"material": "m", "shape": {"sphere": {"center": [0, 0, 0.3], "radius": 0.2}, "intersect": [QUARTER]}}]},
+        "base": {"regions": [{"material": "m", "shape": {"box": [0, 0, -0.3, 0.6, 0.6, 0.0]}}]},
     },
     "boundaries": {
-        "lateral": {"body": "drum", "cylinder": {"start": [0, 0, 0], "end": [0, 0, 1], "radius": 0.5}},
+        "lateral": {"body": "drum", "cylinder": {"start": [0, 0, 0], "end": [0, 0, 0.6], "radius": 0.5}},
         "drum_bottom": {"body": "drum", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
         "base_top": {"body": "base", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
     },
-    "regions_of_interest": {"core": {"box": [-0.1, -0.1, 0.1, 0.1, 0.1, 0.3]}},
+    "regions_of_interest": {"core": {"box": [0, 0, 0.05, 0.1, 0.1, 0.2]}},
 }
 
 
 def test_splitting_keeps_the_surfaces_and_halves_every_edge():
     """Each split: 8x the cells of every region and of the embedded box, 4x the facets of every
     face, the nodes `refined_nodes` counts; the new nodes of the cylinder's lateral surface and of
-    the ball inside the drum (a region boundary) on the surface to 1e-9 (measured: 2e-16); the
+    the ball in the drum (a region boundary) on the surface to 1e-9 (measured: 2e-16); the
     drum's bottom still matching the base's top node for node; each region's volume grows towards
     the exact one from below (an inscribed polyhedron: no cell turned inside out)."""
     scene = load_scene(DRUM)
     base = build_mesh3d(scene)
-    ball_exact = 4 / 3 * math.pi * 0.25**3
+    ball_exact = math.pi / 3 * 0.2**3                                   # a quarter ball
     volume = [np.bincount(base.cell_region, volumes(base.mesh.p, base.mesh.t))]
     for s in (1, 2):
         sm = build_mesh3d(scene, splits=s)
@@ -137,14 +140,14 @@ def test_splitting_keeps_the_surfaces_and_halves_every_edge():
         assert np.abs(np.hypot(lateral[0], lateral[1]) - 0.5).max() < 1e-9
         drum = sm.cell_body == 0
         inside = np.intersect1d(m.t[:, drum & (sm.cell_region == 0)], m.t[:, drum & (sm.cell_region == 1)])
-        assert inside.size > 4**s * 10
-        assert np.abs(np.linalg.norm(m.p[:, inside] - np.array([[0], [0], [0.5]]), axis=0) - 0.25).max() < 1e-9
+        assert inside.size > 4**s * 10                 # the ball's nodes (on its curved face)
+        assert np.abs(np.linalg.norm(m.p[:, inside] - np.array([[0], [0], [0.3]]), axis=0) - 0.2).max() < 1e-9
         gap, _ = cKDTree(m.p[:, sm.boundary_nodes("base_top")].T).query(m.p[:, sm.boundary_nodes("drum_bottom")].T)
         assert gap.max() < 1e-12
         volume.append(np.bincount(sm.cell_region, volumes(m.p, m.t)))
     ball = [v[1] for v in volume]
     drum = [v[0] + v[1] for v in volume]
-    assert ball[0] < ball[1] < ball[2] < ball_exact and drum[0] < drum[1] < drum[2] < math.pi * 0.25
+    assert ball[0] < ball[1] < ball[2] < ball_exact and drum[0] < drum[1] < drum[2] < math.pi * 0.25 * 0.6 / 4
 
 
 def test_a_3d_mesh_file_has_no_geometry_to_refine(tmp_path):
@@ -205,8 +208,25 @@ def test_the_mesh_is_split_once_only_when_twice_would_pass_max_cells(tmp_path, d
     assert note.startswith(f"split once only ({why}): f(h/2) − f(h) = ")
     assert "the verdict uses the spread of the two values" in note
     assert ds.attrs["mesh_check"].endswith(f"split once only ({ds['mesh_check_nodes'].values[1]} nodes): {why}")
-    page = render_report(ds, strict=True)
-    assert "<th>h/4 (not built)</th>" in page and 'id="mesh-check-table"' in page
+    section = Report(from_dataset(ds), strict=True).mesh_check()          # the report's mesh-check section
+    assert "<th>h/4 (not built)</th>" in section and 'id="mesh-check-table"' in section
+    assert ("every tetrahedron into eight" if dimension == 3 else "every triangle into four") in section
+
+
+@pytest.mark.parametrize("dimension, contact_nodes, splits, why", [
+    (3, 90, (1, 2), ""),
+    (3, 100, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
+    (3, 400, (), "the mesh split once would have about 1600 contact nodes, beyond the 1500"),
+    (2, 400, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
+])
+def test_the_dense_contact_condensation_bounds_the_splits(tmp_path, dimension, contact_nodes, splits, why):
+    """The contact nodes grow about 2^(d - 1) times a split, the dense condensation's cost as
+    their cube: beyond MAX_CONTACT_NODES a split is not made (the tunnel's 3D fault, 529 nodes,
+    would have about 2116 split once; 2858 took 830 s and 11.9 GB a solve)."""
+    study = load_study(_write(tmp_path, yaml.safe_load(SLAB.read_text()) if dimension == 2 else PRESSED, "s"))
+    assert MAX_CONTACT_NODES == 1500
+    done, said = planned(study, 10, contact_nodes)
+    assert done == splits and said.startswith(why) and (said == "") == (why == "")
 
 
 # ---------------------------------------------------------------- the CLI

@@ -139,7 +139,7 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
     if study.scene.mesh.file is not None:
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
     n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
-    splits, why = planned(study, ev.smesh.mesh.t.shape[1])
+    splits, why = planned(study, ev.smesh.mesh.t.shape[1], 0 if ev.model.zone is None else len(ev.model.zone.gap))
     if not splits:
         return f"  mesh check: will not run ({why})"
     levels = cost(ev, warm_solve, n_ext, splits)

@@ -19,8 +19,9 @@ MARGINAL when |L − f0| ≤ |error| (without an error estimate: the spread max|
 three values, and the note says so), else PASS or FAIL.
 
 When the mesh split twice would pass `mesh.max_cells` (4 or 8 times the cells per split, in 2D
-or 3D), the mesh is split once only: the two values f0, f1, no order, the verdict on the spread
-|f1 − f0|, as the note says; when the mesh split once would pass it too, the check is not run.
+or 3D) or MAX_CONTACT_NODES (about 2 or 4 times the contact nodes per split), the mesh is split
+once only: the two values f0, f1, no order, the verdict on the spread |f1 − f0|, as the note
+says; when the mesh split once would pass it too, the check is not run.
 """
 from __future__ import annotations
 
@@ -43,8 +44,11 @@ if TYPE_CHECKING:
 SPLITS = (1, 2)                 # the refined meshes: split once (h/2) and twice (h/4)
 LEVELS = ("h", "h/2", "h/4")    # the study's mesh and the refined meshes
 ORDER_RANGE = (0.5, 4.0)        # observed orders outside it: the extrapolation is not to be trusted
-SOLVE_GROWTH = {2: 1.15,        # a solve's time grows as nodes^1.15 (1.1-1.25 from h/2 to h/4: knee, tunnel, Hertz)
-                3: 1.3}         # in 3D (TODO measured)
+SOLVE_GROWTH = {2: 1.15,        # a solve's time grows as nodes^1.15 (1.1-1.25 from h/2 to h/4: knee, tunnel, Hertz),
+                3: 1.5}         # in 3D as nodes^1.5 (1.2-1.3 from h to h/2: hertz-3d; 1.4-1.7 h/2 to h/4: block-on-block-3d)
+ASSEMBLY_GROWTH = {2: 1.0,      # the assembly's as the nodes,
+                   3: 1.35}     # in 3D as nodes^1.35 (1.3 hertz-3d, 1.4 block-on-block-3d, as the solves)
+MAX_CONTACT_NODES = 1500        # the dense contact condensation: O(m³) time, O(m²) memory (2858 nodes: 830 s, 11.9 GB)
 FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
 
 
@@ -127,32 +131,44 @@ def max_cells(study) -> float:
     return float(DEFAULT_MAX_CELLS if study.scene.mesh.max_cells is None else study.scene.mesh.max_cells)
 
 
-def planned(study, cells: int) -> tuple[tuple[int, ...], str]:
-    """The splits of SPLITS made of a mesh of `cells` cells within `mesh.max_cells` (a split
-    multiplies the cells by 2^dimension), and why no more are made ("" when all are)."""
-    growth = 2 ** study.scene.dimension
-    done = tuple(s for s in SPLITS if cells * growth ** s <= max_cells(study))
-    if len(done) == len(SPLITS):
-        return done, ""
-    s = SPLITS[len(done)]
-    return done, (f"the mesh split {'once' if s == 1 else f'{s} times'} would have {cells * growth ** s:.3g} "
-                  f"cells, beyond mesh.max_cells = {max_cells(study):g}")
+def planned(study, cells: int, contact_nodes: int) -> tuple[tuple[int, ...], str]:
+    """The splits of SPLITS made of a mesh of `cells` cells and `contact_nodes` contact nodes: within
+    `mesh.max_cells` (a split multiplies the cells by 2^d) and MAX_CONTACT_NODES (it multiplies the
+    contact nodes by about 2^(d − 1)); and why no more are made ("" when all are)."""
+    d = study.scene.dimension
+    done, why = [], ""
+    for s in SPLITS:
+        times = "once" if s == 1 else f"{s} times"
+        if cells * 2 ** (d * s) > max_cells(study):
+            why = (f"the mesh split {times} would have {cells * 2 ** (d * s):.3g} cells, beyond "
+                   f"mesh.max_cells = {max_cells(study):g}")
+        elif contact_nodes * 2 ** ((d - 1) * s) > MAX_CONTACT_NODES:
+            why = (f"the mesh split {times} would have about {contact_nodes * 2 ** ((d - 1) * s)} contact nodes, "
+                   f"beyond the {MAX_CONTACT_NODES} the dense contact condensation solves in minutes")
+        else:
+            done.append(s)
+            continue
+        break
+    return tuple(done), why
 
 
 def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[tuple[int, int, float]]:
     """(splits, unknowns, estimated seconds) of each refined mesh of `splits`, from the study's mesh
     (evaluator.timings, and `warm_solve` seconds of a solve with the factorization's analysis
-    reused): meshing as the study's (the geometry dominates), assembly growing with the nodes,
-    a solve as nodes^SOLVE_GROWTH[dimension], a new mesh's first solve FIRST_SOLVE_EXTRA solves dearer.
-    Measured (knee, tunnel, Hertz: both refined meshes, one solve per extreme): 12, 8.8 and 10 s
-    estimated against about 17, 13 and 19 s taken: the estimate is good to a factor 2."""
+    reused): meshing as the study's (the geometry dominates), assembly growing as
+    nodes^ASSEMBLY_GROWTH, a solve as nodes^SOLVE_GROWTH (of the dimension), a new mesh's first
+    solve FIRST_SOLVE_EXTRA solves dearer. Measured (knee, tunnel, Hertz: both refined meshes, one
+    solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s taken: the
+    estimate is good to a factor 2. In 3D a factor 2.5 (block-on-block-3d at size 0.2, both
+    refined meshes: 2.3 times the time taken; hertz-3d split once: 0.5 times), and no better where
+    the dense contact condensation dominates: its O(m³) in the contact nodes grows 64× a split."""
     mesh = evaluator.smesh.mesh
     n = mesh.p.shape[1]
     per_node = mesh.dim() + evaluator.model.thermal
     out = []
     for s in splits:
         r = refined_nodes(mesh, s) / n
-        seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r
+        seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r ** ASSEMBLY_GROWTH[mesh.dim()]
                    + (n_extremes + FIRST_SOLVE_EXTRA) * warm_solve * r ** SOLVE_GROWTH[mesh.dim()])
         out.append((s, per_node * refined_nodes(mesh, s), seconds))
     return out
@@ -179,7 +195,7 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme]) -> xr.Dataset:
     for e in found:
         if e.found:
             values[ext.index(e.kind), crit.index(e.criterion), 0] = e.value
-    splits, short = planned(study, int(ds.attrs.get("mesh_cells", 0)))
+    splits, short = planned(study, int(ds.attrs.get("mesh_cells", 0)), ds.sizes.get("contact_node", 0))
     status = "done"
     if not any(e.found for e in found):
         status = "not run: no extreme data set was solved"
