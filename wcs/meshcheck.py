@@ -4,10 +4,10 @@ refined once and twice, Richardson's extrapolation, and a verdict that knows the
 Refinement: every triangle of gmsh's mesh split into four at its edge midpoints (gmsh's
 `refine`), every tetrahedron into eight, once and twice, the new nodes of a curve or a surface
 placed on it. Of the two uniform refinements of the same geometry this one keeps the geometry
-(a circle's or a sphere's new nodes lie on it) and halves h exactly everywhere: a halved gmsh size would not halve the cells
-where the curvature bound (24 per turn) or a graded refine zone sets the size, and a new
-Delaunay mesh is not a refinement of the old one, so its error does not follow C h^p from
-mesh to mesh. A mesh read from a file has no geometry to refine on: the check says so.
+(a circle's or a sphere's new nodes lie on it) and halves h exactly everywhere: a halved gmsh
+size would not halve the cells where the curvature bound (24 per turn) or a graded refine zone
+sets the size, and a new Delaunay mesh is not a refinement of the old one, so its error does
+not follow C h^p from mesh to mesh. A mesh read from a file has no geometry to refine on: the check says so.
 
 With f0, f1, f2 the values on h, h/2, h/4 and r = (f1 − f0)/(f2 − f1) > 1 (the differences
 shrink), the observed order is p = log2 r, the extrapolated value f∞ = f2 + (f2 − f1)/(r − 1)
@@ -136,20 +136,17 @@ def planned(study, cells: int, contact_nodes: int) -> tuple[tuple[int, ...], str
     `mesh.max_cells` (a split multiplies the cells by 2^d) and MAX_CONTACT_NODES (it multiplies the
     contact nodes by about 2^(d − 1)); and why no more are made ("" when all are)."""
     d = study.scene.dimension
-    done, why = [], ""
+    done: list[int] = []
     for s in SPLITS:
-        times = "once" if s == 1 else f"{s} times"
-        if cells * 2 ** (d * s) > max_cells(study):
-            why = (f"the mesh split {times} would have {cells * 2 ** (d * s):.3g} cells, beyond "
-                   f"mesh.max_cells = {max_cells(study):g}")
-        elif contact_nodes * 2 ** ((d - 1) * s) > MAX_CONTACT_NODES:
-            why = (f"the mesh split {times} would have about {contact_nodes * 2 ** ((d - 1) * s)} contact nodes, "
-                   f"beyond the {MAX_CONTACT_NODES} the dense contact condensation solves in minutes")
-        else:
-            done.append(s)
-            continue
-        break
-    return tuple(done), why
+        split = f"the mesh split {'once' if s == 1 else f'{s} times'} would have"
+        n, m = cells * 2 ** (d * s), contact_nodes * 2 ** ((d - 1) * s)
+        if n > max_cells(study):
+            return tuple(done), f"{split} {n:.3g} cells, beyond mesh.max_cells = {max_cells(study):g}"
+        if m > MAX_CONTACT_NODES:
+            return tuple(done), (f"{split} about {m} contact nodes, beyond the {MAX_CONTACT_NODES} the dense "
+                                 f"contact condensation solves in minutes")
+        done.append(s)
+    return tuple(done), ""
 
 
 def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[tuple[int, int, float]]:
@@ -242,7 +239,8 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme]) -> xr.Dataset:
             if status != "done":
                 notes[a, c] = status
                 continue
-            est = richardson(*map(float, f), tol) if len(splits) == len(SPLITS) else two_values(*map(float, f[:2]), tol, short)
+            est = (richardson(*map(float, f), tol) if len(splits) == len(SPLITS)
+                   else two_values(float(f[0]), float(f[1]), tol, short))
             order[a, c], extrap[a, c], error[a, c] = est.order, est.extrapolated, est.error
             verdicts[a, c] = verdict(float(f[0]), est, _limit(ds, kind, name), kind)
             fails = failures.get((kind, name))
