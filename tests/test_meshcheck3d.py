@@ -48,7 +48,7 @@ COLUMN = {
     "uncertain": {"thermal.sources.column": [4.0e3, 6.0e3], "materials.clay.conductivity": [0.9, 1.1]},
     "criteria": [{"name": "warmth", "kind": "mean_temperature", "regions": ["middle"]}],
     "limits": {"warmth": 1200.0},
-    "search": {"method": "auto", "budget": 12},
+    "search": {"method": "auto", "budget": 6},
 }
 
 
@@ -150,6 +150,18 @@ def test_splitting_keeps_the_surfaces_and_halves_every_edge():
     assert ball[0] < ball[1] < ball[2] < ball_exact and drum[0] < drum[1] < drum[2] < math.pi * 0.25 * 0.6 / 4
 
 
+def test_bodies_meshed_on_their_own_are_split_each():
+    """A body with its own `mesh:` (every body in a gmsh model of its own, the faces they share
+    nonmatching): each split into eight, the new nodes of the cylinder's face on it to 1e-9."""
+    doc = {**DRUM, "bodies": {**DRUM["bodies"], "base": {**DRUM["bodies"]["base"], "mesh": {"size": 0.15}}}}
+    scene = load_scene(doc)
+    base, split = build_mesh3d(scene), build_mesh3d(scene, splits=1)
+    assert np.array_equal(np.bincount(split.cell_body), 8 * np.bincount(base.cell_body))
+    assert split.mesh.p.shape[1] == refined_nodes(base.mesh, 1)
+    lateral = split.mesh.p[:, split.boundary_nodes("lateral")]
+    assert np.abs(np.hypot(lateral[0], lateral[1]) - 0.5).max() < 1e-9
+
+
 def test_a_3d_mesh_file_has_no_geometry_to_refine(tmp_path):
     write_block_msh(tmp_path / "block.msh")
     (tmp_path / "study.yaml").write_text(FILE)
@@ -192,6 +204,7 @@ def test_the_mesh_is_split_once_only_when_twice_would_pass_max_cells(tmp_path, d
     no order, the verdict on the spread |f(h/2) - f(h)| (a limit within it: MARGINAL), the note
     and the attribute say why; the report marks h/4 as not built. The same in 2D and 3D."""
     doc = yaml.safe_load(SLAB.read_text()) if dimension == 2 else yaml.safe_load(yaml.safe_dump(COLUMN))
+    doc["search"]["budget"] = 6
     scene = load_study(_write(tmp_path, doc, "plain")).scene
     cells = (build_mesh(scene) if dimension == 2 else build_mesh3d(scene)).mesh.t.shape[1]
     doc["scene"]["mesh"]["max_cells"] = limit = 2 * 2**dimension * cells

@@ -47,7 +47,8 @@ class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
     study's mesh refined that many times, every triangle split into four, every tetrahedron into
     eight (the mesh check, `wcs/meshcheck.py`). A 3D scene is meshed into tetrahedra
-    (`wcs.scene.mesher3d`)."""
+    (`wcs.scene.mesher3d`); what 3D does not do yet is refused by name (exit 2), never answered
+    with a number."""
 
     def __init__(self, study, comm=None, splits: int = 0):
         t0 = time.perf_counter()

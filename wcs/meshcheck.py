@@ -156,9 +156,9 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     nodes^ASSEMBLY_GROWTH, a solve as nodes^SOLVE_GROWTH (of the dimension), a new mesh's first
     solve FIRST_SOLVE_EXTRA solves dearer. Measured (knee, tunnel, Hertz: both refined meshes, one
     solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s taken: the
-    estimate is good to a factor 2. In 3D a factor 2.5 (block-on-block-3d at size 0.2, both
-    refined meshes: 2.3 times the time taken; hertz-3d split once: 0.5 times), and no better where
-    the dense contact condensation dominates: its O(m³) in the contact nodes grows 64× a split."""
+    estimate is good to a factor 2. In 3D (block-on-block-3d split once and twice, hertz-3d split
+    once, on a loaded machine): 170 and 230 s estimated against 166 and 324 s taken; no better
+    where the dense contact condensation dominates (O(m³) in the contact nodes, 64× a split)."""
     mesh = evaluator.smesh.mesh
     n = mesh.p.shape[1]
     per_node = mesh.dim() + evaluator.model.thermal
