@@ -86,7 +86,7 @@ def test_check_prints_the_mesh_and_solves_the_nominal_data(tmp_path):
     code, out, err = run(["check", str(write(tmp_path, doc()))])
     assert code == 0, err
     assert "nominal solve: solved" in out and out.strip().endswith("ok")
-    assert "mesh check: not available in 3D yet" in out
+    assert "solved again on the mesh split once and twice" in out         # tests/test_meshcheck3d.py
     cells = int(re.search(r"P1 tetrahedra, (\d+) nodes, (\d+) cells", out).group(2))
     estimate = float(re.search(r"estimated ([0-9.e+]+) cells before meshing", out).group(1))
     # the resource guard's estimate is an upper one (the ball of interest refines the base at its
@@ -102,7 +102,7 @@ def test_check_prints_the_mesh_and_solves_the_nominal_data(tmp_path):
     assert "loads.block_top.traction.2: [-1.5e+06, -5e+05]  nominal -1e+06" in out
 
 
-@pytest.mark.parametrize("command", [["solve"], ["run"], ["sweep"]])
+@pytest.mark.parametrize("command", [["solve"], ["run", "--no-mesh-check"], ["sweep"]])   # the check: test_meshcheck3d.py
 def test_commands_that_solve_run_a_3d_study(tmp_path, command):
     d = doc()
     d["sweep"] = {"grid": {"materials.soft.E": [0.9e9, 1.1e9]}}

@@ -135,19 +135,17 @@ def cmd_check(args) -> int:
 def mesh_check_cost(study, ev, warm_solve: float) -> str:
     """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
     from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
-    from .meshcheck import cost, max_cells
+    from .meshcheck import SPLITS, cost, planned
     if study.scene.mesh.file is not None:
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
-    if study.scene.dimension == 3:
-        return "  mesh check: not available in 3D yet (`run` says so in its results)"
     n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
-    levels = cost(ev, warm_solve, n_ext)
-    cells = ev.smesh.mesh.t.shape[1] * 4 ** levels[-1][0]
-    if cells > max_cells(study):
-        return (f"  mesh check: will not run (the mesh split {levels[-1][0]} times would have {cells:.3g} cells, "
-                f"beyond mesh.max_cells = {max_cells(study):g})")
+    splits, why = planned(study, ev.smesh.mesh.t.shape[1], 0 if ev.model.zone is None else len(ev.model.zone.gap))
+    if not splits:
+        return f"  mesh check: will not run ({why})"
+    levels = cost(ev, warm_solve, n_ext, splits)
+    meshes = "split once and twice" if splits == SPLITS else f"split once only ({why})"
     return (f"  mesh check (after the search; `run --no-mesh-check` skips it): up to {n_ext} extreme data set(s) "
-            f"solved again on the mesh split once and twice, "
+            f"solved again on the mesh {meshes}, "
             + " and ".join(f"{n} unknowns" for _, n, _ in levels)
             + f"; about {sum(t for _, _, t in levels):.2g} s (assembly and solves taken as growing with the unknowns)")
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
-from .errors import SolveError, StudyError
+from .errors import SolveError
 from .model import Model, Solution
 from .scene.mesher import build_mesh
 from .scene.mesher3d import build_mesh3d
@@ -45,16 +45,16 @@ class Evaluation:
 
 class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
-    study's mesh refined that many times, every triangle split into four (the mesh check,
-    `wcs/meshcheck.py`). A 3D scene is meshed into tetrahedra (`wcs.scene.mesher3d`); what 3D
-    does not do yet is refused by name (exit 2), never answered with a number."""
+    study's mesh refined that many times, every triangle split into four, every tetrahedron into
+    eight (the mesh check, `wcs/meshcheck.py`). A 3D scene is meshed into tetrahedra
+    (`wcs.scene.mesher3d`); what 3D does not do yet is refused by name (exit 2), never answered
+    with a number."""
 
     def __init__(self, study, comm=None, splits: int = 0):
         t0 = time.perf_counter()
         self.study = study
         if study.scene.dimension == 3:
-            _refuse_3d(study, splits)
-            self.smesh = build_mesh3d(study.scene)
+            self.smesh = build_mesh3d(study.scene, splits)
         else:
             self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         t1 = time.perf_counter()
@@ -83,9 +83,3 @@ class Evaluator:
         return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)
 
-
-def _refuse_3d(study, splits: int) -> None:
-    """StudyError (with the study's file) for the parts of a 3D study not built yet."""
-    if splits:
-        raise StudyError("3D does not support the mesh check (the mesh split into finer tetrahedra) yet",
-                         file=str(study.file), path="scene.dimension")

@@ -474,6 +474,8 @@ class Report:
                     f'{": " + esc(said) if said else " (written without one)"}.</p>')
         units = {c.name: c.units for c in self.res.criteria}
         nodes, seconds = a["mesh_check_nodes"].values, a["mesh_check_time"].values
+        split, curve = (("every tetrahedron into eight", "curve or surface") if self.res.mesh is not None
+                        and self.res.mesh.dim == 3 else ("every triangle into four", "curve"))
         rows = []
         for kind, c, pick in pairs(a):
             f = a["mesh_check_value"].sel(pick).values
@@ -492,18 +494,20 @@ class Report:
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
                 f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
                 f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+        built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
+                 for k, h in ((1, "h/2"), (2, "h/4"))]
         head = "".join(f"<th>{h}</th>" for h in (
-            "criterion", "extreme", f"h ({nodes[0]} nodes)", f"h/2 ({nodes[1]} nodes, {seconds[1]:.3g} s)",
-            f"h/4 ({nodes[2]} nodes, {seconds[2]:.3g} s)", "observed order", "extrapolated",
+            "criterion", "extreme", f"h ({nodes[0]} nodes)", *built, "observed order", "extrapolated",
             "estimated error of the h value", "verdict", "note"))
         return (f'<p>{esc(said)}.</p><table id="mesh-check-table"><tr>{head}</tr>{"".join(rows)}</table>'
                 '<p class="note">Each extreme data set is solved again on the study\'s mesh split once and twice '
-                '(every triangle into four, new nodes of curved boundaries on the curve: the same geometry, h '
+                f'({split}, new nodes of curved boundaries on the {curve}: the same geometry, h '
                 'halved exactly). With f(h), f(h/2), f(h/4) and r = (f(h/2) − f(h))/(f(h/4) − f(h/2)) &gt; 1 the '
                 'observed order is log₂ r and Richardson\'s extrapolation f(h/4) + (f(h/4) − f(h/2))/(r − 1); '
                 'the estimated error is the extrapolated value minus the value on the study\'s mesh. The verdict '
                 'is MARGINAL when the limit lies within the extreme ± the estimated error (without an '
-                'observed order: ± the spread of the three values, as the note says).</p>')
+                'observed order: ± the spread of the three values, of the two when the mesh was split once only '
+                'to stay within mesh.max_cells, as the note says).</p>')
 
     def drivers(self) -> str:
         a = self.res.after_search

@@ -248,10 +248,19 @@ def _extract(owner: dict, inside: dict):
     return xyz, np.concatenate(tets), np.concatenate(cb), np.concatenate(cr), np.concatenate(ci, axis=1)
 
 
-def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list, regions_flat: list):
+def _generate(splits: int) -> None:
+    """gmsh's 3D mesh, then `splits` uniform refinements: every tetrahedron split into eight at its
+    edge midpoints, the new nodes of a curve or a surface placed on it (the geometry is kept)."""
+    gmsh.model.mesh.generate(3)
+    for _ in range(splits):
+        gmsh.model.mesh.refine()
+
+
+def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list, regions_flat: list,
+                            splits: int):
     """Each body meshed in a gmsh model of its own (its regions and the embedded regions of
-    interest fragmented together), with its ``mesh.size`` or the scene's; the concatenation,
-    bodies in scene order, as `_extract` gives it."""
+    interest fragmented together), with its ``mesh.size`` or the scene's, split `splits` times;
+    the concatenation, bodies in scene order, as `_extract` gives it."""
     base = gmsh.model.getCurrent()
     parts, offset, r = [], 0, 0
     for b, body in enumerate(bodies):
@@ -264,7 +273,7 @@ def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
         _set_sizes(scene, size if bspec.mesh is None else bspec.mesh.size, body,
                    _region_entity_sizes(owner, regions_flat, dim=3))
-        gmsh.model.mesh.generate(3)
+        _generate(splits)
         xyz, tet, cb, cr, ci = _extract(owner, inside)
         gmsh.model.remove()
         gmsh.model.setCurrent(base)
@@ -284,12 +293,17 @@ def _body_index(sm: SceneMesh, body: str | None, path: str) -> int | None:
     return sm.bodies.index(body)
 
 
-def build_mesh3d(scene: Scene) -> SceneMesh:
+def build_mesh3d(scene: Scene, splits: int = 0) -> SceneMesh:
     """Mesh a typed 3D scene (regions named, as the loader gives it) into a :class:`SceneMesh` holding one
     ``skfem.MeshTet``; ``boundaries`` and ``roi_cells`` as in 2D (``boundaries``: sorted indices
     into ``mesh.facets``; an empty face selection is a ``StudyError`` at its path). A scene with
-    ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``)."""
+    ``mesh: {file: ...}`` is read from that file instead (``wcs.scene.meshfile``).
+    ``splits``: the mesh refined that many times by splitting every tetrahedron into eight
+    (uniform refinement of the same geometry, h halved each time; not for a mesh file)."""
     if scene.mesh.file is not None:
+        if splits:
+            raise StudyError("a mesh file is used as it is: it has no geometry to refine on",
+                             path="scene.mesh.file")
         return _from_file(scene)
     bodies = list(scene.bodies)
     regions = region_names(scene)
@@ -313,11 +327,11 @@ def build_mesh3d(scene: Scene) -> SceneMesh:
             regions_flat = [reg for body in bodies for reg in scene.bodies[body].regions]
             if not any(scene.bodies[body].mesh for body in bodies):
                 _set_sizes(scene, size, entity_size=_region_entity_sizes(owner, regions_flat, dim=3))
-                gmsh.model.mesh.generate(3)
+                _generate(splits)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
             else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching
                 xyz, tet, cell_body, cell_region, in_roi = _mesh_bodies_separately(scene, bodies, size, embed,
-                                                                                   regions_flat)
+                                                                                   regions_flat, splits)
         finally:
             gmsh.option.setNumber("Mesh.Algorithm3D", previous)
             gmsh.model.mesh.removeSizeCallback()

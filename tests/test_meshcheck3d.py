@@ -1,0 +1,269 @@
+"""The mesh check in 3D: every tetrahedron split into eight by gmsh (new boundary nodes on the
+OCC surfaces), the extremes re-solved on h/2 and h/4, Richardson's order and error estimate;
+and, in 2D and 3D alike, the mesh split once only when the second split would pass
+`mesh.max_cells`."""
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+from scipy.spatial import cKDTree
+
+from test_meshfile3d import FILE, write_block_msh
+from wcs.cli import main
+from wcs.errors import StudyError
+from wcs.fem.tet import volumes
+from wcs.meshcheck import MAX_CONTACT_NODES, ORDER_RANGE, planned, refined_nodes
+from wcs.report.data import from_dataset
+from wcs.report.html import Report
+from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher3d import build_mesh3d
+from wcs.study import load_scene, load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+SLAB = ROOT / "tests" / "data" / "heated-slab.yaml"
+
+# A heated column, the heated slab (tests/data/heated-slab.yaml) one dimension up: a uniform
+# source q, conductivity k, T0 on the bottom and the top, the sides insulated:
+# T(z) = T0 + q/(2k) z (1 - z), quadratic, so P1's error in the mean over 0.3 <= z <= 0.7 is O(h^2).
+COLUMN = {
+    "study": "heated-column-3d",
+    "scene": {
+        "dimension": 3,
+        "mesh": {"size": 0.25},
+        "materials": {"clay": {"E": 1.0e9, "nu": 0.3, "conductivity": 1.0, "expansion": 1.0e-5}},
+        "bodies": {"column": {"regions": [{"material": "clay", "shape": {"box": [0, 0, 0, 0.25, 0.25, 1.0]}}]}},
+        "boundaries": {"bottom": {"plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+                       "top": {"plane": {"point": [0, 0, 1], "normal": [0, 0, 1]}}},
+        "supports": {"bottom": {"u": [0.0, 0.0, 0.0]}},
+        "thermal": {"reference": 300.0, "temperature": {"bottom": 300.0, "top": 300.0},
+                    "sources": {"column": 5.0e3}},
+        "regions_of_interest": {"middle": {"box": [0, 0, 0.3, 0.25, 0.25, 0.7]}},
+    },
+    "uncertain": {"thermal.sources.column": [4.0e3, 6.0e3], "materials.clay.conductivity": [0.9, 1.1]},
+    "criteria": [{"name": "warmth", "kind": "mean_temperature", "regions": ["middle"]}],
+    "limits": {"warmth": 1200.0},
+    "search": {"method": "auto", "budget": 6},
+}
+
+
+# The column on rollers pressed by a uniform pressure on its top: uniaxial stress, P1 exact.
+PRESSED = {
+    "study": "pressed-column-3d",
+    "scene": {
+        "dimension": 3,
+        "mesh": {"size": 0.25},
+        "materials": {"steel": {"E": 2.0e11, "nu": 0.3}},
+        "bodies": {"column": {"regions": [{"material": "steel", "shape": {"box": [0, 0, 0, 0.25, 0.25, 1.0]}}]}},
+        "boundaries": {"bottom": {"plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+                       "top": {"plane": {"point": [0, 0, 1], "normal": [0, 0, 1]}},
+                       "x0": {"plane": {"point": [0, 0, 0], "normal": [1, 0, 0]}},
+                       "y0": {"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}},
+        "supports": {"bottom": {"u": [None, None, 0.0]}, "x0": {"u": [0.0, None, None]},
+                     "y0": {"u": [None, 0.0, None]}},
+        "loads": {"top": {"pressure": 2.0e6}},
+        "regions_of_interest": {"middle": {"box": [0, 0, 0.3, 0.25, 0.25, 0.7]}},
+    },
+    "uncertain": {"loads.top.pressure": [1.0e6, 3.0e6], "materials.steel.E": [1.9e11, 2.1e11]},
+    "criteria": [{"name": "stress", "kind": "von_mises", "regions": ["middle"]}],
+    "search": {"budget": 6},
+}
+
+
+def column_exact(q: float, k: float) -> float:
+    """Mean of T0 + q/(2k) z(1 - z) over 0.3 <= z <= 0.7."""
+    return 300.0 + q / (2 * k) * (0.7**2 / 2 - 0.7**3 / 3 - 0.3**2 / 2 + 0.3**3 / 3) / 0.4
+
+
+def _write(tmp_path, doc: dict, name: str) -> Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def _run(study: Path) -> xr.Dataset:
+    out = study.with_suffix(".nc")
+    assert main(["run", str(study), "-o", str(out), "--quiet"]) in (0, 3)
+    return xr.load_dataset(out, engine="h5netcdf")
+
+
+# ---------------------------------------------------------------- the refined mesh
+
+# A quarter drum (a cylinder holding a ball as a second region: an embedded region boundary)
+# standing on a base (the shared quarter disc: matching faces), a box of interest embedded in it.
+QUARTER = {"box": [0, 0, 0, 1, 1, 1]}
+DRUM = {
+    "dimension": 3,
+    "mesh": {"size": 0.3},
+    "materials": {"m": {"E": 1e9, "nu": 0.3}},
+    "bodies": {
+        "drum": {"regions": [
+            {"material": "m", "shape": {"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0.6], "radius": 0.5},
+                                        "intersect": [QUARTER]}},
+            {"material": "m", "shape": {"sphere": {"center": [0, 0, 0.3], "radius": 0.2}, "intersect": [QUARTER]}}]},
+        "base": {"regions": [{"material": "m", "shape": {"box": [0, 0, -0.3, 0.6, 0.6, 0.0]}}]},
+    },
+    "boundaries": {
+        "lateral": {"body": "drum", "cylinder": {"start": [0, 0, 0], "end": [0, 0, 0.6], "radius": 0.5}},
+        "drum_bottom": {"body": "drum", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+        "base_top": {"body": "base", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
+    },
+    "regions_of_interest": {"core": {"box": [0, 0, 0.05, 0.1, 0.1, 0.2]}},
+}
+
+
+def test_splitting_keeps_the_surfaces_and_halves_every_edge():
+    """Each split: 8x the cells of every region and of the embedded box, 4x the facets of every
+    face, the nodes `refined_nodes` counts; the new nodes of the cylinder's lateral surface and of
+    the ball in the drum (a region boundary) on the surface to 1e-9 (measured: 2e-16); the
+    drum's bottom still matching the base's top node for node; each region's volume grows towards
+    the exact one from below (an inscribed polyhedron: no cell turned inside out)."""
+    scene = load_scene(DRUM)
+    base = build_mesh3d(scene)
+    ball_exact = math.pi / 3 * 0.2**3                                   # a quarter ball
+    volume = [np.bincount(base.cell_region, volumes(base.mesh.p, base.mesh.t))]
+    for s in (1, 2):
+        sm = build_mesh3d(scene, splits=s)
+        m = sm.mesh
+        assert m.t.shape[1] == 8**s * base.mesh.t.shape[1]
+        assert m.p.shape[1] == refined_nodes(base.mesh, s)
+        assert np.array_equal(np.bincount(sm.cell_region), 8**s * np.bincount(base.cell_region))
+        assert sm.roi_cells["core"].size == 8**s * base.roi_cells["core"].size
+        for name in DRUM["boundaries"]:
+            assert sm.boundaries[name].size == 4**s * base.boundaries[name].size
+        lateral = m.p[:, sm.boundary_nodes("lateral")]
+        assert np.abs(np.hypot(lateral[0], lateral[1]) - 0.5).max() < 1e-9
+        drum = sm.cell_body == 0
+        inside = np.intersect1d(m.t[:, drum & (sm.cell_region == 0)], m.t[:, drum & (sm.cell_region == 1)])
+        assert inside.size > 4**s * 10                 # the ball's nodes (on its curved face)
+        assert np.abs(np.linalg.norm(m.p[:, inside] - np.array([[0], [0], [0.3]]), axis=0) - 0.2).max() < 1e-9
+        gap, _ = cKDTree(m.p[:, sm.boundary_nodes("base_top")].T).query(m.p[:, sm.boundary_nodes("drum_bottom")].T)
+        assert gap.max() < 1e-12
+        volume.append(np.bincount(sm.cell_region, volumes(m.p, m.t)))
+    ball = [v[1] for v in volume]
+    drum = [v[0] + v[1] for v in volume]
+    assert ball[0] < ball[1] < ball[2] < ball_exact and drum[0] < drum[1] < drum[2] < math.pi * 0.25 * 0.6 / 4
+
+
+def test_bodies_meshed_on_their_own_are_split_each():
+    """A body with its own `mesh:` (every body in a gmsh model of its own, the faces they share
+    nonmatching): each split into eight, the new nodes of the cylinder's face on it to 1e-9."""
+    doc = {**DRUM, "bodies": {**DRUM["bodies"], "base": {**DRUM["bodies"]["base"], "mesh": {"size": 0.15}}}}
+    scene = load_scene(doc)
+    base, split = build_mesh3d(scene), build_mesh3d(scene, splits=1)
+    assert np.array_equal(np.bincount(split.cell_body), 8 * np.bincount(base.cell_body))
+    assert split.mesh.p.shape[1] == refined_nodes(base.mesh, 1)
+    lateral = split.mesh.p[:, split.boundary_nodes("lateral")]
+    assert np.abs(np.hypot(lateral[0], lateral[1]) - 0.5).max() < 1e-9
+
+
+def test_a_3d_mesh_file_has_no_geometry_to_refine(tmp_path):
+    write_block_msh(tmp_path / "block.msh")
+    (tmp_path / "study.yaml").write_text(FILE)
+    scene = load_study(tmp_path / "study.yaml").scene
+    assert build_mesh3d(scene).mesh.t.shape[1] > 0
+    with pytest.raises(StudyError, match="no geometry to refine") as err:
+        build_mesh3d(scene, splits=1)
+    assert err.value.path == "scene.mesh.file"
+
+
+# ---------------------------------------------------------------- `wcs run` with the mesh check
+
+def test_mesh_check_estimates_the_known_error_of_the_heated_column(tmp_path):
+    """T is quadratic, P1 linear: the worst (q = 6000, k = 0.9) on h, h/2, h/4 is 1072.49,
+    1082.52, 1086.82 against 1088.89 (measured), observed order 1.22 (the errors 16.4, 6.37,
+    2.06 shrink by 2.6 and 3.1, towards 4): the estimate +17.6 is within 10 % of the true +16.4
+    and the extrapolated value is nearer the exact one than the finest value."""
+    ds = _run(_write(tmp_path, COLUMN, "column"))
+    q, k = ds["worst_x"].values[0]
+    assert (q, k) == (6.0e3, 0.9)
+    exact = column_exact(q, k)
+    pick = {"extreme": "worst", "criterion": "warmth"}
+    f = ds["mesh_check_value"].sel(pick).values
+    assert f[0] == ds["worst_value"].values[0]
+    true = exact - f[0]
+    est = float(ds["mesh_check_error"].sel(pick))
+    assert true > 10 and 0.9 < est / true < 1.1
+    order = float(ds["mesh_check_order"].sel(pick))
+    assert ORDER_RANGE[0] <= order <= ORDER_RANGE[1] and order == pytest.approx(1.22, abs=0.1)
+    assert abs(float(ds["mesh_check_extrapolated"].sel(pick)) - exact) < abs(f[2] - exact)
+    assert str(ds["mesh_check_verdict"].sel(pick).values) == "PASS"        # limit 1200, worst 1072 + 18
+    nodes = ds["mesh_check_nodes"].values
+    assert nodes[0] == ds.attrs["mesh_nodes"] and nodes[1] > 4 * nodes[0] and nodes[2] > 4 * nodes[1]
+    assert ds.attrs["mesh_check"].startswith("done: the extreme data sets re-solved on the mesh split once and twice")
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_the_mesh_is_split_once_only_when_twice_would_pass_max_cells(tmp_path, dimension):
+    """mesh.max_cells between the cells split once and twice: the check solves on h and h/2 only,
+    no order, the verdict on the spread |f(h/2) - f(h)| (a limit within it: MARGINAL), the note
+    and the attribute say why; the report marks h/4 as not built. The same in 2D and 3D."""
+    doc = yaml.safe_load(SLAB.read_text()) if dimension == 2 else yaml.safe_load(yaml.safe_dump(COLUMN))
+    doc["search"]["budget"] = 6
+    scene = load_study(_write(tmp_path, doc, "plain")).scene
+    cells = (build_mesh(scene) if dimension == 2 else build_mesh3d(scene)).mesh.t.shape[1]
+    doc["scene"]["mesh"]["max_cells"] = limit = 2 * 2**dimension * cells
+    doc["limits"] = {"warmth": 1076.0}          # worst 1066.9 / 1072.5 (2D / 3D), its h/2 value 10 above
+    ds = _run(_write(tmp_path, doc, "capped"))
+    pick = {"extreme": "worst", "criterion": "warmth"}
+    f = ds["mesh_check_value"].sel(pick).values
+    assert np.isfinite(f[:2]).all() and np.isnan(f[2]) and f[1] - f[0] > 5
+    assert ds["mesh_check_nodes"].values[2] == -1 and ds["mesh_check_nodes"].values[1] > 0
+    assert np.isnan(float(ds["mesh_check_order"].sel(pick))) and np.isnan(float(ds["mesh_check_error"].sel(pick)))
+    assert str(ds["mesh_check_verdict"].sel(pick).values) == "MARGINAL"
+    why = f"the mesh split 2 times would have {cells * 4**dimension:.3g} cells, beyond mesh.max_cells = {limit:g}"
+    note = str(ds["mesh_check_note"].sel(pick).values)
+    assert note.startswith(f"split once only ({why}): f(h/2) − f(h) = ")
+    assert "the verdict uses the spread of the two values" in note
+    assert ds.attrs["mesh_check"].endswith(f"split once only ({ds['mesh_check_nodes'].values[1]} nodes): {why}")
+    section = Report(from_dataset(ds), strict=True).mesh_check()          # the report's mesh-check section
+    assert "<th>h/4 (not built)</th>" in section and 'id="mesh-check-table"' in section
+    assert ("every tetrahedron into eight" if dimension == 3 else "every triangle into four") in section
+
+
+@pytest.mark.parametrize("dimension, contact_nodes, splits, why", [
+    (3, 90, (1, 2), ""),
+    (3, 100, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
+    (3, 400, (), "the mesh split once would have about 1600 contact nodes, beyond the 1500"),
+    (2, 400, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
+])
+def test_the_dense_contact_condensation_bounds_the_splits(tmp_path, dimension, contact_nodes, splits, why):
+    """The contact nodes grow about 2^(d - 1) times a split, the dense condensation's cost as
+    their cube: beyond MAX_CONTACT_NODES a split is not made (the tunnel's 3D fault, 529 nodes,
+    would have about 2116 split once; 2858 took 830 s and 11.9 GB a solve)."""
+    study = load_study(_write(tmp_path, yaml.safe_load(SLAB.read_text()) if dimension == 2 else PRESSED, "s"))
+    assert MAX_CONTACT_NODES == 1500
+    done, said = planned(study, 10, contact_nodes)
+    assert done == splits and said.startswith(why) and (said == "") == (why == "")
+
+
+# ---------------------------------------------------------------- the CLI
+
+def test_check_and_run_of_a_3d_study(tmp_path):
+    """`wcs check` of a 3D study prints the refined meshes' unknowns (3 per node); `wcs run`
+    writes the mesh-check variables. P1 is exact on the pressed column (on rollers, a uniform
+    pressure p on the top: σ_zz = −p everywhere, von Mises = p, 3e6 at the worst), so the three
+    values agree to the solver's tolerance and the note says the mesh's share is below it."""
+    study = _write(tmp_path, PRESSED, "pressed")
+    base = build_mesh3d(load_study(study).scene).mesh
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    wcs = [str(Path(sys.executable).with_name("wcs"))]
+    out = subprocess.run([*wcs, "check", str(study)], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    line = [s for s in out.stdout.splitlines() if "mesh check" in s]
+    n1, n2 = (3 * refined_nodes(base, s) for s in (1, 2))
+    assert len(line) == 1 and f"split once and twice, {n1} unknowns and {n2} unknowns; about " in line[0]
+    nc = tmp_path / "pressed.nc"
+    out = subprocess.run([*wcs, "run", str(study), "-o", str(nc)], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert "stress (worst): 3000000 / 3000000 / 3000000 on h, h/2, h/4; no observed order; no limit" in out.stdout
+    ds = xr.load_dataset(nc, engine="h5netcdf")
+    f = ds["mesh_check_value"].sel(extreme="worst", criterion="stress").values
+    assert np.abs(f - 3.0e6).max() < 1e-8 * 3.0e6                    # solver.tolerance 1e-8 (the default)
+    assert "within the solver tolerance 1e-08" in str(ds["mesh_check_note"].sel(extreme="worst", criterion="stress").values)
+    assert list(ds["mesh_check_nodes"].values) == [base.p.shape[1], refined_nodes(base, 1), refined_nodes(base, 2)]
