@@ -44,10 +44,11 @@ QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
 a node the mean of its d − 1 diagonal entries, one c per disc) turn
 displacements into forces node by node.
 
-The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
-which PARDISO returns as the inverse of the Schur complement of K on S
-during the numeric factorization (see `wcs.linalg`); a re-solve on the same
-pattern costs a numeric refactor, two solves and small dense algebra.
+The Delassus operator W is minus the Schur complement of the bordered matrix
+[[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
+numeric factorization of that matrix, whose leading block is then a factor of
+K⁺⁻¹ for the solves (see `wcs.linalg`); a re-solve on the same pattern costs a
+numeric refactor, two solves and the dense algebra of the contact rows.
 
 Floating bodies (R given, KR = 0): K⁺ = (K + Σ_{j∈P} k_j e_j e_jᵀ)⁻¹ with P
 a set of r DOFs on which R is nonsingular (pivoted QR of Rᵀ). It is an exact
@@ -103,21 +104,38 @@ class ContactFactor:
     factor: object
     pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
     S: np.ndarray       # contact DOFs (columns of C)
-    C_S: np.ndarray     # C on those DOFs (dense): W = C_S (K⁺)_SS C_Sᵀ
+    C_S: np.ndarray | sp.csr_matrix  # C on those DOFs (sparse; dense from a factor with `inverse_block`)
     W: np.ndarray | None = None
     K_data: np.ndarray | None = None  # values (on K's fixed pattern) of the factored matrix
 
-    def holds(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> bool:
+    def holds(self, Kr: sp.csr_matrix, C_S) -> bool:
         return (self.K_data is not None and np.array_equal(self.K_data, Kr.data)
-                and np.array_equal(self.C_S, C_S))
+                and _same(self.C_S, C_S))
 
-    def update(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> "ContactFactor":
+    def update(self, Kr: sp.csr_matrix, C: sp.csr_matrix) -> "ContactFactor":
+        C_S = C[:, self.S]
         if not self.holds(Kr, C_S):
             self.K_data = None
-            self.factor.refactor(Kr)
+            if _bordered(self.factor):
+                self.factor.refactor(Kr, border=C)
+            else:
+                self.factor.refactor(Kr)
             self.C_S, self.W = C_S, delassus(self.factor, C_S)
             self.K_data = Kr.data.copy()
         return self
+
+
+def _same(A, B) -> bool:
+    """A = B entry by entry, either of them sparse or dense."""
+    if sp.issparse(A) and sp.issparse(B):
+        return A.shape == B.shape and (A != B).nnz == 0
+    dense = [M.toarray() if sp.issparse(M) else M for M in (A, B)]
+    return np.array_equal(*dense)
+
+
+def _bordered(factor) -> bool:
+    """A factor of the bordered matrix [[K, Cᵀ], [C, 0]] (`linalg.factorize(..., border=C)`)."""
+    return getattr(factor, "border", None) is not None
 
 
 def pinned_dofs(R: np.ndarray) -> np.ndarray:
@@ -146,24 +164,28 @@ def regularize(K: sp.spmatrix, pinned: np.ndarray) -> sp.csr_matrix:
     return K
 
 
-def delassus(factor, C_S: np.ndarray) -> np.ndarray:
-    """W = C K⁺ Cᵀ = C_S (K⁺)_SS C_Sᵀ from the dense inverse block on the contact DOFs."""
+def delassus(factor, C_S) -> np.ndarray:
+    """W = C K⁺ Cᵀ: from a factor of the bordered matrix, minus its Schur complement on the
+    contact rows (`linalg`, border = C); from a factor with the dense inverse block (K⁺)_SS
+    on the contact DOFs S, C_S (K⁺)_SS C_Sᵀ."""
+    if _bordered(factor):
+        return factor.delassus()
+    C_S = C_S.toarray() if sp.issparse(C_S) else C_S
     Z = factor.inverse_block()
     W = C_S @ Z @ C_S.T
     return 0.5 * (W + W.T)
 
 
 def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> ContactFactor:
-    """Factor K (regularized when R is given) with the block on the contact DOFs; `reuse` (same
+    """Factor K (regularized when R is given) bordered by the contact rows C; `reuse` (same
     contact DOFs and pinned DOFs) is updated in place, keeping its analysis."""
     S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
     Kr = regularize(K, pinned)
-    C_S = C[:, S].toarray()
     if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
-        return reuse.update(Kr, C_S)
-    f = linalg.factorize(Kr, spd=True, block=S)
-    return ContactFactor(f, pinned, S, C_S, delassus(f, C_S), Kr.data.copy())
+        return reuse.update(Kr, C)
+    f = linalg.factorize(Kr, spd=True, border=C)
+    return ContactFactor(f, pinned, S, C[:, S], f.delassus(), Kr.data.copy())
 
 
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
