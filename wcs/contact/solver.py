@@ -466,6 +466,9 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     and least squares over the whole system cost ~1.4 s a step against ~0.1 s for the LU. A
     system singular otherwise is solved by least squares. α is scaled by max|W| so that both
     blocks are of one size.
+
+    In 3D (k = 2) the system is solved in its symmetric form (`_disc_frame_step`) by a
+    Cholesky factorization, the LU above only where that is not positive definite.
     """
     n_t = len(redundant)
     m = len(free) - n_t
@@ -481,6 +484,10 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     lam = np.where(unknown, 0.0, fixed_values)
     r = G.shape[0]
     s = max(np.abs(W).max(initial=0.0), 1e-300)
+    step = _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s) if k == 2 else None
+    if step is not None:
+        lam, alpha = step
+        return _tied_split(W, lam, tied, m, k), alpha
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     if disc is not None and len(disc[0]):
@@ -506,11 +513,70 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         if disc is not None and len(disc[0]):
             x += np.linalg.lstsq(M, rhs - M @ x, rcond=None)[0]
     lam[F] = x[: len(F)]
+    return _tied_split(W, lam, tied, m, k), s * x[len(F):]
+
+
+def _tied_split(W, lam, tied, m, k):
+    """A tied pair (`_newton_point`) moved to the minimum norm split of its normal force."""
     pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k))
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
     lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)
-    return lam, s * x[len(F):]
+    return lam
+
+
+def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s):
+    """The active-set system of `_newton_point` for k = 2 in the slip frame of each disc node,
+    where it is symmetric: (λ, α) or None where its matrix is not positive definite.
+
+    A node slipping on a disc has D = γ(I − ννᵀ), γ = gw/|z| ∈ (0, 1), ν = Π(z)/gw. Its
+    linearized rows λ − D(λ + c r) = Π(z) say along ν: νᵀλ = gw, and across it, τ = ν rotated
+    by 90°: (1 − γ) τᵀλ − γ c τᵀr = 0, i.e. τᵀ(Wλ − Gᵀα)_J + δ a = τᵀq_J with a = τᵀλ,
+    δ = (1 − γ)/(γ c). With V the columns of the unknowns (the free rows F′ = F without the
+    disc rows, one τ per disc node), λ = λ₀ + V y (λ₀: the fixed values, gw ν on the discs):
+
+        [[VᵀWV + diag(δ), −s (GV)ᵀ], [s GV, 0]] [y; α/s] = [Vᵀ(q − Wλ₀); s (e − Gλ₀)],
+
+    the same equations as the unsymmetric form (each disc row pair is a rotation of them,
+    the τ row divided by γc > 0). VᵀWV + diag(δ) is the Delassus operator of the unknown
+    directions: a Cholesky factorization, half an LU's work, and one unknown less per disc
+    node; α from the r × r Schur complement on it. None also where that is singular (the
+    least-squares solve of `_newton_point` takes such a system)."""
+    n = len(q)
+    J, D = disc if disc is not None else (np.zeros((0, 2), dtype=int), np.zeros((0, 2, 2)))
+    plain = np.setdiff1d(F, J.ravel())
+    nu = fixed_values[J] / np.linalg.norm(fixed_values[J], axis=1, keepdims=True)   # (n_s, 2)
+    tau = np.c_[-nu[:, 1], nu[:, 0]]
+    gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
+    delta = (1.0 - gamma) / (gamma * c[J[:, 0]])
+    ns = len(J)
+    cols = np.r_[np.arange(len(plain)), len(plain) + np.repeat(np.arange(ns), 2)]
+    V = sp.csr_matrix((np.r_[np.ones(len(plain)), tau.ravel()], (np.r_[plain, J.ravel()], cols)),
+                      shape=(n, len(plain) + ns))
+    lam0 = lam.copy()
+    lam0[J] = fixed_values[J]                                 # gw ν
+    WV = np.asarray((V.T @ W).T)                              # W V (W symmetric)
+    H = np.asarray(V.T @ WV)
+    H[np.arange(len(plain), len(plain) + ns), np.arange(len(plain), len(plain) + ns)] += delta
+    b = np.asarray(V.T @ (q - W @ lam0)).ravel()
+    try:
+        cho = sla.cho_factor(H, check_finite=False)
+    except np.linalg.LinAlgError:
+        return None
+    GV = np.asarray((V.T @ G.T).T) if G.shape[0] else np.zeros((0, V.shape[1]))
+    alpha = np.zeros(G.shape[0])
+    y = sla.cho_solve(cho, b, check_finite=False)
+    if G.shape[0]:
+        X = sla.cho_solve(cho, GV.T, check_finite=False)      # H⁻¹ (GV)ᵀ
+        try:                                                  # singular: a rigid mode no row holds
+            alpha = np.linalg.solve(GV @ X, e - G @ lam0 - GV @ y)
+        except np.linalg.LinAlgError:
+            return None
+        y = y + X @ alpha
+    if not np.all(np.isfinite(y)):
+        return None
+    out = lam0 + V @ y
+    return out, alpha
 
 
 def _first_free_set(warm, gw, k=1):
