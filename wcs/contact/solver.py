@@ -44,11 +44,13 @@ QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
 a node the mean of its d − 1 diagonal entries, one c per disc) turn
 displacements into forces node by node.
 
-The Delassus operator W is minus the Schur complement of the bordered matrix
-[[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
+The Delassus operator W is, in 3D, minus the Schur complement of the bordered
+matrix [[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
 numeric factorization of that matrix, whose leading block is then a factor of
-K⁺⁻¹ for the solves (see `wcs.linalg`); a re-solve on the same pattern costs a
-numeric refactor, two solves and the dense algebra of the contact rows.
+K⁺⁻¹ for the solves; in 2D it is C_S (K⁺)_SS C_Sᵀ from the inverse of the Schur
+complement of K⁺⁻¹ on the contact DOFs S (see `wcs.linalg`, `factor_contact`). A
+re-solve on the same pattern costs a numeric refactor, two solves and the dense
+algebra of the contact rows.
 
 Floating bodies (R given, KR = 0): K⁺ = (K + Σ_{j∈P} k_j e_j e_jᵀ)⁻¹ with P
 a set of r DOFs on which R is nonsingular (pivoted QR of Rᵀ). It is an exact
