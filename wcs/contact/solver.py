@@ -106,7 +106,7 @@ class ContactFactor:
     factor: object
     pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
     S: np.ndarray       # contact DOFs (columns of C)
-    C_S: np.ndarray | sp.csr_matrix  # C on those DOFs (sparse; dense from a factor with `inverse_block`)
+    C_S: np.ndarray | sp.csr_matrix  # C on those DOFs: sparse (bordered factor) or dense (`inverse_block`)
     W: np.ndarray | None = None
     K_data: np.ndarray | None = None  # values (on K's fixed pattern) of the factored matrix
 
@@ -181,10 +181,11 @@ def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None, bordered
     is updated in place, keeping its analysis and its kind.
 
     bordered: K bordered by the contact rows C (W from the Schur complement on them); else K
-    with the dense inverse block (K⁺)_SS on the contact DOFs S (W = C_S (K⁺)_SS C_Sᵀ), which
-    2D keeps: its results are pinned to the bit, and |S| ≈ 2 (1 + k) m costs little there
-    (3D tunnel at 9.3e4 unknowns: |S| ≈ 17000, 830 s and 11.9 GB a solve, mostly the dense
-    inverse and the triple product)."""
+    with the dense inverse block (K⁺)_SS on the contact DOFs S (W = C_S (K⁺)_SS C_Sᵀ). In 3D
+    |S| ≈ 2 (1 + k) m is large (the tunnel at 9.3e4 unknowns: |S| ≈ 17000, 830 s and 11.9 GB
+    a solve, mostly the dense inverse and the triple product); 2D keeps the block: its zones
+    are small (2D Hertz at 1.2e5 unknowns, 446 rows: both 2.3 s) and its results are pinned to
+    the bit (the bordered W moves them by up to 3e-12, enough to turn near-tied searches)."""
     S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
     Kr = regularize(K, pinned)
@@ -486,7 +487,7 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     lam = np.where(unknown, 0.0, fixed_values)
     r = G.shape[0]
     s = max(np.abs(W).max(initial=0.0), 1e-300)
-    step = _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s) if k == 2 else None
+    step = _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c) if k == 2 else None
     if step is not None:
         lam, alpha = step
         return _tied_split(W, lam, tied, m, k), alpha
@@ -527,7 +528,7 @@ def _tied_split(W, lam, tied, m, k):
     return lam
 
 
-def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s):
+def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     """The active-set system of `_newton_point` for k = 2 in the slip frame of each disc node,
     where it is symmetric: (λ, α) or None where its matrix is not positive definite.
 
@@ -537,7 +538,7 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s):
     δ = (1 − γ)/(γ c). With V the columns of the unknowns (the free rows F′ = F without the
     disc rows, one τ per disc node), λ = λ₀ + V y (λ₀: the fixed values, gw ν on the discs):
 
-        [[VᵀWV + diag(δ), −s (GV)ᵀ], [s GV, 0]] [y; α/s] = [Vᵀ(q − Wλ₀); s (e − Gλ₀)],
+        [[VᵀWV + diag(δ), −(GV)ᵀ], [GV, 0]] [y; α] = [Vᵀ(q − Wλ₀); e − Gλ₀],
 
     the same equations as the unsymmetric form (each disc row pair is a rotation of them,
     the τ row divided by γc > 0). VᵀWV + diag(δ) is the Delassus operator of the unknown
@@ -549,9 +550,9 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s):
     plain = np.setdiff1d(F, J.ravel())
     nu = fixed_values[J] / np.linalg.norm(fixed_values[J], axis=1, keepdims=True)   # (n_s, 2)
     tau = np.c_[-nu[:, 1], nu[:, 0]]
-    gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
-    delta = (1.0 - gamma) / (gamma * c[J[:, 0]])
     ns = len(J)
+    gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
+    delta = (1.0 - gamma) / (gamma * c[J[:, 0]]) if ns else np.zeros(0)
     cols = np.r_[np.arange(len(plain)), len(plain) + np.repeat(np.arange(ns), 2)]
     V = sp.csr_matrix((np.r_[np.ones(len(plain)), tau.ravel()], (np.r_[plain, J.ravel()], cols)),
                       shape=(n, len(plain) + ns))
@@ -577,8 +578,7 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c, s):
         y = y + X @ alpha
     if not np.all(np.isfinite(y)):
         return None
-    out = lam0 + V @ y
-    return out, alpha
+    return lam0 + V @ y, alpha
 
 
 def _first_free_set(warm, gw, k=1):
