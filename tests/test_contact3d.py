@@ -315,5 +315,7 @@ def test_sliding_at_the_limit_is_free_only_along_the_slip():
     P = pad_on_base(rigid_base=True, floating=True, load=(g * np.cos(theta), g * np.sin(theta), -p))
     r = cs.solve_contact(*args(P), g=np.full(len(P["w"]), g), R=P["R"])
     assert r.status == Status.NOT_UNIQUE and "not unique" in r.message
+    # the turn about z is round-off of the null space (1e-11 to 1.2e-10 measured, by the
+    # thread count and the factorization that formed W)
     np.testing.assert_allclose(r.alpha / np.linalg.norm(r.alpha), [np.cos(theta), np.sin(theta), 0, 0, 0, 0],
-                               atol=1e-10)
+                               atol=1e-9)

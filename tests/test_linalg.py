@@ -48,3 +48,31 @@ def test_refactor_with_new_pattern_reanalyses():
 def test_not_positive_definite_raises():
     with pytest.raises(linalg.FactorizationError):
         linalg.factorize(-laplacian_2d(5), "pardiso", spd=True)
+
+
+@pytest.mark.parametrize("kind", ["pardiso", "superlu"])
+def test_bordered_factor_gives_C_A_inverse_Ct_and_solves_with_A(kind):
+    """factorize(A, spd=True, border=C): delassus() = C A⁻¹ Cᵀ and solve() with A itself, also
+    after a refactor with new values and with a border that makes [[A, Cᵀ], [C, 0]] singular
+    (a zero row and a repeated one: C A⁻¹ Cᵀ is then singular, its Schur pivots perturbed)."""
+    rng = np.random.default_rng(3)
+    A = laplacian_2d(15, 0.1)
+    n = A.shape[0]
+    C = sp.random(20, n, density=0.02, random_state=4, format="csr")
+    C = sp.vstack([C, sp.csr_matrix((1, n)), C[:1]]).tocsr()
+    B = rng.standard_normal((n, 3))
+    D = sp.diags(1.0 + rng.random(n))
+    f = linalg.factorize(A, kind, spd=True, border=C)
+    for M in (A, (D @ A @ D).tocsr()):
+        if M is not A:
+            f.refactor(M)
+        X = np.linalg.solve(M.toarray(), B)
+        W = C @ np.linalg.solve(M.toarray(), C.T.toarray())
+        # cond(M) ~ 1e3: 1e-10 relative is far above round-off and far below any wrong block
+        np.testing.assert_allclose(f.delassus(), W, rtol=0, atol=1e-10 * np.abs(W).max())
+        np.testing.assert_allclose(f.solve(B), X, rtol=0, atol=1e-10 * np.abs(X).max())
+        np.testing.assert_allclose(f.solve(B[:, 1]), X[:, 1], rtol=0, atol=1e-10 * np.abs(X).max())
+    C2 = (2.0 * C).tocsr()                                  # a new border on the same pattern
+    f.refactor(A, border=C2)
+    W2 = C2 @ np.linalg.solve(A.toarray(), C2.T.toarray())
+    np.testing.assert_allclose(f.delassus(), W2, rtol=0, atol=1e-10 * np.abs(W2).max())

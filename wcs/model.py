@@ -70,7 +70,7 @@ class Solution:
     def contact_factor(self, model):
         """The contact factorization (`ContactFactor`) of this solution's reduced stiffness."""
         C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
-        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact)
+        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact, model.dim == 3)
 
 
 class Model:

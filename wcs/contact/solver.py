@@ -44,10 +44,13 @@ QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
 a node the mean of its d − 1 diagonal entries, one c per disc) turn
 displacements into forces node by node.
 
-The Delassus operator W is formed from (K⁺)_SS on the few contact DOFs S,
-which PARDISO returns as the inverse of the Schur complement of K on S
-during the numeric factorization (see `wcs.linalg`); a re-solve on the same
-pattern costs a numeric refactor, two solves and small dense algebra.
+The Delassus operator W is, in 3D, minus the Schur complement of the bordered
+matrix [[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
+numeric factorization of that matrix, whose leading block is then a factor of
+K⁺⁻¹ for the solves; in 2D it is C_S (K⁺)_SS C_Sᵀ from the inverse of the Schur
+complement of K⁺⁻¹ on the contact DOFs S (see `wcs.linalg`, `factor_contact`). A
+re-solve on the same pattern costs a numeric refactor, two solves and the dense
+algebra of the contact rows.
 
 Floating bodies (R given, KR = 0): K⁺ = (K + Σ_{j∈P} k_j e_j e_jᵀ)⁻¹ with P
 a set of r DOFs on which R is nonsingular (pivoted QR of Rᵀ). It is an exact
@@ -102,21 +105,37 @@ class ContactFactor:
     factor: object
     pinned: np.ndarray  # DOFs regularized for the rigid modes (empty without R)
     S: np.ndarray       # contact DOFs (columns of C)
-    C_S: np.ndarray     # C on those DOFs (dense): W = C_S (K⁺)_SS C_Sᵀ
+    C_S: np.ndarray | sp.csr_matrix  # C on those DOFs: sparse (bordered factor) or dense (`inverse_block`)
     W: np.ndarray | None = None
     K_data: np.ndarray | None = None  # values (on K's fixed pattern) of the factored matrix
 
-    def holds(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> bool:
+    def holds(self, Kr: sp.csr_matrix, C_S) -> bool:
         return (self.K_data is not None and np.array_equal(self.K_data, Kr.data)
-                and np.array_equal(self.C_S, C_S))
+                and _same(self.C_S, C_S))
 
-    def update(self, Kr: sp.csr_matrix, C_S: np.ndarray) -> "ContactFactor":
+    def update(self, Kr: sp.csr_matrix, C: sp.csr_matrix) -> "ContactFactor":
+        C_S = C[:, self.S] if _bordered(self.factor) else C[:, self.S].toarray()
         if not self.holds(Kr, C_S):
             self.K_data = None
-            self.factor.refactor(Kr)
+            if _bordered(self.factor):
+                self.factor.refactor(Kr, border=C)
+            else:
+                self.factor.refactor(Kr)
             self.C_S, self.W = C_S, delassus(self.factor, C_S)
             self.K_data = Kr.data.copy()
         return self
+
+
+def _same(A, B) -> bool:
+    """A = B entry by entry (both sparse, or both dense)."""
+    if sp.issparse(A):
+        return sp.issparse(B) and A.shape == B.shape and (A != B).nnz == 0
+    return np.array_equal(A, B)
+
+
+def _bordered(factor) -> bool:
+    """A factor of the bordered matrix [[K, Cᵀ], [C, 0]] (`linalg.factorize(..., border=C)`)."""
+    return getattr(factor, "border", None) is not None
 
 
 def pinned_dofs(R: np.ndarray) -> np.ndarray:
@@ -145,23 +164,37 @@ def regularize(K: sp.spmatrix, pinned: np.ndarray) -> sp.csr_matrix:
     return K
 
 
-def delassus(factor, C_S: np.ndarray) -> np.ndarray:
-    """W = C K⁺ Cᵀ = C_S (K⁺)_SS C_Sᵀ from the dense inverse block on the contact DOFs."""
+def delassus(factor, C_S) -> np.ndarray:
+    """W = C K⁺ Cᵀ: from a factor of the bordered matrix, minus its Schur complement on the
+    contact rows (`linalg`, border = C); from a factor with the dense inverse block (K⁺)_SS
+    on the contact DOFs S, C_S (K⁺)_SS C_Sᵀ."""
+    if _bordered(factor):
+        return factor.delassus()
     Z = factor.inverse_block()
     W = C_S @ Z @ C_S.T
     return 0.5 * (W + W.T)
 
 
-def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None) -> ContactFactor:
-    """Factor K (regularized when R is given) with the block on the contact DOFs; `reuse` (same
-    contact DOFs and pinned DOFs) is updated in place, keeping its analysis."""
+def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None, bordered: bool = True) -> ContactFactor:
+    """Factor K (regularized when R is given) for W; `reuse` (same contact DOFs and pinned DOFs)
+    is updated in place, keeping its analysis and its kind.
+
+    bordered: K bordered by the contact rows C (W from the Schur complement on them); else K
+    with the dense inverse block (K⁺)_SS on the contact DOFs S (W = C_S (K⁺)_SS C_Sᵀ). In 3D
+    |S| ≈ 2 (1 + k) m is large (the tunnel at 9.3e4 unknowns: |S| ≈ 17000, 830 s and 11.9 GB
+    a solve, mostly the dense inverse and the triple product); 2D keeps the block: its zones
+    are small (2D Hertz at 1.2e5 unknowns, 446 rows: both 2.3 s) and its results are pinned to
+    the bit (the bordered W moves them by up to 3e-12, enough to turn near-tied searches)."""
     S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
     Kr = regularize(K, pinned)
-    C_S = C[:, S].toarray()
     if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
-        return reuse.update(Kr, C_S)
+        return reuse.update(Kr, C)
+    if bordered:
+        f = linalg.factorize(Kr, spd=True, border=C)
+        return ContactFactor(f, pinned, S, C[:, S], f.delassus(), Kr.data.copy())
     f = linalg.factorize(Kr, spd=True, block=S)
+    C_S = C[:, S].toarray()
     return ContactFactor(f, pinned, S, C_S, delassus(f, C_S), Kr.data.copy())
 
 
@@ -406,6 +439,9 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     and least squares over the whole system cost ~1.4 s a step against ~0.1 s for the LU. A
     system singular otherwise is solved by least squares. α is scaled by max|W| so that both
     blocks are of one size.
+
+    In 3D (k = 2) the system is solved in its symmetric form (`_disc_frame_step`) by a
+    Cholesky factorization, the LU above only where that is not positive definite.
     """
     n_t = len(redundant)
     m = len(free) - n_t
@@ -421,6 +457,10 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     lam = np.where(unknown, 0.0, fixed_values)
     r = G.shape[0]
     s = max(np.abs(W).max(initial=0.0), 1e-300)
+    step = _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c) if k == 2 else None
+    if step is not None:
+        lam, alpha = step
+        return _tied_split(W, lam, tied, m, k), alpha
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     if disc is not None and len(disc[0]):
@@ -431,9 +471,14 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         rows[np.arange(len(J))[:, None, None], np.arange(k)[None, :, None], P[:, None, :]] += np.eye(k) - D
         M[P], rhs[P] = rows, np.einsum("sij,sj->si", cD, rhs[P]) + fixed_values[J]
     try:
-        x = np.linalg.solve(M, rhs)
-        if disc is not None and len(disc[0]):
-            x += np.linalg.solve(M, rhs - M @ x)
+        if disc is not None and len(disc[0]):          # one LU for the solve and its refinement
+            lu, piv, info = sla.lapack.dgetrf(M)
+            if info != 0:
+                raise np.linalg.LinAlgError
+            x = sla.lapack.dgetrs(lu, piv, rhs)[0]
+            x += sla.lapack.dgetrs(lu, piv, rhs - M @ x)[0]
+        else:
+            x = np.linalg.solve(M, rhs)
         if not np.all(np.isfinite(x)):
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
@@ -441,11 +486,70 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
         if disc is not None and len(disc[0]):
             x += np.linalg.lstsq(M, rhs - M @ x, rcond=None)[0]
     lam[F] = x[: len(F)]
+    return _tied_split(W, lam, tied, m, k), s * x[len(F):]
+
+
+def _tied_split(W, lam, tied, m, k):
+    """A tied pair (`_newton_point`) moved to the minimum norm split of its normal force; on a
+    disc (k = 2) left at λt = 0."""
     pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k)) if k == 1 else np.zeros(0, dtype=int)
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
     lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)
-    return lam, s * x[len(F):]
+    return lam
+
+
+def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
+    """The active-set system of `_newton_point` for k = 2 in the slip frame of each disc node,
+    where it is symmetric: (λ, α) or None where its matrix is not positive definite.
+
+    A node slipping on a disc has D = γ(I − ννᵀ), γ = gw/|z| ∈ (0, 1), ν = Π(z)/gw. Its
+    linearized rows λ − D(λ + c r) = Π(z) say along ν: νᵀλ = gw, and across it, τ = ν rotated
+    by 90°: (1 − γ) τᵀλ − γ c τᵀr = 0, i.e. τᵀ(Wλ − Gᵀα)_J + δ a = τᵀq_J with a = τᵀλ,
+    δ = (1 − γ)/(γ c). With V the columns of the unknowns (the free rows F′ = F without the
+    disc rows, one τ per disc node), λ = λ₀ + V y (λ₀: the fixed values, gw ν on the discs):
+
+        [[VᵀWV + diag(δ), −(GV)ᵀ], [GV, 0]] [y; α] = [Vᵀ(q − Wλ₀); e − Gλ₀],
+
+    the same equations as the unsymmetric form (each disc row pair is a rotation of them,
+    the τ row divided by γc > 0). VᵀWV + diag(δ) is the Delassus operator of the unknown
+    directions: a Cholesky factorization, half an LU's work, and one unknown less per disc
+    node; α from the r × r Schur complement on it. None also where that is singular (the
+    least-squares solve of `_newton_point` takes such a system)."""
+    n = len(q)
+    J, D = disc if disc is not None else (np.zeros((0, 2), dtype=int), np.zeros((0, 2, 2)))
+    plain = np.setdiff1d(F, J.ravel())
+    nu = fixed_values[J] / np.linalg.norm(fixed_values[J], axis=1, keepdims=True)   # (n_s, 2)
+    tau = np.c_[-nu[:, 1], nu[:, 0]]
+    ns = len(J)
+    gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
+    delta = (1.0 - gamma) / (gamma * c[J[:, 0]]) if ns else np.zeros(0)
+    cols = np.r_[np.arange(len(plain)), len(plain) + np.repeat(np.arange(ns), 2)]
+    V = sp.csr_matrix((np.r_[np.ones(len(plain)), tau.ravel()], (np.r_[plain, J.ravel()], cols)),
+                      shape=(n, len(plain) + ns))
+    lam0 = lam.copy()
+    lam0[J] = fixed_values[J]                                 # gw ν
+    WV = np.asarray((V.T @ W).T)                              # W V (W symmetric)
+    H = np.asarray(V.T @ WV)
+    H[np.arange(len(plain), len(plain) + ns), np.arange(len(plain), len(plain) + ns)] += delta
+    b = np.asarray(V.T @ (q - W @ lam0)).ravel()
+    try:
+        cho = sla.cho_factor(H, check_finite=False)
+    except np.linalg.LinAlgError:
+        return None
+    GV = np.asarray((V.T @ G.T).T) if G.shape[0] else np.zeros((0, V.shape[1]))
+    alpha = np.zeros(G.shape[0])
+    y = sla.cho_solve(cho, b, check_finite=False)
+    if G.shape[0]:
+        X = sla.cho_solve(cho, GV.T, check_finite=False)      # H⁻¹ (GV)ᵀ
+        try:                                                  # singular: a rigid mode no row holds
+            alpha = np.linalg.solve(GV @ X, e - G @ lam0 - GV @ y)
+        except np.linalg.LinAlgError:
+            return None
+        y = y + X @ alpha
+    if not np.all(np.isfinite(y)):
+        return None
+    return lam0 + V @ y, alpha
 
 
 def _first_free_set(warm, gw, k=1):
@@ -539,7 +643,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
 
     t = time.perf_counter()
     try:
-        cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None))
+        cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None), k > 1)
         u0 = cf.factor.solve(f)
     except linalg.FactorizationError as exc:
         return ContactResult(None, None, None, Status.SINGULAR, f"factorization failed: {exc}", timings=timings)
