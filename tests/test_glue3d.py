@@ -27,6 +27,8 @@ from wcs.scene.mesher3d import build_mesh3d
 from wcs.scene.session import Session
 from wcs.study import load_study
 
+from test_3d_model import solve
+
 ROOT = Path(__file__).resolve().parents[1]
 P = 2.0e6                                   # the traction on the top [Pa]
 MATERIALS = {"stiff": {"E": 2.0e10, "nu": 0.3, "expansion": 1.0e-5, "conductivity": 3.0},
@@ -57,13 +59,6 @@ def stack(base=0.25, block=None, **scene) -> dict:
          "solver": {"method": "monolithic"}}
     d["scene"].update(scene)
     return d
-
-
-def solve(d):
-    ev = Evaluator(load_study(d))
-    res = ev.evaluate(ev.study.nominal())
-    assert res.status == 0, res.message
-    return ev, res
 
 
 def strain(material: str, tau: np.ndarray) -> np.ndarray:
