@@ -48,7 +48,7 @@ SOLVE_GROWTH = {2: 1.15,        # a solve's time grows as nodes^1.15 (1.1-1.25 f
                 3: 1.5}         # in 3D as nodes^1.5 (1.2-1.3 from h to h/2: hertz-3d; 1.4-1.7 h/2 to h/4: block-on-block-3d)
 ASSEMBLY_GROWTH = {2: 1.0,      # the assembly's as the nodes,
                    3: 1.35}     # in 3D as nodes^1.35 (1.3 hertz-3d, 1.4 block-on-block-3d, as the solves)
-MAX_CONTACT_NODES = 1500        # the dense contact condensation: O(m³) time, O(m²) memory (2858 nodes: 830 s, 11.9 GB)
+MAX_CONTACT_NODES = 1500        # the dense contact condensation: O(m³) time, O(m²) memory (3D, 3152 nodes: 141 s, 5.8 GB)
 FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
 
 

@@ -178,6 +178,12 @@ def _pinned_inverse(S: np.ndarray, Z: np.ndarray, what: str) -> np.ndarray:
     return np.triu(inv) + np.triu(inv, 1).T
 
 
+def tangent_rows(rows: np.ndarray, m: int, k: int) -> np.ndarray:
+    """The rows of Bt (k tangents per node, stacked by component: tangent j of node i at
+    j·m + i, m nodes) of the nodes `rows`, in the same stacking."""
+    return (np.arange(k)[:, None] * m + rows).ravel()
+
+
 def _symmetric_product(M: np.ndarray, v: np.ndarray) -> np.ndarray:
     """M v for a symmetric dense M: a vector by BLAS dsymv, which reads one triangle (the
     products of PCG are memory bound: measured 1.3–1.5× faster than `M @ v` at 400–800
@@ -335,6 +341,7 @@ class PairUnit(Unit):
         Z_halves = np.hstack(comp_modes) if comp_modes else np.zeros((dofs.size, 0))
         super().__init__(index, subdomains, dofs, op, Tloc, Z_halves, rho)
         self.rows, self.Bn, self.Bt = rows, Bn.tocsr(), Bt.tocsr()
+        self.k = self.Bt.shape[0] // max(rows.size, 1)     # tangent rows per node: d − 1
         self.comp_modes = comp_modes     # per facet-connected component: its admissible rigid modes
         self.Z_halves = Z_halves
         self.warm = None
@@ -455,8 +462,7 @@ class PairUnit(Unit):
         solution; in 2D the interval has no such direction). Returns (nodes, ŝ (2, n),
         compliances (n,)) of the nodes slipping by |s| > 0 under a finite positive bound, None
         in 2D or without a solution."""
-        res, m = self.result, self.rows.size
-        k = self.Bt.shape[0] // max(m, 1)
+        res, m, k = self.result, self.rows.size, self.k
         if k == 1 or res is None or res.u is None:
             return None
         s = (self.Bt_c @ res.u).reshape(k, m)
@@ -566,15 +572,14 @@ class PairUnit(Unit):
         """(Bn, Bt) on the contact DOFs, rows of the `live` nodes only."""
         if self.live is None:
             return self.Bn_c, self.Bt_c
-        m, k = self.rows.size, self.Bt.shape[0] // max(self.rows.size, 1)
-        return self.Bn_c[self.live], self.Bt_c[(np.arange(k)[:, None] * m + self.live).ravel()]
+        return self.Bn_c[self.live], self.Bt_c[tangent_rows(self.live, self.rows.size, self.k)]
 
     def _full(self, res):
         """A result on the `live` nodes extended to all the pair's nodes: a node whose every
         jump row vanishes (both sides held by supports) is open and carries no force."""
         if self.live is None or res.lam_n is None:
             return res
-        m, k = self.rows.size, self.Bt.shape[0] // max(self.rows.size, 1)
+        m = self.rows.size
 
         def nodes(x, fill=0):
             out = np.full((x.size // self.live.size, m), fill, dtype=x.dtype)

@@ -62,7 +62,7 @@ from wcs.fem.affine import CellAffineOperator
 from wcs.status import DDOutcome, Status
 from wcs.options import DomainDecomposition, Solver
 
-from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis
+from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis, tangent_rows
 from .partition import Partition, facet_components, node_unknowns, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
@@ -110,12 +110,6 @@ def _local_pieces(t_nodes, cells, ncomp, T, node_dofs, local, group, p, componen
         modes.append(admissible(M, Tloc))
         traces.append(Tloc.T @ M)
     return nodes, dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
-
-
-def tangent_rows(rows: np.ndarray, m: int, k: int) -> np.ndarray:
-    """The rows of Bt (k tangents per node, stacked by component: tangent j of node i at
-    j·m + i, m nodes) of the nodes `rows`, in the same stacking."""
-    return (np.arange(k)[:, None] * m + rows).ravel()
 
 
 def _interface(units, ndof):

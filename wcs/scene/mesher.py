@@ -188,7 +188,7 @@ def _set_sizes(size: float, callback) -> None:
         gmsh.model.mesh.setSizeCallback(callback)
 
 
-def _region_entity_sizes(owner: dict, regions_flat: list, dim: int = 2) -> dict:
+def region_entity_sizes(owner: dict, regions_flat: list, dim: int = 2) -> dict:
     """{(dim, tag): size} for the pieces (surfaces in 2D, volumes in 3D) of regions with
     ``mesh: {size}`` and the entities bounding them, down to the points (the smallest size
     of the pieces around them)."""
@@ -325,7 +325,7 @@ def _mesh_bodies_separately(scene, bodies, inputs, regions_flat, diag, embed, sp
                 for i, rg in enumerate(rg for bb, rg, _ in inputs if bb == b)]
         covered, inside = fragment_pieces([dts for _, dts in mine], _roi_shapes(scene, embed))
         owner = {tag: (b, max(mine[k][0] for k in ks)) for tag, ks in covered.items()}
-        _set_sizes(*_size_function(scene, diag, body, _region_entity_sizes(owner, regions_flat)))
+        _set_sizes(*_size_function(scene, diag, body, region_entity_sizes(owner, regions_flat)))
         _generate(splits)
         xy, t, c1, c2, c3 = _extract(owner, inside, offset)
         gmsh.model.mesh.removeSizeCallback()
@@ -388,7 +388,7 @@ def build_mesh(scene, rois=None, splits: int = 0) -> SceneMesh:
         diag = math.hypot(xmax - xmin, ymax - ymin)
         regions_flat = [reg for body in bodies for reg in bodies_spec[body].regions]
         if all(bodies_spec[body].mesh is None for body in bodies):
-            _set_sizes(*_size_function(scene, diag, None, _region_entity_sizes(owner, regions_flat)))
+            _set_sizes(*_size_function(scene, diag, None, region_entity_sizes(owner, regions_flat)))
             _generate(splits)
             xy, tris, cb, cr, ci = _extract(owner, inside)
             gmsh.model.mesh.removeSizeCallback()

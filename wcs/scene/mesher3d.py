@@ -65,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher import _region_entity_sizes, fragment_pieces, piece_owners, region_names
+from .mesher import region_entity_sizes, fragment_pieces, piece_owners, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -194,7 +194,7 @@ def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=N
     """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
     zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`),
     and at most a region's own size in its volumes and on their faces, edges and corners
-    (``entity_size``: {(dim, tag): size}, `mesher._region_entity_sizes`); a uniform size is
+    (``entity_size``: {(dim, tag): size}, `mesher.region_entity_sizes`); a uniform size is
     gmsh's own bound ``Mesh.MeshSizeMax``."""
     grading = float(DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading)
     refs = _refinements(scene, scene.mesh.refine, "scene.mesh.refine")
@@ -272,7 +272,7 @@ def _mesh_bodies_separately(scene: Scene, bodies: list, size: float, embed: list
                                                    for n in embed], dim=3)
         owner = {tag: (b, r + max(ks)) for tag, ks in covered.items()}
         _set_sizes(scene, size if bspec.mesh is None else bspec.mesh.size, body,
-                   _region_entity_sizes(owner, regions_flat, dim=3))
+                   region_entity_sizes(owner, regions_flat, dim=3))
         _generate(splits)
         xyz, tet, cb, cr, ci = _extract(owner, inside)
         gmsh.model.remove()
@@ -326,7 +326,7 @@ def build_mesh3d(scene: Scene, splits: int = 0) -> SceneMesh:
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
             regions_flat = [reg for body in bodies for reg in scene.bodies[body].regions]
             if not any(scene.bodies[body].mesh for body in bodies):
-                _set_sizes(scene, size, entity_size=_region_entity_sizes(owner, regions_flat, dim=3))
+                _set_sizes(scene, size, entity_size=region_entity_sizes(owner, regions_flat, dim=3))
                 _generate(splits)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
             else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching
