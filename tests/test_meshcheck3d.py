@@ -292,18 +292,18 @@ def test_machine_memory_is_the_physical_memory_or_the_cgroup_limit():
 
 
 def test_the_cost_has_the_dense_condensation_term():
-    """cost(): on top of the study's solve grown with the nodes, each of the n + FIRST_SOLVE_EXTRA
-    solves of a refined mesh pays the dense condensation of its k contact rows, as k³ from
-    CONDENSATION (58 s at 6141 rows in 3D): the tunnel split once (6348 rows) about 64 s a solve,
-    split twice (25392 rows) about 4100 s."""
+    """cost(): on top of the study's solve grown with the nodes, the nominal state the contact
+    solves start from and each of the n extremes pay the dense condensation of the refined mesh's
+    k contact rows, as k³ from CONDENSATION (58 s at 6141 rows in 3D): the tunnel (529 fault nodes,
+    2 extremes) split once (6348 rows) about 3 × 64 s, split twice (25392 rows) 3 × 4100 s."""
     x = np.linspace(0.0, 1.0, 3)
     mesh = skfem.MeshTet.init_tensor(x, x, x)
     ev = SimpleNamespace(smesh=SimpleNamespace(mesh=mesh), timings={"mesh": 0.0, "assembly": 0.0},
                          model=SimpleNamespace(thermal=False, zone=SimpleNamespace(gap=np.zeros(529))))
     (s1, n1, t1), (s2, n2, t2) = cost(ev, 0.0, 2)
     assert (s1, s2) == (1, 2) and (n1, n2) == (3 * refined_nodes(mesh, 1), 3 * refined_nodes(mesh, 2))
-    assert t1 == pytest.approx(6 * 58.0 * (6348 / 6141) ** 3, rel=1e-12)
-    assert t2 == pytest.approx(6 * 58.0 * (25392 / 6141) ** 3, rel=1e-12)
+    assert t1 == pytest.approx(3 * 58.0 * (6348 / 6141) ** 3, rel=1e-12)
+    assert t2 == pytest.approx(3 * 58.0 * (25392 / 6141) ** 3, rel=1e-12)
 
 
 # ---------------------------------------------------------------- the CLI
