@@ -246,7 +246,7 @@ def test_the_dense_contact_condensation_bounds_the_splits_by_memory(tmp_path, di
                                                                      split, rows):
     """The k = d · m contact rows grow about 2^(d - 1) times a split and the condensation holds
     DENSE_BLOCKS[d] k × k blocks: a split whose blocks pass half of the machine's memory (16 GB
-    given here: 8 GB) is not made, and the note says how much it needs against how much there is."""
+    given here: 8 GB) is not made, and the note says how much it needs against how much it may take."""
     study = load_study(_write(tmp_path, yaml.safe_load(SLAB.read_text()) if dimension == 2 else PRESSED, "s"))
     done, said = planned(study, 10, contact_nodes, memory=16e9)
     assert done == splits
@@ -254,8 +254,8 @@ def test_the_dense_contact_condensation_bounds_the_splits_by_memory(tmp_path, di
         assert said == ""
     else:
         assert said == (f"the mesh {split} would need about {_needed(dimension, rows):.3g} GB for its dense contact "
-                        f"condensation ({(24, 8)[dimension - 2]} blocks of {rows} × {rows} contact rows), beyond "
-                        f"the 8 GB available to it (50% of this machine's 16 GB)")
+                        f"condensation ({rows} contact rows: {(24, 8)[dimension - 2]} blocks of {rows} × {rows} "
+                        f"float64), beyond the 8 GB it may take (50% of this machine's 16 GB of memory)")
 
 
 def test_the_shipped_3d_tunnel_is_split_once():
@@ -269,7 +269,7 @@ def test_the_shipped_3d_tunnel_is_split_once():
     assert planned(study, 24822, 529, memory=8e9) == ((1,), twice)
     done, said = planned(study, 24822, 529, memory=4e9)
     assert done == () and said.startswith(f"the mesh split once would need about {_needed(3, 6348):.3g} GB")
-    assert said.endswith("beyond the 2 GB available to it (50% of this machine's 4 GB)")
+    assert said.endswith("beyond the 2 GB it may take (50% of this machine's 4 GB of memory)")
 
 
 def test_the_shipped_2d_studies_are_split_twice_even_on_a_small_machine(tmp_path):

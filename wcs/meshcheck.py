@@ -182,9 +182,9 @@ def planned(study, cells: int, contact_nodes: int, memory: float | None = None) 
             return tuple(done), f"{split} have {n:.3g} cells, beyond mesh.max_cells = {max_cells(study):g}"
         if condensation_bytes(d, k) > MEMORY_SHARE * memory:
             return tuple(done), (f"{split} need about {condensation_bytes(d, k) / 1e9:.3g} GB for its dense "
-                                 f"contact condensation ({DENSE_BLOCKS[d]} blocks of {k} × {k} contact rows), "
-                                 f"beyond the {MEMORY_SHARE * memory / 1e9:.3g} GB available to it "
-                                 f"({MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB)")
+                                 f"contact condensation ({k} contact rows: {DENSE_BLOCKS[d]} blocks of {k} × {k} "
+                                 f"float64), beyond the {MEMORY_SHARE * memory / 1e9:.3g} GB it may take "
+                                 f"({MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB of memory)")
         done.append(s)
     return tuple(done), ""
 
