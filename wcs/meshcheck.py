@@ -19,14 +19,15 @@ MARGINAL when |L − f0| ≤ |error| (without an error estimate: the spread max|
 three values, and the note says so), else PASS or FAIL.
 
 When the mesh split twice would pass `mesh.max_cells` (4 or 8 times the cells per split, in 2D
-or 3D) or its dense contact condensation would not fit in memory, the mesh is split once only:
-the two values f0, f1, no order, the verdict on the spread |f1 − f0|, as the note says; when
-the mesh split once would pass it too, the check is not run. The contact solve condenses onto
-the k = d × m contact rows of the m contact nodes (about 2^(d − 1) times more per split) with
-dense k × k blocks (the Delassus operator, in 3D minus the Schur complement of the bordered
-matrix [[K, Cᵀ], [C, 0]]): DENSE_BLOCKS[d] × 8 k² bytes at the peak of a solve, against
-MEMORY_SHARE of the machine's memory (`machine_memory`: a fixed property of the machine, so
-the plan depends only on the study and the machine).
+or 3D) or its dense contact condensation would not fit in memory or take more than minutes, the
+mesh is split once only: the two values f0, f1, no order, the verdict on the spread |f1 − f0|,
+as the note says; when the mesh split once would pass it too, the check is not run. The contact
+solve condenses onto the k = d × m contact rows of the m contact nodes (about 2^(d − 1) times
+more per split) with dense k × k blocks (the Delassus operator, in 3D minus the Schur complement
+of the bordered matrix [[K, Cᵀ], [C, 0]]): DENSE_BLOCKS[d] × 8 k² bytes at the peak of a solve,
+against MEMORY_SHARE of the machine's memory (`machine_memory`: a fixed property of the
+machine), and CONDENSATION's seconds grown as k³, against MAX_SOLVE_SECONDS a solve. The plan
+depends only on the study and the machine.
 """
 from __future__ import annotations
 
@@ -63,6 +64,8 @@ MEMORY_SHARE = 0.5              # of the machine's memory, the rest for the syst
 CONDENSATION = {2: (40.0, 2692),    # (seconds, k) of a cold contact solve on k contact rows, its dense condensation
                 3: (58.0, 6141)}    # growing as k³ (one core, a loaded machine: 2D tunnel; 3D tunnel, 25.7 s of it the
                                     # bordered factorization; 141 s at k = 9456 on a quieter one)
+MAX_SOLVE_SECONDS = 120.0       # the condensation's estimated time a solve of a refined mesh may take (the 3D tunnel
+                                # split once: 64 s; hertz-3d split twice, 570 s, is not made)
 FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
 
 
@@ -167,11 +170,18 @@ def condensation_bytes(d: int, k: int) -> float:
     return DENSE_BLOCKS[d] * 8.0 * k * k
 
 
+def condensation_seconds(d: int, k: int) -> float:
+    """Estimated seconds of a contact solve's dense condensation on k contact rows: CONDENSATION's
+    measured solve grown as k³."""
+    seconds_ref, k_ref = CONDENSATION[d]
+    return seconds_ref * (k / k_ref) ** 3
+
+
 def planned(study, cells: int, contact_nodes: int, memory: float | None = None) -> tuple[tuple[int, ...], str]:
     """The splits of SPLITS made of a mesh of `cells` cells and `contact_nodes` contact nodes: within
     `mesh.max_cells` (a split multiplies the cells by 2^d) and with the dense contact condensation
-    of the split mesh within MEMORY_SHARE of `memory` bytes (None: `machine_memory()`); and why no
-    more are made ("" when all are)."""
+    of the split mesh within MEMORY_SHARE of `memory` bytes (None: `machine_memory()`) and
+    MAX_SOLVE_SECONDS a solve; and why no more are made ("" when all are)."""
     d = study.scene.dimension
     memory = machine_memory() if memory is None else memory
     done: list[int] = []
@@ -185,6 +195,11 @@ def planned(study, cells: int, contact_nodes: int, memory: float | None = None) 
                                  f"contact condensation ({k} contact rows: {DENSE_BLOCKS[d]} blocks of {k} × {k} "
                                  f"float64), beyond the {MEMORY_SHARE * memory / 1e9:.3g} GB it may take "
                                  f"({MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB of memory)")
+        if condensation_seconds(d, k) > MAX_SOLVE_SECONDS:
+            return tuple(done), (f"{split} take about {condensation_seconds(d, k):.3g} s a solve for its dense "
+                                 f"contact condensation ({k} contact rows, as k³ from {CONDENSATION[d][0]:g} s at "
+                                 f"{CONDENSATION[d][1]}), beyond the {MAX_SOLVE_SECONDS:g} s a solve of the check "
+                                 f"may take")
         done.append(s)
     return tuple(done), ""
 
@@ -195,8 +210,8 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     reused): meshing as the study's (the geometry dominates), assembly growing as
     nodes^ASSEMBLY_GROWTH, a solve as nodes^SOLVE_GROWTH (of the dimension), a new mesh's first
     solve FIRST_SOLVE_EXTRA solves dearer; and the dense contact condensation on the split mesh's
-    k contact rows, CONDENSATION's seconds times (k / its k)³, paid by the nominal state the
-    contact solves start from and by each extreme. Measured (knee, tunnel, Hertz: both refined
+    k contact rows (`condensation_seconds`), paid by the nominal state the contact solves start
+    from and by each extreme. Measured (knee, tunnel, Hertz: both refined
     meshes, one solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s
     taken: the estimate is good to a factor 2. In 3D (block-on-block-3d split once and twice,
     hertz-3d split once, on a loaded machine): 170 and 230 s estimated against 166 and 324 s
@@ -205,13 +220,12 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     d, n = mesh.dim(), mesh.p.shape[1]
     per_node = d + evaluator.model.thermal
     m = 0 if evaluator.model.zone is None else evaluator.model.zone.gap.size
-    seconds_ref, k_ref = CONDENSATION[d]
     out = []
     for s in splits:
         r = refined_nodes(mesh, s) / n
         seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r ** ASSEMBLY_GROWTH[d]
                    + (n_extremes + FIRST_SOLVE_EXTRA) * warm_solve * r ** SOLVE_GROWTH[d]
-                   + (n_extremes + 1) * seconds_ref * (contact_rows(d, m, s) / k_ref) ** 3)
+                   + (n_extremes + 1) * condensation_seconds(d, contact_rows(d, m, s)))
         out.append((s, per_node * refined_nodes(mesh, s), seconds))
     return out
 
