@@ -318,7 +318,11 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     The stopping test is relative to the force scale max|c q| over the components B leaves
     room for (lo < hi), or to max|λ|: a frictionless tangent's c q is a displacement times
     a stiffness that no multiplier carries (a 3 m support translation on 3D Hertz made it
-    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5).
+    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5). The
+    iterate must also lie in B to tol × max|λ|: 1/W_ii ignores how the nodes share a load, so
+    on a large fault c q is ~100 times the multipliers (the oblique 3D tunnel: 5.8e9 against
+    4.7e7, growing as the mesh is refined), and Newton stopped where |λt| still passed g w by
+    62 (1.3e-6 of max|λ|), an answer the certificate of `conditions_violated` refused.
     Returns (λ, α, free, iterations, converged).
     """
     c = scales(W, k)
@@ -330,7 +334,8 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         z = lam + c * (q - W @ lam + G.T @ alpha)
         phi, eq = lam - project(z, lo, hi, k), G @ lam - e
         scale = max(force, np.abs(lam).max(initial=0.0))
-        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
+        ok = (max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
+              and np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0))
         return z, ok
 
     seen = set()
@@ -576,18 +581,20 @@ def _states(free, m, gw):
 CERTIFICATE = 1e-6     # relative size of a contact condition's violation that refuses an answer
 
 
-def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1) -> str:
+def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
     """What of the contact conditions an answer breaks ("" if none), checked on the answer
     itself rather than on Newton's scaled residual: penetration Bn u − d ≤ ε_u, pressure
     λn ≥ −ε_λ and friction |λt,i| ≤ g_i w_i + ε_λ, with ε_u = `CERTIFICATE` × the largest
-    displacement or gap and ε_λ = `CERTIFICATE` × the largest multiplier or g w. (A
+    displacement or gap and ε_λ = `CERTIFICATE` × the largest multiplier or g w — or `tol`
+    (the solve's tolerance) in place of `CERTIFICATE` where the user asked for less. (A
     convergence test relative to the largest scaled residual passes an answer whose rows are
     badly scaled against each other, e.g. a near-null row with a huge c = 1/W_ii.)"""
     m = lam_n.size
-    eu = CERTIFICATE * max(np.abs(u).max(initial=0.0), np.abs(gap_error).max(initial=0.0), 1e-300)
+    eps = max(CERTIFICATE, tol)
+    eu = eps * max(np.abs(u).max(initial=0.0), np.abs(gap_error).max(initial=0.0), 1e-300)
     finite_gw = gw[np.isfinite(gw)]
-    el = CERTIFICATE * max(np.abs(lam_n).max(initial=0.0), np.abs(lam_t).max(initial=0.0),
-                           finite_gw.max(initial=0.0), 1e-300)
+    el = eps * max(np.abs(lam_n).max(initial=0.0), np.abs(lam_t).max(initial=0.0),
+                   finite_gw.max(initial=0.0), 1e-300)
     lt = np.sqrt((lam_t.reshape(k, m) ** 2).sum(axis=0)) if m else np.zeros(0)
     if gap_error.max(initial=0.0) > eu:
         return f"non-penetration (Bn u − d up to {gap_error.max():.3e})"
@@ -702,7 +709,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                              iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
-    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k) if ok else ""
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
     if violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"semismooth Newton stopped at an answer that violates {violation}: not reported")
