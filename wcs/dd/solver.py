@@ -437,8 +437,8 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
                   f"{'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; ")
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
-                                                    float(np.linalg.norm(rhs)))
+        status, message, U = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+                                             float(np.linalg.norm(rhs)))
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
                                           info, team)
@@ -458,9 +458,8 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     for u in team.local(dec.units):
         if u.kind == "pair":
             tc = time.perf_counter()
-            if step == "newton":         # the last Tresca problem (Coulomb: bounds from the last pressures)
-                _, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
-                                  o["contact_tolerance"], 200)
+            if step == "newton":         # the last Tresca problem's solve at U: Newton's last residual
+                res = u.result
             else:
                 _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
                                    o["contact_tolerance"], 200)
@@ -681,11 +680,16 @@ def _mean_q(qs) -> float:
 
 
 # ---- interface Newton ---------------------------------------------------------------------------
-def _contact_residual(dec, U, d, bound, o, team):
+def _contact_residual(dec, U, d, bound, o, team, cache):
     """S_con(U) = Σ_p R_pᵀ S_p(R_p U) of the Tresca problems with slip bounds `bound` (None:
     all stick), and the active sets {pair index: (free, across_slip)} of every pair (gathered:
     the free rows and, in 3D, the slipping nodes' disc springs); on a failed local solve
-    (None, None, message)."""
+    (None, None, message). The last evaluation is kept in `cache` ("residual"): the ρ
+    estimate's at U⁰ is Newton's first, and the pairs' last local solutions (`PairUnit.result`)
+    are those of the last evaluation."""
+    key = (U.tobytes(), None if bound is None else np.asarray(bound).tobytes())
+    if cache.get("residual", (None,))[0] == key:
+        return cache["residual"][1]
     pieces, free, error = {}, {}, None
     t = time.perf_counter()
     for p in team.local(dec.pairs):                  # independent local contact solves
@@ -697,10 +701,10 @@ def _contact_residual(dec, U, d, bound, o, team):
         pieces[p.index], free[p.index] = r, (res.free, p.across_slip())
     team.timings["contact"] += time.perf_counter() - t
     error = team.first_error(error) if team.comm is not None else error
-    if error:
-        return None, None, error
-    free = {i: f for part in team.allgather(free) for i, f in part.items()}
-    return team.sum(dec.pairs, pieces, dec.nif), free, ""
+    out = (None, None, error) if error else \
+        (team.sum(dec.pairs, pieces, dec.nif), {i: f for part in team.allgather(free) for i, f in part.items()}, "")
+    cache["residual"] = (key, out)
+    return out
 
 
 def _linearised(dec, free, team, cache: dict) -> list:
@@ -709,7 +713,7 @@ def _linearised(dec, free, team, cache: dict) -> list:
     active set (and, in 3D, slip springs) did not change refactors nothing."""
     key = b"".join(a.tobytes() for p in dec.pairs for a in (free[p.index][0], *(free[p.index][1] or ())))
     if cache.get("key") != key:
-        cache.clear()
+        cache.pop("J", None)
         pairs = []
         for p in dec.pairs:
             rows, springs = free[p.index]
@@ -735,7 +739,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | 
     then ruled out whatever more steps would give). The seed's step
     U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
     ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
-    _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
+    _, free, _ = _contact_residual(dec, U0, d, bound, o, team, cache)
     if free is None:
         return None
     L = _linearised(dec, free, team, cache)
@@ -755,7 +759,8 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
-    Tresca solves). Returns (status, message, U, the bounds of the last Tresca problem)."""
+    Tresca solves). Returns (status, message, U); the pairs' `result` is the last Tresca
+    problem's solve at U."""
     coulomb = bool(Fc.any())
     bound, p_old = (None if coulomb else gw), None
     info["newton"] = info["pcg2"] = info["successive"] = 0
@@ -763,7 +768,7 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
         status, message, U = _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
-            return status, message, U, bound
+            return status, message, U
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
         lam_n = np.zeros(weight.size)
         for part in team.allgather(lam):
@@ -772,10 +777,10 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
         p = lam_n / weight
         info["fixed_point"] = j
         if p_old is not None and np.linalg.norm(p - p_old) <= o["tolerance"] * max(np.linalg.norm(p), 1e-300):
-            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U, bound
+            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U
         p_old, bound = p, gw + Fc * lam_n
     return (DDOutcome.BUDGET, f"Coulomb fixed point did not converge in {o['max_fixed_point_iterations']} "
-            f"Tresca problems", U, bound)
+            f"Tresca problems", U)
 
 
 def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
@@ -797,7 +802,7 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
     hist, tol, lin = info["history"], o["tolerance"], dec.linear
 
     def residual(U):
-        rc, free, error = _contact_residual(dec, U, d, bound, o, team)
+        rc, free, error = _contact_residual(dec, U, d, bound, o, team, cache)
         if rc is None:
             return None, None, None, error
         SU = S0.apply(U)
