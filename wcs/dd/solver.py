@@ -132,6 +132,16 @@ class Decomposition:
     ndof: int
     traces: list                # per unit: rigid-motion traces of its components (local DOFs × modes)
     timings: dict = field(default_factory=dict)
+    kept: dict = field(default_factory=dict)      # coarse spaces of the last data set (`kept_for`)
+
+    def kept_for(self, data: np.ndarray) -> dict:
+        """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
+        coefficients: S, S0, their weights and coarse spaces depend on nothing else), emptied
+        when the data change — as a monolithic factor is kept while its matrix is unchanged (a
+        study that samples loads, gaps or friction only)."""
+        if not np.array_equal(self.kept.get("data"), data):
+            self.kept = {"data": np.array(data, dtype=float)}
+        return self.kept
 
     @property
     def pairs(self):
@@ -392,13 +402,16 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
+    kept = dec.kept_for(kc)
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team)
+        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team, *kept.get("S", (None, None)))
     except CoarseSingular as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"the glued interface operator is singular: {exc}")
+    kept["S"] = (S.coarse.Z, S.coarse.SZ)
     Y0 = [dec.traces[u.index] for u in lin]
     try:
-        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team), ""
+        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team, *kept.get("S0", (None, None))), ""
+        kept["S0"] = (S0.coarse.Z, S0.coarse.SZ)
     except CoarseSingular as exc:        # Newton needs only S0's products; the seed's step its inverse
         S0 = InterfaceOperator(lin, dec.nif, oD, [y[:, :0] for y in Y0], team)
         singular = f"the interface operator of the linear subdomains is singular (a group of them floats " \
