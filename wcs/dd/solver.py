@@ -133,6 +133,7 @@ class Decomposition:
     traces: list                # per unit: rigid-motion traces of its components (local DOFs × modes)
     timings: dict = field(default_factory=dict)
     kept: dict = field(default_factory=dict)      # coarse spaces of the last data set (`kept_for`)
+    measured: dict = field(default_factory=dict)  # {ranks: {unit index: seconds per phase}} of a first evaluation
 
     def kept_for(self, data: np.ndarray) -> dict:
         """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
@@ -247,7 +248,7 @@ class InterfaceOperator:
                  team: Team | None = None, basis: np.ndarray | None = None, SZ: np.ndarray | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
-        self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
+        self.weight = {u.index: w for u, w in zip(units, weights)}
         self.applications = 0
         Z = self._basis(units, nif, weights, traces) if basis is None else basis
         tm = self.team.timings
@@ -271,14 +272,16 @@ class InterfaceOperator:
         self.applications += 1
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = {u.index: u.apply_S(U[u.gamma]) for u, _ in self.mine}    # local Dirichlet solves
+        pieces = self.team.each("iterate", self.units, lambda u: u.apply_S(U[u.gamma]))    # local Dirichlet solves
         tm["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif, U.shape[1:])
 
     def precondition(self, H: np.ndarray) -> np.ndarray:
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = {u.index: w * u.neumann(w * H[u.gamma]) for u, w in self.mine}   # local Neumann solves
+        w = self.weight
+        pieces = self.team.each("iterate", self.units,
+                                lambda u: w[u.index] * u.neumann(w[u.index] * H[u.gamma]))   # local Neumann solves
         tm["neumann"] += time.perf_counter() - t
         out = self.team.sum(self.units, pieces, self.nif, H.shape[1:])
         t = time.perf_counter()
@@ -288,7 +291,7 @@ class InterfaceOperator:
 
     def load(self) -> np.ndarray:
         t = time.perf_counter()
-        pieces = {u.index: u.condensed_load() for u, _ in self.mine}
+        pieces = self.team.each("assemble", self.units, lambda u: u.condensed_load())
         self.team.timings["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif)
 
@@ -344,9 +347,11 @@ def _distribute_load(dec, rho, rhs: np.ndarray, team) -> list:
     D = injections(dec.units, dec.nif, rho)
     for u, w in zip(dec.units, D):
         if team.mine(u):
+            t = time.perf_counter()
             f = rhs[u.dofs].copy()
             f[u.B] *= w
             u.set_load(f)
+            team.charge(u, "assemble", t)
     return D
 
 
@@ -374,7 +379,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
-    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
+    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0], dec.measured)
     tm = team.timings
     info["nranks"] = team.size
     z = model.zone
@@ -387,8 +392,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     t = time.perf_counter()
     error = None
     try:
-        for u in team.local(dec.units):      # a rank factors its own units only
-            u.assemble(kc)
+        team.each("assemble", dec.units, lambda u: u.assemble(kc))      # a rank factors its own units only
     except Exception as exc:  # noqa: BLE001 - a local factorization failed: report, let the caller fall back
         error = f"a local factorization failed: {exc}"
     tm["assemble"] += time.perf_counter() - t
@@ -477,12 +481,16 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
                 _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
                                    o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
+            team.charge(u, "contact", tc)
             if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
                 continue
+            tc = time.perf_counter()
             mine.append((u.index, u.solution(U[u.gamma]), res.lam_n, res.lam_t, res.active))
         else:
+            tc = time.perf_counter()
             mine.append((u.index, u.interior(U[u.gamma]), None, None, None))
+        team.charge(u, "assemble", tc)          # the interior solves: sparse, as the load's condensation
     parts = team.allgather((error, mine))
     error = next((e for e, _ in parts if e), None)
     gathered = {i: rest for _, piece in parts for i, *rest in piece}
@@ -505,6 +513,8 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     info["timings"]["total"] = time.perf_counter() - t0
     info["status_name"] = DDOutcome.CONVERGED.value
     info["ranks"] = team.report()
+    if team.size > 1 and team.size not in dec.measured:      # the costs the next evaluations are assigned by
+        dec.measured[team.size] = team.measured()
     u_full = model.elim.T @ w + u0
     return DDResult(u_full, lam_n, lam_t, info, DDOutcome.CONVERGED, message)
 
@@ -565,8 +575,10 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         t = time.perf_counter()
         pieces, error = {}, None
         for p in team.local(pairs):                  # independent local contact solves
+            tp = time.perf_counter()
             r, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
                                o["contact_tolerance"], 200)
+            team.charge(p, "contact", tp)
             if res.status != Status.SOLVED:
                 error = error or f"contact solve of pair {p.index}: {res.message}"
                 r = np.zeros(p.gamma.size)
@@ -598,7 +610,7 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["step"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
-            b = b + team.sum(pairs, {p.index: p.apply_S(U[p.gamma]) for p in team.local(pairs)}, dec.nif)
+            b = b + team.sum(pairs, team.each("iterate", pairs, lambda p: p.apply_S(U[p.gamma])), dec.nif)
         eta = _inner_tolerance(o, hist)
         r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
                  coarse=S0.coarse, reference=max(Fnorm, np.linalg.norm(b)))
@@ -706,8 +718,10 @@ def _contact_residual(dec, U, d, bound, o, team, cache):
     pieces, free, error = {}, {}, None
     t = time.perf_counter()
     for p in team.local(dec.pairs):                  # independent local contact solves
+        tp = time.perf_counter()
         r, res = p.tresca(U[p.gamma], d[p.rows], None if bound is None else bound[p.rows],
                            o["contact_tolerance"], 200)
+        team.charge(p, "contact", tp)
         if res.status != Status.SOLVED:
             error = error or f"contact solve of pair {p.index}: {res.message}"
             r = np.zeros(p.gamma.size)
@@ -730,7 +744,10 @@ def _linearised(dec, free, team, cache: dict) -> list:
         pairs = []
         for p in dec.pairs:
             rows, springs = free[p.index]
+            t = time.perf_counter()
             pairs.append(p.linearised(rows, team.mine(p), springs))
+            if team.mine(p):
+                team.charge(p, "contact", t)
         cache.update(key=key, pairs=pairs)
     return cache["pairs"]
 
@@ -738,7 +755,7 @@ def _linearised(dec, free, team, cache: dict) -> list:
 def _pairs_apply(team, lin_pairs, nif, x):
     """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed; x may
     have columns)."""
-    return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif, x.shape[1:])
+    return team.sum(lin_pairs, team.each("iterate", lin_pairs, lambda p: p.apply_S(x[p.gamma])), nif, x.shape[1:])
 
 
 def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
