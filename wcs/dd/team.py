@@ -100,7 +100,7 @@ class Team:
             costs, self.assigned_by = {u.index: phase_costs(u, dim) for u in units}, "estimate"
         self.owner = assign(units, self.size, dim, costs)
         self.cost = sum((costs[u.index] for u in units if self.owner[u.index] == self.rank), np.zeros(len(PHASES)))
-        self.spent = defaultdict(lambda: np.zeros(len(PHASES)))   # own units' measured seconds per phase
+        self.spent = defaultdict(lambda: [0.0] * len(PHASES))     # own units' measured seconds per phase
         self.kinds = {u.index: u.kind for u in units}
         self.timings = defaultdict(float)
         self.messages = 0
@@ -115,12 +115,12 @@ class Team:
     def each(self, phase: str, units, f) -> dict:
         """{u.index: f(u)} for this rank's units of `units`, each call's seconds charged to
         the unit's `phase`."""
-        out, j = {}, PHASES.index(phase)
+        out, j, owner, rank, clock = {}, PHASES.index(phase), self.owner, self.rank, time.perf_counter
         for u in units:
-            if self.owner[u.index] == self.rank:
-                t = time.perf_counter()
+            if owner[u.index] == rank:
+                t = clock()
                 out[u.index] = f(u)
-                self.spent[u.index][j] += time.perf_counter() - t
+                self.spent[u.index][j] += clock() - t
         return out
 
     def charge(self, u, phase: str, since: float) -> None:
@@ -129,8 +129,7 @@ class Team:
 
     def measured(self) -> dict:
         """{unit index: seconds per phase} of every unit, gathered: the same on every rank."""
-        return {i: np.asarray(c) for part in self.allgather({i: c.tolist() for i, c in self.spent.items()})
-                for i, c in part.items()}
+        return {i: np.asarray(c) for part in self.allgather(dict(self.spent)) for i, c in part.items()}
 
     # ---- reductions -----------------------------------------------------------------------
     def sum(self, units, pieces: dict, nif: int, tail: tuple = ()) -> np.ndarray:
