@@ -344,15 +344,16 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
     problem once per residual evaluation (before: once more for the ρ estimate at U⁰ and once
     more for the final solution, both at a point already solved); a second evaluation of the same
     stiffness data keeps the coarse spaces of S and S0 (no products with their bases) and the
-    pairs' linearisations (no held Schur complement), and every answer is bitwise the one of a
-    decomposition built afresh; new stiffness data empty what was kept."""
+    pairs' linearisations (no held Schur complement), of the same load too the load's
+    condensation (no sparse solve for it), and every answer is bitwise the one of a
+    decomposition built afresh; a new load condenses anew, new stiffness data empty the rest."""
     import dataclasses
     from wcs.dd import interface
     study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
     c = model.coefficients(study.scene)
     _, Kr, rhs, u0 = model.reduced_system(c, None)
     opts = {"tolerance": 1e-8, "dd": {"subdomains": 4}}
-    calls = {"tresca": 0, "held": 0, "columns": 0}
+    calls = {"tresca": 0, "held": 0, "columns": 0, "condense": 0}
     tresca, held, apply_S = interface.PairUnit.tresca, interface.PairUnit.held_schur, interface.Unit.apply_S
 
     def count(name, f):
@@ -362,14 +363,15 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
         return wrapped
     monkeypatch.setattr(interface.PairUnit, "tresca", count("tresca", tresca))
     monkeypatch.setattr(interface.PairUnit, "held_schur", count("held", held))
+    monkeypatch.setattr(interface.Unit, "_condense", count("condense", interface.Unit._condense))
     monkeypatch.setattr(interface.Unit, "apply_S",
                         lambda self, v: calls.__setitem__("columns", calls["columns"] + (v.ndim == 2 and self.kind == "linear"))
                         or apply_S(self, v))
 
-    def solve(coefficients):
+    def solve(coefficients, load=rhs):
         for k in calls:
             calls[k] = 0
-        res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts, coefficients=coefficients)
+        res = dds.solve_dd(model, study.scene, Kr, load, u0, opts, coefficients=coefficients)
         assert res.status == dds.DDOutcome.CONVERGED, res.message
         return res, dict(calls)
 
@@ -378,14 +380,16 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
     h = first.info["history"]
     evaluations = 1 + sum(1 + round(np.log2(1 / t)) for t in h["step"])     # the line search's trial points
     assert n1["tresca"] == evaluations * first.info["pairs"], (n1, h["step"])
-    assert n1["held"] >= 1 and n1["columns"] >= 1
+    assert n1["held"] >= 1 and n1["columns"] >= 1 and n1["condense"] >= first.info["units"]
     again, n2 = solve(c)
-    assert n2["held"] == 0 and n2["columns"] == 0, n2
+    assert n2["held"] == 0 and n2["columns"] == 0 and n2["condense"] == 0, n2
     np.testing.assert_array_equal(again.u, first.u)
     np.testing.assert_array_equal(again.lam_t, first.lam_t)
     dds._CACHE.pop(model)                                   # a decomposition built afresh: the same bits
     fresh, _ = solve(c)
     np.testing.assert_array_equal(fresh.u, first.u)
+    _, n4 = solve(c, 1.1 * rhs)                   # the loaded units condense anew (the others' loads are zero)
+    assert 1 <= n4["condense"] < first.info["units"] and n4["columns"] == 0, n4
     stiffer = dataclasses.replace(c, lam=1.01 * c.lam, mu=1.01 * c.mu)
     _, n3 = solve(stiffer)
     assert n3["held"] >= 1 and n3["columns"] >= 1

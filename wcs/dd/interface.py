@@ -265,6 +265,7 @@ class Unit:
         if self._F is not None and np.array_equal(coefficients, self._coefficients):
             return
         self._coefficients = None                          # a failure below leaves no stale record
+        self.f = None                                      # the load's condensation goes with the factor
         A = (self.Tloc.T @ self.op(coefficients) @ self.Tloc).tocsr()
         A.sort_indices()
         self.A = A
@@ -287,10 +288,15 @@ class Unit:
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
                                   f"the Neumann matrix of unit {self.index}")
 
-    def set_load(self, f_local: np.ndarray) -> None:
+    def set_load(self, f_local: np.ndarray) -> bool:
+        """The local load and its condensation on X (one solve), kept while the load and the
+        factor stay (a study that samples friction or gaps only). Returns whether it changed."""
+        if self.f is not None and np.array_equal(f_local, self.f):
+            return False
         self.f = f_local
         self._h = self._condense(f_local[self.Y])
         self._g = f_local[self.X] - self._h                  # load condensed on X
+        return True
 
     def _condense(self, bY: np.ndarray) -> np.ndarray:
         """h_X = A_XY A_YY⁻¹ b_Y (one solve; b_Y may have columns)."""
@@ -519,9 +525,11 @@ class PairUnit(Unit):
         self._held_kept = {}                # linearisations of this data set by active set
 
     def set_load(self, f_local):
-        super().set_load(f_local)
+        if not super().set_load(f_local):
+            return False
         self._glued_c = self._G @ self._g[self.xc]
         self._balanced = None               # slip bounds the floating modes' balance was found for
+        return True
 
     def condensed_load(self):
         """g⁰_p: the load condensed on B with c eliminated on the glue's null space."""
