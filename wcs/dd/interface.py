@@ -46,6 +46,7 @@ from scipy.linalg import blas, lapack
 
 from wcs import linalg
 from wcs.contact.solver import OPEN, ContactFactor, pinned_dofs, regularize, solve_contact
+from wcs.fem.constraints import Reduction
 from wcs.fem.rigid import rigid_modes
 from wcs.status import Status
 
@@ -241,6 +242,7 @@ class Unit:
         self.f = None
         self._F = None
         self._coefficients = None
+        self._reduce = None             # Tᵀ K T on the structural pattern (`wcs.fem.constraints.Reduction`)
 
     # structure
     def set_interface(self, is_interface: np.ndarray, position: np.ndarray) -> None:
@@ -266,8 +268,9 @@ class Unit:
             return
         self._coefficients = None                          # a failure below leaves no stale record
         self.f = None                                      # the load's condensation goes with the factor
-        A = (self.Tloc.T @ self.op(coefficients) @ self.Tloc).tocsr()
-        A.sort_indices()
+        if self._reduce is None:       # a sparse product drops entries that vanish for some data: a new
+            self._reduce = Reduction(self.op.pattern(), self.Tloc)      # pattern, a new analysis (Hertz's pair)
+        A = self._reduce(self.op(coefficients))
         self.A = A
         Areg = regularize(A, self.pinned)
         try:
