@@ -110,7 +110,8 @@ def test_assignment_by_measured_costs():
     this machine (1.05e5 unknowns, serial: the factorizations and dense blocks 1.70 s against
     0.79 s estimated, the products 0.56 s against 0.67 s): by the estimates the pair's rank
     takes four linear subdomains and assembles 1.18 s against 0.52 s; by the measured costs
-    the pair goes alone and both ranks assemble within 3 % (Σ_phase max: 1.46× → 1.56×)."""
+    the pair goes alone and both ranks assemble within 3 % (Σ_phase max: 1.46× → 1.56×). On
+    the same data again (factors kept) the assembly weighs nothing and the products decide."""
     from wcs.dd.team import PHASES, Team, assign, phase_costs
     rng = np.random.default_rng(2)
     units = _units([("pair", 25489, 669, 848, 212)]
@@ -126,6 +127,9 @@ def test_assignment_by_measured_costs():
             load[own[u.index]] += measured[u.index]
         speedup[name] = load.sum() / load.max(axis=0).sum()
     assert speedup["estimate"] < 1.5 < 1.55 < speedup["measured"], speedup
+    same = {i: c * [0.0, 1.0, 1.0] for i, c in measured.items()}     # the same data again: no refactor
+    assert with_pair(assign(units, 2, 2, same)) > with_pair(by_measure)  # the products balanced instead
+    assert Team(None, units, 2, {1: measured}, refactor=False).cost[PHASES.index("assemble")] == 0
     team = Team(None, units, 2, {2: measured})                  # serial: every unit on rank 0
     assert team.assigned_by == "estimate" and set(team.owner.values()) == {0}
     assert Team(None, units, 2, {1: measured}).assigned_by == "measured"

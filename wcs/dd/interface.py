@@ -504,8 +504,8 @@ class PairUnit(Unit):
         return nodes, s[:, nodes] / size[nodes], size[nodes] / res.gw[nodes]
 
     def _glue_inverse(self):
-        """P = Σ⁰_Bc E, H, E and G of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
-        K = [[Σ⁰_cc, Cᵀ], [C, 0]] (C: the glue rows): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ,
+        """(P = Σ⁰_Bc E, H, E) of the inverse [[G, E], [Eᵀ, H]] of the glued contact block
+        K = [[Σ⁰_cc, Cᵀ], [C, 0]] (C: the glue rows): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ (`_held`),
         E = (I − G Σ⁰_cc) C⁺, H = −(Σ⁰_cc C⁺)ᵀ E, C⁺ = Cᵀ (C Cᵀ)⁻¹ (kept from the set-up).
         Releasing glue rows R is the inverse of K without R: G_R = G − E_R H_RR⁻¹ E_Rᵀ (the
         inverse of a principal block from the full inverse), so the Schur complement on B

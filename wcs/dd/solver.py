@@ -379,14 +379,15 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
-    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0], dec.measured)
+    c = coefficients if coefficients is not None else model.coefficients(scene)
+    kc = model.stiffness_coefficients(c)
+    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0], dec.measured,
+                refactor=not np.array_equal(dec.kept.get("data"), kc))
     tm = team.timings
     info["nranks"] = team.size
     z = model.zone
-    c = coefficients if coefficients is not None else model.coefficients(scene)
     g, F = c.slip, c.coulomb
     d = z.gap - z.Bn @ u0
-    kc = model.stiffness_coefficients(c)
     rho_region = stiffness_measure(c.lam, c.mu)
     info.update(_sizes(dec))
     t = time.perf_counter()

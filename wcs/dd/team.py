@@ -88,9 +88,13 @@ def assign(units, size: int, dim: int, measured: dict | None = None) -> dict:
 class Team:
     """Owner of every unit, the gathers that sum interface vectors in unit order, timings."""
 
-    def __init__(self, comm, units, dim: int = 2, measured: dict | None = None):
+    def __init__(self, comm, units, dim: int = 2, measured: dict | None = None, refactor: bool = True):
         """`measured`: {number of ranks: {unit index: seconds per phase}} of an earlier
-        evaluation (`Team.measured`), the costs the assignment uses for this many ranks."""
+        evaluation (`Team.measured`), the costs the assignment uses for this many ranks;
+        `refactor` False: the units keep their factors (the same stiffness data as the last
+        evaluation), so the assembly weighs nothing (measured on Hertz: by the first
+        evaluation's costs the pair's rank took 3 linear subdomains, and on the same data
+        the other rank did 3× its products)."""
         self.comm = comm if comm is not None and comm.size > 1 else None
         self.size = 1 if self.comm is None else self.comm.size
         self.rank = 0 if self.comm is None else self.comm.rank
@@ -98,6 +102,8 @@ class Team:
         self.assigned_by = "measured"
         if costs is None or any(u.index not in costs for u in units):
             costs, self.assigned_by = {u.index: phase_costs(u, dim) for u in units}, "estimate"
+        if not refactor:
+            costs = {i: np.where(np.arange(len(PHASES)) == PHASES.index("assemble"), 0.0, c) for i, c in costs.items()}
         self.owner = assign(units, self.size, dim, costs)
         self.cost = sum((costs[u.index] for u in units if self.owner[u.index] == self.rank), np.zeros(len(PHASES)))
         self.spent = defaultdict(lambda: [0.0] * len(PHASES))     # own units' measured seconds per phase
