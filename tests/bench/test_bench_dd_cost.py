@@ -28,6 +28,18 @@ dsymv for the dense products, J_k's coarse image from the glued one, no product 
 zero and balanced start, the tunnel pair's
 node held on both sides out of its local contact problem (no least squares). What is left
 on Hertz (cProfile): the dense Dirichlet and Neumann products of ≈ 60 PCG iterations (60 %).
+Then (3 runs each, main and the branch alternating in one session, load 7 on the 2 cores;
+medians [range] of the wall ratios, CPU ratios alike): Hertz 3.58 [3.18–4.55] / 3.76
+[3.60–3.77] → 2.91 [2.71–2.96] / 3.31 [3.21–3.54], tunnel 4.15 [4.03–5.19] / 3.90 [3.69–4.37]
+→ 3.73 [3.01–3.80] / 2.65 [2.34–2.94]. What went: every local contact solve done twice (the ρ
+estimate's at U⁰ is Newton's first, the last residual's gives the solution), the pair's glue
+null basis per data set (geometry: kept), its G and T from one triangular solve and dsyrk, its
+Delassus operator without a dense inverse, a new symbolic analysis of the pair at every new
+Young modulus (Tᵀ K T on the structural pattern), and, while the stiffness data stay, the coarse
+spaces of S and S0, the pairs' linearisations and the loads' condensations (kept, as the
+monolithic factor is). What is left on Hertz: the products of 53 PCG iterations (≈ 45 % on
+the same data), on new data the numeric refactors (≈ 15 %), the Neumann inverses and the
+pair's dense algebra (≈ 25 %); the tunnel: its 2 pairs' local contact solves (≈ 40 %).
 
 Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py
