@@ -106,14 +106,19 @@ def null_space(C: np.ndarray, Z: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
     return _orth(Z @ vt[rank:].T)
 
 
-def _null_basis(C: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
-    """Orthonormal basis of {x : C x = 0} from a pivoted QR of Cᵀ (the trailing columns of
-    its complete Q): 5–10× cheaper than the SVD for a few hundred rows."""
+def _null_basis(C: np.ndarray, rtol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """{x : C x = 0} = {x_d = −W x_f}: a pivoted QR of C (C Π = Q [R₁ R₂]) picks rank(C)
+    columns d on which C is well conditioned, W = R₁⁻¹R₂ on the rest f; the null basis is
+    N = Π [−W; I]. Returns (d, f, W). A product Σ N costs one with W, rank(C) columns wide
+    (Hertz's pair, 848 contact DOFs, 211 glue rows: Nᵀ Σ⁰_cc N 132 → 41 ms against an
+    orthonormal basis from the complete Q of Cᵀ)."""
+    n = C.shape[1]
     if C.shape[0] == 0:
-        return np.eye(C.shape[1])
-    q, r, _ = sla.qr(C.T, pivoting=True)
-    d = np.abs(np.diag(r))
-    return q[:, int(np.sum(d > rtol * max(d.max(initial=0.0), 1e-300))):]
+        return np.zeros(0, dtype=np.int64), np.arange(n), np.zeros((0, n))
+    _, r, piv = sla.qr(C, mode="economic", pivoting=True)
+    dg = np.abs(np.diag(r))
+    k = int(np.sum(dg > rtol * max(dg.max(initial=0.0), 1e-300)))
+    return piv[:k], piv[k:], sla.solve_triangular(r[:k, :k], r[:k, k:])
 
 
 def independent_rows(C: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
@@ -407,19 +412,23 @@ class PairUnit(Unit):
         moves = np.abs(self._C_c).reshape(-1, m, self.c.size).sum(axis=(0, 2)) > 0
         self.live = None if moves.all() else np.flatnonzero(moves)   # nodes the local contact problem keeps
 
-    def _held(self, rows: np.ndarray, N: np.ndarray | None = None):
-        """(G, T): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ, N spanning the contact displacements with the rows
-        `rows` of [Bn; Bt] held at zero (`N`: that basis when known, the glue rows' kept from
-        the set-up: it depends on the geometry only), and T = G Σ⁰_cB, T V the contact
-        displacements of the extension of V. G = XᵀX with X = L⁻¹Nᵀ (Nᵀ Σ⁰_cc N = LLᵀ): one
-        triangular solve and one symmetric rank-k product. SetupError where the rows leave a
-        rigid motion of a floating half free (Nᵀ Σ⁰_cc N is then singular; in floating point
-        its Cholesky may still pass)."""
+    def _held(self, rows: np.ndarray, basis=None):
+        """(G, T): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ, N = Π [−W; I] spanning the contact displacements with
+        the rows `rows` of [Bn; Bt] held at zero (`_null_basis`; `basis`: its (d, f, W) when
+        known, the glue rows' kept from the set-up: it depends on the geometry only), and
+        T = G Σ⁰_cB, T V the contact displacements of the extension of V. Σ⁰_cc N and Nᵀ Σ⁰_cc N
+        by products with W; G = XᵀX with X = L⁻¹Nᵀ (Nᵀ Σ⁰_cc N = LLᵀ): one triangular solve and
+        one symmetric rank-k product. SetupError where the rows leave a rigid motion of a
+        floating half free (Nᵀ Σ⁰_cc N is then singular; in floating point its Cholesky may
+        still pass)."""
         if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
             raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
-        N = _null_basis(self._C_c[rows]) if N is None else N
-        L, lower = _cho(N.T @ (self._Scc @ N), f"the contact block of pair {self.index} with {len(rows)} rows held")
-        X = sla.solve_triangular(L, N.T, lower=lower, trans="N" if lower else "T")
+        d, f, W = _null_basis(self._C_c[rows]) if basis is None else basis
+        SN = self._Scc[:, f] - self._Scc[:, d] @ W
+        L, lower = _cho(SN[f] - W.T @ SN[d], f"the contact block of pair {self.index} with {len(rows)} rows held")
+        Nt = np.zeros((f.size, self.c.size))
+        Nt[:, d], Nt[:, f] = -W.T, np.eye(f.size)
+        X = sla.solve_triangular(L, Nt, lower=lower, trans="N" if lower else "T")
         G = _gram(X)
         return G, G @ self._Sbc.T
 
