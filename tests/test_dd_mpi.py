@@ -39,7 +39,7 @@ def test_dd_on_two_ranks_is_bitwise_the_one_rank_solve(tmp_path):
     out = {}
     for n in (1, 2):
         cmd = [str(mpiexec), "-n", str(n), sys.executable, str(DD_BENCH), "solve", str(study),
-               "--subdomains", "8", "--tolerance", "1e-10", "--max-iterations", "300", "--repeat", "1",
+               "--subdomains", "8", "--tolerance", "1e-10", "--max-iterations", "300", "--repeat", "2",
                "--save", str(tmp_path / f"r{n}.npz"), "--json", str(tmp_path / f"r{n}.json")]
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
         assert p.returncode == 0, p.stdout + p.stderr
@@ -49,6 +49,7 @@ def test_dd_on_two_ranks_is_bitwise_the_one_rank_solve(tmp_path):
     run2 = json.loads((tmp_path / "r2.json").read_text())
     ranks = run2["per_rank"]
     assert [r["rank"] for r in ranks] == [0, 1] and all(r["units"] >= 1 for r in ranks)
+    assert all(r["assigned_by"] == "measured" for r in ranks)    # the second solve: by the first's costs
     assert sum(r["pairs"] for r in ranks) == run2["pairs"]
     assert sum(r["pairs"] > 0 for r in ranks) == min(run2["pairs"], 2)     # pairs spread over the ranks
     assert out[1]["u"].size > 0 and np.any(out[1]["lam_t"])     # Tresca: tangential forces present
@@ -102,6 +103,36 @@ def test_assignment_balances_every_phase_of_one_large_pair():
     it = PHASES.index("iterate")
     assert load[:, it].max() <= 0.56 * load[:, it].sum()        # the iterations within 12 % of balance
     assert load.max(axis=0).sum() <= 0.70 * load.sum()          # 1.4× at least on these estimates
+
+
+def test_assignment_by_measured_costs():
+    """Hertz's units (as above) with the costs of one evaluation on new data as measured on
+    this machine (1.05e5 unknowns, serial: the factorizations and dense blocks 1.70 s against
+    0.79 s estimated, the products 0.56 s against 0.67 s): by the estimates the pair's rank
+    takes four linear subdomains and assembles 1.18 s against 0.52 s; by the measured costs
+    the pair goes alone and both ranks assemble within 3 % (Σ_phase max: 1.46× → 1.56×). On
+    the same data again (factors kept) the assembly weighs nothing and the products decide."""
+    from wcs.dd.team import PHASES, Team, assign, phase_costs
+    rng = np.random.default_rng(2)
+    units = _units([("pair", 25489, 669, 848, 212)]
+                   + [("linear", 8300, b, 0, 0) for b in (488, 808, 758, 384, 676, 502, 311, 728, 748, 518)], rng)
+    measured = {u.index: phase_costs(u, 2) * [2.15, 0.83, 1.0] for u in units}
+    by_estimate, by_measure = assign(units, 2, 2), assign(units, 2, 2, measured)
+    with_pair = lambda own: sum(1 for u in units[1:] if own[u.index] == own[0])  # noqa: E731
+    assert with_pair(by_estimate) == 4 and with_pair(by_measure) == 0
+    speedup = {}
+    for name, own in (("estimate", by_estimate), ("measured", by_measure)):
+        load = np.zeros((2, len(PHASES)))
+        for u in units:
+            load[own[u.index]] += measured[u.index]
+        speedup[name] = load.sum() / load.max(axis=0).sum()
+    assert speedup["estimate"] < 1.5 < 1.55 < speedup["measured"], speedup
+    same = {i: c * [0.0, 1.0, 1.0] for i, c in measured.items()}     # the same data again: no refactor
+    assert with_pair(assign(units, 2, 2, same)) > with_pair(by_measure)  # the products balanced instead
+    assert Team(None, units, 2, {1: measured}, refactor=False).cost[PHASES.index("assemble")] == 0
+    team = Team(None, units, 2, {2: measured})                  # serial: every unit on rank 0
+    assert team.assigned_by == "estimate" and set(team.owner.values()) == {0}
+    assert Team(None, units, 2, {1: measured}).assigned_by == "measured"
 
 
 def test_dd_study_on_two_ranks_shares_the_evaluations(tmp_path):

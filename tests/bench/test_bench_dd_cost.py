@@ -28,6 +28,21 @@ dsymv for the dense products, J_k's coarse image from the glued one, no product 
 zero and balanced start, the tunnel pair's
 node held on both sides out of its local contact problem (no least squares). What is left
 on Hertz (cProfile): the dense Dirichlet and Neumann products of ≈ 60 PCG iterations (60 %).
+Then (3 runs each, main and the branch alternating in one session at load 9 on the 2 cores;
+medians [range], same / new data): Hertz 4.22 [3.40–4.39] / 4.06 [3.56–4.40] → 3.05
+[2.57–3.06] / 2.98 [2.72–5.03] (CPU 3.96 / 3.91 → 2.89 / 2.77), tunnel 5.89 [5.42–6.60] /
+3.44 [3.21–3.76] → 4.08 [3.68–4.21] / 2.96 [2.79–4.05] (CPU 5.64 / 3.25 → 4.16 / 3.01); an
+earlier session at load 7: Hertz 3.58 / 3.76 → 2.91 / 3.31, tunnel 4.15 / 3.90 → 3.73 / 2.65.
+What went: every local contact solve done twice (the ρ
+estimate's at U⁰ is Newton's first, the last residual's gives the solution), the pair's glue
+null basis per data set (geometry: kept), its G and T from one triangular solve and dsyrk, its
+Delassus operator without a dense inverse, Nᵀ Σ⁰_cc N by products with W (N = Π [−W; I]
+from a pivoted QR of the glue rows, not an orthonormal basis), a new symbolic analysis of the pair at every new
+Young modulus (Tᵀ K T on the structural pattern), and, while the stiffness data stay, the coarse
+spaces of S and S0, the pairs' linearisations and the loads' condensations (kept, as the
+monolithic factor is). What is left on Hertz: the products of 53 PCG iterations (≈ 45 % on
+the same data), on new data the numeric refactors (≈ 15 %), the Neumann inverses and the
+pair's dense algebra (≈ 25 %); the tunnel: its 2 pairs' local contact solves (≈ 40 %).
 
 Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py

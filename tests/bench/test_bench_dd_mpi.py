@@ -8,7 +8,14 @@ after this branch: Hertz (1.05e5) 0.63× → 0.5–1.9× (work 1.3–1.6×) on t
 (work 1.3×) on new data; tunnel ×0.55 (4.2e4) 0.49× → 1.1–1.3× (work 1.4×) and 1.3–1.6× (work
 1.8×); tunnel ×0.4 (1e5) 0.6–0.9× (work 1.7×) and 0.8–1.3× (work 1.9×). A whole `dd` study of
 the tunnel (22–36 evaluations): 0.50× with every DD solve spread over the ranks → 1.1–1.5×
-with the evaluations spread."""
+with the evaluations spread.
+Then (issue 12: units assigned by their measured costs; Hertz 1.05e5, main once and the branch
+3 times in one session at load 7–8, where two ranks share the 2 cores with other jobs, so wall
+speed-ups are lower bounds): same data 0.83× (work 1.50) → 1.06–1.68× (work 2.02–2.29 after
+the same-data assignment; 1.35 by the first evaluation's costs), new data 0.82× (work 1.45) →
+1.04–1.12× (work 1.76–1.83). What is serial in the outer loop: the pair's local contact solves
+(one pair: ≈ 0.1 s on its rank while the other waits), the replicated coarse projections and
+PCG vector operations; a `dd` study spreads its evaluations (`wcs.runner`), not a solve."""
 import subprocess
 import sys
 from pathlib import Path

@@ -132,6 +132,17 @@ class Decomposition:
     ndof: int
     traces: list                # per unit: rigid-motion traces of its components (local DOFs × modes)
     timings: dict = field(default_factory=dict)
+    kept: dict = field(default_factory=dict)      # coarse spaces of the last data set (`kept_for`)
+    measured: dict = field(default_factory=dict)  # {ranks: {unit index: seconds per phase}} of a first evaluation
+
+    def kept_for(self, data: np.ndarray) -> dict:
+        """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
+        coefficients: S, S0, their weights and coarse spaces depend on nothing else), emptied
+        when the data change — as a monolithic factor is kept while its matrix is unchanged (a
+        study that samples loads, gaps or friction only)."""
+        if not np.array_equal(self.kept.get("data"), data):
+            self.kept = {"data": np.array(data, dtype=float)}
+        return self.kept
 
     @property
     def pairs(self):
@@ -237,7 +248,7 @@ class InterfaceOperator:
                  team: Team | None = None, basis: np.ndarray | None = None, SZ: np.ndarray | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
-        self.mine = [(u, w) for u, w in zip(units, weights) if self.team.mine(u)]
+        self.weight = {u.index: w for u, w in zip(units, weights)}
         self.applications = 0
         Z = self._basis(units, nif, weights, traces) if basis is None else basis
         tm = self.team.timings
@@ -261,14 +272,16 @@ class InterfaceOperator:
         self.applications += 1
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = {u.index: u.apply_S(U[u.gamma]) for u, _ in self.mine}    # local Dirichlet solves
+        pieces = self.team.each("iterate", self.units, lambda u: u.apply_S(U[u.gamma]))    # local Dirichlet solves
         tm["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif, U.shape[1:])
 
     def precondition(self, H: np.ndarray) -> np.ndarray:
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = {u.index: w * u.neumann(w * H[u.gamma]) for u, w in self.mine}   # local Neumann solves
+        w = self.weight
+        pieces = self.team.each("iterate", self.units,
+                                lambda u: w[u.index] * u.neumann(w[u.index] * H[u.gamma]))   # local Neumann solves
         tm["neumann"] += time.perf_counter() - t
         out = self.team.sum(self.units, pieces, self.nif, H.shape[1:])
         t = time.perf_counter()
@@ -278,7 +291,7 @@ class InterfaceOperator:
 
     def load(self) -> np.ndarray:
         t = time.perf_counter()
-        pieces = {u.index: u.condensed_load() for u, _ in self.mine}
+        pieces = self.team.each("assemble", self.units, lambda u: u.condensed_load())
         self.team.timings["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif)
 
@@ -334,9 +347,11 @@ def _distribute_load(dec, rho, rhs: np.ndarray, team) -> list:
     D = injections(dec.units, dec.nif, rho)
     for u, w in zip(dec.units, D):
         if team.mine(u):
+            t = time.perf_counter()
             f = rhs[u.dofs].copy()
             f[u.B] *= w
             u.set_load(f)
+            team.charge(u, "assemble", t)
     return D
 
 
@@ -364,21 +379,21 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
         dec = decomposition(model, options)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
-    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
+    c = coefficients if coefficients is not None else model.coefficients(scene)
+    kc = model.stiffness_coefficients(c)
+    team = Team(comm, dec.units, model.smesh.mesh.p.shape[0], dec.measured,
+                refactor=not np.array_equal(dec.kept.get("data"), kc))
     tm = team.timings
     info["nranks"] = team.size
     z = model.zone
-    c = coefficients if coefficients is not None else model.coefficients(scene)
     g, F = c.slip, c.coulomb
     d = z.gap - z.Bn @ u0
-    kc = model.stiffness_coefficients(c)
     rho_region = stiffness_measure(c.lam, c.mu)
     info.update(_sizes(dec))
     t = time.perf_counter()
     error = None
     try:
-        for u in team.local(dec.units):      # a rank factors its own units only
-            u.assemble(kc)
+        team.each("assemble", dec.units, lambda u: u.assemble(kc))      # a rank factors its own units only
     except Exception as exc:  # noqa: BLE001 - a local factorization failed: report, let the caller fall back
         error = f"a local factorization failed: {exc}"
     tm["assemble"] += time.perf_counter() - t
@@ -392,13 +407,16 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     D = _distribute_load(dec, rho, rhs, team)
     lin = dec.linear
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
+    kept = dec.kept_for(kc)
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team)
+        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team, *kept.get("S", (None, None)))
     except CoarseSingular as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"the glued interface operator is singular: {exc}")
+    kept["S"] = (S.coarse.Z, S.coarse.SZ)
     Y0 = [dec.traces[u.index] for u in lin]
     try:
-        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team), ""
+        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team, *kept.get("S0", (None, None))), ""
+        kept["S0"] = (S0.coarse.Z, S0.coarse.SZ)
     except CoarseSingular as exc:        # Newton needs only S0's products; the seed's step its inverse
         S0 = InterfaceOperator(lin, dec.nif, oD, [y[:, :0] for y in Y0], team)
         singular = f"the interface operator of the linear subdomains is singular (a group of them floats " \
@@ -437,8 +455,8 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
                   f"{'<' if step == 'seed' else '≥'} {o['seed_rho']:g}): {step}; ")
     info["step"] = step
     if step == "newton":
-        status, message, U, bound = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
-                                                    float(np.linalg.norm(rhs)))
+        status, message, U = _coulomb_newton(dec, S0, S, Fl, r1.x, d, gw, F, z.weight, o, info, team, cache,
+                                             float(np.linalg.norm(rhs)))
     else:
         status, message, U = _successive(dec, S if step == "glued" else S0, Fl, r1.x, d, g, F, z.weight, o,
                                           info, team)
@@ -458,19 +476,22 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     for u in team.local(dec.units):
         if u.kind == "pair":
             tc = time.perf_counter()
-            if step == "newton":         # the last Tresca problem (Coulomb: bounds from the last pressures)
-                _, res = u.tresca(U[u.gamma], d[u.rows], None if bound is None else bound[u.rows],
-                                  o["contact_tolerance"], 200)
+            if step == "newton":         # the last Tresca problem's solve at U: Newton's last residual
+                res = u.result
             else:
                 _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], _coulomb(F, u.rows),
                                    o["contact_tolerance"], 200)
             tm["contact"] += time.perf_counter() - tc
+            team.charge(u, "contact", tc)
             if res.status != Status.SOLVED:
                 error = error or f"final contact solve of pair {u.index}: {res.message}"
                 continue
+            tc = time.perf_counter()
             mine.append((u.index, u.solution(U[u.gamma]), res.lam_n, res.lam_t, res.active))
         else:
+            tc = time.perf_counter()
             mine.append((u.index, u.interior(U[u.gamma]), None, None, None))
+        team.charge(u, "assemble", tc)          # the interior solves: sparse, as the load's condensation
     parts = team.allgather((error, mine))
     error = next((e for e, _ in parts if e), None)
     gathered = {i: rest for _, piece in parts for i, *rest in piece}
@@ -493,6 +514,8 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     info["timings"]["total"] = time.perf_counter() - t0
     info["status_name"] = DDOutcome.CONVERGED.value
     info["ranks"] = team.report()
+    if team.size > 1 and team.size not in dec.measured:      # the costs the next evaluations are assigned by
+        dec.measured[team.size] = team.measured()
     u_full = model.elim.T @ w + u0
     return DDResult(u_full, lam_n, lam_t, info, DDOutcome.CONVERGED, message)
 
@@ -553,8 +576,10 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         t = time.perf_counter()
         pieces, error = {}, None
         for p in team.local(pairs):                  # independent local contact solves
+            tp = time.perf_counter()
             r, res = p.contact(U[p.gamma], d[p.rows], weight[p.rows], g[p.rows], _coulomb(Fc, p.rows),
                                o["contact_tolerance"], 200)
+            team.charge(p, "contact", tp)
             if res.status != Status.SOLVED:
                 error = error or f"contact solve of pair {p.index}: {res.message}"
                 r = np.zeros(p.gamma.size)
@@ -586,7 +611,7 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["step"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
-            b = b + team.sum(pairs, {p.index: p.apply_S(U[p.gamma]) for p in team.local(pairs)}, dec.nif)
+            b = b + team.sum(pairs, team.each("iterate", pairs, lambda p: p.apply_S(U[p.gamma])), dec.nif)
         eta = _inner_tolerance(o, hist)
         r2 = pcg(S0.apply, S0.precondition, b, U, tol=eta, max_iter=o["pcg_max_iterations"],
                  coarse=S0.coarse, reference=max(Fnorm, np.linalg.norm(b)))
@@ -681,26 +706,33 @@ def _mean_q(qs) -> float:
 
 
 # ---- interface Newton ---------------------------------------------------------------------------
-def _contact_residual(dec, U, d, bound, o, team):
+def _contact_residual(dec, U, d, bound, o, team, cache):
     """S_con(U) = Σ_p R_pᵀ S_p(R_p U) of the Tresca problems with slip bounds `bound` (None:
     all stick), and the active sets {pair index: (free, across_slip)} of every pair (gathered:
     the free rows and, in 3D, the slipping nodes' disc springs); on a failed local solve
-    (None, None, message)."""
+    (None, None, message). The last evaluation is kept in `cache` ("residual"): the ρ
+    estimate's at U⁰ is Newton's first, and the pairs' last local solutions (`PairUnit.result`)
+    are those of the last evaluation."""
+    key = (U.tobytes(), None if bound is None else np.asarray(bound).tobytes())
+    if cache.get("residual", (None,))[0] == key:
+        return cache["residual"][1]
     pieces, free, error = {}, {}, None
     t = time.perf_counter()
     for p in team.local(dec.pairs):                  # independent local contact solves
+        tp = time.perf_counter()
         r, res = p.tresca(U[p.gamma], d[p.rows], None if bound is None else bound[p.rows],
                            o["contact_tolerance"], 200)
+        team.charge(p, "contact", tp)
         if res.status != Status.SOLVED:
             error = error or f"contact solve of pair {p.index}: {res.message}"
             r = np.zeros(p.gamma.size)
         pieces[p.index], free[p.index] = r, (res.free, p.across_slip())
     team.timings["contact"] += time.perf_counter() - t
     error = team.first_error(error) if team.comm is not None else error
-    if error:
-        return None, None, error
-    free = {i: f for part in team.allgather(free) for i, f in part.items()}
-    return team.sum(dec.pairs, pieces, dec.nif), free, ""
+    out = (None, None, error) if error else \
+        (team.sum(dec.pairs, pieces, dec.nif), {i: f for part in team.allgather(free) for i, f in part.items()}, "")
+    cache["residual"] = (key, out)
+    return out
 
 
 def _linearised(dec, free, team, cache: dict) -> list:
@@ -709,11 +741,14 @@ def _linearised(dec, free, team, cache: dict) -> list:
     active set (and, in 3D, slip springs) did not change refactors nothing."""
     key = b"".join(a.tobytes() for p in dec.pairs for a in (free[p.index][0], *(free[p.index][1] or ())))
     if cache.get("key") != key:
-        cache.clear()
+        cache.pop("J", None)
         pairs = []
         for p in dec.pairs:
             rows, springs = free[p.index]
+            t = time.perf_counter()
             pairs.append(p.linearised(rows, team.mine(p), springs))
+            if team.mine(p):
+                team.charge(p, "contact", t)
         cache.update(key=key, pairs=pairs)
     return cache["pairs"]
 
@@ -721,7 +756,7 @@ def _linearised(dec, free, team, cache: dict) -> list:
 def _pairs_apply(team, lin_pairs, nif, x):
     """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed; x may
     have columns)."""
-    return team.sum(lin_pairs, {p.index: p.apply_S(x[p.gamma]) for p in team.local(lin_pairs)}, nif, x.shape[1:])
+    return team.sum(lin_pairs, team.each("iterate", lin_pairs, lambda p: p.apply_S(x[p.gamma])), nif, x.shape[1:])
 
 
 def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
@@ -735,7 +770,7 @@ def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | 
     then ruled out whatever more steps would give). The seed's step
     U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
     ([21, Cor. 7.1]: 2β² < 1). None: a local contact solve failed."""
-    _, free, _ = _contact_residual(dec, U0, d, bound, o, team)
+    _, free, _ = _contact_residual(dec, U0, d, bound, o, team, cache)
     if free is None:
         return None
     L = _linearised(dec, free, team, cache)
@@ -755,7 +790,8 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
     """Interface Newton for Tresca (slip bounds gw = g·w); for Coulomb the fixed point over
     Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
     last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
-    Tresca solves). Returns (status, message, U, the bounds of the last Tresca problem)."""
+    Tresca solves). Returns (status, message, U); the pairs' `result` is the last Tresca
+    problem's solve at U."""
     coulomb = bool(Fc.any())
     bound, p_old = (None if coulomb else gw), None
     info["newton"] = info["pcg2"] = info["successive"] = 0
@@ -763,7 +799,7 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
         status, message, U = _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load)
         if status != DDOutcome.CONVERGED or not coulomb:
-            return status, message, U, bound
+            return status, message, U
         lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
         lam_n = np.zeros(weight.size)
         for part in team.allgather(lam):
@@ -772,10 +808,10 @@ def _coulomb_newton(dec, S0, S, F, U, d, gw, Fc, weight, o, info, team, cache, l
         p = lam_n / weight
         info["fixed_point"] = j
         if p_old is not None and np.linalg.norm(p - p_old) <= o["tolerance"] * max(np.linalg.norm(p), 1e-300):
-            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U, bound
+            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U
         p_old, bound = p, gw + Fc * lam_n
     return (DDOutcome.BUDGET, f"Coulomb fixed point did not converge in {o['max_fixed_point_iterations']} "
-            f"Tresca problems", U, bound)
+            f"Tresca problems", U)
 
 
 def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
@@ -797,7 +833,7 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
     hist, tol, lin = info["history"], o["tolerance"], dec.linear
 
     def residual(U):
-        rc, free, error = _contact_residual(dec, U, d, bound, o, team)
+        rc, free, error = _contact_residual(dec, U, d, bound, o, team, cache)
         if rc is None:
             return None, None, None, error
         SU = S0.apply(U)

@@ -1,14 +1,18 @@
 r"""The units of a decomposition distributed over the ranks of an MPI communicator.
 
-`Team(comm, units, dim)` assigns every unit (linear subdomain or contact pair) to one
-rank by its estimated cost in each *phase* of an evaluation — the numeric factorization
-with the dense Schur block (`assemble`), the dense Dirichlet and Neumann products of the
-PCG iterations (`iterate`: all units), the local contact solves (`contact`: pairs) —
-counted from the unit's sizes (`phase_costs`), so deterministic. A phase ends at a
+`Team(comm, units, dim, measured)` assigns every unit (linear subdomain or contact pair) to
+one rank by its cost in each *phase* of an evaluation — the numeric factorization with the
+dense Schur block and the load's condensation (`assemble`), the dense Dirichlet and Neumann
+products of the PCG iterations (`iterate`: all units), the local contact solves and the
+linearisations (`contact`: pairs) — measured per unit in the first evaluation on this many
+ranks (`measured`, gathered so every rank holds the same numbers), before it estimated from
+the unit's sizes (`phase_costs`; measured on Hertz at 1.05e5 unknowns: the pair's rank
+assembled 1.46 s against 0.85 s, its dense algebra beyond the estimate). A phase ends at a
 gather, so an evaluation takes Σ_phase max_rank(load) seconds: the units, heaviest first
 (ties by index), each go to the rank that keeps that sum least (ties: the lower rank).
 Per kind longest-processing-time (the earlier rule) put Hertz's one pair (a third of the
-iteration cost) with half of the linear subdomains on one rank.
+iteration cost) with half of the linear subdomains on one rank. The assignment changes the
+cost only: the results are bitwise the same for any (see below).
 
 Every rank holds the whole (small) structure of the decomposition, the replicated
 interface vectors and the coarse problem; a rank assembles, factors and solves only the
@@ -64,10 +68,12 @@ def phase_costs(u, dim: int) -> np.ndarray:
     return np.array([assemble, iterate, contact])
 
 
-def assign(units, size: int, dim: int) -> dict:
-    """unit index -> rank: heaviest unit first (total estimated cost, ties by index), each to
-    the rank that keeps Σ_phase max_rank(load) least (ties: the lower rank). Deterministic."""
-    cost = {u.index: phase_costs(u, dim) for u in units}
+def assign(units, size: int, dim: int, measured: dict | None = None) -> dict:
+    """unit index -> rank: heaviest unit first (total cost, ties by index), each to the rank
+    that keeps Σ_phase max_rank(load) least (ties: the lower rank). Costs: `measured` ({unit
+    index: seconds per phase}) where given, else the estimates `phase_costs`; a function of
+    them only."""
+    cost = measured if measured is not None else {u.index: phase_costs(u, dim) for u in units}
     load = np.zeros((size, len(PHASES)))
     owner = {}
     for u in sorted(units, key=lambda u: (-cost[u.index].sum(), u.index)):
@@ -82,13 +88,25 @@ def assign(units, size: int, dim: int) -> dict:
 class Team:
     """Owner of every unit, the gathers that sum interface vectors in unit order, timings."""
 
-    def __init__(self, comm, units, dim: int = 2):
+    def __init__(self, comm, units, dim: int = 2, measured: dict | None = None, refactor: bool = True):
+        """`measured`: {number of ranks: {unit index: seconds per phase}} of an earlier
+        evaluation (`Team.measured`), the costs the assignment uses for this many ranks;
+        `refactor` False: the units keep their factors (the same stiffness data as the last
+        evaluation), so the assembly weighs nothing (measured on Hertz: by the first
+        evaluation's costs the pair's rank took 3 linear subdomains, and on the same data
+        the other rank did 3× its products)."""
         self.comm = comm if comm is not None and comm.size > 1 else None
         self.size = 1 if self.comm is None else self.comm.size
         self.rank = 0 if self.comm is None else self.comm.rank
-        self.owner = assign(units, self.size, dim)
-        self.cost = sum((phase_costs(u, dim) for u in units if self.owner[u.index] == self.rank),
-                        np.zeros(len(PHASES)))
+        costs = (measured or {}).get(self.size)
+        self.assigned_by = "measured"
+        if costs is None or any(u.index not in costs for u in units):
+            costs, self.assigned_by = {u.index: phase_costs(u, dim) for u in units}, "estimate"
+        if not refactor:
+            costs = {i: np.where(np.arange(len(PHASES)) == PHASES.index("assemble"), 0.0, c) for i, c in costs.items()}
+        self.owner = assign(units, self.size, dim, costs)
+        self.cost = sum((costs[u.index] for u in units if self.owner[u.index] == self.rank), np.zeros(len(PHASES)))
+        self.spent = defaultdict(lambda: [0.0] * len(PHASES))     # own units' measured seconds per phase
         self.kinds = {u.index: u.kind for u in units}
         self.timings = defaultdict(float)
         self.messages = 0
@@ -99,6 +117,25 @@ class Team:
 
     def local(self, units):
         return [u for u in units if self.owner[u.index] == self.rank]
+
+    def each(self, phase: str, units, f) -> dict:
+        """{u.index: f(u)} for this rank's units of `units`, each call's seconds charged to
+        the unit's `phase`."""
+        out, j, owner, rank, clock = {}, PHASES.index(phase), self.owner, self.rank, time.perf_counter
+        for u in units:
+            if owner[u.index] == rank:
+                t = clock()
+                out[u.index] = f(u)
+                self.spent[u.index][j] += clock() - t
+        return out
+
+    def charge(self, u, phase: str, since: float) -> None:
+        """Charge the seconds since `since` to unit `u`'s `phase` (a unit this rank owns)."""
+        self.spent[u.index][PHASES.index(phase)] += time.perf_counter() - since
+
+    def measured(self) -> dict:
+        """{unit index: seconds per phase} of every unit, gathered: the same on every rank."""
+        return {i: np.asarray(c) for part in self.allgather(dict(self.spent)) for i, c in part.items()}
 
     # ---- reductions -----------------------------------------------------------------------
     def sum(self, units, pieces: dict, nif: int, tail: tuple = ()) -> np.ndarray:
@@ -168,6 +205,7 @@ class Team:
         mine["units"] = sum(1 for r in self.owner.values() if r == self.rank)
         mine["pairs"] = sum(1 for i, r in self.owner.items() if r == self.rank and self.kinds[i] == "pair")
         mine["messages"] = self.messages
-        mine["estimate"] = dict(zip(PHASES, self.cost.tolist()))      # the assignment's estimated seconds
+        mine["estimate"] = dict(zip(PHASES, self.cost.tolist()))      # the seconds the assignment counted
+        mine["assigned_by"] = self.assigned_by                          # "measured" or "estimate"
         mine["rank"] = self.rank
         return self.allgather(mine) if self.comm is not None else [mine]
