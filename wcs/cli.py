@@ -77,6 +77,14 @@ def summary(study, ev) -> str:
         th = scene.thermal
         lines.append(f"  thermal: T0 = {th.reference}, temperature on {list(th.temperature)}, "
                      f"sources {th.sources}")
+    return "\n".join(lines + plan(study, ev))
+
+
+def plan(study, ev) -> list[str]:
+    """What the study asks of the scene, in the words of the study file (2D and 3D): the parameters
+    with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
+    and limits, the search, the solver and the output."""
+    scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
     nominal = study.nominal()
@@ -101,7 +109,7 @@ def summary(study, ev) -> str:
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
                  + ("" if scene.contacts else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")
-    return "\n".join(lines)
+    return lines
 
 
 def cmd_check(args) -> int:
@@ -118,7 +126,8 @@ def cmd_check(args) -> int:
     for w in study.warnings:
         print(f"warning: {study.file}: {w}", file=sys.stderr)
     if not args.quiet:
-        print(summary3d(study, ev.smesh) if study.scene.dimension == 3 else summary(study, ev))
+        print("\n".join([summary3d(study, ev.smesh), *plan(study, ev)]) if study.scene.dimension == 3
+              else summary(study, ev))
     if res.status != 0:
         print(f"error: {study.file}: the nominal data set cannot be solved "
               f"(status {res.status}, {Status(res.status).description}): {res.message}", file=sys.stderr)

@@ -581,8 +581,10 @@ NO_CRITERIA = "no criteria: `run` and `sweep` solve but measure nothing (`solve`
 
 def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
     """A warning per material whose Poisson ratio (nominal or anywhere in its box) is >= LOCKING_NU:
-    P1 triangles lock (Hertz peak-pressure error 2 % at nu = 0.45, 8 % at 0.49, 135 % at 0.4999)."""
+    P1 triangles and tetrahedra lock (the 2D Hertz peak-pressure error: 2 % at nu = 0.45, 8 % at 0.49, 135 % at
+    0.4999)."""
     box = {e.path: (e.lower, e.upper) for e in uncertain}
+    cells, bench = ("tetrahedra", "the 2D Hertz benchmark") if scene.dimension == 3 else ("triangles", "wcs's Hertz benchmark")
     out = []
     for name in _used_materials(scene):
         m = scene.materials[name]
@@ -593,8 +595,8 @@ def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
             mu = box.get(f"materials.{name}.mu", (m.mu, m.mu))[0]
             top = lam / (2 * (lam + mu))
         if top >= LOCKING_NU:
-            out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 triangles "
-                       "lock as nu -> 0.5: results there are too stiff (wcs's Hertz benchmark: peak-pressure "
+            out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 {cells} "
+                       f"lock as nu -> 0.5: results there are too stiff ({bench}: peak-pressure "
                        "error 2 % at 0.45, 8 % at 0.49, 135 % at 0.4999)")
     return out
 

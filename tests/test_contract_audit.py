@@ -1,0 +1,165 @@
+"""The public contract's three dimensions and ranges / fuzzy sets (its §5, §6) as an independent
+checker tries them: study files written from the contract alone, then mutated, through the
+`wcs` command. Each test here is a check that found a fault (it failed before the fix).
+
+The slow fuzz loop: 200 seeded mutations of the shipped 3D studies and of a 3D range study
+through `wcs check` (exit 0 or 2, one line naming the file and the key path, never a
+traceback), the accepted ones of the range study run for a few solves (a `check` that says ok
+must not be followed by a `run` that fails on the input)."""
+from __future__ import annotations
+
+import copy
+import io
+import random
+import re
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import pytest
+import yaml
+
+from test_fuzz_check import _base, mutate
+from wcs.cli import main
+from wcs.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A soft block on a stiff one, written from the contract's §5 and §6 alone: three-component
+# vectors, a fuzzy traction component, a Lipschitz slip limit on a [2, 2] grid, senses max, min
+# and both, limits as a number and as {lower, upper}, two α-levels.
+RANGE_3D = """
+study: contract-3d
+scene:
+  dimension: 3
+  mesh: {size: 0.25}
+  materials:
+    stiff: {E: 2.0e10, nu: 0.25}
+    soft: {E: 5.0e9, nu: 0.3}
+  bodies:
+    base: {regions: [{material: stiff, shape: {box: [0, 0, -0.5, 1, 1, 0]}}]}
+    block: {regions: [{material: soft, shape: {box: [0, 0, 0, 1, 1, 0.5]}}]}
+  boundaries:
+    base_bottom: {plane: {point: [0, 0, -0.5], normal: [0, 0, 1]}}
+    block_top: {plane: {point: [0, 0, 0.5], normal: [0, 0, 1]}}
+    x0: {box: [0, 0, -0.5, 0, 1, 0.5]}
+    y0: {plane: {point: [0, 0, 0], normal: [0, 1, 0]}}
+    base_top: {body: base, plane: {point: [0, 0, 0], normal: [0, 0, 1]}}
+    block_bottom: {body: block, plane: {point: [0, 0, 0], normal: [0, 0, 1]}}
+  supports:
+    base_bottom: {u: [0.0, 0.0, 0.0]}
+    x0: {u: [0.0, null, null]}
+    y0: {normal: 0.0}
+  loads:
+    block_top: {traction: [1.0e5, 0.0, -2.0e6]}
+  body_forces:
+    block: [0.0, 0.0, -2.0e4]
+  contacts:
+    interface: {slave: block_bottom, master: base_top, friction: {slip_limit: 3.0e5}}
+  regions_of_interest:
+    interface: {boundary: base_top}
+    core: {box: [0.25, 0.25, -0.4, 0.75, 0.75, -0.1], body: base}
+    ball: {ball: {center: [0.5, 0.5, 0.25], radius: 0.2}}
+uncertain:
+  loads.block_top.traction.2: {support: [-3.0e6, -1.0e6], core: [-2.5e6, -1.5e6]}
+  body_forces.block.2: [-3.0e4, -1.0e4]
+  contacts.interface.friction.slip_limit:
+    range: [2.0e5, 4.0e5]
+    lipschitz: 1.0e5
+    points: [2, 2]
+criteria:
+  - {name: pressure, kind: contact_pressure, regions: [interface], sense: both}
+  - {name: stress, kind: von_mises, regions: [core], sense: min}
+  - {name: settle, kind: mean_normal_displacement, regions: [ball], direction: [0, 0, -1]}
+limits:
+  pressure: {lower: 1.0e5, upper: 1.0e7}
+  stress: {lower: 1.0}
+  settle: 1.0
+fuzzy: {levels: [0.0, 1.0]}
+search: {method: auto, budget: 40}
+solver: {method: monolithic}
+"""
+
+
+def write(folder: Path, doc: dict) -> Path:
+    path = folder / "study.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def wcs(*argv) -> tuple[int, str, str]:
+    """Exit code, stdout and stderr of the `wcs` command."""
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+def range_doc() -> dict:
+    return yaml.safe_load(RANGE_3D)
+
+
+# ---------------------------------------------------------------- what `check` prints
+
+
+def test_check_of_a_3d_range_study_prints_the_levels_units_senses_and_limits(tmp_path):
+    """`wcs check` prints what the study will do: in 3D as in 2D the fuzzy levels with the cores,
+    each criterion's units, sense and both limits (before: only `sense max` and no limit, no level)."""
+    code, out, err = wcs("check", write(tmp_path, range_doc()))
+    assert code == 0, err
+    assert ("fuzzy: levels 0, 1, searched from the core (α = 1) outwards; the boxes above are the supports; "
+            "cores: loads.block_top.traction.2 [-2.5e+06, -1.5e+06]") in out
+    assert "pressure: contact_pressure over interface [Pa], sense both, lower limit 1e+05, limit 1e+07" in out
+    assert "stress: von_mises over core [Pa], sense min, lower limit 1\n" in out
+    assert "settle: mean_normal_displacement over ball [m], limit 1\n" in out
+    assert "search: auto, budget 40 solves; solver: monolithic" in out
+    assert "contacts.interface.friction.slip_limit[1,1]: [2e+05, 4e+05]  nominal 3e+05" in out
+
+
+def test_the_locking_warning_of_a_3d_study_names_tetrahedra():
+    doc = range_doc()
+    doc["scene"]["materials"]["soft"]["nu"] = 0.47
+    (warning,) = load_study(doc).warnings
+    assert "P1 tetrahedra lock" in warning and "triangles" not in warning
+
+
+# ---------------------------------------------------------------- the fuzz loop
+
+
+HEAVY_3D = [ROOT / "studies" / n for n in ("tunnel-fault-3d.yaml", "tunnel-fault-oblique-3d.yaml",
+                                           "knee-replacement-3d.yaml")]
+MESSAGE = re.compile(r"error: (\S+): ([\w.\[\],-]+): \S")
+
+
+def fuzz_cases(count: int, seed: int = 20) -> list[tuple[str, str, dict]]:
+    """`count` (study, description, document) mutations, the shipped 3D studies and the range
+    study in turn, the same for the same seed."""
+    rng = random.Random(seed)
+    bases = [(p.name, _base(p)) for p in HEAVY_3D] + [("range-3d", range_doc())]
+    out = []
+    for i in range(count):
+        name, base = bases[i % len(bases)]
+        doc = copy.deepcopy(base)
+        out.append((name, mutate(doc, rng), doc))
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(3600)
+def test_mutated_3d_and_range_studies_are_exit_0_or_2_at_a_key_path(tmp_path):
+    bad = []
+    for i, (study, what, doc) in enumerate(fuzz_cases(200)):
+        path = write(tmp_path, doc)
+        code, _, err = wcs("check", path, "--quiet")
+        errors = [line for line in err.splitlines() if not line.startswith("warning:")]
+        if code == 2:
+            m = MESSAGE.match(errors[0]) if len(errors) == 1 else None
+            if m is None or m.group(1) != str(path):
+                bad.append((study, what, code, err))
+        elif code != 0 or errors:
+            bad.append((study, what, code, err))
+        elif study == "range-3d":
+            doc["search"] = {"method": "auto", "budget": 3}
+            code, _, err = wcs("run", write(tmp_path, doc), "-o", tmp_path / f"run-{i}.nc", "--no-mesh-check", "--quiet")
+            if code != 0:
+                bad.append((study, what + " (run)", code, err))
+    assert not bad, "\n".join(f"{s}: {w}: exit {c}: {e.strip()[-400:]}" for s, w, c, e in bad)
