@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from test_fuzz_check import _base, mutate
+from test_fuzz_check import mutate
 from wcs.cli import main
-from wcs.study import load_study
+from wcs.study import _read_yaml, load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -33,8 +33,8 @@ scene:
   dimension: 3
   mesh: {size: 0.25}
   materials:
-    stiff: {E: 2.0e10, nu: 0.25}
-    soft: {E: 5.0e9, nu: 0.3}
+    stiff: {E: 2.0e+10, nu: 0.25}
+    soft: {E: 5.0e+9, nu: 0.3}
   bodies:
     base: {regions: [{material: stiff, shape: {box: [0, 0, -0.5, 1, 1, 0]}}]}
     block: {regions: [{material: soft, shape: {box: [0, 0, 0, 1, 1, 0.5]}}]}
@@ -50,28 +50,28 @@ scene:
     x0: {u: [0.0, null, null]}
     y0: {normal: 0.0}
   loads:
-    block_top: {traction: [1.0e5, 0.0, -2.0e6]}
+    block_top: {traction: [1.0e+5, 0.0, -2.0e+6]}
   body_forces:
-    block: [0.0, 0.0, -2.0e4]
+    block: [0.0, 0.0, -2.0e+4]
   contacts:
-    interface: {slave: block_bottom, master: base_top, friction: {slip_limit: 3.0e5}}
+    interface: {slave: block_bottom, master: base_top, friction: {slip_limit: 3.0e+5}}
   regions_of_interest:
     interface: {boundary: base_top}
     core: {box: [0.25, 0.25, -0.4, 0.75, 0.75, -0.1], body: base}
     ball: {ball: {center: [0.5, 0.5, 0.25], radius: 0.2}}
 uncertain:
-  loads.block_top.traction.2: {support: [-3.0e6, -1.0e6], core: [-2.5e6, -1.5e6]}
-  body_forces.block.2: [-3.0e4, -1.0e4]
+  loads.block_top.traction.2: {support: [-3.0e+6, -1.0e+6], core: [-2.5e+6, -1.5e+6]}
+  body_forces.block.2: [-3.0e+4, -1.0e+4]
   contacts.interface.friction.slip_limit:
-    range: [2.0e5, 4.0e5]
-    lipschitz: 1.0e5
+    range: [2.0e+5, 4.0e+5]
+    lipschitz: 1.0e+5
     points: [2, 2]
 criteria:
   - {name: pressure, kind: contact_pressure, regions: [interface], sense: both}
   - {name: stress, kind: von_mises, regions: [core], sense: min}
   - {name: settle, kind: mean_normal_displacement, regions: [ball], direction: [0, 0, -1]}
 limits:
-  pressure: {lower: 1.0e5, upper: 1.0e7}
+  pressure: {lower: 1.0e+5, upper: 1.0e+7}
   stress: {lower: 1.0}
   settle: 1.0
 fuzzy: {levels: [0.0, 1.0]}
@@ -122,6 +122,22 @@ def test_the_locking_warning_of_a_3d_study_names_tetrahedra():
     assert "P1 tetrahedra lock" in warning and "triangles" not in warning
 
 
+@pytest.mark.parametrize("output", ["folder", "a-file/results.nc"])
+def test_check_refuses_an_output_that_run_refuses(tmp_path, output):
+    """`check` exit 0 must not be followed by a `run` that refuses the same file: an `output`
+    that is a folder, or under a file, is exit 2 at `output` in both (before: `check` said ok)."""
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "a-file").write_text("")
+    doc = range_doc()
+    doc["output"] = str(tmp_path / output)
+    path = write(tmp_path, doc)
+    for command in ("check", "run"):
+        code, _, err = wcs(command, path, "--quiet")
+        assert code == 2 and err.startswith(f"error: {path}: output: "), (command, err)
+        assert ("is a directory" if output == "folder" else "a-file is a file") in err
+    assert not (tmp_path / "folder" / "results.nc").exists()
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 
@@ -131,10 +147,11 @@ MESSAGE = re.compile(r"error: (\S+): ([\w.\[\],-]+): \S")
 
 
 def fuzz_cases(count: int, seed: int = 20) -> list[tuple[str, str, dict]]:
-    """`count` (study, description, document) mutations, the shipped 3D studies and the range
-    study in turn, the same for the same seed."""
+    """`count` (study, description, document) mutations, the shipped 3D studies (read as wcs reads
+    them: `1.0e7` a number; their material library is found by name) and the range study in turn,
+    the same for the same seed."""
     rng = random.Random(seed)
-    bases = [(p.name, _base(p)) for p in HEAVY_3D] + [("range-3d", range_doc())]
+    bases = [(p.name, _read_yaml(p)[0]) for p in HEAVY_3D] + [("range-3d", range_doc())]   # 1e7: a number
     out = []
     for i in range(count):
         name, base = bases[i % len(bases)]

@@ -118,9 +118,11 @@ def cmd_check(args) -> int:
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
     from .evaluation import Evaluator
     from .status import Status
+    from .store import check_output
     from .study import load_study
     from .scene.summary3d import summary3d
     study = load_study(args.study)
+    check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
     for w in study.warnings:

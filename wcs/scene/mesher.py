@@ -25,7 +25,7 @@ How it is done
   runs over ``mesh.refine`` entries, ``dist_r`` is the distance to the
   refine selector's geometric set (0 inside a box/disc/polygon; for
   ``boundary: NAME`` the distance to that boundary's segment / circle / box;
-  refinement is purely geometric, a ``body:`` key is ignored), and ``grading`` (``mesh.grading``, default 0.5) lets
+  refinement is purely geometric: a zone takes no ``body:`` key), and ``grading`` (``mesh.grading``, default 0.5) lets
   the size grow linearly away from the refined zone instead of jumping.
   ``lc_gmsh`` carries ``Mesh.MeshSizeFromCurvature = 24`` (elements per 2π
   of arc): a full circle always gets >= 24 segments however coarse ``size``.
