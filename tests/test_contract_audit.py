@@ -138,6 +138,23 @@ def test_check_refuses_an_output_that_run_refuses(tmp_path, output):
     assert not (tmp_path / "folder" / "results.nc").exists()
 
 
+def test_solve_worst_of_a_min_only_criterion_says_its_maximum_was_not_searched(tmp_path):
+    """`solve --worst RUN C` for a criterion of sense min: exit 2 saying the maximum was not
+    searched (before: "the run has no solved data set", untrue: every evaluation solved)."""
+    doc = _read_yaml(ROOT / "studies" / "heated-plate.yaml")[0]
+    doc["criteria"][0]["sense"] = "min"
+    doc["limits"] = {}
+    doc["search"] = {"method": "auto", "budget": 3}
+    doc["output"] = str(tmp_path / "plate.nc")
+    path = write(tmp_path, doc)
+    code, _, err = wcs("run", path, "--no-mesh-check", "--quiet")
+    assert code == 0, err
+    code, _, err = wcs("solve", path, "--worst", tmp_path / "plate.nc", "heave", "-o", tmp_path / "w.nc")
+    assert code == 2 and "did not search the maximum of criterion 'heave' (its sense is min)" in err, err
+    code, _, err = wcs("solve", path, "--worst", tmp_path / "plate.nc", "shear", "-o", tmp_path / "w.nc")
+    assert code == 0, err
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 
