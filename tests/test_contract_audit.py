@@ -155,6 +155,14 @@ def test_solve_worst_of_a_min_only_criterion_says_its_maximum_was_not_searched(t
     assert code == 0, err
 
 
+def test_compare_of_a_folder_is_exit_2_in_one_line(tmp_path):
+    """`wcs compare` of an unreadable file: exit 2, one line naming it (HDF5's message for a
+    folder holds a line break; before, the message ran over two lines)."""
+    code, _, err = wcs("compare", tmp_path, tmp_path / "b.nc")
+    assert code == 2 and err.startswith(f"error: {tmp_path}: cannot read the results file (")
+    assert len(err.strip().splitlines()) == 1, err
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 
