@@ -20,6 +20,7 @@ import yaml
 
 from test_fuzz_check import mutate
 from wcs.cli import main
+from wcs.errors import StudyError
 from wcs.study import _read_yaml, load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -161,6 +162,24 @@ def test_compare_of_a_folder_is_exit_2_in_one_line(tmp_path):
     code, _, err = wcs("compare", tmp_path, tmp_path / "b.nc")
     assert code == 2 and err.startswith(f"error: {tmp_path}: cannot read the results file (")
     assert len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("values, words", [
+    ({"contacts.interface.friction.slip_limit": [2.5e5, 3.0e5]},
+     "values.contacts.interface.friction.slip_limit: a profile of 4 points takes one value or a list of 4, got 2"),
+    ({"loads.block_top.traction.2": "abc"}, "values.loads.block_top.traction.2: must be a valid number (got 'abc')"),
+    ({"contacts.interface.friction.slip_limit[0,1]": float("nan")},
+     "values.contacts.interface.friction.slip_limit[0,1]: must be a finite number (got nan)"),
+])
+def test_a_bad_data_set_mapping_is_a_study_error_at_its_path(values, words):
+    """`study.evaluate` / `data_set` of a mapping: a wrong-length profile or a non-number is a
+    StudyError at `values.<path>` (before: numpy's ValueError, or NaN taken as data)."""
+    study = load_study(range_doc())
+    with pytest.raises(StudyError, match=re.escape(words)):
+        study.data_set(values)
+    x, _ = study.data_set({"contacts.interface.friction.slip_limit": [2.1e5, 2.2e5, 2.3e5, 2.4e5],
+                           "loads.block_top.traction.2": -2.2e6})
+    assert x.tolist() == [-2.2e6, -2.0e4, 2.1e5, 2.2e5, 2.3e5, 2.4e5]
 
 
 # ---------------------------------------------------------------- the fuzz loop

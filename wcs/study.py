@@ -327,6 +327,7 @@ _PROFILE = TypeAdapter(Profile)
 _FUZZY = TypeAdapter(FuzzyNumber)
 _LIMIT = TypeAdapter(Limit)
 _NUMBER = TypeAdapter(float, config=_CONFIG)
+_NUMBERS = TypeAdapter(list[float], config=_CONFIG)
 _BOX = TypeAdapter(Point, config=_CONFIG)
 _LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
 
@@ -1041,13 +1042,20 @@ def _split_mapping(study: Study, values: Mapping) -> tuple[np.ndarray, dict]:
     others = {}
     src = _Source(study.file)
     for path, value in values.items():
+        where = ("values", path)
         if path in index:
-            x[index[path]] = value
+            x[index[path]] = src.validate(_NUMBER, value, where)
         elif path in slices:
-            x[slices[path]] = value
+            n = slices[path].stop - slices[path].start
+            if np.ndim(value) == 0:
+                x[slices[path]] = src.validate(_NUMBER, value, where)
+            elif len(value) != n:
+                raise src.error(where, f"a profile of {n} points takes one value or a list of {n}, got {len(value)}")
+            else:
+                x[slices[path]] = src.validate(_NUMBERS, list(value), where)
         else:
-            _nominal_number(study.scene, path, src, ("values", path))
-            others[path] = float(value)
+            _nominal_number(study.scene, path, src, where)
+            others[path] = src.validate(_NUMBER, value, where)
     return x, others
 
 
