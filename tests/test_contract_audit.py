@@ -182,6 +182,22 @@ def test_a_bad_data_set_mapping_is_a_study_error_at_its_path(values, words):
     assert x.tolist() == [-2.2e6, -2.0e4, 2.1e5, 2.2e5, 2.3e5, 2.4e5]
 
 
+@pytest.mark.parametrize("misspelt, hint", [
+    ("loads.block_top.tractoin.2", "no 'tractoin' under 'loads.block_top' (did you mean 'traction'?)"),
+    ("materials.soft.EE", "no 'EE' under 'materials.soft' (did you mean 'E'?)"),
+])
+def test_a_misspelt_uncertain_path_is_exit_2_with_did_you_mean(tmp_path, misspelt, hint):
+    """A misspelt key of an uncertain path: exit 2 at `uncertain.<path>` with "did you mean"
+    (before: only the list of the forms that can vary)."""
+    doc = range_doc()
+    doc["uncertain"][misspelt] = doc["uncertain"].pop("loads.block_top.traction.2") \
+        if "traction" in misspelt else [4.0e9, 6.0e9]
+    path = write(tmp_path, doc)
+    code, _, err = wcs("check", path, "--quiet")
+    assert code == 2 and err.startswith(f"error: {path}: uncertain.{misspelt}: "
+                                        f"'{misspelt}' is not a number that can vary: {hint}; these can: "), err
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 

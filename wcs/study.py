@@ -687,8 +687,13 @@ def _range_text(bounds: dict) -> str:
 def _nominal_number(scene: Scene, path: str, src: _Source, where) -> float:
     """The scene's number at an addressable path, or a StudyError at `where`."""
     if _address(path) is None:
+        try:
+            get_path(scene, path)
+            hint = ""
+        except KeyError as exc:                    # a misspelt key: say which, with its "did you mean"
+            hint = f": {exc.args[0]}"
         forms = ", ".join(_ADDRESSES)
-        raise src.error(where, f"'{path}' is not a number that can vary; these can: {forms}")
+        raise src.error(where, f"'{path}' is not a number that can vary{hint}; these can: {forms}")
     try:
         value = get_path(scene, path)
     except KeyError as exc:
