@@ -198,6 +198,24 @@ def test_a_misspelt_uncertain_path_is_exit_2_with_did_you_mean(tmp_path, misspel
                                         f"'{misspelt}' is not a number that can vary: {hint}; these can: "), err
 
 
+def test_report_of_a_solve_of_a_fuzzy_study_with_lower_and_upper_limits(tmp_path):
+    """`wcs report` of the file `wcs solve` writes, for a study with `limits.<c>: {lower, upper}`
+    and a fuzzy number: exit 0, the upper limit in the table, no claim that the study is crisp
+    (before: an internal failure, float() of the {lower, upper} mapping)."""
+    doc = _read_yaml(ROOT / "studies" / "heated-plate.yaml")[0]
+    doc["criteria"][0]["sense"] = "both"
+    doc["limits"] = {"heave": {"lower": 1.0e-5, "upper": 1.0e-3}}
+    doc["uncertain"]["materials.steel.E"] = {"support": [1.9e11, 2.3e11], "core": [2.05e11, 2.15e11]}
+    path = write(tmp_path, doc)
+    code, _, err = wcs("solve", path, "-o", tmp_path / "nominal.nc", "--quiet")
+    assert code == 0, err
+    code, _, err = wcs("report", tmp_path / "nominal.nc", "-o", tmp_path / "nominal.html", "--quiet")
+    assert code == 0, err
+    page = (tmp_path / "nominal.html").read_text(encoding="utf-8")
+    assert "A single solve at one data set" in page and "A crisp study" not in page
+    assert re.search(r'<tr data-criterion="heave">(<td[^>]*>[^<]*</td>){4}<td class="num">0.001000 m</td>', page)
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 
