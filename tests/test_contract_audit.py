@@ -15,12 +15,14 @@ import re
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.errors import StudyError
+from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import _read_yaml, load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -214,6 +216,26 @@ def test_report_of_a_solve_of_a_fuzzy_study_with_lower_and_upper_limits(tmp_path
     page = (tmp_path / "nominal.html").read_text(encoding="utf-8")
     assert "A single solve at one data set" in page and "A crisp study" not in page
     assert re.search(r'<tr data-criterion="heave">(<td[^>]*>[^<]*</td>){4}<td class="num">0.001000 m</td>', page)
+
+
+def test_a_3d_refine_zone_may_name_its_body():
+    """§5: region selectors of `refine` take an optional `body` (before: exit 2, unknown key).
+    A ball inside the base (0.15 m below the block): named for the base it refines the base as
+    the zone without `body` does, cell for cell (gmsh meshes the same size field the same way);
+    named for the block it leaves the base at its unrefined count but for the face it shares
+    with the block (409 cells against 385 without the zone, 1384 with it)."""
+    def cells(refine):
+        doc = range_doc()
+        doc["scene"]["mesh"] = {"size": 0.25, "refine": refine}
+        sm = build_mesh3d(load_study(doc).scene)
+        return np.bincount(sm.cell_body, minlength=2).tolist()
+    zone = {"ball": {"center": [0.5, 0.5, -0.25], "radius": 0.1}, "size": 0.05}
+    plain, everywhere = cells([]), cells([zone])
+    assert everywhere[0] > 3 * plain[0]
+    assert cells([{**zone, "body": "base"}]) == everywhere
+    assert cells([{**zone, "body": "block"}])[0] < 1.1 * plain[0]
+    with pytest.raises(StudyError, match=r"scene\.mesh\.refine\.0\.body: unknown body 'bse' \(did you mean 'base'\?\)"):
+        load_study({**range_doc(), "scene": {**range_doc()["scene"], "mesh": {"size": 0.25, "refine": [{**zone, "body": "bse"}]}}})
 
 
 # ---------------------------------------------------------------- the fuzz loop

@@ -444,6 +444,8 @@ def _check_mesh_references(scene: Scene, src: _Source) -> None:
     for i, refinement in enumerate(scene.mesh.refine):
         if refinement.boundary is not None:
             _require(refinement.boundary, boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
+        if getattr(refinement, "body", None) is not None:     # 3D: a zone of one body
+            _require(refinement.body, bodies, "body", src, ("mesh", "refine", i, "body"))
     for body, spec in bodies.items():
         for i, refinement in enumerate(spec.mesh.refine if spec.mesh else []):
             if refinement.boundary is not None:

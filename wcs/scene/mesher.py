@@ -197,12 +197,18 @@ def region_entity_sizes(owner: dict, regions_flat: list, dim: int = 2) -> dict:
         rs = regions_flat[rg].mesh
         if rs is not None:
             s = float(rs.size)
-            level = [(dim, tag)]
-            while level:
-                for dt in level:
-                    sizes[dt] = min(sizes.get(dt, s), s)
-                level = sorted({(d, abs(t)) for d, t in gmsh.model.getBoundary(level, combined=False, oriented=False)})
+            for dt in closure([(dim, tag)]):
+                sizes[dt] = min(sizes.get(dt, s), s)
     return sizes
+
+
+def closure(dimtags: list) -> list:
+    """The entities `dimtags` and every entity bounding them, down to the points."""
+    out, level = [], sorted(dimtags)
+    while level:
+        out += level
+        level = sorted({(d, abs(t)) for d, t in gmsh.model.getBoundary(level, combined=False, oriented=False)})
+    return out
 
 
 # ---------------------------------------------------------------------------
