@@ -238,6 +238,23 @@ def test_a_3d_refine_zone_may_name_its_body():
         load_study({**range_doc(), "scene": {**range_doc()["scene"], "mesh": {"size": 0.25, "refine": [{**zone, "body": "bse"}]}}})
 
 
+def test_an_unbalanced_pair_of_bodies_is_named_by_the_body_whose_load_drives_it(tmp_path):
+    """Without the base's support nothing holds the two blocks along z: the block's load drives
+    both down (status 3, exit 2). The message names the block, its net load, the base moving
+    with it and the motion's load work, positive (before: 'base', whose own load is zero: "net
+    load (0, 0, 0) N drives a rigid motion ... (load work 0 > friction work)")."""
+    doc = range_doc()
+    del doc["scene"]["supports"]["base_bottom"]
+    path = write(tmp_path, doc)
+    code, _, err = wcs("check", path, "--quiet")
+    assert code == 2, err
+    line = err.strip().splitlines()[-1]
+    assert "body 'block' is held only by contact and its load is not balanced: net load (" in line, line
+    assert "-2.01e+06) N drives a rigid motion (with body 'base') that friction and contact do not resist" in line
+    work = float(re.search(r"load work ([0-9.e+-]+) > friction work", line).group(1))
+    assert work > 1e5, line
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 
