@@ -255,6 +255,18 @@ def test_an_unbalanced_pair_of_bodies_is_named_by_the_body_whose_load_drives_it(
     assert work > 1e5, line
 
 
+def test_a_3d_scene_without_its_dimension_is_told_so(tmp_path):
+    """A scene written in §5's words but without `dimension: 3` (a 2D scene is the default):
+    exit 2 at `scene.dimension` (before: at the first 3D word the 2D schema does not know,
+    "scene.bodies.base.regions.0.shape.box: unknown key 'box' ... (and 14 more)")."""
+    doc = range_doc()
+    del doc["scene"]["dimension"]
+    path = write(tmp_path, doc)
+    code, _, err = wcs("check", path, "--quiet")
+    assert code == 2 and err.startswith(f"error: {path}: scene.dimension: required key is missing: the scene "
+                                        "is a 3D one"), err
+
+
 # ---------------------------------------------------------------- the fuzz loop
 
 

@@ -349,7 +349,13 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
     three = isinstance(raw, dict) and raw.get("dimension") == 3
-    scene = src.validate(_SCENE3D if three else _SCENE, raw)
+    try:
+        scene = src.validate(_SCENE3D if three else _SCENE, raw)
+    except StudyError:
+        if isinstance(raw, dict) and "dimension" not in raw and _reads_as_3d(raw):
+            raise src.error(("dimension",), "required key is missing: the scene is a 3D one (its shapes, "
+                                            "vectors and selectors are those of dimension: 3)") from None
+        raise
     notes = []
     if scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
@@ -365,6 +371,15 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
             b: _named(body, [r.name or f"{b}_{i}" for i, r in enumerate(body.regions)])
             for b, body in scene.bodies.items()}})
     return scene, src, extra, notes
+
+
+def _reads_as_3d(raw: dict) -> bool:
+    """Whether a scene without `dimension` is a valid 3D scene (a 2D scene is the default)."""
+    try:
+        _SCENE3D.validate_python({**raw, "dimension": 3})
+    except ValidationError:
+        return False
+    return True
 
 
 def _named(body, names: list[str]):
