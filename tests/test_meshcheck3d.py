@@ -1,15 +1,17 @@
 """The mesh check in 3D: every tetrahedron split into eight by gmsh (new boundary nodes on the
 OCC surfaces), the extremes re-solved on h/2 and h/4, Richardson's order and error estimate;
 and, in 2D and 3D alike, the mesh split once only when the second split would pass
-`mesh.max_cells`."""
+`mesh.max_cells` or its dense contact condensation would not fit in the machine's memory."""
 import math
 import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import skfem
 import xarray as xr
 import yaml
 from scipy.spatial import cKDTree
@@ -18,7 +20,7 @@ from test_meshfile3d import FILE, write_block_msh
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.fem.tet import volumes
-from wcs.meshcheck import MAX_CONTACT_NODES, ORDER_RANGE, planned, refined_nodes
+from wcs.meshcheck import ORDER_RANGE, cost, machine_memory, planned, refined_nodes
 from wcs.report.data import from_dataset
 from wcs.report.html import Report
 from wcs.scene.mesher import build_mesh
@@ -226,20 +228,115 @@ def test_the_mesh_is_split_once_only_when_twice_would_pass_max_cells(tmp_path, d
     assert ("every tetrahedron into eight" if dimension == 3 else "every triangle into four") in section
 
 
-@pytest.mark.parametrize("dimension, contact_nodes, splits, why", [
-    (3, 90, (1, 2), ""),
-    (3, 100, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
-    (3, 400, (), "the mesh split once would have about 1600 contact nodes, beyond the 1500"),
-    (2, 400, (1,), "the mesh split 2 times would have about 1600 contact nodes, beyond the 1500"),
+def _needed(d: int, k: int) -> float:
+    """GB of the dense contact condensation on k contact rows: DENSE_BLOCKS[d] blocks of k × k
+    float64 (measured on the 2D and the 3D tunnel, `wcs/meshcheck.py`)."""
+    return {2: 24, 3: 8}[d] * 8 * k * k / 1e9
+
+
+def _seconds(d: int, k: int) -> float:
+    """Seconds of a contact solve on k contact rows as k³ from the measured cold tunnel solves
+    (2D: 40 s at 2692 rows, 3D: 58 s at 6141)."""
+    return {2: 40.0 * (k / 2692) ** 3, 3: 58.0 * (k / 6141) ** 3}[d]
+
+
+def _memory_note(d: int, split: str, k: int, memory: float) -> str:
+    return (f"the mesh {split} would need about {_needed(d, k):.3g} GB for its dense contact condensation "
+            f"({k} contact rows: {(24, 8)[d - 2]} blocks of {k} × {k} float64), beyond the {memory / 2e9:.3g} GB "
+            f"it may take (50% of this machine's {memory / 1e9:.3g} GB of memory)")
+
+
+def _time_note(d: int, split: str, k: int) -> str:
+    return (f"the mesh {split} would take about {_seconds(d, k):.3g} s a solve for its dense contact condensation "
+            f"({k} contact rows, as k³ from {(40, 58)[d - 2]} s at {(2692, 6141)[d - 2]}), beyond the 120 s a "
+            f"solve of the check may take")
+
+
+@pytest.mark.parametrize("dimension, contact_nodes, splits, note", [
+    (3, 100, (1, 2), None),                                   # h/4: 4800 rows, 1.5 GB, 28 s
+    (3, 150, (1, 2), None),                                   # h/4: 7200 rows, 3.3 GB, 93 s
+    (3, 170, (1,), ("time", "split 2 times", 3 * 170 * 16)),  # h/4: 8160 rows, 4.3 GB, 136 s
+    (3, 300, (1,), ("memory", "split 2 times", 3 * 300 * 16)),  # h/4: 14400 rows, 13.3 GB
+    (3, 700, (), ("time", "split once", 3 * 700 * 4)),        # h/2: 8400 rows, 4.5 GB, 148 s
+    (3, 1000, (), ("memory", "split once", 3 * 1000 * 4)),    # h/2: 12000 rows, 9.2 GB
+    (2, 300, (1, 2), None),                                   # h/4: 2400 rows, 1.1 GB, 28 s
+    (2, 600, (1,), ("time", "split 2 times", 2 * 600 * 4)),   # h/4: 4800 rows, 4.4 GB, 227 s
+    (2, 900, (1,), ("memory", "split 2 times", 2 * 900 * 4)),  # h/2: 3600 rows, 96 s; h/4: 7200 rows, 10 GB
+    (2, 3000, (), ("memory", "split once", 2 * 3000 * 2)),    # h/2: 12000 rows, 27.6 GB
 ])
-def test_the_dense_contact_condensation_bounds_the_splits(tmp_path, dimension, contact_nodes, splits, why):
-    """The contact nodes grow about 2^(d - 1) times a split, the dense condensation's cost as
-    their cube: beyond MAX_CONTACT_NODES a split is not made (the tunnel's 3D fault, 529 nodes,
-    would have about 2116 split once; 2858 took 830 s and 11.9 GB a solve)."""
+def test_the_dense_contact_condensation_bounds_the_splits(tmp_path, dimension, contact_nodes, splits, note):
+    """The k = d · m contact rows grow about 2^(d - 1) times a split; the condensation holds
+    DENSE_BLOCKS[d] k × k blocks and takes time as k³: a split whose blocks pass half of the
+    machine's memory (16 GB given here: 8 GB), or whose condensation would take more than 120 s a
+    solve, is not made, and the note says how much it needs against how much it may take."""
     study = load_study(_write(tmp_path, yaml.safe_load(SLAB.read_text()) if dimension == 2 else PRESSED, "s"))
-    assert MAX_CONTACT_NODES == 1500
-    done, said = planned(study, 10, contact_nodes)
-    assert done == splits and said.startswith(why) and (said == "") == (why == "")
+    done, said = planned(study, 10, contact_nodes, memory=16e9)
+    assert done == splits
+    if note is None:
+        assert said == ""
+    else:
+        kind, split, rows = note
+        assert said == (_memory_note(dimension, split, rows, 16e9) if kind == "memory"
+                        else _time_note(dimension, split, rows))
+
+
+def test_the_shipped_3d_tunnel_is_split_once():
+    """studies/tunnel-fault-3d.yaml (24822 tetrahedra, 529 fault nodes): split once it has 6348
+    contact rows, 2.6 GB of dense blocks (within half of a 24.7 GB machine, and of an 8 GB one) and
+    about 64 s a solve; split twice it would pass mesh.max_cells first. On a 4 GB machine the
+    check is not run. (Before: 2116 contact nodes split once, beyond the fixed 1500: not run.)"""
+    study = load_study(ROOT / "studies" / "tunnel-fault-3d.yaml")
+    twice = "the mesh split 2 times would have 1.59e+06 cells, beyond mesh.max_cells = 1e+06"
+    assert planned(study, 24822, 529, memory=24.68e9) == ((1,), twice)
+    assert planned(study, 24822, 529, memory=8e9) == ((1,), twice)
+    assert planned(study, 24822, 529, memory=4e9) == ((), _memory_note(3, "split once", 6348, 4e9))
+
+
+def test_the_shipped_3d_validation_studies_keep_their_splits():
+    """hertz-3d (12025 tetrahedra, 274 contact nodes) and mortar-patch-3d (4754, 196) are split
+    once as before: split twice their condensation would fit in 12 GB but take about 570 and 210 s
+    a solve; block-on-block-3d (1150, 44) is split twice as before."""
+    validation = ROOT / "studies" / "validation"
+    for name, cells, nodes in (("hertz-3d", 12025, 274), ("mortar-patch-3d", 4754, 196)):
+        study = load_study(validation / f"{name}.yaml")
+        assert _needed(3, 3 * nodes * 16) < 12.34
+        assert planned(study, cells, nodes, memory=24.68e9) == ((1,), _time_note(3, "split 2 times", 3 * nodes * 16))
+    assert planned(load_study(validation / "block-on-block-3d.yaml"), 1150, 44, memory=24.68e9) == ((1, 2), "")
+
+
+def test_the_shipped_2d_studies_are_split_twice_even_on_a_small_machine(tmp_path):
+    """The largest contact of the shipped 2D studies (hertz-mortar: 223 contact nodes, 30583
+    triangles) needs 0.61 GB and about 11 s a solve split twice: within half of a 4 GB machine and
+    120 s, so every shipped 2D study's check is split twice as before (all 18 listed in the
+    closing note)."""
+    study = load_study(_write(tmp_path, yaml.safe_load(SLAB.read_text()), "s"))
+    assert _needed(2, 2 * 223 * 4) < 2.0 and _seconds(2, 2 * 223 * 4) < 120
+    assert planned(study, 30583, 223, memory=4e9) == ((1, 2), "")
+
+
+def test_machine_memory_is_the_physical_memory_or_the_cgroup_limit():
+    """The memory the plan is made against: MemTotal of /proc/meminfo (the kernel's count of the
+    same pages os.sysconf gives), or the cgroup v2 limit where that is lower."""
+    total = 1024.0 * int(next(line.split()[1] for line in Path("/proc/meminfo").read_text().splitlines()
+                             if line.startswith("MemTotal:")))
+    limit = Path("/sys/fs/cgroup/memory.max")
+    text = limit.read_text().strip() if limit.exists() else "max"
+    assert machine_memory() == (min(total, float(text)) if text.isdigit() else total)
+
+
+def test_the_cost_has_the_dense_condensation_term():
+    """cost(): on top of the study's solve grown with the nodes, the nominal state the contact
+    solves start from and each of the n extremes pay the dense condensation of the refined mesh's
+    k contact rows, as k³ from CONDENSATION (58 s at 6141 rows in 3D): the tunnel (529 fault nodes,
+    2 extremes) split once (6348 rows) about 3 × 64 s, split twice (25392 rows) 3 × 4100 s."""
+    x = np.linspace(0.0, 1.0, 3)
+    mesh = skfem.MeshTet.init_tensor(x, x, x)
+    ev = SimpleNamespace(smesh=SimpleNamespace(mesh=mesh), timings={"mesh": 0.0, "assembly": 0.0},
+                         model=SimpleNamespace(thermal=False, zone=SimpleNamespace(gap=np.zeros(529))))
+    (s1, n1, t1), (s2, n2, t2) = cost(ev, 0.0, 2)
+    assert (s1, s2) == (1, 2) and (n1, n2) == (3 * refined_nodes(mesh, 1), 3 * refined_nodes(mesh, 2))
+    assert t1 == pytest.approx(3 * 58.0 * (6348 / 6141) ** 3, rel=1e-12)
+    assert t2 == pytest.approx(3 * 58.0 * (25392 / 6141) ** 3, rel=1e-12)
 
 
 # ---------------------------------------------------------------- the CLI

@@ -158,7 +158,8 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
     return (f"  mesh check (after the search; `run --no-mesh-check` skips it): up to {n_ext} extreme data set(s) "
             f"solved again on the mesh {meshes}, "
             + " and ".join(f"{n} unknowns" for _, n, _ in levels)
-            + f"; about {sum(t for _, _, t in levels):.2g} s (assembly and solves taken as growing with the unknowns)")
+            + f"; about {sum(t for _, _, t in levels):.2g} s (assembly and solves taken as growing with the unknowns, "
+            f"the dense contact condensation as the cube of its rows)")
 
 
 def cmd_solve(args) -> int:

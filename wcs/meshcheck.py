@@ -19,15 +19,23 @@ MARGINAL when |L − f0| ≤ |error| (without an error estimate: the spread max|
 three values, and the note says so), else PASS or FAIL.
 
 When the mesh split twice would pass `mesh.max_cells` (4 or 8 times the cells per split, in 2D
-or 3D) or MAX_CONTACT_NODES (about 2 or 4 times the contact nodes per split), the mesh is split
-once only: the two values f0, f1, no order, the verdict on the spread |f1 − f0|, as the note
-says; when the mesh split once would pass it too, the check is not run.
+or 3D) or its dense contact condensation would not fit in memory or take more than minutes, the
+mesh is split once only: the two values f0, f1, no order, the verdict on the spread |f1 − f0|,
+as the note says; when the mesh split once would pass it too, the check is not run. The contact
+solve condenses onto the k = d × m contact rows of the m contact nodes (about 2^(d − 1) times
+more per split) with dense k × k blocks (the Delassus operator, in 3D minus the Schur complement
+of the bordered matrix [[K, Cᵀ], [C, 0]]): DENSE_BLOCKS[d] × 8 k² bytes at the peak of a solve,
+against MEMORY_SHARE of the machine's memory (`machine_memory`: a fixed property of the
+machine), and CONDENSATION's seconds grown as k³, against MAX_SOLVE_SECONDS a solve. The plan
+depends only on the study and the machine.
 """
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -48,7 +56,16 @@ SOLVE_GROWTH = {2: 1.15,        # a solve's time grows as nodes^1.15 (1.1-1.25 f
                 3: 1.5}         # in 3D as nodes^1.5 (1.2-1.3 from h to h/2: hertz-3d; 1.4-1.7 h/2 to h/4: block-on-block-3d)
 ASSEMBLY_GROWTH = {2: 1.0,      # the assembly's as the nodes,
                    3: 1.35}     # in 3D as nodes^1.35 (1.3 hertz-3d, 1.4 block-on-block-3d, as the solves)
-MAX_CONTACT_NODES = 1500        # the dense contact condensation: O(m³) time, O(m²) memory (3D, 3152 nodes: 141 s, 5.8 GB)
+DENSE_BLOCKS = {2: 24,          # k × k float64 blocks at a contact solve's peak (its rise over the built evaluator,
+                3: 8}           # one cold solve): 2D tunnel 24.9 at k = 1348, 22.2 at k = 2692 ((K⁺)_SS on about 2k
+                                # DOFs); 3D tunnel 7.6 at k = 3672, 7.4 at k = 6141 (the process's peak 5.8 GB, 8.1
+                                # blocks, at k = 9456)
+MEMORY_SHARE = 0.5              # of the machine's memory, the rest for the system, the study's own evaluator, the mesh
+CONDENSATION = {2: (40.0, 2692),    # (seconds, k) of a cold contact solve on k contact rows, its dense condensation
+                3: (58.0, 6141)}    # growing as k³ (one core, a loaded machine: 2D tunnel; 3D tunnel, 25.7 s of it the
+                                    # bordered factorization; 141 s at k = 9456 on a quieter one)
+MAX_SOLVE_SECONDS = 120.0       # the condensation's estimated time a solve of a refined mesh may take (the 3D tunnel
+                                # split once: 64 s; hertz-3d split twice, 570 s, is not made)
 FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
 
 
@@ -131,20 +148,58 @@ def max_cells(study) -> float:
     return float(DEFAULT_MAX_CELLS if study.scene.mesh.max_cells is None else study.scene.mesh.max_cells)
 
 
-def planned(study, cells: int, contact_nodes: int) -> tuple[tuple[int, ...], str]:
+def machine_memory() -> float:
+    """Bytes of memory of this machine: its physical memory (`os.sysconf`), or the control group's
+    limit (cgroup v2 `memory.max`) where that is lower."""
+    memory = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+    except OSError:
+        return memory
+    return min(memory, float(limit)) if limit.isdigit() else memory
+
+
+def contact_rows(d: int, contact_nodes: int, splits: int) -> int:
+    """The contact rows k (a normal and d − 1 tangents per node) of the mesh split `splits` times:
+    the contact nodes grow about 2^(d − 1) times a split."""
+    return d * contact_nodes * 2 ** ((d - 1) * splits)
+
+
+def condensation_bytes(d: int, k: int) -> float:
+    """Memory of the dense contact condensation on k contact rows at the peak of a solve."""
+    return DENSE_BLOCKS[d] * 8.0 * k * k
+
+
+def condensation_seconds(d: int, k: int) -> float:
+    """Estimated seconds of a contact solve's dense condensation on k contact rows: CONDENSATION's
+    measured solve grown as k³."""
+    seconds_ref, k_ref = CONDENSATION[d]
+    return seconds_ref * (k / k_ref) ** 3
+
+
+def planned(study, cells: int, contact_nodes: int, memory: float | None = None) -> tuple[tuple[int, ...], str]:
     """The splits of SPLITS made of a mesh of `cells` cells and `contact_nodes` contact nodes: within
-    `mesh.max_cells` (a split multiplies the cells by 2^d) and MAX_CONTACT_NODES (it multiplies the
-    contact nodes by about 2^(d − 1)); and why no more are made ("" when all are)."""
+    `mesh.max_cells` (a split multiplies the cells by 2^d) and with the dense contact condensation
+    of the split mesh within MEMORY_SHARE of `memory` bytes (None: `machine_memory()`) and
+    MAX_SOLVE_SECONDS a solve; and why no more are made ("" when all are)."""
     d = study.scene.dimension
+    memory = machine_memory() if memory is None else memory
     done: list[int] = []
     for s in SPLITS:
-        split = f"the mesh split {'once' if s == 1 else f'{s} times'} would have"
-        n, m = cells * 2 ** (d * s), contact_nodes * 2 ** ((d - 1) * s)
+        split = f"the mesh split {'once' if s == 1 else f'{s} times'} would"
+        n, k = cells * 2 ** (d * s), contact_rows(d, contact_nodes, s)
         if n > max_cells(study):
-            return tuple(done), f"{split} {n:.3g} cells, beyond mesh.max_cells = {max_cells(study):g}"
-        if m > MAX_CONTACT_NODES:
-            return tuple(done), (f"{split} about {m} contact nodes, beyond the {MAX_CONTACT_NODES} the dense "
-                                 f"contact condensation solves in minutes")
+            return tuple(done), f"{split} have {n:.3g} cells, beyond mesh.max_cells = {max_cells(study):g}"
+        if condensation_bytes(d, k) > MEMORY_SHARE * memory:
+            return tuple(done), (f"{split} need about {condensation_bytes(d, k) / 1e9:.3g} GB for its dense "
+                                 f"contact condensation ({k} contact rows: {DENSE_BLOCKS[d]} blocks of {k} × {k} "
+                                 f"float64), beyond the {MEMORY_SHARE * memory / 1e9:.3g} GB it may take "
+                                 f"({MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB of memory)")
+        if condensation_seconds(d, k) > MAX_SOLVE_SECONDS:
+            return tuple(done), (f"{split} take about {condensation_seconds(d, k):.3g} s a solve for its dense "
+                                 f"contact condensation ({k} contact rows, as k³ from {CONDENSATION[d][0]:g} s at "
+                                 f"{CONDENSATION[d][1]}), beyond the {MAX_SOLVE_SECONDS:g} s a solve of the check "
+                                 f"may take")
         done.append(s)
     return tuple(done), ""
 
@@ -154,19 +209,23 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     (evaluator.timings, and `warm_solve` seconds of a solve with the factorization's analysis
     reused): meshing as the study's (the geometry dominates), assembly growing as
     nodes^ASSEMBLY_GROWTH, a solve as nodes^SOLVE_GROWTH (of the dimension), a new mesh's first
-    solve FIRST_SOLVE_EXTRA solves dearer. Measured (knee, tunnel, Hertz: both refined meshes, one
-    solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s taken: the
-    estimate is good to a factor 2. In 3D (block-on-block-3d split once and twice, hertz-3d split
-    once, on a loaded machine): 170 and 230 s estimated against 166 and 324 s taken; no better
-    where the dense contact condensation dominates (O(m³) in the contact nodes, 64× a split)."""
+    solve FIRST_SOLVE_EXTRA solves dearer; and the dense contact condensation on the split mesh's
+    k contact rows (`condensation_seconds`), paid by the nominal state the contact solves start
+    from and by each extreme. Measured (knee, tunnel, Hertz: both refined
+    meshes, one solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s
+    taken: the estimate is good to a factor 2. In 3D (block-on-block-3d split once and twice,
+    hertz-3d split once, on a loaded machine): 170 and 230 s estimated against 166 and 324 s
+    taken; tunnel-fault-3d split once (6348 contact rows): 221 s against 172 s."""
     mesh = evaluator.smesh.mesh
-    n = mesh.p.shape[1]
-    per_node = mesh.dim() + evaluator.model.thermal
+    d, n = mesh.dim(), mesh.p.shape[1]
+    per_node = d + evaluator.model.thermal
+    m = 0 if evaluator.model.zone is None else evaluator.model.zone.gap.size
     out = []
     for s in splits:
         r = refined_nodes(mesh, s) / n
-        seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r ** ASSEMBLY_GROWTH[mesh.dim()]
-                   + (n_extremes + FIRST_SOLVE_EXTRA) * warm_solve * r ** SOLVE_GROWTH[mesh.dim()])
+        seconds = (evaluator.timings["mesh"] + evaluator.timings["assembly"] * r ** ASSEMBLY_GROWTH[d]
+                   + (n_extremes + FIRST_SOLVE_EXTRA) * warm_solve * r ** SOLVE_GROWTH[d]
+                   + (n_extremes + 1) * condensation_seconds(d, contact_rows(d, m, s)))
         out.append((s, per_node * refined_nodes(mesh, s), seconds))
     return out
 
