@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
+import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -77,6 +79,14 @@ def summary(study, ev) -> str:
         th = scene.thermal
         lines.append(f"  thermal: T0 = {th.reference}, temperature on {list(th.temperature)}, "
                      f"sources {th.sources}")
+    return "\n".join(lines + plan(study, ev))
+
+
+def plan(study, ev) -> list[str]:
+    """What the study asks of the scene, in the words of the study file (2D and 3D): the parameters
+    with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
+    and limits, the search, the solver and the output."""
+    scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
     nominal = study.nominal()
@@ -101,7 +111,7 @@ def summary(study, ev) -> str:
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
                  + ("" if scene.contacts else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")
-    return "\n".join(lines)
+    return lines
 
 
 def cmd_check(args) -> int:
@@ -110,15 +120,18 @@ def cmd_check(args) -> int:
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
     from .evaluation import Evaluator
     from .status import Status
+    from .store import check_output
     from .study import load_study
     from .scene.summary3d import summary3d
     study = load_study(args.study)
+    check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
     for w in study.warnings:
         print(f"warning: {study.file}: {w}", file=sys.stderr)
     if not args.quiet:
-        print(summary3d(study, ev.smesh) if study.scene.dimension == 3 else summary(study, ev))
+        print("\n".join([summary3d(study, ev.smesh), *plan(study, ev)]) if study.scene.dimension == 3
+              else summary(study, ev))
     if res.status != 0:
         print(f"error: {study.file}: the nominal data set cannot be solved "
               f"(status {res.status}, {Status(res.status).description}): {res.message}", file=sys.stderr)
@@ -217,13 +230,23 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _one_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library's warning (e.g. cvxpy's "Solution may be inaccurate") as one line on stderr,
+    not Python's two with the source line (`--verbose` keeps those)."""
+    print(f"warning: {category.__name__} from {Path(filename).name}:{lineno}: {' '.join(str(message).split())}",
+          file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
         from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
         configure_threads()
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            if not getattr(args, "verbose", False):
+                warnings.showwarning = _one_line
+            return args.func(args)
     except StudyError as e:
         print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",
               file=sys.stderr)

@@ -132,6 +132,7 @@ def solve_worst(args) -> int:
                 raise StudyError(f"no criterion '{criterion}' in the run (it has: {', '.join(crits)})",
                                  file=str(run_file))
             x = ds["worst_x"].sel(criterion=criterion).values.astype(float)
+            searched = str(ds["certificate"].sel(criterion=criterion).values) != "not-searched"
             sha = ds.attrs.get("study_sha256")
             if str(ds.attrs.get("complete", "yes")) == "no":
                 n = int(ds.sizes.get("eval", 0))
@@ -145,6 +146,9 @@ def solve_worst(args) -> int:
     if params != list(study.parameters.names):
         raise StudyError(f"the run's parameters ({', '.join(params)}) are not this study's "
                          f"({', '.join(study.parameters.names)})", file=str(run_file))
+    if not searched:
+        raise StudyError(f"the run did not search the maximum of criterion '{criterion}' (its sense is min): "
+                         "it has no worst data set; its minimum's is best_x", file=str(run_file))
     if not np.all(np.isfinite(x)):
         raise StudyError(f"the run has no solved data set for criterion '{criterion}'", file=str(run_file))
     if sha != study.sha256 and not getattr(args, "quiet", False):

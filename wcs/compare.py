@@ -26,7 +26,7 @@ def _open(path: str) -> xr.Dataset:
     try:
         ds = xr.load_dataset(path, engine="h5netcdf")
     except (OSError, ValueError) as e:
-        raise StudyError(f"cannot read the results file ({e})", file=str(path)) from None
+        raise StudyError(f"cannot read the results file ({' '.join(str(e).split())})", file=str(path)) from None   # HDF5 breaks lines
     missing = [v for v in CORE if v not in ds]
     if "study_sha256" not in ds.attrs or missing:
         raise StudyError("not a results file of `wcs run` or `wcs sweep` (no "

@@ -410,22 +410,23 @@ class Model:
                     f"({res.message}); solvability L(w) <= j(w) (load work at most friction work for every "
                     f"admissible rigid motion w) fails ([21, Remark 2.1])")
         alpha = np.asarray(res.alpha, float)
-        k, best, share = 0, None, -1.0
+        k, moved = 0, []                          # (load work, share of the motion, body) of each body it moves
         for body, modes in self.floating:
             a = alpha[k:k + modes.shape[1]]
-            if np.abs(a).sum() > share:
-                share, best, a_best, m_best = np.abs(a).sum(), body, a, modes
+            moved.append((float(rhs @ (self.elim.T.T @ (modes @ a))), float(np.abs(a).sum()), body))
             k += modes.shape[1]
-        v = m_best @ a_best
-        work = float(rhs @ (self.elim.T.T @ v))
+        work = sum(w for w, _, _ in moved)
+        _, top, best = max(moved)                 # the body whose load does the most work
+        along = [b for _, sh, b in moved if b != best and sh > 1e-9 * max(top, 1e-300)]
         nodes = np.flatnonzero(self.smesh.node_body == self.smesh.bodies.index(best))
         load = self.elim.T @ rhs                                   # the reduced load, back on the dofs
         d = self.dim
         force = np.array([load[d * nodes + i].sum() for i in range(d)])
         net = ", ".join(f"{f:.4g}" for f in force)
         return (f"body '{best}' is held only by contact and its load is not balanced: "
-                f"net load ({net}) {'N' if d == 3 else 'N/m'} drives a rigid motion that friction "
-                f"and contact do not resist (load work {work:.3g} > friction work); "
+                f"net load ({net}) {'N' if d == 3 else 'N/m'} drives a rigid motion"
+                + "".join(f" (with body '{b}')" for b in along)
+                + f" that friction and contact do not resist (load work {work:.3g} > friction work); "
                 f"solvability L(w) <= j(w) fails ([21, Remark 2.1])")
 
     def _free_motion_message(self, beta: np.ndarray) -> str:

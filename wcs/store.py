@@ -71,9 +71,11 @@ def stored_count(output: str | Path) -> int | None:
     return sum(1 for _ in folder.glob("*.npz")) if folder.is_dir() else None
 
 
-def check_output(output: str | Path, file: str | None = None, path: str | None = None) -> None:
+def check_output(output: str | Path, file: str | None = None, path: str | None = None, create: bool = True) -> None:
     """StudyError (exit 2) unless a run can write `output` and the files beside it: not a
-    directory, names within the filesystem's limits, its folder creatable."""
+    directory, names within the filesystem's limits, its folder creatable (created; with
+    `create` false, as `wcs check` asks, nothing is created: the nearest existing folder above
+    it must be a folder)."""
     out = Path(output)
     if out.is_dir():
         raise StudyError(f"the output {out} is a directory; name a results file in it (e.g. {out / 'results.nc'})",
@@ -81,6 +83,8 @@ def check_output(output: str | Path, file: str | None = None, path: str | None =
     existing = out.absolute().parent
     while not existing.exists():
         existing = existing.parent
+    if not existing.is_dir():
+        raise StudyError(f"cannot create the folder of the output {out}: {existing} is a file", file=file, path=path)
     size = len(os.fsencode(out.name))
     name_max = os.pathconf(existing, "PC_NAME_MAX")
     if size + NAME_EXTRA > name_max:
@@ -92,6 +96,8 @@ def check_output(output: str | Path, file: str | None = None, path: str | None =
     if full > path_max:
         raise StudyError(f"the output path is too long for the filesystem ({full} of at most {path_max} bytes "
                          f"with the store's files)", file=file, path=path)
+    if not create:
+        return
     try:
         out.absolute().parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:

@@ -327,6 +327,7 @@ _PROFILE = TypeAdapter(Profile)
 _FUZZY = TypeAdapter(FuzzyNumber)
 _LIMIT = TypeAdapter(Limit)
 _NUMBER = TypeAdapter(float, config=_CONFIG)
+_NUMBERS = TypeAdapter(list[float], config=_CONFIG)
 _BOX = TypeAdapter(Point, config=_CONFIG)
 _LIBRARY = TypeAdapter(Annotated[dict[Name, Material], Field(min_length=1)], config=_CONFIG)
 
@@ -348,7 +349,13 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
     three = isinstance(raw, dict) and raw.get("dimension") == 3
-    scene = src.validate(_SCENE3D if three else _SCENE, raw)
+    try:
+        scene = src.validate(_SCENE3D if three else _SCENE, raw)
+    except StudyError:
+        if isinstance(raw, dict) and "dimension" not in raw and _reads_as_3d(raw):
+            raise src.error(("dimension",), "required key is missing: the scene is a 3D one (its shapes, "
+                                            "vectors and selectors are those of dimension: 3)") from None
+        raise
     notes = []
     if scene.mesh.file is not None:   # regions come from the file's physical groups
         from .scene.meshfile import prepare_scene   # scikit-fem loads only for a scene meshed by a file
@@ -364,6 +371,15 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
             b: _named(body, [r.name or f"{b}_{i}" for i, r in enumerate(body.regions)])
             for b, body in scene.bodies.items()}})
     return scene, src, extra, notes
+
+
+def _reads_as_3d(raw: dict) -> bool:
+    """Whether a scene without `dimension` is a valid 3D scene (a 2D scene is the default)."""
+    try:
+        _SCENE3D.validate_python({**raw, "dimension": 3})
+    except ValidationError:
+        return False
+    return True
 
 
 def _named(body, names: list[str]):
@@ -443,6 +459,8 @@ def _check_mesh_references(scene: Scene, src: _Source) -> None:
     for i, refinement in enumerate(scene.mesh.refine):
         if refinement.boundary is not None:
             _require(refinement.boundary, boundaries, "boundary", src, ("mesh", "refine", i, "boundary"))
+        if getattr(refinement, "body", None) is not None:     # 3D: a zone of one body
+            _require(refinement.body, bodies, "body", src, ("mesh", "refine", i, "body"))
     for body, spec in bodies.items():
         for i, refinement in enumerate(spec.mesh.refine if spec.mesh else []):
             if refinement.boundary is not None:
@@ -581,8 +599,10 @@ NO_CRITERIA = "no criteria: `run` and `sweep` solve but measure nothing (`solve`
 
 def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
     """A warning per material whose Poisson ratio (nominal or anywhere in its box) is >= LOCKING_NU:
-    P1 triangles lock (Hertz peak-pressure error 2 % at nu = 0.45, 8 % at 0.49, 135 % at 0.4999)."""
+    P1 triangles and tetrahedra lock (the 2D Hertz peak-pressure error: 2 % at nu = 0.45, 8 % at 0.49, 135 % at
+    0.4999)."""
     box = {e.path: (e.lower, e.upper) for e in uncertain}
+    cells, bench = ("tetrahedra", "the 2D Hertz benchmark") if scene.dimension == 3 else ("triangles", "wcs's Hertz benchmark")
     out = []
     for name in _used_materials(scene):
         m = scene.materials[name]
@@ -593,8 +613,8 @@ def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
             mu = box.get(f"materials.{name}.mu", (m.mu, m.mu))[0]
             top = lam / (2 * (lam + mu))
         if top >= LOCKING_NU:
-            out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 triangles "
-                       "lock as nu -> 0.5: results there are too stiff (wcs's Hertz benchmark: peak-pressure "
+            out.append(f"material '{name}': Poisson ratio up to {top:.4g} (>= {LOCKING_NU}): P1 {cells} "
+                       f"lock as nu -> 0.5: results there are too stiff ({bench}: peak-pressure "
                        "error 2 % at 0.45, 8 % at 0.49, 135 % at 0.4999)")
     return out
 
@@ -684,8 +704,13 @@ def _range_text(bounds: dict) -> str:
 def _nominal_number(scene: Scene, path: str, src: _Source, where) -> float:
     """The scene's number at an addressable path, or a StudyError at `where`."""
     if _address(path) is None:
+        try:
+            get_path(scene, path)
+            hint = ""
+        except KeyError as exc:                    # a misspelt key: say which, with its "did you mean"
+            hint = f": {exc.args[0]}"
         forms = ", ".join(_ADDRESSES)
-        raise src.error(where, f"'{path}' is not a number that can vary; these can: {forms}")
+        raise src.error(where, f"'{path}' is not a number that can vary{hint}; these can: {forms}")
     try:
         value = get_path(scene, path)
     except KeyError as exc:
@@ -1039,13 +1064,20 @@ def _split_mapping(study: Study, values: Mapping) -> tuple[np.ndarray, dict]:
     others = {}
     src = _Source(study.file)
     for path, value in values.items():
+        where = ("values", path)
         if path in index:
-            x[index[path]] = value
+            x[index[path]] = src.validate(_NUMBER, value, where)
         elif path in slices:
-            x[slices[path]] = value
+            n = slices[path].stop - slices[path].start
+            if np.ndim(value) == 0:
+                x[slices[path]] = src.validate(_NUMBER, value, where)
+            elif len(value) != n:
+                raise src.error(where, f"a profile of {n} points takes one value or a list of {n}, got {len(value)}")
+            else:
+                x[slices[path]] = src.validate(_NUMBERS, list(value), where)
         else:
-            _nominal_number(study.scene, path, src, ("values", path))
-            others[path] = float(value)
+            _nominal_number(study.scene, path, src, where)
+            others[path] = src.validate(_NUMBER, value, where)
     return x, others
 
 

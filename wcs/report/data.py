@@ -244,6 +244,11 @@ def load(path: str | Path) -> Results:
     return res
 
 
+def _upper_limit(limit):
+    """The upper limit of a study file's `limits.<c>`: a number, or `upper` of {lower, upper} (NaN: none)."""
+    return limit.get("upper", np.nan) if isinstance(limit, dict) else limit
+
+
 def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
     missing = [v for v in ("phi", "param") if v not in ds.variables]
     if missing:
@@ -296,7 +301,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
     kinds_var = _get(ds, "criterion_kind")
     units_var = _get(ds, "criterion_units")
     limit = ds["limit"].values.astype(float) if "limit" in ds else \
-        np.array([float(yaml_limits.get(n, np.nan)) for n in names])
+        np.array([float(_upper_limit(yaml_limits.get(n, np.nan))) for n in names])
     ok = status == 0
     if "worst_value" in ds:
         worst = ds["worst_value"].values.astype(float).reshape(ncrit)

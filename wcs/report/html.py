@@ -271,6 +271,9 @@ class Report:
 
     def membership(self) -> str:
         r, lv = self.res, self.res.levels
+        if lv is None and r.kind == "solve":
+            return ('<p class="note">A single solve at one data set: no range over the admissible set '
+                    '(<code>wcs run</code> searches it, at every α-level of a fuzzy study).</p>')
         if lv is None:
             return ('<p class="note">A crisp study: every uncertain number is a box (no '
                     '<code>{support, core}</code>), so each criterion has one range, in the limits above.</p>')

@@ -271,7 +271,7 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
         cells = CELLS_PER_H3 * volume / h**3
         curved = [c for r in spec.regions for c in _curved(r.shape)] + rois
         parts.append((cells + sum(_curved_cells(c, h) for c in curved), path))
-        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine)]
+        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine) if r.body in (None, body)]
         zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(spec.mesh.refine if spec.mesh else [])]
         parts += [(_refined3d(ref, scene, h, grading, volume), p) for ref, p in zones
                   if ref.size < h and (ref.boundary is None or ref.boundary in scene.boundaries)]

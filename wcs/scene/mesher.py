@@ -25,7 +25,7 @@ How it is done
   runs over ``mesh.refine`` entries, ``dist_r`` is the distance to the
   refine selector's geometric set (0 inside a box/disc/polygon; for
   ``boundary: NAME`` the distance to that boundary's segment / circle / box;
-  refinement is purely geometric, a ``body:`` key is ignored), and ``grading`` (``mesh.grading``, default 0.5) lets
+  refinement is purely geometric: a zone takes no ``body:`` key), and ``grading`` (``mesh.grading``, default 0.5) lets
   the size grow linearly away from the refined zone instead of jumping.
   ``lc_gmsh`` carries ``Mesh.MeshSizeFromCurvature = 24`` (elements per 2π
   of arc): a full circle always gets >= 24 segments however coarse ``size``.
@@ -197,12 +197,18 @@ def region_entity_sizes(owner: dict, regions_flat: list, dim: int = 2) -> dict:
         rs = regions_flat[rg].mesh
         if rs is not None:
             s = float(rs.size)
-            level = [(dim, tag)]
-            while level:
-                for dt in level:
-                    sizes[dt] = min(sizes.get(dt, s), s)
-                level = sorted({(d, abs(t)) for d, t in gmsh.model.getBoundary(level, combined=False, oriented=False)})
+            for dt in closure([(dim, tag)]):
+                sizes[dt] = min(sizes.get(dt, s), s)
     return sizes
+
+
+def closure(dimtags: list) -> list:
+    """The entities `dimtags` and every entity bounding them, down to the points."""
+    out, level = [], sorted(dimtags)
+    while level:
+        out += level
+        level = sorted({(d, abs(t)) for d, t in gmsh.model.getBoundary(level, combined=False, oriented=False)})
+    return out
 
 
 # ---------------------------------------------------------------------------

@@ -65,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher import region_entity_sizes, fragment_pieces, piece_owners, region_names
+from .mesher import closure, region_entity_sizes, fragment_pieces, piece_owners, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -174,8 +174,8 @@ def _solid_distance(ref: Refinement):
 
 
 def _refinements(scene: Scene, entries: list[Refinement], path0: str):
-    """(size, distance function) of each refine entry: its solid, or the face set of the
-    boundary it names (`surface_distance`)."""
+    """(size, distance function, body or None) of each refine entry: its solid, or the face set
+    of the boundary it names (`surface_distance`), and the one body it refines (`body`)."""
     refs = []
     for i, ref in enumerate(entries):
         if ref.boundary is None:
@@ -186,20 +186,26 @@ def _refinements(scene: Scene, entries: list[Refinement], path0: str):
         else:
             raise StudyError(f"unknown boundary {ref.boundary!r} (boundaries: {', '.join(scene.boundaries) or 'none'})",
                              path=f"{path0}.{i}.boundary")
-        refs.append((float(ref.size), d))
+        refs.append((float(ref.size), d, getattr(ref, "body", None)))
     return refs
 
 
-def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=None) -> None:
+def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=None, owner=None) -> None:
     """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
     zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`),
     and at most a region's own size in its volumes and on their faces, edges and corners
     (``entity_size``: {(dim, tag): size}, `mesher.region_entity_sizes`); a uniform size is
-    gmsh's own bound ``Mesh.MeshSizeMax``."""
+    gmsh's own bound ``Mesh.MeshSizeMax``. A zone with `body` sizes only that body's volumes and
+    the entities bounding them (``owner``: volume tag -> (body index, region index), the volumes
+    of the model; a body meshed on its own: the zones of the other bodies are left out)."""
     grading = float(DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading)
-    refs = _refinements(scene, scene.mesh.refine, "scene.mesh.refine")
+    refs = [r for r in _refinements(scene, scene.mesh.refine, "scene.mesh.refine") if body is None or r[2] in (None, body)]
     if body is not None and scene.bodies[body].mesh is not None:
         refs += _refinements(scene, scene.bodies[body].mesh.refine, f"scene.bodies.{body}.mesh.refine")
+    names = list(scene.bodies)
+    only = {b: set(closure([(3, t) for t, (k, _) in owner.items() if names[k] == b]))
+            for b in {r[2] for r in refs} - {None, body}}
+    refs = [(s, d, only.get(b)) for s, d, b in refs]
     entity_size = entity_size or {}
     gmsh.option.setNumber("Mesh.MeshSizeMax", size)
     if not refs and not entity_size:
@@ -208,8 +214,8 @@ def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=N
 
     def callback(dim, tag, x, y, z, lc):
         h = min(lc, size, entity_size.get((dim, tag), size))
-        for s, d in refs:
-            if s < h:
+        for s, d, entities in refs:
+            if s < h and (entities is None or (dim, tag) in entities):
                 h = min(h, s + grading * d(x, y, z))
         return h
     gmsh.model.mesh.setSizeCallback(callback)
@@ -326,7 +332,7 @@ def build_mesh3d(scene: Scene, splits: int = 0) -> SceneMesh:
                     else mesh_size(MeshFacts(diagonal=float(np.linalg.norm(hi - lo))))[0])
             regions_flat = [reg for body in bodies for reg in scene.bodies[body].regions]
             if not any(scene.bodies[body].mesh for body in bodies):
-                _set_sizes(scene, size, entity_size=region_entity_sizes(owner, regions_flat, dim=3))
+                _set_sizes(scene, size, entity_size=region_entity_sizes(owner, regions_flat, dim=3), owner=owner)
                 _generate(splits)
                 xyz, tet, cell_body, cell_region, in_roi = _extract(owner, inside)
             else:       # every body in a gmsh model of its own: faces shared with other bodies nonmatching

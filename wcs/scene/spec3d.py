@@ -119,6 +119,12 @@ class Refinement(Frozen):
         return self
 
 
+class SceneRefinement(Refinement):
+    """A zone of `mesh.refine`; with `body`, only in that body (its volumes and their faces,
+    edges and corners)."""
+    body: Optional[str] = None
+
+
 class BodyMesh(Frozen):
     """A body's own mesh size (and refinement zones): the body is meshed on its own (faces it
     shares with other bodies are nonmatching)."""
@@ -184,7 +190,7 @@ class Load(Frozen):
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)      # default: wcs.choose.mesh_size of the diagonal
     grading: Optional[float] = Field(None, ge=0, le=1e3)   # size growth per unit distance from a refine zone
-    refine: list[Refinement] = []
+    refine: list[SceneRefinement] = []
     file: Optional[str] = None             # a 3D mesh file (gmsh .msh, ...) instead of solids
     max_cells: Optional[int] = Field(None, ge=1, le=10**10)   # the resource guard's limit
 

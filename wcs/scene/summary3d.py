@@ -20,7 +20,8 @@ def _areas(mesh, facets: np.ndarray) -> float:
 
 def summary3d(study, sm: SceneMesh) -> str:
     """The mesh (nodes, tetrahedra, edge lengths, volumes per region, face areas per boundary)
-    and the study's supports, loads, contacts, parameters and criteria."""
+    and the scene's supports, loads, contacts, glue and thermal data (`wcs.cli.plan` adds the
+    parameters, criteria, search and output)."""
     scene, mesh = study.scene, sm.mesh
     p, t = mesh.p, mesh.t
     pairs = [(a, b) for a in range(4) for b in range(a + 1, 4)]
@@ -55,13 +56,4 @@ def summary3d(study, sm: SceneMesh) -> str:
             lines.append(f"  {label} {name}: {_words(v)}")
     if scene.thermal:
         lines.append(f"  thermal: {_words(scene.thermal)}")
-    par = study.parameters
-    lines.append(f"  parameters ({len(par.names)}):")
-    for n, lo, hi, x0 in zip(par.names, par.lower, par.upper, study.nominal()):
-        lines.append(f"    {n}: [{lo:.4g}, {hi:.4g}]  nominal {x0:.4g}")
-    lines.append("  criteria:")
-    for c in study.criteria:
-        lines.append(f"    {c.name}: {c.kind} over {', '.join(c.regions)}, sense {c.sense}")
-    lines.append(f"  search: {study.search.method}, budget {study.search.budget} solves")
-    lines.append(f"  output: {study.output}")
     return "\n".join(lines)
