@@ -10,10 +10,13 @@ node was predicted to slip, then to stick again: Newton cycled between the two (
 with the dual-QP restart on this scene; on the oblique study at 8 m / 1 m, 400 iterations and
 status 1). With the tied tangent at λt = 0 it converges in 7.
 """
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 
-from wcs.contact.solver import OPEN, SLIP, solve_contact
+from wcs.contact.qp import solve_contact_qp
+from wcs.contact.solver import OPEN, SLIP, STICK, solve_contact
 from wcs.status import Status
 
 from test_contact3d_robust import solve_and_compare, tunnel_fault_3d
@@ -59,3 +62,31 @@ def test_the_stopping_scale_leaves_out_frictionless_tangents():
     assert np.all(res.lam_t == 0.0)
     assert np.allclose(res.u, [T / s, T / s, 0, 0, 0, -X / (2 * s)], rtol=1e-12, atol=1e-12 * X / s)
     assert list(res.active) == [SLIP, OPEN]                 # closed and slipping freely; open
+
+
+def test_a_period_three_disc_cycle_is_broken_by_the_step_length():
+    """Three contact nodes pressed closed (normals uncoupled), each with a first tangent that acts
+    on nothing (a zero row of Bt, as the tangents along the axis of the 3D tunnel's nodes on the
+    rollers front and back) and second tangents coupled by the flexibility A (SPD, eigenvalues
+    0.011 … 0.23). With the disc's c = 2/A_ii (one c per disc, the null row in its mean) the full
+    Newton steps cycled with period 3 — node 0 slipping at λt = −g, then +g, then sticking at
+    −1.02 g; node 2 between slip and stick at 4.3 g — and never a pattern without a node slipping
+    on a disc, so no cycle was counted: 100 iterations, status 1. Armijo on ‖Φ‖² ends it in 4.
+    Reference: the primal SOCP (Clarabel at 1e-12): u and λ to 1e-8 of their largest."""
+    A = np.array([[0.147, 0.004, 0.097], [0.004, 0.024, -0.017], [0.097, -0.017, 0.112]])
+    qt, g = np.array([0.81, 0.3, 1.8]), np.array([15.96, 14.83, 7.49])
+    I3, Z3 = np.eye(3), np.zeros((3, 3))
+    K = sp.csr_matrix(np.block([[I3, Z3], [Z3, np.linalg.inv(A)]]))   # W = C K⁻¹ Cᵀ = diag(I, 0, A)
+    f = np.r_[np.ones(3), np.linalg.solve(A, qt)]                       # q = (1, 1, 1, 0, 0, 0, qt)
+    Bn, Bt = sp.csr_matrix(np.c_[I3, Z3]), sp.csr_matrix(np.r_[np.zeros((3, 6)), np.c_[Z3, I3]])
+    res = solve_contact(K, f, Bn, Bt, np.zeros(3), np.ones(3), g=g, qp=False, max_iter=100, tol=1e-12)
+    assert res.status == Status.SOLVED, res.message
+    assert res.iterations <= 8
+    with warnings.catch_warnings():       # Clarabel at 1e-12 may end OPTIMAL_INACCURATE: checked below
+        warnings.simplefilter("ignore")
+        ref = solve_contact_qp(K, f, Bn, Bt, np.zeros(3), np.ones(3), g=g, tol=1e-12)
+    assert ref.status == Status.SOLVED, ref.message
+    assert np.abs(res.u - ref.u).max() <= 1e-8 * np.abs(ref.u).max()
+    lam, lam_ref = np.r_[res.lam_n, res.lam_t], np.r_[ref.lam_n, ref.lam_t]
+    assert np.abs(lam - lam_ref).max() <= 1e-8 * np.abs(lam_ref).max()
+    assert list(res.active) == [STICK, SLIP, SLIP]

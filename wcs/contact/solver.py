@@ -38,11 +38,12 @@ projection onto the interval is piecewise constant (λt = ±gw); on a disc it
 is not, and a slipping node's row is the linearization with the generalized
 Jacobian of the disc projection, D = gw/|z| (I − z zᵀ/|z|²) (Hüeber, Stadler,
 Wohlmuth, SIAM J. Sci. Comput. 30 (2008), the 3D semismooth Newton). Full
-steps; an active pattern seen before (a cycle, where the step is determined
-by the pattern: no slip on a disc) or `max_iter` restarts Newton from the dual
-QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
-a node the mean of its d − 1 diagonal entries, one c per disc) turn
-displacements into forces node by node.
+steps where the pattern determines the step (no slip on a disc), and an active
+pattern seen before there is a cycle; a step with nodes slipping on discs is
+shortened until the merit ‖Φ‖² decreases (Armijo). A cycle or `max_iter`
+restarts Newton from the dual QP's solution (`_newton`). The constants
+c = 1 / diag(W) (for the tangents of a node the mean of its d − 1 diagonal
+entries, one c per disc) turn displacements into forces node by node.
 
 The Delassus operator W is, in 3D, minus the Schur complement of the bordered
 matrix [[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
@@ -298,19 +299,23 @@ def scales(W, k=1):
 def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True, k=1):
     """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_B(λ + c ⊙ r) = 0, Gλ = e.
 
-    Full (undamped) steps: each step solves the active-set system of the predicted
-    free set exactly, so the iteration ends when a free set reproduces itself. In 2D a
-    step is determined by its free set and the bound each other component is held at
-    (λn = 0; λt = −gw or +gw), so that pattern seen before without convergence means a
-    cycle (the free set alone is not: the same free set with a slip of the other sign is
-    another step — counted as a cycle, it sent 14 % of granite's solves to the QP); on a
-    disc (k = 2 tangent components) a slipping node's step depends on its slip direction
-    too, and a pattern repeats while Newton converges: there a cycle is only counted
-    while no node slips on a disc. Then (and at `max_iter`) the convex dual QP
-    min ½λᵀWλ − qᵀλ over B with Gλ = e is solved by an interior-point method and Newton
-    restarts from it to polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖²
-    — stalled on floating bodies: its short first step leaves the rigid amplitudes α at
-    zero and the next prediction opens every contact.)
+    Each step solves the active-set system of the predicted free set exactly, so the
+    iteration ends when a free set reproduces itself. In 2D a step is determined by its
+    free set and the bound each other component is held at (λn = 0; λt = −gw or +gw), so
+    that pattern seen before without convergence means a cycle (the free set alone is
+    not: the same free set with a slip of the other sign is another step — counted as a
+    cycle, it sent 14 % of granite's solves to the QP); such steps are full. On a disc
+    (k = 2 tangent components) a slipping node's step depends on its slip direction too,
+    and a pattern repeats while Newton converges, so no cycle is counted while a node
+    slips on a disc; there the step is shortened until ‖Φ‖² + ‖Gλ − e‖² decreases
+    (`_step_length`). Full steps cycled on the 3D tunnel at 3.9e4 unknowns with a slip
+    limit varying over the fault: a dozen nodes flipping between stick at |λt| ≈ 13 gw and
+    slip with their direction reversed, period 2, in 5 of 16 data sets to `max_iter`. At a
+    cycle (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over B with Gλ = e is
+    solved by an interior-point method and Newton restarts from it to polish the answer to
+    `tol`. The prescribed first step (`free0`) is not a Newton step of Φ and is taken in
+    full: shortened, it left the rigid amplitudes α of floating bodies at zero and the next
+    prediction opened every contact.
 
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
@@ -326,16 +331,15 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
     force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
-    def check(lam, alpha):
+    def residual(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
-        phi, eq = lam - project(z, lo, hi, k), G @ lam - e
-        scale = max(force, np.abs(lam).max(initial=0.0))
-        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
-        return z, ok
+        return z, lam - project(z, lo, hi, k), G @ lam - e
 
     seen = set()
     for it in range(max_iter + 1):
-        z, ok = check(lam, alpha)
+        z, phi, eq = residual(lam, alpha)
+        scale = max(force, np.abs(lam).max(initial=0.0))
+        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
         predicted = inside(z, lo, hi, k)
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
@@ -348,7 +352,9 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
             break
         if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
             seen.add(key)
-        lam, alpha = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
+        step = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
+        lam, alpha = (_step_length(residual, lam, alpha, *step, phi @ phi + eq @ eq)
+                      if len(J) and free is predicted else step)
     if not fallback:
         return lam, alpha, free, it, False
     qp = _dual_qp(W, q, G, e, lo, hi, force, k)
@@ -356,6 +362,27 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         return lam, alpha, free, it, False
     lam2, alpha2, free2, n, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False, k=k)
     return lam2, alpha2, free2, it + n, ok
+
+
+ARMIJO = 1e-4          # sufficient decrease of the merit θ = ‖Φ‖² + ‖Gλ − e‖², per unit of step length
+MIN_STEP = 2.0 ** -10  # the shortest step tried before the full one is taken
+
+
+def _step_length(residual, lam, alpha, lam1, alpha1, merit):
+    """The Newton step (λ, α) → (λ1, α1) shortened by halving until the merit θ = ‖Φ‖² + ‖Gλ − e‖²
+    decreases enough, θ(t) ≤ (1 − 2 ARMIJO t) θ(0) (Armijo); the full step where none down to
+    `MIN_STEP` does. Φ is smooth on the pattern the step was computed on and the step solves
+    Φ + Φ′ δ = 0 there, so dθ/dt = −2θ at t = 0: a descent direction (the semismooth Newton
+    method globalized on the natural merit function)."""
+    t, lt, at = 1.0, lam1, alpha1
+    while True:
+        _, phi, eq = residual(lt, at)
+        if phi @ phi + eq @ eq <= (1.0 - 2.0 * ARMIJO * t) * merit:
+            return lt, at
+        if t <= MIN_STEP:
+            return lam1, alpha1
+        t *= 0.5
+        lt, at = lam + t * (lam1 - lam), alpha + t * (alpha1 - alpha)
 
 
 def _dual_qp(W, q, G, e, lo, hi, force, k=1):
