@@ -543,7 +543,6 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     directions: a Cholesky factorization, half an LU's work, and one unknown less per disc
     node; α from the r × r Schur complement on it. None also where that is singular (the
     least-squares solve of `_newton_point` takes such a system)."""
-    n = len(q)
     J, D = disc if disc is not None else (np.zeros((0, 2), dtype=int), np.zeros((0, 2, 2)))
     plain = np.setdiff1d(F, J.ravel())
     nu = fixed_values[J] / np.linalg.norm(fixed_values[J], axis=1, keepdims=True)   # (n_s, 2)
@@ -551,20 +550,23 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     ns = len(J)
     gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
     delta = (1.0 - gamma) / (gamma * c[J[:, 0]]) if ns else np.zeros(0)
-    cols = np.r_[np.arange(len(plain)), len(plain) + np.repeat(np.arange(ns), 2)]
-    V = sp.csr_matrix((np.r_[np.ones(len(plain)), tau.ravel()], (np.r_[plain, J.ravel()], cols)),
-                      shape=(n, len(plain) + ns))
+    p = len(plain)
+    rows = np.r_[plain, J[:, 0], J[:, 1]]                     # V's nonzero rows: V = [[I, 0], [0, T0], [0, T1]]
+
+    def right(A):                                             # A[:, rows] V, T_j = diag(τ_j)
+        return np.c_[A[:, :p], A[:, p:p + ns] * tau[:, 0] + A[:, p + ns:] * tau[:, 1]]
+
     lam0 = lam.copy()
     lam0[J] = fixed_values[J]                                 # gw ν
-    WV = np.asarray((V.T @ W).T)                              # W V (W symmetric)
-    H = np.asarray(V.T @ WV)
-    H[np.arange(len(plain), len(plain) + ns), np.arange(len(plain), len(plain) + ns)] += delta
-    b = np.asarray(V.T @ (q - W @ lam0)).ravel()
+    WV = right(W[np.ix_(rows, rows)])                         # (W V) on V's rows
+    H = np.r_[WV[:p], tau[:, :1] * WV[p:p + ns] + tau[:, 1:] * WV[p + ns:]]    # Vᵀ W V
+    H[np.arange(p, p + ns), np.arange(p, p + ns)] += delta
+    b = right((q - W @ lam0)[rows][None, :])[0]
     try:
         cho = sla.cho_factor(H, check_finite=False)
     except np.linalg.LinAlgError:
         return None
-    GV = np.asarray((V.T @ G.T).T) if G.shape[0] else np.zeros((0, V.shape[1]))
+    GV = right(G[:, rows])
     alpha = np.zeros(G.shape[0])
     y = sla.cho_solve(cho, b, check_finite=False)
     if G.shape[0]:
@@ -576,7 +578,9 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
         y = y + X @ alpha
     if not np.all(np.isfinite(y)):
         return None
-    return lam0 + V @ y, alpha
+    lam0[plain] += y[:p]
+    lam0[J] += y[p:, None] * tau
+    return lam0, alpha
 
 
 def _first_free_set(warm, gw, k=1):
