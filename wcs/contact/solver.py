@@ -323,7 +323,12 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     The stopping test is relative to the force scale max|c q| over the components B leaves
     room for (lo < hi), or to max|λ|: a frictionless tangent's c q is a displacement times
     a stiffness that no multiplier carries (a 3 m support translation on 3D Hertz made it
-    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5).
+    2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5). On discs
+    Newton also waits for |λt,i| ≤ gw_i to tol·max|λ|: a slipping node's Newton point has
+    |λt| = √(gw² + a²) with its component a across the slip, which vanishes only in the limit,
+    and a force scale far above the multipliers (a warm Tresca shear patch at 9.6e4
+    unknowns: 8e5 against max|λ| = 789) passed |λt| − gw = 3.2e-3, which the certificate
+    refused.
     Returns (λ, α, free, iterations, converged).
     """
     c = scales(W, k)
@@ -331,15 +336,23 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
     force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
+    m = len(q) // (1 + k)
+
     def residual(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
         return z, lam - project(z, lo, hi, k), G @ lam - e
+
+    def on_discs(lam):      # |λt,i| ≤ gw_i to tol·max|λ| (k = 1: λ is clipped to its bounds exactly)
+        if k == 1:
+            return True
+        off = np.linalg.norm(lam[m:].reshape(k, m), axis=0) - hi[m:m + m]
+        return off.max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
 
     seen = set()
     for it in range(max_iter + 1):
         z, phi, eq = residual(lam, alpha)
         scale = max(force, np.abs(lam).max(initial=0.0))
-        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
+        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale and on_discs(lam)
         predicted = inside(z, lo, hi, k)
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
