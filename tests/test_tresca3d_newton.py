@@ -116,7 +116,7 @@ def test_the_finer_3d_tunnel_with_a_varying_slip_limit_converges_in_newton(monke
     """studies/tunnel-fault-3d.yaml at 0.55 m near the tunnel and 1.6 m along the fault (3.9e4
     unknowns, 1060 fault nodes): from a fresh evaluator (the nominal solve first, then this data
     set warm from it) Newton converges with no dual-QP restart (`qp` off: a cycle or the budget
-    would be status 1) in 12 iterations, against 200 and a refused answer before."""
+    would be status 1) in 10 iterations, against 200 and a refused answer before."""
     doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
     refine = doc["scene"]["mesh"]["refine"]
     refine[0]["size"], refine[1]["size"] = 0.55, 1.6
