@@ -564,9 +564,9 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
     delta = (1.0 - gamma) / (gamma * c[J[:, 0]]) if ns else np.zeros(0)
     p = len(plain)
-    rows = np.r_[plain, J[:, 0], J[:, 1]]                     # V's nonzero rows: V = [[I, 0], [0, T0], [0, T1]]
+    rows = np.r_[plain, J[:, 0], J[:, 1]]     # V's nonzero rows: I on plain, diag(τ_0), diag(τ_1) on the discs
 
-    def right(A):                                             # A[:, rows] V, T_j = diag(τ_j)
+    def right(A):                             # A[:, rows] V
         return np.c_[A[:, :p], A[:, p:p + ns] * tau[:, 0] + A[:, p + ns:] * tau[:, 1]]
 
     lam0 = lam.copy()
@@ -574,7 +574,7 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     WV = right(W[np.ix_(rows, rows)])                         # (W V) on V's rows
     H = np.r_[WV[:p], tau[:, :1] * WV[p:p + ns] + tau[:, 1:] * WV[p + ns:]]    # Vᵀ W V
     H[np.arange(p, p + ns), np.arange(p, p + ns)] += delta
-    b = right((q - W @ lam0)[rows][None, :])[0]
+    b = right((q - W @ lam0)[None, rows]).ravel()
     try:
         cho = sla.cho_factor(H, check_finite=False)
     except np.linalg.LinAlgError:
