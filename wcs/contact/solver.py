@@ -38,11 +38,12 @@ projection onto the interval is piecewise constant (λt = ±gw); on a disc it
 is not, and a slipping node's row is the linearization with the generalized
 Jacobian of the disc projection, D = gw/|z| (I − z zᵀ/|z|²) (Hüeber, Stadler,
 Wohlmuth, SIAM J. Sci. Comput. 30 (2008), the 3D semismooth Newton). Full
-steps; an active pattern seen before (a cycle, where the step is determined
-by the pattern: no slip on a disc) or `max_iter` restarts Newton from the dual
-QP's solution (`_newton`). The constants c = 1 / diag(W) (for the tangents of
-a node the mean of its d − 1 diagonal entries, one c per disc) turn
-displacements into forces node by node.
+steps where the pattern determines the step (no slip on a disc), and an active
+pattern seen before there is a cycle; a step with nodes slipping on discs is
+shortened until the merit ‖Φ‖² decreases (Armijo). A cycle or `max_iter`
+restarts Newton from the dual QP's solution (`_newton`). The constants
+c = 1 / diag(W) (for the tangents of a node the mean of its d − 1 diagonal
+entries, one c per disc) turn displacements into forces node by node.
 
 The Delassus operator W is, in 3D, minus the Schur complement of the bordered
 matrix [[K⁺⁻¹, Cᵀ], [C, 0]] on its contact rows, which PARDISO returns during the
@@ -298,19 +299,23 @@ def scales(W, k=1):
 def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=True, k=1):
     """Semismooth Newton (PDAS) for Φ(λ, α) = λ − Π_B(λ + c ⊙ r) = 0, Gλ = e.
 
-    Full (undamped) steps: each step solves the active-set system of the predicted
-    free set exactly, so the iteration ends when a free set reproduces itself. In 2D a
-    step is determined by its free set and the bound each other component is held at
-    (λn = 0; λt = −gw or +gw), so that pattern seen before without convergence means a
-    cycle (the free set alone is not: the same free set with a slip of the other sign is
-    another step — counted as a cycle, it sent 14 % of granite's solves to the QP); on a
-    disc (k = 2 tangent components) a slipping node's step depends on its slip direction
-    too, and a pattern repeats while Newton converges: there a cycle is only counted
-    while no node slips on a disc. Then (and at `max_iter`) the convex dual QP
-    min ½λᵀWλ − qᵀλ over B with Gλ = e is solved by an interior-point method and Newton
-    restarts from it to polish the answer to `tol`. (A damped variant — Armijo on ½‖Φ‖²
-    — stalled on floating bodies: its short first step leaves the rigid amplitudes α at
-    zero and the next prediction opens every contact.)
+    Each step solves the active-set system of the predicted free set exactly, so the
+    iteration ends when a free set reproduces itself. In 2D a step is determined by its
+    free set and the bound each other component is held at (λn = 0; λt = −gw or +gw), so
+    that pattern seen before without convergence means a cycle (the free set alone is
+    not: the same free set with a slip of the other sign is another step — counted as a
+    cycle, it sent 14 % of granite's solves to the QP); such steps are full. On a disc
+    (k = 2 tangent components) a slipping node's step depends on its slip direction too,
+    and a pattern repeats while Newton converges, so no cycle is counted while a node
+    slips on a disc; there the step is shortened until ‖Φ‖² + ‖Gλ − e‖² decreases
+    (`_step_length`). Full steps cycled on the 3D tunnel at 3.9e4 unknowns with a slip
+    limit varying over the fault: a dozen nodes flipping between stick at |λt| ≈ 13 gw and
+    slip with their direction reversed, period 2, in 5 of 16 data sets to `max_iter`. At a
+    cycle (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over B with Gλ = e is
+    solved by an interior-point method and Newton restarts from it to polish the answer to
+    `tol`. The prescribed first step (`free0`) is not a Newton step of Φ and is taken in
+    full: shortened, it left the rigid amplitudes α of floating bodies at zero and the next
+    prediction opened every contact.
 
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
@@ -321,8 +326,11 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5). The
     iterate must also lie in B to tol × max|λ|: 1/W_ii ignores how the nodes share a load, so
     on a large fault c q is ~100 times the multipliers (the oblique 3D tunnel: 5.8e9 against
-    4.7e7, growing as the mesh is refined), and Newton stopped where |λt| still passed g w by
-    62 (1.3e-6 of max|λ|), an answer the certificate of `conditions_violated` refused.
+    4.7e7, growing as the mesh is refined; a warm Tresca shear patch at 9.6e4 unknowns: 8e5
+    against 789), and a slipping node's Newton point has |λt| = √(gw² + a²) with its
+    component a across the slip, which vanishes only in the limit: Newton stopped where |λt|
+    still passed g w by 62 (1.3e-6 of max|λ|; 3.2e-3 on the patch), answers the certificate
+    of `conditions_violated` refused.
     Returns (λ, α, free, iterations, converged).
     """
     c = scales(W, k)
@@ -330,17 +338,18 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
     force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
-    def check(lam, alpha):
+    def residual(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
-        phi, eq = lam - project(z, lo, hi, k), G @ lam - e
-        scale = max(force, np.abs(lam).max(initial=0.0))
-        ok = (max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale
-              and np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0))
-        return z, ok
+        return z, lam - project(z, lo, hi, k), G @ lam - e
+
+    def in_b(lam):          # λ in B to tol·max|λ|
+        return np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
 
     seen = set()
     for it in range(max_iter + 1):
-        z, ok = check(lam, alpha)
+        z, phi, eq = residual(lam, alpha)
+        scale = max(force, np.abs(lam).max(initial=0.0))
+        ok = max(np.abs(phi).max(initial=0.0), np.abs(eq).max(initial=0.0)) <= tol * scale and in_b(lam)
         predicted = inside(z, lo, hi, k)
         if ok:          # the state of the answer itself, never the prescribed starting set
             return lam, alpha, predicted, it, True
@@ -353,7 +362,9 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
             break
         if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
             seen.add(key)
-        lam, alpha = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
+        step = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
+        lam, alpha = (_step_length(residual, lam, alpha, *step, phi @ phi + eq @ eq)
+                      if len(J) and free is predicted else step)
     if not fallback:
         return lam, alpha, free, it, False
     qp = _dual_qp(W, q, G, e, lo, hi, force, k)
@@ -361,6 +372,27 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         return lam, alpha, free, it, False
     lam2, alpha2, free2, n, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False, k=k)
     return lam2, alpha2, free2, it + n, ok
+
+
+ARMIJO = 1e-4          # sufficient decrease of the merit θ = ‖Φ‖² + ‖Gλ − e‖², per unit of step length
+MIN_STEP = 2.0 ** -10  # the shortest step tried before the full one is taken
+
+
+def _step_length(residual, lam, alpha, lam1, alpha1, merit):
+    """The Newton step (λ, α) → (λ1, α1) shortened by halving until the merit θ = ‖Φ‖² + ‖Gλ − e‖²
+    decreases enough, θ(t) ≤ (1 − 2 ARMIJO t) θ(0) (Armijo); the full step where none down to
+    `MIN_STEP` does. Φ is smooth on the pattern the step was computed on and the step solves
+    Φ + Φ′ δ = 0 there, so dθ/dt = −2θ at t = 0: a descent direction (the semismooth Newton
+    method globalized on the natural merit function)."""
+    t, lt, at = 1.0, lam1, alpha1
+    while True:
+        _, phi, eq = residual(lt, at)
+        if phi @ phi + eq @ eq <= (1.0 - 2.0 * ARMIJO * t) * merit:
+            return lt, at
+        if t <= MIN_STEP:
+            return lam1, alpha1
+        t *= 0.5
+        lt, at = lam + t * (lam1 - lam), alpha + t * (alpha1 - alpha)
 
 
 def _dual_qp(W, q, G, e, lo, hi, force, k=1):
@@ -521,7 +553,6 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     directions: a Cholesky factorization, half an LU's work, and one unknown less per disc
     node; α from the r × r Schur complement on it. None also where that is singular (the
     least-squares solve of `_newton_point` takes such a system)."""
-    n = len(q)
     J, D = disc if disc is not None else (np.zeros((0, 2), dtype=int), np.zeros((0, 2, 2)))
     plain = np.setdiff1d(F, J.ravel())
     nu = fixed_values[J] / np.linalg.norm(fixed_values[J], axis=1, keepdims=True)   # (n_s, 2)
@@ -529,20 +560,23 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     ns = len(J)
     gamma = np.trace(D, axis1=1, axis2=2)                     # (k − 1) γ, k = 2
     delta = (1.0 - gamma) / (gamma * c[J[:, 0]]) if ns else np.zeros(0)
-    cols = np.r_[np.arange(len(plain)), len(plain) + np.repeat(np.arange(ns), 2)]
-    V = sp.csr_matrix((np.r_[np.ones(len(plain)), tau.ravel()], (np.r_[plain, J.ravel()], cols)),
-                      shape=(n, len(plain) + ns))
+    p = len(plain)
+    rows = np.r_[plain, J[:, 0], J[:, 1]]     # V's nonzero rows: I on plain, diag(τ_0), diag(τ_1) on the discs
+
+    def right(A):                             # A[:, rows] V
+        return np.c_[A[:, :p], A[:, p:p + ns] * tau[:, 0] + A[:, p + ns:] * tau[:, 1]]
+
     lam0 = lam.copy()
     lam0[J] = fixed_values[J]                                 # gw ν
-    WV = np.asarray((V.T @ W).T)                              # W V (W symmetric)
-    H = np.asarray(V.T @ WV)
-    H[np.arange(len(plain), len(plain) + ns), np.arange(len(plain), len(plain) + ns)] += delta
-    b = np.asarray(V.T @ (q - W @ lam0)).ravel()
+    WV = right(W[np.ix_(rows, rows)])                         # (W V) on V's rows
+    H = np.r_[WV[:p], tau[:, :1] * WV[p:p + ns] + tau[:, 1:] * WV[p + ns:]]    # Vᵀ W V
+    H[np.arange(p, p + ns), np.arange(p, p + ns)] += delta
+    b = right((q - W @ lam0)[None, rows]).ravel()
     try:
         cho = sla.cho_factor(H, check_finite=False)
     except np.linalg.LinAlgError:
         return None
-    GV = np.asarray((V.T @ G.T).T) if G.shape[0] else np.zeros((0, V.shape[1]))
+    GV = right(G[:, rows])
     alpha = np.zeros(G.shape[0])
     y = sla.cho_solve(cho, b, check_finite=False)
     if G.shape[0]:
@@ -554,7 +588,9 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
         y = y + X @ alpha
     if not np.all(np.isfinite(y)):
         return None
-    return lam0 + V @ y, alpha
+    lam0[plain] += y[:p]
+    lam0[J] += y[p:, None] * tau
+    return lam0, alpha
 
 
 def _first_free_set(warm, gw, k=1):
