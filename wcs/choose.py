@@ -18,9 +18,9 @@ from dataclasses import dataclass
 #      dd_stability.png, stability_materials.png)
 DD_MIN_UNKNOWNS = 1_000_000     # the DD was slower than the monolithic solver at every size measured
 #                                 (Hertz 3.6e3-1.2e5 unknowns, tunnel 4e3-6e4: forward_*.png); with interface
-#                                 Newton and one factor per unit still 3.7-6x (tunnel 1.5e4) and 12-14x
-#                                 (Hertz 1.05e5) on the same data, 5-6x and 4.7-5.8x on new data
-#                                 (dd_cost.csv); no crossover seen, so the DD is only picked beyond the
+#                                 Newton and one factor per unit still ~4x (tunnel 1.5e4) and ~3x
+#                                 (Hertz 1.05e5) on the same data, ~3x on new data (dd_cost.csv, medians
+#                                 at load 9); no crossover seen, so the DD is only picked beyond the
 #                                 measured range (scaling.png goes to 4.5e5) and only where it is known to
 #                                 converge
 DD_MAX_CONTRAST = 10.0          # dd_stability.png: with E_pad/E_base <= 0.1 the seed's iteration diverges
