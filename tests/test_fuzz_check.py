@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from wcs.cli import main
+from wcs.study import _Loader as study_loader
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
@@ -30,7 +31,9 @@ ODD = ["abc", None, True, [], {}, [1, 2, 3], {"x": 1}, "1e5"]
 
 
 def _base(path: Path) -> dict:
-    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    """The study as wcs reads it: `1.0e7` a number (PyYAML's safe_load keeps it a string, so
+    no material, load or friction number would be mutated as a number)."""
+    doc = yaml.load(path.read_text(encoding="utf-8"), Loader=study_loader)
     mesh = doc["scene"].get("mesh") if isinstance(doc.get("scene"), dict) else None
     if mesh and isinstance(mesh.get("file"), str):
         mesh["file"] = str((path.parent / mesh["file"]).resolve())
