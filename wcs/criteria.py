@@ -39,6 +39,7 @@ class Partials:
     u: np.ndarray | None = None          # ∂Φ/∂u (full dofs)
     theta: np.ndarray | None = None      # ∂Φ/∂θ (heat nodes)
     lam_n: np.ndarray | None = None      # ∂Φ/∂λ_n (contact nodes)
+    lam_t: np.ndarray | None = None      # ∂Φ/∂λ_t (tangent rows, stacked as Bt)
     coef: dict | None = None             # field -> ∂Φ/∂c (explicit dependence, e.g. of stresses)
 
 
@@ -606,6 +607,17 @@ def _slip_partials(crit, model, state, r):
     return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
 
 
+def _pressure_partials(ell: np.ndarray, model, state) -> Partials:
+    """∂(ℓ · λn)/∂λ of the solver's multipliers: where the reported λn is a tied node's
+    canonical λn + κ λt (`wcs.contact.zone.canonical_split`), its tangent too (κ ℓ): that
+    combination is unique, so its derivative holds whichever split the solver's path found."""
+    moved = state.contact.moved
+    if moved is None or not moved.any():
+        return Partials(lam_n=ell.copy())
+    k = moved.size // ell.size
+    return Partials(lam_n=ell.copy(), lam_t=np.where(moved, np.tile(ell, k) * model.tied[1], 0.0))
+
+
 KINDS: dict[str, Kind] = {
     "mean_temperature": Kind(
         "mean temperature (Φ1/Φ2)", "K",
@@ -621,7 +633,7 @@ KINDS: dict[str, Kind] = {
     "contact_pressure": Kind(
         "contact pressure (Φ6)", "Pa",
         value=lambda crit, model, state, r: crit.functionals[r] @ state.contact.force_n,
-        partials=lambda crit, model, state, r: (Partials(lam_n=crit.functionals[r].copy()), False),
+        partials=lambda crit, model, state, r: (_pressure_partials(crit.functionals[r], model, state), False),
         contact_functional=_pressure_functional, reads="contact", needs="contacts"),
     "von_mises": _area_kind("von Mises stress", "Pa", _von_mises, _dvon_mises),
     "principal_stress": _area_kind("largest principal stress σ₁ (in-plane in 2D)", "Pa", _principal_max,

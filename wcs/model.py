@@ -25,7 +25,7 @@ from . import linalg
 from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, solve_contact
-from .contact.zone import ContactState, build_zone
+from .contact.zone import ContactState, build_zone, canonical_split, tied_rows
 from .errors import SolveError, StudyError
 from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -331,8 +331,7 @@ class Model:
         if self.solver_method == "dd":
             dd = self._solve_dd(c, Kr, rhs, u0)
             if dd.status is DDOutcome.CONVERGED and not adjoint:
-                z = self.zone
-                contact = ContactState(z, dd.lam_n, dd.lam_t, z.gap - z.Bn @ dd.u, z.Bt @ dd.u, dd.info.get("active"))
+                contact = self.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
                 return Solution(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c),
                                 iterations=int(dd.info.get("successive", 0)), solver=f"dd: {dd.message}", contact=contact, **own)
             if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
@@ -399,8 +398,21 @@ class Model:
             cache.anchor = dataclasses.replace(res, factor=None)   # the factor moves on with later data
         res = dataclasses.replace(res, factor=None)   # a solution reaches its factor by `contact_factor`
         u = self.elim.T @ res.u + u0
-        state = ContactState(z, res.lam_n, res.lam_t, z.gap - z.Bn @ u, z.Bt @ u, res.active)
-        return u, state, res.iterations, res
+        return u, self.contact_state(res.lam_n, res.lam_t, u, res.active), res.iterations, res
+
+    @functools.cached_property
+    def tied(self) -> tuple[np.ndarray, np.ndarray]:
+        """(tied, κ) of the contact rows (`wcs.contact.zone.tied_rows`): geometry, once."""
+        return tied_rows(self.Bn_r, self.Bt_r)
+
+    def contact_state(self, lam_n, lam_t, u, active) -> ContactState:
+        """The tractions a solver found for the displacement u, with the closed nodes of tied
+        rows at their canonical split (`canonical_split`): what every solver reports alike."""
+        z = self.zone
+        gap = z.gap - z.Bn @ u
+        force_n, force_t, moved = canonical_split(lam_n, lam_t, gap, *self.tied,
+                                                  max(np.abs(u).max(initial=0.0), 1e-300))
+        return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved)
 
     def _unbalanced_message(self, res, rhs) -> str:
         """Name the floating body whose rigid motion the load can drive, and the load."""

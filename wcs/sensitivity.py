@@ -86,7 +86,8 @@ def _slip_frame(model, state, m: int, k: int):
     return Q, sigma, compliance, free
 
 
-def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None):
+def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None,
+                     phi_lam_t: np.ndarray | None = None):
     """(z, μ, σ) of the module docstring on the final active set, μ in the slip frame
     (`_slip_frame`); None when N is singular."""
     res = state.raw
@@ -104,6 +105,8 @@ def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | No
     g_lam = -(C @ Kp_phi)
     if phi_lam_n is not None:
         g_lam[:m] += phi_lam_n
+    if phi_lam_t is not None:        # in the adjoint's frame (Q: the slip frame of disc nodes)
+        g_lam += np.r_[np.zeros(m), phi_lam_t] if Q is None else Q @ np.r_[np.zeros(m), phi_lam_t]
     g = np.r_[g_lam, R.T @ phi_w] if r else g_lam
     N = np.zeros((n + r, n + r))
     CR = C @ R if r else np.zeros((n, 0))
@@ -175,14 +178,9 @@ def contact_nonsmooth(model, state) -> bool:
     weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
     # constraints that cannot move the solution: a node held by supports on both sides (its
     # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
-    n2 = np.asarray(model.Bn_r.multiply(model.Bn_r).sum(axis=1)).ravel()
-    tangents = [model.Bt_r[j * m:(j + 1) * m] for j in range(k)]
-    nt = np.array([np.asarray(model.Bn_r.multiply(t).sum(axis=1)).ravel() for t in tangents])
-    t2 = np.array([np.asarray(t.multiply(t).sum(axis=1)).ravel() for t in tangents])
-    moves = n2 > 0
-    # parallel rows leave ~1e-16 t2 of round-off; 1e-10: an angle below 1e-5 rad (as `redundant_pairs`)
-    tangent_free = (t2 - np.divide(nt**2, n2, out=np.zeros_like(nt), where=moves)
-                    > 1e-10 * np.maximum(t2, 1e-300)).any(axis=0)
+    moves = np.asarray(abs(model.Bn_r.copy()).sum(axis=1)).ravel() > 0    # abs() sorts its operand in place
+    t_moves = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0
+    tangent_free = (t_moves & ~model.tied[0]).reshape(k, m).any(axis=0)     # `tied_rows`
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
@@ -201,7 +199,7 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     if state.raw is None:
         z = state.factor().solve(phi_w)
     else:
-        out = _contact_adjoint(model, state, phi_w, P.lam_n)
+        out = _contact_adjoint(model, state, phi_w, P.lam_n, P.lam_t)
         if out is None:
             return None
         z, mu, sigma = out

@@ -528,7 +528,8 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
 
 def _tied_split(W, lam, tied, m, k):
     """A tied pair (`_newton_point`) moved to the minimum norm split of its normal force; on a
-    disc (k = 2) left at λt = 0."""
+    disc (k = 2) left at λt = 0. Newton's own bookkeeping: what a solution reports at such a
+    node is the solver-independent split of `wcs.contact.zone.canonical_split`."""
     pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k)) if k == 1 else np.zeros(0, dtype=int)
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
