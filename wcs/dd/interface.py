@@ -305,8 +305,11 @@ class Unit:
         except linalg.FactorizationError as exc:
             raise SetupError(f"local factorization of unit {self.index} failed: {exc}") from exc
         self._sigma = self._F.schur(copy=False)               # the factor's buffer: renewed with it
-        S0 = self._sigma + self._sigma.T                      # Σ⁰: symmetrised, the regularisation
-        S0 *= 0.5                                             # taken off (on the diagonal: exact)
+        if getattr(self._F, "symmetric_schur", False):        # Σ⁰: the regularisation taken off, and
+            S0 = self._sigma.copy()                           # symmetrised unless the factor's Σ is
+        else:
+            S0 = self._sigma + self._sigma.T
+            S0 *= 0.5                                         # (on the diagonal: exact)
         p = np.searchsorted(self.X, self.pinned)
         S0[p, p] -= (Areg.diagonal() - A.diagonal())[self.pinned]
         self._schur0 = S0
@@ -611,7 +614,9 @@ class PairUnit(Unit):
         measured on Hertz's pair, 848 contact DOFs and 669 on B, 120 → ms), the glue inverse's
         pieces (`_glue_inverse`) and the Neumann inverse."""
         S0, xB, xc = self._schur0, self.xB, self.xc
-        self._Sbb, self._Sbc, self._Scc = S0[np.ix_(xB, xB)], S0[np.ix_(xB, xc)], S0[np.ix_(xc, xc)]
+        rows_B, rows_c = np.take(S0, xB, axis=0), np.take(S0, xc, axis=0)      # rows, then columns: the
+        self._Sbb, self._Sbc = np.take(rows_B, xB, axis=1), np.take(rows_B, xc, axis=1)   # gathers of
+        self._Scc = np.take(rows_c, xc, axis=1)                                 # np.ix_ in half the time
         if self.R_c is not None and null_space(self._C_c[self.glue_rows], self.R_c).shape[1]:
             raise SetupError(f"pair {self.index}: the {len(self.glue_rows)} contact rows held leave a floating "
                              f"half free")
