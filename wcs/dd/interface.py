@@ -468,7 +468,10 @@ class PairUnit(Unit):
         self._C_c = Cfull[:, self.c].toarray()
         C = self._C_c[self.glue_rows]             # the glue's null basis and C⁺: geometry, kept
         self._glue_null = _null_basis(C)
-        self._Cp = sla.cho_solve(_cho(C @ C.T, f"the glue rows of pair {self.index}"), C).T
+        CCt = _cho(C @ C.T, f"the glue rows of pair {self.index}")
+        self._Cp = sla.cho_solve(CCt, C).T
+        self._glue = sp.csr_matrix(C)                               # C sparse and (C Cᵀ)⁻¹: products with
+        self._CCt_inv = sla.cho_solve(CCt, np.eye(C.shape[0]))      # C⁺ from the few entries of C
         m = self.rows.size
         moves = np.abs(self._C_c).reshape(-1, m, self.c.size).sum(axis=(0, 2)) > 0
         self.live = None if moves.all() else np.flatnonzero(moves)   # nodes the local contact problem keeps
@@ -602,10 +605,12 @@ class PairUnit(Unit):
         becomes S⁰_p + P_R H_RR⁻¹ P_Rᵀ. With V = L⁻¹Nᵀ Σ⁰_cc C⁺ (`_half`) and Y = L⁻¹Nᵀ Σ⁰_cB:
         P = Σ⁰_Bc C⁺ − YᵀV, H = −(Σ⁰_cc C⁺)ᵀC⁺ + VᵀV, and a block of rows M of E is
         M C⁺ − (L⁻¹NᵀMᵀ)ᵀV (`held_schur`): neither G nor E is formed."""
-        SCp = self._Scc @ self._Cp
+        C, CCt_inv = self._glue, self._CCt_inv
+        CS = C @ self._Scc                                       # C Σ⁰_cc; Σ⁰_cc C⁺ = (C Σ⁰_cc)ᵀ (C Cᵀ)⁻¹
+        SCp = CS.T @ CCt_inv
         V = self._half(SCp)
-        H = _gram(V) - SCp.T @ self._Cp
-        return self._Sbc @ self._Cp - self._Y.T @ V, 0.5 * (H + H.T), V
+        H = _gram(V) - CCt_inv @ (C @ CS.T) @ CCt_inv          # (Σ⁰_cc C⁺)ᵀ C⁺ = (CCᵀ)⁻¹ C Σ⁰_cc Cᵀ (CCᵀ)⁻¹
+        return (C @ self._Sbc.T).T @ CCt_inv - self._Y.T @ V, 0.5 * (H + H.T), V
 
     def _dense(self):
         """The glued pair's dense operators of a data set: S⁰_p = Σ⁰_BB − YᵀY with
