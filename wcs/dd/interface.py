@@ -363,7 +363,7 @@ class Unit:
         """h_X = A_XY A_YY⁻¹ b_Y (one solve; b_Y may have columns)."""
         rhs = np.zeros((self.dofs.size,) + bY.shape[1:])
         rhs[self.Y] = bY
-        return -self._sigma @ self._F.solve(rhs)[self.X]
+        return -(self._sigma @ self._F.solve(rhs)[self.X])       # not (−Σ) @ …: a copy of Σ
 
     def _extend(self, bY: np.ndarray, uX: np.ndarray, hX: np.ndarray) -> np.ndarray:
         """z_Y = A_YY⁻¹(b_Y − A_YX u_X), given h_X = A_XY A_YY⁻¹ b_Y (one solve)."""
