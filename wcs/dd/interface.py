@@ -321,8 +321,9 @@ class Unit:
         drops entries that vanish for some data: a new pattern, a new analysis — Hertz's pair).
         A_u is affine in c: with at most `AFFINE_PIECES` coefficients acting on the unit, its
         pieces A_u^{gk} (region g, coefficient k) are reduced once and A_u(c) = Σ c_gk A_u^{gk}
-        costs a few sums over the pattern (measured on Hertz's 11 units: 0.10 s → 5 ms a data
-        set, against the weighted scatter of the cell matrices and the reduction's product)."""
+        costs a few sums over the pattern (measured on Hertz's 11 units, warm: 21 → 2.5 ms a data
+        set against the weighted scatter of the cell matrices and the reduction's product, up to
+        0.1 s inside a solve where the cell matrices have left the cache)."""
         if self._reduce is None:
             self._reduce = Reduction(self.op.pattern(), self.Tloc)
             npieces = self.op.npieces
@@ -615,9 +616,9 @@ class PairUnit(Unit):
     def _dense(self):
         """The glued pair's dense operators of a data set: S⁰_p = Σ⁰_BB − YᵀY with
         Y = L⁻¹Nᵀ Σ⁰_cB (N the glue's null basis, Nᵀ Σ⁰_cc N = L Lᵀ: one triangular solve and a
-        symmetric rank-k product; G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ and T = G Σ⁰_cB never formed:
-        measured on Hertz's pair, 848 contact DOFs and 669 on B, 120 → ms), the glue inverse's
-        pieces (`_glue_inverse`) and the Neumann inverse."""
+        symmetric rank-k product; G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ and T = G Σ⁰_cB never formed), the
+        glue inverse's pieces (`_glue_inverse`) and the Neumann inverse (measured on Hertz's
+        pair, 848 contact DOFs and 669 on B: all of it 120–137 → 73–79 ms)."""
         S0, xB, xc = self._schur0, self.xB, self.xc
         rows_B, rows_c = np.take(S0, xB, axis=0), np.take(S0, xc, axis=0)      # rows, then columns: the
         self._Sbb, self._Sbc = np.take(rows_B, xB, axis=1), np.take(rows_B, xc, axis=1)   # gathers of
