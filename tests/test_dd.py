@@ -1,6 +1,7 @@
 """The domain decomposition solver (wcs.dd) against the monolithic solver, on the
 validation scenes with floating subdomains; its partition rule; its local operators;
 its failure status."""
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -423,3 +424,25 @@ def test_new_stiffness_data_refactor_on_the_analysis_kept(tmp_path, monkeypatch)
         u.assemble(kc)
         assert np.array_equal(u.A.indptr, indptr) and np.array_equal(u.A.indices, indices)
     assert not analyses
+
+
+def test_unit_matrix_from_its_affine_pieces(tmp_path, monkeypatch):
+    """A unit's A_u(c) = Σ c_gk A_u^{gk} from its reduced pieces (`Unit._matrix`) is the scatter of
+    the weighted cell matrices reduced by Tᵀ K T (the path above `AFFINE_PIECES` coefficients) to
+    round-off, on the same pattern, for new data too."""
+    from wcs.dd import interface
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    dec = dds.decomposition(model, {"dd": {"subdomains": 4}})
+    kc = model.stiffness_coefficients(model.coefficients(study.scene))
+    for data in (kc, 1.3 * kc):
+        for u in dec.units:
+            A = u._matrix(data)
+            assert u._pieces is not None
+            ref = u._reduce(u.op(data))
+            assert np.array_equal(A.indptr, ref.indptr) and np.array_equal(A.indices, ref.indices)
+            assert np.abs(A.data - ref.data).max() <= 1e-14 * np.abs(ref.data).max()
+    monkeypatch.setattr(interface, "AFFINE_PIECES", 0)
+    u = copy.copy(dec.units[0])
+    u._reduce = u._pieces = None
+    assert np.array_equal(u._matrix(kc).data, dec.units[0]._reduce(dec.units[0].op(kc)).data)
+    assert u._pieces is None
