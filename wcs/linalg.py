@@ -197,7 +197,7 @@ class PardisoFactor:
             self._perm[self.block] = 1
         self._set_matrix(M)
         self._schur = np.zeros(0 if self.block is None else len(self.block) ** 2)
-        self.symmetric_schur = self.mtype == 2      # the Cholesky path returns it symmetric to the bit
+        self.symmetric_schur = self.mtype == 2      # the Cholesky path returns it symmetric to the bit (tested)
         self._call(12, np.zeros(1), self._schur if self.block is not None else np.zeros(1), 1)
 
     def _bordered(self, A: sp.csr_matrix) -> sp.csr_matrix:
