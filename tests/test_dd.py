@@ -1,6 +1,7 @@
 """The domain decomposition solver (wcs.dd) against the monolithic solver, on the
 validation scenes with floating subdomains; its partition rule; its local operators;
 its failure status."""
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -346,7 +347,7 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
     more for the final solution, both at a point already solved); a second evaluation of the same
     stiffness data keeps the coarse spaces of S and S0 (no products with their bases) and the
     pairs' linearisations (no held Schur complement), of the same load too the load's
-    condensation (no sparse solve for it), and every answer is bitwise the one of a
+    condensation (no sparse solve for it) and PCG1's answer U⁰, and every answer is bitwise the one of a
     decomposition built afresh; a new load condenses anew, new stiffness data empty the rest."""
     import dataclasses
     from wcs.dd import interface
@@ -386,16 +387,19 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
     assert n1["held"] >= 1 and n1["columns"] >= 1 and n1["condense"] >= first.info["units"]
     again, n2 = solve(c)
     assert n2["held"] == 0 and n2["columns"] == 0 and n2["condense"] == 0, n2
+    assert again.info["pcg1_kept"] and not first.info["pcg1_kept"]
     np.testing.assert_array_equal(again.u, first.u)
     np.testing.assert_array_equal(again.lam_t, first.lam_t)
     dds._CACHE.pop(model)                                   # a decomposition built afresh: the same bits
     fresh, _ = solve(c)
     np.testing.assert_array_equal(fresh.u, first.u)
-    _, n4 = solve(c, 1.1 * rhs)                   # the loaded units condense anew (the others' loads are zero)
+    assert not fresh.info["pcg1_kept"]
+    loaded, n4 = solve(c, 1.1 * rhs)              # the loaded units condense anew (the others' loads are zero)
     assert 1 <= n4["condense"] < first.info["units"] and n4["columns"] == 0, n4
+    assert not loaded.info["pcg1_kept"]
     stiffer = dataclasses.replace(c, lam=1.01 * c.lam, mu=1.01 * c.mu)
-    _, n3 = solve(stiffer)
-    assert n3["held"] >= 1 and n3["columns"] >= 1
+    new, n3 = solve(stiffer)
+    assert n3["held"] >= 1 and n3["columns"] >= 1 and not new.info["pcg1_kept"]
 
 
 def test_new_stiffness_data_refactor_on_the_analysis_kept(tmp_path, monkeypatch):
@@ -420,3 +424,25 @@ def test_new_stiffness_data_refactor_on_the_analysis_kept(tmp_path, monkeypatch)
         u.assemble(kc)
         assert np.array_equal(u.A.indptr, indptr) and np.array_equal(u.A.indices, indices)
     assert not analyses
+
+
+def test_unit_matrix_from_its_affine_pieces(tmp_path, monkeypatch):
+    """A unit's A_u(c) = Σ c_gk A_u^{gk} from its reduced pieces (`Unit._matrix`) is the scatter of
+    the weighted cell matrices reduced by Tᵀ K T (the path above `AFFINE_PIECES` coefficients) to
+    round-off, on the same pattern, for new data too."""
+    from wcs.dd import interface
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    dec = dds.decomposition(model, {"dd": {"subdomains": 4}})
+    kc = model.stiffness_coefficients(model.coefficients(study.scene))
+    for data in (kc, 1.3 * kc):
+        for u in dec.units:
+            A = u._matrix(data)
+            assert u._pieces is not None
+            ref = u._reduce(u.op(data))
+            assert np.array_equal(A.indptr, ref.indptr) and np.array_equal(A.indices, ref.indices)
+            assert np.abs(A.data - ref.data).max() <= 1e-14 * np.abs(ref.data).max()
+    monkeypatch.setattr(interface, "AFFINE_PIECES", 0)
+    u = copy.copy(dec.units[0])
+    u._reduce = u._pieces = None
+    assert np.array_equal(u._matrix(kc).data, dec.units[0]._reduce(dec.units[0].op(kc)).data)
+    assert u._pieces is None

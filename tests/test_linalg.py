@@ -38,6 +38,30 @@ def test_backends_agree(spd):
             np.testing.assert_allclose(f.inverse_block(), Z, rtol=0, atol=1e-10 * np.abs(Z).max())
 
 
+@pytest.mark.parametrize("ascending", [True, False])
+def test_schur_block_in_block_order_and_symmetric_to_the_bit(ascending):
+    """schur(): A_SS − A_SI A_II⁻¹ A_IS in the block's order (an ascending block without a gather,
+    `copy=False` PARDISO's own buffer); on the Cholesky path symmetric to the bit
+    (`symmetric_schur`: the DD takes its units' Σ unsymmetrised), also after a refactor."""
+    rng = np.random.default_rng(2)
+    A = laplacian_2d(15, 0.1)
+    D = sp.diags(1.0 + rng.random(A.shape[0]))
+    S = rng.choice(A.shape[0], 20, replace=False)
+    S = np.sort(S) if ascending else S
+    f = linalg.factorize(A, "pardiso", spd=True, block=S)
+    assert f.symmetric_schur
+    for M in (A, (D @ A @ D).tocsr()):
+        f = f if M is A else f.refactor(M)
+        Md = M.toarray()
+        I = np.setdiff1d(np.arange(M.shape[0]), S)
+        ref = Md[np.ix_(S, S)] - Md[np.ix_(S, I)] @ np.linalg.solve(Md[np.ix_(I, I)], Md[np.ix_(I, S)])
+        sigma = f.schur()
+        np.testing.assert_allclose(sigma, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+        assert np.array_equal(sigma, sigma.T)
+        if ascending:
+            assert np.array_equal(f.schur(copy=False), sigma)
+
+
 def test_refactor_with_new_pattern_reanalyses():
     A, A3 = laplacian_2d(8), laplacian_2d(8, 1.0) + sp.eye(64, k=5)
     f = linalg.factorize(A, "pardiso").refactor(A3.tocsr())

@@ -129,9 +129,9 @@ class SuperLUFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(np.asarray(b, dtype=float))
 
-    def schur(self) -> np.ndarray:
+    def schur(self, copy: bool = True) -> np.ndarray:
         """The dense Schur complement A_SS − A_SI A_II⁻¹ A_IS on `block` (block order), as the
-        inverse of (A⁻¹)_SS (this backend has no partial factorization)."""
+        inverse of (A⁻¹)_SS (this backend has no partial factorization; always a new array)."""
         return np.linalg.inv(self.inverse_block())
 
     def inverse_block(self) -> np.ndarray:
@@ -197,6 +197,7 @@ class PardisoFactor:
             self._perm[self.block] = 1
         self._set_matrix(M)
         self._schur = np.zeros(0 if self.block is None else len(self.block) ** 2)
+        self.symmetric_schur = self.mtype == 2      # the Cholesky path returns it symmetric to the bit (tested)
         self._call(12, np.zeros(1), self._schur if self.block is not None else np.zeros(1), 1)
 
     def _bordered(self, A: sp.csr_matrix) -> sp.csr_matrix:
@@ -262,12 +263,17 @@ class PardisoFactor:
         of a warm 3D evaluation at 4311 contact rows)."""
         return -self._schur.reshape(len(self.block), len(self.block))
 
-    def schur(self) -> np.ndarray:
+    def schur(self, copy: bool = True) -> np.ndarray:
         """The dense Schur complement A_SS − A_SI A_II⁻¹ A_IS on `block`, in block order (PARDISO
-        returns it in full storage, ordered by increasing index)."""
+        returns it in full storage, ordered by increasing index). An ascending block (the DD's
+        units) is PARDISO's order: no gather (measured 77 → 5 ms at 1517 rows); `copy=False`
+        then returns PARDISO's own buffer, which the next numeric refactor overwrites."""
         k = len(self.block)
+        S = self._schur.reshape(k, k)
+        if np.all(self.block[1:] > self.block[:-1]):
+            return S.copy() if copy else S
         rank = np.argsort(np.argsort(self.block))
-        return self._schur.reshape(k, k)[np.ix_(rank, rank)].copy()
+        return S[np.ix_(rank, rank)]
 
     def inverse_block(self) -> np.ndarray:
         """(A⁻¹)_SS as the inverse of the Schur complement on S (PARDISO orders it by increasing index)."""

@@ -137,7 +137,8 @@ class Decomposition:
 
     def kept_for(self, data: np.ndarray) -> dict:
         """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
-        coefficients: S, S0, their weights and coarse spaces depend on nothing else), emptied
+        coefficients: S, S0, their weights and coarse spaces depend on nothing else), with PCG1's
+        last answer by its load F⁰ (`solve_dd`), emptied
         when the data change — as a monolithic factor is kept while its matrix is unchanged (a
         study that samples loads, gaps or friction only)."""
         if not np.array_equal(self.kept.get("data"), data):
@@ -424,11 +425,18 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     info["coarse"] = {"pcg1": S.coarse.size, "pcg2": S0.coarse.size}
     info["timings"] = {"setup": dec.timings["setup"], "assemble": time.perf_counter() - t}
 
-    # 1. auxiliary problem: PCG1
+    # 1. auxiliary problem: PCG1 (its answer kept with the data's coarse spaces while its load F⁰
+    #    stays: a study that samples gaps or friction only solves it once; the same U⁰ to the bit)
     t = time.perf_counter()
     F0 = S.load()
-    r1 = pcg(S.apply, S.precondition, F0, np.zeros(dec.nif), tol=_start_tolerance(options, o),
-             max_iter=o["pcg_max_iterations"], coarse=S.coarse)
+    key1 = (_start_tolerance(options, o), o["pcg_max_iterations"])
+    last = kept.get("pcg1")
+    info["pcg1_kept"] = last is not None and last[0] == key1 and np.array_equal(last[1], F0)
+    if info["pcg1_kept"]:
+        r1 = last[2]
+    else:
+        r1 = pcg(S.apply, S.precondition, F0, np.zeros(dec.nif), tol=key1[0], max_iter=key1[1], coarse=S.coarse)
+        kept["pcg1"] = (key1, F0, r1)
     info["pcg1"] = r1.iterations
     info["pcg1_residuals"] = r1.residuals
     info["timings"]["pcg1"] = time.perf_counter() - t
