@@ -18,11 +18,12 @@ from dataclasses import dataclass
 #      dd_stability.png, stability_materials.png)
 DD_MIN_UNKNOWNS = 1_000_000     # the DD was slower than the monolithic solver at every size measured
 #                                 (Hertz 3.6e3-1.2e5 unknowns, tunnel 4e3-6e4: forward_*.png); with interface
-#                                 Newton and one factor per unit still ~4x (tunnel 1.5e4) and ~3x
-#                                 (Hertz 1.05e5) on the same data, ~3x on new data (dd_cost.csv, medians
-#                                 at load 9); no crossover seen, so the DD is only picked beyond the
-#                                 measured range (scaling.png goes to 4.5e5) and only where it is known to
-#                                 converge
+#                                 Newton, one factor per unit and packed products, on new data 2.1-2.3x
+#                                 (Hertz 1.06e5) and 1.1-1.2x (tunnel 1.04e5, dd_cost.csv, quiet machine);
+#                                 the ratio falls with size (tunnel 1.48 -> 1.25 -> 1.13 at 1.0e5, 1.9e5,
+#                                 3.7e5; Hertz 2.77 -> 2.34 -> 2.09 at 1.1e5, 2.1e5, 4.3e5), crossing near
+#                                 1e6 on the tunnel by extrapolation: the DD is picked from there on, and
+#                                 only where it is known to converge
 DD_MAX_CONTRAST = 10.0          # dd_stability.png: with E_pad/E_base <= 0.1 the seed's iteration diverges
 #                                 and Aitken converges in only some cases
 DD_MAX_NU = 0.45                # stability_materials.png: the DD fails (status 5) from nu = 0.49
@@ -61,8 +62,8 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
     if f.friction != "none":
         return "monolithic", ("friction: the DD's successive approximations stagnate or a local solve fails "
                               "in 31 of 32 Tresca cases (dd_stability.png b); its interface Newton converges "
-                              "on the tunnel (Tresca) and the knee (Coulomb, dd_iterations.csv) but 4-14x "
-                              "slower (dd_cost.csv), while the monolithic Newton converged in <= 11 "
+                              "on the tunnel (Tresca) and the knee (Coulomb, dd_iterations.csv) but 1.1-2x "
+                              "slower at 1e5 unknowns on new data (dd_cost.csv), while the monolithic Newton converged in <= 11 "
                               "iterations (Tresca) and the Coulomb fixed point for every F it can hold, up "
                               "to 1.5 (stability_friction.png)")
     if f.max_nu > DD_MAX_NU:

@@ -64,6 +64,10 @@ potri, ≈ 0.1 s), the products of 53 PCG iterations (≈ 0.1 s), the pair's den
 and 4 local contact solves per pair; the global assembly in `reduced_system` (0.04–0.06 s,
 its cell-matrix einsum) is in both times.
 
+At the merge (quiet machine): tunnel 1.83 / 1.16, Hertz 1.96 / 2.17; the tunnel's λn against the
+monolithic one 4.3e-7 relative once both are read as the model reports them (the canonical split
+at the roller-held fault end; 2.2e-3 when the DD's raw split was compared).
+
 Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py
 """
@@ -133,7 +137,8 @@ def measure(name, study_file, scale, dd):
            **{k: rank.get(k, 0.0) for k in ("assemble", "dirichlet", "neumann", "coarse", "contact")}}
     if res.u is not None:
         row["err_u"] = float(np.linalg.norm(res.u - mono.u) / np.linalg.norm(mono.u))
-        row["err_lam_n"] = float(np.linalg.norm(res.lam_n - mono.contact.force_n)
+        forces = model.contact_state(res.lam_n, res.lam_t, res.u, None)    # as the model reports them
+        row["err_lam_n"] = float(np.linalg.norm(forces.force_n - mono.contact.force_n)
                                  / np.linalg.norm(mono.contact.force_n))
     print({k: (f"{v:.3g}" if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
     return row
@@ -151,6 +156,7 @@ def test_one_dd_solve_against_a_warm_monolithic_evaluation():
     for r in rows:
         assert r["status"] == "converged", r
         assert r["err_u"] <= 1e-4, r
+        assert r["err_lam_n"] <= 1e-4, r        # the tunnel's roller-held fault end: 2e-3 before the canonical split
     hertz = next(r for r in rows if r["case"] == "hertz")
     assert hertz["ndof"] >= 1e5
     for r in rows:
