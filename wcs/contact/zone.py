@@ -163,11 +163,12 @@ def canonical_split(force_n, force_t, gap, tied, kappa, scale: float):
     """The multipliers of closed nodes with tied rows (`tied_rows`) at one canonical split:
     only a = λn + Σ_j κ_j λt,j acts there, and any λ with that a, λn ≥ 0 and λt within its
     bound solves the problem (which split a solver returns depends on its path: the
-    decomposition and the monolithic Newton differed by 4 % in λn at the tunnel fault's
+    decomposition and the monolithic Newton differed by 4–8 % in λn at the tunnel fault's
     roller-held end). Reported: the tied tangents carry nothing (the supports hold that
     motion) and the normal all of a, where a ≥ 0; a node pulled apart (a < 0) keeps its split.
-    Closed: gap ≤ 1e-7 · scale (the displacement scale; the criteria's "within reach"). Returns (force_n, force_t, moved):
-    moved flags the tangent rows whose force went to the normal."""
+    Closed: gap ≤ 1e-7 · scale (the displacement scale; the criteria's "within reach").
+    Returns (force_n, force_t, moved): moved flags the tangent rows whose force went to the
+    normal."""
     m = force_n.size
     k = force_t.size // m if m else 1
     T = tied.reshape(k, m) & (gap <= 1e-7 * scale)[None, :]

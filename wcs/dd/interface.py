@@ -486,16 +486,21 @@ class PairUnit(Unit):
         one symmetric rank-k product. SetupError where the rows leave a rigid motion of a
         floating half free (Nᵀ Σ⁰_cc N is then singular; in floating point its Cholesky may
         still pass)."""
-        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
-            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
-        d, f, W = _null_basis(self._C_c[rows]) if basis is None else basis
-        SN = self._Scc[:, f] - self._Scc[:, d] @ W
-        L, lower = _cho(SN[f] - W.T @ SN[d], f"the contact block of pair {self.index} with {len(rows)} rows held")
+        (d, f, W), (L, lower) = self._held_cholesky(rows, basis)
         Nt = np.zeros((f.size, self.c.size))
         Nt[:, d], Nt[:, f] = -W.T, np.eye(f.size)
         X = sla.solve_triangular(L, Nt, lower=lower, trans="N" if lower else "T")
         G = _gram(X)
         return G, G @ self._Sbc.T
+
+    def _held_cholesky(self, rows: np.ndarray, basis=None):
+        """((d, f, W), Cholesky factor of Nᵀ Σ⁰_cc N) for the rows `rows` held (`_held`), or
+        SetupError where they leave a rigid motion of a floating half free."""
+        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
+            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
+        d, f, W = _null_basis(self._C_c[rows]) if basis is None else basis
+        SN = self._Scc[:, f] - self._Scc[:, d] @ W
+        return (d, f, W), _cho(SN[f] - W.T @ SN[d], f"the contact block of pair {self.index} with {len(rows)} rows held")
 
     def _half(self, M: np.ndarray) -> np.ndarray:
         """L⁻¹ Nᵀ M for the glue's null basis N = Π [−W; I] and Nᵀ Σ⁰_cc N = L Lᵀ (M: rows on c,
@@ -623,13 +628,7 @@ class PairUnit(Unit):
         rows_B, rows_c = np.take(S0, xB, axis=0), np.take(S0, xc, axis=0)      # rows, then columns: the
         self._Sbb, self._Sbc = np.take(rows_B, xB, axis=1), np.take(rows_B, xc, axis=1)   # gathers of
         self._Scc = np.take(rows_c, xc, axis=1)                                 # np.ix_ in half the time
-        if self.R_c is not None and null_space(self._C_c[self.glue_rows], self.R_c).shape[1]:
-            raise SetupError(f"pair {self.index}: the {len(self.glue_rows)} contact rows held leave a floating "
-                             f"half free")
-        d, f, W = self._glue_null
-        SN = self._Scc[:, f] - self._Scc[:, d] @ W
-        self._KN = _cho(SN[f] - W.T @ SN[d], f"the contact block of pair {self.index} with "
-                                              f"{len(self.glue_rows)} rows held")
+        _, self._KN = self._held_cholesky(self.glue_rows, self._glue_null)
         self._Y = self._half(self._Sbc.T)
         self.S = self._Sbb - _gram(self._Y)
         self._P, self._H, self._V = self._glue_inverse()
