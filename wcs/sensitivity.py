@@ -38,7 +38,9 @@ Every factorization is the solution's own (`Solution.factor`, `heat_factor`,
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .coefficients import flatten
 from .contact.solver import redundant_pairs
@@ -86,78 +88,145 @@ def _slip_frame(model, state, m: int, k: int):
     return Q, sigma, compliance, free
 
 
+class ContactAdjoint:
+    """The adjoint system of a contact solution on its final active set, built and factored once
+    for all criteria: N of the module docstring in the slip frame (`_slip_frame`), its LU (or,
+    where N is singular because constraints are redundant, least squares), and the solution's
+    own factor K⁺. `solve` gives (z, μ, σ) for one criterion's partials, μ in the slip frame;
+    None when N is singular and the system inconsistent."""
+
+    def __init__(self, model, state):
+        res = state.raw
+        self.cf, m = state.contact_factor(model), res.lam_n.size
+        C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
+        n = C.shape[0]
+        k = n // m - 1
+        Q, self.sigma, compliance, free = _slip_frame(model, state, m, k)
+        W = self.cf.W
+        if Q is not None:
+            C, W = (Q @ C).tocsr(), np.asarray(Q @ self.cf.W @ Q.T)
+        R = model.R_r
+        r = 0 if R is None else R.shape[1]
+        N = np.zeros((n + r, n + r))
+        CR = C @ R if r else np.zeros((n, 0))
+        A = np.flatnonzero(free)
+        B = np.flatnonzero(~free)
+        N[np.ix_(A, np.arange(n))] = -W[A]
+        N[A, A] -= compliance[A]
+        if r:
+            N[np.ix_(A, n + np.arange(r))] = CR[A]
+            N[n:, :n] = CR.T
+        N[B, B] = 1.0
+        tang = B[B >= m]
+        node = (tang - m) % m
+        N[tang, node] = -self.sigma[tang - m] * np.asarray(state.coefficients.coulomb, float)[node]
+        # a closed and stuck node whose rows are parallel (rollers on both sides): its tangential
+        # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
+        # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
+        # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
+        # A closed or stuck row that vanishes (a node held by supports on both sides: W's row is 0)
+        # cannot move the solution either: its adjoint multiplier is 0 and the row dropped too
+        held = np.diag(W) <= 1e-14 * max(np.diag(W).max(initial=0.0), 1e-300)
+        parallel = redundant_pairs(W, k) & np.tile(free[:m], k) & free[m:] & (compliance[m:] == 0)
+        drop = np.r_[np.flatnonzero(held & free & (compliance == 0)), m + np.flatnonzero(parallel)]
+        self.keep = np.setdiff1d(np.arange(N.shape[0]), drop)
+        self.system = _FixedRowsSystem(N, self.keep, np.isin(self.keep, B))
+        self.C, self.Q, self.R, self.A, self.m, self.n, self.size = C, Q, R, A, m, n, N.shape[0]
+
+    def solve(self, phi_w: np.ndarray, phi_lam_n: np.ndarray | None, phi_lam_t: np.ndarray | None = None):
+        m, n, C, R = self.m, self.n, self.C, self.R
+        Kp_phi = self.cf.factor.solve(phi_w)
+        g_lam = -(C @ Kp_phi)
+        if phi_lam_n is not None:
+            g_lam[:m] += phi_lam_n
+        if phi_lam_t is not None:        # in the adjoint's frame (Q: the slip frame of disc nodes)
+            t = np.r_[np.zeros(m), phi_lam_t]
+            g_lam += t if self.Q is None else self.Q @ t
+        g = np.r_[g_lam, R.T @ phi_w] if R is not None else g_lam
+        mu = np.zeros(self.size)
+        mu_keep = self.system.solve(g[self.keep])
+        if mu_keep is None:
+            return None
+        mu[self.keep] = mu_keep
+        z = self.cf.factor.solve(phi_w - C[self.A].T @ mu[self.A])
+        if R is not None:
+            z = z + R @ mu[n:]
+        return z, mu, self.sigma
+
+
 def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None,
                      phi_lam_t: np.ndarray | None = None):
-    """(z, μ, σ) of the module docstring on the final active set, μ in the slip frame
-    (`_slip_frame`); None when N is singular."""
-    res = state.raw
-    cf, m = state.contact_factor(model), res.lam_n.size
-    C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
-    n = C.shape[0]
-    k = n // m - 1
-    Q, sigma, compliance, free = _slip_frame(model, state, m, k)
-    W = cf.W
-    if Q is not None:
-        C, W = (Q @ C).tocsr(), np.asarray(Q @ cf.W @ Q.T)
-    R = model.R_r
-    r = 0 if R is None else R.shape[1]
-    Kp_phi = cf.factor.solve(phi_w)
-    g_lam = -(C @ Kp_phi)
-    if phi_lam_n is not None:
-        g_lam[:m] += phi_lam_n
-    if phi_lam_t is not None:        # in the adjoint's frame (Q: the slip frame of disc nodes)
-        g_lam += np.r_[np.zeros(m), phi_lam_t] if Q is None else Q @ np.r_[np.zeros(m), phi_lam_t]
-    g = np.r_[g_lam, R.T @ phi_w] if r else g_lam
-    N = np.zeros((n + r, n + r))
-    CR = C @ R if r else np.zeros((n, 0))
-    A = np.flatnonzero(free)
-    B = np.flatnonzero(~free)
-    N[np.ix_(A, np.arange(n))] = -W[A]
-    N[A, A] -= compliance[A]
-    if r:
-        N[np.ix_(A, n + np.arange(r))] = CR[A]
-        N[n:, :n] = CR.T
-    N[B, B] = 1.0
-    tang = B[B >= m]
-    node = (tang - m) % m
-    N[tang, node] = -sigma[tang - m] * np.asarray(state.coefficients.coulomb, float)[node]
-    # a closed and stuck node whose rows are parallel (rollers on both sides): its tangential
-    # equation is κ times its normal one, so its adjoint multiplier is set to 0 and the row
-    # dropped (exact; in floating point the full system is cond ~1e17, and an LU solve puts an
-    # arbitrary ~1e20 along the redundant combination, whose cancellation ruins the gradient)
-    # A closed or stuck row that vanishes (a node held by supports on both sides: W's row is 0)
-    # cannot move the solution either: its adjoint multiplier is 0 and the row dropped too
-    held = np.diag(W) <= 1e-14 * max(np.diag(W).max(initial=0.0), 1e-300)
-    parallel = redundant_pairs(W, k) & np.tile(free[:m], k) & free[m:] & (compliance[m:] == 0)
-    drop = np.r_[np.flatnonzero(held & free & (compliance == 0)), m + np.flatnonzero(parallel)]
-    keep = np.setdiff1d(np.arange(N.shape[0]), drop)
-    mu = np.zeros(N.shape[0])
-    mu_keep = _consistent_solve(N[np.ix_(keep, keep)].T, g[keep])
-    if mu_keep is None:
-        return None
-    mu[keep] = mu_keep
-    z = cf.factor.solve(phi_w - C[A].T @ mu[A])
-    if r:
-        z = z + R @ mu[n:]
-    return z, mu, sigma
+    """(z, μ, σ) of the module docstring for one criterion (`ContactAdjoint`)."""
+    return ContactAdjoint(model, state).solve(phi_w, phi_lam_n, phi_lam_t)
 
 
-def _consistent_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-    """A⁻¹ b, or — when A is singular because constraints are redundant (a contact node
-    held by supports on both sides, normal and tangential rows made parallel by rollers)
-    — the least-squares solution if the system is consistent there: the multipliers are
-    then not unique but the displacements, and so the criteria's gradients, are."""
-    try:
-        x = np.linalg.solve(A, b)
-        if np.all(np.isfinite(x)):
-            return x
-    except np.linalg.LinAlgError:
-        pass
-    x = np.linalg.lstsq(A, b, rcond=None)[0]
-    scale = max(np.abs(b).max(initial=0.0), 1e-300)
-    # redundant rows make A ill-conditioned (seen: cond 1e16, residual 1e-7 of |b|): round-off, not an
-    # inconsistency, which would leave a residual of the order of |b|
-    return x if np.abs(A @ x - b).max() <= 1e-6 * scale else None
+class _FixedRowsSystem:
+    """Solves Mᵀ μ = g for M = N[keep, keep] by eliminating the fixed rows first: a fixed row of
+    N (an open normal, a slipping tangent: λ_B = h_B) is the identity row plus, with Coulomb
+    friction, the coupling −σF to its node's normal, so M_PP (P: the fixed rows) is sparse and
+    only the Schur complement S = M_QQ − M_QP M_PP⁻¹ M_PQ on the other rows Q (closed normals,
+    stuck tangents, slip-frame rows, rigid modes) needs a dense LU:
+
+        Sᵀ μ_Q = g_Q − (M_PP⁻¹ M_PQ)ᵀ g_P,     M_PPᵀ μ_P = g_P − M_QPᵀ μ_Q.
+
+    Without Coulomb friction M_PQ = 0 and S = M_QQ. On the 3D tunnel at 1.1e5 unknowns the LU of
+    the full M took about 1 s an evaluation; a third of its rows are fixed."""
+
+    def __init__(self, N: np.ndarray, keep: np.ndarray, fixed: np.ndarray):
+        self.P, self.Q = keep[fixed], keep[~fixed]
+        P, Q = self.P, self.Q
+        self.Mpp = sp.csc_matrix(N[np.ix_(P, P)])
+        self.Mqp = N[np.ix_(Q, P)]
+        Mpq = sp.csr_matrix(N[np.ix_(P, Q)])
+        self.lu_pp = spla.splu(self.Mpp) if P.size else None
+        S = N[np.ix_(Q, Q)]
+        self.X = None
+        if Mpq.nnz:
+            self.X = self.lu_pp.solve(Mpq.toarray())            # M_PP⁻¹ M_PQ
+            S = S - self.Mqp @ self.X
+        self.schur = _ConsistentSystem(S.T)
+        self.fixed, self.size = fixed, keep.size
+
+    def solve(self, g: np.ndarray) -> np.ndarray | None:
+        gq, gp = g[~self.fixed], g[self.fixed]
+        mu_q = self.schur.solve(gq if self.X is None else gq - self.X.T @ gp)
+        if mu_q is None:
+            return None
+        mu = np.empty(self.size)
+        mu[~self.fixed] = mu_q
+        if self.P.size:
+            mu[self.fixed] = self.lu_pp.solve(gp - self.Mqp.T @ mu_q, trans="T")
+        return mu
+
+
+class _ConsistentSystem:
+    """A⁻¹ b for many b from one LU of A, or — when A is singular because constraints are
+    redundant (a contact node held by supports on both sides, normal and tangential rows made
+    parallel by rollers) — the least-squares solution where the system is consistent there:
+    the multipliers are then not unique but the displacements, and so the criteria's
+    gradients, are."""
+
+    def __init__(self, A: np.ndarray):
+        self.A = A
+        self.lu = None
+        if A.size:
+            lu, piv, info = sla.lapack.dgetrf(A)
+            if info == 0 and np.all(np.isfinite(lu)):
+                self.lu = (lu, piv)
+
+    def solve(self, b: np.ndarray) -> np.ndarray | None:
+        A = self.A
+        if not A.size:
+            return np.zeros(0)
+        if self.lu is not None:
+            x, info = sla.lapack.dgetrs(*self.lu, b)
+            if info == 0 and np.all(np.isfinite(x)):
+                return x
+        x = np.linalg.lstsq(A, b, rcond=None)[0]
+        scale = max(np.abs(b).max(initial=0.0), 1e-300)
+        # redundant rows make A ill-conditioned (seen: cond 1e16, residual 1e-7 of |b|): round-off, not an
+        # inconsistency, which would leave a residual of the order of |b|
+        return x if np.abs(A @ x - b).max() <= 1e-6 * scale else None
 
 
 def contact_nonsmooth(model, state) -> bool:
@@ -185,8 +254,20 @@ def contact_nonsmooth(model, state) -> bool:
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
 
 
-def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
-    """dΦ/dc (flat, `flatten` order) by the adjoint; None where the active-set system is singular."""
+def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.ndarray | None]:
+    """dΦ/dc (flat, `flatten` order) of each criterion's partials by the adjoint; None where the
+    active-set system is singular. What the criteria share — the stiffness, K U0, the contact
+    adjoint system and its LU — is built once."""
+    c = state.coefficients
+    K = model.K(model.stiffness_coefficients(c))
+    U0 = model.elim.U0.tocsc()
+    KU0 = (K @ U0).tocsc()
+    contact = ContactAdjoint(model, state) if state.raw is not None else None
+    Kh = model.H(c.kappa) if model.thermal else None
+    return [_coefficient_gradient(model, state, P, contact, U0, KU0, Kh) for P in partials]
+
+
+def _coefficient_gradient(model, state, P: Partials, contact, U0, KU0, Kh) -> np.ndarray | None:
     c = state.coefficients
     flat, sl = flatten(c)
     grad = np.zeros_like(flat)
@@ -196,16 +277,15 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     phi_u = np.zeros(T.shape[0]) if P.u is None else P.u
     phi_w = Tt @ phi_u
     mu = sigma = None
-    if state.raw is None:
+    if contact is None:
         z = state.factor().solve(phi_w)
     else:
-        out = _contact_adjoint(model, state, phi_w, P.lam_n, P.lam_t)
+        out = contact.solve(phi_w, P.lam_n, P.lam_t)
         if out is None:
             return None
         z, mu, sigma = out
     Z = T @ z
     u = state.u
-    K = model.K(model.stiffness_coefficients(c))
     sK = model.K.sensitivities(Z, u)
     grad[sl["lam"]] -= sK[:, 0]
     grad[sl["mu"]] -= sK[:, 1]
@@ -213,8 +293,6 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
     grad[sl["pressure"]] += [model.pressure_vectors[b] @ Z for b in sorted(model.pressure_vectors)]
     grad[sl["traction"]] += np.concatenate([model.traction_vectors[b] @ Z for b in sorted(model.traction_vectors)]
                                            ) if model.traction_vectors else np.zeros(0)
-    U0 = model.elim.U0.tocsc()
-    KU0 = (K @ U0).tocsc()
     g_sup = -(KU0.T @ Z) + U0.T @ phi_u
     if mu is not None:
         m = state.raw.lam_n.size
@@ -240,7 +318,6 @@ def coefficient_gradient(model, state, P: Partials) -> np.ndarray | None:
         grad[sl["kappa"]] -= model.H.sensitivities(Zh, state.theta)[:, 0]
         grad[sl["source"]] += model.source_vectors @ Zh
         U0h = model.heat_elim.U0.tocsc()
-        Kh = model.H(c.kappa)
         grad[sl["temperature_values"]] += -((Kh @ U0h).T @ Zh) + U0h.T @ load
     return grad
 
@@ -252,11 +329,13 @@ def gradients(evaluator, state, x: np.ndarray, others=None) -> tuple[dict[str, n
     model = evaluator.model
     J = evaluator.map.jacobian(x, others)
     nonsmooth = state.raw is not None and contact_nonsmooth(model, state)
-    out = {}
+    partials = []
     for crit in evaluator.criteria:
         P, tie = criterion_partials(crit, model, state)
         nonsmooth |= tie
-        gc = coefficient_gradient(model, state, P)
+        partials.append(P)
+    out = {}
+    for crit, gc in zip(evaluator.criteria, coefficient_gradients(model, state, partials)):
         out[crit.name] = None if gc is None else J.T @ gc
         nonsmooth |= gc is None
     return out, bool(nonsmooth)
