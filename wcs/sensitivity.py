@@ -259,7 +259,7 @@ def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.nda
     active-set system is singular. What the criteria share — the stiffness, K U0, the contact
     adjoint system and its LU — is built once."""
     c = state.coefficients
-    K = model.K(model.stiffness_coefficients(c))
+    K = model.stiffness(c)
     U0 = model.elim.U0.tocsc()
     KU0 = (K @ U0).tocsc()
     contact = ContactAdjoint(model, state) if state.raw is not None else None

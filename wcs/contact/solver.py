@@ -493,11 +493,11 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     F = np.flatnonzero(solve)
     lam = np.where(unknown, 0.0, fixed_values)
     r = G.shape[0]
-    s = max(np.abs(W).max(initial=0.0), 1e-300)
     step = _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c) if k == 2 else None
     if step is not None:
         lam, alpha = step
         return _tied_split(W, lam, tied, m, k), alpha
+    s = max(np.abs(W).max(initial=0.0), 1e-300)
     M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     if disc is not None and len(disc[0]):
@@ -569,12 +569,16 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
 
     lam0 = lam.copy()
     lam0[J] = fixed_values[J]                                 # gw ν
-    WV = right(W[np.ix_(rows, rows)])                         # (W V) on V's rows
-    H = np.r_[WV[:p], tau[:, :1] * WV[p:p + ns] + tau[:, 1:] * WV[p + ns:]]    # Vᵀ W V
+    # Vᵀ W V, its upper triangle only (what the Cholesky factorization reads), written in place
+    H = np.empty((p + ns, p + ns))
+    H[:p, :p] = W[np.ix_(plain, plain)]
+    A = W[np.ix_(rows, J[:, 0])] * tau[:, 0] + W[np.ix_(rows, J[:, 1])] * tau[:, 1]    # (W V) on the disc columns
+    H[:p, p:] = A[:p]
+    H[p:, p:] = tau[:, :1] * A[p:p + ns] + tau[:, 1:] * A[p + ns:]
     H[np.arange(p, p + ns), np.arange(p, p + ns)] += delta
     b = right((q - W @ lam0)[None, rows]).ravel()
     try:
-        cho = sla.cho_factor(H, check_finite=False)
+        cho = sla.cho_factor(H, check_finite=False, overwrite_a=True)
     except np.linalg.LinAlgError:
         return None
     GV = right(G[:, rows])
