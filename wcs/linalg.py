@@ -97,9 +97,14 @@ def backend() -> str:
 
 
 def _csr(A) -> sp.csr_matrix:
+    """A in canonical CSR form (sorted, no duplicates), never by changing the caller's matrix:
+    `csr_matrix` shares a CSR input's arrays, and sorting them in place changed the order in
+    which the caller's products C @ u add up (a contact solve's q moved by an ulp whenever its
+    factor was refactored, so an answer depended on whether the factor had been held)."""
     A = sp.csr_matrix(A, dtype=np.float64)
-    A.sum_duplicates()
-    A.sort_indices()
+    if not A.has_canonical_format:
+        A = A.copy()
+        A.sum_duplicates()
     return A
 
 

@@ -18,16 +18,27 @@
   solve ≤ 150× the PARDISO solve (measured 81×; the dense inverse block on the 18116 contact
   DOFs with the unsymmetric Newton steps: 292× with LU steps, 830 s and 11.9 GB at 9.3e4).
 
-Tables: results/bench/bench_3d.csv, results/bench/bench_3d_warm.csv, results/bench/bench_3d_tunnel.csv.
+- the whole 3D tunnel study at ≈ 1e5 unknowns (studies/tunnel-fault-3d.yaml with the rock ring
+  r < 7 m at 0.3 m: 1.1e5 unknowns; 22 uncertain numbers, 2 criteria, 60 evaluations with
+  gradients) by `mpiexec -n 2 wcs run`, one thread a rank. Goal: ≤ 5 minutes on 2 cores (an
+  absolute time, as the issue states it: the machine's own speed enters).
+
+Tables: results/bench/bench_3d.csv, results/bench/bench_3d_warm.csv, results/bench/bench_3d_tunnel.csv,
+results/bench/bench_3d_study.csv.
 """
 from __future__ import annotations
 
+import os
 import resource
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 import skfem
+import xarray as xr
 import yaml
 from skfem.models.elasticity import linear_elasticity
 
@@ -146,3 +157,34 @@ def test_the_1e5_tunnel_contact_solve_costs_at_most_150_pardiso_solves(tmp_path,
     print("\n".join(f"{a}: {b}" for a, b in rows))
     assert 0.8e5 <= Kr.shape[0] <= 1.2e5, Kr.shape[0]
     assert t_cold <= 150 * t_pardiso
+
+
+def test_the_1e5_tunnel_study_runs_in_five_minutes_on_two_ranks(tmp_path):
+    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
+    doc["scene"]["mesh"]["refine"][0]["size"] = 0.3         # the rock ring at 0.3 m: 1.1e5 unknowns
+    doc["scene"]["mesh"]["max_cells"] = 3000000             # the 3D estimate is ~6x over here (the ring once per body)
+    out = tmp_path / "tunnel.nc"
+    doc["output"] = str(out)
+    path = tmp_path / "tunnel-1e5.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_", "MPI_LOCAL"))}
+    env["WCS_THREADS"] = "1"
+    bindir = Path(sys.executable).parent
+    cmd = [str(bindir / "mpiexec"), "-n", "2", str(bindir / "wcs"), "run", str(path), "--quiet"]
+    t = time.perf_counter()
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=3600)
+    wall = time.perf_counter() - t
+    assert p.returncode == 0, p.stdout + p.stderr
+    with xr.open_dataset(out) as ds:
+        evaluations, failed = int(ds.attrs["evaluations"]), int(ds.attrs["failed_evaluations"])
+        nodes, uncertain = int(ds.attrs["mesh_nodes"]), ds.sizes["param"]
+        eval_time = float(ds.wall_time.sum())
+    rows = [["mesh nodes (3 unknowns each)", nodes], ["uncertain numbers", uncertain],
+            ["evaluations (failed)", f"{evaluations} ({failed})"],
+            ["sum of evaluation times [s]", f"{eval_time:.0f}"],
+            ["wall time, mpiexec -n 2 wcs run [s]", f"{wall:.0f}"]]
+    write_table("bench_3d_study", ["quantity", "value"], rows)
+    print("\n".join(f"{a}: {b}" for a, b in rows))
+    assert 0.9e5 <= 3 * nodes <= 1.3e5, nodes
+    assert uncertain >= 8 and failed == 0
+    assert wall <= 300.0

@@ -61,6 +61,7 @@ spring sizes k_j only set the conditioning, not the answer.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -125,6 +126,26 @@ class ContactFactor:
             self.C_S, self.W = C_S, delassus(self.factor, C_S)
             self.K_data = Kr.data.copy()
         return self
+
+
+@dataclass(frozen=True)
+class ScaledSolve:
+    """Solves with K = scale · K* from a factor of K* (`factor`)."""
+
+    factor: object
+    scale: float
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self.factor.solve(b) / self.scale
+
+
+def scaled(cf: ContactFactor, scale: float) -> ContactFactor:
+    """A view of the contact factor `cf` of K* as one of scale · K*: its solves and W = C K⁺ Cᵀ
+    divided by `scale` (K⁺ scales as 1/scale; the regularized DOFs too, their springs being
+    K's own diagonal). The view is not refactored: `update` belongs to `cf`."""
+    if scale == 1.0:
+        return cf
+    return dataclasses.replace(cf, factor=ScaledSolve(cf.factor, scale), W=cf.W / scale)
 
 
 def _same(A, B) -> bool:
@@ -648,7 +669,8 @@ def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
 
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
-                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True) -> ContactResult:
+                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True,
+                  scale: float = 1.0) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
 
     warm:   a previous result on the same mesh; its multipliers start the Newton
@@ -664,6 +686,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             depends on f only through Rᵀf): the linear program is not run again.
     qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
             (CONTACT_NOT_CONVERGED).
+    scale:  the stiffness is scale · K: K is factored (the factor returned is K's), the
+            problem solved is that of scale · K (`scaled`).
     """
     t0 = time.perf_counter()
     timings = {}
@@ -692,13 +716,14 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     t = time.perf_counter()
     try:
         cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None), k > 1)
-        u0 = cf.factor.solve(f)
+        solver = scaled(cf, scale)
+        u0 = solver.factor.solve(f)
     except linalg.FactorizationError as exc:
         return ContactResult(None, None, None, Status.SINGULAR, f"factorization failed: {exc}", timings=timings)
     timings["factor"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    W = cf.W
+    W = solver.W
     q = C @ u0 - np.r_[d, np.zeros(k * m)]
     G = (C @ R).T if R is not None else np.zeros((0, (1 + k) * m))
     null = null_rows(W)
@@ -748,7 +773,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                              f"the solution is not unique: the rigid motion v = Rβ, β = "
                              f"{np.array2string(beta, precision=4)}, moves no closed or stuck contact node",
                              iters, fp_iters, alpha=beta, timings=timings)
-    u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
+    u = solver.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
     if violation:
