@@ -162,7 +162,6 @@ def test_the_1e5_tunnel_contact_solve_costs_at_most_150_pardiso_solves(tmp_path,
 def test_the_1e5_tunnel_study_runs_in_five_minutes_on_two_ranks(tmp_path):
     doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
     doc["scene"]["mesh"]["refine"][0]["size"] = 0.3         # the rock ring at 0.3 m: 1.1e5 unknowns
-    doc["scene"]["mesh"]["max_cells"] = 3000000             # the 3D estimate is ~6x over here (the ring once per body)
     out = tmp_path / "tunnel.nc"
     doc["output"] = str(out)
     path = tmp_path / "tunnel-1e5.yaml"

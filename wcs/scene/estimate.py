@@ -265,13 +265,23 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
     grading = DEFAULT_GRADING if scene.mesh.grading is None else scene.mesh.grading
     rois = [spec3d.Solid(sphere=roi.ball) if roi.ball is not None else spec3d.Solid(cylinder=roi.cylinder)
             for roi in scene.regions_of_interest.values() if roi.ball is not None or roi.cylinder is not None]
+    volumes = {body: sum(_primitive_volume(r.shape) for r in spec.regions) for body, spec in scene.bodies.items()}
+    # a box, ball or cylinder of mesh.refine without `body` is meshed once, wherever bodies lie in
+    # it: counted once, clipped to all the bodies' volume (counted in every body it was 2× over on
+    # a tunnel whose refined ring the fault cuts into two bodies); a boundary zone is a face with a
+    # halo on either side, counted in each body as before
+    once = [r.body is None and r.boundary is None for r in scene.mesh.refine]
+    coarsest = max([size] + [spec.mesh.size for spec in scene.bodies.values() if spec.mesh is not None])
+    parts += [(_refined3d(r, scene, coarsest, grading, sum(volumes.values())), f"mesh.refine.{i}.size")
+              for i, r in enumerate(scene.mesh.refine) if once[i] and r.size < coarsest]
     for body, spec in scene.bodies.items():
         h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
-        volume = sum(_primitive_volume(r.shape) for r in spec.regions)
+        volume = volumes[body]
         cells = CELLS_PER_H3 * volume / h**3
         curved = [c for r in spec.regions for c in _curved(r.shape)] + rois
         parts.append((cells + sum(_curved_cells(c, h) for c in curved), path))
-        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine) if r.body in (None, body)]
+        zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine)
+                 if not once[i] and r.body in (None, body)]
         zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(spec.mesh.refine if spec.mesh else [])]
         parts += [(_refined3d(ref, scene, h, grading, volume), p) for ref, p in zones
                   if ref.size < h and (ref.boundary is None or ref.boundary in scene.boundaries)]
