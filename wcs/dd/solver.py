@@ -137,7 +137,8 @@ class Decomposition:
 
     def kept_for(self, data: np.ndarray) -> dict:
         """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
-        coefficients: S, S0, their weights and coarse spaces depend on nothing else), with PCG1's
+        coefficients: S, S0, their weights and coarse spaces depend on nothing else), the glued
+        pairs' part of S Z (interface Newton's J Z, `_newton`), PCG1's
         last answer by its load F⁰ (`solve_dd`), emptied
         when the data change — as a monolithic factor is kept while its matrix is unchanged (a
         study that samples loads, gaps or friction only)."""
@@ -868,7 +869,9 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
             lp = _linearised(dec, free, team, cache)
             if "J" not in cache:           # J Z = S Z + Σ_p R_pᵀ (S_p^A − S⁰_p) R_p Z: products of the pairs only
                 Z = S.coarse.Z
-                JZ = S.coarse.SZ + _pairs_apply(team, lp, dec.nif, Z) - _pairs_apply(team, dec.pairs, dec.nif, Z)
+                if "pairs_SZ" not in dec.kept:     # Σ_p R_pᵀ S⁰_p R_p Z: the glued pairs', one per data set
+                    dec.kept["pairs_SZ"] = _pairs_apply(team, dec.pairs, dec.nif, Z)
+                JZ = S.coarse.SZ + _pairs_apply(team, lp, dec.nif, Z) - dec.kept["pairs_SZ"]
                 cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=Z, SZ=JZ)
             J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
