@@ -616,7 +616,10 @@ class PairUnit(Unit):
         Y = L⁻¹Nᵀ Σ⁰_cB (N the glue's null basis, Nᵀ Σ⁰_cc N = L Lᵀ: one triangular solve and a
         symmetric rank-k product; G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ and T = G Σ⁰_cB never formed), the
         glue inverse's pieces (`_glue_inverse`) and the Neumann inverse (measured on Hertz's
-        pair, 848 contact DOFs and 669 on B: all of it 120–137 → 73–79 ms)."""
+        pair, 848 contact DOFs and 669 on B: all of it 120–137 → 73–79 ms), and the local
+        contact solves' factor (`_contact_factor`): here, in the assembly that the ranks share
+        by their measured loads, not at the data set's first contact solve, where the ranks
+        without a pair wait (Hertz: ≈ 30 ms)."""
         S0, xB, xc = self._schur0, self.xB, self.xc
         rows_B, rows_c = np.take(S0, xB, axis=0), np.take(S0, xc, axis=0)      # rows, then columns: the
         self._Sbb, self._Sbc = np.take(rows_B, xB, axis=1), np.take(rows_B, xc, axis=1)   # gathers of
@@ -627,7 +630,7 @@ class PairUnit(Unit):
         self._P, self._H, self._V = self._glue_inverse()
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
                                   f"the Neumann matrix of pair {self.index}")
-        self._cf = None                     # the condensed contact factor of this data set
+        self._cf = self._contact_factor()
         self._held_kept = {}                # linearisations of this data set by active set
 
     def set_load(self, f_local):
@@ -728,8 +731,6 @@ class PairUnit(Unit):
         not at all). Where the semismooth Newton cycles from the last active set it restarts
         from all closed and stuck, and where it cycles from there too from the dual QP,
         counted in `qp_restarts`."""
-        if self._cf is None:
-            self._cf = self._contact_factor()
         f_c = self._g[self.xc] - self._Sbc.T @ V
         bounds = None if F is not None and np.any(F > 0) else (np.zeros(len(d)) if g is None else g * w)
         checked = bounds is not None and self._balanced is not None and np.array_equal(bounds, self._balanced)
