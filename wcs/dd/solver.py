@@ -277,7 +277,7 @@ class InterfaceOperator:
         self.applications += 1
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = self.team.each("iterate", self.units, lambda u: u.apply_S(U[u.gamma]))    # local Dirichlet solves
+        pieces = self.team.each(_product_phase(U), self.units, lambda u: u.apply_S(U[u.gamma]))   # local Dirichlet solves
         tm["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif, U.shape[1:])
 
@@ -768,7 +768,19 @@ def _linearised(dec, free, team, cache: dict) -> list:
 def _pairs_apply(team, lin_pairs, nif, x):
     """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed; x may
     have columns)."""
-    return team.sum(lin_pairs, team.each("iterate", lin_pairs, lambda p: p.apply_S(x[p.gamma])), nif, x.shape[1:])
+    pieces = team.each(_product_phase(x), lin_pairs, lambda p: p.apply_S(x[p.gamma]))
+    return team.sum(lin_pairs, pieces, nif, x.shape[1:])
+
+
+def _product_phase(x: np.ndarray) -> str:
+    """The `Team` phase the units' products with x are charged to: `iterate` for a vector (PCG's
+    products, every evaluation), `assemble` for columns (the coarse basis: Zᵀ S Z and J_k Z, a
+    data set's set-up, kept while its stiffness data stay — as the factorizations, which an
+    evaluation on the same data does not count either). Charged to `iterate`, the first
+    evaluation's coarse products made the tunnel's pairs (×0.33) weigh 30–31 ms there against
+    16–17 ms without them (its linear units 5–12 → 4–11 ms), and on the same data the pairs'
+    ranks took too few linear units (their products 32 against 54 ms a solve)."""
+    return "iterate" if x.ndim == 1 else "assemble"
 
 
 def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
