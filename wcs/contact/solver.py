@@ -669,6 +669,7 @@ def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
 
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
+                  factored: ContactFactor | None = None,
                   tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True,
                   scale: float = 1.0) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
@@ -676,6 +677,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     warm:   a previous result on the same mesh; its multipliers start the Newton
             iteration and its factor is refactored (same pattern) unless `factor` is given.
             The factor object is updated in place.
+    factored: a factor the caller vouches holds K (regularized on `pinned_dofs(R)` when R is
+            given) and W of these contact rows — made once for many solves with the same K
+            and rows (a DD pair's per data set): used as it is, with no regularization of K,
+            comparison or refactor (`factor_contact`'s per-call work); `factor` and `warm`'s
+            factor are then not used, nor is K.
     Coulomb: slip limit g + F p (both may be given: contacts of either law in one zone);
             fixed point over Tresca problems started from the all-stick (glued) solution
             — which also holds a floating body that only friction keeps in place — or
@@ -715,7 +721,8 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
 
     t = time.perf_counter()
     try:
-        cf = factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None), k > 1)
+        cf = factored if factored is not None else \
+            factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None), k > 1)
         solver = scaled(cf, scale)
         u0 = solver.factor.solve(f)
     except linalg.FactorizationError as exc:

@@ -136,25 +136,20 @@ def independent_rows(C: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
 
 
 class _DenseFactor:
-    """Cholesky of a small dense SPD matrix with the interface of a `wcs.linalg` factor
-    (`solve`, `refactor`, `inverse_block` on `block`): the contact solver's factor of a pair's
-    condensed contact problem."""
+    """Cholesky of a small dense SPD matrix with the `solve` of a `wcs.linalg` factor: the
+    contact solver's factor of a pair's condensed contact problem, made once per data set and
+    handed to its solves as `factored` (never refactored)."""
 
-    def __init__(self, K, block):
-        self.block = np.asarray(block)
-        self.refactor(K)
-
-    def refactor(self, K):
+    def __init__(self, K):
         K = K.toarray() if sp.issparse(K) else np.asarray(K, float)
         try:
             self._c = sla.cho_factor(K)
         except np.linalg.LinAlgError as exc:
             raise linalg.FactorizationError(f"condensed contact matrix not positive definite: {exc}") from exc
-        self.n = K.shape[0]
-        return self
 
     def solve(self, b):
-        return sla.cho_solve(self._c, np.asarray(b, float))
+        """K⁻¹ b (the factor was checked finite when it was made: not scanned again per solve)."""
+        return sla.cho_solve(self._c, np.asarray(b, float), check_finite=False)
 
     def congruence(self, C: np.ndarray) -> np.ndarray:
         """C K⁻¹ Cᵀ (C dense, on all of K's DOFs) as XᵀX, X = U⁻ᵀCᵀ (K = UᵀU): one triangular
@@ -162,13 +157,6 @@ class _DenseFactor:
         the inverse block (the Delassus operator of the pair's contact problem)."""
         U, lower = self._c
         return _gram(sla.solve_triangular(U, C.T, lower=lower, trans="N" if lower else "T"))
-
-    def inverse_block(self):
-        inv, info = lapack.dpotri(self._c[0], lower=self._c[1])     # one triangle of K⁻¹
-        if info != 0:
-            raise linalg.FactorizationError(f"LAPACK dpotri failed (info {info})")
-        inv = np.triu(inv) + np.triu(inv, 1).T if not self._c[1] else np.tril(inv) + np.tril(inv, -1).T
-        return inv[np.ix_(self.block, self.block)]
 
 
 def _cho(M: np.ndarray, what: str):
@@ -476,6 +464,11 @@ class PairUnit(Unit):
         m = self.rows.size
         moves = np.abs(self._C_c).reshape(-1, m, self.c.size).sum(axis=(0, 2)) > 0
         self.live = None if moves.all() else np.flatnonzero(moves)   # nodes the local contact problem keeps
+        # the local contact problem's rows (Bn, Bt) on c, of the `live` nodes, and its floating modes'
+        # pinned DOFs: geometry, kept for its factors (`_contact_factor`)
+        self._jumps = (self.Bn_c, self.Bt_c) if self.live is None else \
+            (self.Bn_c[self.live], self.Bt_c[tangent_rows(self.live, m, self.k)])
+        self._pinned_c = pinned_dofs(self.R_c) if free else np.zeros(0, dtype=np.int64)
 
     def _held(self, rows: np.ndarray, basis=None):
         """(G, T): G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ, N = Π [−W; I] spanning the contact displacements with
@@ -623,7 +616,10 @@ class PairUnit(Unit):
         Y = L⁻¹Nᵀ Σ⁰_cB (N the glue's null basis, Nᵀ Σ⁰_cc N = L Lᵀ: one triangular solve and a
         symmetric rank-k product; G = N (Nᵀ Σ⁰_cc N)⁻¹ Nᵀ and T = G Σ⁰_cB never formed), the
         glue inverse's pieces (`_glue_inverse`) and the Neumann inverse (measured on Hertz's
-        pair, 848 contact DOFs and 669 on B: all of it 120–137 → 73–79 ms)."""
+        pair, 848 contact DOFs and 669 on B: all of it 120–137 → 73–79 ms), and the local
+        contact solves' factor (`_contact_factor`): here, in the assembly that the ranks share
+        by their measured loads, not at the data set's first contact solve, where the ranks
+        without a pair wait (Hertz: ≈ 30 ms)."""
         S0, xB, xc = self._schur0, self.xB, self.xc
         rows_B, rows_c = np.take(S0, xB, axis=0), np.take(S0, xc, axis=0)      # rows, then columns: the
         self._Sbb, self._Sbc = np.take(rows_B, xB, axis=1), np.take(rows_B, xc, axis=1)   # gathers of
@@ -634,7 +630,7 @@ class PairUnit(Unit):
         self._P, self._H, self._V = self._glue_inverse()
         self._N = _pinned_inverse(self.S, _orth(self.Z[self.B]) if self.Z.shape[1] else self.Z[self.B],
                                   f"the Neumann matrix of pair {self.index}")
-        self._cf = None                     # the condensed contact factor of this data set
+        self._cf = self._contact_factor()
         self._held_kept = {}                # linearisations of this data set by active set
 
     def set_load(self, f_local):
@@ -677,17 +673,18 @@ class PairUnit(Unit):
         return u[self.I]
 
     def _contact_factor(self) -> ContactFactor:
-        """The contact solver's factor of the condensed stiffness Σ⁰_cc (one per data set)."""
-        self._Kc = sp.csr_matrix(self._Scc)
-        pinned = pinned_dofs(self.R_c) if self.R_c is not None else np.zeros(0, dtype=np.int64)
-        Kreg = regularize(self._Kc, pinned)
-        C = sp.vstack(self._jumps()).tocsr()
+        """The contact solver's factor of the condensed stiffness Σ⁰_cc, regularized on the
+        floating modes' pinned DOFs, with W of the jump rows: made once per data set and handed
+        to every local contact solve of it as `factored` (no per-call regularization of the
+        |c|² entries, no comparison with what it holds)."""
+        Kreg = regularize(sp.csr_matrix(self._Scc), self._pinned_c)
+        C = sp.vstack(self._jumps).tocsr()
         S = np.unique(C.indices)
         try:
-            f = _DenseFactor(Kreg, S)
+            f = _DenseFactor(Kreg)
         except linalg.FactorizationError as exc:
             raise SetupError(f"pair {self.index}: {exc}") from exc
-        return ContactFactor(f, pinned, S, C[:, S].toarray(), f.congruence(C.toarray()), Kreg.data.copy())
+        return ContactFactor(f, self._pinned_c, S, C[:, S].toarray(), f.congruence(C.toarray()), Kreg.data)
 
     def contact(self, V: np.ndarray, d, w, g, F, tol: float, max_iter: int):
         """Nonlinear Schur complement S_p(V) ([21, (4.27)–(4.28)]) by the local contact solve.
@@ -708,12 +705,6 @@ class PairUnit(Unit):
                 res.status, res.message = Status.SOLVED, "converged (all stick)"
             return r, res
         return self._solve(V, d, np.ones(m), bound, None, tol, max_iter, warm=self.warm)
-
-    def _jumps(self):
-        """(Bn, Bt) on the contact DOFs, rows of the `live` nodes only."""
-        if self.live is None:
-            return self.Bn_c, self.Bt_c
-        return self.Bn_c[self.live], self.Bt_c[tangent_rows(self.live, self.rows.size, self.k)]
 
     def _full(self, res):
         """A result on the `live` nodes extended to all the pair's nodes: a node whose every
@@ -740,15 +731,13 @@ class PairUnit(Unit):
         not at all). Where the semismooth Newton cycles from the last active set it restarts
         from all closed and stuck, and where it cycles from there too from the dual QP,
         counted in `qp_restarts`."""
-        if self._cf is None:
-            self._cf = self._contact_factor()
         f_c = self._g[self.xc] - self._Sbc.T @ V
         bounds = None if F is not None and np.any(F > 0) else (np.zeros(len(d)) if g is None else g * w)
         checked = bounds is not None and self._balanced is not None and np.array_equal(bounds, self._balanced)
         if self.live is not None:
             d, w, g, F = (None if a is None else a[self.live] for a in (d, w, g, F))
-        args = (self._Kc, f_c, *self._jumps(), d, w)
-        kw.update(g=g, F=F, R=self.R_c, tol=tol, max_iter=max_iter, factor=self._cf, checked=checked)
+        args = (self._Scc, f_c, *self._jumps, d, w)
+        kw.update(g=g, F=F, R=self.R_c, tol=tol, max_iter=max_iter, factored=self._cf, checked=checked)
         res = solve_contact(*args, **kw, qp=False)
         if res.status is Status.CONTACT_NOT_CONVERGED and kw.get("warm") is not None:
             kw["warm"] = None
@@ -783,7 +772,8 @@ class PairUnit(Unit):
         iterations 70 → 49 on Hertz at 1.05e5 unknowns, 36 → 39 on the tunnel). The dense
         operator only with `factor` (the rank that owns the pair, which holds the factor); the
         last `HELD_KEPT` of a data set kept by active set (a 2D Tresca step, or 3D without slip
-        springs: those vary continuously), as the glued operator is."""
+        springs: those vary continuously) with their packed triangles (`apply_S`), as the
+        glued operator is."""
         lin = copy.copy(self)
         lin.glue = "active set"
         if factor:
@@ -795,6 +785,8 @@ class PairUnit(Unit):
             if key not in self._held_kept:
                 if len(self._held_kept) >= HELD_KEPT:
                     del self._held_kept[next(iter(self._held_kept))]      # the oldest
-                self._held_kept[key] = self.held_schur(rows)
-            lin.S = self._held_kept[key]
+                S = self.held_schur(rows)
+                self._held_kept[key] = (S, _packed(S))
+            lin._S_packed = self._held_kept[key]             # packed for `apply_S` with it: kept too
+            lin.S = lin._S_packed[0]
         return lin

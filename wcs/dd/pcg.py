@@ -51,7 +51,7 @@ class Coarse:
         return self.Z.shape[1]
 
     def _solve(self, b):
-        return sla.cho_solve(self._cho, b)
+        return sla.cho_solve(self._cho, b, check_finite=False)     # Zᵀ S Z was checked when factored
 
     def project_out(self, x: np.ndarray) -> np.ndarray:
         """(I − P) x."""

@@ -62,7 +62,7 @@ from wcs.fem.affine import CellAffineOperator
 from wcs.status import DDOutcome, Status
 from wcs.options import DomainDecomposition, Solver
 
-from .interface import PairUnit, SetupError, Unit, _orth, admissible, rigid_basis, tangent_rows
+from .interface import HELD_KEPT, PairUnit, SetupError, Unit, _orth, admissible, rigid_basis, tangent_rows
 from .partition import Partition, facet_components, node_unknowns, partition
 from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
@@ -136,8 +136,10 @@ class Decomposition:
     measured: dict = field(default_factory=dict)  # {ranks: {unit index: seconds per phase}} of a first evaluation
 
     def kept_for(self, data: np.ndarray) -> dict:
-        """The coarse spaces (Z, S Z) of S and S0 kept for the data set `data` (the stiffness
-        coefficients: S, S0, their weights and coarse spaces depend on nothing else), with PCG1's
+        """The coarse projections of S and S0 kept for the data set `data` (the stiffness
+        coefficients: S, S0, their weights and coarse spaces depend on nothing else), the glued
+        pairs' part of S Z and the last `HELD_KEPT` projections of interface Newton's J_k by
+        active set (`_newton`), PCG1's
         last answer by its load F⁰ (`solve_dd`), emptied
         when the data change — as a monolithic factor is kept while its matrix is unchanged (a
         study that samples loads, gaps or friction only)."""
@@ -241,20 +243,22 @@ class InterfaceOperator:
     small Neumann eigenvalue on the others and needs them too).
     `team`: the distribution of the units over MPI ranks (`Team(None, units)`: serial);
     each rank solves its own units' local problems, the pieces are summed in unit order.
-    `basis`: the orthonormal basis of V_H when known (interface Newton's J_k: the glued
-    operator's, the same units, weights and traces, for every active set), `SZ` its image
-    under this operator when known (J_k Z from the glued S Z and the pairs' changes)."""
+    `coarse`: the coarse projection when known (kept for the data set: S and S0; interface
+    Newton's J_k, on the glued operator's basis — the same units, weights and traces — with
+    J_k Z from the glued S Z and the pairs' changes)."""
 
     def __init__(self, units, nif: int, weights: list[np.ndarray], traces: list[np.ndarray],
-                 team: Team | None = None, basis: np.ndarray | None = None, SZ: np.ndarray | None = None):
+                 team: Team | None = None, coarse: Coarse | None = None):
         self.units, self.nif, self.weights = units, nif, weights
         self.team = team if team is not None else Team(None, units)
         self.weight = {u.index: w for u, w in zip(units, weights)}
         self.applications = 0
-        Z = self._basis(units, nif, weights, traces) if basis is None else basis
+        if coarse is not None:
+            self.coarse = coarse
+            return
         tm = self.team.timings
         t, inner = time.perf_counter(), tm["dirichlet"] + tm["comm"]
-        self.coarse = Coarse(Z, self.apply, SZ=SZ)            # ZᵀSZ: k applications of S at once
+        self.coarse = Coarse(self._basis(units, nif, weights, traces), self.apply)   # ZᵀSZ: k applications at once
         tm["coarse"] += time.perf_counter() - t - (tm["dirichlet"] + tm["comm"] - inner)
 
     @staticmethod
@@ -273,7 +277,7 @@ class InterfaceOperator:
         self.applications += 1
         tm = self.team.timings
         t = time.perf_counter()
-        pieces = self.team.each("iterate", self.units, lambda u: u.apply_S(U[u.gamma]))    # local Dirichlet solves
+        pieces = self.team.each(_product_phase(U), self.units, lambda u: u.apply_S(U[u.gamma]))   # local Dirichlet solves
         tm["dirichlet"] += time.perf_counter() - t
         return self.team.sum(self.units, pieces, self.nif, U.shape[1:])
 
@@ -410,14 +414,14 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     oD = injections(lin, dec.nif, [r for u, r in zip(dec.units, rho) if u.kind == "linear"])
     kept = dec.kept_for(kc)
     try:
-        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team, *kept.get("S", (None, None)))
+        S = InterfaceOperator(dec.units, dec.nif, D, dec.traces, team, coarse=kept.get("S"))
     except CoarseSingular as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"the glued interface operator is singular: {exc}")
-    kept["S"] = (S.coarse.Z, S.coarse.SZ)
+    kept["S"] = S.coarse
     Y0 = [dec.traces[u.index] for u in lin]
     try:
-        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team, *kept.get("S0", (None, None))), ""
-        kept["S0"] = (S0.coarse.Z, S0.coarse.SZ)
+        S0, singular = InterfaceOperator(lin, dec.nif, oD, Y0, team, coarse=kept.get("S0")), ""
+        kept["S0"] = S0.coarse
     except CoarseSingular as exc:        # Newton needs only S0's products; the seed's step its inverse
         S0 = InterfaceOperator(lin, dec.nif, oD, [y[:, :0] for y in Y0], team)
         singular = f"the interface operator of the linear subdomains is singular (a group of them floats " \
@@ -764,7 +768,19 @@ def _linearised(dec, free, team, cache: dict) -> list:
 def _pairs_apply(team, lin_pairs, nif, x):
     """Σ_p R_pᵀ S_p^A R_p x over the linearised pairs (own ones solved, pieces summed; x may
     have columns)."""
-    return team.sum(lin_pairs, team.each("iterate", lin_pairs, lambda p: p.apply_S(x[p.gamma])), nif, x.shape[1:])
+    pieces = team.each(_product_phase(x), lin_pairs, lambda p: p.apply_S(x[p.gamma]))
+    return team.sum(lin_pairs, pieces, nif, x.shape[1:])
+
+
+def _product_phase(x: np.ndarray) -> str:
+    """The `Team` phase the units' products with x are charged to: `iterate` for a vector (PCG's
+    products, every evaluation), `assemble` for columns (the coarse basis: Zᵀ S Z and J_k Z, a
+    data set's set-up, kept while its stiffness data stay — as the factorizations, which an
+    evaluation on the same data does not count either). Charged to `iterate`, the first
+    evaluation's coarse products made the tunnel's pairs (×0.33) weigh 30–31 ms there against
+    16–17 ms without them (its linear units 5–12 → 4–11 ms), and on the same data the pairs'
+    ranks took too few linear units (their products 32 against 54 ms a solve)."""
+    return "iterate" if x.ndim == 1 else "assemble"
 
 
 def _rho_estimate(dec, S0, U0, d, bound, o, team, cache) -> tuple[float, int] | None:
@@ -866,10 +882,20 @@ def _newton(dec, S0, S, F, U, d, bound, o, info, team, cache, load: float):
         nr_prev = nr
         try:
             lp = _linearised(dec, free, team, cache)
-            if "J" not in cache:           # J Z = S Z + Σ_p R_pᵀ (S_p^A − S⁰_p) R_p Z: products of the pairs only
-                Z = S.coarse.Z
-                JZ = S.coarse.SZ + _pairs_apply(team, lp, dec.nif, Z) - _pairs_apply(team, dec.pairs, dec.nif, Z)
-                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team, basis=Z, SZ=JZ)
+            if "J" not in cache:
+                kept_J = dec.kept.setdefault("J", {})      # J_k's coarse projections of the data set by active set
+                if cache["key"] not in kept_J:
+                    Z = S.coarse.Z                 # J Z = S Z + Σ_p R_pᵀ (S_p^A − S⁰_p) R_p Z: products of the pairs
+                    if "pairs_SZ" not in dec.kept:     # Σ_p R_pᵀ S⁰_p R_p Z: the glued pairs', one per data set
+                        dec.kept["pairs_SZ"] = _pairs_apply(team, dec.pairs, dec.nif, Z)
+                    JZ = S.coarse.SZ + _pairs_apply(team, lp, dec.nif, Z) - dec.kept["pairs_SZ"]
+                    tc = time.perf_counter()
+                    if len(kept_J) >= HELD_KEPT:
+                        del kept_J[next(iter(kept_J))]      # the oldest
+                    kept_J[cache["key"]] = Coarse(Z, None, SZ=JZ)
+                    team.timings["coarse"] += time.perf_counter() - tc
+                cache["J"] = InterfaceOperator(lp + lin, dec.nif, S.weights, dec.traces, team,
+                                               coarse=kept_J[cache["key"]])
             J = cache["J"]
         except (SetupError, CoarseSingular) as exc:
             return DDOutcome.LOCAL_FAILED, f"interface Newton step {k + 1}: the linearised problem is singular: {exc}", U

@@ -2,8 +2,9 @@ r"""The units of a decomposition distributed over the ranks of an MPI communicat
 
 `Team(comm, units, dim, measured)` assigns every unit (linear subdomain or contact pair) to
 one rank by its cost in each *phase* of an evaluation — the numeric factorization with the
-dense Schur block and the load's condensation (`assemble`), the dense Dirichlet and Neumann
-products of the PCG iterations (`iterate`: all units), the local contact solves and the
+dense Schur block, the load's condensation and the products with the coarse basis
+(`assemble`: a data set's set-up), the dense Dirichlet and Neumann products of the PCG
+iterations (`iterate`: all units), the local contact solves and the
 linearisations (`contact`: pairs) — measured per unit in the first evaluation on this many
 ranks (`measured`, gathered so every rank holds the same numbers), before it estimated from
 the unit's sizes (`phase_costs`; measured on Hertz at 1.05e5 unknowns: the pair's rank
