@@ -356,6 +356,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     """
     c = scales(W, k)
     redundant = redundant_pairs(W, k)
+    acting = np.any(W, axis=1)
     carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
     force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
@@ -383,7 +384,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
             break
         if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
             seen.add(key)
-        step = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c)
+        step = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c, acting)
         lam, alpha = (_step_length(residual, lam, alpha, *step, phi @ phi + eq @ eq)
                       if len(J) and free is predicted else step)
     if not fallback:
@@ -468,7 +469,7 @@ def redundant_pairs(W: np.ndarray, k: int = 1) -> np.ndarray:
     return dn * dt - nt * nt <= 1e-10 * dn * dt
 
 
-def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
+def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None, acting=None):
     """Solve the active-set system: λ_A fixed, r_F(λ, α) = 0 and Gλ = e for (λ_F, α).
 
     disc: (J, D) for nodes slipping on a disc, their tangent components J (n, k) and the
@@ -507,7 +508,8 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None):
     tied = np.zeros_like(free)
     tied[m:] = redundant & np.tile(free[:m], k) & free[m:]
     unknown = free.copy()
-    null = free & ~np.any(W, axis=1)         # a free row acting on nothing: λ = 0 (least squares)
+    acting = np.any(W, axis=1) if acting is None else acting     # (rows of W not all zero: W's, once per Newton)
+    null = free & ~acting                    # a free row acting on nothing: λ = 0 (least squares)
     if disc is not None and len(disc[0]):
         unknown[disc[0].ravel()] = True
     solve = unknown & ~tied & ~null
