@@ -173,12 +173,10 @@ class _FixedRowsSystem:
     the full M took about 1 s an evaluation; a third of its rows are fixed."""
 
     def __init__(self, N: np.ndarray, keep: np.ndarray, fixed: np.ndarray):
-        self.P, self.Q = keep[fixed], keep[~fixed]
-        P, Q = self.P, self.Q
-        self.Mpp = sp.csc_matrix(N[np.ix_(P, P)])
+        P, Q = keep[fixed], keep[~fixed]
         self.Mqp = N[np.ix_(Q, P)]
         Mpq = sp.csr_matrix(N[np.ix_(P, Q)])
-        self.lu_pp = spla.splu(self.Mpp) if P.size else None
+        self.lu_pp = spla.splu(sp.csc_matrix(N[np.ix_(P, P)])) if P.size else None
         S = N[np.ix_(Q, Q)]
         self.X = None
         if Mpq.nnz:
@@ -194,7 +192,7 @@ class _FixedRowsSystem:
             return None
         mu = np.empty(self.size)
         mu[~self.fixed] = mu_q
-        if self.P.size:
+        if self.lu_pp is not None:
             mu[self.fixed] = self.lu_pp.solve(gp - self.Mqp.T @ mu_q, trans="T")
         return mu
 
