@@ -33,7 +33,7 @@ def parts(ev):
 def test_the_units_are_the_bodies_of_distinct_materials():
     ev = Evaluator(load_study(patch({"materials.block.E": [4e9, 6e9]})))
     m = ev.model
-    dofs, regions = m.units
+    dofs, regions = m.units.dofs, m.units.regions
     names = [m.smesh.regions[r[0]][0] for r in regions]
     assert sorted(names) == ["base", "block"] and all(len(r) == 1 for r in regions)
     assert np.array_equal(np.sort(np.concatenate(dofs)), np.arange(m.reduce.pattern.shape[0]))
@@ -43,7 +43,7 @@ def test_the_units_are_the_bodies_of_distinct_materials():
         assert K[d][:, other].nnz == 0
     one = patch({"materials.block.E": [4e9, 6e9]})
     one["scene"]["bodies"]["block"]["regions"][0]["material"] = "base"   # one material: one unit
-    assert len(Evaluator(load_study(one)).model.units[0]) == 1
+    assert len(Evaluator(load_study(one)).model.units.dofs) == 1
 
 
 def test_independent_young_moduli_keep_every_factorization_and_give_the_closed_form():
@@ -65,7 +65,7 @@ def test_a_poisson_ratio_refactors_its_own_unit_alone():
     ev = Evaluator(load_study(patch({"materials.block.nu": [0.0, 0.3], "materials.base.E": [1.5e10, 2.5e10]})))
     assert ev.evaluate(ev.study.nominal()).status == 0
     (fb, kb), (fk, kk) = parts(ev)
-    base = 0 if ev.model.smesh.regions[ev.model.units[1][0][0]][0] == "base" else 1
+    base = 0 if ev.model.smesh.regions[ev.model.units.regions[0][0]][0] == "base" else 1
     r = ev.evaluate({"materials.block.nu": 0.2, "materials.base.E": 1.7e10})
     assert r.status == 0, r.message
     now = parts(ev)
@@ -79,8 +79,8 @@ def test_stiffness_units_merge_components_of_one_material():
     """Three components (diagonal blocks), the first and third of one material: two units."""
     import scipy.sparse as sp
     K = sp.block_diag([np.ones((2, 2)), np.ones((3, 3)), np.ones((2, 2))]).tocsr()
-    dofs, regions = stiffness_units(K, [np.array([0, 1]), np.array([2, 4]), np.array([5, 6])], ["a", "b", "a"])
-    assert [d.tolist() for d in dofs] == [[0, 1, 5, 6], [2, 3, 4]] and regions == [[0, 2], [1]]
+    units = stiffness_units(K, [np.array([0, 1]), np.array([2, 4]), np.array([5, 6])], ["a", "b", "a"])
+    assert [d.tolist() for d in units.dofs] == [[0, 1, 5, 6], [2, 3, 4]] and units.regions == ([0, 2], [1])
 
 
 def test_a_product_with_k_over_the_moved_cells_is_the_assembled_product():

@@ -399,8 +399,8 @@ class Model:
         coef = self.stiffness_coefficients(c)
         nominal = self.stiffness_coefficients(self.nominal)
         star = nominal.copy()                   # a region acting on no DOF keeps its nominal moduli
-        scales = np.empty(len(self.units[1]))
-        for u, regions in enumerate(self.units[1]):
+        scales = np.empty(len(self.units.regions))
+        for u, regions in enumerate(self.units.regions):
             first = coef[regions[0], 1]
             ratio = np.array([float(f"{v:.11e}") for v in (coef[regions] / first).ravel()])
             star[regions] = ratio.reshape(len(regions), -1) * nominal[regions[0], 1]
@@ -416,7 +416,7 @@ class Model:
     def _unit_blocks(self, Ks: sp.csr_matrix) -> list[sp.csr_matrix]:
         """The units' diagonal blocks of Ks regularized on the pinned DOFs (`regularize`)."""
         Kreg = regularize(Ks, self.pinned)
-        dofs = self.units[0]
+        dofs = self.units.dofs
         if len(dofs) == 1:
             return [Kreg]
         blocks = []
@@ -431,7 +431,7 @@ class Model:
         held = self._cache.direction
         blocks = held[2] if held is not None and held[1] is Ks else self._unit_blocks(Ks)
         if self._cache.contact is None:
-            self._cache.contact = UnitFactors(self.units[0])
+            self._cache.contact = UnitFactors(self.units.dofs)
         C = sp.vstack([self.Bn_r, self.Bt_r]).tocsr()
         return self._cache.contact.of(blocks, C, self.pinned, scales)
 

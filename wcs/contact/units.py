@@ -23,9 +23,15 @@ from scipy.sparse.csgraph import connected_components
 from wcs.contact.solver import ContactFactor, factor_regularized
 
 
-def stiffness_units(pattern: sp.csr_matrix, region_dofs: list[np.ndarray], region_material: list[str]
-                    ) -> tuple[list[np.ndarray], list[list[int]]]:
-    """(dofs, regions) of each unit of the reduced stiffness with sparsity `pattern`: the
+@dataclass(frozen=True)
+class Units:
+    """The units of a reduced stiffness: each one's DOFs (ascending) and mesh regions."""
+    dofs: tuple
+    regions: tuple
+
+
+def stiffness_units(pattern: sp.csr_matrix, region_dofs: list[np.ndarray], region_material: list[str]) -> Units:
+    """The units of the reduced stiffness with sparsity `pattern`: the
     connected components of its graph, merged where two hold regions of one material; a unit's
     DOFs ascending, units by their first DOF, a unit's regions ascending. `region_dofs[j]`: the
     reduced DOFs region j's cells act on (a region acting on none joins no unit)."""
@@ -44,7 +50,7 @@ def stiffness_units(pattern: sp.csr_matrix, region_dofs: list[np.ndarray], regio
     dofs = [np.flatnonzero(of_dof == g) for g in groups]
     regions = [[j for j, d in enumerate(region_dofs) if d.size and of_dof[d[0]] == g] for g in groups]
     assert sum(d.size for d in dofs) == n
-    return dofs, regions
+    return Units(tuple(dofs), tuple(regions))
 
 
 @dataclass(frozen=True)
@@ -75,8 +81,8 @@ class UnitFactors:
     """One contact factor per unit, each refactored in place (its analysis kept) when the
     block it is asked for is not the one it holds (`ContactFactor.holds`)."""
 
-    def __init__(self, dofs: list[np.ndarray]):
-        self.dofs = tuple(dofs)
+    def __init__(self, dofs: tuple):
+        self.dofs = dofs
         self.parts: list[ContactFactor | None] = [None] * len(dofs)
 
     def of(self, blocks: list[sp.csr_matrix], C: sp.csr_matrix, pinned: np.ndarray, scales) -> ScaledUnits:
