@@ -24,7 +24,8 @@ import scipy.sparse as sp
 from . import linalg
 from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
-from .contact.solver import ContactResult, factor_contact, scaled, solve_contact
+from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
+from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, tied_rows
 from .errors import SolveError, StudyError
 from .fem import forms, tet
@@ -57,7 +58,7 @@ class Solution:
     # the matrices this solution factored, and the caches that factor them (`factor`, ...)
     stiffness: sp.csr_matrix | None = field(default=None, repr=False)
     conduction: sp.csr_matrix | None = field(default=None, repr=False)
-    scale: float = 1.0                     # the reduced stiffness of the data set is scale · stiffness
+    scale: np.ndarray | float = 1.0        # 3D contact: the data set's reduced stiffness is s_u · stiffness on unit u
     factors: SimpleNamespace | None = field(default=None, repr=False, compare=False)
 
     def factor(self):
@@ -69,9 +70,11 @@ class Solution:
         return self.factors.heat.of(self.conduction)
 
     def contact_factor(self, model):
-        """The contact factorization (`ContactFactor`) of this solution's reduced stiffness."""
+        """The contact factorization of this solution's reduced stiffness (`.factor.solve`, `.W`)."""
+        if model.units is not None:
+            return model.contact_operator(self.stiffness, self.scale)
         C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
-        return scaled(factor_contact(self.stiffness, C, model.R_r, self.factors.contact, model.dim == 3), self.scale)
+        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact, False)
 
 
 class Model:
@@ -126,6 +129,11 @@ class Model:
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
+        # 3D contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
+        self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)
+                      if d == 3 and self.zone is not None and self.solver_method != "qp" else None)
+        self.pinned = (pinned_dofs(self.R_r) if self.zone is not None and self.R_r is not None
+                       else np.zeros(0, dtype=int))
 
         self.G = (tet.strain_operator if d == 3 else strain_operator)(mesh.p, mesh.t)
         _, self.cell_area = (tet.gradient_operator if d == 3 else gradient_operator)(mesh.p, mesh.t)   # areas or volumes
@@ -134,11 +142,11 @@ class Model:
         self._cache = SimpleNamespace(
             elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
             heat=linalg.HeldFactor(spd=True),        # Cholesky of the reduced conduction matrix
-            contact=None,                            # the contact factorization, refactored in place
+            contact=None,                            # the contact factorization (3D: `UnitFactors`), refactored in place
             anchor=None,                             # contact state at the nominal data: other solves start from it
             anchor_tried=False,
             stiffness=None,                          # (coefficients, K) of the last K(c) assembled
-            direction=None)                          # (c*, K*) of the last 3D contact stiffness (`_contact_stiffness`)
+            direction=None)                          # (c*, K*, its units' blocks) of the last 3D contact stiffness
         for name, value in vars(self).items():
             if name != "_cache":
                 _read_only(value)
@@ -177,6 +185,16 @@ class Model:
         return solver_method(facts)
 
     # ---- structure -----------------------------------------------------------------
+    def _region_dofs(self) -> list[np.ndarray]:
+        """The reduced DOFs each region's cells act on."""
+        T = self.elim.T.tocsr()
+        d = self.dim
+        out = []
+        for cells in self.region_cells:
+            nodes = np.unique(self.smesh.mesh.t[:, cells])
+            out.append(np.unique(T[(d * nodes[:, None] + np.arange(d)).ravel()].indices))
+        return out
+
     def _region_materials(self, scene) -> list[str]:
         """The material of each mesh region (the loader names every region)."""
         material = {(body, r.name): r.material for body, spec in scene.bodies.items() for r in spec.regions}
@@ -335,7 +353,10 @@ class Model:
             body, modes = next(iter(floating.items()))
             raise StudyError(f"body '{body}' is not held: {_describe_modes(modes, self.dim)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
-        K, Kr, rhs, u0 = self.reduced_system(c, T)
+        if self.units is not None and self.solver_method == "monolithic":   # K(c) itself unused
+            Kr, rhs, u0 = None, *self._reduced_load(c, T)
+        else:
+            K, Kr, rhs, u0 = self.reduced_system(c, T)
         own = dict(coefficients=c, theta=theta, conduction=Kh, factors=cache)
         if self.zone is None:
             w = _factor(cache.elastic, Kr).solve(rhs)
@@ -360,31 +381,59 @@ class Model:
         return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), solver=used, iterations=iterations,
                         contact=contact, w=res.u, raw=res, stiffness=Ks, scale=scale, **own)
 
-    def _contact_stiffness(self, c: Coefficients, Kr) -> tuple[sp.csr_matrix, float]:
-        """(K*, s): the reduced stiffness the contact solver factors, and the scale s with which
-        the data set's stiffness is s K*. In 3D K is homogeneous of degree one in the moduli, so
-        data sets that differ by one factor on every λ and μ (a single Young's modulus, E
-        alone uncertain) share K* and its bordered factorization with the Delassus block W
-        (the cost of a 3D evaluation: 8 of 13 s on the tunnel at 1.1e5 unknowns): K* is
-        K(c*) with c* the moduli divided by the first region's μ, rounded to 12 significant
-        digits (so that round-off in λ/μ does not tell apart what is one direction), times the
-        nominal data's μ of that region; s = μ / μ_nominal there. The data set is then solved
-        with its moduli rounded at the 12th digit, a relative change of at most 5e-13, and its
-        answer depends on its data alone (K* on the direction, s on the data). 2D keeps K
-        itself (its answers are pinned to the bit), and so does the dual QP reference."""
-        if self.dim != 3 or self.solver_method == "qp":
+    def _contact_stiffness(self, c: Coefficients, Kr) -> tuple[sp.csr_matrix, np.ndarray | float]:
+        """(K*, s): the reduced stiffness the contact solver factors, and the scales s_u with
+        which the data set's stiffness is s_u K* on each unit u (`wcs.contact.units`). In 3D K
+        is homogeneous of degree one in the moduli, so data sets that differ by one factor on
+        every λ and μ of a unit (its Young's modulus) share its K*_u and its bordered
+        factorization with the Delassus block W*_u (the cost of a 3D evaluation: 8 of 13 s on
+        the tunnel at 1.1e5 unknowns): K* is K(c*) with c* on each unit the moduli divided by
+        the unit's first region's μ, rounded to 12 significant digits (so that round-off in
+        λ/μ does not tell apart what is one direction), times the nominal data's μ of that
+        region; s_u = μ / μ_nominal there. The data set is then solved with its moduli rounded
+        at the 12th digit, a relative change of at most 5e-13, and its answer depends on its
+        data alone (K* on the directions, s on the data). 2D keeps K itself (its answers are
+        pinned to the bit), and so does the dual QP reference."""
+        if self.units is None:
             return Kr, 1.0
         coef = self.stiffness_coefficients(c)
-        first = coef[0, 1]
-        nominal = self.stiffness_coefficients(self.nominal)[0, 1]
-        star = np.array([float(f"{v:.11e}") for v in (coef / first).ravel()]).reshape(coef.shape) * nominal
+        nominal = self.stiffness_coefficients(self.nominal)
+        star = nominal.copy()                   # a region acting on no DOF keeps its nominal moduli
+        scales = np.empty(len(self.units.regions))
+        for u, regions in enumerate(self.units.regions):
+            first = coef[regions[0], 1]
+            ratio = np.array([float(f"{v:.11e}") for v in (coef[regions] / first).ravel()])
+            star[regions] = ratio.reshape(len(regions), -1) * nominal[regions[0], 1]
+            scales[u] = first / nominal[regions[0], 1]
         key = star.tobytes()
         held = self._cache.direction
         if held is None or held[0] != key:
             Ks = self.reduce(self.K(star))
             _read_only(Ks)
-            held = self._cache.direction = (key, Ks)
-        return held[1], first / nominal
+            held = self._cache.direction = (key, Ks, self._unit_blocks(Ks))
+        return held[1], scales
+
+    def _unit_blocks(self, Ks: sp.csr_matrix) -> list[sp.csr_matrix]:
+        """The units' diagonal blocks of Ks regularized on the pinned DOFs (`regularize`)."""
+        Kreg = regularize(Ks, self.pinned)
+        dofs = self.units.dofs
+        if len(dofs) == 1:
+            return [Kreg]
+        blocks = []
+        for d in dofs:
+            B = Kreg[d][:, d].tocsr()
+            B.sort_indices()
+            blocks.append(B)
+        return blocks
+
+    def contact_operator(self, Ks: sp.csr_matrix, scales):
+        """The solves with K = blockdiag(s_u K*_u) and its W (`UnitFactors.of`), Ks = K*."""
+        held = self._cache.direction
+        blocks = held[2] if held is not None and held[1] is Ks else self._unit_blocks(Ks)
+        if self._cache.contact is None:
+            self._cache.contact = UnitFactors(self.units.dofs)
+        C = sp.vstack([self.Bn_r, self.Bt_r]).tocsr()
+        return self._cache.contact.of(blocks, C, self.pinned, scales)
 
     def reduced_system(self, c: Coefficients, T: np.ndarray | None):
         """(K, Kr, rhs, u0): the stiffness, Kr = Tᵀ K T on its fixed pattern, the reduced load
@@ -392,6 +441,14 @@ class Model:
         K = self.stiffness(c)
         u0 = self.elim.U0 @ c.support_values
         return K, self.reduce(K), self.Tt @ (self.mechanical_load(c, T) - K @ u0), u0
+
+    def _reduced_load(self, c: Coefficients, T: np.ndarray | None):
+        """(rhs, u0) of `reduced_system` with K(c) u0 summed over the cells the supports move
+        (`CellAffineOperator.apply`), K(c) not assembled: a 3D contact solve factors K* of its
+        units' directions (`_contact_stiffness`), not K(c) (0.2 s at 1e5 unknowns)."""
+        u0 = self.elim.U0 @ c.support_values
+        Ku0 = self.K.apply(self.stiffness_coefficients(c), u0)
+        return self.Tt @ (self.mechanical_load(c, T) - Ku0), u0
 
     def _solve_dd(self, c, Kr, rhs, u0):
         from .dd.solver import solve_dd     # the DD modules (and scipy.spatial) load only for method dd
@@ -409,8 +466,8 @@ class Model:
         theta, Kh = self._heat_theta(c)
         return self.P @ theta, theta, Kh
 
-    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale: float = 1.0):
-        """The contact problem of stiffness scale · Kr (`_contact_stiffness`)."""
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0):
+        """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`)."""
         z = self.zone
         cache = self._cache
         g, F = c.slip, c.coulomb
@@ -421,11 +478,17 @@ class Model:
             from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
+            factored = None
+            if self.units is not None:
+                try:
+                    factored = self.contact_operator(Kr, scale)
+                except linalg.FactorizationError as exc:
+                    raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from exc
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
                                 R=self.R_r, tol=tol, max_iter=max_iter,
                                 warm=warm if warm is not None or nominal or not self._anchored else cache.anchor,
-                                factor=cache.contact, tol_fp=tol,
-                                max_fp_iter=self.options.max_fixed_point_iterations, scale=scale)
+                                factor=cache.contact, factored=factored, tol_fp=tol,
+                                max_fp_iter=self.options.max_fixed_point_iterations)
             if cache.contact is None:
                 cache.contact = res.factor      # one factor object, refactored in place from now on
         anchor = nominal and self._anchored and warm is None

@@ -5,13 +5,17 @@
   matrix (basis + `asm` of linear elasticity); also the once-per-mesh set-up (cell matrices and
   the sparse pattern) against it. Goal: ≤ 0.2×. The matrices agree to round-off.
 - warm evaluation: a second `evaluate` of a 3D contact study (the Tresca shear patch of
-  studies/validation at ≈ 1e5 unknowns) with new materials, loads and slip limits, against
-  one PARDISO analysis + factorization + solve of the same reduced stiffness (`wcs.linalg`;
-  regularized on the floating block's pinned DOFs as the contact solve factors it).
-  Goal: ≤ 0.5×. The memory peak of the process (resident set, `resource.getrusage`) is
-  reported beside it, and the evaluation whose moduli differ from the last by one factor
-  (no refactorization, `Model._contact_stiffness`): what is left is the condensed Newton on
-  the 1437 contact nodes (4311 rows).
+  studies/validation at ≈ 1e5 unknowns) with new materials (the Young's moduli of both bodies),
+  loads and slip limits, against one PARDISO analysis + factorization + solve of the same
+  reduced stiffness (`wcs.linalg`; regularized on the floating block's pinned DOFs as the
+  contact solve factors it). Goal: ≤ 0.5×. Each body is a unit of the stiffness factored on its
+  own (`wcs.contact.units`), so new Young's moduli only rescale the units' W*_u and solves; the
+  condensed Newton on the 1437 contact nodes (4311 rows) is what is left. Reported beside it:
+  the memory peak of the process (resident set, `resource.getrusage`), the evaluation whose
+  moduli differ from the last by one factor, and one with a new Poisson ratio of the block
+  (its unit refactored, the base's factorization kept). Measured (quiet 2 cores, one thread):
+  warm 1.30–1.82 s against PARDISO 3.75–4.44 s, 0.35–0.41× (4.56× before the units: every
+  new modulus refactored the whole bordered matrix); the Poisson ratio 11.6 s, 3.1×.
 - the tunnel's contact solve at ≈ 1e5 unknowns (studies/tunnel-fault-3d.yaml at 0.4 m near the
   tunnel, 0.8 m along the fault: 8.7e4 unknowns, 3152 fault nodes, 9456 contact rows): one cold
   nominal evaluation (Tresca, Newton from the glued state), its bordered factorization (W, the
@@ -88,7 +92,7 @@ def test_a_warm_evaluation_costs_at_most_half_a_pardiso_analysis_factor_and_solv
     doc = yaml.safe_load((STUDIES / "validation" / "tresca-shear-patch-3d.yaml").read_text())
     doc["scene"]["mesh"]["size"] = 0.03                      # two unit blocks: ≈ 1e5 unknowns
     doc["uncertain"].update({"materials.block.E": [4.0e9, 6.0e9], "materials.base.E": [1.8e10, 2.2e10],
-                             "loads.block_top_load.pressure": [0.8e6, 1.2e6]})
+                             "loads.block_top_load.pressure": [0.8e6, 1.2e6], "materials.block.nu": [0.0, 0.3]})
     path = tmp_path / "shear-patch-1e5.yaml"
     path.write_text(yaml.safe_dump(doc))
     t = time.perf_counter()
@@ -98,19 +102,27 @@ def test_a_warm_evaluation_costs_at_most_half_a_pardiso_analysis_factor_and_solv
     assert first.status == 0, first.message
     box = ev.study.parameters
     rng = np.random.default_rng(7)
+    names = list(box.names)
+    nu = names.index("materials.block.nu")
     data = [box.lower + (box.upper - box.lower) * rng.random(len(box)) for _ in range(2)]  # new materials, loads, slip limit
+    for x in data:
+        x[nu] = 0.0                                                # the Young's moduli: no refactorization
     t_warm, s_warm, warm = measure(lambda: [ev.evaluate(x) for x in data], 1)
     assert all(w.status == 0 for w in warm), [w.message for w in warm]
     assert len({w.phi["slip"] for w in warm}) == len(data)         # different answers
     t_warm /= len(data)
     # both moduli by one factor (the direction of data[-1]'s moduli kept): no refactorization
-    names = list(box.names)
     moduli = [names.index("materials.block.E"), names.index("materials.base.E")]
     factor = 1.01 if np.all(data[-1][moduli] * 1.01 <= box.upper[moduli]) else 0.99
     one = data[0].copy()
     one[moduli] = data[-1][moduli] * factor
     t_one, _, same_direction = measure(lambda: ev.evaluate(one), 1)
     assert same_direction.status == 0 and same_direction.state.stiffness is warm[-1].state.stiffness
+    # the block's Poisson ratio: its unit refactored (the base's factorization kept)
+    poisson = data[1].copy()
+    poisson[nu] = 0.2
+    t_nu, _, turned = measure(lambda: ev.evaluate(poisson), 1)
+    assert turned.status == 0 and turned.state.stiffness is not warm[-1].state.stiffness
     c = ev.map.coefficients(*ev.study.data_set(data[-1]))
     _, Kr, rhs, _ = ev.model.reduced_system(c, None)
     Kr = regularize(Kr, pinned_dofs(ev.model.R_r))     # the matrix the contact solve factors (the block floats in z)
@@ -124,6 +136,8 @@ def test_a_warm_evaluation_costs_at_most_half_a_pardiso_analysis_factor_and_solv
             ["ratio warm / PARDISO", f"{t_warm / t_pardiso:.3f}"],
             ["warm evaluation, moduli by one factor [s]", f"{t_one:.3f}"],
             ["ratio, moduli by one factor / PARDISO", f"{t_one / t_pardiso:.3f}"],
+            ["warm evaluation, a Poisson ratio of one body [s]", f"{t_nu:.3f}"],
+            ["ratio, a Poisson ratio / PARDISO", f"{t_nu / t_pardiso:.3f}"],
             ["memory peak (RSS) [GB]", f"{peak:.2f}"],
             ["backend", linalg.backend()]]
     write_table("bench_3d_warm", ["quantity", "value"], rows)

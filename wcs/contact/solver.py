@@ -128,26 +128,6 @@ class ContactFactor:
         return self
 
 
-@dataclass(frozen=True)
-class ScaledSolve:
-    """Solves with K = scale · K* from a factor of K* (`factor`)."""
-
-    factor: object
-    scale: float
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.factor.solve(b) / self.scale
-
-
-def scaled(cf: ContactFactor, scale: float) -> ContactFactor:
-    """A view of the contact factor `cf` of K* as one of scale · K*: its solves and W = C K⁺ Cᵀ
-    divided by `scale` (K⁺ scales as 1/scale; the regularized DOFs too, their springs being
-    K's own diagonal). The view is not refactored: `update` belongs to `cf`."""
-    if scale == 1.0:
-        return cf
-    return dataclasses.replace(cf, factor=ScaledSolve(cf.factor, scale), W=cf.W / scale)
-
-
 def _same(A, B) -> bool:
     """A = B entry by entry (both sparse, or both dense)."""
     if sp.issparse(A):
@@ -207,9 +187,14 @@ def factor_contact(K, C: sp.csr_matrix, R, reuse: ContactFactor | None, bordered
     a solve, mostly the dense inverse and the triple product); 2D keeps the block: its zones
     are small (2D Hertz at 1.2e5 unknowns, 446 rows: both 2.3 s) and its results are pinned to
     the bit (the bordered W moves them by up to 3e-12, enough to turn near-tied searches)."""
-    S = np.unique(C.indices)
     pinned = pinned_dofs(R) if R is not None else np.zeros(0, dtype=int)
-    Kr = regularize(K, pinned)
+    return factor_regularized(regularize(K, pinned), C, pinned, reuse, bordered)
+
+
+def factor_regularized(Kr: sp.csr_matrix, C: sp.csr_matrix, pinned: np.ndarray, reuse: ContactFactor | None,
+                       bordered: bool = True) -> ContactFactor:
+    """`factor_contact` of a K already regularized on the DOFs `pinned` (`regularize`)."""
+    S = np.unique(C.indices)
     if reuse is not None and np.array_equal(reuse.S, S) and np.array_equal(reuse.pinned, pinned):
         return reuse.update(Kr, C)
     if bordered:
@@ -239,7 +224,8 @@ def free_rigid_motion(G: np.ndarray, held: np.ndarray) -> np.ndarray | None:
         return None
     scale = np.maximum(np.linalg.norm(G, axis=1), 1e-300)
     A = G[:, held].T / scale
-    sv, vt = (np.linalg.svd(A)[1:] if A.shape[0] else (np.zeros(0), np.eye(r)))
+    # V of A's SVD, not U: a thin one (the full U of the ~5000 held rows cost 85 ms a solve)
+    sv, vt = (np.linalg.svd(A, full_matrices=A.shape[0] < r)[1:] if A.shape[0] else (np.zeros(0), np.eye(r)))
     rank = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0
     if rank == r:
         return None
@@ -594,8 +580,9 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     lam0[J] = fixed_values[J]                                 # gw ν
     # Vᵀ W V, its upper triangle only (what the Cholesky factorization reads), written in place
     H = np.empty((p + ns, p + ns))
-    H[:p, :p] = W[np.ix_(plain, plain)]
-    A = W[np.ix_(rows, J[:, 0])] * tau[:, 0] + W[np.ix_(rows, J[:, 1])] * tau[:, 1]    # (W V) on the disc columns
+    H[:p, :p] = _take(W, plain, plain)
+    A = _take(W, rows, J[:, 0]) * tau[:, 0]                   # (W V) on the disc columns
+    A += _take(W, rows, J[:, 1]) * tau[:, 1]
     H[:p, p:] = A[:p]
     H[p:, p:] = tau[:, :1] * A[p:p + ns] + tau[:, 1:] * A[p + ns:]
     H[np.arange(p, p + ns), np.arange(p, p + ns)] += delta
@@ -619,6 +606,27 @@ def _disc_frame_step(W, q, G, e, F, lam, fixed_values, disc, c):
     lam0[plain] += y[:p]
     lam0[J] += y[p:, None] * tau
     return lam0, alpha
+
+
+def _range(index: np.ndarray):
+    """The slice of an ascending run of consecutive indices, else None."""
+    if len(index) and index[-1] - index[0] == len(index) - 1 and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return None
+
+
+def _take(W: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """W[rows][:, cols], a view where both are runs (every contact closed and every node on a
+    disc slipping: the rows of W in its own order; a gather of W's 4311 rows by 1437 columns
+    was a third of a Newton step on the 3D shear patch)."""
+    r, c = _range(rows), _range(cols)
+    if r is not None and c is not None:
+        return W[r, c]
+    if r is not None:
+        return W[r][:, cols]
+    if c is not None:
+        return W[rows, c]
+    return W[np.ix_(rows, cols)]
 
 
 def _first_free_set(warm, gw, k=1):
@@ -672,18 +680,18 @@ def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
                   factored: ContactFactor | None = None,
-                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True,
-                  scale: float = 1.0) -> ContactResult:
+                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
 
     warm:   a previous result on the same mesh; its multipliers start the Newton
             iteration and its factor is refactored (same pattern) unless `factor` is given.
             The factor object is updated in place.
-    factored: a factor the caller vouches holds K (regularized on `pinned_dofs(R)` when R is
-            given) and W of these contact rows — made once for many solves with the same K
-            and rows (a DD pair's per data set): used as it is, with no regularization of K,
-            comparison or refactor (`factor_contact`'s per-call work); `factor` and `warm`'s
-            factor are then not used, nor is K.
+    factored: what the caller vouches solves with K (regularized on `pinned_dofs(R)` when R
+            is given) and holds W of these contact rows (`.factor.solve`, `.W`) — made once for
+            many solves with the same K and rows (a DD pair's per data set), or from the
+            factors of K's units (`wcs.contact.units`): used as it is, with no regularization
+            of K, comparison or refactor (`factor_contact`'s per-call work); `factor` and
+            `warm`'s factor are then not used, nor is K.
     Coulomb: slip limit g + F p (both may be given: contacts of either law in one zone);
             fixed point over Tresca problems started from the all-stick (glued) solution
             — which also holds a floating body that only friction keeps in place — or
@@ -694,8 +702,6 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             depends on f only through Rᵀf): the linear program is not run again.
     qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
             (CONTACT_NOT_CONVERGED).
-    scale:  the stiffness is scale · K: K is factored (the factor returned is K's), the
-            problem solved is that of scale · K (`scaled`).
     """
     t0 = time.perf_counter()
     timings = {}
@@ -725,14 +731,13 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     try:
         cf = factored if factored is not None else \
             factor_contact(K, C, R, factor if factor is not None else (warm.factor if warm else None), k > 1)
-        solver = scaled(cf, scale)
-        u0 = solver.factor.solve(f)
+        u0 = cf.factor.solve(f)
     except linalg.FactorizationError as exc:
         return ContactResult(None, None, None, Status.SINGULAR, f"factorization failed: {exc}", timings=timings)
     timings["factor"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    W = solver.W
+    W = cf.W
     q = C @ u0 - np.r_[d, np.zeros(k * m)]
     G = (C @ R).T if R is not None else np.zeros((0, (1 + k) * m))
     null = null_rows(W)
@@ -782,7 +787,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
                              f"the solution is not unique: the rigid motion v = Rβ, β = "
                              f"{np.array2string(beta, precision=4)}, moves no closed or stuck contact node",
                              iters, fp_iters, alpha=beta, timings=timings)
-    u = solver.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
+    u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
     if violation:

@@ -102,6 +102,17 @@ class CellAffineOperator:
         K.sort_indices()
         return K
 
+    def apply(self, coefficients, x: np.ndarray) -> np.ndarray:
+        """K(c) x without assembling K(c): summed over the cells on which x is not zero only
+        (for a support's displacement, the cells along the support)."""
+        b = self.block
+        X = np.asarray(x, dtype=float).reshape(-1, b)[self._t.T]                 # (nc, n, b)
+        cells = np.flatnonzero(X.reshape(X.shape[0], -1).any(axis=1))
+        c = np.asarray(coefficients, dtype=float).reshape(-1, self.npieces)[self.group[cells]]
+        y = np.einsum("ek,keabij,ebj->eai", c, self.local[:, cells], X[cells], optimize=True)
+        dofs = b * self._t[:, cells].T[:, :, None] + np.arange(b)                  # (cells, n, b)
+        return np.bincount(dofs.ravel(), weights=y.ravel(), minlength=self.shape[0])
+
     def sensitivities(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(ngroups, npieces): Σ over the cells of each group of a_cellᵀ K^k_cell b_cell, i.e.
         the derivative of aᵀ K(c) b with respect to each coefficient (K is affine in c)."""

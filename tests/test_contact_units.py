@@ -1,0 +1,94 @@
+"""3D contact on the units of the stiffness (`wcs.contact.units`): bodies whose Young's moduli
+move independently share their factorizations, a Poisson ratio refactors its own body alone,
+and the answers are those of the data (the shear patch's closed form, a fresh evaluator's bits).
+
+Tolerances: the shear patch's exact solution is piecewise linear, which P1 reproduces to
+round-off; 1e-6 relative is its closed-form test's (tests/test_3d_patch.py), above the Newton
+tolerance 1e-10 and the 12-digit rounding of the moduli's directions (5e-13)."""
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from wcs.contact.units import stiffness_units
+from wcs.evaluation import Evaluator
+from wcs.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+SHEAR = ROOT / "studies" / "validation" / "tresca-shear-patch-3d.yaml"
+G, DELTA, H = 3.0e5, 1.0e-3, 0.5                 # the shear patch's slip limit, top motion, height
+
+
+def patch(uncertain: dict) -> dict:
+    d = yaml.safe_load(SHEAR.read_text())
+    d["uncertain"] = uncertain
+    return d
+
+
+def parts(ev):
+    """The factor each unit holds now and the values it factored (a refactor replaces K_data)."""
+    return [(p.factor, p.K_data) for p in ev.model._cache.contact.parts]
+
+
+def test_the_units_are_the_bodies_of_distinct_materials():
+    ev = Evaluator(load_study(patch({"materials.block.E": [4e9, 6e9]})))
+    m = ev.model
+    dofs, regions = m.units.dofs, m.units.regions
+    names = [m.smesh.regions[r[0]][0] for r in regions]
+    assert sorted(names) == ["base", "block"] and all(len(r) == 1 for r in regions)
+    assert np.array_equal(np.sort(np.concatenate(dofs)), np.arange(m.reduce.pattern.shape[0]))
+    K = m.reduce.pattern.tocsr()
+    for a, d in enumerate(dofs):                 # no stiffness entry couples two units
+        other = np.setdiff1d(np.arange(K.shape[0]), d)
+        assert K[d][:, other].nnz == 0
+    one = patch({"materials.block.E": [4e9, 6e9]})
+    one["scene"]["bodies"]["block"]["regions"][0]["material"] = "base"   # one material: one unit
+    assert len(Evaluator(load_study(one)).model.units.dofs) == 1
+
+
+def test_independent_young_moduli_keep_every_factorization_and_give_the_closed_form():
+    ev = Evaluator(load_study(patch({"materials.block.E": [4e9, 6e9], "materials.base.E": [1.5e10, 2.5e10]})))
+    assert ev.evaluate(ev.study.nominal()).status == 0
+    held = parts(ev)
+    for e_block, e_base in [(4e9, 2.5e10), (6e9, 1.5e10), (4.7e9, 2.2e10)]:
+        r = ev.evaluate({"materials.block.E": e_block, "materials.base.E": e_base})
+        assert r.status == 0, r.message
+        assert all(f is f0 and k is k0 for (f, k), (f0, k0) in zip(parts(ev), held))   # no refactor
+        slip = DELTA - G * H * (2 / e_block + 2 / e_base)                   # ν = 0: μ = E / 2
+        s = r.state.contact.by_node(r.state.contact.slip)
+        assert np.abs(s - [slip, 0.0]).max() < 1e-6 * slip
+        fresh = Evaluator(ev.study).evaluate(r.x)
+        assert np.array_equal(fresh.state.u, r.state.u)
+
+
+def test_a_poisson_ratio_refactors_its_own_unit_alone():
+    ev = Evaluator(load_study(patch({"materials.block.nu": [0.0, 0.3], "materials.base.E": [1.5e10, 2.5e10]})))
+    assert ev.evaluate(ev.study.nominal()).status == 0
+    (fb, kb), (fk, kk) = parts(ev)
+    base = 0 if ev.model.smesh.regions[ev.model.units.regions[0][0]][0] == "base" else 1
+    r = ev.evaluate({"materials.block.nu": 0.2, "materials.base.E": 1.7e10})
+    assert r.status == 0, r.message
+    now = parts(ev)
+    assert now[base][1] is (kb, kk)[base]                       # the base: its factor kept (E alone)
+    assert now[1 - base][1] is not (kb, kk)[1 - base]           # the block: refactored
+    fresh = Evaluator(ev.study).evaluate(r.x)
+    assert np.array_equal(fresh.state.u, r.state.u) and fresh.phi == r.phi
+
+
+def test_stiffness_units_merge_components_of_one_material():
+    """Three components (diagonal blocks), the first and third of one material: two units."""
+    import scipy.sparse as sp
+    K = sp.block_diag([np.ones((2, 2)), np.ones((3, 3)), np.ones((2, 2))]).tocsr()
+    units = stiffness_units(K, [np.array([0, 1]), np.array([2, 4]), np.array([5, 6])], ["a", "b", "a"])
+    assert [d.tolist() for d in units.dofs] == [[0, 1, 5, 6], [2, 3, 4]] and units.regions == ([0, 2], [1])
+
+
+def test_a_product_with_k_over_the_moved_cells_is_the_assembled_product():
+    ev = Evaluator(load_study(patch({"materials.block.E": [4e9, 6e9]})))
+    m = ev.model
+    coef = m.stiffness_coefficients(m.nominal)
+    x = np.zeros(m.dim * m.nnodes)
+    moved = np.random.default_rng(3).choice(m.nnodes, 20, replace=False)
+    x[(3 * moved[:, None] + np.arange(3)).ravel()] = np.random.default_rng(4).standard_normal(60)
+    K = m.K(coef)
+    assert np.abs(m.K.apply(coef, x) - K @ x).max() <= 1e-13 * np.abs(K @ x).max()
