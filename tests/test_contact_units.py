@@ -92,3 +92,26 @@ def test_a_product_with_k_over_the_moved_cells_is_the_assembled_product():
     x[(3 * moved[:, None] + np.arange(3)).ravel()] = np.random.default_rng(4).standard_normal(60)
     K = m.K(coef)
     assert np.abs(m.K.apply(coef, x) - K @ x).max() <= 1e-13 * np.abs(K @ x).max()
+
+
+def test_a_random_sequence_of_data_sets_gives_a_fresh_evaluators_bits():
+    """Young's moduli, a Poisson ratio (two values, so that a direction comes back), the load and
+    the slip limit drawn at random, one after another on one evaluator: each answer is a fresh
+    evaluator's to the bit (units refactored, kept or rescaled in every order)."""
+    ev = Evaluator(load_study(patch({"materials.block.E": [4e9, 6e9], "materials.base.E": [1.5e10, 2.5e10],
+                                     "materials.block.nu": [0.0, 0.3], "materials.base.nu": [0.0, 0.3],
+                                     "loads.block_top_load.pressure": [0.8e6, 1.2e6],
+                                     "contacts.interface.friction.slip_limit": [2.5e5, 3.5e5]})))
+    box = ev.study.parameters
+    names = list(box.names)
+    lo, hi = np.array(box.lower, float), np.array(box.upper, float)
+    rng = np.random.default_rng(11)
+    for i in range(6):
+        x = lo + (hi - lo) * rng.random(lo.size)
+        for k, name in enumerate(names):
+            if name.endswith(".nu"):
+                x[k] = [0.0, 0.2][rng.integers(2)]
+        got = ev.evaluate(x)
+        want = Evaluator(ev.study).evaluate(x)
+        assert got.status == want.status == 0, (got.message, want.message)
+        assert got.phi == want.phi and np.array_equal(got.state.u, want.state.u), i
