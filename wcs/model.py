@@ -487,7 +487,7 @@ class Model:
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
                                 R=self.R_r, tol=tol, max_iter=max_iter,
                                 warm=warm if warm is not None or nominal or not self._anchored else cache.anchor,
-                                factor=cache.contact, factored=factored, tol_fp=tol,
+                                factor=None if factored else cache.contact, factored=factored, tol_fp=tol,
                                 max_fp_iter=self.options.max_fixed_point_iterations)
             if cache.contact is None:
                 cache.contact = res.factor      # one factor object, refactored in place from now on
