@@ -115,3 +115,24 @@ def test_a_random_sequence_of_data_sets_gives_a_fresh_evaluators_bits():
         want = Evaluator(ev.study).evaluate(x)
         assert got.status == want.status == 0, (got.message, want.message)
         assert got.phi == want.phi and np.array_equal(got.state.u, want.state.u), i
+
+
+def test_a_body_apart_from_the_contact_is_a_unit_of_its_own():
+    """A third block, clamped and pressed, touching neither contact body: its unit reaches no
+    contact row (its W block is zero); the patch keeps its closed form, the data their bits."""
+    d = patch({"materials.third.E": [0.8e10, 1.2e10], "materials.block.E": [4e9, 6e9],
+               "materials.third.nu": [0.2, 0.3]})
+    sc = d["scene"]
+    sc["materials"]["third"] = {"E": 1.0e10, "nu": 0.25}
+    sc["bodies"]["third"] = {"regions": [{"material": "third", "shape": {"box": [2, 0, -0.5, 3, 1, 0]}}]}
+    sc["boundaries"]["third_top"] = {"body": "third", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}}
+    sc["loads"]["third_top"] = {"pressure": 1.0e6}
+    ev = Evaluator(load_study(d))
+    assert len(ev.model.units.dofs) == 3
+    for x in [ev.study.nominal(), {"materials.third.E": 1.1e10, "materials.block.E": 4.5e9, "materials.third.nu": 0.22}]:
+        r = ev.evaluate(x)
+        assert r.status == 0, r.message
+        e_block = dict(zip(ev.study.parameters.names, r.x))["materials.block.E"]
+        slip = DELTA - G * H * (2 / e_block + 2 / 2.0e10)
+        assert abs(r.phi["slip"] - slip) < 1e-6 * slip
+        assert np.array_equal(Evaluator(ev.study).evaluate(r.x).state.u, r.state.u)
