@@ -31,11 +31,11 @@ the tunnel at ×0.33 same data 1.46–1.49 / 1.48–1.64×, new data 1.84 / 1.80
 same-data solve goes (exclusive seconds per rank, best solve; serial → the pair's rank / the
 other): products 0.075 → 0.032–0.036 / 0.031–0.034, interior solves 0.021 → 0.012–0.014 /
 0.007–0.010, the pair's 4 local contact solves 0.023 → 0.022–0.023 / 0 (the first from all
-closed: 13 semismooth Newton steps, 9.8 ms; then 3, 2, 1 steps in 4.2–5.0 ms each, ~3 ms of
-which are its memory-bound products with Σ⁰_BB, Σ⁰_Bc and two solves with the 848-row Cholesky
-factor), coarse projections 0.006 → 0.005 on each, Python and vector work 0.013 → 0.011 on
-each, gathers 0.010–0.012 on the pair's rank (two per PCG iteration, each waiting for the
-slower rank's products). The contact solves stay on one rank: Hertz's contact side is one
+closed: 13 semismooth Newton steps, 9.7–9.9 ms; then 3, 2, 1 steps in 4.1–5.2 ms each, ~3 ms
+of which outside the Newton steps: two solves with the 848-row Cholesky factor, 1.5 ms, and the
+products with Σ⁰_Bc and Σ⁰_BB), coarse projections 0.006 → 0.005 on each, Python and vector
+work 0.013 → 0.011 on each, gathers 0.010–0.012 on the pair's rank (two per PCG iteration,
+each waiting for the slower rank's products). The contact solves stay on one rank: Hertz's contact side is one
 connected curve, two neighbouring contact nodes share a cell, so a cut into two pairs puts a
 contact node on Γ (wcs/dd/partition.py, rule 2). Without them (0.130 − 0.023) / (0.095 −
 0.023) = 1.49×, split evenly over two pairs ≈ 1.56×: the 1.6× of issue 12 on the same data
