@@ -22,7 +22,27 @@ repeats, ranges over 3–5 runs at load 1.2–1.7): one solve, Hertz same / new 
 contact solves, 0.031 s, and the replicated coarse projections, 0.009 s, of a 0.153 s serial
 solve) caps its same data near 1.5×. A whole study at the DD's sizes (the tunnel at ×0.4,
 7.4e4 unknowns, budget 40: 22 evaluations) 1.67–1.78× (1.78 after the packed products); at ×1 (1.5e4) 1.36–1.45×, where the
-replicated set-up and the single corner steps weigh a third."""
+replicated set-up and the single corner steps weigh a third.
+Then (a vector's sum over units by one gather and one bincount: 67–71 → 32–33 µs on 2 ranks,
+bitwise the same; main and the branch alternated, best of 11 repeats, the machine at load
+1.1–1.4 from another user's jobs): Hertz same data main 1.35–1.43×, branch 1.36–1.44× (2 ranks
+0.093–0.096 → 0.092–0.096 s); new data 1.58 / 1.57× (one main run at 1.02: the other user);
+the tunnel at ×0.33 same data 1.46–1.49 / 1.48–1.64×, new data 1.84 / 1.80×. Where Hertz's
+same-data solve goes (exclusive seconds per rank, best solve; serial → the pair's rank / the
+other): products 0.075 → 0.032–0.036 / 0.031–0.034, interior solves 0.021 → 0.012–0.014 /
+0.007–0.010, the pair's 4 local contact solves 0.023 → 0.022–0.023 / 0 (the first from all
+closed: 13 semismooth Newton steps, 9.7–9.9 ms; then 3, 2, 1 steps in 4.1–5.2 ms each, ~3 ms
+of which outside the Newton steps: two solves with the 848-row Cholesky factor, 1.5 ms, and the
+products with Σ⁰_Bc and Σ⁰_BB), coarse projections 0.006 → 0.005 on each, Python and vector
+work 0.013 → 0.011 on each, gathers 0.010–0.012 on the pair's rank (two per PCG iteration,
+each waiting for the slower rank's products). The contact solves stay on one rank: Hertz's contact side is one
+connected curve, two neighbouring contact nodes share a cell, so a cut into two pairs puts a
+contact node on Γ (wcs/dd/partition.py, rule 2). Without them (0.130 − 0.023) / (0.095 −
+0.023) = 1.49×, split evenly over two pairs ≈ 1.56×: the 1.6× of issue 12 on the same data
+needs the contact solves and the replicated work (coarse, Python, gathers: ≈ 0.03 s on each
+rank) off the critical path together. Distributing a projection onto the 33 coarse modes
+(0.1 ms) costs a gather (13 µs, plus the ranks' skew, 30–100 µs); a Newton step's contact
+solve needs its PCG's answer and the next PCG its residual, so nothing else overlaps it."""
 import subprocess
 import sys
 from pathlib import Path

@@ -112,6 +112,7 @@ class Team:
         self.timings = defaultdict(float)
         self.messages = 0
         self.probe = bool(os.environ.get("WCS_DD_PROBE"))
+        self._plans = {}                   # `_Plan` of every unit list summed (by unit indices)
 
     def mine(self, u) -> bool:
         return self.owner[u.index] == self.rank
@@ -141,26 +142,38 @@ class Team:
     # ---- reductions -----------------------------------------------------------------------
     def sum(self, units, pieces: dict, nif: int, tail: tuple = ()) -> np.ndarray:
         """Σ_u R_uᵀ x_u over `units` in their order; `pieces`: {unit index: x_u} for the
-        units this rank owns (x_u of shape (|Γ_u|,) + tail). Same bits on every rank."""
-        out = np.zeros((nif,) + tail)
-        if self.comm is None:
+        units this rank owns (x_u of shape (|Γ_u|,) + tail). Same bits on every rank.
+
+        A vector (no tail) by one gather and one `np.bincount` over the pieces in unit order
+        (`_Plan`): bincount adds its weights one by one in input order from 0, so every entry
+        is ((0 + x_a) + x_b) + … in unit order, the bits of the loop over the units. Measured on
+        Hertz's 11 units (1.05e5 unknowns): 67–71 → 32–33 µs a sum on 2 ranks (the gather alone
+        13 µs), 23–34 → 12–25 µs serial; a solve sums about 110 times."""
+        if tail:
+            out = np.zeros((nif,) + tail)
+            allp = self.gather_pieces(units, pieces, tail)
             for u in units:
-                out[u.gamma] += pieces[u.index]
+                out[u.gamma] += allp[u.index]
             return out
-        allp = self.gather_pieces(units, pieces, tail)
-        for u in units:
-            out[u.gamma] += allp[u.index]
-        return out
+        plan = self._plan(units)
+        send = np.concatenate([pieces[i] for i in plan.own]) if plan.own else np.zeros(0)
+        if self.comm is None:
+            values = send
+        else:
+            values = self._allgatherv(send, plan.counts, plan.displ)[plan.order]
+        return np.bincount(plan.gamma, values, minlength=nif)
+
+    def _plan(self, units) -> "_Plan":
+        key = tuple(u.index for u in units)
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = self._plans[key] = _Plan(units, self.owner, self.rank, self.size)
+        return plan
 
     def gather_pieces(self, units, pieces: dict, tail: tuple = ()) -> dict:
         """{unit index: x_u} for every unit of `units` on every rank (Allgatherv)."""
         if self.comm is None:
             return dict(pieces)
-        from mpi4py import MPI
-        t, c = time.perf_counter(), time.process_time()
-        if self.probe:                       # diagnostics: separate the wait (imbalance) from the transfer
-            self.comm.Barrier()
-            self.timings["wait"] += time.perf_counter() - t
         width = int(np.prod(tail)) if tail else 1
         counts = [0] * self.size
         for u in units:
@@ -169,18 +182,28 @@ class Team:
         send = (np.concatenate([np.asarray(pieces[u.index], float).reshape(-1) for u in own])
                 if own else np.zeros(0))
         displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-        recv = np.empty(int(sum(counts)))
-        self.comm.Allgatherv([send, MPI.DOUBLE], [recv, (counts, tuple(displ)), MPI.DOUBLE])
+        recv = self._allgatherv(send, counts, tuple(displ))
         allp, pos = {}, list(displ)
         for u in units:
             r = self.owner[u.index]
             n = u.gamma.size * width
             allp[u.index] = recv[pos[r]:pos[r] + n].reshape((u.gamma.size,) + tail)
             pos[r] += n
+        return allp
+
+    def _allgatherv(self, send: np.ndarray, counts, displ) -> np.ndarray:
+        """Every rank's `send` concatenated in rank order (`counts` numbers from each)."""
+        from mpi4py import MPI
+        t, c = time.perf_counter(), time.process_time()
+        if self.probe:                       # diagnostics: separate the wait (imbalance) from the transfer
+            self.comm.Barrier()
+            self.timings["wait"] += time.perf_counter() - t
+        recv = np.empty(int(sum(counts)))
+        self.comm.Allgatherv([np.asarray(send, float), MPI.DOUBLE], [recv, (counts, displ), MPI.DOUBLE])
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
         self.timings["comm_cpu"] += time.process_time() - c
-        return allp
+        return recv
 
     def allgather(self, obj) -> list:
         """Python objects of every rank, in rank order (small, rare: status, final pieces)."""
@@ -210,3 +233,24 @@ class Team:
         mine["assigned_by"] = self.assigned_by                          # "measured" or "estimate"
         mine["rank"] = self.rank
         return self.allgather(mine) if self.comm is not None else [mine]
+
+
+class _Plan:
+    """How `Team.sum` gathers and adds the pieces of a list of units: this rank's units (in
+    unit order), the numbers each rank sends (its units' pieces in unit order, concatenated)
+    and where they land, `order`: the received numbers' positions in unit order, `gamma`: the
+    interface position of each of those."""
+
+    def __init__(self, units, owner: dict, rank: int, size: int):
+        self.own = [u.index for u in units if owner[u.index] == rank]
+        sizes = np.array([u.gamma.size for u in units], dtype=np.int64)
+        ranks = np.array([owner[u.index] for u in units], dtype=np.int64)
+        self.counts = [int(sizes[ranks == r].sum()) for r in range(size)]
+        self.displ = tuple(int(x) for x in np.concatenate([[0], np.cumsum(self.counts)[:-1]]))
+        start = np.zeros(len(units), dtype=np.int64)          # each unit's first number in the buffer
+        for r in range(size):
+            mine = np.flatnonzero(ranks == r)
+            start[mine] = self.displ[r] + np.concatenate([[0], np.cumsum(sizes[mine])[:-1]])
+        self.order = (np.concatenate([s + np.arange(n) for s, n in zip(start, sizes)]) if len(units)
+                      else np.zeros(0, dtype=np.int64))
+        self.gamma = (np.concatenate([u.gamma for u in units]) if len(units) else np.zeros(0, dtype=np.int64))
