@@ -193,3 +193,25 @@ def test_knee_coulomb_needs_the_fallback_and_satisfies_kkt(monkeypatch):
     assert np.all(np.abs(lam_t) <= bound * (1 + 1e-6) + 1e-8 * fs)     # Coulomb cone (fixed point 1e-8)
     slipping = np.abs(con.slip) > 1e-6 * np.abs(con.slip).max()
     np.testing.assert_allclose(lam_t[slipping], (bound * np.sign(con.slip))[slipping], rtol=1e-6, atol=1e-8 * fs)
+
+
+@pytest.mark.parametrize("name,edit", [("tresca-pad", _small), ("tresca-shear-patch-3d", None)], ids=["2d", "3d"])
+def test_a_qp_evaluation_with_gradients_is_polished_by_newton_and_says_so(name, edit):
+    """The dual QP gives no active set or factorization for the adjoint: with gradients its
+    answer is polished by the semismooth Newton (the message says so), and the gradients are
+    the monolithic solver's. (Before, every such evaluation failed with a TypeError: a `qp`
+    study under a gradient search solved nothing.)"""
+    def with_method(method):
+        def e(doc):
+            if edit:
+                edit(doc)
+            doc["solver"] = {"method": method}
+        return e
+    mono, qp = load(name, with_method("monolithic")), load(name, with_method("qp"))
+    m, q = mono.evaluate(mono.nominal(), gradients=True), qp.evaluate(qp.nominal(), gradients=True)
+    assert q.status == 0 and q.message == "solved (qp, polished by monolithic for the adjoint)", q.message
+    assert qp.evaluate(qp.nominal()).message == "solved"
+    span = np.array(mono.parameters.upper, float) - np.array(mono.parameters.lower, float)
+    for k in m.grad:        # the change over the box against the criterion's size (a flat one's gradient is round-off)
+        scale = max(abs(m.phi[k]), np.abs(m.grad[k] * span).max())
+        assert np.abs((q.grad[k] - m.grad[k]) * span).max() <= 1e-6 * scale, k

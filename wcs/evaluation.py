@@ -79,7 +79,7 @@ class Evaluator:
         grad, nonsmooth = None, False
         if gradients:
             grad, nonsmooth = adjoint_gradients(self, state, x, others)
-        message = "solved" if state.solver in ("direct", "monolithic", "dd") else f"solved ({state.solver})"
+        message = "solved" if state.solver in ("direct", "monolithic", "dd", "qp") else f"solved ({state.solver})"
         return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)
 

@@ -74,7 +74,7 @@ class Solution:
         if model.units is not None:
             return model.contact_operator(self.stiffness, self.scale)
         C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
-        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact, False)
+        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact, model.dim == 3)
 
 
 class Model:
@@ -362,7 +362,9 @@ class Model:
             w = _factor(cache.elastic, Kr).solve(rhs)
             u = self.elim.T @ w + u0
             return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), w=w, stiffness=Kr, **own)
-        used, warm = "monolithic", None
+        used, warm, qp = "monolithic", None, self.solver_method == "qp"
+        if qp:
+            used = "qp"
         if self.solver_method == "dd":
             dd = self._solve_dd(c, Kr, rhs, u0)
             if dd.status is DDOutcome.CONVERGED and not adjoint:
@@ -377,7 +379,11 @@ class Model:
             else:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         Ks, scale = self._contact_stiffness(c, Kr)
-        u, contact, iterations, res = self._solve_contact(c, Ks, rhs, u0, nominal, warm, scale)
+        if qp and adjoint:      # the adjoint needs the Newton's factorization and active set: polish qp's answer
+            res = self._solve_contact(c, Ks, rhs, u0, nominal, None, scale)[3]
+            warm, qp = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, ""), False
+            used = "qp, polished by monolithic for the adjoint"
+        u, contact, iterations, res = self._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, qp)
         return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), solver=used, iterations=iterations,
                         contact=contact, w=res.u, raw=res, stiffness=Ks, scale=scale, **own)
 
@@ -466,15 +472,17 @@ class Model:
         theta, Kh = self._heat_theta(c)
         return self.P @ theta, theta, Kh
 
-    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0):
-        """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`)."""
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0, qp: bool | None = None):
+        """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`), by
+        the dual QP reference (cvxpy) when `qp` (default: the study's method is qp), else by
+        the semismooth Newton."""
         z = self.zone
         cache = self._cache
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
         tol, max_iter = self.options.tolerance, self.options.max_iterations
         Fc = F if F.any() else None
-        if self.solver_method == "qp":
+        if self.solver_method == "qp" if qp is None else qp:
             from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
