@@ -153,3 +153,20 @@ def test_cli_runs_a_3d_study_by_the_decomposition(tmp_path):
             assert (ds["status"].values == 0).all()
             out[method] = ds["worst_value"].values.copy()
     np.testing.assert_allclose(out["dd"], out["monolithic"], rtol=1e-6)
+
+
+def test_a_decomposition_that_is_one_pair_solves_without_falling_back(capfd):
+    """A scene so small that the partition keeps both bodies in one pair (the mortar patch:
+    no interface DOFs, the DD is the pair's local contact solve): it solves with
+    `fallback: false` and agrees with the monolithic solver. Before, the empty Neumann matrix
+    went to LAPACK (`dpotrf` of order 0: info −4, and dsyrk printed "illegal value") and
+    every evaluation fell back to monolithic."""
+    dd = study("validation/mortar-patch-3d.yaml", STRICT)
+    from wcs.evaluation import Evaluator
+    ev = Evaluator(dd)
+    assert dds.decomposition(ev.model, ev.model.options).nif == 0
+    got = ev.evaluate(dd.nominal())
+    mono = study("validation/mortar-patch-3d.yaml", {"method": "monolithic", "tolerance": 1e-10})
+    assert got.message.startswith("solved (dd:"), got.message
+    assert_agree(mono.evaluate(mono.nominal()), got)
+    assert "illegal value" not in capfd.readouterr().err

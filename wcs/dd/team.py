@@ -161,7 +161,7 @@ class Team:
             values = send
         else:
             values = self._allgatherv(send, plan.counts, plan.displ)[plan.order]
-        return np.bincount(plan.gamma, values, minlength=nif)
+        return np.bincount(plan.gamma, values, minlength=nif).astype(float, copy=False)   # int64 when empty
 
     def _plan(self, units) -> "_Plan":
         key = tuple(u.index for u in units)
