@@ -221,3 +221,17 @@ def test_contact_pressure_over_an_embedded_ball_or_cylinder(roi, exact):
     c = zone.coords[inside]
     level = criteria._region_level(scene.regions_of_interest["r"], c)
     assert level.max() <= 1e-9                         # every node carrying the mean is in G_r
+
+
+def test_the_distance_to_facets_is_the_minimum_over_every_triangle():
+    """The candidates near each point (`_distance_to_facets`'s centroid tree) give the same
+    minimum, to the bit, as the distance to every triangle: random triangles of all sizes, points
+    inside and around their cloud."""
+    from types import SimpleNamespace
+    from wcs.criteria import _distance_to_facets, _triangle_distances
+    rng = np.random.default_rng(0)
+    tri = rng.random((300, 3, 3)) * rng.choice([0.01, 0.1, 1.0], (300, 1, 1)) + rng.random((300, 1, 3))
+    x = rng.random((200, 3)) * 3 - 1
+    every = np.array([_triangle_distances(np.repeat(p[None], len(tri), 0), tri).min() for p in x])
+    mesh = SimpleNamespace(p=tri.reshape(-1, 3).T, facets=np.arange(900).reshape(300, 3).T)
+    assert np.array_equal(_distance_to_facets(mesh, np.arange(300), x), every)

@@ -157,33 +157,49 @@ def _facet_normals(mesh, facets) -> np.ndarray:
 
 
 def _triangle_distances(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """(k, n) distances of the points x (k, 3) to the triangles tri (n, 3 vertices, 3): to the
-    plane where the foot of the perpendicular lies in the triangle, else to its nearest edge."""
+    """(k,) distances of the points x (k, 3) to the triangles tri (k, 3 vertices, 3), pair by
+    pair: to the plane where the foot of the perpendicular lies in the triangle, else to its
+    nearest edge."""
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     n = np.cross(b - a, c - a)
     nn = (n * n).sum(axis=1)
-    h = ((x[:, None] - a) * n).sum(axis=2) / nn                     # (k, n) signed, in units of |n|
-    foot = x[:, None] - h[..., None] * n
+    h = ((x - a) * n).sum(axis=1) / nn                              # signed, in units of |n|
+    foot = x - h[:, None] * n
     inside = np.ones(h.shape, dtype=bool)
     edge = np.full(h.shape, np.inf)
     for p, q in ((a, b), (b, c), (c, a)):
-        inside &= (np.cross(q - p, foot - p) * n).sum(axis=2) >= 0
+        inside &= (np.cross(q - p, foot - p) * n).sum(axis=1) >= 0
         d = q - p
-        s = np.clip(((x[:, None] - p) * d).sum(axis=2) / (d * d).sum(axis=1), 0.0, 1.0)
-        edge = np.minimum(edge, np.linalg.norm(x[:, None] - p - s[..., None] * d, axis=2))
+        s = np.clip(((x - p) * d).sum(axis=1) / (d * d).sum(axis=1), 0.0, 1.0)
+        edge = np.minimum(edge, np.linalg.norm(x - p - s[:, None] * d, axis=1))
     return np.where(inside, np.abs(h) * np.sqrt(nn), edge)
 
 
-def _distance_to_facets(mesh, facets, x: np.ndarray, chunk: int = 200_000) -> np.ndarray:
-    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets (3D: about
-    `chunk` point-triangle pairs at a time)."""
+def _distance_to_facets(mesh, facets, x: np.ndarray) -> np.ndarray:
+    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets. 3D: the
+    triangles near each point only — a triangle lies within r (its vertices' largest distance
+    from its centroid) of its centroid, so with u the distance to the triangle of the nearest
+    centroid, no triangle whose centroid is farther than u + max r can be nearer (exact: the
+    same minimum as over every triangle; over all pairs, 6e7 of them on a 1e5 shear patch's
+    contact criteria, it took 25 s)."""
     if mesh.p.shape[0] == 2:
         a, b = mesh.p[:, mesh.facets[0, facets]].T, mesh.p[:, mesh.facets[1, facets]].T
         return dist_segments(x[:, 0], x[:, 1], a, b)
+    from scipy.spatial import cKDTree
     tri = np.moveaxis(mesh.p[:, mesh.facets[:, facets]], 0, -1).transpose(1, 0, 2)   # (n, 3, 3)
-    step = max(chunk // max(len(tri), 1), 1)
-    return np.concatenate([_triangle_distances(x[i:i + step], tri).min(axis=1)
-                           for i in range(0, len(x), step)] or [np.zeros(0)])
+    if len(x) == 0 or len(tri) == 0:
+        return np.full(len(x), np.inf)
+    centroid = tri.mean(axis=1)
+    reach = np.linalg.norm(tri - centroid[:, None], axis=2).max()
+    tree = cKDTree(centroid)
+    _, nearest = tree.query(x)
+    bound = _triangle_distances(x, tri[nearest])
+    near = tree.query_ball_point(x, bound + reach)
+    point = np.repeat(np.arange(len(x)), [len(j) for j in near])
+    cand = np.concatenate([np.asarray(j, dtype=np.int64) for j in near])
+    out = np.full(len(x), np.inf)
+    np.minimum.at(out, point, _triangle_distances(x[point], tri[cand]))
+    return out
 
 
 def _region_level(spec, x: np.ndarray) -> np.ndarray:
@@ -285,7 +301,7 @@ def _point_to_facets(mesh, facets, X: np.ndarray) -> tuple[np.ndarray, np.ndarra
         return np.hypot(*(X[:, None] - a - s * e)), np.hypot(*e), "edge"
     tri = np.moveaxis(mesh.p[:, mesh.facets[:, facets]], 0, -1).transpose(1, 0, 2)   # (n, 3, 3)
     size = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
-    return _triangle_distances(X[None], tri)[0], size, "face"
+    return _triangle_distances(np.repeat(X[None], len(tri), axis=0), tri), size, "face"
 
 
 def _cell_mean(model, sel: Selection, density: np.ndarray) -> float:
