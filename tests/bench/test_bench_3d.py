@@ -14,8 +14,10 @@
   the memory peak of the process (resident set, `resource.getrusage`), the evaluation whose
   moduli differ from the last by one factor, and one with a new Poisson ratio of the block
   (its unit refactored, the base's factorization kept). Measured (quiet 2 cores, one thread):
-  warm 1.30–1.82 s against PARDISO 3.75–4.44 s, 0.35–0.41× (4.56× before the units: every
-  new modulus refactored the whole bordered matrix); the Poisson ratio 11.6 s, 3.1×.
+  warm 1.30–1.82 s against PARDISO 3.75–4.44 s, 0.32–0.41× (4.56× before the units: every
+  new modulus refactored the whole bordered matrix); the Poisson ratio 11.6–12.1 s, 2.9–3.1×;
+  the first (cold) evaluation, evaluator included, 34 s (55–58 s before the criteria's
+  distances to facets went by a k-d tree).
 - the tunnel's contact solve at ≈ 1e5 unknowns (studies/tunnel-fault-3d.yaml at 0.4 m near the
   tunnel, 0.8 m along the fault: 8.7e4 unknowns, 3152 fault nodes, 9456 contact rows): one cold
   nominal evaluation (Tresca, Newton from the glued state), its bordered factorization (W, the
