@@ -15,10 +15,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import wcs
 from wcs.contact import solver as cs
-from wcs.sensitivity import _contact_adjoint
+from wcs.sensitivity import ContactAdjoint
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_3d_patch import E_BASE, E_BLOCK, G, H, shear_patch  # noqa: E402
@@ -60,11 +61,11 @@ def test_disc_slip_adjoint_on_the_solver_system(case):
     def phi(res):
         return lw @ res.u + ll @ res.lam_n
 
-    model = SimpleNamespace(Bn_r=P["Bn"], Bt_r=P["Bt"], R_r=P["R"])
+    model = SimpleNamespace(Bn_r=P["Bn"], Bt_r=P["Bt"], R_r=P["R"], contact_rows=sp.vstack([P["Bn"], P["Bt"]]).tocsr())
     state = SimpleNamespace(raw=r, contact=SimpleNamespace(slip=P["Bt"] @ r.u),
                             coefficients=SimpleNamespace(coulomb=np.zeros(m) if F is None else F),
                             contact_factor=lambda model: r.factor)
-    z, mu, sigma = _contact_adjoint(model, state, lw, ll)
+    z, mu, sigma = ContactAdjoint(model, state).solve(lw, ll)
     h = 1e-5
     df = rng.standard_normal(n) * np.abs(P["f"]).max()
     fd = (phi(_solve(P, g, F, P["f"] + h * df)) - phi(_solve(P, g, F, P["f"] - h * df))) / (2 * h)

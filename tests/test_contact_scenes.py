@@ -143,17 +143,20 @@ def _coulomb(doc):
     doc["uncertain"] = {"contacts.interface.friction.coefficient": [0.3, 0.5]}
 
 
+def with_method(edit, method):
+    """The study edit `edit` (or none), then `solver.method: method`."""
+    def e(doc):
+        if edit:
+            edit(doc)
+        doc["solver"] = {"method": method}
+    return e
+
+
 @pytest.mark.parametrize("name,edit", [("contact-patch", None), ("tresca-pad", _small), ("tresca-pad", _coulomb)],
                          ids=["patch-floating", "tresca-floating", "coulomb-floating"])
 def test_monolithic_agrees_with_qp(name, edit):
-    def with_method(method):
-        def e(doc):
-            if edit:
-                edit(doc)
-            doc["solver"] = {"method": method}
-        return e
-    _, mono = solve(name, with_method("monolithic"))
-    _, qp = solve(name, with_method("qp"))
+    _, mono = solve(name, with_method(edit, "monolithic"))
+    _, qp = solve(name, with_method(edit, "qp"))
     # Clarabel at 1e-10 gaps on a scaled program; Coulomb adds the fixed point's 1e-8
     assert np.linalg.norm(mono.state.u - qp.state.u) <= 1e-6 * np.linalg.norm(qp.state.u)
     cm, cq = mono.state.contact, qp.state.contact
@@ -201,13 +204,7 @@ def test_a_qp_evaluation_with_gradients_is_polished_by_newton_and_says_so(name, 
     answer is polished by the semismooth Newton (the message says so), and the gradients are
     the monolithic solver's. (Before, every such evaluation failed with a TypeError: a `qp`
     study under a gradient search solved nothing.)"""
-    def with_method(method):
-        def e(doc):
-            if edit:
-                edit(doc)
-            doc["solver"] = {"method": method}
-        return e
-    mono, qp = load(name, with_method("monolithic")), load(name, with_method("qp"))
+    mono, qp = load(name, with_method(edit, "monolithic")), load(name, with_method(edit, "qp"))
     m, q = mono.evaluate(mono.nominal(), gradients=True), qp.evaluate(qp.nominal(), gradients=True)
     assert q.status == 0 and q.message == "solved (qp, polished by monolithic for the adjoint)", q.message
     assert qp.evaluate(qp.nominal()).message == "solved"

@@ -73,8 +73,7 @@ class Solution:
         """The contact factorization of this solution's reduced stiffness (`.factor.solve`, `.W`)."""
         if model.units is not None:
             return model.contact_operator(self.stiffness, self.scale)
-        C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
-        return factor_contact(self.stiffness, C, model.R_r, self.factors.contact, model.dim == 3)
+        return factor_contact(self.stiffness, model.contact_rows, model.R_r, self.factors.contact, model.dim == 3)
 
 
 class Model:
@@ -362,9 +361,8 @@ class Model:
             w = _factor(cache.elastic, Kr).solve(rhs)
             u = self.elim.T @ w + u0
             return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), w=w, stiffness=Kr, **own)
-        used, warm, qp = "monolithic", None, self.solver_method == "qp"
-        if qp:
-            used = "qp"
+        qp = self.solver_method == "qp"
+        used, warm = "qp" if qp else "monolithic", None
         if self.solver_method == "dd":
             dd = self._solve_dd(c, Kr, rhs, u0)
             if dd.status is DDOutcome.CONVERGED and not adjoint:
@@ -380,7 +378,7 @@ class Model:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         Ks, scale = self._contact_stiffness(c, Kr)
         if qp and adjoint:      # the adjoint needs the Newton's factorization and active set: polish qp's answer
-            res = self._solve_contact(c, Ks, rhs, u0, nominal, None, scale)[3]
+            res = self._solve_contact(c, Ks, rhs, u0, nominal, None, scale, qp=True)[3]
             warm, qp = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, ""), False
             used = "qp, polished by monolithic for the adjoint"
         u, contact, iterations, res = self._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, qp)
@@ -437,9 +435,8 @@ class Model:
         held = self._cache.direction
         blocks = held[2] if held is not None and held[1] is Ks else self._unit_blocks(Ks)
         if self._cache.contact is None:
-            self._cache.contact = UnitFactors(self.units.dofs)
-        C = sp.vstack([self.Bn_r, self.Bt_r]).tocsr()
-        return self._cache.contact.of(blocks, C, self.pinned, scales)
+            self._cache.contact = UnitFactors(self.units.dofs, self.contact_rows, self.pinned)
+        return self._cache.contact.of(blocks, scales)
 
     def reduced_system(self, c: Coefficients, T: np.ndarray | None):
         """(K, Kr, rhs, u0): the stiffness, Kr = Tᵀ K T on its fixed pattern, the reduced load
@@ -472,17 +469,16 @@ class Model:
         theta, Kh = self._heat_theta(c)
         return self.P @ theta, theta, Kh
 
-    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0, qp: bool | None = None):
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0, qp: bool = False):
         """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`), by
-        the dual QP reference (cvxpy) when `qp` (default: the study's method is qp), else by
-        the semismooth Newton."""
+        the dual QP reference (cvxpy) when `qp`, else by the semismooth Newton."""
         z = self.zone
         cache = self._cache
         g, F = c.slip, c.coulomb
         d = z.gap - z.Bn @ u0
         tol, max_iter = self.options.tolerance, self.options.max_iterations
         Fc = F if F.any() else None
-        if self.solver_method == "qp" if qp is None else qp:
+        if qp:
             from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
@@ -512,6 +508,11 @@ class Model:
         res = dataclasses.replace(res, factor=None)   # a solution reaches its factor by `contact_factor`
         u = self.elim.T @ res.u + u0
         return u, self.contact_state(res.lam_n, res.lam_t, u, res.active), res.iterations, res
+
+    @functools.cached_property
+    def contact_rows(self) -> sp.csr_matrix:
+        """C = [Bn; Bt] on the reduced unknowns: every contact row, normals first."""
+        return sp.vstack([self.Bn_r, self.Bt_r]).tocsr()
 
     @functools.cached_property
     def tied(self) -> tuple[np.ndarray, np.ndarray]:

@@ -98,7 +98,7 @@ class ContactAdjoint:
     def __init__(self, model, state):
         res = state.raw
         self.cf, m = state.contact_factor(model), res.lam_n.size
-        C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr()
+        C = model.contact_rows
         n = C.shape[0]
         k = n // m - 1
         Q, self.sigma, compliance, free = _slip_frame(model, state, m, k)
@@ -152,12 +152,6 @@ class ContactAdjoint:
         if R is not None:
             z = z + R @ mu[n:]
         return z, mu, self.sigma
-
-
-def _contact_adjoint(model, state, phi_w: np.ndarray, phi_lam_n: np.ndarray | None,
-                     phi_lam_t: np.ndarray | None = None):
-    """(z, μ, σ) of the module docstring for one criterion (`ContactAdjoint`)."""
-    return ContactAdjoint(model, state).solve(phi_w, phi_lam_n, phi_lam_t)
 
 
 class _FixedRowsSystem:

@@ -61,7 +61,6 @@ spring sizes k_j only set the conditioning, not the answer.
 """
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 

@@ -79,21 +79,23 @@ class ScaledUnits:
 
 class UnitFactors:
     """One contact factor per unit, each refactored in place (its analysis kept) when the
-    block it is asked for is not the one it holds (`ContactFactor.holds`)."""
+    block it is asked for is not the one it holds (`ContactFactor.holds`).
 
-    def __init__(self, dofs: tuple):
+    dofs: the units' DOFs; C: the contact rows (all units'); pinned: the DOFs of the whole
+    on which the blocks are regularized (`regularize`)."""
+
+    def __init__(self, dofs: tuple, C: sp.csr_matrix, pinned: np.ndarray):
         self.dofs = dofs
+        self.borders = [C] if len(dofs) == 1 else [C[:, d].tocsr() for d in dofs]
+        self.pinned = [np.searchsorted(d, pinned[np.isin(pinned, d)]) for d in dofs]
         self.parts: list[ContactFactor | None] = [None] * len(dofs)
 
-    def of(self, blocks: list[sp.csr_matrix], C: sp.csr_matrix, pinned: np.ndarray, scales) -> ScaledUnits:
-        """The operators of blockdiag(s_u K*_u) for the regularized blocks K*_u (`blocks`,
-        regularized on the DOFs `pinned` of the whole), contact rows C (all units') and the
-        scales s_u."""
+    def of(self, blocks: list[sp.csr_matrix], scales) -> ScaledUnits:
+        """The operators of blockdiag(s_u K*_u) for the regularized blocks K*_u (`blocks`) and
+        the scales s_u."""
         scales = np.asarray(scales, dtype=float)
-        for i, (d, K) in enumerate(zip(self.dofs, blocks)):
-            Cu = C if len(self.dofs) == 1 else C[:, d]
-            mine = np.searchsorted(d, pinned[np.isin(pinned, d)])
-            self.parts[i] = factor_regularized(K, Cu, mine, self.parts[i], True)
+        for i, K in enumerate(blocks):
+            self.parts[i] = factor_regularized(K, self.borders[i], self.pinned[i], self.parts[i], True)
         W = self.parts[0].W / scales[0]
         for part, s in zip(self.parts[1:], scales[1:]):
             W += part.W / s
