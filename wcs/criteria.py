@@ -626,12 +626,14 @@ def _slip_partials(crit, model, state, r):
 def _pressure_partials(ell: np.ndarray, model, state) -> Partials:
     """∂(ℓ · λn)/∂λ of the solver's multipliers: where the reported λn is a tied node's
     canonical λn + κ λt (`wcs.contact.zone.canonical_split`), its tangent too (κ ℓ): that
-    combination is unique, so its derivative holds whichever split the solver's path found."""
+    combination is unique, so its derivative holds whichever split the solver's path found. A
+    held normal row (`Model.held`) reports λn = 0 whatever the solver found: ∂ = 0 there."""
+    ell = np.where(model.held[:ell.size], 0.0, ell)
     moved = state.contact.moved
     if moved is None or not moved.any():
-        return Partials(lam_n=ell.copy())
+        return Partials(lam_n=ell)
     k = moved.size // ell.size
-    return Partials(lam_n=ell.copy(), lam_t=np.where(moved, np.tile(ell, k) * model.tied[1], 0.0))
+    return Partials(lam_n=ell, lam_t=np.where(moved, np.tile(ell, k) * model.tied[1], 0.0))
 
 
 KINDS: dict[str, Kind] = {

@@ -26,7 +26,7 @@ from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
 from .contact.units import UnitFactors, stiffness_units
-from .contact.zone import ContactState, build_zone, canonical_split, tied_rows
+from .contact.zone import ContactState, build_zone, canonical_split, held_rows, tied_rows
 from .errors import SolveError, StudyError
 from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -515,17 +515,24 @@ class Model:
         return sp.vstack([self.Bn_r, self.Bt_r]).tocsr()
 
     @functools.cached_property
+    def held(self) -> np.ndarray:
+        """Flags of the contact rows [Bn; Bt] the supports hold (`wcs.contact.zone.held_rows`)."""
+        z = self.zone
+        return np.r_[held_rows(self.Bn_r, z.Bn), held_rows(self.Bt_r, z.Bt)]
+
+    @functools.cached_property
     def tied(self) -> tuple[np.ndarray, np.ndarray]:
         """(tied, κ) of the contact rows (`wcs.contact.zone.tied_rows`): geometry, once."""
-        return tied_rows(self.Bn_r, self.Bt_r)
+        return tied_rows(self.Bn_r, self.Bt_r, self.held)
 
     def contact_state(self, lam_n, lam_t, u, active) -> ContactState:
         """The tractions a solver found for the displacement u, with the closed nodes of tied
-        rows at their canonical split (`canonical_split`): what every solver reports alike."""
+        rows at their canonical split and nothing on held rows (`canonical_split`): what every
+        solver reports alike."""
         z = self.zone
         gap = z.gap - z.Bn @ u
         force_n, force_t, moved = canonical_split(lam_n, lam_t, gap, *self.tied,
-                                                  max(np.abs(u).max(initial=0.0), 1e-300))
+                                                  max(np.abs(u).max(initial=0.0), 1e-300), self.held)
         return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved)
 
     def _unbalanced_message(self, res, rhs) -> str:

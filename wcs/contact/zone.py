@@ -142,12 +142,28 @@ def _build_zone3d(contacts, smesh: SceneMesh) -> ContactZone:
     )
 
 
-def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+def _row_norms2(B: sp.spmatrix) -> np.ndarray:
+    return np.asarray(B.multiply(B).sum(axis=1)).ravel()
+
+
+def held_rows(B_r: sp.spmatrix, B: sp.spmatrix) -> np.ndarray:
+    """The rows the supports hold: ‖B_r,i‖ ≤ 1e-10 ‖B_i‖, the row on the unknowns (B_r, supports
+    eliminated) round-off of the row on all DOFs (B) — the share `solver.null_rows` solves as
+    null. A 3D fault node on a support that holds two components of both sides keeps ~3e-15 of
+    its unit normal along the free third (area-weighted face normals): the tunnel's right side
+    holds u_x, u_z, the fault's normal (−2, 0, 3)/√13 has n_y ~ 3e-15 there. Geometry only."""
+    return _row_norms2(B_r) <= 1e-20 * _row_norms2(B)
+
+
+def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(tied, κ), one entry per tangent row j·m + i: whether node i's tangent row j is parallel
     to its normal row on the unknowns, Bt_j,i = κ Bn_i (rollers on both sides of the node: both
     rows act on one relative motion, so only λn + κ λt of the pair is determined), to an angle
     below 1e-5 rad (t² − (n·t)²/n² ≤ 1e-10 t²; parallel rows leave ~1e-16 t² of round-off).
-    Geometry only (the reduced rows), so every solver of a scene finds the same rows."""
+    held ((1 + k) m, `held_rows` of [Bn; Bt]): rows of round-off, tied to nothing (a held
+    normal of ~3e-15 is parallel to a free tangent, and κ ~ 3e14 put 3.5e19 Pa on the 3D
+    tunnel fault's end). Geometry only (the reduced rows), so every solver of a scene finds the
+    same rows."""
     m = Bn.shape[0]
     k = Bt.shape[0] // m if m else 1
     n2 = np.tile(np.asarray(Bn.multiply(Bn).sum(axis=1)).ravel(), k)
@@ -156,10 +172,12 @@ def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]
     t2 = np.asarray(Bt.multiply(Bt).sum(axis=1)).ravel()
     kappa = np.divide(nt, n2, out=np.zeros_like(nt), where=n2 > 0)
     tied = (n2 > 0) & (t2 > 0) & (t2 - kappa * nt <= 1e-10 * t2)
+    if held is not None:
+        tied &= ~np.tile(held[:m], k) & ~held[m:]
     return tied, np.where(tied, kappa, 0.0)
 
 
-def canonical_split(force_n, force_t, gap, tied, kappa, scale: float):
+def canonical_split(force_n, force_t, gap, tied, kappa, scale: float, held=None):
     """The multipliers of closed nodes with tied rows (`tied_rows`) at one canonical split:
     only a = λn + Σ_j κ_j λt,j acts there, and any λ with that a, λn ≥ 0 and λt within its
     bound solves the problem (which split a solver returns depends on its path: the
@@ -167,10 +185,14 @@ def canonical_split(force_n, force_t, gap, tied, kappa, scale: float):
     roller-held end). Reported: the tied tangents carry nothing (the supports hold that
     motion) and the normal all of a, where a ≥ 0; a node pulled apart (a < 0) keeps its split.
     Closed: gap ≤ 1e-7 · scale (the displacement scale; the criteria's "within reach").
+    A held row (`held_rows`, flags of [λn; λt]) acts on nothing, so its multiplier is not
+    determined at all: it carries nothing (the supports hold that motion).
     Returns (force_n, force_t, moved): moved flags the tangent rows whose force went to the
     normal."""
     m = force_n.size
     k = force_t.size // m if m else 1
+    if held is not None:
+        force_n, force_t = np.where(held[:m], 0.0, force_n), np.where(held[m:], 0.0, force_t)
     T = tied.reshape(k, m) & (gap <= 1e-7 * scale)[None, :]
     a = force_n + (kappa.reshape(k, m) * force_t.reshape(k, m) * T).sum(axis=0)
     T &= (a >= 0)[None, :]
