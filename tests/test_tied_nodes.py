@@ -10,7 +10,7 @@ import scipy.sparse as sp
 import yaml
 
 import wcs
-from wcs.contact.zone import canonical_split, tied_rows
+from wcs.contact.zone import canonical_split, held_rows, tied_rows
 
 TUNNEL = Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml"
 
@@ -40,6 +40,25 @@ def test_tied_rows_and_the_canonical_split():
     for lam, gap in (((0.0, 2.0), (1e-3, 0.0)), ((0.2, 2.0), (0.0, 0.0))):
         n3, t3, moved3 = canonical_split(np.array(lam), np.array([1.0, 0.7]), np.array(gap), tied, kappa, 1.0)
         assert n3.tolist() == list(lam) and t3.tolist() == [1.0, 0.7] and not moved3.any()
+
+
+def test_a_held_normal_is_tied_to_nothing_and_carries_nothing():
+    """The 3D tunnel's fault end on its right side (u_x, u_z held on both sides, y free): the
+    normal (−2, 0, 3)/√13 keeps 2.8e-15 along y from the face normals' round-off, its first
+    tangent is y. The normal row is held (round-off of its full row), not tied to the tangent
+    (before: κ = 3.6e14 put 3.5e19 Pa there); the tangent's λt stays; a held λ reports 0."""
+    e = 2.81564009e-15
+    # unknowns (x, y, z) of the slave and master node; the elimination keeps y only
+    Bn = sp.csr_matrix(np.array([[0.5547, e, -0.83205, -0.5547, -e, 0.83205]]))
+    Bt = sp.csr_matrix(np.array([[0.0, 1.0, 0.0, 0.0, -1.0, 0.0], [0.83205, 0.0, 0.5547, -0.83205, 0.0, -0.5547]]))
+    T = sp.csr_matrix(np.array([[0, 1.0, 0, 0, 0, 0], [0, 0, 0, 0, 1.0, 0]]).T)
+    held = np.r_[held_rows(Bn @ T, Bn), held_rows(Bt @ T, Bt)]
+    assert held.tolist() == [True, False, True]
+    assert tied_rows(Bn @ T, Bt @ T)[1][0] > 1e14                # parallel to round-off: "tied"
+    tied, kappa = tied_rows(Bn @ T, Bt @ T, held)
+    assert not tied.any() and not kappa.any()
+    n, t, moved = canonical_split(np.array([3.0]), np.array([-5e4, 2.0]), np.zeros(1), tied, kappa, 1.0, held)
+    assert n.tolist() == [0.0] and t.tolist() == [-5e4, 0.0] and not moved.any()
 
 
 def test_decomposition_and_monolithic_report_one_split_on_the_roller_held_fault_end():
