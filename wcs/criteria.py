@@ -606,7 +606,8 @@ def _slip_partials(crit, model, state, r):
     """∂Φ/∂u = Btᵀ (w ν) / Σ w over the rows next to G_r (s = Bt u, ν = s/|s|: sign(s) in 2D).
     |s| has a kink at s = 0, which matters only where s can cross 0: a stuck node keeps s fixed
     on its active set (and a stick/slip switch is flagged with the active set), and a node whose
-    reduced tangential rows vanish (held by supports on both sides) has s fixed by them; any
+    reduced tangential rows vanish or are round-off (`Model.held`: held by supports on both
+    sides) has s fixed by them; any
     other node in G_r with s ≈ 0 makes the point non-smooth."""
     mask, c = crit.contact_masks[r], state.contact
     m = mask.size
@@ -617,8 +618,7 @@ def _slip_partials(crit, model, state, r):
     dslip = np.tile(w, k) * nu / w.sum()
     stuck = state.raw.free[m:2 * m] if state.raw is not None else np.zeros(m, dtype=bool)
     scale = max(np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
-    rows = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0   # abs() sorts its operand in place
-    moves = rows.reshape(k, m).any(axis=0)
+    moves = (~model.held[m:]).reshape(k, m).any(axis=0)
     kink = mask & ~stuck & moves & (norm <= REL_TOL * scale)
     return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
 

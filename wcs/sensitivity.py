@@ -238,9 +238,9 @@ def contact_nonsmooth(model, state) -> bool:
     weak_stick = stick & (gw > 0) & (node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
     weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
     # constraints that cannot move the solution: a node held by supports on both sides (its
-    # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
-    moves = np.asarray(abs(model.Bn_r.copy()).sum(axis=1)).ravel() > 0    # abs() sorts its operand in place
-    t_moves = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0
+    # rows vanish, or are round-off: `Model.held`), and a tangent parallel to the normal
+    # (rollers on both sides) while closed
+    moves, t_moves = ~model.held[:m], ~model.held[m:]
     tangent_free = (t_moves & ~model.tied[0]).reshape(k, m).any(axis=0)     # `tied_rows`
     weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
     return bool(np.any((weak_closed | weak_open | weak_t) & moves))
