@@ -143,6 +143,7 @@ def _build_zone3d(contacts, smesh: SceneMesh) -> ContactZone:
 
 
 def _row_norms2(B: sp.spmatrix) -> np.ndarray:
+    """‖B_i‖² of each row."""
     return np.asarray(B.multiply(B).sum(axis=1)).ravel()
 
 
@@ -166,10 +167,10 @@ def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix, held: np.ndarray | None = None) 
     same rows."""
     m = Bn.shape[0]
     k = Bt.shape[0] // m if m else 1
-    n2 = np.tile(np.asarray(Bn.multiply(Bn).sum(axis=1)).ravel(), k)
+    n2 = np.tile(_row_norms2(Bn), k)
     Bn_k = sp.vstack([Bn] * k).tocsr()
     nt = np.asarray(Bn_k.multiply(Bt).sum(axis=1)).ravel()
-    t2 = np.asarray(Bt.multiply(Bt).sum(axis=1)).ravel()
+    t2 = _row_norms2(Bt)
     kappa = np.divide(nt, n2, out=np.zeros_like(nt), where=n2 > 0)
     tied = (n2 > 0) & (t2 > 0) & (t2 - kappa * nt <= 1e-10 * t2)
     if held is not None:
