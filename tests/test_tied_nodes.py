@@ -31,15 +31,23 @@ def test_tied_rows_and_the_canonical_split():
     assert tied.tolist() == [True, False] and np.allclose(kappa, [-0.5, 0.0], rtol=1e-15)
     lam_n, lam_t = np.array([3.0, 2.0]), np.array([1.0, 0.7])
     # closed: the acting combination a = 3 − 0.5 · 1 = 2.5 all on the normal, the tangent 0
-    n, t, moved = canonical_split(lam_n, lam_t, np.zeros(2), tied, kappa, 1.0)
+    n, t, moved, pulled = canonical_split(lam_n, lam_t, np.zeros(2), tied, kappa, 1.0)
     assert n.tolist() == [2.5, 2.0] and t.tolist() == [0.0, 0.7] and moved.tolist() == [True, False]
+    assert not pulled.any()
     # the same combination from another split gives the same answer
-    n2, t2, _ = canonical_split(np.array([2.0, 2.0]), np.array([-1.0, 0.7]), np.zeros(2), tied, kappa, 1.0)
+    n2, t2, _, _ = canonical_split(np.array([2.0, 2.0]), np.array([-1.0, 0.7]), np.zeros(2), tied, kappa, 1.0)
     assert n2.tolist() == n.tolist() and t2.tolist() == t.tolist()
-    # open (gap > 0): λn = 0, λt = ±gw are unique, kept; a node pulled apart (a < 0) keeps its split
-    for lam, gap in (((0.0, 2.0), (1e-3, 0.0)), ((0.2, 2.0), (0.0, 0.0))):
-        n3, t3, moved3 = canonical_split(np.array(lam), np.array([1.0, 0.7]), np.array(gap), tied, kappa, 1.0)
-        assert n3.tolist() == list(lam) and t3.tolist() == [1.0, 0.7] and not moved3.any()
+    # open (gap > 0): λn = 0, λt = ±gw are unique, kept
+    n3, t3, moved3, pulled3 = canonical_split(np.array([0.0, 2.0]), np.array([1.0, 0.7]), np.array([1e-3, 0.0]),
+                                              tied, kappa, 1.0)
+    assert n3.tolist() == [0.0, 2.0] and t3.tolist() == [1.0, 0.7] and not moved3.any() and not pulled3.any()
+    # pulled apart (a = 0.2 − 0.5 · 1 = −0.3 < 0): all of a on the tangent, λt = a / κ = 0.6, from
+    # either split (before: each solver's split was kept)
+    for lam, lt in ((0.2, 1.0), (0.0, 0.6)):
+        n4, t4, moved4, pulled4 = canonical_split(np.array([lam, 2.0]), np.array([lt, 0.7]), np.zeros(2),
+                                                  tied, kappa, 1.0)
+        assert n4.tolist() == [0.0, 2.0] and np.allclose(t4, [0.6, 0.7], rtol=1e-15, atol=0)
+        assert not moved4.any() and pulled4.tolist() == [True, False]
 
 
 def test_a_held_normal_is_tied_to_nothing_and_carries_nothing():
@@ -57,7 +65,7 @@ def test_a_held_normal_is_tied_to_nothing_and_carries_nothing():
     assert tied_rows(Bn @ T, Bt @ T)[1][0] > 1e14                # parallel to round-off: "tied"
     tied, kappa = tied_rows(Bn @ T, Bt @ T, held)
     assert not tied.any() and not kappa.any()
-    n, t, moved = canonical_split(np.array([3.0]), np.array([-5e4, 2.0]), np.zeros(1), tied, kappa, 1.0, held)
+    n, t, moved, _ = canonical_split(np.array([3.0]), np.array([-5e4, 2.0]), np.zeros(1), tied, kappa, 1.0, held)
     assert n.tolist() == [0.0] and t.tolist() == [-5e4, 0.0] and not moved.any()
 
 

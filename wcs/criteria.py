@@ -627,8 +627,10 @@ def _pressure_partials(ell: np.ndarray, model, state) -> Partials:
     """∂(ℓ · λn)/∂λ of the solver's multipliers: where the reported λn is a tied node's
     canonical λn + κ λt (`wcs.contact.zone.canonical_split`), its tangent too (κ ℓ): that
     combination is unique, so its derivative holds whichever split the solver's path found. A
-    held normal row (`Model.held`) reports λn = 0 whatever the solver found: ∂ = 0 there."""
-    ell = np.where(model.held[:ell.size], 0.0, ell)
+    held normal row (`Model.held`) and a tied node pulled apart report λn = 0 whatever the
+    solver found: ∂ = 0 there."""
+    pulled = state.contact.pulled
+    ell = np.where(model.held[:ell.size] | (False if pulled is None else pulled), 0.0, ell)
     moved = state.contact.moved
     if moved is None or not moved.any():
         return Partials(lam_n=ell)

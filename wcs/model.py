@@ -531,9 +531,9 @@ class Model:
         solver reports alike."""
         z = self.zone
         gap = z.gap - z.Bn @ u
-        force_n, force_t, moved = canonical_split(lam_n, lam_t, gap, *self.tied,
-                                                  max(np.abs(u).max(initial=0.0), 1e-300), self.held)
-        return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved)
+        force_n, force_t, moved, pulled = canonical_split(lam_n, lam_t, gap, *self.tied,
+                                                          max(np.abs(u).max(initial=0.0), 1e-300), self.held)
+        return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved, pulled)
 
     def _unbalanced_message(self, res, rhs) -> str:
         """Name the floating body whose rigid motion the load can drive, and the load."""

@@ -183,22 +183,28 @@ def canonical_split(force_n, force_t, gap, tied, kappa, scale: float, held=None)
     only a = λn + Σ_j κ_j λt,j acts there, and any λ with that a, λn ≥ 0 and λt within its
     bound solves the problem (which split a solver returns depends on its path: the
     decomposition and the monolithic Newton differed by 4–8 % in λn at the tunnel fault's
-    roller-held end). Reported: the tied tangents carry nothing (the supports hold that
-    motion) and the normal all of a, where a ≥ 0; a node pulled apart (a < 0) keeps its split.
+    roller-held end). Reported: where a ≥ 0, the tied tangents carry nothing (the supports
+    hold that motion) and the normal all of a; where a < 0 (pulled apart), the normal nothing
+    and the tied tangents a at the least norm, λt,j = a κ_j / Σ κ² — no larger than any split
+    with λn ≥ 0, so within the friction bound whenever the solver's split is.
     Closed: gap ≤ 1e-7 · scale (the displacement scale; the criteria's "within reach").
     A held row (`held_rows`, flags of [λn; λt]) acts on nothing, so its multiplier is not
     determined at all: it carries nothing (the supports hold that motion).
-    Returns (force_n, force_t, moved): moved flags the tangent rows whose force went to the
-    normal."""
+    Returns (force_n, force_t, moved, pulled): moved flags the tangent rows whose force went
+    to the normal, pulled the nodes whose a went to the tangents."""
     m = force_n.size
     k = force_t.size // m if m else 1
     if held is not None:
         force_n, force_t = np.where(held[:m], 0.0, force_n), np.where(held[m:], 0.0, force_t)
     T = tied.reshape(k, m) & (gap <= 1e-7 * scale)[None, :]
-    a = force_n + (kappa.reshape(k, m) * force_t.reshape(k, m) * T).sum(axis=0)
-    T &= (a >= 0)[None, :]
+    kt = kappa.reshape(k, m) * T
+    a = force_n + (kt * force_t.reshape(k, m)).sum(axis=0)
+    pulled = T.any(axis=0) & (a < 0)
+    share = a * kt / np.where(pulled, (kt * kt).sum(axis=0), 1.0)
+    t = np.where(T & pulled[None, :], share, np.where(T, 0.0, force_t.reshape(k, m)))
+    T &= ~pulled[None, :]
     node = T.any(axis=0)
-    return np.where(node, a, force_n), np.where(T.ravel(), 0.0, force_t), T.ravel()
+    return np.where(node, a, np.where(pulled, 0.0, force_n)), t.ravel(), T.ravel(), pulled
 
 
 @dataclass
@@ -211,6 +217,7 @@ class ContactState:
     slip: np.ndarray         # relative tangential displacement, as force_t
     status: np.ndarray | None = None
     moved: np.ndarray | None = None   # tangent rows whose force `canonical_split` put on the normal
+    pulled: np.ndarray | None = None  # nodes whose tied combination `canonical_split` put on the tangents
 
     @property
     def nodes(self):
