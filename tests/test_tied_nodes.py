@@ -10,7 +10,7 @@ import scipy.sparse as sp
 import yaml
 
 import wcs
-from wcs.contact.zone import canonical_split, held_rows, tied_rows
+from wcs.contact.zone import canonical_split, dependent_rows, held_rows, tied_rows
 
 TUNNEL = Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml"
 
@@ -31,23 +31,23 @@ def test_tied_rows_and_the_canonical_split():
     assert tied.tolist() == [True, False] and np.allclose(kappa, [-0.5, 0.0], rtol=1e-15)
     lam_n, lam_t = np.array([3.0, 2.0]), np.array([1.0, 0.7])
     # closed: the acting combination a = 3 − 0.5 · 1 = 2.5 all on the normal, the tangent 0
-    n, t, moved, pulled = canonical_split(lam_n, lam_t, np.zeros(2), tied, kappa, 1.0)
+    n, t, moved, (dn, dt) = canonical_split(lam_n, lam_t, np.zeros(2), tied, kappa, 1.0)
     assert n.tolist() == [2.5, 2.0] and t.tolist() == [0.0, 0.7] and moved.tolist() == [True, False]
-    assert not pulled.any()
+    assert dn.tolist() == [1.0, 1.0] and dt.tolist() == [-0.5, 0.0]      # ∂(λn + κλt)
     # the same combination from another split gives the same answer
     n2, t2, _, _ = canonical_split(np.array([2.0, 2.0]), np.array([-1.0, 0.7]), np.zeros(2), tied, kappa, 1.0)
     assert n2.tolist() == n.tolist() and t2.tolist() == t.tolist()
     # open (gap > 0): λn = 0, λt = ±gw are unique, kept
-    n3, t3, moved3, pulled3 = canonical_split(np.array([0.0, 2.0]), np.array([1.0, 0.7]), np.array([1e-3, 0.0]),
-                                              tied, kappa, 1.0)
-    assert n3.tolist() == [0.0, 2.0] and t3.tolist() == [1.0, 0.7] and not moved3.any() and not pulled3.any()
+    n3, t3, moved3, _ = canonical_split(np.array([0.0, 2.0]), np.array([1.0, 0.7]), np.array([1e-3, 0.0]),
+                                        tied, kappa, 1.0)
+    assert n3.tolist() == [0.0, 2.0] and t3.tolist() == [1.0, 0.7] and not moved3.any()
     # pulled apart (a = 0.2 − 0.5 · 1 = −0.3 < 0): all of a on the tangent, λt = a / κ = 0.6, from
     # either split (before: each solver's split was kept)
     for lam, lt in ((0.2, 1.0), (0.0, 0.6)):
-        n4, t4, moved4, pulled4 = canonical_split(np.array([lam, 2.0]), np.array([lt, 0.7]), np.zeros(2),
-                                                  tied, kappa, 1.0)
+        n4, t4, moved4, (dn4, dt4) = canonical_split(np.array([lam, 2.0]), np.array([lt, 0.7]), np.zeros(2),
+                                                     tied, kappa, 1.0)
         assert n4.tolist() == [0.0, 2.0] and np.allclose(t4, [0.6, 0.7], rtol=1e-15, atol=0)
-        assert not moved4.any() and pulled4.tolist() == [True, False]
+        assert not moved4.any() and dn4.tolist() == [0.0, 1.0] and not dt4.any()
 
 
 def test_a_held_normal_is_tied_to_nothing_and_carries_nothing():
@@ -67,6 +67,33 @@ def test_a_held_normal_is_tied_to_nothing_and_carries_nothing():
     assert not tied.any() and not kappa.any()
     n, t, moved, _ = canonical_split(np.array([3.0]), np.array([-5e4, 2.0]), np.zeros(1), tied, kappa, 1.0, held)
     assert n.tolist() == [0.0] and t.tolist() == [-5e4, 0.0] and not moved.any()
+
+
+def test_rows_dependent_without_a_tie_report_the_least_tangent_split():
+    """A 3D node on a roller holding u_x of both sides: its normal n and tangents t¹, t² (none
+    parallel to another) act in the free (y, z) plane only, so Σ v_r B_r = 0 for one v and only
+    λ modulo v is determined. Reported: the least |λt| with λn ≥ 0, from any split alike."""
+    n = np.array([-0.48, 0.277, 0.832]); n /= np.linalg.norm(n)
+    t1 = np.array([0.0, 1.0, 0.0]) - n[1] * n; t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    rows = lambda d: sp.csr_matrix(np.r_[d[1:], -d[1:]][None, :])      # noqa: E731  (y, z of slave, master)
+    Bn, Bt = rows(n), sp.vstack([rows(t1), rows(t2)]).tocsr()
+    held = np.zeros(3, dtype=bool)
+    tied, kappa = tied_rows(Bn, Bt, held)
+    assert not tied.any()
+    nodes, v = dependent_rows(Bn, Bt, held, tied)
+    assert nodes.tolist() == [0] and np.abs(sp.vstack([Bn, Bt]).T @ v[0]).max() <= 1e-15
+    C = sp.vstack([Bn, Bt]).toarray()
+    lam = np.array([3.0e6, 4.0e5, -2.0e5])                              # stuck: inside |λt| ≤ gw
+    out = []
+    for s in (0.0, 1.0e6, -5.0e5):                                    # three splits acting alike
+        split = lam + s * v[0]
+        fn, ft, _, (dn, dt) = canonical_split(split[:1], split[1:], np.zeros(1), tied, kappa, 1.0, held, (nodes, v))
+        assert np.abs(C.T @ (np.r_[fn, ft] - lam)).max() <= 1e-9 * np.abs(lam).max()   # the same force
+        out.append(np.r_[fn, ft])
+        assert abs(dn[0] * v[0, 0] + dt @ v[0, 1:]) <= 1e-15            # blind to the indeterminate part
+    assert np.allclose(out, out[0], rtol=0, atol=1e-9 * np.abs(lam).max())
+    assert np.linalg.norm(out[0][1:]) < np.linalg.norm(lam[1:]) and out[0][0] >= 0
 
 
 def test_decomposition_and_monolithic_report_one_split_on_the_roller_held_fault_end():

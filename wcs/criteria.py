@@ -624,18 +624,16 @@ def _slip_partials(crit, model, state, r):
 
 
 def _pressure_partials(ell: np.ndarray, model, state) -> Partials:
-    """∂(ℓ · λn)/∂λ of the solver's multipliers: where the reported λn is a tied node's
-    canonical λn + κ λt (`wcs.contact.zone.canonical_split`), its tangent too (κ ℓ): that
-    combination is unique, so its derivative holds whichever split the solver's path found. A
-    held normal row (`Model.held`) and a tied node pulled apart report λn = 0 whatever the
-    solver found: ∂ = 0 there."""
-    pulled = state.contact.pulled
-    ell = np.where(model.held[:ell.size] | (False if pulled is None else pulled), 0.0, ell)
-    moved = state.contact.moved
-    if moved is None or not moved.any():
-        return Partials(lam_n=ell)
-    k = moved.size // ell.size
-    return Partials(lam_n=ell, lam_t=np.where(moved, np.tile(ell, k) * model.tied[1], 0.0))
+    """∂(ℓ · λn)/∂λ of the solver's multipliers through the reported λn (`wcs.contact.zone.
+    canonical_split`'s jacobian): a tied node's canonical λn + κ λt, a dependent node's least
+    |λt| split, 0 on a held normal or a tied node pulled apart. Each is a function of the
+    combination that acts, so its derivative holds whichever split the solver's path found."""
+    jac = state.contact.jacobian
+    if jac is None:
+        return Partials(lam_n=ell.copy())
+    dn, dt = jac
+    lam_t = np.tile(ell, dt.size // ell.size) * dt
+    return Partials(lam_n=ell * dn, lam_t=lam_t if lam_t.any() else None)
 
 
 KINDS: dict[str, Kind] = {

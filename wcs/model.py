@@ -26,7 +26,7 @@ from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
 from .contact.units import UnitFactors, stiffness_units
-from .contact.zone import ContactState, build_zone, canonical_split, held_rows, tied_rows
+from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
 from .errors import SolveError, StudyError
 from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -525,15 +525,21 @@ class Model:
         """(tied, κ) of the contact rows (`wcs.contact.zone.tied_rows`): geometry, once."""
         return tied_rows(self.Bn_r, self.Bt_r, self.held)
 
+    @functools.cached_property
+    def dependent(self) -> tuple[np.ndarray, np.ndarray]:
+        """(nodes, v) of the contact rows dependent without being tied (`dependent_rows`)."""
+        return dependent_rows(self.Bn_r, self.Bt_r, self.held, self.tied[0])
+
     def contact_state(self, lam_n, lam_t, u, active) -> ContactState:
         """The tractions a solver found for the displacement u, with the closed nodes of tied
-        rows at their canonical split and nothing on held rows (`canonical_split`): what every
-        solver reports alike."""
+        or dependent rows at their canonical split and nothing on held rows (`canonical_split`):
+        what every solver reports alike."""
         z = self.zone
         gap = z.gap - z.Bn @ u
-        force_n, force_t, moved, pulled = canonical_split(lam_n, lam_t, gap, *self.tied,
-                                                          max(np.abs(u).max(initial=0.0), 1e-300), self.held)
-        return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved, pulled)
+        force_n, force_t, moved, jacobian = canonical_split(lam_n, lam_t, gap, *self.tied,
+                                                            max(np.abs(u).max(initial=0.0), 1e-300),
+                                                            self.held, self.dependent)
+        return ContactState(z, force_n, force_t, gap, z.Bt @ u, active, moved, jacobian)
 
     def _unbalanced_message(self, res, rhs) -> str:
         """Name the floating body whose rigid motion the load can drive, and the load."""

@@ -178,7 +178,31 @@ def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix, held: np.ndarray | None = None) 
     return tied, np.where(tied, kappa, 0.0)
 
 
-def canonical_split(force_n, force_t, gap, tied, kappa, scale: float, held=None):
+def dependent_rows(Bn: sp.spmatrix, Bt: sp.spmatrix, held: np.ndarray, tied: np.ndarray):
+    """(nodes, v): the nodes whose acting rows (neither held nor tied) are linearly dependent on
+    the unknowns — their unit rows' Gram matrix has an eigenvalue ≤ 5e-11 (1 − cos θ at the
+    angle 1e-5 rad of `tied_rows`) — and for each the combination v ((1 + k),: over λn, λt,1..k,
+    zero on the other rows) with Σ_r v_r B_r = 0, so that only λ modulo v acts there. A 3D node
+    on a support holding one component of both sides has three rows in two free directions
+    (the oblique tunnel's fault on its left roller); rows so dependent without being tied
+    leave one such v per node (two would need all three rows parallel: tied). Geometry only."""
+    m = Bn.shape[0]
+    k = Bt.shape[0] // m if m else 1
+    X = [Bn.tocsr()] + [Bt[j * m:(j + 1) * m].tocsr() for j in range(k)]
+    act = ~held.reshape(1 + k, m).T & ~np.c_[np.zeros(m, dtype=bool), tied.reshape(k, m).T]
+    G = np.empty((m, 1 + k, 1 + k))
+    for a in range(1 + k):
+        for b in range(a, 1 + k):
+            G[:, a, b] = G[:, b, a] = np.asarray(X[a].multiply(X[b]).sum(axis=1)).ravel() * act[:, a] * act[:, b]
+    d = np.sqrt(np.where(act, np.einsum("ijj->ij", G), 1.0))
+    G = G / (d[:, :, None] * d[:, None, :]) + np.eye(1 + k) * ~act[:, None, :]
+    w, V = np.linalg.eigh(G)
+    nodes = np.flatnonzero((w[:, 0] <= 5e-11) & (act.sum(axis=1) >= 2))
+    v = V[nodes, :, 0] / d[nodes]
+    return nodes, v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def canonical_split(force_n, force_t, gap, tied, kappa, scale: float, held=None, dependent=None):
     """The multipliers of closed nodes with tied rows (`tied_rows`) at one canonical split:
     only a = λn + Σ_j κ_j λt,j acts there, and any λ with that a, λn ≥ 0 and λt within its
     bound solves the problem (which split a solver returns depends on its path: the
@@ -190,21 +214,45 @@ def canonical_split(force_n, force_t, gap, tied, kappa, scale: float, held=None)
     Closed: gap ≤ 1e-7 · scale (the displacement scale; the criteria's "within reach").
     A held row (`held_rows`, flags of [λn; λt]) acts on nothing, so its multiplier is not
     determined at all: it carries nothing (the supports hold that motion).
-    Returns (force_n, force_t, moved, pulled): moved flags the tangent rows whose force went
-    to the normal, pulled the nodes whose a went to the tangents."""
+    Dependent rows (`dependent_rows`: nodes i, combinations v): λ_i + s v acts alike for every
+    s; reported, the s of the least |λt| with λn ≥ 0 on a closed node (the same rule: the
+    tangents carry the least, within the friction bound whenever the solver's split is; a
+    slipping node's λt ∥ slip is that one already); an open node keeps λn = 0.
+    Returns (force_n, force_t, moved, (dn, dt)): moved flags the tangent rows whose force went
+    to the normal; dn (m,), dt ((d − 1) m,) the derivatives of the reported λn by the solver's
+    λn and λt (the adjoint of a pressure differentiates the reported value)."""
     m = force_n.size
     k = force_t.size // m if m else 1
+    dn = np.ones(m)
     if held is not None:
         force_n, force_t = np.where(held[:m], 0.0, force_n), np.where(held[m:], 0.0, force_t)
-    T = tied.reshape(k, m) & (gap <= 1e-7 * scale)[None, :]
+        dn[held[:m]] = 0.0
+    closed = gap <= 1e-7 * scale
+    T = tied.reshape(k, m) & closed[None, :]
     kt = kappa.reshape(k, m) * T
     a = force_n + (kt * force_t.reshape(k, m)).sum(axis=0)
     pulled = T.any(axis=0) & (a < 0)
     share = a * kt / np.where(pulled, (kt * kt).sum(axis=0), 1.0)
     t = np.where(T & pulled[None, :], share, np.where(T, 0.0, force_t.reshape(k, m)))
     T &= ~pulled[None, :]
-    node = T.any(axis=0)
-    return np.where(node, a, np.where(pulled, 0.0, force_n)), t.ravel(), T.ravel(), pulled
+    n = np.where(T.any(axis=0), a, np.where(pulled, 0.0, force_n))
+    dn[pulled] = 0.0
+    dt = np.where(T, kt, 0.0)
+    if dependent is not None and dependent[0].size:
+        i, v = dependent
+        vn, vt = v[:, 0], v[:, 1:].T
+        vv = (vt * vt).sum(axis=0)
+        s = -(vt * t[:, i]).sum(axis=0) / vv
+        floor = np.divide(-n[i], vn, out=np.full(i.size, -np.inf), where=vn > 0)
+        ceil = np.divide(-n[i], vn, out=np.full(i.size, np.inf), where=vn < 0)
+        fixed = ~closed[i] & (vn != 0)
+        clamped = ~fixed & ((s < floor) | (s > ceil))
+        s = np.where(fixed, 0.0, np.clip(s, floor, ceil))
+        n[i] = np.where(clamped, 0.0, n[i] + vn * s)
+        t[:, i] += vt * s
+        dn[i] = np.where(clamped, 0.0, dn[i])
+        dt[:, i] = np.where(fixed | clamped, 0.0, -vn * vt / vv)
+    return n, t.ravel(), T.ravel(), (dn, dt.ravel())
 
 
 @dataclass
@@ -217,7 +265,7 @@ class ContactState:
     slip: np.ndarray         # relative tangential displacement, as force_t
     status: np.ndarray | None = None
     moved: np.ndarray | None = None   # tangent rows whose force `canonical_split` put on the normal
-    pulled: np.ndarray | None = None  # nodes whose tied combination `canonical_split` put on the tangents
+    jacobian: tuple | None = None     # (dn, dt): ∂(reported λn)/∂(the solver's λn, λt), `canonical_split`
 
     @property
     def nodes(self):
