@@ -607,8 +607,7 @@ def _slip_partials(crit, model, state, r):
     |s| has a kink at s = 0, which matters only where s can cross 0: a stuck node keeps s fixed
     on its active set (and a stick/slip switch is flagged with the active set), and a node whose
     reduced tangential rows vanish or are round-off (`Model.held`: held by supports on both
-    sides) has s fixed by them; any
-    other node in G_r with s ≈ 0 makes the point non-smooth."""
+    sides) has s fixed by them; any other node in G_r with s ≈ 0 makes the point non-smooth."""
     mask, c = crit.contact_masks[r], state.contact
     m = mask.size
     k = c.slip.size // m
