@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact.zone import slave_segments
+from .contact.zone import acting_rows, slave_segments
 from .errors import StudyError
 from .fem import stress, tet
 from .scene.selectors import (Selection, boundary_facets, dist_segments, distance_function, facet_lengths,
@@ -617,8 +617,7 @@ def _slip_partials(crit, model, state, r):
     dslip = np.tile(w, k) * nu / w.sum()
     stuck = state.raw.free[m:2 * m] if state.raw is not None else np.zeros(m, dtype=bool)
     scale = max(np.abs(c.slip).max(), np.abs(state.u).max(), 1e-300)
-    rows = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0   # abs() sorts its operand in place
-    moves = rows.reshape(k, m).any(axis=0)
+    moves = acting_rows(model.Bt_r).reshape(k, m).any(axis=0)
     kink = mask & ~stuck & moves & (norm <= REL_TOL * scale)
     return Partials(u=model.zone.Bt.T @ dslip), bool(kink.any())
 

@@ -44,6 +44,7 @@ import scipy.sparse.linalg as spla
 
 from .coefficients import flatten
 from .contact.solver import redundant_pairs
+from .contact.zone import acting_rows
 from .criteria import KINDS, REL_TOL, Partials, node_norm
 
 
@@ -237,13 +238,14 @@ def contact_nonsmooth(model, state) -> bool:
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
     weak_stick = stick & (gw > 0) & (node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
     weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
-    # constraints that cannot move the solution: a node held by supports on both sides (its
-    # rows vanish), and a tangent parallel to the normal (rollers on both sides) while closed
-    moves = np.asarray(abs(model.Bn_r.copy()).sum(axis=1)).ravel() > 0    # abs() sorts its operand in place
-    t_moves = np.asarray(abs(model.Bt_r.copy()).sum(axis=1)).ravel() > 0
-    tangent_free = (t_moves & ~model.tied[0]).reshape(k, m).any(axis=0)     # `tied_rows`
-    weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
-    return bool(np.any((weak_closed | weak_open | weak_t) & moves))
+    # constraints that cannot move the solution: a row held by supports on both sides (it
+    # vanishes, in 3D to round-off: `acting_rows`), and a tangent parallel to the normal
+    # (rollers on both sides) while closed
+    moves = acting_rows(model.Bn_r)
+    t_moves = acting_rows(model.Bt_r).reshape(k, m)
+    tangent_free = (t_moves & ~model.tied[0].reshape(k, m)).any(axis=0)     # `tied_rows`
+    weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed) & t_moves.any(axis=0)
+    return bool(np.any((weak_closed | weak_open) & moves | weak_t))
 
 
 def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.ndarray | None]:

@@ -142,20 +142,37 @@ def _build_zone3d(contacts, smesh: SceneMesh) -> ContactZone:
     )
 
 
+ROUND_OFF_ROW = 1e-10     # a reduced contact row shorter than this share of the longest acts on round-off only
+
+
+def acting_rows(B: sp.spmatrix) -> np.ndarray:
+    """The rows of a contact matrix on the reduced unknowns (`Model.Bn_r`, `Bt_r`) that act on
+    them: ‖row‖ > ROUND_OFF_ROW · max ‖row‖. A 3D fault node held by supports on both sides keeps
+    components of 1e-31 to 1e-15 of its normal or tangent after the elimination (the plane's
+    normal as the mesh gives it); in 2D they vanish exactly. Such a row moves nothing: the
+    contact solver holds it as a null row (`solver.null_rows`: W_ii ≤ 1e-20 max W_jj, the same
+    1e-10 in ‖row‖), and its gap and slip are what the supports leave."""
+    norm = np.sqrt(np.asarray(B.multiply(B).sum(axis=1)).ravel())
+    return norm > ROUND_OFF_ROW * norm.max(initial=0.0)
+
+
 def tied_rows(Bn: sp.spmatrix, Bt: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
     """(tied, κ), one entry per tangent row j·m + i: whether node i's tangent row j is parallel
     to its normal row on the unknowns, Bt_j,i = κ Bn_i (rollers on both sides of the node: both
     rows act on one relative motion, so only λn + κ λt of the pair is determined), to an angle
     below 1e-5 rad (t² − (n·t)²/n² ≤ 1e-10 t²; parallel rows leave ~1e-16 t² of round-off).
-    Geometry only (the reduced rows), so every solver of a scene finds the same rows."""
+    Both rows must act (`acting_rows`): a normal of round-off is no constraint to share a force
+    with (κ of it would be ~1e14, and λn + κ λt a force of 1e19 N). Geometry only (the reduced
+    rows), so every solver of a scene finds the same rows."""
     m = Bn.shape[0]
     k = Bt.shape[0] // m if m else 1
     n2 = np.tile(np.asarray(Bn.multiply(Bn).sum(axis=1)).ravel(), k)
     Bn_k = sp.vstack([Bn] * k).tocsr()
     nt = np.asarray(Bn_k.multiply(Bt).sum(axis=1)).ravel()
     t2 = np.asarray(Bt.multiply(Bt).sum(axis=1)).ravel()
-    kappa = np.divide(nt, n2, out=np.zeros_like(nt), where=n2 > 0)
-    tied = (n2 > 0) & (t2 > 0) & (t2 - kappa * nt <= 1e-10 * t2)
+    acts = np.tile(acting_rows(Bn), k) & acting_rows(Bt)
+    kappa = np.divide(nt, n2, out=np.zeros_like(nt), where=acts)
+    tied = acts & (t2 - kappa * nt <= 1e-10 * t2)
     return tied, np.where(tied, kappa, 0.0)
 
 
