@@ -48,7 +48,7 @@ from ..study import Search
 from .archive import Archive
 from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
-from .scaling import TOL
+from .scaling import FD_STEP, TOL
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
@@ -99,6 +99,7 @@ def auto(problem, config, rng):
             break
         yield from archive.ask(proposals, "corner")
         open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)])
 
     # 3. local ascent where the corners did not certify (a fuzzy level: first carry the inner maxima out)
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
@@ -128,7 +129,49 @@ def auto(problem, config, rng):
     rest = [c for c in rest if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol, label="ascent from the best")
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)])
     return archive.worst(tol)
+
+
+def one_sided(archive, criteria):
+    """The one-sided differences into the box at the best point of each criterion that is not
+    smooth there (`Record.nonsmooth`: its adjoint gradient is one-sided) and sits at a corner of
+    the box (`_box_corner`): one solve per parameter, z_i moved by FD_STEP inward, shared by the
+    criteria with the same best point; stored as `Record.inward` (q_i = ΔΦ/|Δz_i|), which
+    `Archive.certify` tests for the KKT sign conditions. Skipped when the budget cannot pay
+    for all of them."""
+    space = archive.space
+    moved = [i for i in range(space.n) if space.width[i] > 0]
+    plan = {}
+    for c in criteria:
+        rec = archive.best_record(c)
+        if rec is not None and rec.nonsmooth and c not in rec.inward and _box_corner(space, rec.z):
+            plan.setdefault(id(rec), (rec, []))[1].append(c)
+    points = []
+    for rec, _ in plan.values():
+        for i in moved:
+            z = rec.z.copy()
+            z[i] += FD_STEP if z[i] == 0.0 else -FD_STEP
+            points.append(z)
+    if not points or len(points) > archive.remaining:
+        return
+    recs = iter((yield from archive.ask(points, "one-sided", gradients=False, exact=True)))
+    for rec, cs in plan.values():
+        got = [next(recs) for _ in moved]
+        for c in cs:
+            if all(o is not None and o.ok[c] for o in got):
+                q = np.zeros(space.n)
+                for i, o in zip(moved, got):
+                    q[i] = (o.phi[c] - rec.phi[c]) / (abs(o.x[i] - rec.x[i]) / space.width[i])
+                rec.inward[c] = q
+    archive.note(f"one-sided differences into the box at {len(plan)} non-smooth corner(s): {len(points)} solves")
+
+
+def _box_corner(space, z) -> bool:
+    """Whether z is a corner of the box (every parameter at a bound) with no row of A z ≤ b
+    active: there the admissible directions are those of the box, spanned by its edges."""
+    at = (z == 0.0) | (z == 1.0) | (space.width == 0)
+    return bool(np.all(at)) and (space.A is None or bool(np.all(space.A @ z < space.b - TOL)))
 
 
 def restart(archive, criteria, tol):
@@ -155,7 +198,10 @@ def restart(archive, criteria, tol):
     if not neighbours:
         return
     recs = yield from archive.ask(list(neighbours.values()), "restart")
-    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated")
+    done = sum(r is not None for r in recs)
+    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated" if done == len(recs)
+                 else f"restarts: {done} of the {len(neighbours)} one-flip neighbours of the best points evaluated "
+                      "before the budget ran out")
     starts = []
     for c in criteria:
         ok = [r for r in recs if r is not None and r.ok[c] and r.grad.get(c) is not None

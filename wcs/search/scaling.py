@@ -30,6 +30,8 @@ import numpy as np
 from scipy.optimize import linprog, minimize
 
 TOL = 1e-9          # feasibility / activity tolerance in scaled coordinates
+FD_STEP = 1e-6      # finite-difference step in z (of each interval): a quotient errs by O(h) from the
+                    # curvature and by the solve's round-off (~1e-14 of Φ) / h ~ 1e-8 of Φ per interval
 
 
 class Space:
