@@ -171,8 +171,8 @@ class Archive:
         how = " (finite-difference gradient)" if c in rec.fd else ""
         if rel <= tol:
             kind = "corner-kkt" if self.space.is_vertex(rec.z) else "local-kkt"
-            where = ("at this vertex every partial derivative points out of the admissible set" if kind == "corner-kkt"
-                     else "the gradient shows no direction of ascent inside the admissible set")
+            where = ("a vertex of the admissible set where no admissible direction raises the criterion to first "
+                     "order" if kind == "corner-kkt" else "no admissible direction raises the criterion to first order")
             return kind, f"{where} (KKT gap {rel:.1e} of scale{how})"
         return "heuristic", (f"the gradient still points into the admissible set: KKT gap {rel:.1e} of scale "
                              f"> {tol:.0e}{how}")
