@@ -403,3 +403,18 @@ def test_sample_is_one_batch_and_every_outcome_updates_every_criterion():
     for c in tp.problem.criteria:
         assert run.worst.value[c] == max(tp.phi(x)[c] for x in pts)
         assert run.worst.certificate[c] == "heuristic"
+
+
+def test_notes_say_once_and_in_words_why_the_ascents_stopped():
+    """A budget spent by the restarts' one-flip neighbours (the 3D tunnel's pattern): the note
+    says how many neighbours were paid for and, once for the three restarted ascents, that they
+    stopped before a first step because the budget was spent (before: "restarted ascent: budget
+    after 0 steps, budget after 0 steps, budget after 0 steps" and "10 neighbours evaluated")."""
+    tp = interior()
+    run = drive("auto", tp, cfg("auto", budget=30))
+    for c in tp.problem.criteria:
+        note = run.worst.notes[c]
+        assert "local ascent: it stopped after" in note and "the KKT conditions held there" in note
+        assert "restarts: 5 of the 10 one-flip neighbours of the best points evaluated before the budget ran out" in note
+        assert note.endswith("3 restarted ascents: all stopped before a first step: the budget was spent")
+        assert note.count("budget") == 2

@@ -85,7 +85,7 @@ def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Data
             if k not in stepped:
                 stepped[k] = _one_sided(e.x, lower, upper, evaluate)
             steps = stepped[k]
-            sides[:, a, c] = _quotients(steps, e.value if e.found else np.nan, e.criterion, n)
+            sides[:, a, c] = _quotients(steps, e.value, e.criterion, n)
             notes[a, c] = _one_sided_note(sides[:, a, c], e, lower, upper, steps)
             continue
         grad[a, c] = g

@@ -74,8 +74,9 @@ STOPS = {                 # why a run stopped (Run.done), in words
 
 def note_runs(archive, runs, label: str) -> None:
     """One note per criterion for its runs: how many, how far each got and why it stopped,
-    runs that stopped alike told once (e.g. "3 restarted ascents: none took a step: the budget
-    was spent"). A KKT stop at a non-smooth point is said to rest on a one-sided gradient."""
+    runs that stopped alike told once (e.g. "3 restarted ascents: all stopped before a first
+    step: the budget was spent"). A KKT stop at a non-smooth point is said to rest on a one-sided
+    gradient."""
     for c in archive.criteria:
         mine = [r for r in runs if r.c == c]
         if not mine:
