@@ -183,8 +183,11 @@ class Archive:
         why = ("the criterion is not differentiable here (the contact's active set or the criterion's "
                "maximising region changes within reach of this data set)")
         q = rec.inward.get(c)
+        if q is None and not self.space.is_box_corner(rec.z):
+            return "heuristic", (f"{why}, and the point is not a corner of the box (where one-sided differences into "
+                                 "the box would test the KKT signs): KKT not checked")
         if q is None:
-            return "heuristic", f"{why}, and no one-sided differences were taken: KKT not checked"
+            return "heuristic", f"{why}, and the budget left no solves for one-sided differences: KKT not checked"
         gain = np.maximum(q, 0.0)
         rel = float(gain.sum()) / self.scale(c)
         if rel <= tol:

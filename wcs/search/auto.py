@@ -99,7 +99,7 @@ def auto(problem, config, rng):
             break
         yield from archive.ask(proposals, "corner")
         open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
-    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)])
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)], tol)
 
     # 3. local ascent where the corners did not certify (a fuzzy level: first carry the inner maxima out)
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
@@ -129,15 +129,15 @@ def auto(problem, config, rng):
     rest = [c for c in rest if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol, label="ascent from the best")
-    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)])
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)], tol)
     return archive.worst(tol)
 
 
-def one_sided(archive, criteria):
+def one_sided(archive, criteria, tol):
     """The one-sided differences into the box at the best point of each criterion that is not
     smooth there (`Record.nonsmooth`: its adjoint gradient is one-sided) and sits at a corner of
-    the box (`_box_corner`): one solve per parameter, z_i moved by FD_STEP inward, shared by the
-    criteria with the same best point; stored as `Record.inward` (q_i = ΔΦ/|Δz_i|), which
+    the box (`Space.is_box_corner`): one solve per parameter, z_i moved by FD_STEP inward, shared
+    by the criteria with the same best point; stored as `Record.inward` (q_i = ΔΦ/|Δz_i|), which
     `Archive.certify` tests for the KKT sign conditions. Skipped when the budget cannot pay
     for all of them."""
     space = archive.space
@@ -145,7 +145,7 @@ def one_sided(archive, criteria):
     plan = {}
     for c in criteria:
         rec = archive.best_record(c)
-        if rec is not None and rec.nonsmooth and c not in rec.inward and _box_corner(space, rec.z):
+        if rec is not None and rec.nonsmooth and c not in rec.inward and space.is_box_corner(rec.z):
             plan.setdefault(id(rec), (rec, []))[1].append(c)
     points = []
     for rec, _ in plan.values():
@@ -164,14 +164,10 @@ def one_sided(archive, criteria):
                 for i, o in zip(moved, got):
                     q[i] = (o.phi[c] - rec.phi[c]) / (abs(o.x[i] - rec.x[i]) / space.width[i])
                 rec.inward[c] = q
-    archive.note(f"one-sided differences into the box at {len(plan)} non-smooth corner(s): {len(points)} solves")
-
-
-def _box_corner(space, z) -> bool:
-    """Whether z is a corner of the box (every parameter at a bound) with no row of A z ≤ b
-    active: there the admissible directions are those of the box, spanned by its edges."""
-    at = (z == 0.0) | (z == 1.0) | (space.width == 0)
-    return bool(np.all(at)) and (space.A is None or bool(np.all(space.A @ z < space.b - TOL)))
+                grows = [archive.problem.names[i] for i in np.argsort(-q)[:3] if q[i] > 0]
+                archive.note(f"one-sided differences into the box at its best point, a non-smooth corner "
+                             f"({len(moved)} solves): " + ("none grows" if archive.certified(c, tol) else
+                                                           f"it grows moving {', '.join(grows)} inward"), c)
 
 
 def restart(archive, criteria, tol):

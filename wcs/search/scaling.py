@@ -157,6 +157,13 @@ class Space:
         M = np.vstack(rows)
         return M.shape[0] >= self.n and np.linalg.matrix_rank(M) == self.n
 
+    def is_box_corner(self, z) -> bool:
+        """Whether z is a corner of the box (every parameter at a bound) with no row of A z ≤ b
+        active: there the admissible directions are those of the box, spanned by its edges."""
+        z = np.asarray(z, dtype=float)
+        at = (z == 0.0) | (z == 1.0) | (self.width == 0)
+        return bool(np.all(at)) and (self.A is None or bool(np.all(self.A @ z < self.b - TOL)))
+
     def key(self, z) -> bytes:
         """Identity of a point: the exact bits of its physical data set."""
         return self.to_x(z).tobytes()
