@@ -20,7 +20,10 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    max_{z'∈P} g·(z' − z) is 0; a violated sign moves the vertex (the LP vertex
    of the new gradient flips exactly the violators). A criterion whose
    proposed vertex was already evaluated (the signs flip back and forth: a
-   maximum inside, or a non-smooth point) leaves the corner phase.
+   maximum inside, or a non-smooth point) leaves the corner phase. A criterion whose best
+   point is not smooth (its adjoint gradient one-sided: a contact switch within reach) and is
+   a corner of the box gets one difference into the box per parameter there (`one_sided`),
+   whose KKT sign test archive.py makes; again at the end for the final best points.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
    On a fuzzy level (`Problem.inner`: the inner α-cut) the inner level's best
