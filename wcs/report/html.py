@@ -547,8 +547,9 @@ class Report:
         back, fwd = a["drivers_backward"].sel(pick).values, a["drivers_forward"].sel(pick).values
         cell = lambda v: f'<td class="num">{number(v, units, difference=True) if math.isfinite(v) else "—"}</td>'  # noqa: E731
         rows = "".join(f"<tr><td>{esc(p)}</td>{cell(b)}{cell(f)}</tr>" for p, b, f in zip(params, back, fwd))
-        return (f'<p class="note one-sided">Not differentiable here: these are <b>one-sided differences</b>, '
-                f'not derivatives ({esc(note)}).</p><table class="one-sided"><tr><th>parameter</th>'
+        how = note.removeprefix("one-sided differences: ")
+        return (f'<p class="note one-sided">These drivers are <b>one-sided differences</b>, not derivatives: '
+                f'{esc(how)}.</p><table class="one-sided"><tr><th>parameter</th>'
                 '<th>backward (x − h)</th><th>forward (x + h)</th></tr>' + rows + '</table>')
 
     # ------------------------------------------------------------ page
