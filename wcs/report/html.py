@@ -545,7 +545,8 @@ class Report:
     def _one_sided(a, pick, params, units: str, note: str) -> str:
         """The one-sided differences of a criterion not differentiable at its extreme, side by side."""
         back, fwd = a["drivers_backward"].sel(pick).values, a["drivers_forward"].sel(pick).values
-        cell = lambda v: f'<td class="num">{number(v, units, difference=True) if math.isfinite(v) else "—"}</td>'  # noqa: E731
+        def cell(v):
+            return f'<td class="num">{number(v, units, difference=True) if math.isfinite(v) else "—"}</td>'
         rows = "".join(f"<tr><td>{esc(p)}</td>{cell(b)}{cell(f)}</tr>" for p, b, f in zip(params, back, fwd))
         how = note.removeprefix("one-sided differences: ")
         return (f'<p class="note one-sided">These drivers are <b>one-sided differences</b>, not derivatives: '
