@@ -78,9 +78,48 @@ def test_no_gradient_gives_no_number(slab, outcome, said):
     assert 'class="warn no-gradient">No drivers' in page and "drivers of warmth" not in page
 
 
-def test_a_nonsmooth_extreme_has_no_drivers(slab):
+def test_a_nonsmooth_extreme_has_one_sided_drivers(slab):
+    """Where the criterion is not differentiable (flagged here on the slab's worst case), the
+    drivers are one-sided differences, labelled so: for Phi = T0 + c q / k (exact, as above) the
+    forward and backward quotients of step h = 1e-6 of the interval are dPhi/dq = (Phi - T0)/q
+    exactly (Phi is linear in q) and -(Phi - T0)/k · k/(k ± h) in k (to 1e-5 with the interval
+    2.5 k at most: |h/k| <= 3e-6); E does not move it. Before: NaN and "no gradient"."""
     ds = slab.copy(deep=True)
     ds["nonsmooth"].values[int(ds["worst_eval"].values[0])] = 1
-    out = drivers(ds, extremes(ds), lambda x: pytest.fail("the run's gradient is there"))
-    assert np.isnan(out["drivers"].values).all()
-    assert "not differentiable at the extreme" in str(out["drivers_note"].values[0, 0])
+    study = load_study(SLAB)
+    out = drivers(ds, extremes(ds), lambda x, gradients=True: study.evaluate(x, gradients))
+    q, k, _ = ds["worst_x"].values[0]
+    lower, upper = ds["param_lower"].values, ds["param_upper"].values
+    width = upper - lower
+    rise = float(ds["worst_value"].values[0]) - 300.0
+    exact = np.array([rise / q, -rise / k]) * width[:2]
+    fwd, back = out["drivers_forward"].values[0, 0], out["drivers_backward"].values[0, 0]
+    for side, values in (("forward", fwd), ("backward", back)):
+        inside = (ds["worst_x"].values[0] + (1 if side == "forward" else -1) * 1e-6 * width)[:2]
+        taken = (inside >= lower[:2]) & (inside <= upper[:2])
+        assert np.array_equal(np.isfinite(values[:2]), taken), side
+        np.testing.assert_allclose(values[:2][taken], exact[taken], rtol=1e-5)
+    np.testing.assert_allclose(out["drivers"].values[0, 0, :2], np.abs(exact), rtol=1e-5)
+    assert out["drivers"].values[0, 0, 2] <= 1e-9 * np.abs(exact).max()      # E: the round-off of a solve
+    assert list(out["drivers_sign"].values[0, 0, :2]) == [1, -1]
+    note = str(out["drivers_note"].values[0, 0])
+    assert note.startswith("one-sided differences") and "not differentiable at the extreme" in note
+    page = render_report(ds.drop_vars(["drivers", "drivers_sign", "drivers_note"]).assign(out.data_vars), strict=True)
+    assert "drivers of warmth" in page and "<b>one-sided differences</b>" in page and "No drivers" not in page
+
+
+def test_one_sided_differences_pointing_out_of_the_box_make_a_corner_maximum(slab):
+    """At the corner the slab's worst case sits at in q and k (E moved to a bound too), every
+    one-sided difference into the box is a fall of the criterion: the note says it is a maximum
+    along every edge of the box leaving that corner; at the opposite corner it is not."""
+    ds = slab.copy(deep=True)
+    row = int(ds["worst_eval"].values[0])
+    ds["nonsmooth"].values[row] = 1
+    study = load_study(SLAB)
+    lower, upper = ds["param_lower"].values, ds["param_upper"].values
+    for corner, said in ((np.where([1, 0, 0], upper, lower), True), (np.where([0, 1, 0], upper, lower), False)):
+        ds["worst_x"].values[0] = corner
+        ds["worst_value"].values[0] = study.evaluate(corner).phi["warmth"]
+        out = drivers(ds, extremes(ds), lambda x, gradients=True: study.evaluate(x, gradients))
+        note = str(out["drivers_note"].values[0, 0])
+        assert ("a maximum along every edge of the box leaving it" in note) is said, note

@@ -352,16 +352,46 @@ def test_missing_gradients_fall_back_to_finite_differences():
         assert relative_error(tp, run.worst, c) <= 1e-3
 
 
-def test_nonsmooth_point_is_not_certified():
-    tp = monotone()
-
-    def rough(x, gradients=True):
+def rough(tp):
+    def evaluate(x, gradients=True):
         o = tp.outcome(x, gradients)
         o.nonsmooth = True
         return o
-    run = drive("auto", tp, cfg("auto"), evaluate=rough)
+    return evaluate
+
+
+def test_a_nonsmooth_corner_is_certified_by_its_one_sided_differences():
+    """Every point flagged non-smooth (the adjoint gradient one-sided, as at a contact switch):
+    at each criterion's best corner the search takes one difference into the box per parameter
+    (step 1e-6 of the interval) and certifies corner-kkt when none grows — here, where the
+    quotients taken independently below all fall or vanish (x2 does not move temp, x1 not shear).
+    Before: heuristic, "non-smooth point: KKT not checked"."""
+    tp = monotone()
+    run = drive("auto", tp, cfg("auto"), evaluate=rough(tp))
+    width = tp.problem.upper - tp.problem.lower
+    steps = [b for b in run.batches if b.stage == "one-sided"]
+    assert len(steps) == 1 and not steps[0].gradients
+    for c in tp.problem.criteria:
+        assert relative_error(tp, run.worst, c) <= 1e-4
+        x = run.worst.x[c]
+        assert np.all((x == tp.problem.lower) | (x == tp.problem.upper))
+        inward = np.where(x == tp.problem.lower, 1.0, -1.0)
+        moved = x + inward[:, None] * np.eye(6) * 1e-6 * width
+        assert all(np.any(np.all(np.isclose(steps[0].points, y, rtol=1e-13, atol=0), axis=1)) for y in moved)
+        q = np.array([tp.phi(y)[c] - tp.phi(x)[c] for y in moved]) / 1e-6
+        assert np.all(q <= 1e-9 * abs(tp.phi(x)[c]))                    # nothing grows inward
+        assert run.worst.certificate[c] == "corner-kkt"
+        assert "one-sided differences" in run.worst.notes[c] and "every edge of the box" in run.worst.notes[c]
+
+
+def test_a_nonsmooth_point_without_one_sided_differences_is_not_certified():
+    """The same with a budget that cannot pay for the differences (6 solves a corner)."""
+    tp = monotone()
+    run = drive("auto", tp, cfg("auto", budget=18), evaluate=rough(tp))
+    assert not any(b.stage == "one-sided" for b in run.batches)
     assert set(run.worst.certificate.values()) == {"heuristic"}
-    assert all(relative_error(tp, run.worst, c) <= 1e-4 for c in tp.problem.criteria)
+    assert all("not differentiable here" in run.worst.notes[c] and "the budget left no solves for one-sided"
+               in run.worst.notes[c] for c in tp.problem.criteria)
 
 
 # ------------------------------------------------------------------ sample
@@ -373,3 +403,18 @@ def test_sample_is_one_batch_and_every_outcome_updates_every_criterion():
     for c in tp.problem.criteria:
         assert run.worst.value[c] == max(tp.phi(x)[c] for x in pts)
         assert run.worst.certificate[c] == "heuristic"
+
+
+def test_notes_say_once_and_in_words_why_the_ascents_stopped():
+    """A budget spent by the restarts' one-flip neighbours (the 3D tunnel's pattern): the note
+    says how many neighbours were paid for and, once for the three restarted ascents, that they
+    stopped before a first step because the budget was spent (before: "restarted ascent: budget
+    after 0 steps, budget after 0 steps, budget after 0 steps" and "10 neighbours evaluated")."""
+    tp = interior()
+    run = drive("auto", tp, cfg("auto", budget=30))
+    for c in tp.problem.criteria:
+        note = run.worst.notes[c]
+        assert "local ascent: it stopped after" in note and "the KKT conditions held there" in note
+        assert "restarts: 5 of the 10 one-flip neighbours of the best points evaluated before the budget ran out" in note
+        assert note.endswith("3 restarted ascents: all stopped before a first step: the budget was spent")
+        assert note.count("budget") == 2

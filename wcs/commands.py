@@ -78,7 +78,7 @@ class CheckedRunner(Runner):
         if self.kind != "run" or not self.root:
             return ds
         found = support_extremes(ds)
-        parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers"))]
+        parts = [drivers(ds, found, lambda x, gradients=True: self.evaluate(x, gradients, "drivers"))]
         parts.append(meshcheck.mesh_check(self.study, ds, found)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
         for part in parts:

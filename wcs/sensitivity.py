@@ -237,13 +237,14 @@ def contact_nonsmooth(model, state) -> bool:
     gw = np.where(np.isfinite(res.gw), res.gw, 0.0)
     weak_stick = stick & (gw > 0) & (node_norm(res.lam_t, m) >= (1 - REL_TOL) * gw)
     weak_slip = ~stick & (gw > 0) & (node_norm(c.slip, m) <= REL_TOL * us)
-    # constraints that cannot move the solution: a node held by supports on both sides (its
-    # rows vanish, or are round-off: `Model.held`), and a tangent parallel to the normal
-    # (rollers on both sides) while closed
-    moves, t_moves = ~model.held[:m], ~model.held[m:]
-    tangent_free = (t_moves & ~model.tied[0]).reshape(k, m).any(axis=0)     # `tied_rows`
-    weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed)
-    return bool(np.any((weak_closed | weak_open | weak_t) & moves))
+    # constraints that cannot move the solution: a row held by supports on both sides (it
+    # vanishes, or is round-off: `Model.held`), and a tangent parallel to the normal (rollers on
+    # both sides) while closed; a held normal leaves a free tangent's stick/slip switch counting
+    moves = ~model.held[:m]
+    t_moves = (~model.held[m:]).reshape(k, m)
+    tangent_free = (t_moves & ~model.tied[0].reshape(k, m)).any(axis=0)     # `tied_rows`
+    weak_t = (weak_stick | weak_slip) & (tangent_free | ~closed) & t_moves.any(axis=0)
+    return bool(np.any((weak_closed | weak_open) & moves | weak_t))
 
 
 def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.ndarray | None]:

@@ -533,11 +533,25 @@ class Report:
                 continue
             body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
                                              f"{c}: what drives its {kind} value"), f"drivers of {c}")
+            if note.startswith("one-sided differences"):
+                body += self._one_sided(a, pick, params, units.get(c, ""), note)
             still = [p for p, z in zip(params, idle(d)) if z]
             body += (f'<p class="idle">Parameters that do not move {esc(c)} (to first order at its {esc(kind)} '
                      f'data set): {", ".join(esc(p) for p in still)}.</p>' if still else
                      f'<p class="idle">Every parameter moves {esc(c)} at its {esc(kind)} data set.</p>')
         return body
+
+    @staticmethod
+    def _one_sided(a, pick, params, units: str, note: str) -> str:
+        """The one-sided differences of a criterion not differentiable at its extreme, side by side."""
+        back, fwd = a["drivers_backward"].sel(pick).values, a["drivers_forward"].sel(pick).values
+        def cell(v):
+            return f'<td class="num">{number(v, units, difference=True) if math.isfinite(v) else "—"}</td>'
+        rows = "".join(f"<tr><td>{esc(p)}</td>{cell(b)}{cell(f)}</tr>" for p, b, f in zip(params, back, fwd))
+        how = note.removeprefix("one-sided differences: ")
+        return (f'<p class="note one-sided">These drivers are <b>one-sided differences</b>, not derivatives: '
+                f'{esc(how)}.</p><table class="one-sided"><tr><th>parameter</th>'
+                '<th>backward (x − h)</th><th>forward (x + h)</th></tr>' + rows + '</table>')
 
     # ------------------------------------------------------------ page
     def render(self) -> str:

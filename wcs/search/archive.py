@@ -12,10 +12,14 @@ G = max_{z'∈P} g·(z' − z) (see scaling.py):
 - "local-kkt":  G ≤ tol·scale at a non-vertex point;
 - a box of one point (every width 0, e.g. the core of triangular fuzzy numbers) is its own
   maximum: "corner-kkt";
-- "heuristic":  otherwise — no gradient, a non-smooth point (the active set
-  changes within reach, so g is one-sided), or a gradient that is zero
-  while no evaluation has shown a different value (a flat region, where
-  KKT says nothing).
+- at a non-smooth point (the active set changes within reach, so g is one-sided) that is a
+  corner of the box (no row of A x ≤ b active), the KKT sign test on the one-sided derivatives
+  instead: with the inward differences q_i = (Φ(z + s_i h e_i) − Φ(z))/h (s_i = +1 at z_i = 0,
+  −1 at z_i = 1; `auto.one_sided`), "corner-kkt" when Σ max(q_i, 0) ≤ tol·scale — Φ does not
+  grow along any edge of the box leaving the corner;
+- "heuristic":  otherwise — no gradient, a non-smooth point without that test, or a gradient
+  that is zero while no evaluation has shown a different value (a flat region, where KKT says
+  nothing).
 scale = max(|Φ(z)|, spread of the valid values of Φ seen) makes tol relative.
 """
 from __future__ import annotations
@@ -25,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import Batch, Worst
-from .scaling import Space
+from .scaling import FD_STEP, Space
 
 
 @dataclass
@@ -40,6 +44,7 @@ class Record:
     asked_gradients: bool
     grad: dict[str, np.ndarray | None] = field(default_factory=dict)   # dΦ/dz
     fd: set[str] = field(default_factory=set)                          # criteria whose grad is a finite difference
+    inward: dict[str, np.ndarray] = field(default_factory=dict)        # one-sided differences into the box (a corner)
 
 
 class Archive:
@@ -53,7 +58,7 @@ class Archive:
         self.records: list[Record] = []
         self.index: dict[bytes, int] = {}
         self.best: dict[str, int | None] = {c: None for c in self.criteria}
-        self.notes: dict[str, str] = {}   # per criterion; "" for all
+        self.notes: list[tuple[str, str]] = []   # (criterion, or "" for all; text), in the order noted
         for o in problem.known:             # made before (an inner α-level): the strategy's own, free
             z = self.space.to_z(o.x)
             self._record(z, np.asarray(o.x, float), o, "known", o.grad is not None)
@@ -123,7 +128,11 @@ class Archive:
 
     # ------------------------------------------------------------ queries
     def note(self, text: str, c: str = "") -> None:
-        self.notes[c] = "; ".join(t for t in (self.notes.get(c), text) if t)
+        self.notes.append((c, text))
+
+    def notes_of(self, c: str) -> list[str]:
+        """The notes of criterion c and those for all, in the order they were made."""
+        return [t for who, t in self.notes if who in (c, "") and t]
 
     def best_record(self, c) -> Record | None:
         return None if self.best[c] is None else self.records[self.best[c]]
@@ -152,7 +161,7 @@ class Archive:
             return "corner-kkt", "the admissible set is this one data set (e.g. the core of triangular fuzzy numbers)"
         g = rec.grad.get(c)
         if rec.nonsmooth:
-            return "heuristic", "non-smooth point (active set changes within reach): KKT not checked"
+            return self._certify_rough(c, rec, tol)
         if g is None:
             return "heuristic", "no gradient at the worst point"
         if not np.any(g) and self.flat(c):
@@ -162,8 +171,34 @@ class Archive:
         how = " (finite-difference gradient)" if c in rec.fd else ""
         if rel <= tol:
             kind = "corner-kkt" if self.space.is_vertex(rec.z) else "local-kkt"
-            return kind, f"KKT gap {rel:.1e} of scale{how}"
-        return "heuristic", f"KKT gap {rel:.1e} of scale > {tol:.0e}{how}"
+            where = ("a vertex of the admissible set where no admissible direction raises the criterion to first "
+                     "order" if kind == "corner-kkt" else "no admissible direction raises the criterion to first order")
+            return kind, f"{where} (KKT gap {rel:.1e} of scale{how})"
+        return "heuristic", (f"the gradient still points into the admissible set: KKT gap {rel:.1e} of scale "
+                             f"> {tol:.0e}{how}")
+
+    def _certify_rough(self, c, rec: Record, tol: float) -> tuple[str, str]:
+        """A non-smooth point: the KKT sign test on its one-sided differences into the box, when the
+        point is a corner of the box and they were taken (`auto.one_sided`)."""
+        why = ("the criterion is not differentiable here (the contact's active set or the criterion's "
+               "maximising region changes within reach of this data set)")
+        q = rec.inward.get(c)
+        if q is None and not self.space.is_box_corner(rec.z):
+            return "heuristic", (f"{why}, and the point is not a corner of the box (where one-sided differences into "
+                                 "the box would test the KKT signs): KKT not checked")
+        if q is None:
+            return "heuristic", f"{why}, and the budget left no solves for one-sided differences: KKT not checked"
+        gain = np.maximum(q, 0.0)
+        rel = float(gain.sum()) / self.scale(c)
+        if rel <= tol:
+            return "corner-kkt", (f"{why}; one-sided differences (step {FD_STEP:.0e} of each interval, into the "
+                                  f"box): the criterion does not grow moving any one parameter inward from this "
+                                  f"corner, the KKT sign conditions of its one-sided derivatives (gap {rel:.1e} of "
+                                  f"scale): a maximum along every edge of the box leaving the corner")
+        up = [self.problem.names[i] for i in np.argsort(-gain)[:3] if gain[i] > 0]
+        return "heuristic", (f"{why}; one-sided differences (step {FD_STEP:.0e} of each interval, into the box) "
+                             f"grow moving {', '.join(up)} inward (gap {rel:.1e} of scale > {tol:.0e}): "
+                             f"not a corner maximum")
 
     def certified(self, c, tol: float) -> bool:
         return self.certify(c, tol=tol)[0] != "heuristic"
@@ -177,6 +212,5 @@ class Archive:
             xs[c] = centre.copy() if rec is None else rec.x.copy()
             vals[c] = float("nan") if rec is None else rec.phi[c]
             certs[c] = cert
-            extra = [e for e in (self.notes.get(c), self.notes.get("")) if e]
-            notes[c] = "; ".join([note] + extra)
+            notes[c] = "; ".join([note] + self.notes_of(c))
         return Worst(xs, vals, certs, notes)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-FD_STEP = 1e-6
+from .scaling import FD_STEP
 
 
 @dataclass
@@ -62,11 +62,47 @@ def runs_from(starts) -> list[Run]:
     return [Run(c, r.z.copy(), r.phi[c], r.grad.get(c)) for c, r in starts if r is not None and r.ok[c]]
 
 
+STOPS = {                 # why a run stopped (Run.done), in words
+    "kkt": "the KKT conditions held there (no direction of ascent inside the admissible set)",
+    "budget": "the budget was spent",
+    "iterations": "its step limit was reached",
+    "no gradient": "its point had no gradient",
+    "no predicted gain": "its model of the criterion promised no gain",
+    "trust region collapsed": "no step improved the criterion (the trust region shrank below 1e-9)",
+}
+
+
 def note_runs(archive, runs, label: str) -> None:
+    """One note per criterion for its runs: how many, how far each got and why it stopped,
+    runs that stopped alike told once (e.g. "3 restarted ascents: all stopped before a first
+    step: the budget was spent"). A KKT stop at a non-smooth point is said to rest on a one-sided
+    gradient."""
     for c in archive.criteria:
-        why = [f"{r.done} after {r.iterations} steps" for r in runs if r.c == c]
-        if why:
-            archive.note(f"{label}: " + ", ".join(why), c)
+        mine = [r for r in runs if r.c == c]
+        if not mine:
+            continue
+        why = {}
+        for r in mine:
+            rec = archive.find(r.z)
+            rough = r.done == "kkt" and rec is not None and rec.nonsmooth
+            text = ("the adjoint gradient of its active set showed no ascent direction, but the point is not "
+                    "smooth (that gradient is one-sided there)" if rough else STOPS.get(r.done, r.done))
+            why.setdefault(text, []).append(r.iterations)
+        head = label if len(mine) == 1 else f"{len(mine)} {label}s"
+        parts = [f"{_who(len(steps), len(mine))} {_steps(steps)}: {text}" for text, steps in why.items()]
+        archive.note(f"{head}: " + ", ".join(parts), c)
+
+
+def _who(n: int, total: int) -> str:
+    return "it" if total == 1 else "all" if n == total else str(n)
+
+
+def _steps(steps: list[int]) -> str:
+    lo, hi = min(steps), max(steps)
+    if hi == 0:
+        return "stopped before a first step"
+    span = str(hi) if lo == hi else f"{lo} to {hi}"
+    return f"stopped after {span} step{'' if span == '1' else 's'}"
 
 
 def advance(archive, runs, tol, max_iter, fd: bool = True):

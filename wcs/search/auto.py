@@ -20,7 +20,10 @@ steps, in scaled coordinates z ∈ P (scaling.py), with gradients on every solve
    max_{z'∈P} g·(z' − z) is 0; a violated sign moves the vertex (the LP vertex
    of the new gradient flips exactly the violators). A criterion whose
    proposed vertex was already evaluated (the signs flip back and forth: a
-   maximum inside, or a non-smooth point) leaves the corner phase.
+   maximum inside, or a non-smooth point) leaves the corner phase. A criterion whose best
+   point is not smooth (its adjoint gradient one-sided: a contact switch within reach) and is
+   a corner of the box gets one difference into the box per parameter there (`one_sided`),
+   whose KKT sign test archive.py makes; again at the end for the final best points.
 3. Local ascent (ascent.py) from the best point of every criterion still
    uncertified: trust-region projected quasi-Newton / SQP, runs in lockstep.
    On a fuzzy level (`Problem.inner`: the inner α-cut) the inner level's best
@@ -48,7 +51,7 @@ from ..study import Search
 from .archive import Archive
 from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs
-from .scaling import TOL
+from .scaling import FD_STEP, TOL
 
 CORNER_ROUNDS = 4
 FLAT_RETRIES = 2
@@ -99,6 +102,7 @@ def auto(problem, config, rng):
             break
         yield from archive.ask(proposals, "corner")
         open_ = [c for c in open_ if c not in stuck and not archive.certified(c, tol)]
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)], tol)
 
     # 3. local ascent where the corners did not certify (a fuzzy level: first carry the inner maxima out)
     rest = [c for c in archive.criteria if not archive.certified(c, tol)]
@@ -128,7 +132,45 @@ def auto(problem, config, rng):
     rest = [c for c in rest if not archive.certified(c, tol)]
     if rest and archive.remaining:
         yield from ascend(archive, [(c, archive.best_record(c)) for c in rest], tol, label="ascent from the best")
+    yield from one_sided(archive, [c for c in archive.criteria if not archive.certified(c, tol)], tol)
     return archive.worst(tol)
+
+
+def one_sided(archive, criteria, tol):
+    """The one-sided differences into the box at the best point of each criterion that is not
+    smooth there (`Record.nonsmooth`: its adjoint gradient is one-sided) and sits at a corner of
+    the box (`Space.is_box_corner`): one solve per parameter, z_i moved by FD_STEP inward, shared
+    by the criteria with the same best point; stored as `Record.inward` (q_i = ΔΦ/|Δz_i|), which
+    `Archive.certify` tests for the KKT sign conditions. Skipped when the budget cannot pay
+    for all of them."""
+    space = archive.space
+    moved = [i for i in range(space.n) if space.width[i] > 0]
+    plan = {}
+    for c in criteria:
+        rec = archive.best_record(c)
+        if rec is not None and rec.nonsmooth and c not in rec.inward and space.is_box_corner(rec.z):
+            plan.setdefault(id(rec), (rec, []))[1].append(c)
+    points = []
+    for rec, _ in plan.values():
+        for i in moved:
+            z = rec.z.copy()
+            z[i] += FD_STEP if z[i] == 0.0 else -FD_STEP
+            points.append(z)
+    if not points or len(points) > archive.remaining:
+        return
+    recs = iter((yield from archive.ask(points, "one-sided", gradients=False, exact=True)))
+    for rec, cs in plan.values():
+        got = [next(recs) for _ in moved]
+        for c in cs:
+            if all(o is not None and o.ok[c] for o in got):
+                q = np.zeros(space.n)
+                for i, o in zip(moved, got):
+                    q[i] = (o.phi[c] - rec.phi[c]) / (abs(o.x[i] - rec.x[i]) / space.width[i])
+                rec.inward[c] = q
+                grows = [archive.problem.names[i] for i in np.argsort(-q)[:3] if q[i] > 0]
+                archive.note(f"one-sided differences into the box at its best point, a non-smooth corner "
+                             f"({len(moved)} solves): " + ("none grows" if archive.certified(c, tol) else
+                                                           f"it grows moving {', '.join(grows)} inward"), c)
 
 
 def restart(archive, criteria, tol):
@@ -155,7 +197,10 @@ def restart(archive, criteria, tol):
     if not neighbours:
         return
     recs = yield from archive.ask(list(neighbours.values()), "restart")
-    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated")
+    done = sum(r is not None for r in recs)
+    archive.note(f"restarts: {len(neighbours)} one-flip neighbours of the best points evaluated" if done == len(recs)
+                 else f"restarts: {done} of the {len(neighbours)} one-flip neighbours of the best points evaluated "
+                      "before the budget ran out")
     starts = []
     for c in criteria:
         ok = [r for r in recs if r is not None and r.ok[c] and r.grad.get(c) is not None

@@ -30,6 +30,8 @@ import numpy as np
 from scipy.optimize import linprog, minimize
 
 TOL = 1e-9          # feasibility / activity tolerance in scaled coordinates
+FD_STEP = 1e-6      # finite-difference step in z (of each interval): a quotient errs by O(h) from the
+                    # curvature and by the solve's round-off (~1e-14 of Φ) / h ~ 1e-8 of Φ per interval
 
 
 class Space:
@@ -154,6 +156,13 @@ class Space:
             rows.append(self.A[self.A @ z >= self.b - tol])
         M = np.vstack(rows)
         return M.shape[0] >= self.n and np.linalg.matrix_rank(M) == self.n
+
+    def is_box_corner(self, z) -> bool:
+        """Whether z is a corner of the box (every parameter at a bound) with no row of A z ≤ b
+        active: there the admissible directions are those of the box, spanned by its edges."""
+        z = np.asarray(z, dtype=float)
+        at = (z == 0.0) | (z == 1.0) | (self.width == 0)
+        return bool(np.all(at)) and (self.A is None or bool(np.all(self.A @ z < self.b - TOL)))
 
     def key(self, z) -> bytes:
         """Identity of a point: the exact bits of its physical data set."""
