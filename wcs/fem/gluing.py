@@ -48,6 +48,7 @@ from ..errors import StudyError
 from .constraints import Elimination
 
 SIDE_INTEGRALS = {2: mortar_integrals, 3: side_integrals3d}     # the dual mortar rows by dimension
+APART = 0.1                 # a glued slave node farther than this x h from its master image: the sides do not touch
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,7 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
         if mi.slave.size == 0:
             raise StudyError(f"the glued sides do not face each other (no slave {side_kind} projects "
                              "onto the master side)", path=path)
+        check_touching(smesh.mesh.p.T, mi, dim, path)
         sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])
         mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])
         if sb.size != 1:
@@ -92,6 +94,26 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
         taken.update(mi.slave.tolist())
         out.append(Glue(name, int(sb[0]), tuple(int(b) for b in mb), mi))
     return out
+
+
+def check_touching(x: np.ndarray, mi, dim: int, path: str) -> None:
+    """StudyError at ``path`` when a glued slave node lies farther than APART × h (h the slave
+    side's element size: D_jj in 2D, √D_jj in 3D) from the master side along the row's normal:
+    from its image, the point the node is tied to (its row's master coefficients, normalised to
+    sum 1, applied to the master nodes: exactly D⁻¹M x on a row without excluded neighbours). Glue ties sides that touch
+    (Γ^{kl} = ∂Ω^k ∩ ∂Ω^l, physics.md §1); across a gap it would be a rigid link the study does not
+    state. Matching sides are at 0, curved nonmatching ones at their chords' sagitta, h²/(8R)
+    (below 0.04 h with 24 segments per circle)."""
+    w = -mi.C[:, mi.master]
+    image = (w @ x[mi.master]) / np.asarray(w.sum(axis=1))
+    apart = np.abs(np.einsum("ij,ij->i", x[mi.slave] - image, mi.normal))
+    h = float(np.mean(mi.D) if dim == 2 else np.sqrt(np.mean(mi.D)))
+    j = int(np.argmax(apart))
+    if apart[j] > APART * h:
+        at = ", ".join(f"{v:.4g}" for v in x[mi.slave[j]])
+        raise StudyError(f"the glued sides do not touch: the slave node at ({at}) is {apart[j]:.3g} from the "
+                         f"master side along the normal (more than {APART} x the element size {h:.3g}); glue joins sides that "
+                         "coincide (move a side, or use a contact for a gap)", path=path)
 
 
 def substitution(glues: list[Glue], nnodes: int, ncomp: int) -> tuple[sp.csr_matrix, np.ndarray]:
