@@ -400,3 +400,16 @@ def test_contact_sides_10_m_apart_are_refused_by_2d_mortar():
     with pytest.raises(StudyError) as info:
         Evaluator(load_study(doc))
     assert info.value.path == "scene.contacts.interface" and "the closest is 10 away" in info.value.fault
+
+
+def test_glue_between_sides_apart_is_refused_in_2d():
+    """glued-mortar with the upper layer lifted 0.2 m off the lower: glued, it hung there."""
+    from wcs.evaluation import Evaluator
+    doc = doc_of("glued-mortar.yaml")
+    scene = doc["scene"]
+    scene["bodies"]["hard"]["regions"][0]["shape"]["rectangle"] = [0.0, 0.5, 1.0, 0.7]
+    scene["boundaries"].update(top={"segment": [[0.0, 0.7], [1.0, 0.7]]},
+                               hard_bottom={"body": "hard", "segment": [[0.0, 0.5], [1.0, 0.5]]})
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(doc))
+    assert info.value.path == "scene.glue.interface" and "is 0.2 from the master side" in info.value.fault
