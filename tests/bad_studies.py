@@ -199,6 +199,10 @@ CASES = [
      both(put(STEEL, {"lambda": 1.0e9, "mu": 1.0e9, "conductivity": 45.0}),
           put(["uncertain", "materials.steel.lambda"], {"support": [-0.7e9, 2.0e9], "core": [1.0e9, 1.0e9]})),
      "uncertain.materials.steel.lambda"),
+    # lambda + mu > 0 at every grid value, 3 lambda + 2 mu = -1e8 at -0.7e9 with mu = 1e9
+    ("sweep-lame-indefinite", both(put(STEEL, {"lambda": 1.0e9, "mu": 1.0e9, "conductivity": 45.0}),
+                                   put(["sweep"], {"grid": {"materials.steel.lambda": [1.0e9, -0.7e9]}})),
+     "sweep.grid.materials.steel.lambda"),
     ("uncertain-lipschitz-not-friction", put(["uncertain", "loads.pad_top.pressure"],
                                              dict(PROFILE, range=[1.5e6, 2.5e6])),
      "uncertain.loads.pad_top.pressure"),

@@ -413,3 +413,14 @@ def test_glue_between_sides_apart_is_refused_in_2d():
     with pytest.raises(StudyError) as info:
         Evaluator(load_study(doc))
     assert info.value.path == "scene.glue.interface" and "is 0.2 from the master side" in info.value.fault
+
+
+def test_two_temperatures_on_one_face_are_refused():
+    """A second boundary on the plate's top held at 300 K: the top's nodes took the mean of the
+    two (321.5 K), neither temperature the study states."""
+    doc = yaml.safe_load((ROOT / "studies" / "heated-plate.yaml").read_text(encoding="utf-8"))
+    doc["scene"]["boundaries"]["lid"] = {"segment": [[0.0, 0.5], [1.0, 0.5]]}
+    doc["scene"]["thermal"]["temperature"]["lid"] = 300.0
+    with pytest.raises(StudyError) as info:
+        claims_of(doc)
+    assert info.value.path == "scene.thermal.temperature.lid" and "20 common boundary facets" in info.value.fault

@@ -815,6 +815,23 @@ def _check_bulk_modulus(entries: list[Uncertain], scene: Scene, src: _Source) ->
                             "ratio below -1): raise the lower bound")
 
 
+def _check_lame_sweep(sweep: Sweep | None, entries: list[Uncertain], scene: Scene, src: _Source) -> None:
+    """A sweep of lambda or mu keeps every combination admissible (`lame_admissible`): its
+    smallest values with the lowest corner of the boxes (the bounds increase with both)."""
+    grid = sweep.grid if sweep else {}
+    for name, material in scene.materials.items():
+        paths = (f"materials.{name}.lambda", f"materials.{name}.mu")
+        if material.lam is None or not set(paths) & set(grid):
+            continue
+        lam, mu = (min([get_path(scene, p)] + [e.lower for e in entries if e.path == p] + grid.get(p, []))
+                   for p in paths)
+        if not lame_admissible(lam, mu):
+            where = next(p for p in paths if p in grid)
+            raise src.error(("sweep", "grid", where), f"the sweep reaches lambda = {lam:.4g}, mu = {mu:.4g} where "
+                            f"3 lambda + 2 mu = {3 * lam + 2 * mu:.4g} <= 0 (an indefinite stiffness; Poisson's "
+                            "ratio below -1)")
+
+
 def _check_sweep(sweep: Sweep | None, scene: Scene, src: _Source) -> None:
     for path, values in (sweep.grid if sweep else {}).items():
         where = ("sweep", "grid", path)
@@ -1035,6 +1052,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     upper_limits, lower_limits = _split_limits(top.limits, criteria, src)
     sweep = top.sweep
     _check_sweep(sweep, scene, src)
+    _check_lame_sweep(sweep, uncertain, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, extra)
     return Study(

@@ -168,7 +168,7 @@ def check_near(dist: np.ndarray, h: float, extent: float, path: str) -> None:
     """StudyError at ``path`` unless some paired slave node lies within NEAR = max(5 h, 1 % of
     ``extent``, the master side's length or diameter) of the master side (``dist``: each kept
     node's distance to its projection): a contact joins sides that touch or nearly touch, d^{kl}
-    a small initial gap (physics.md §1-2); sides farther apart are another interface."""
+    a small initial gap ([68, (2.10)]); sides farther apart are another interface."""
     near = max(5.0 * h, 0.01 * extent)
     if not np.any(dist <= near):
         closest = f"; the closest is {dist.min():.3g} away" if dist.size else ""

@@ -1,6 +1,6 @@
 """The boundary facets a scene's supports, contacts and glue claim, checked on the mesh.
 
-The boundary parts of physics.md §1 are disjoint: a face is held (Γ_u, Γ_0), in contact (Γ_c)
+The boundary parts of a contact problem are disjoint ([21, §2]): a face is held (Γ_u, Γ_0), in contact (Γ_c)
 or glued, and each piece of an interface is one contact or glue. Scenes that break this solve
 without complaint and give other physics than the study states, so `check_claims` refuses them
 (StudyError at the later entry's key path):
@@ -8,6 +8,7 @@ without complaint and give other physics than the study states, so `check_claims
 - two supports holding a common direction on a common face (u_z = 0 and u_z = 1e-3 on one face:
   the elimination would average or override them; the same value twice is refused too: one face
   and direction takes one support). Supports on different directions of one face are fine;
+- two prescribed temperatures on a common face (likewise);
 - two supports that meet at nodes (a shared edge or corner) and hold a common direction there
   with values that differ, at the nominal data or anywhere in an uncertain box;
 - a support holding a contact side's face along its normal (the contact would carry nothing
@@ -34,6 +35,7 @@ def check_claims(scene, smesh, varying=frozenset()) -> None:
     """StudyError for the first overlapping claim (see the module doc); `varying`: the dotted
     paths whose values change over the study (uncertain or swept)."""
     _supports_on_common_faces(scene, smesh)
+    _temperatures_on_common_faces(scene, smesh)
     _supports_at_common_nodes(scene, smesh, varying)
     _interfaces_twice(scene, smesh)
     _supported_sides(scene, smesh)
@@ -85,6 +87,22 @@ def _supports_on_common_faces(scene, smesh) -> None:
                     f"node at {_where(mesh, mesh.facets[:, common[clash[0]]])}): a face and direction "
                     "takes one support (two would be averaged, whatever their values); give it once",
                     path=f"scene.supports.{b}")
+
+
+def _temperatures_on_common_faces(scene, smesh) -> None:
+    """Two prescribed temperatures on a common face (averaged by the elimination). Where two
+    temperature boundaries only meet (a corner), the node between them takes their mean: the
+    data jump at a point, as a heated side next to a cooled one does."""
+    mesh, names = smesh.mesh, list(scene.thermal.temperature if scene.thermal else ())
+    for j, b in enumerate(names):
+        for a in names[:j]:
+            common = np.intersect1d(smesh.boundaries[a], smesh.boundaries[b])
+            if common.size:
+                raise StudyError(
+                    f"temperatures on '{b}' and '{a}' are prescribed on {common.size} common boundary facets "
+                    f"(first node at {_where(mesh, mesh.facets[:, common[0]])}): a face takes one temperature "
+                    "(two would be averaged, whatever their values); give it once",
+                    path=f"scene.thermal.temperature.{b}")
 
 
 def _supports_at_common_nodes(scene, smesh, varying) -> None:

@@ -309,7 +309,8 @@ def piece_owners(covered: dict, inputs: list, bodies: list, regions: list, dim: 
         if rg not in used:
             i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
             raise StudyError(
-                f"region {regions[rg][1]!r} has no {what} (an empty {left})", path=f"scene.bodies.{bodies[b]}.regions.{i}")
+                f"region {regions[rg][1]!r} has no {what} (an empty {left})",
+                path=f"scene.bodies.{bodies[b]}.regions.{i}")
     return owner
 
 

@@ -168,7 +168,7 @@ def lame_admissible(lam: float, mu: float) -> bool:
       exactly when mu > 0 and 3 lambda + 2 mu > 0.
     - Plane strain: the 2D form alone needs only mu > 0 and lambda + mu > 0, but the slice is of
       a 3D material (tau_33 = lambda div u, the thermal modulus beta = (3 lambda + 2 mu) alpha,
-      physics.md §1-2), so the 3D condition holds; it implies lambda + mu > 0.
+      [68]), so the 3D condition holds; it implies lambda + mu > 0.
     - Plane stress: lambda* = 2 lambda mu / (lambda + 2 mu) and
       lambda* + mu = mu (3 lambda + 2 mu) / (lambda + 2 mu) > 0 under the same condition
       (which also gives lambda + 2 mu > 0).
