@@ -58,10 +58,10 @@ class Evaluator:
             self.smesh = build_mesh3d(study.scene, splits)
         else:
             self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
-        check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
-                     | set(study.sweep.grid if study.sweep else ()))
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+        check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
+                     | set(study.sweep.grid if study.sweep else ()))
         self.map = ParameterMap(self.model, study.scene, study.uncertain)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()
