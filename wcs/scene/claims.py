@@ -1,13 +1,15 @@
 """The boundary facets a scene's supports, contacts and glue claim, checked on the mesh.
 
-The boundary parts of a contact problem are disjoint ([21, §2]): a face is held (Γ_u, Γ_0), in contact (Γ_c)
-or glued, and each piece of an interface is one contact or glue. Scenes that break this solve
-without complaint and give other physics than the study states, so `check_claims` refuses them
-(StudyError at the later entry's key path):
+The boundary parts of a contact problem are disjoint ([21, §2]): a face is held (Γ_u, Γ_0), in
+contact (Γ_c) or glued, and each piece of an interface is one contact or glue. Scenes that break
+this solve without complaint and give other physics than the study states, so `check_claims`
+refuses them (StudyError at the key path of the later of two entries, or of the support on a
+side). Data on one face are never merged: a face and direction takes one support, whatever the
+values, so the file says once what holds it:
 
 - two supports holding a common direction on a common face (u_z = 0 and u_z = 1e-3 on one face:
-  the elimination would average or override them; the same value twice is refused too: one face
-  and direction takes one support). Supports on different directions of one face are fine;
+  the elimination averages them; the same value twice too). Supports on different directions
+  of one face are fine;
 - two prescribed temperatures on a common face (likewise);
 - two supports that meet at nodes (a shared edge or corner) and hold a common direction there
   with values that differ, at the nominal data or anywhere in an uncertain box;
