@@ -285,12 +285,12 @@ def patch_with(**scene) -> dict:
 BASE_BOTTOM_AGAIN = {"boundaries": {"again": {"segment": [[0.0, 0.0], [2.0, 0.0]]}}}
 
 
-@pytest.mark.parametrize("value", [1.0e-3, 0.0])
-def test_two_supports_on_one_face_and_direction_are_refused(tmp_path, capsys, value):
-    """base_bottom holds u_y = 0; a second boundary on the same edge held u_y = value was
-    averaged with it by the elimination (the same value twice is refused too: one support per
-    face and direction)."""
-    doc = patch_with(**BASE_BOTTOM_AGAIN, supports={"again": {"u": [None, value]}})
+@pytest.mark.parametrize("again", [{"u": [None, 1.0e-3]}, {"u": [None, 0.0]}, {"normal": 0.0}])
+def test_two_supports_on_one_face_and_direction_are_refused(tmp_path, capsys, again):
+    """base_bottom holds u_y = 0; a second boundary on the same edge holding u_y = 1e-3 was
+    averaged with it by the elimination (5e-4); the same value twice, or a roller (u_n = 0 along
+    n = (0, -1)), is refused too: one support per face and direction."""
+    doc = patch_with(**BASE_BOTTOM_AGAIN, supports={"again": again})
     code, out, err, path = check(doc, tmp_path, capsys, "--quiet")
     assert code == 2, (out, err)
     assert f"{path}: scene.supports.again:" in err and "hold the same direction on 20 common edges" in err
