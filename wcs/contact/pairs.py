@@ -174,7 +174,8 @@ def check_near(dist: np.ndarray, h: float, extent: float, path: str) -> None:
         closest = f"; the closest is {dist.min():.3g} away" if dist.size else ""
         raise StudyError(
             f"the slave and master sides do not face each other (no slave node within "
-            f"{near:.3g} of the master side with opposing normals{closest})", path=path)
+            f"{near:.3g} of the master side with opposing normals{closest}); a contact joins sides that "
+            "touch or nearly touch: name those sides, or move the bodies together", path=path)
 
 
 def side_extent(mesh, facets) -> float:

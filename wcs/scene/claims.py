@@ -161,9 +161,9 @@ def _interfaces_twice(scene, smesh) -> None:
                 raise StudyError(
                     f"{block[:-1] if block == 'contacts' else block} '{name}' and "
                     f"{block0[:-1] if block0 == 'contacts' else block0} '{name0}' {how} (boundaries "
-                    f"'{spec.slave}', '{spec0.slave}'): an interface is one contact or glue; twice, each "
-                    "would carry part of its force (split a side into boundaries of its own if it meets two "
-                    "bodies)", path=f"scene.{block}.{name}")
+                    f"'{spec.slave}', '{spec0.slave}'): an interface is one contact or glue (twice, each "
+                    "would carry part of its force); keep one, or split a side that meets two bodies into "
+                    "a boundary per body", path=f"scene.{block}.{name}")
 
 
 def _supported_sides(scene, smesh) -> None:
