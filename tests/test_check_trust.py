@@ -10,6 +10,7 @@ import yaml
 from bad_studies import demo_doc, write_study
 from wcs.cli import main
 from wcs.errors import StudyError
+from wcs.evaluation import Evaluator
 from wcs.scene import estimate, geometry, mesher
 from wcs.study import load_study
 
@@ -263,3 +264,159 @@ def test_a_body_in_two_pieces_is_bad_input(tmp_path, capsys):
     code, out, err, path = check(doc, tmp_path, capsys)
     assert code == 2, (out, err)
     assert f"{path}: scene.bodies.{body}: body '{body}' consists of 2 pieces" in err
+
+
+# ---------------------------------------------------------------- issue 26: inputs that change the physics
+
+
+def claims_of(doc: dict):
+    """The study's evaluator, built as `check` builds it (the claims checked after the model)."""
+    return Evaluator(load_study(doc))
+
+
+def patch_with(**scene) -> dict:
+    """The contact-patch study (a block on a base, rollers, 1e6 Pa on top) with scene entries added."""
+    doc = doc_of("contact-patch.yaml")
+    for block, entries in scene.items():
+        doc["scene"].setdefault(block, {}).update(entries)
+    return doc
+
+
+BASE_BOTTOM_AGAIN = {"boundaries": {"again": {"segment": [[0.0, 0.0], [2.0, 0.0]]}}}
+
+
+@pytest.mark.parametrize("again", [{"u": [None, 1.0e-3]}, {"u": [None, 0.0]}, {"normal": 0.0}])
+def test_two_supports_on_one_face_and_direction_are_refused(tmp_path, capsys, again):
+    """base_bottom holds u_y = 0; a second boundary on the same edge holding u_y = 1e-3 was
+    averaged with it by the elimination (5e-4); the same value twice, or a roller (u_n = 0 along
+    n = (0, -1)), is refused too: one support per face and direction."""
+    doc = patch_with(**BASE_BOTTOM_AGAIN, supports={"again": again})
+    code, out, err, path = check(doc, tmp_path, capsys, "--quiet")
+    assert code == 2, (out, err)
+    assert f"{path}: scene.supports.again:" in err and "hold the same direction on 20 common edges" in err
+
+
+def test_supports_on_different_directions_of_one_face_are_fine():
+    claims_of(patch_with(**BASE_BOTTOM_AGAIN, supports={"again": {"u": [0.0, None]}}))
+
+
+@pytest.mark.parametrize("left, box", [([0.0, 1.0e-3], None), ([0.0, 0.0], [-1.0e-3, 1.0e-3])])
+def test_supports_meeting_at_a_corner_with_other_values(left, box):
+    """base_left and base_bottom meet at (0, 0): base_bottom holds u_y = 0 there, base_left would
+    hold u_y = 1e-3 (or a box around 0): the corner's displacement would be their average."""
+    doc = patch_with(supports={"base_left": {"u": left}})
+    if box:
+        doc["uncertain"]["supports.base_left.u.1"] = box
+    with pytest.raises(StudyError) as info:
+        claims_of(doc)
+    assert info.value.path == "scene.supports.base_left" and "meet at (0, 0)" in info.value.fault
+    assert ("varies over the study" if box else "with different values") in info.value.fault
+
+
+def test_supports_meeting_at_a_corner_with_one_value_are_fine():
+    claims_of(patch_with(supports={"base_left": {"u": [0.0, 0.0]}}))
+
+
+@pytest.mark.parametrize("again", [{"slave": "block_bottom", "master": "base_top"},
+                                   {"slave": "base_top", "master": "block_bottom"},
+                                   {"slave": "half", "master": "base_top"}])
+def test_one_interface_in_two_contacts_is_refused(tmp_path, capsys, again):
+    """The same pair twice, reversed, or over half the interface: the contact pressure came out
+    halved (5e5 Pa for the 1e6 Pa on top)."""
+    doc = patch_with(boundaries={"half": {"body": "block", "segment": [[1.0, 1.0], [2.0, 1.0]]}},
+                     contacts={"again": again})
+    code, out, err, path = check(doc, tmp_path, capsys, "--quiet")
+    assert code == 2, (out, err)
+    assert f"{path}: scene.contacts.again:" in err and "an interface is one contact or glue" in err
+
+
+@pytest.mark.parametrize("side", ["block_bottom", "base_top"])
+def test_a_support_on_a_contact_side_is_refused(side):
+    """u_y = 0 on the slave side gave contact pressure 0 (the support took the load)."""
+    with pytest.raises(StudyError) as info:
+        claims_of(patch_with(supports={side: {"u": [None, 0.0]}}))
+    assert info.value.path == f"scene.supports.{side}" and "20 edges" in info.value.fault
+
+
+def test_supports_meeting_a_contact_side_at_its_end_or_across_it_are_fine():
+    """block_left (u = 0, 0) ends on the slave side at (0, 1): a shared node, not a common edge
+    (the tunnel's fault meets its held sides so); u_x = 0 on the slave side holds no normal motion."""
+    claims_of(patch_with(supports={"block_left": {"u": [0.0, 0.0]}}))
+    claims_of(patch_with(supports={"block_bottom": {"u": [0.0, None]}}))
+
+
+def test_a_support_on_part_of_a_glued_side_is_refused():
+    """u_x = 0 on the left half of the glued side: those nodes left the glue (all of it would
+    have been refused by the glue already)."""
+    doc = doc_of("glued-mortar.yaml")
+    doc["scene"]["boundaries"]["half"] = {"body": "hard", "segment": [[0.0, 0.3], [0.5, 0.3]]}
+    doc["scene"]["supports"]["half"] = {"u": [0.0, None]}
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(doc))
+    assert info.value.path == "scene.supports.half" and "(glue ties every direction)" in info.value.fault
+
+
+def block_on_block_apart(dz: float, glue: bool) -> dict:
+    """block-on-block-3d with the block lifted by `dz` (its faces parallel to the base's top),
+    the contact a contact or a glue; a coarse mesh."""
+    doc = doc_of("block-on-block-3d.yaml")
+    scene = doc["scene"]
+    scene["mesh"]["size"] = 0.25
+    scene["bodies"]["block"]["regions"][0]["shape"]["box"] = [0, 0, dz, 1, 1, dz + 0.5]
+    scene["boundaries"]["block_top"]["plane"]["point"] = [0, 0, dz + 0.5]
+    scene["boundaries"]["block_bottom"]["plane"]["point"] = [0, 0, dz]
+    if glue:
+        scene["glue"] = {"interface": scene.pop("contacts")["interface"]}
+        doc["criteria"] = [c for c in doc["criteria"] if c["kind"] != "contact_pressure"]
+    return doc
+
+
+def test_contact_sides_10_m_apart_are_refused_in_3d():
+    """The 2D rule (some slave node within max(5 h, 1 % of the master side) of it) holds for
+    3D mortar rows too: before, 10 m apart solved (the block sliding 10 m rigidly) with the
+    contact pressure of touching sides."""
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(block_on_block_apart(10.0, glue=False)))
+    assert info.value.path == "scene.contacts.interface" and "the closest is 10 away" in info.value.fault
+
+
+def test_glue_between_faces_1_m_apart_is_refused():
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(block_on_block_apart(1.0, glue=True)))
+    assert info.value.path == "scene.glue.interface" and "is 1 from the master side" in info.value.fault
+
+
+def test_contact_sides_10_m_apart_are_refused_by_2d_mortar():
+    doc = doc_of("contact-patch.yaml")
+    scene = doc["scene"]
+    scene["bodies"]["block"]["regions"][0]["shape"]["rectangle"] = [0.0, 11.0, 2.0, 11.6]
+    scene["boundaries"].update(block_left={"segment": [[0.0, 11.0], [0.0, 11.6]]},
+                               block_top={"segment": [[0.0, 11.6], [2.0, 11.6]]},
+                               block_bottom={"body": "block", "segment": [[0.0, 11.0], [2.0, 11.0]]})
+    scene["contacts"]["interface"]["discretization"] = "mortar"
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(doc))
+    assert info.value.path == "scene.contacts.interface" and "the closest is 10 away" in info.value.fault
+
+
+def test_glue_between_sides_apart_is_refused_in_2d():
+    """glued-mortar with the upper layer lifted 0.2 m off the lower: glued, it hung there."""
+    doc = doc_of("glued-mortar.yaml")
+    scene = doc["scene"]
+    scene["bodies"]["hard"]["regions"][0]["shape"]["rectangle"] = [0.0, 0.5, 1.0, 0.7]
+    scene["boundaries"].update(top={"segment": [[0.0, 0.7], [1.0, 0.7]]},
+                               hard_bottom={"body": "hard", "segment": [[0.0, 0.5], [1.0, 0.5]]})
+    with pytest.raises(StudyError) as info:
+        Evaluator(load_study(doc))
+    assert info.value.path == "scene.glue.interface" and "is 0.2 from the master side" in info.value.fault
+
+
+def test_two_temperatures_on_one_face_are_refused():
+    """A second boundary on the plate's top held at 300 K: the top's nodes took the mean of the
+    two (321.5 K), neither temperature the study states."""
+    doc = yaml.safe_load((ROOT / "studies" / "heated-plate.yaml").read_text(encoding="utf-8"))
+    doc["scene"]["boundaries"]["lid"] = {"segment": [[0.0, 0.5], [1.0, 0.5]]}
+    doc["scene"]["thermal"]["temperature"]["lid"] = 300.0
+    with pytest.raises(StudyError) as info:
+        claims_of(doc)
+    assert info.value.path == "scene.thermal.temperature.lid" and "20 common boundary facets" in info.value.fault

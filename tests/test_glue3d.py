@@ -198,9 +198,9 @@ def median_edge(mesh, cells) -> float:
 
 
 def core_scene(h=0.25, s=0.08, shape=None, body_size=None) -> dict:
-    regions = [{"material": "stiff", "shape": {"box": [0, 0, 0, 1, 1, 1]}},
-               {"material": "soft", "name": "core", "shape": shape or {"box": [0.25, 0.25, 0.25, 0.75, 0.75, 0.75]},
-                "mesh": {"size": s}}]
+    core = shape or {"box": [0.25, 0.25, 0.25, 0.75, 0.75, 0.75]}
+    regions = [{"material": "stiff", "shape": {"box": [0, 0, 0, 1, 1, 1], "minus": [core]}},
+               {"material": "soft", "name": "core", "shape": core, "mesh": {"size": s}}]
     body = {"regions": regions} if body_size is None else {"regions": regions, "mesh": {"size": body_size}}
     return {"study": "core-3d", "scene": {"dimension": 3, "mesh": {"size": h}, "materials": MATERIALS,
                                           "bodies": {"cube": body}}}
@@ -246,7 +246,8 @@ def test_wcs_check_runs_a_3d_study_with_glue_and_a_region_size(tmp_path):
     solves the nominal case."""
     d = stack(0.25, 0.125)
     d["scene"]["bodies"]["base"]["regions"] = [
-        {"material": "stiff", "shape": {"box": [0, 0, -0.25, 1, 1, 0]}},
+        {"material": "stiff", "shape": {"box": [0, 0, -0.25, 1, 1, 0],
+                                        "minus": [{"box": [0.25, 0.25, -0.2, 0.75, 0.75, -0.05]}]}},
         {"material": "soft", "name": "core", "shape": {"box": [0.25, 0.25, -0.2, 0.75, 0.75, -0.05]},
          "mesh": {"size": 0.1}}]
     d["uncertain"] = {"loads.top.traction.2": [-3.0e6, -1.0e6]}

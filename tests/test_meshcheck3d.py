@@ -99,6 +99,7 @@ def _run(study: Path) -> xr.Dataset:
 # A quarter drum (a cylinder holding a ball as a second region: an embedded region boundary)
 # standing on a base (the shared quarter disc: matching faces), a box of interest embedded in it.
 QUARTER = {"box": [0, 0, 0, 1, 1, 1]}
+BALL = {"sphere": {"center": [0, 0, 0.3], "radius": 0.2}}
 DRUM = {
     "dimension": 3,
     "mesh": {"size": 0.3},
@@ -106,8 +107,8 @@ DRUM = {
     "bodies": {
         "drum": {"regions": [
             {"material": "m", "shape": {"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0.6], "radius": 0.5},
-                                        "intersect": [QUARTER]}},
-            {"material": "m", "shape": {"sphere": {"center": [0, 0, 0.3], "radius": 0.2}, "intersect": [QUARTER]}}]},
+                                        "intersect": [QUARTER], "minus": [BALL]}},
+            {"material": "m", "shape": {**BALL, "intersect": [QUARTER]}}]},
         "base": {"regions": [{"material": "m", "shape": {"box": [0, 0, -0.3, 0.6, 0.6, 0.0]}}]},
     },
     "boundaries": {

@@ -133,7 +133,8 @@ def test_sphere_on_an_extruded_block_two_bodies_and_regions():
         "bodies": {
             "ball": {"regions": [{"shape": {"sphere": {"center": [0, 0, 0.5], "radius": 0.5}}}]},
             "block": {"regions": [
-                {"name": "lower", "shape": {"extrude": {"shape": square, "vector": [0, 0, -1]}}},
+                {"name": "lower", "shape": {"extrude": {"shape": square, "vector": [0, 0, -1]},
+                                            "minus": [{"box": [-1, -1, -0.5, 1, 1, 0]}]}},
                 {"name": "upper", "shape": {"box": [-1, -1, -0.5, 1, 1, 0]}}]},
         },
         "boundaries": {"surface": {"sphere": {"center": [0, 0, 0.5], "radius": 0.5}, "body": "ball"},
@@ -192,6 +193,8 @@ def test_bodies_with_their_own_sizes_have_nonmatching_faces():
     (lambda s: s["bodies"]["foot"]["regions"][0].update(
         shape={"box": [3, 0, 0, 4, 1, 1], "minus": [{"box": [3.4, -1, -1, 3.6, 2, 2]}]}), "scene.bodies.foot"),
     (lambda s: s["bodies"]["foot"].update(mesh={"size": -1.0}), "scene.bodies.foot.mesh.size"),
+    (lambda s: s["bodies"]["foot"]["regions"].append({"shape": {"box": [1.5, 0.2, 0.2, 1.9, 0.8, 0.4]}}),
+     "scene.bodies.foot.regions.1"),                  # a second region inside the first: an overlap
     (lambda s: s["boundaries"].update(c={"cylinder": {"start": [0, 0, 0], "end": [0, 0, 0], "radius": 1}}),
      "scene.boundaries.c.cylinder"),
 ])

@@ -14,6 +14,7 @@ from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
 from .model import Model, Solution
+from .scene.claims import check_claims
 from .scene.mesher import build_mesh
 from .scene.mesher3d import build_mesh3d
 from .sensitivity import gradients as adjoint_gradients
@@ -59,6 +60,8 @@ class Evaluator:
             self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+        check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
+                     | set(study.sweep.grid if study.sweep else ()))
         self.map = ParameterMap(self.model, study.scene, study.uncertain)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()

@@ -61,7 +61,7 @@ from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
                          POISSON, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
-                         Name, Point, Scene)
+                         Name, Point, Scene, lame_admissible)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -654,7 +654,7 @@ def _child(node, key: str, where: str):
 _ADDRESSES = {
     "materials.<m>.E": MODULUS,
     "materials.<m>.nu": POISSON,
-    "materials.<m>.lambda": LAME,  # lambda + mu > 0 is checked on the pair
+    "materials.<m>.lambda": LAME,  # 3 lambda + 2 mu > 0 is checked on the pair
     "materials.<m>.mu": MODULUS,
     "materials.<m>.conductivity": CONDUCTIVITY,
     "materials.<m>.expansion": EXPANSION,
@@ -798,16 +798,38 @@ def _parse_box(path: str, spec, scene: Scene, src: _Source) -> Uncertain:
 
 
 def _check_bulk_modulus(entries: list[Uncertain], scene: Scene, src: _Source) -> None:
-    """Lame boxes keep lambda + mu > 0 at their lowest corner."""
+    """Lame boxes are admissible everywhere (`wcs.scene.spec.lame_admissible`: mu > 0 and
+    3 lambda + 2 mu > 0, in 2D and 3D): the bounds are linear, so it is enough to check the lowest
+    corner (a fuzzy number: its support). An E, nu box is admissible through the ranges of E and
+    nu alone."""
     lowest = {e.path: e.lower for e in entries}
     for name, material in scene.materials.items():
         if material.lam is None:
             continue
         lam_path, mu_path = f"materials.{name}.lambda", f"materials.{name}.mu"
-        if lowest.get(lam_path, material.lam) + lowest.get(mu_path, material.mu) <= 0:
+        lam, mu = lowest.get(lam_path, material.lam), lowest.get(mu_path, material.mu)
+        if not lame_admissible(lam, mu):
             where = lam_path if lam_path in lowest else mu_path
-            raise src.error(("uncertain", where), "the box allows lambda + mu <= 0 "
-                                                  "(the bulk modulus must stay positive)")
+            raise src.error(("uncertain", where), f"the box reaches lambda = {lam:.4g}, mu = {mu:.4g} where "
+                            f"3 lambda + 2 mu = {3 * lam + 2 * mu:.4g} <= 0 (an indefinite stiffness; Poisson's "
+                            "ratio below -1): raise the lower bound")
+
+
+def _check_lame_sweep(sweep: Sweep | None, entries: list[Uncertain], scene: Scene, src: _Source) -> None:
+    """A sweep of lambda or mu keeps every combination admissible (`lame_admissible`): its
+    smallest values with the lowest corner of the boxes (the bounds increase with both)."""
+    grid = sweep.grid if sweep else {}
+    for name, material in scene.materials.items():
+        paths = (f"materials.{name}.lambda", f"materials.{name}.mu")
+        if material.lam is None or not set(paths) & set(grid):
+            continue
+        lam, mu = (min([get_path(scene, p)] + [e.lower for e in entries if e.path == p] + grid.get(p, []))
+                   for p in paths)
+        if not lame_admissible(lam, mu):
+            where = next(p for p in paths if p in grid)
+            raise src.error(("sweep", "grid", where), f"the sweep reaches lambda = {lam:.4g}, mu = {mu:.4g} where "
+                            f"3 lambda + 2 mu = {3 * lam + 2 * mu:.4g} <= 0 (an indefinite stiffness; Poisson's "
+                            "ratio below -1)")
 
 
 def _check_sweep(sweep: Sweep | None, scene: Scene, src: _Source) -> None:
@@ -1030,6 +1052,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     upper_limits, lower_limits = _split_limits(top.limits, criteria, src)
     sweep = top.sweep
     _check_sweep(sweep, scene, src)
+    _check_lame_sweep(sweep, uncertain, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, extra)
     return Study(

@@ -68,7 +68,7 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from ..scene.selectors import arc_coordinate, facet_normals, nodal_normals
-from .pairs import check_penetration, default_nodal_dofs, pair_sides
+from .pairs import check_near, check_penetration, default_nodal_dofs, pair_sides, side_extent
 
 NGAUSS = 4
 MIN_COVER = 1e-6            # a covered fraction of a slave segment below this is ignored
@@ -294,6 +294,7 @@ def mortar_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Mo
     h = float(np.mean(mi.D))
     gap[np.abs(gap) <= 1e-12 * h] = 0.0
     check_penetration(gap, X[mi.slave], h, path)
+    check_near(np.linalg.norm(CX, axis=1), h, side_extent(mesh, master_facets), path)
     # master nodes / coefficients, padded
     Cm = mi.C.tolil()
     masters = set(mi.master.tolist())

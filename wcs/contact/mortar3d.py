@@ -61,7 +61,7 @@ import scipy.sparse as sp
 from ..errors import StudyError
 from ..fem import tet
 from ..scene.selectors import _clip
-from .pairs import check_penetration, tangents
+from .pairs import check_near, check_penetration, side_extent, tangents
 
 FACING = 1e-3               # a master triangle faces a slave one when ν_m · n_T < −FACING
 MIN_COVER = 1e-6            # a covered fraction of a slave triangle / tributary area below this is ignored
@@ -278,10 +278,12 @@ def mortar_sides3d(mesh, slave_facets, master_facets, path: str = "contact") -> 
         raise StudyError("the slave and master sides do not face each other (no slave triangle "
                          "projects onto the master side along its normal)", path=path)
     n = mi.normal
-    gap = -np.einsum("ij,ij->i", mi.C @ x, n)
+    CX = mi.C @ x                                               # (m, 3): x_j − Σ (D⁻¹M)_jl x_l
+    gap = -np.einsum("ij,ij->i", CX, n)
     h = float(np.sqrt(np.mean(mi.D)))
     gap[np.abs(gap) <= 1e-12 * h] = 0.0
     check_penetration(gap, x[mi.slave], h, path)
+    check_near(np.linalg.norm(CX, axis=1), h, side_extent(mesh, master_facets), path)
     return MortarPairs3D(slave=mi.slave, normal=n, tangent=tangents(n), gap=gap, weight=mi.D.copy(),
                          dropped=mi.dropped, C=mi.C, M=mi.M, master=mi.master)
 

@@ -33,7 +33,8 @@ orthogonal projection lies beyond it (relative tolerance ``1e-6`` of the end
 facet's length) -- or when the sides do not face each other there (the
 slave's own outward nodal normal has ``n_slave · n_i <= 0``).  If no kept node
 is within ``max(5 × mean facet length, 1% of the master side length)`` of the
-master side, the two sides do not face each other: ``StudyError`` at ``path``.
+master side, the two sides do not face each other: ``StudyError`` at ``path``
+(``check_near``, also used by mortar in 2D and 3D).
 A kept node whose initial gap is below ``-PENETRATION`` × the mean facet length
 lies deep inside the master body: the sides overlap or face away from each other
 (e.g. the top of the upper block against the bottom of the lower one, whose
@@ -149,12 +150,7 @@ def pair_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Cont
     coincident = dist <= COINCIDENT * h
     gap[coincident] = 0.0
 
-    side_len = float(mlen.sum())
-    near = max(5.0 * h, 0.01 * side_len)
-    if not np.any(keep & (dist <= near)):
-        raise StudyError(
-            f"the slave and master sides do not face each other (no slave node within "
-            f"{near:.3g} of the master side with opposing normals)", path=path)
+    check_near(dist[keep], h, float(mlen.sum()), path)
 
     check_penetration(gap[keep], X[keep], h, path)
 
@@ -166,6 +162,26 @@ def pair_sides(mesh, slave_facets, master_facets, path: str = "contact") -> Cont
         slave=snodes[keep], master_nodes=mn[keep], master_weights=mw[keep],
         normal=n[keep], tangent=tangent[keep], gap=gap[keep], weight=weight[keep],
         dropped=snodes[~keep])
+
+
+def check_near(dist: np.ndarray, h: float, extent: float, path: str) -> None:
+    """StudyError at ``path`` unless some paired slave node lies within NEAR = max(5 h, 1 % of
+    ``extent``, the master side's length or diameter) of the master side (``dist``: each kept
+    node's distance to its projection): a contact joins sides that touch or nearly touch, d^{kl}
+    a small initial gap ([68, (2.10)]); sides farther apart are another interface."""
+    near = max(5.0 * h, 0.01 * extent)
+    if not np.any(dist <= near):
+        closest = f"; the closest is {dist.min():.3g} away" if dist.size else ""
+        raise StudyError(
+            f"the slave and master sides do not face each other (no slave node within "
+            f"{near:.3g} of the master side with opposing normals{closest}); a contact joins sides that "
+            "touch or nearly touch: name those sides, or move the bodies together", path=path)
+
+
+def side_extent(mesh, facets) -> float:
+    """The diameter of a side's bounding box (its nodes' coordinate ranges)."""
+    x = mesh.p[:, np.unique(mesh.facets[:, np.asarray(facets, dtype=np.int64)])]
+    return float(np.linalg.norm(np.ptp(x, axis=1)))
 
 
 def check_penetration(gap: np.ndarray, coords: np.ndarray, h: float, path: str) -> None:

@@ -48,6 +48,7 @@ from ..errors import StudyError
 from .constraints import Elimination
 
 SIDE_INTEGRALS = {2: mortar_integrals, 3: side_integrals3d}     # the dual mortar rows by dimension
+APART = 0.1                 # a glued slave node farther than this x h from its master image: the sides do not touch
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,7 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
         if mi.slave.size == 0:
             raise StudyError(f"the glued sides do not face each other (no slave {side_kind} projects "
                              "onto the master side)", path=path)
+        check_touching(smesh.mesh.p.T, mi, max(edge_size(smesh.mesh, sf), edge_size(smesh.mesh, mf)), path)
         sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])
         mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])
         if sb.size != 1:
@@ -92,6 +94,32 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
         taken.update(mi.slave.tolist())
         out.append(Glue(name, int(sb[0]), tuple(int(b) for b in mb), mi))
     return out
+
+
+def edge_size(mesh, facets) -> float:
+    """The mean edge length of boundary facets (edges in 2D, triangles in 3D)."""
+    f = mesh.facets[:, np.asarray(facets, dtype=np.int64)]
+    pairs = [(0, 1)] if f.shape[0] == 2 else [(0, 1), (1, 2), (2, 0)]
+    return float(np.mean([np.linalg.norm(mesh.p[:, f[a]] - mesh.p[:, f[b]], axis=0) for a, b in pairs]))
+
+
+def check_touching(x: np.ndarray, mi, h: float, path: str) -> None:
+    """StudyError at ``path`` when a glued slave node lies farther than APART × h (h the larger
+    element size of the two sides) from the master side along its row's normal, measured to its
+    image: the point it is tied to (the row's master coefficients, normalised to sum 1, applied to
+    the master nodes; exactly D⁻¹M x on a row without excluded neighbours). Glue ties sides that
+    touch (Γ^{kl} = ∂Ω^k ∩ ∂Ω^l, [21, §2]); across a gap it would be a rigid link the study
+    does not state. Matching sides are at 0, curved nonmatching ones at most at the coarser side's
+    sagitta, h²/(8R) (below 0.04 h with 24 segments per circle)."""
+    w = -mi.C[:, mi.master]
+    image = (w @ x[mi.master]) / np.asarray(w.sum(axis=1))
+    apart = np.abs(np.einsum("ij,ij->i", x[mi.slave] - image, mi.normal))
+    j = int(np.argmax(apart))
+    if apart[j] > APART * h:
+        at = ", ".join(f"{v:.4g}" for v in x[mi.slave[j]])
+        raise StudyError(f"the glued sides do not touch: the slave node at ({at}) is {apart[j]:.3g} from the "
+                         f"master side along the normal (more than {APART} x the element size {h:.3g}); glue "
+                         "joins sides that coincide (move a side, or use a contact for a gap)", path=path)
 
 
 def substitution(glues: list[Glue], nnodes: int, ncomp: int) -> tuple[sp.csr_matrix, np.ndarray]:

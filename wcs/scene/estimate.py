@@ -278,7 +278,9 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
         h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
         volume = volumes[body]
         cells = CELLS_PER_H3 * volume / h**3
-        curved = [c for r in spec.regions for c in _curved(r.shape)] + rois
+        # one surface once: a region's sphere or cylinder is also cut out of the region around it
+        curved = list({(c.sphere or c.cylinder).model_dump_json(): c
+                       for r in spec.regions for c in _curved(r.shape)}.values()) + rois
         parts.append((cells + sum(_curved_cells(c, h) for c in curved), path))
         zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine)
                  if not once[i] and r.body in (None, body)]

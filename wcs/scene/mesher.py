@@ -15,10 +15,10 @@ How it is done
   curves of the mesh, so G_r is exactly a union of cells (a disc: the mesh's polygon,
   as a disc body) and means over it are exact (``SceneMesh.roi_cells``); their parts
   outside every body are removed before meshing.
-* Ownership of fragment pieces: inside a body a piece belongs to the LAST
-  region (scene order) whose shape covers it.  A piece covered by two bodies
-  is an overlap -> ``StudyError`` at ``scene.bodies.<later body>``.  A region
-  left with no piece (empty shape, or completely covered by later regions) ->
+* Ownership of fragment pieces: a piece belongs to the region whose shape
+  covers it.  A piece covered by two bodies is an overlap -> ``StudyError`` at
+  ``scene.bodies.<later body>``; by two regions of one body -> ``StudyError`` at
+  ``scene.bodies.<body>.regions.<later>``.  A region left with no piece (an empty shape) ->
   ``StudyError`` at ``scene.bodies.<body>.regions.<i>[.shape]``.
 * Sizes: a ``gmsh.model.mesh.setSizeCallback`` (``Mesh.MeshSizeMax`` for a uniform size) returns
   ``min(lc_gmsh, size, min_r (size_r + grading * dist_r(x)))`` where ``r``
@@ -288,8 +288,9 @@ def fragment_pieces(region_shapes: list, roi_shapes: list, dim: int = 2):
 
 def piece_owners(covered: dict, inputs: list, bodies: list, regions: list, dim: int = 2) -> dict:
     """piece tag -> (body, region) of the fragment's pieces (surfaces in 2D, volumes in 3D):
-    the last region covering a piece owns it; two bodies on one piece are an overlap, and a
-    region left without a piece is refused (both StudyError at the body's / region's path)."""
+    the region covering a piece owns it; two bodies, or two regions of one body, on one piece
+    are an overlap (the data of the common part would be one region's by the order of the file),
+    and a region left without a piece is refused (StudyError at the body's / region's path)."""
     what, left = ("area", "shape") if dim == 2 else ("volume", "solid")
     owner: dict[int, tuple[int, int]] = {}
     for tag in sorted(covered):
@@ -300,15 +301,27 @@ def piece_owners(covered: dict, inputs: list, bodies: list, regions: list, dim: 
                 f"body {bodies[bs[1]]!r} overlaps body {bodies[bs[0]]!r} "
                 f"(common {what} {gmsh.model.occ.getMass(dim, tag):.6g}); bodies may touch but not overlap",
                 path=f"scene.bodies.{bodies[bs[1]]}")
-        owner[tag] = (bs[0], max(inputs[k][1] for k in ks))
+        if len(ks) > 1:
+            _overlapping_regions(ks, inputs, bodies, regions, what, gmsh.model.occ.getMass(dim, tag))
+        owner[tag] = (bs[0], inputs[ks[0]][1])
     used = {rg for _, rg in owner.values()}
     for b, rg, _ in inputs:
         if rg not in used:
             i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(rg)
             raise StudyError(
-                f"region {regions[rg][1]!r} has no {what} left (empty {left}, or covered by "
-                f"later regions of the body)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
+                f"region {regions[rg][1]!r} has no {what} (an empty {left})",
+                path=f"scene.bodies.{bodies[b]}.regions.{i}")
     return owner
+
+
+def _overlapping_regions(ks: list[int], inputs: list, bodies: list, regions: list, what: str, mass: float):
+    """StudyError at the later of two regions of one body (`inputs` indices `ks`) that share a piece."""
+    (b, first, _), (_, later, _) = inputs[ks[0]], inputs[ks[1]]
+    i = [j for j, (bb, _) in enumerate(regions) if bb == bodies[b]].index(later)
+    raise StudyError(
+        f"region {regions[later][1]!r} overlaps region {regions[first][1]!r} of body {bodies[b]!r} "
+        f"(common {what} {mass:.6g}); regions may touch but not overlap: cut the overlap out of one "
+        "of them (`minus`)", path=f"scene.bodies.{bodies[b]}.regions.{i}")
 
 
 def _generate(splits: int) -> None:

@@ -30,9 +30,9 @@ mesh); ``boundary: NAME`` (the facets of a named boundary, nothing embedded) is
 
 How it is done (as the 2D ``wcs.scene.mesher``): every region solid and every embedded region
 of interest goes through one ``occ.fragment``, so regions of a body share nodes and touching
-bodies have matching triangles on their common faces; a piece belongs to the last region (scene
-order) covering it; a piece covered by two bodies is an overlap (``StudyError`` at
-``scene.bodies.<later body>``); a region left with no volume is a ``StudyError`` at its path.
+bodies have matching triangles on their common faces; a piece belongs to the region covering it;
+a piece covered by two bodies, or by two regions of one body, is an overlap (``StudyError`` at
+``scene.bodies.<later body>`` / ``….regions.<later>``); a region left with no volume is a ``StudyError`` at its path.
 Each body gets its own copy of the nodes on faces shared with another body. The size is
 ``mesh.size`` (``Mesh.MeshSizeMax``; default: the rule of ``wcs.choose.mesh_size`` with the
 bounding-box diagonal), with ``Mesh.MeshSizeFromCurvature`` elements per 2π of arc, and finer

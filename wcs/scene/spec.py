@@ -154,9 +154,27 @@ class Material(Frozen):
         missing = [k for k, v in uses[0].items() if v is None]
         if missing:
             raise ValueError(f"'{missing[0]}' is missing: {' and '.join(uses[0])} go together")
-        if self.lam is not None and self.lam + self.mu <= 0:
-            raise ValueError("lambda + mu must be > 0 (positive bulk modulus)")
+        if self.lam is not None and not lame_admissible(self.lam, self.mu):
+            raise ValueError(f"3 lambda + 2 mu = {3 * self.lam + 2 * self.mu:.4g} must be > 0 (a positive "
+                             "bulk modulus; equivalently Poisson's ratio above -1)")
         return self
+
+
+def lame_admissible(lam: float, mu: float) -> bool:
+    """Whether Hooke's law tau = lambda tr(e) I + 2 mu e is positive definite: mu > 0 and
+    3 lambda + 2 mu > 0 (the shear and bulk moduli positive; E > 0 and -1 < nu < 1/2).
+
+    - 3D: e : C e = 2 mu |dev e|^2 + (lambda + 2 mu / 3) (tr e)^2, positive for every e != 0
+      exactly when mu > 0 and 3 lambda + 2 mu > 0.
+    - Plane strain: the 2D form alone needs only mu > 0 and lambda + mu > 0, but the slice is of
+      a 3D material (tau_33 = lambda div u, the thermal modulus beta = (3 lambda + 2 mu) alpha,
+      [68]), so the 3D condition holds; it implies lambda + mu > 0.
+    - Plane stress: lambda* = 2 lambda mu / (lambda + 2 mu) and
+      lambda* + mu = mu (3 lambda + 2 mu) / (lambda + 2 mu) > 0 under the same condition
+      (which also gives lambda + 2 mu > 0).
+    Both bounds are linear in (lambda, mu): over a box they hold at every point when they hold
+    at its lowest corner."""
+    return mu > 0 and 3 * lam + 2 * mu > 0
 
 
 class Disc(Frozen):
