@@ -26,7 +26,7 @@ from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
-SSNV128 = ROOT / "studies" / "validation" / "ssnv128.yaml"
+SSNV128 = ROOT / "tests" / "data" / "ssnv128.yaml"
 STIFF = [1e14, 1e15, 1e16, 1e17]
 
 
