@@ -146,3 +146,40 @@ def test_the_qp_reference_solves_a_pad_on_a_stiff_foundation_as_the_newton_does(
         answers.append(ev.phi)
     for name, value in answers[1].items():
         assert answers[0][name] == pytest.approx(value, rel=1e-8)
+
+
+def _layers(soft: float, stiff: float, name: str = "studies/glued-layers.yaml") -> dict:
+    """glued-layers (one body: concrete under steel; closed form in its header), or glued-mortar
+    (the same layers as two glued bodies), with these moduli and the moduli not uncertain."""
+    doc = yaml.safe_load((ROOT / name).read_text())
+    doc["scene"]["materials"]["concrete"]["E"] = soft
+    doc["scene"]["materials"]["steel"]["E"] = stiff
+    doc["uncertain"] = {k: v for k, v in doc["uncertain"].items() if ".E" not in k}
+    return doc
+
+
+@pytest.mark.parametrize("name, where", [("studies/glued-layers.yaml", "body 'column'"),
+                                         ("studies/validation/glued-mortar.yaml", "the glued bodies 'soft', 'hard'")])
+def test_a_contrast_beyond_double_precision_in_one_factorization_is_refused(tmp_path, capsys, name, where):
+    """Bonded regions share one factorization, whose round-off grows like 1e-14 × their contrast:
+    10 Pa bonded to 2.1e12 Pa (a contrast of 2e11, both in main's range; stresses off by ~1e-3)
+    is exit 2 naming the materials, the bodies and what to do."""
+    code = main(["check", str(write_study(_layers(10.0, 2.1e12, name), tmp_path)), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "scene.materials.steel" in err and where in err, err
+    assert "2.1e+11 (> 1e+10)" in err and "a body of its own in contact" in err
+
+
+def test_a_bonded_contrast_within_the_bound_keeps_the_closed_form_to_its_round_off():
+    """glued-layers at a contrast of 7e8 (steel stand-in 2.1e19 Pa, concrete 3e10 Pa): stresses
+    σ_yy = −p in both layers and the settlement Σ h p/(λ+2μ) to 1e-13 × the contrast (ten
+    times the measured 1e-14)."""
+    from wcs.materials import lame
+    ev = Evaluator(load_study(_layers(3e10, 2.1e19)))
+    res = ev.evaluate(ev.study.nominal())
+    assert res.status == 0, res.message
+    p, (lc, mc), (ls, ms) = 1e6, lame({"E": 3e10, "nu": 0.2}), lame({"E": 2.1e19, "nu": 0.3})
+    tol = 1e-13 * (ls + 2 * ms) / (lc + 2 * mc)
+    assert np.abs(res.state.stress[1] + p).max() < tol * p
+    settlement = 0.3 * p / (lc + 2 * mc) + 0.2 * p / (ls + 2 * ms)
+    assert res.phi["settlement"] == pytest.approx(settlement, rel=tol)

@@ -13,11 +13,13 @@ import numpy as np
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError
+from .fem.gluing import glued_clusters
 from .model import Model, Solution
 from .scene.mesher import build_mesh
 from .scene.mesher3d import build_mesh3d
 from .sensitivity import gradients as adjoint_gradients
 from .status import Status
+from .study import check_bonded_contrast
 
 
 @dataclass
@@ -43,6 +45,17 @@ class Evaluation:
         return self._fields
 
 
+def bonded_materials(smesh, model) -> list[tuple[list[str], list[str]]]:
+    """Per group of bodies that share a factorization (a body, or bodies glued together):
+    (their names, the materials of their regions)."""
+    out = []
+    for cluster in glued_clusters(len(smesh.bodies), model.glue):
+        bodies = [smesh.bodies[b] for b in cluster]
+        materials = [m for (body, _), m in zip(smesh.regions, model.region_material) if body in bodies]
+        out.append((bodies, list(dict.fromkeys(materials))))
+    return out
+
+
 class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
     study's mesh refined that many times, every triangle split into four, every tetrahedron into
@@ -59,6 +72,7 @@ class Evaluator:
             self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+        check_bonded_contrast(study.scene, study.uncertain, bonded_materials(self.smesh, self.model))
         self.map = ParameterMap(self.model, study.scene, study.uncertain)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()
