@@ -28,9 +28,8 @@ class Frozen(Strict):
 # 1e17 Pa (code_aster's SSNV128: 1.3e16 Pa), and a body in contact is factored on its own
 # (K is block diagonal over bodies, W = Σ_bodies C K_b⁻¹ Cᵀ), so its contrast with the
 # bodies it touches costs no digit (tests/test_stiff_bodies.py: to E = 1e20 Pa). Regions
-# bonded in one body (or glued) share one factorization: there the stresses carry a
-# round-off of about 1e-14 times their contrast (measured on glued-layers.yaml: 4e-9 at a
-# contrast of 3e5, 3e-5 at 3e9).
+# bonded in one body (or glued) share one factorization, and their contrast has its own
+# bound (`wcs.study.BONDED_CONTRAST_MAX`).
 MODULUS = {"ge": 1.0, "le": 1e20}                 # E, mu [Pa]
 LAME = {"ge": -1e20, "le": 1e24}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
 RIGID_HINT = ("for a rigid body, hold its contact side fixed with a support (`u: [0, 0]`, in 3D `[0, 0, 0]`) "
