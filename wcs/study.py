@@ -619,46 +619,6 @@ def _locking_warnings(scene: Scene, uncertain: list[Uncertain]) -> list[str]:
     return out
 
 
-# Regions bonded in one stiffness (a body's regions, glued bodies) share one factorization,
-# whose round-off in their stresses grows like 1e-14 times the contrast of their moduli
-# (glued-layers.yaml: 4e-9 at a contrast of 4e5, 3e-5 at 4e9; tests/test_stiff_bodies.py).
-# Beyond 1e10 the stresses would carry a round-off above 1e-4: refused, with what to do.
-BONDED_CONTRAST_MAX = 1e10
-
-
-def _modulus_range(scene: Scene, name: str, box: dict) -> tuple[float, float]:
-    """The least and largest Young's modulus of a material over its box (its nominal value
-    when it has none); Lamé constants: μ(3λ+2μ)/(λ+μ) at their nominal values, moved with μ."""
-    m = scene.materials[name]
-    if m.E is not None:
-        return box.get(f"materials.{name}.E", (m.E, m.E))
-    E = m.mu * (3 * m.lam + 2 * m.mu) / (m.lam + m.mu)
-    lo, hi = box.get(f"materials.{name}.mu", (m.mu, m.mu))
-    return E * lo / m.mu, E * hi / m.mu
-
-
-def check_bonded_contrast(scene: Scene, uncertain: list[Uncertain], bonded: list[tuple[list[str], list[str]]]) -> None:
-    """StudyError when materials bonded in one stiffness differ in Young's modulus (nominal or
-    anywhere in their boxes) by more than BONDED_CONTRAST_MAX. `bonded`: per group of bodies
-    that share a factorization (one body, or bodies glued together), (body names, materials)."""
-    box = {e.path: (e.lower, e.upper) for e in uncertain}
-    for bodies, materials in bonded:
-        ranges = {name: _modulus_range(scene, name, box) for name in materials}
-        stiff = max(ranges, key=lambda n: ranges[n][1])
-        soft = min(ranges, key=lambda n: ranges[n][0])
-        contrast = ranges[stiff][1] / ranges[soft][0]
-        if contrast > BONDED_CONTRAST_MAX:
-            where = f"body '{bodies[0]}'" if len(bodies) == 1 else f"the glued bodies {', '.join(map(repr, bodies))}"
-            raise StudyError(f"'{stiff}' (E up to {ranges[stiff][1]:g} Pa) and '{soft}' (E down to "
-                             f"{ranges[soft][0]:g} Pa) are bonded in {where}: a contrast of {contrast:.3g} "
-                             f"(> {BONDED_CONTRAST_MAX:g}) in one factorization leaves a round-off of about "
-                             f"1e-14 times it in the stresses; make the stiff part a body of its own in contact "
-                             f"(bodies in contact are factored apart, at any contrast), or, if it stands for a rigid "
-                             f"part that does not move, hold the side the rest shares with it by a support "
-                             f"(`u: [0, 0]`, in 3D `[0, 0, 0]`)",
-                             path=f"scene.materials.{stiff}")
-
-
 # ---------------------------------------------------------------- dotted paths
 
 
