@@ -70,3 +70,43 @@ def test_a_3d_slip_limit_on_a_grid_is_named_by_its_grid_index():
 def test_bad_3d_grid_points_are_exit_2_at_their_path(tmp_path, points, words):
     code, _, err = run(["check", str(write(tmp_path, study_doc(points)))])
     assert code == 2 and "uncertain.contacts.interface.friction.slip_limit" in err and words in err, err
+
+
+def test_the_surface_grid_is_the_face_however_its_nodes_crowd():
+    """Issue 26 item 8: nodes crowded into one corner of a 3 × 1.2 rectangle (a mesh refined
+    there) turned the principal directions off its sides and laid the grid on a 3.08 × 1.43
+    rectangle; the smallest enclosing rectangle is the face itself."""
+    uv, x, q = rotated_rectangle()
+    crowd = np.random.default_rng(3).uniform(0, 1, (400, 2)) ** 3 * [3.0, 1.2]
+    uv, x = np.vstack([uv, crowd]), np.vstack([x, np.array([2.0, -1.0, 0.5]) + crowd @ q[:, :2].T])
+    grid, lengths = surface_grid(x)
+    assert lengths == pytest.approx([3.0, 1.2], rel=1e-12)
+    for k in range(2):
+        s = uv[:, k] / [3.0, 1.2][k]
+        assert min(np.abs(grid[:, k] - s).max(), np.abs(grid[:, k] - (1 - s)).max()) < 1e-12
+
+
+def test_a_slip_limit_at_its_lipschitz_bound_has_exactly_the_studys_slope():
+    """A 2 × 1 m contact face meshed finer in one corner, the slip limit on a [5, 2] grid with
+    C = 1e5 Pa/m: the constraints bound neighbours by C·0.5 m along the face and C·1 m across
+    it (its true sides), and the grid values rising by exactly those steps give every contact
+    node g0 + C (x + y): the Lipschitz constant across the face is the study's C, no more."""
+    from wcs.evaluation import Evaluator
+    from wcs.problem import lipschitz_constraints
+    d = yaml.safe_load(STUDY)
+    scene, C, g0 = d["scene"], 1e5, 5e4
+    scene["mesh"]["refine"] = [{"box": [0, 0, -0.2, 0.5, 0.4, 0.2], "size": 0.06}]
+    scene["bodies"]["base"]["regions"][0]["shape"]["box"] = [0, 0, -0.5, 2, 1, 0]
+    scene["bodies"]["block"]["regions"][0]["shape"]["box"] = [0, 0, 0, 2, 1, 0.5]
+    scene["boundaries"]["base_top"]["box"] = [0, 0, 0, 2, 1, 0]
+    d["uncertain"] = {"contacts.interface.friction.slip_limit": {"range": [g0, 4e5], "lipschitz": C,
+                                                                 "points": [5, 2]}}
+    study = load_study(d)
+    ev = Evaluator(study)
+    _, b = lipschitz_constraints(study, ev)
+    assert sorted(set(np.round(b / C, 12))) == [0.5, 1.0]
+    i, j = np.meshgrid(np.arange(5), np.arange(2), indexing="ij")
+    x = (g0 + C * (0.5 * i + 1.0 * j)).ravel()
+    slip = ev.map.coefficients(*study.data_set(x)).slip
+    nodes = ev.model.zone.coords
+    assert np.abs(slip - (g0 + C * (nodes[:, 0] + nodes[:, 1]))).max() < 1e-9 * g0

@@ -12,7 +12,8 @@ import numpy as np
 
 from .coefficients import ParameterMap
 from .criteria import build_criteria, embedded_rois
-from .errors import SolveError
+from .errors import SolveError, StudyError
+from .fem.gluing import glued_clusters
 from .model import Model, Solution
 from .scene.claims import check_claims
 from .scene.mesher import build_mesh
@@ -44,6 +45,58 @@ class Evaluation:
         return self._fields
 
 
+# Regions bonded in one stiffness (a body's regions, glued bodies) share one factorization,
+# whose round-off in their stresses grows like 1e-14 times the contrast of their moduli
+# (glued-layers.yaml: 4e-9 at a contrast of 4e5, 3e-5 at 4e9; tests/test_stiff_bodies.py).
+# Beyond 1e10 the stresses would carry a round-off above 1e-4: refused, with what to do.
+BONDED_CONTRAST_MAX = 1e10
+
+
+def _modulus_range(scene, name: str, box: dict) -> tuple[float, float]:
+    """The least and largest Young's modulus of a material over its box (its nominal value
+    when it has none); Lamé constants: μ(3λ+2μ)/(λ+μ) at their nominal values, moved with μ."""
+    m = scene.materials[name]
+    if m.E is not None:
+        return box.get(f"materials.{name}.E", (m.E, m.E))
+    E = m.mu * (3 * m.lam + 2 * m.mu) / (m.lam + m.mu)
+    lo, hi = box.get(f"materials.{name}.mu", (m.mu, m.mu))
+    return E * lo / m.mu, E * hi / m.mu
+
+
+def check_bonded_contrast(scene, uncertain, bonded: list[tuple[list[str], list[str]]]) -> None:
+    """StudyError when materials bonded in one stiffness differ in Young's modulus (nominal or
+    anywhere in their boxes) by more than BONDED_CONTRAST_MAX. `bonded`: per group of bodies
+    that share a factorization (one body, or bodies glued together), (body names, materials)."""
+    box = {e.path: (e.lower, e.upper) for e in uncertain}
+    for bodies, materials in bonded:
+        ranges = {name: _modulus_range(scene, name, box) for name in materials}
+        stiff = max(ranges, key=lambda n: ranges[n][1])
+        soft = min(ranges, key=lambda n: ranges[n][0])
+        contrast = ranges[stiff][1] / ranges[soft][0]
+        if contrast > BONDED_CONTRAST_MAX:
+            where = f"body '{bodies[0]}'" if len(bodies) == 1 else f"the glued bodies {', '.join(map(repr, bodies))}"
+            raise StudyError(f"'{stiff}' (E up to {ranges[stiff][1]:g} Pa) and '{soft}' (E down to "
+                             f"{ranges[soft][0]:g} Pa) are bonded in {where}: a contrast of {contrast:.3g} "
+                             f"(> {BONDED_CONTRAST_MAX:g}) in one factorization leaves a round-off of about "
+                             f"1e-14 times it in the stresses; make the stiff part a body of its own in contact "
+                             f"(bodies in contact are factored apart, at any contrast), or, if it stands for a rigid "
+                             f"part that does not move, hold the side the rest shares with it by a support "
+                             f"(`u: [0, 0]`, in 3D `[0, 0, 0]`)",
+                             path=f"scene.materials.{stiff}")
+
+
+
+def bonded_materials(smesh, model) -> list[tuple[list[str], list[str]]]:
+    """Per group of bodies that share a factorization (a body, or bodies glued together):
+    (their names, the materials of their regions)."""
+    out = []
+    for cluster in glued_clusters(len(smesh.bodies), model.glue):
+        bodies = [smesh.bodies[b] for b in cluster]
+        materials = [m for (body, _), m in zip(smesh.regions, model.region_material) if body in bodies]
+        out.append((bodies, list(dict.fromkeys(materials))))
+    return out
+
+
 class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
     study's mesh refined that many times, every triangle split into four, every tetrahedron into
@@ -62,6 +115,7 @@ class Evaluator:
         self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
         check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
                      | set(study.sweep.grid if study.sweep else ()))
+        check_bonded_contrast(study.scene, study.uncertain, bonded_materials(self.smesh, self.model))
         self.map = ParameterMap(self.model, study.scene, study.uncertain)
         self.criteria = build_criteria(study.criteria, study.scene, self.smesh, self.model.zone)
         t2 = time.perf_counter()

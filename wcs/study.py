@@ -60,8 +60,8 @@ from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
-                         POISSON, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
-                         Name, Point, Scene, lame_admissible)
+                         POISSON, RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary,
+                         Material, Name, Point, Scene, lame_admissible)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -724,8 +724,9 @@ def _check_values(path: str, values, src: _Source, where) -> None:
     bounds = _ADDRESSES[_address(path)]
     for value in values:
         if not _in_range(value, bounds):
+            hint = f"; {RIGID_HINT}" if bounds is MODULUS and value > MODULUS["le"] else ""
             raise src.error(where, f"{value!r} is outside the physical range of '{path}' "
-                                   f"({_range_text(bounds)})")
+                                   f"({_range_text(bounds)}){hint}")
 
 
 # ---------------------------------------------------------------- uncertain data, sweep

@@ -24,6 +24,7 @@ import time
 
 import cvxpy as cp
 import numpy as np
+import scipy.sparse as sp
 
 from ..status import Status
 from .solver import ContactResult
@@ -32,12 +33,17 @@ from .solver import ContactResult
 def _tresca_qp(K, f, Bn, Bt, d, gw, tol):
     """One Tresca problem; returns (u, λn, λt, cvxpy status).
 
-    Solved for v = u / a with a = max|f| / mean diag K (a displacement scale), so that
-    the objective is O(1): Clarabel's absolute gap tolerance then means a relative one
-    (unscaled, u ~ 1e-3 lost three digits). Multipliers scale back as λ = a μ.
+    Solved for v = D u / a, D = diag(K)^½ and a = max|D⁻¹f|, i.e. for the objective divided
+    by a² with the unit-diagonal stiffness D⁻¹KD⁻¹: every DOF's stiffness is 1 and the
+    objective O(1), so Clarabel's absolute gap tolerance means a relative one (unscaled,
+    u ~ 1e-3 lost three digits) whatever the moduli (with one scale a = max|f| / mean diag K,
+    a pad of 1e7 Pa on a 1e14 Pa foundation was declared unbounded: the pad's stiffness was
+    1e-7 of the mean). Multipliers scale back as λ = a μ.
     """
     n, m = K.shape[0], Bn.shape[0]
-    a = max(np.abs(f).max(), 1e-300) / K.diagonal().mean()
+    Dinv = sp.diags(1.0 / np.sqrt(K.diagonal()))
+    K, Bn, Bt, f = Dinv @ K @ Dinv, Bn @ Dinv, Bt @ Dinv, Dinv @ f
+    a = max(np.abs(f).max(), 1e-300)
     k = Bt.shape[0] // m if m else 1
     v, s = cp.Variable(n), cp.Variable(m)
     if k == 1:
@@ -51,7 +57,7 @@ def _tresca_qp(K, f, Bn, Bt, d, gw, tol):
         return None, None, None, prob.status
     lt = (cons[1].dual_value - cons[2].dual_value if k == 1
           else -np.asarray(cons[1].dual_value[1], float).reshape(k * m))
-    return a * v.value, a * cons[0].dual_value, a * lt, prob.status
+    return a * (Dinv @ v.value), a * cons[0].dual_value, a * lt, prob.status
 
 
 def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,

@@ -13,8 +13,11 @@ values, so the file says once what holds it:
 - two prescribed temperatures on a common face (likewise);
 - two supports that meet at nodes (a shared edge or corner) and hold a common direction there
   with values that differ, at the nominal data or anywhere in an uncertain box;
-- a support holding a contact side's face along its normal (the contact would carry nothing
-  there), or any direction of a glued side's face (the glue would be cut there). Nodes on the
+- a support holding a contact's slave face along its normal (the support would take the load
+  the contact is there to carry: pressure 0), or any direction of a glued side's face (the glue
+  would be cut there). A held master side is a rigid obstacle, the classic Signorini problem
+  ([21, §2] with u = 0 on the obstacle): the slave rows still act and carry the whole contact
+  force into the support's reaction, so it is accepted (the way to model a rigid foundation). Nodes on the
   edge where a supported side meets a contact or glued side (a fault reaching a held boundary)
   are fine: only common faces count;
 - two contacts or glues with a common slave face (its nodes constrained twice), or whose
@@ -169,7 +172,7 @@ def _interfaces_twice(scene, smesh) -> None:
 def _supported_sides(scene, smesh) -> None:
     mesh, faces = smesh.mesh, smesh.boundaries
     for block, name, spec in _entries(scene):
-        for key in ("slave", "master"):
+        for key in ("slave", "master") if block == "glue" else ("slave",):
             side = getattr(spec, key)
             for sname, support in scene.supports.items():
                 common = np.intersect1d(faces[side], faces[sname])

@@ -24,8 +24,17 @@ class Frozen(Strict):
 # beyond any solid (moduli from gels, ~1e2 Pa, to diamond, 1.2e12 Pa; conductivities from
 # aerogels to diamond; expansions of polymers, ~1e-3/K) yet keep every product of the solve
 # (u ~ load * length / E) far inside double precision: E = 1e-300 would give u ~ 1e306.
-MODULUS = {"ge": 1.0, "le": 1e13}                 # E, mu [Pa]
-LAME = {"ge": -1e13, "le": 1e17}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
+# Moduli reach far beyond diamond: a rigid foundation is modelled as a body of E = 1e14 to
+# 1e17 Pa (code_aster's SSNV128: 1.3e16 Pa), and a body in contact is factored on its own
+# (K is block diagonal over bodies, W = Σ_bodies C K_b⁻¹ Cᵀ), so its contrast with the
+# bodies it touches costs no digit (tests/test_stiff_bodies.py: to E = 1e20 Pa). Regions
+# bonded in one body (or glued) share one factorization, and their contrast has its own
+# bound (`wcs.evaluation.BONDED_CONTRAST_MAX`).
+MODULUS = {"ge": 1.0, "le": 1e20}                 # E, mu [Pa]
+LAME = {"ge": -1e20, "le": 1e24}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
+RIGID_HINT = ("for a rigid body, make it the master of its contact and hold its contact side fixed with a support "
+              "(`u: [0, 0]`, in 3D `[0, 0, 0]`) "
+              "instead of raising its modulus")
 POISSON = {"gt": -1, "lt": 0.5}
 CONDUCTIVITY = {"ge": 1e-6, "le": 1e6}           # [W/(m K)]
 EXPANSION = {"ge": -1e-2, "le": 1e-2}            # [1/K]
@@ -136,13 +145,19 @@ def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
 
 
 class Material(Frozen):
-    E: Optional[float] = Field(None, **MODULUS)
+    E: Optional[float] = Field(None, ge=MODULUS["ge"])
     nu: Optional[float] = Field(None, **POISSON)
     lam: Optional[float] = Field(None, alias="lambda", **LAME)
-    mu: Optional[float] = Field(None, **MODULUS)
+    mu: Optional[float] = Field(None, ge=MODULUS["ge"])
     conductivity: Optional[float] = Field(None, **CONDUCTIVITY)
     expansion: Optional[float] = Field(None, **EXPANSION)
     density_weight: Optional[float] = Field(None, **WEIGHT)
+
+    @field_validator("E", "mu")
+    def _not_beyond_rigid(cls, value):
+        if value is not None and value > MODULUS["le"]:
+            raise ValueError(f"must be less than or equal to {MODULUS['le']:g} Pa; {RIGID_HINT}")
+        return value
 
     @model_validator(mode="after")
     def _one_elastic_pair(self):
