@@ -30,8 +30,10 @@ named `<path>[i,j]`, the slope bound in both directions.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -54,12 +56,13 @@ from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
+from .options import MAX_SOLVES
 from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
 from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
-from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
+from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MAX_NAME, MODULUS,
                          POISSON, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
                          Name, Point, Scene)
 
@@ -90,10 +93,26 @@ _Loader.add_implicit_resolver(
 )
 
 
+MAX_FILE_BYTES = 4 * 2**20     # a study, scene or material file: a few hundred lines at most
+
+
 def _read_yaml(path: Path) -> tuple[Any, str]:
-    """The parsed content and the text of a YAML file; StudyError if unreadable or not YAML."""
+    """The parsed content and the text of a YAML file; StudyError if it is not a regular file
+    (a device or a FIFO never ends), is larger than MAX_FILE_BYTES, is unreadable or is not YAML."""
     try:
-        text = path.read_text(encoding="utf-8")
+        with open(path, "rb") as f:
+            info = os.fstat(f.fileno())
+            if not stat.S_ISREG(info.st_mode):
+                raise StudyError("not a regular file (a device, a FIFO or a socket): a study is a YAML file",
+                                 file=str(path))
+            if info.st_size > MAX_FILE_BYTES:
+                raise StudyError(f"the file has {info.st_size} bytes, more than the {MAX_FILE_BYTES} a study, "
+                                 "scene or material file may have", file=str(path))
+            data = f.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:                 # grew while read
+            raise StudyError(f"the file has more than the {MAX_FILE_BYTES} bytes a study, scene or material "
+                             "file may have", file=str(path))
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise StudyError("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -116,6 +135,9 @@ def _parse_yaml(text: str, path: Path) -> Any:
         raise StudyError(f"YAML syntax error: {exc}", file=str(path)) from None
     if _depth(doc) > MAX_NESTING:
         raise StudyError(f"the file nests deeper than {MAX_NESTING} levels", file=str(path))
+    if _expanded_size(doc) > MAX_NODES:
+        raise StudyError(f"the file holds more than {MAX_NODES} values once its aliases (*name) are expanded",
+                         file=str(path))
     return doc
 
 
@@ -147,6 +169,21 @@ def _depth(doc) -> int:
     return deepest
 
 
+def _expanded_size(doc) -> int:
+    """Values (scalars, lists, mappings) of the document with every alias expanded: an alias
+    repeats its anchor's whole subtree, so a few lines can stand for 1e7 shapes. Each distinct
+    node is counted once and its count reused (bounded time, depth checked by `_depth` first)."""
+    sizes: dict[int, int] = {}
+
+    def size(node) -> int:
+        if not isinstance(node, (dict, list)):
+            return 1
+        if id(node) not in sizes:
+            sizes[id(node)] = 1 + sum(map(size, node.values() if isinstance(node, dict) else node))
+        return sizes[id(node)]
+    return size(doc)
+
+
 def _locate(name: str, src: _Source, key: str, shipped: bool = False) -> Path:
     """A file named at `key`: relative to the referencing file's folder, then (`shipped`)
     among the package's material libraries."""
@@ -168,9 +205,19 @@ def _fault(err: dict) -> str:
     message = re.sub(r"^(List|Dictionary) should have (.*) after validation", r"must have \2", message)
     message = re.sub(r" or instance of \w+$", "", message)
     value = err.get("input")
-    if err["type"] != "unknown_key" and isinstance(value, (bool, int, float, str, type(None))):
+    if (err["type"] != "unknown_key" and isinstance(value, (bool, int, float, str, type(None)))
+            and len(repr(value)) <= 80 and f"got {value!r}" not in message):
         message += f" (got {value!r})"
     return message
+
+
+def _shown_key(key) -> str:
+    """A key of the path as a message shows it: a key with a control character or a lone surrogate
+    escaped, one longer than MAX_NAME cut (a bad name is reported at its own key)."""
+    text = str(key)
+    if not text.isprintable():
+        text = ascii(text)
+    return text if len(text) <= MAX_NAME else f"{text[:MAX_NAME]}... ({len(text)} characters)"
 
 
 @dataclass(frozen=True)
@@ -188,7 +235,7 @@ class _Source:
 
     def error(self, path, message: str) -> StudyError:
         keys = self.prefix + tuple(path)
-        return StudyError(message, file=str(self.file), path=".".join(map(str, keys)) or None)
+        return StudyError(message, file=str(self.file), path=".".join(map(_shown_key, keys)) or None)
 
     def validate(self, schema: TypeAdapter, data, path=()):
         """`data` checked and converted by `schema`; the first fault as a StudyError."""
@@ -207,6 +254,7 @@ class _Source:
 # ---------------------------------------------------------------- typed models
 
 MAX_NESTING = 50                                   # levels of a study file (shapes nest)
+MAX_NODES = 1_000_000                              # values of a study file, aliases expanded
 MAX_PROFILE_POINTS = 1000
 
 CriterionKind = Literal[tuple(KINDS)]
@@ -314,7 +362,7 @@ class Profile(_Strict):
         whole = lambda v: isinstance(v, int) and not isinstance(v, bool)      # noqa: E731
         if not (whole(p) or (isinstance(p, list) and len(p) == 2 and all(whole(v) for v in p))):
             raise ValueError(f"points must be an integer (2D) or [nu, nv] (3D), got {p!r}")
-        if min(p if isinstance(p, list) else [p]) < 2 or int(np.prod(p)) > MAX_PROFILE_POINTS:
+        if min(p if isinstance(p, list) else [p]) < 2 or math.prod(p if isinstance(p, list) else [p]) > MAX_PROFILE_POINTS:
             raise ValueError(f"points needs at least 2 values per direction and at most {MAX_PROFILE_POINTS} "
                              f"in all, got {p!r}")
         return p
@@ -811,6 +859,11 @@ def _check_bulk_modulus(entries: list[Uncertain], scene: Scene, src: _Source) ->
 
 
 def _check_sweep(sweep: Sweep | None, scene: Scene, src: _Source) -> None:
+    """Each swept path is a number that can vary, its values in range; the full factorial grid
+    (the product of the list lengths, in Python's exact integers) at most MAX_SOLVES points."""
+    points = math.prod(len(values) for values in sweep.grid.values()) if sweep else 0
+    if points > MAX_SOLVES:
+        raise src.error(("sweep", "grid"), f"the grid has {points:.3g} points, more than {MAX_SOLVES} solves")
     for path, values in (sweep.grid if sweep else {}).items():
         where = ("sweep", "grid", path)
         _nominal_number(scene, path, src, where)

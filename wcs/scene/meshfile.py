@@ -146,10 +146,17 @@ def _read_gmsh(path: Path, kind: Kind):
             groups.append((name, dim, conn))
     if ntags.size == 0:
         raise _fail(path, "the file holds no mesh nodes")
-    lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
-    lookup[ntags] = np.arange(ntags.size)
-    groups = [(n, d, lookup[c]) for n, d, c in groups]
+    groups = [(n, d, _node_indices(ntags, c)) for n, d, c in groups]
     return xyz, groups
+
+
+def _node_indices(tags: np.ndarray, refs: np.ndarray) -> np.ndarray:
+    """The positions in `tags` of the node tags `refs` (-1 for a tag not among them), through the
+    sorted tags: gmsh's node tags may be sparse (a tag of 1e12 is valid), so no array of the
+    largest tag's length."""
+    order = np.argsort(tags, kind="stable")
+    pos = np.minimum(np.searchsorted(tags[order], refs), tags.size - 1)
+    return np.where(tags[order][pos] == refs, order[pos], -1)
 
 
 def _read_meshio(path: Path, kind: Kind):
