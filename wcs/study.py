@@ -100,16 +100,11 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
     """The parsed content and the text of a YAML file; StudyError if it is not a regular file
     (a device or a FIFO never ends), is larger than MAX_FILE_BYTES, is unreadable or is not YAML."""
     try:
-        with open(path, "rb") as f:
-            info = os.fstat(f.fileno())
-            if not stat.S_ISREG(info.st_mode):
-                raise StudyError("not a regular file (a device, a FIFO or a socket): a study is a YAML file",
-                                 file=str(path))
-            if info.st_size > MAX_FILE_BYTES:
-                raise StudyError(f"the file has {info.st_size} bytes, more than the {MAX_FILE_BYTES} a study, "
-                                 "scene or material file may have", file=str(path))
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)        # a FIFO: no wait for a writer
+        _check_regular(fd, path)
+        with os.fdopen(fd, "rb") as f:
             data = f.read(MAX_FILE_BYTES + 1)
-        if len(data) > MAX_FILE_BYTES:                 # grew while read
+        if len(data) > MAX_FILE_BYTES:                        # grew while read
             raise StudyError(f"the file has more than the {MAX_FILE_BYTES} bytes a study, scene or material "
                              "file may have", file=str(path))
         text = data.decode("utf-8")
@@ -118,6 +113,22 @@ def _read_yaml(path: Path) -> tuple[Any, str]:
     except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"cannot read the file: {exc}", file=str(path)) from None
     return _parse_yaml(text, path), text
+
+
+def _check_regular(fd: int, path: Path) -> None:
+    """StudyError (`fd` closed) unless `fd` is a regular file of at most MAX_FILE_BYTES."""
+    info = os.fstat(fd)
+    fault = None
+    if not stat.S_ISREG(info.st_mode):
+        kind = ("a directory" if stat.S_ISDIR(info.st_mode) else "a FIFO" if stat.S_ISFIFO(info.st_mode)
+                else "a device" if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode) else "a socket")
+        fault = f"not a regular file ({kind}): a study is a YAML file"
+    elif info.st_size > MAX_FILE_BYTES:
+        fault = (f"the file has {info.st_size} bytes, more than the {MAX_FILE_BYTES} a study, scene or material "
+                 "file may have")
+    if fault is not None:
+        os.close(fd)
+        raise StudyError(fault, file=str(path))
 
 
 def _parse_yaml(text: str, path: Path) -> Any:
