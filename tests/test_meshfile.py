@@ -191,6 +191,22 @@ def test_unreadable_file(tmp_path, capsys):
     assert "scene.mesh.file" in err
 
 
+def test_gmsh_failing_without_a_reason_is_said_so(tmp_path, capsys, monkeypatch):
+    """gmsh may raise with an empty last error: the line says it gave none (before: "gmsh cannot
+    read the file: " and nothing)."""
+    import gmsh
+
+    def merge(name):
+        raise Exception("")
+    monkeypatch.setattr(gmsh, "merge", merge)
+    write_msh(tmp_path / "m.msh", NODES, GOOD_GROUPS, ELEMENTS)
+    (tmp_path / "s.yaml").write_text(study_text())
+    err = run_bad(tmp_path / "s.yaml", capsys)
+    assert err == (f"error: {tmp_path / 's.yaml'}: scene.mesh.file: {tmp_path / 'm.msh'}: gmsh cannot read the file "
+                   "and gives no reason "
+                   "(not a mesh file gmsh parses)\n")
+
+
 def test_unreadable_other_format(tmp_path, capsys):
     (tmp_path / "m.vtu").write_text("<VTKFile broken")
     (tmp_path / "s.yaml").write_text(study_text(mesh="m.vtu"))

@@ -122,8 +122,10 @@ def _read_gmsh(path: Path, kind: Kind):
     with Session():
         try:
             gmsh.merge(str(path))
-        except Exception as exc:  # gmsh raises a bare Exception with its last error
-            raise _fail(path, f"gmsh cannot read the file: {exc}") from None
+        except Exception as exc:  # gmsh raises a bare Exception with its last error, which may be empty
+            why = " ".join(str(exc).split())
+            raise _fail(path, f"gmsh cannot read the file: {why}" if why else
+                        "gmsh cannot read the file and gives no reason (not a mesh file gmsh parses)") from None
         ntags, coords, _ = gmsh.model.mesh.getNodes()
         ntags = np.asarray(ntags, dtype=np.int64)
         xyz = np.asarray(coords, dtype=float).reshape(-1, 3)
