@@ -104,3 +104,26 @@ def test_console_script_exit_status_and_no_traceback(tmp_path):
     assert "bad.yaml" in proc.stderr and "Traceback" not in proc.stderr
     proc = subprocess.run([str(wcs), "check", str(tmp_path / "missing.yaml")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "missing.yaml" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_library_warnings_stay_off_stderr_unless_verbose(tmp_path, capsys, monkeypatch):
+    """cvxpy's and numpy's warnings came before the error they led to; the error is now the
+    only line, and `--verbose` shows the warnings."""
+    import warnings
+
+    import wcs.cli
+    from wcs.errors import StudyError
+
+    def check(args):
+        warnings.warn("Solution may be inaccurate.", UserWarning)
+        warnings.warn("invalid value encountered in divide", RuntimeWarning)
+        raise StudyError("the fault", path="scene.x")
+    monkeypatch.setattr(wcs.cli, "cmd_check", check)
+    path = write_study(demo_doc(), tmp_path)
+    code, out, err = run_cli(["check", path], capsys)
+    assert (code, out, err) == (2, "", f"error: {path}: scene.x: the fault\n")
+    monkeypatch.setattr(warnings, "showwarning", lambda message, category, *a, **k:   # to stderr (pytest records them)
+                        print(f"{category.__name__}: {message}", file=sys.stderr))
+    code, out, err = run_cli(["check", path, "--verbose"], capsys)
+    assert code == 2 and "Solution may be inaccurate." in err and "invalid value encountered in divide" in err
+    assert err.splitlines()[-1] == f"error: {path}: scene.x: the fault"
