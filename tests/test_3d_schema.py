@@ -167,6 +167,9 @@ BAD = [
      "more than mesh.max_cells"),
     (_put(["bodies", "block", "regions", 0, "shape", "box"], [0, 0, -0.2, 1, 1, 0.5]), "scene.bodies.block",
      "overlaps body 'base'"),
+    # issue 26: meshed as a piece of its own, it was blamed on the body ("consists of 2 pieces")
+    (_put(["regions_of_interest", "core"], {"box": [0.5, 0.5, -0.25, 0.50001, 0.50001, -0.24999], "body": "base"}),
+     "scene.regions_of_interest.core", "the region of interest is meshed apart from body 'base'"),
 ]
 
 
