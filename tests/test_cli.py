@@ -39,10 +39,15 @@ def _mesh_level_cases():
         doc["scene"]["bodies"]["pad"]["regions"][0]["shape"] = {"rectangle": [0.5, 0.8, 1.5, 1.5]}
     def roi_selects_nothing(doc):
         doc["scene"]["regions_of_interest"]["under_pad"] = {"box": [5.0, 5.0, 6.0, 6.0]}
+    def glue_within_one_body(doc):            # the slave side is supported: it was blamed on that
+        doc["scene"]["boundaries"]["base_strip"] = {"segment": [[0.2, 1.0], [0.4, 1.0]]}
+        doc["scene"]["glue"] = {"g": {"slave": "base_bottom", "master": "base_strip"}}
     def subdomains_beyond_the_mesh(doc):       # 588 cells: at most 588 // 16 = 36 subdomains
         doc["scene"]["mesh"] = {"size": 0.1}
         doc["solver"] = {"method": "dd", "dd": {"subdomains": 64}}
     return [("boundary selects no edge", nothing_selected, "scene.boundaries.pad_top"),
+            ("glue within one body", glue_within_one_body, "scene.glue.g.master: slave and master of a glue belong "
+             "to the same body ('base')"),
             ("dd subdomains beyond the mesh", subdomains_beyond_the_mesh, "solver.dd.subdomains: 64 subdomains of a "
              "mesh of 588 cells leave fewer than 16 cells to a subdomain: give at most 36"),
             ("bodies overlap", overlapping_bodies, "scene.bodies"),
