@@ -272,6 +272,9 @@ CASES = [
     ("polygon-too-many-vertices", put(BASE_REGION + ["shape"], {"polygon": [
         [1 + math.cos(2 * math.pi * k / 1001), 0.5 + 0.5 * math.sin(2 * math.pi * k / 1001)] for k in range(1001)]}),
      "scene.bodies.base.regions.0.shape.polygon: must have at most 1000 items"),
+    ("shapes-beyond-cap", put(BASE_REGION + ["shape"], {"rectangle": [0.0, 0.0, 2.0, 1.0], "minus": [
+        {"rectangle": [0.05 + 0.048 * (k % 40), 0.05 + 0.03 * (k // 40), 0.06 + 0.048 * (k % 40), 0.06 + 0.03 * (k // 40)]}
+        for k in range(1000)]}), "scene.bodies.base.regions.0.shape: the scene's shapes number more than 1000"),
     ("solver-tolerance-below-rounding", put(["solver", "tolerance"], 1e-300), "solver.tolerance: a relative tolerance "
      "below 1e-14"),
     ("dd-contact-tolerance-below-rounding", put(["solver", "dd", "contact_tolerance"], 1e-20),

@@ -594,6 +594,7 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     cells along the longest side of the scene (or of a body with its own size)."""
     if scene.mesh.file is not None:
         return None
+    _refuse_many_shapes(scene, src)
     if scene.dimension == 3:
         return _check_mesh3d(scene, src)
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
@@ -606,6 +607,28 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     cells, path = estimate_cells(scene)
     _refuse_many(scene, cells, path, f"{cells:.3g} cells ({cells:.3g} unknowns)", src)
     return cells
+
+
+MAX_SHAPES = 1000       # shapes of a scene, `minus` and `intersect` included: the demo's base minus 400
+                        # rectangles meshed in 3.4 s, and meshing grows with them
+
+
+def _refuse_many_shapes(scene, src: _Source) -> None:
+    """StudyError at the region shape past which the scene holds more than MAX_SHAPES shapes
+    (each primitive of a `minus` / `intersect` tree, an extruded 2D shape's included)."""
+    total = 0
+    for b, spec in scene.bodies.items():
+        for i, region in enumerate(spec.regions):
+            stack = [region.shape]
+            while stack and total <= MAX_SHAPES:
+                shape = stack.pop()
+                total += 1
+                stack += (shape.minus or []) + (shape.intersect or [])
+                if getattr(shape, "extrude", None) is not None:
+                    stack.append(shape.extrude.shape)
+            if total > MAX_SHAPES:
+                raise src.error(("bodies", b, "regions", i, "shape"), f"the scene's shapes number more than "
+                                f"{MAX_SHAPES} (each of a `minus` or `intersect` counts): meshing grows with them")
 
 
 def _refuse_coarse(sizes, src: _Source) -> None:
