@@ -297,3 +297,17 @@ def test_read_mesh_file_errors_name_the_file():
         from wcs.scene.meshfile import read_mesh_file
         read_mesh_file("/nonexistent/x.msh", {"bodies": {"a": {"regions": [{}]}}})
     assert exc.value.path == "scene.mesh.file" and "x.msh" in str(exc.value)
+
+
+def test_a_boundary_name_from_the_file_follows_the_rules_for_names(tmp_path, capsys):
+    """A 1D group's name becomes a boundary's: an escape character or a name of 200 characters is
+    refused at the file as in the study (before: both passed; gmsh itself ends a name at a NUL)."""
+    for bad, why in (("side\x1br", "a name may contain printable characters only, got '\\x1b' at position 4"),
+                     ("s" * 200, "a name has at most 100 characters, got 200")):
+        groups = {**GOOD_GROUPS}
+        del groups["right:side_r"]
+        groups[f"right:{bad}"] = (1, 5)
+        write_msh41(tmp_path / "m.msh", NODES, groups, ELEMENTS, tags=list(range(1, 7)))
+        (tmp_path / "s.yaml").write_text(study_text().replace("  contacts:\n    c: {slave: side_r, master: side_l}\n", ""))
+        err = run_bad(tmp_path / "s.yaml", capsys)
+        assert "scene.mesh.file: m.msh: 1D physical group " in err and err.rstrip().endswith(why), err

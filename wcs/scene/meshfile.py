@@ -50,7 +50,7 @@ import skfem
 from ..errors import StudyError
 from . import selectors
 from .meshdata import SceneMesh
-from .spec import GroupBoundary
+from .spec import MAX_NAME, GroupBoundary, _valid_name
 
 AREA_TOL = 1e-12            # |area| (|volume|) <= AREA_TOL * (bounding-box diagonal)^d -> degenerate
 INSIDE_TOL = 1e-9           # a point is inside a tetrahedron when its barycentric coordinates exceed this
@@ -379,6 +379,15 @@ def file_regions(raw: RawMesh) -> dict[str, dict[str, int]]:
     return out
 
 
+def _file_name(name: str, what: str, error) -> str:
+    """A region or boundary name the mesh file gives, held to the study's rules for names."""
+    try:
+        return _valid_name(name)
+    except ValueError as exc:
+        shown = ascii(name) if len(name) <= MAX_NAME else f"{ascii(name[:MAX_NAME])}..."
+        raise error(("mesh", "file"), f"{what} {shown}: {exc}") from None
+
+
 def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str]], list[tuple], list[str]]:
     """What a validated `Scene` (2D or 3D) meshed by ``mesh.file`` takes from the file: the
     file's absolute path, each body's region names (matched with the file's cell groups, filled
@@ -415,7 +424,7 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
                     raise error(("bodies", body, "regions", i),
                                 f"give the region's `name` (regions of '{body}' in {path.name}: "
                                 f"{', '.join(fregs)})")
-                named.append(next(iter(fregs)))
+                named.append(_file_name(next(iter(fregs)), f"{path.name}: {d}D physical group", error))
             elif region.name not in fregs:
                 raise error(("bodies", body, "regions", i, "name"),
                             f"no {d}D physical group '{body}:{region.name}' in {path.name} "
@@ -438,6 +447,7 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
         body, piece = split_name(group)
         if not piece or body == "":
             raise error(("mesh", "file"), f"{path.name}: {d - 1}D physical group {group!r}: use `NAME` or `BODY:NAME`")
+        _file_name(piece, f"{path.name}: {d - 1}D physical group", error)
         if piece in seen:
             raise error(("mesh", "file"), f"{path.name}: {d - 1}D groups {seen[piece]!r} and {group!r} both "
                                           f"make boundary '{piece}'")
