@@ -404,3 +404,13 @@ def test_a_shape_tree_multiplied_by_aliases_is_refused_before_validation(tmp_pat
     assert main(["check", str(path), "--quiet"]) == 2
     assert capsys.readouterr().err == (f"error: {path}: the file holds more than {MAX_NODES} values once its "
                                        "aliases (*name) are expanded\n")
+
+
+def test_a_fifo_as_a_results_file_is_refused_unread(tmp_path, capsys):
+    """`report` and `compare` of a FIFO waited for a writer forever."""
+    fifo = tmp_path / "run.nc"
+    os.mkfifo(fifo)
+    assert main(["report", str(fifo)]) == 2
+    assert capsys.readouterr().err == f"error: {fifo}: not a regular file (a FIFO, a device or a socket), not a results file\n"
+    assert main(["compare", str(fifo), str(fifo)]) == 2
+    assert capsys.readouterr().err == f"error: {fifo}: not a regular file, not a results file\n"
