@@ -275,6 +275,8 @@ CASES = [
     ("shapes-beyond-cap", put(BASE_REGION + ["shape"], {"rectangle": [0.0, 0.0, 2.0, 1.0], "minus": [
         {"rectangle": [0.05 + 0.048 * (k % 40), 0.05 + 0.03 * (k // 40), 0.06 + 0.048 * (k % 40), 0.06 + 0.03 * (k // 40)]}
         for k in range(1000)]}), "scene.bodies.base.regions.0.shape: the scene's shapes number more than 1000"),
+    ("output-nul", put(["output"], "results/demo\x00.nc"), "output: the output name holds a NUL character"),
+    ("output-lone-surrogate", put(["output"], "results/demo\ud800.nc"), "output: the output name holds '\\ud800'"),
     ("solver-tolerance-below-rounding", put(["solver", "tolerance"], 1e-300), "solver.tolerance: a relative tolerance "
      "below 1e-14"),
     ("dd-contact-tolerance-below-rounding", put(["solver", "dd", "contact_tolerance"], 1e-20),

@@ -342,6 +342,19 @@ class StudyFile(_Strict):
     sweep: Optional[Sweep] = None
     output: Optional[str] = None
 
+    @field_validator("output")
+    @classmethod
+    def _file_name(cls, output):
+        """A name the filesystem takes: no NUL, no lone surrogate (YAML's "\ud800" escape)."""
+        try:
+            name = os.fsencode(output)
+        except UnicodeEncodeError as e:
+            raise ValueError(f"the output name holds {ascii(e.object[e.start:e.end])}, not a character of a "
+                             "file name") from None
+        if b"\0" in name:
+            raise ValueError("the output name holds a NUL character")
+        return output
+
     @field_validator("scene")
     @classmethod
     def _mapping_or_file(cls, scene):
