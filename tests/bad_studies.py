@@ -262,7 +262,7 @@ CASES = [
     ("study-name-lone-surrogate", put(["study"], "demo\ud800"), "study: a name may contain printable characters only"),
     ("region-name-nul", put(PAD_REGION + ["name"], "pa\x00d"), "scene.bodies.pad.regions.0.name: a name may contain "
      "printable characters only, got '\\x00' at position 2"),
-    ("body-name-nul", rename(SCENE + ["bodies", "pad"], "pa\x00d"), "scene.bodies.'pa\\x00d': a name may contain"),
+    ("body-name-nul", rename(SCENE + ["bodies", "pad"], "pa\x00d"), "scene.bodies.pa\\x00d: a name may contain"),
     ("criterion-name-control", put(["criteria", 0, "name"], "settle\x1bment"), "criteria.0.name"),
     ("sweep-grid-1e18-points", put(["sweep"], {"grid": {
         "materials.rubber.E": [1e7 + k for k in range(1000)], "materials.rubber.nu": [0.3 + 1e-4 * k for k in range(1000)],
@@ -275,6 +275,8 @@ CASES = [
     ("shapes-beyond-cap", put(BASE_REGION + ["shape"], {"rectangle": [0.0, 0.0, 2.0, 1.0], "minus": [
         {"rectangle": [0.05 + 0.048 * (k % 40), 0.05 + 0.03 * (k // 40), 0.06 + 0.048 * (k % 40), 0.06 + 0.03 * (k // 40)]}
         for k in range(1000)]}), "scene.bodies.base.regions.0.shape: the scene's shapes number more than 1000"),
+    ("support-unknown-long-name", put(SCENE + ["supports", "b" * 100_000], {"u": [0.0, 0.0]}),
+     f"scene.supports.{'b' * 100}... (100000 characters): unknown boundary '{'b' * 100}... (100000 characters)'"),
     ("output-nul", put(["output"], "results/demo\x00.nc"), "output: the output name holds a NUL character"),
     ("output-lone-surrogate", put(["output"], "results/demo\ud800.nc"), "output: the output name holds '\\ud800'"),
     ("solver-tolerance-below-rounding", put(["solver", "tolerance"], 1e-300), "solver.tolerance: a relative tolerance "

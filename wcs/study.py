@@ -224,11 +224,11 @@ def _fault(err: dict) -> str:
 
 
 def _shown_key(key) -> str:
-    """A key of the path as a message shows it: a key with a control character or a lone surrogate
-    escaped, one longer than MAX_NAME cut (a bad name is reported at its own key)."""
+    """A key or name as a message shows it: a control character or a lone surrogate escaped
+    (`\x00`), past MAX_NAME characters cut (the fault itself is reported at its own key)."""
     text = str(key)
     if not text.isprintable():
-        text = ascii(text)
+        text = ascii(text)[1:-1]
     return text if len(text) <= MAX_NAME else f"{text[:MAX_NAME]}... ({len(text)} characters)"
 
 
@@ -486,7 +486,7 @@ def _used_materials(scene: Scene) -> list[str]:
 
 def _require(name: str, known, what: str, src: _Source, path) -> None:
     if name not in known:
-        raise src.error(path, f"unknown {what} '{name}'{_did_you_mean(name, known)}")
+        raise src.error(path, f"unknown {what} '{_shown_key(name)}'{_did_you_mean(name, known)}")
 
 
 def _check_regions(scene: Scene, src: _Source) -> None:
