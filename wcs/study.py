@@ -123,7 +123,7 @@ def _check_regular(fd: int, path: Path) -> None:
     if not stat.S_ISREG(info.st_mode):
         kind = ("a directory" if stat.S_ISDIR(info.st_mode) else "a FIFO" if stat.S_ISFIFO(info.st_mode)
                 else "a device" if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode) else "a socket")
-        fault = f"not a regular file ({kind}): a study is a YAML file"
+        fault = f"not a regular file ({kind}): study, scene and material files are YAML files"
     elif info.st_size > MAX_FILE_BYTES:
         fault = (f"the file has {info.st_size} bytes, more than the {MAX_FILE_BYTES} a study, scene or material "
                  "file may have")
@@ -201,7 +201,7 @@ def _locate(name: str, src: _Source, key: str, shipped: bool = False) -> Path:
     among the package's material libraries."""
     places = (src.base / name,) + ((LIBRARIES / name,) if shipped else ())
     for candidate in places:
-        if candidate.is_file():
+        if candidate.exists():                  # not a regular file: `_read_yaml` says what it is
             return candidate
     raise src.error((key,), f"file '{name}' not found (looked for {' and '.join(map(str, places))})")
 
