@@ -238,7 +238,9 @@ def main(argv=None) -> int:
         # a library's warnings (cvxpy's "Solution may be inaccurate", numpy's and scipy's
         # RuntimeWarnings) are kept from stderr, where they came before the line that matters:
         # what they warn of is judged by wcs and said in its own words; `--verbose` shows them
-        with warnings.catch_warnings(record=not getattr(args, "verbose", False)):
+        with warnings.catch_warnings():
+            if not getattr(args, "verbose", False):
+                warnings.simplefilter("ignore")
             return args.func(args)
     except StudyError as e:
         print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",
