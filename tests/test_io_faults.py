@@ -375,12 +375,14 @@ def test_a_device_a_fifo_or_an_oversized_study_file_is_refused_unread(tmp_path, 
     os.mkfifo(fifo)
     for path, kind in (("/dev/zero", "a device"), (fifo, "a FIFO"), (tmp_path, "a directory")):
         assert main(["check", str(path), "--quiet"]) == 2
-        assert capsys.readouterr().err == f"error: {path}: not a regular file ({kind}): study, scene and material files are YAML files\n"
+        assert capsys.readouterr().err == (f"error: {path}: not a regular file ({kind}): study, scene and material "
+                                           "files are YAML files\n")
     scene = tmp_path / "scene.yaml"                  # a scene file the study names: the same
     os.mkfifo(scene)
     study = plate(tmp_path, scene="scene.yaml")
     assert main(["check", str(study), "--quiet"]) == 2
-    assert capsys.readouterr().err == f"error: {scene}: not a regular file (a FIFO): study, scene and material files are YAML files\n"
+    assert capsys.readouterr().err == (f"error: {scene}: not a regular file (a FIFO): study, scene and material "
+                                       "files are YAML files\n")
     big = plate(tmp_path)
     size = MAX_FILE_BYTES + 1000
     with big.open("a") as f:
@@ -416,6 +418,7 @@ def test_a_fifo_as_a_results_file_is_refused_unread(tmp_path, capsys):
     fifo = tmp_path / "run.nc"
     os.mkfifo(fifo)
     assert main(["report", str(fifo)]) == 2
-    assert capsys.readouterr().err == f"error: {fifo}: not a regular file (a FIFO, a device or a socket), not a results file\n"
+    assert capsys.readouterr().err == (f"error: {fifo}: not a regular file (a FIFO, a device or a socket), "
+                                       "not a results file\n")
     assert main(["compare", str(fifo), str(fifo)]) == 2
     assert capsys.readouterr().err == f"error: {fifo}: not a regular file, not a results file\n"
