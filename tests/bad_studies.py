@@ -6,6 +6,7 @@ contain `expected_path_fragment` (the dotted key path of the fault). Importing
 this module has no side effects; use `demo_doc()` and `write_study()`.
 """
 import copy
+import math
 from pathlib import Path
 
 import yaml
@@ -273,4 +274,30 @@ CASES = [
      "scene.bodies.base.regions.0.shape.rectangle.2"),
     ("segment-coordinate-huge", put(SCENE + ["boundaries", "pad_top", "segment"], [[0.5, 1.5], [1e300, 1.5]]),
      "scene.boundaries.pad_top.segment.1.0"),
+    # issue 26: inputs that crashed, hung or blew up memory after passing `check`
+    ("study-name-too-long", put(["study"], "s" * 100_000), "study: a name has at most 100 characters, got 100000"),
+    ("study-name-lone-surrogate", put(["study"], "demo\ud800"), "study: a name may contain printable characters only"),
+    ("region-name-nul", put(PAD_REGION + ["name"], "pa\x00d"), "scene.bodies.pad.regions.0.name: a name may contain "
+     "printable characters only, got '\\x00' at position 2"),
+    ("body-name-nul", rename(SCENE + ["bodies", "pad"], "pa\x00d"), "scene.bodies.pa\\x00d: a name may contain"),
+    ("criterion-name-control", put(["criteria", 0, "name"], "settle\x1bment"), "criteria.0.name"),
+    ("sweep-grid-1e18-points", put(["sweep"], {"grid": {
+        "materials.rubber.E": [1e7 + k for k in range(1000)], "materials.rubber.nu": [0.3 + 1e-4 * k for k in range(1000)],
+        "materials.steel.E": [2e11 + k for k in range(1000)], "materials.steel.nu": [0.2 + 1e-4 * k for k in range(1000)],
+        "loads.pad_top.pressure": [1e6 + k for k in range(1000)], "body_forces.base.1": [-k for k in range(1000)]}}),
+     "sweep.grid: the grid has 1e+18 points, more than 1000000 solves"),
+    ("polygon-too-many-vertices", put(BASE_REGION + ["shape"], {"polygon": [
+        [1 + math.cos(2 * math.pi * k / 1001), 0.5 + 0.5 * math.sin(2 * math.pi * k / 1001)] for k in range(1001)]}),
+     "scene.bodies.base.regions.0.shape.polygon: must have at most 1000 items"),
+    ("shapes-beyond-cap", put(BASE_REGION + ["shape"], {"rectangle": [0.0, 0.0, 2.0, 1.0], "minus": [
+        {"rectangle": [0.05 + 0.048 * (k % 40), 0.05 + 0.03 * (k // 40), 0.06 + 0.048 * (k % 40), 0.06 + 0.03 * (k // 40)]}
+        for k in range(1000)]}), "scene.bodies.base.regions.0.shape: the scene's shapes number more than 1000"),
+    ("support-unknown-long-name", put(SCENE + ["supports", "b" * 100_000], {"u": [0.0, 0.0]}),
+     f"scene.supports.{'b' * 100}... (100000 characters): unknown boundary '{'b' * 100}... (100000 characters)'"),
+    ("output-nul", put(["output"], "results/demo\x00.nc"), "output: the output name holds a NUL character"),
+    ("output-lone-surrogate", put(["output"], "results/demo\ud800.nc"), "output: the output name holds '\\ud800'"),
+    ("solver-tolerance-below-rounding", put(["solver", "tolerance"], 1e-300), "solver.tolerance: a relative tolerance "
+     "below 1e-14"),
+    ("dd-contact-tolerance-below-rounding", put(["solver", "dd", "contact_tolerance"], 1e-20),
+     "solver.dd.contact_tolerance"),
 ]

@@ -167,6 +167,9 @@ BAD = [
      "more than mesh.max_cells"),
     (_put(["bodies", "block", "regions", 0, "shape", "box"], [0, 0, -0.2, 1, 1, 0.5]), "scene.bodies.block",
      "overlaps body 'base'"),
+    # issue 26: meshed as a piece of its own, it was blamed on the body ("consists of 2 pieces")
+    (_put(["regions_of_interest", "core"], {"box": [0.5, 0.5, -0.25, 0.50001, 0.50001, -0.24999], "body": "base"}),
+     "scene.regions_of_interest.core", "the region of interest is meshed apart from body 'base'"),
 ]
 
 
@@ -179,6 +182,19 @@ def test_bad_3d_input_is_exit_2_at_its_key_path(tmp_path, change, path, words):
     assert code == 2, err
     line = err.strip().splitlines()[-1]
     assert line.startswith(f"error: {study}: ") and path in line and words in line, line
+
+
+def test_a_profile_grid_is_counted_in_exact_integers(tmp_path):
+    """points: [2**62, 4] holds 2**64 values: the cap counts them as Python integers (before: the
+    int64 product wrapped to 0, passed the cap, and the loader built 2**64 parameter names)."""
+    d = doc()
+    d["uncertain"]["contacts.interface.friction.slip_limit"] = {"range": [0.5e5, 1.5e5], "lipschitz": 2.0e5,
+                                                               "points": [2**62, 4]}
+    study = write(tmp_path, d)
+    code, _, err = run(["check", str(study), "--quiet"])
+    assert code == 2
+    assert err == (f"error: {study}: uncertain.contacts.interface.friction.slip_limit.points: points needs at least "
+                   f"2 values per direction and at most 1000 in all, got {[2**62, 4]}\n")
 
 
 def test_mutated_3d_studies_never_fail_inside(tmp_path):

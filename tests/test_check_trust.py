@@ -148,6 +148,26 @@ def test_guard_limit_is_a_study_option():
     assert 1e4 < load_study(doc).estimated_cells < 5e4
 
 
+def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch):
+    """max_cells: 1e10 at size 1e-3 (5.8e6 cells, ~30 GB) meshed and solved until the machine
+    swapped: the estimated cells times BYTES_PER_CELL must fit in the machine's memory. At size
+    0.0025 the demo estimates 9.2e5 cells, 4.8 GB at 5200 bytes a cell: refused on a machine
+    of 4 GB, loaded on one of 8 GB."""
+    import wcs.study
+    doc = demo_doc()
+    doc["scene"]["mesh"].update(size=0.0025, max_cells=10**10)
+    monkeypatch.setattr(wcs.study, "machine_memory", lambda: 8e9)
+    cells = load_study(doc).estimated_cells
+    assert 9e5 < cells < 9.5e5
+    monkeypatch.setattr(wcs.study, "machine_memory", lambda: 4e9)
+    with pytest.raises(StudyError) as info:
+        load_study(doc)
+    assert info.value.path == "scene.mesh.size" and info.value.fault == (
+        f"the mesh would have about {cells:.3g} cells ({cells:.3g} unknowns), which needs about "
+        f"{cells * 5200 / 1e9:.3g} GB (5200 bytes a cell), more than this machine's 4 GB of memory (this size "
+        "contributes most); coarsen the mesh")
+
+
 def test_profile_points_capped():
     doc = demo_doc()
     doc["uncertain"]["contacts.interface.friction.slip_limit"]["points"] = 10**7

@@ -39,7 +39,17 @@ def _mesh_level_cases():
         doc["scene"]["bodies"]["pad"]["regions"][0]["shape"] = {"rectangle": [0.5, 0.8, 1.5, 1.5]}
     def roi_selects_nothing(doc):
         doc["scene"]["regions_of_interest"]["under_pad"] = {"box": [5.0, 5.0, 6.0, 6.0]}
+    def glue_within_one_body(doc):            # the slave side is supported: it was blamed on that
+        doc["scene"]["boundaries"]["base_strip"] = {"segment": [[0.2, 1.0], [0.4, 1.0]]}
+        doc["scene"]["glue"] = {"g": {"slave": "base_bottom", "master": "base_strip"}}
+    def subdomains_beyond_the_mesh(doc):       # 588 cells: at most 588 // 16 = 36 subdomains
+        doc["scene"]["mesh"] = {"size": 0.1}
+        doc["solver"] = {"method": "dd", "dd": {"subdomains": 64}}
     return [("boundary selects no edge", nothing_selected, "scene.boundaries.pad_top"),
+            ("glue within one body", glue_within_one_body, "scene.glue.g.master: slave and master of a glue belong "
+             "to the same body ('base')"),
+            ("dd subdomains beyond the mesh", subdomains_beyond_the_mesh, "solver.dd.subdomains: 64 subdomains of a "
+             "mesh of 588 cells leave fewer than 16 cells to a subdomain: give at most 36"),
             ("bodies overlap", overlapping_bodies, "scene.bodies"),
             ("region of interest selects nothing", roi_selects_nothing, "scene.regions_of_interest.under_pad")]
 
@@ -99,3 +109,26 @@ def test_console_script_exit_status_and_no_traceback(tmp_path):
     assert "bad.yaml" in proc.stderr and "Traceback" not in proc.stderr
     proc = subprocess.run([str(wcs), "check", str(tmp_path / "missing.yaml")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "missing.yaml" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_library_warnings_stay_off_stderr_unless_verbose(tmp_path, capsys, monkeypatch):
+    """cvxpy's and numpy's warnings came before the error they led to; the error is now the
+    only line, and `--verbose` shows the warnings."""
+    import warnings
+
+    import wcs.cli
+    from wcs.errors import StudyError
+
+    def check(args):
+        warnings.warn("Solution may be inaccurate.", UserWarning)
+        warnings.warn("invalid value encountered in divide", RuntimeWarning)
+        raise StudyError("the fault", path="scene.x")
+    monkeypatch.setattr(wcs.cli, "cmd_check", check)
+    path = write_study(demo_doc(), tmp_path)
+    code, out, err = run_cli(["check", path], capsys)
+    assert (code, out, err) == (2, "", f"error: {path}: scene.x: the fault\n")
+    monkeypatch.setattr(warnings, "showwarning", lambda message, category, *a, **k:   # to stderr (pytest records them)
+                        print(f"{category.__name__}: {message}", file=sys.stderr))
+    code, out, err = run_cli(["check", path, "--verbose"], capsys)
+    assert code == 2 and "Solution may be inaccurate." in err and "invalid value encountered in divide" in err
+    assert err.splitlines()[-1] == f"error: {path}: scene.x: the fault"

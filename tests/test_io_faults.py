@@ -362,3 +362,63 @@ def test_run_prints_the_study_warnings(tmp_path, capsys):
     assert main(["run", str(path), "-o", str(tmp_path / "d.nc"), "--quiet"]) == 0
     err = capsys.readouterr().err
     assert f"warning: {path}: " in err and "Poisson ratio up to 0.48" in err
+
+
+# ---------------------------------------------------------------- study files that never end (issue 26)
+
+
+def test_a_device_a_fifo_or_an_oversized_study_file_is_refused_unread(tmp_path, capsys):
+    """/dev/zero never ends and a FIFO blocks until written: refused from their file type, never
+    read; a study over MAX_FILE_BYTES (a valid one, padded with a comment) is refused with its size."""
+    from wcs.study import MAX_FILE_BYTES
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    for path, kind in (("/dev/zero", "a device"), (fifo, "a FIFO"), (tmp_path, "a directory")):
+        assert main(["check", str(path), "--quiet"]) == 2
+        assert capsys.readouterr().err == (f"error: {path}: not a regular file ({kind}): study, scene and material "
+                                           "files are YAML files\n")
+    scene = tmp_path / "scene.yaml"                  # a scene file the study names: the same
+    os.mkfifo(scene)
+    study = plate(tmp_path, scene="scene.yaml")
+    assert main(["check", str(study), "--quiet"]) == 2
+    assert capsys.readouterr().err == (f"error: {scene}: not a regular file (a FIFO): study, scene and material "
+                                       "files are YAML files\n")
+    big = plate(tmp_path)
+    size = MAX_FILE_BYTES + 1000
+    with big.open("a") as f:
+        f.write("#" * (size - big.stat().st_size - 1) + "\n")
+    assert big.stat().st_size == size
+    assert main(["check", str(big), "--quiet"]) == 2
+    assert capsys.readouterr().err == (f"error: {big}: the file has {size} bytes, more than the {MAX_FILE_BYTES} "
+                                       "a study, scene or material file may have\n")
+
+
+def test_a_shape_tree_multiplied_by_aliases_is_refused_before_validation(tmp_path, capsys):
+    """Seven levels of ten aliases each make one region's `minus` a tree of 1e7 rectangles in 3 kB
+    of YAML (before: validating it never ended): the expanded document is counted first."""
+    from wcs.study import MAX_NODES
+
+    def tree(level):
+        hole = "{rectangle: [0.9, 0.4, 1.1, 0.6]}" if level == 0 else tree(level - 1)
+        return (f"{{rectangle: [0.8, 0.3, 1.2, 0.7], minus: [&s{level} {hole}"
+                + f", *s{level}" * 9 + "]}")
+    text = (STUDIES / "two-blocks-demo.yaml").read_text()
+    shape = "shape: {rectangle: [0.0, 0.0, 2.0, 1.0]}"
+    assert text.count(shape) == 1
+    path = tmp_path / "bomb.yaml"
+    path.write_text(text.replace(shape, f"shape: {{rectangle: [0.0, 0.0, 2.0, 1.0], minus: [{tree(6)}]}}"))
+    assert path.stat().st_size < 4000
+    assert main(["check", str(path), "--quiet"]) == 2
+    assert capsys.readouterr().err == (f"error: {path}: the file holds more than {MAX_NODES} values once its "
+                                       "aliases (*name) are expanded\n")
+
+
+def test_a_fifo_as_a_results_file_is_refused_unread(tmp_path, capsys):
+    """`report` and `compare` of a FIFO waited for a writer forever."""
+    fifo = tmp_path / "run.nc"
+    os.mkfifo(fifo)
+    assert main(["report", str(fifo)]) == 2
+    assert capsys.readouterr().err == (f"error: {fifo}: not a regular file (a FIFO, a device or a socket), "
+                                       "not a results file\n")
+    assert main(["compare", str(fifo), str(fifo)]) == 2
+    assert capsys.readouterr().err == f"error: {fifo}: not a regular file, not a results file\n"

@@ -100,3 +100,33 @@ def test_bordered_factor_gives_C_A_inverse_Ct_and_solves_with_A(kind):
     f.refactor(A, border=C2)
     W2 = C2 @ np.linalg.solve(A.toarray(), C2.T.toarray())
     np.testing.assert_allclose(f.delassus(), W2, rtol=0, atol=1e-10 * np.abs(W2).max())
+
+
+def test_an_empty_schur_block_is_not_asked_of_pardiso():
+    """A unit without interface unknowns has an empty block: PARDISO asked for a 0 × 0 Schur
+    complement wrote past its buffer and the process aborted at the next collection (a DD with
+    thousands of subdomains). Run apart: on failure the interpreter dies, not the test session."""
+    import os
+    import subprocess
+    import sys
+    code = """if True:
+        import gc
+        import numpy as np
+        import scipy.sparse as sp
+        from wcs import linalg
+        T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(6, 6))
+        A = (sp.kronsum(T, T) + 0.1 * sp.eye(36)).tocsr()
+        b = np.arange(36.0)
+        for _ in range(50):
+            f = linalg.factorize(A, "pardiso", spd=True, block=np.zeros(0, dtype=int))
+            f.refactor((2 * A).tocsr())
+            assert f.schur().shape == (0, 0)
+            assert np.allclose(f.solve(b), np.linalg.solve(2 * A.toarray(), b), rtol=1e-12, atol=0)
+            del f
+            gc.collect()
+        print("ok")
+    """
+    from pathlib import Path
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+    assert (run.returncode, run.stdout) == (0, "ok\n"), run.stderr[-2000:]

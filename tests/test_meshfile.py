@@ -78,6 +78,27 @@ def write_msh(path, nodes, groups, elements):
     Path(path).write_text("\n".join(out) + "\n")
 
 
+def write_msh41(path, nodes, groups, elements, tags):
+    """gmsh 4.1 ASCII (64-bit node tags; 2.2 reads them as 32-bit): one entity per physical group,
+    tagged as the group, all nodes on the first surface; node i (1-based) written with tag tags[i - 1]."""
+    curves = [(n, t) for n, (d, t) in groups.items() if d == 1]
+    surfaces = [(n, t) for n, (d, t) in groups.items() if d == 2]
+    out = ["$MeshFormat", "4.1 0 8", "$EndMeshFormat", "$PhysicalNames", str(len(groups))]
+    out += [f'{d} {t} "{n}"' for n, (d, t) in groups.items()]
+    out += ["$EndPhysicalNames", "$Entities", f"0 {len(curves)} {len(surfaces)} 0"]
+    out += [f"{t} 0 0 0 0 0 0 1 {t} 0" for _, t in curves + surfaces]
+    out += ["$EndEntities", "$Nodes", f"1 {len(nodes)} {min(tags)} {max(tags)}",
+            f"2 {surfaces[0][1]} 0 {len(nodes)}"]
+    out += [str(t) for t in tags] + [f"{x} {y} 0" for x, y in nodes]
+    out += ["$EndNodes", "$Elements", f"{len(groups)} {len(elements)} 1 {len(elements)}"]
+    for name, (d, g) in groups.items():
+        mine = [(k + 1, typ, ns) for k, (typ, gg, ns) in enumerate(elements) if gg == g]
+        out += [f"{d} {g} {mine[0][1]} {len(mine)}"] + [f"{k} " + " ".join(str(tags[n - 1]) for n in ns)
+                                                      for k, _, ns in mine]
+    out += ["$EndElements"]
+    Path(path).write_text("\n".join(out) + "\n")
+
+
 NODES = [(0, 0), (1, 0), (1, 1), (0, 1), (2, 0), (2, 1)]
 GROUPS = {"left": (2, 1), "right": (2, 2), "bottom": (1, 3), "left:side": (1, 4), "right:side": (1, 5)}
 ELEMENTS = [(2, 1, [1, 2, 3]), (2, 1, [1, 3, 4]), (2, 2, [2, 5, 6]), (2, 2, [2, 6, 3]),
@@ -121,6 +142,24 @@ def test_small_file_two_bodies_touching(tmp_path):
     assert len(sm.boundaries["side_l"]) == len(sm.boundaries["side_r"]) == 1
 
 
+def test_sparse_node_tags_are_read_as_the_same_mesh(tmp_path):
+    """gmsh node tags need not be contiguous: a node tagged 1e12 is valid (before: an index array
+    of the largest tag's length, "Unable to allocate 7.28 TiB"). The file reads as the one with
+    tags 1..6, node for node."""
+    dense = build_mesh(load_study(make(tmp_path, groups=GOOD_GROUPS)).scene)
+    sparse_dir = tmp_path / "sparse"
+    sparse_dir.mkdir()
+    write_msh41(sparse_dir / "m.msh", NODES, GOOD_GROUPS, ELEMENTS, tags=[7, 2, 10**12, 4, 3, 999_999_999_999])
+    (sparse_dir / "s.yaml").write_text(study_text())
+    sparse = build_mesh(load_study(sparse_dir / "s.yaml").scene)
+
+    def cells(sm):          # every triangle by its corners' coordinates and body (node order aside)
+        p, t = sm.mesh.p, sm.mesh.t
+        return sorted((sm.cell_body[k], sorted(map(tuple, p[:, t[:, k]].T.tolist()))) for k in range(t.shape[1]))
+    assert sparse.mesh.p.shape == dense.mesh.p.shape and cells(sparse) == cells(dense)
+    assert {k: len(v) for k, v in sparse.boundaries.items()} == {k: len(v) for k, v in dense.boundaries.items()}
+
+
 def test_clockwise_triangles_are_reoriented_with_a_note(tmp_path):
     elements = [(2, 1, [1, 3, 2]), (2, 1, [1, 4, 3])] + ELEMENTS[2:]
     study = load_study(make(tmp_path, groups=GOOD_GROUPS, elements=elements))
@@ -150,6 +189,22 @@ def test_unreadable_file(tmp_path, capsys):
     (tmp_path / "s.yaml").write_text(study_text())
     err = run_bad(tmp_path / "s.yaml", capsys)
     assert "scene.mesh.file" in err
+
+
+def test_gmsh_failing_without_a_reason_is_said_so(tmp_path, capsys, monkeypatch):
+    """gmsh may raise with an empty last error: the line says it gave none (before: "gmsh cannot
+    read the file: " and nothing)."""
+    import gmsh
+
+    def merge(name):
+        raise Exception("")
+    monkeypatch.setattr(gmsh, "merge", merge)
+    write_msh(tmp_path / "m.msh", NODES, GOOD_GROUPS, ELEMENTS)
+    (tmp_path / "s.yaml").write_text(study_text())
+    err = run_bad(tmp_path / "s.yaml", capsys)
+    assert err == (f"error: {tmp_path / 's.yaml'}: scene.mesh.file: {tmp_path / 'm.msh'}: gmsh cannot read the file "
+                   "and gives no reason "
+                   "(not a mesh file gmsh parses)\n")
 
 
 def test_unreadable_other_format(tmp_path, capsys):
@@ -242,3 +297,17 @@ def test_read_mesh_file_errors_name_the_file():
         from wcs.scene.meshfile import read_mesh_file
         read_mesh_file("/nonexistent/x.msh", {"bodies": {"a": {"regions": [{}]}}})
     assert exc.value.path == "scene.mesh.file" and "x.msh" in str(exc.value)
+
+
+def test_a_boundary_name_from_the_file_follows_the_rules_for_names(tmp_path, capsys):
+    """A 1D group's name becomes a boundary's: an escape character or a name of 200 characters is
+    refused at the file as in the study (before: both passed; gmsh itself ends a name at a NUL)."""
+    for bad, why in (("side\x1br", "a name may contain printable characters only, got '\\x1b' at position 4"),
+                     ("s" * 200, "a name has at most 100 characters, got 200")):
+        groups = {**GOOD_GROUPS}
+        del groups["right:side_r"]
+        groups[f"right:{bad}"] = (1, 5)
+        write_msh41(tmp_path / "m.msh", NODES, groups, ELEMENTS, tags=list(range(1, 7)))
+        (tmp_path / "s.yaml").write_text(study_text().replace("  contacts:\n    c: {slave: side_r, master: side_l}\n", ""))
+        err = run_bad(tmp_path / "s.yaml", capsys)
+        assert "scene.mesh.file: m.msh: 1D physical group " in err and err.rstrip().endswith(why), err

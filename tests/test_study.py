@@ -349,3 +349,13 @@ def test_the_study_below_the_loader_is_frozen_typed_data(path):
     assert _dicts_of_entries(study.scene.model_dump()) != []           # the finder sees the YAML shape
     assert _dicts_of_entries(study) == []
     assert all(isinstance(e, Uncertain) for e in study.uncertain)
+
+
+def test_a_fault_that_names_its_value_does_not_repeat_it():
+    """The validator's own "got 1" is not followed by the loader's "(got 1)"."""
+    doc = demo_doc()
+    doc["uncertain"][SLIP]["points"] = 1
+    with pytest.raises(StudyError) as info:
+        load_study(doc)
+    assert str(info.value) == (f"<mapping>: uncertain.{SLIP}.points: points needs at least 2 values per direction "
+                               "and at most 1000 in all, got 1")

@@ -10,7 +10,6 @@ import argparse
 import sys
 import traceback
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -230,22 +229,18 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _one_line(message, category, filename, lineno, file=None, line=None) -> None:
-    """A library's warning (e.g. cvxpy's "Solution may be inaccurate") as one line on stderr,
-    not Python's two with the source line (`--verbose` keeps those)."""
-    print(f"warning: {category.__name__} from {Path(filename).name}:{lineno}: {' '.join(str(message).split())}",
-          file=sys.stderr)
-
-
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
         from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
         configure_threads()
     try:
+        # a library's warnings (cvxpy's "Solution may be inaccurate", numpy's and scipy's
+        # RuntimeWarnings) are kept from stderr, where they came before the line that matters:
+        # what they warn of is judged by wcs and said in its own words; `--verbose` shows them
         with warnings.catch_warnings():
             if not getattr(args, "verbose", False):
-                warnings.showwarning = _one_line
+                warnings.simplefilter("ignore")
             return args.func(args)
     except StudyError as e:
         print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",

@@ -23,6 +23,9 @@ SHOWN = 20                         # rows of the table of differences
 
 
 def _open(path: str) -> xr.Dataset:
+    p = Path(path)
+    if p.exists() and not (p.is_file() or p.is_dir()):    # a FIFO would block, a device never end
+        raise StudyError("not a regular file, not a results file", file=str(path))
     try:
         ds = xr.load_dataset(path, engine="h5netcdf")
     except (OSError, ValueError) as e:

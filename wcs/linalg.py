@@ -197,8 +197,8 @@ class PardisoFactor:
         if not spd:
             self._iparm[[10, 12]] = 1  # scaling and matching for the nonsymmetric path
         self._perm = np.zeros(self.size, dtype=np.int32)
-        if self.block is not None:
-            self._iparm[35] = 2
+        if self.block is not None and self.block.size:      # an empty Schur complement: PARDISO writes
+            self._iparm[35] = 2                             # past the 0-length buffer (the process aborts)
             self._perm[self.block] = 1
         self._set_matrix(M)
         self._schur = np.zeros(0 if self.block is None else len(self.block) ** 2)

@@ -32,10 +32,8 @@ depends only on the study and the machine.
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -43,7 +41,7 @@ import numpy as np
 from .errors import StudyError
 from .evaluation import Evaluator
 from .extremes import Extreme, kinds, pairs
-from .scene.estimate import DEFAULT_MAX_CELLS
+from .scene.estimate import DEFAULT_MAX_CELLS, machine_memory
 from .store import key
 
 if TYPE_CHECKING:
@@ -146,17 +144,6 @@ def refined_nodes(mesh, splits: int) -> int:
 
 def max_cells(study) -> float:
     return float(DEFAULT_MAX_CELLS if study.scene.mesh.max_cells is None else study.scene.mesh.max_cells)
-
-
-def machine_memory() -> float:
-    """Bytes of memory of this machine: its physical memory (`os.sysconf`), or the control group's
-    limit (cgroup v2 `memory.max`) where that is lower."""
-    memory = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    try:
-        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
-    except OSError:
-        return memory
-    return min(memory, float(limit)) if limit.isdigit() else memory
 
 
 def contact_rows(d: int, contact_nodes: int, splits: int) -> int:

@@ -27,6 +27,7 @@ from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
 from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
+from .dd.partition import subdomains_fault
 from .errors import SolveError, StudyError
 from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -127,6 +128,10 @@ class Model:
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
+        if self.solver_method == "dd":
+            fault = subdomains_fault(self.options.dd.subdomains, mesh.t.shape[1])
+            if fault is not None:
+                raise StudyError(fault, path="solver.dd.subdomains")
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
         # 3D contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
         self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)

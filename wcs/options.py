@@ -6,7 +6,7 @@ from __future__ import annotations
 import difflib
 from typing import Annotated, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
@@ -41,6 +41,22 @@ class Strict(BaseModel):
 # Counts of the search and the solver: a million solves is weeks of work at the sizes wcs
 # runs; every count fits the results file's int64 (a budget of 1e30 did not).
 MAX_SOLVES = 1_000_000
+
+
+# The smallest relative tolerance of a solve: about 50 machine epsilons (2.2e-16). A relative
+# residual below it is rounding noise no iteration can reduce (the demo's semismooth Newton reaches
+# 1e-15 and ran its 200 steps at 1e-16).
+MIN_TOLERANCE = 1e-14
+
+
+def _resolvable(tolerance: float) -> float:
+    if tolerance < MIN_TOLERANCE:
+        raise ValueError(f"a relative tolerance below {MIN_TOLERANCE:g} (about 50 times the machine epsilon "
+                         f"2.2e-16) is below the rounding of the solve, no iteration reaches it")
+    return tolerance
+
+
+Tolerance = Annotated[float, AfterValidator(_resolvable)]
 
 
 class Options(Strict):
@@ -94,16 +110,16 @@ class DomainDecomposition(Options):
                             "lower bound, and is taken at the start, not at the solution)")
     rho_steps: int = Field(5, ge=1, le=100, description="power steps of the ρ estimate (each one PCG2 "
                            "solve to 1e-2)")
-    pcg_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="relative tolerance of PCG1 "
+    pcg_tolerance: Optional[Tolerance] = Field(None, gt=0, lt=1, description="relative tolerance of PCG1 "
                                            "(the glued start U⁰); null: `forcing` for interface Newton "
                                            "(step newton, auto), max(solver.tolerance, 1e-8) for the seed's "
                                            "step and the thermal step")
     pcg_max_iterations: int = Field(500, ge=1, le=100_000, description="iteration budget of each PCG solve")
-    inner_tolerance: Optional[float] = Field(None, gt=0, lt=1, description="floor of PCG2's relative "
+    inner_tolerance: Optional[Tolerance] = Field(None, gt=0, lt=1, description="floor of PCG2's relative "
                                              "tolerance; null: solver.tolerance / 10")
     forcing: float = Field(0.1, ge=0, le=1, description="PCG2 stops at forcing × the last relative "
                            "increment (inexact inner solves); Newton: the largest Eisenstat–Walker tolerance")
-    contact_tolerance: float = Field(1e-10, gt=0, lt=1, description="tolerance of the local contact solves")
+    contact_tolerance: Tolerance = Field(1e-10, gt=0, lt=1, description="tolerance of the local contact solves")
     anderson: int = Field(5, ge=1, le=100, description="history of Anderson acceleration, in steps")
     anderson_restart: float = Field(0.0, ge=0, le=1e6, description="clear Anderson's history when the "
                                     "residual grows by this factor; 0: never")
@@ -121,7 +137,7 @@ class DomainDecomposition(Options):
 class Solver(Options):
     method: Literal["auto", "monolithic", "dd", "qp"] = Field(
         "auto", description="contact solver (qp: the cvxpy reference)")
-    tolerance: float = Field(1e-8, gt=0, le=1e-2, description="relative tolerance of the contact solve "
+    tolerance: Tolerance = Field(1e-8, gt=0, le=1e-2, description="relative tolerance of the contact solve "
                              "(above 1e-2 a \"solved\" state is not a solution)")
     max_iterations: int = Field(200, ge=1, le=100_000, description="iteration budget of the contact solve "
                                 "(dd: of the outer iteration — successive approximations, or Newton steps of each Tresca problem)")

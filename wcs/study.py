@@ -30,8 +30,10 @@ named `<path>[i,j]`, the slope bound in both directions.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -54,14 +56,16 @@ from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
+from .options import MAX_SOLVES
 from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
-from .scene.estimate import DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, shape_box, solid_box
-from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS,
-                         POISSON, RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary,
-                         Material, Name, Point, Scene, lame_admissible)
+from .scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, machine_memory,
+                             shape_box, solid_box)
+from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MAX_NAME, MODULUS,
+                         POISSON, RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
+                         Name, Point, Scene, lame_admissible)
 
 LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
@@ -90,15 +94,42 @@ _Loader.add_implicit_resolver(
 )
 
 
+MAX_FILE_BYTES = 4 * 2**20     # a study, scene or material file: a few hundred lines at most
+
+
 def _read_yaml(path: Path) -> tuple[Any, str]:
-    """The parsed content and the text of a YAML file; StudyError if unreadable or not YAML."""
+    """The parsed content and the text of a YAML file; StudyError if it is not a regular file
+    (a device or a FIFO never ends), is larger than MAX_FILE_BYTES, is unreadable or is not YAML."""
     try:
-        text = path.read_text(encoding="utf-8")
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)        # a FIFO: no wait for a writer
+        _check_regular(fd, path)
+        with os.fdopen(fd, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:                        # grew while read
+            raise StudyError(f"the file has more than the {MAX_FILE_BYTES} bytes a study, scene or material "
+                             "file may have", file=str(path))
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise StudyError("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise StudyError(f"cannot read the file: {exc}", file=str(path)) from None
     return _parse_yaml(text, path), text
+
+
+def _check_regular(fd: int, path: Path) -> None:
+    """StudyError (`fd` closed) unless `fd` is a regular file of at most MAX_FILE_BYTES."""
+    info = os.fstat(fd)
+    fault = None
+    if not stat.S_ISREG(info.st_mode):
+        kind = ("a directory" if stat.S_ISDIR(info.st_mode) else "a FIFO" if stat.S_ISFIFO(info.st_mode)
+                else "a device" if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode) else "a socket")
+        fault = f"not a regular file ({kind}): study, scene and material files are YAML files"
+    elif info.st_size > MAX_FILE_BYTES:
+        fault = (f"the file has {info.st_size} bytes, more than the {MAX_FILE_BYTES} a study, scene or material "
+                 "file may have")
+    if fault is not None:
+        os.close(fd)
+        raise StudyError(fault, file=str(path))
 
 
 def _parse_yaml(text: str, path: Path) -> Any:
@@ -116,6 +147,9 @@ def _parse_yaml(text: str, path: Path) -> Any:
         raise StudyError(f"YAML syntax error: {exc}", file=str(path)) from None
     if _depth(doc) > MAX_NESTING:
         raise StudyError(f"the file nests deeper than {MAX_NESTING} levels", file=str(path))
+    if _expanded_size(doc) > MAX_NODES:
+        raise StudyError(f"the file holds more than {MAX_NODES} values once its aliases (*name) are expanded",
+                         file=str(path))
     return doc
 
 
@@ -147,12 +181,27 @@ def _depth(doc) -> int:
     return deepest
 
 
+def _expanded_size(doc) -> int:
+    """Values (scalars, lists, mappings) of the document with every alias expanded: an alias
+    repeats its anchor's whole subtree, so a few lines can stand for 1e7 shapes. Each distinct
+    node is counted once and its count reused (bounded time, depth checked by `_depth` first)."""
+    sizes: dict[int, int] = {}
+
+    def size(node) -> int:
+        if not isinstance(node, (dict, list)):
+            return 1
+        if id(node) not in sizes:
+            sizes[id(node)] = 1 + sum(map(size, node.values() if isinstance(node, dict) else node))
+        return sizes[id(node)]
+    return size(doc)
+
+
 def _locate(name: str, src: _Source, key: str, shipped: bool = False) -> Path:
     """A file named at `key`: relative to the referencing file's folder, then (`shipped`)
     among the package's material libraries."""
     places = (src.base / name,) + ((LIBRARIES / name,) if shipped else ())
     for candidate in places:
-        if candidate.is_file():
+        if candidate.exists():                  # not a regular file: `_read_yaml` says what it is
             return candidate
     raise src.error((key,), f"file '{name}' not found (looked for {' and '.join(map(str, places))})")
 
@@ -168,9 +217,19 @@ def _fault(err: dict) -> str:
     message = re.sub(r"^(List|Dictionary) should have (.*) after validation", r"must have \2", message)
     message = re.sub(r" or instance of \w+$", "", message)
     value = err.get("input")
-    if err["type"] != "unknown_key" and isinstance(value, (bool, int, float, str, type(None))):
+    if (err["type"] != "unknown_key" and isinstance(value, (bool, int, float, str, type(None)))
+            and len(repr(value)) <= 80 and f"got {value!r}" not in message):
         message += f" (got {value!r})"
     return message
+
+
+def _shown_key(key) -> str:
+    """A key or name as a message shows it: a control character or a lone surrogate escaped
+    (`\x00`), past MAX_NAME characters cut (the fault itself is reported at its own key)."""
+    text = str(key)
+    if not text.isprintable():
+        text = ascii(text)[1:-1]
+    return text if len(text) <= MAX_NAME else f"{text[:MAX_NAME]}... ({len(text)} characters)"
 
 
 @dataclass(frozen=True)
@@ -188,7 +247,7 @@ class _Source:
 
     def error(self, path, message: str) -> StudyError:
         keys = self.prefix + tuple(path)
-        return StudyError(message, file=str(self.file), path=".".join(map(str, keys)) or None)
+        return StudyError(message, file=str(self.file), path=".".join(map(_shown_key, keys)) or None)
 
     def validate(self, schema: TypeAdapter, data, path=()):
         """`data` checked and converted by `schema`; the first fault as a StudyError."""
@@ -207,6 +266,7 @@ class _Source:
 # ---------------------------------------------------------------- typed models
 
 MAX_NESTING = 50                                   # levels of a study file (shapes nest)
+MAX_NODES = 1_000_000                              # values of a study file, aliases expanded
 MAX_PROFILE_POINTS = 1000
 
 CriterionKind = Literal[tuple(KINDS)]
@@ -282,6 +342,19 @@ class StudyFile(_Strict):
     sweep: Optional[Sweep] = None
     output: Optional[str] = None
 
+    @field_validator("output")
+    @classmethod
+    def _file_name(cls, output):
+        """A name the filesystem takes: no NUL, no lone surrogate (YAML's "\ud800" escape)."""
+        try:
+            name = os.fsencode(output)
+        except UnicodeEncodeError as e:
+            raise ValueError(f"the output name holds {ascii(e.object[e.start:e.end])}, not a character of a "
+                             "file name") from None
+        if b"\0" in name:
+            raise ValueError("the output name holds a NUL character")
+        return output
+
     @field_validator("scene")
     @classmethod
     def _mapping_or_file(cls, scene):
@@ -314,7 +387,7 @@ class Profile(_Strict):
         whole = lambda v: isinstance(v, int) and not isinstance(v, bool)      # noqa: E731
         if not (whole(p) or (isinstance(p, list) and len(p) == 2 and all(whole(v) for v in p))):
             raise ValueError(f"points must be an integer (2D) or [nu, nv] (3D), got {p!r}")
-        if min(p if isinstance(p, list) else [p]) < 2 or int(np.prod(p)) > MAX_PROFILE_POINTS:
+        if min(p if isinstance(p, list) else [p]) < 2 or math.prod(p if isinstance(p, list) else [p]) > MAX_PROFILE_POINTS:
             raise ValueError(f"points needs at least 2 values per direction and at most {MAX_PROFILE_POINTS} "
                              f"in all, got {p!r}")
         return p
@@ -413,7 +486,7 @@ def _used_materials(scene: Scene) -> list[str]:
 
 def _require(name: str, known, what: str, src: _Source, path) -> None:
     if name not in known:
-        raise src.error(path, f"unknown {what} '{name}'{_did_you_mean(name, known)}")
+        raise src.error(path, f"unknown {what} '{_shown_key(name)}'{_did_you_mean(name, known)}")
 
 
 def _check_regions(scene: Scene, src: _Source) -> None:
@@ -534,6 +607,7 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     cells along the longest side of the scene (or of a body with its own size)."""
     if scene.mesh.file is not None:
         return None
+    _refuse_many_shapes(scene, src)
     if scene.dimension == 3:
         return _check_mesh3d(scene, src)
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
@@ -546,6 +620,28 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
     cells, path = estimate_cells(scene)
     _refuse_many(scene, cells, path, f"{cells:.3g} cells ({cells:.3g} unknowns)", src)
     return cells
+
+
+MAX_SHAPES = 1000       # shapes of a scene, `minus` and `intersect` included: the demo's base minus 400
+                        # rectangles meshed in 3.4 s, and meshing grows with them
+
+
+def _refuse_many_shapes(scene, src: _Source) -> None:
+    """StudyError at the region shape past which the scene holds more than MAX_SHAPES shapes
+    (each primitive of a `minus` / `intersect` tree, an extruded 2D shape's included)."""
+    total = 0
+    for b, spec in scene.bodies.items():
+        for i, region in enumerate(spec.regions):
+            stack = [region.shape]
+            while stack and total <= MAX_SHAPES:
+                shape = stack.pop()
+                total += 1
+                stack += (shape.minus or []) + (shape.intersect or [])
+                if getattr(shape, "extrude", None) is not None:
+                    stack.append(shape.extrude.shape)
+            if total > MAX_SHAPES:
+                raise src.error(("bodies", b, "regions", i, "shape"), f"the scene's shapes number more than "
+                                f"{MAX_SHAPES} (each of a `minus` or `intersect` counts): meshing grows with them")
 
 
 def _refuse_coarse(sizes, src: _Source) -> None:
@@ -565,6 +661,11 @@ def _refuse_many(scene, cells: float, path: str, about: str, src: _Source) -> No
         raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, more than "
                         f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
                         "`mesh.max_cells`")
+    need, memory = cells * BYTES_PER_CELL[scene.dimension], machine_memory()
+    if need > memory:                               # a raised max_cells: meshing and solving would swap
+        raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, which needs about "
+                        f"{need / 1e9:.3g} GB ({BYTES_PER_CELL[scene.dimension]:g} bytes a cell), more than this "
+                        f"machine's {memory / 1e9:.3g} GB of memory (this size contributes most); coarsen the mesh")
 
 
 def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
@@ -834,6 +935,11 @@ def _check_lame_sweep(sweep: Sweep | None, entries: list[Uncertain], scene: Scen
 
 
 def _check_sweep(sweep: Sweep | None, scene: Scene, src: _Source) -> None:
+    """Each swept path is a number that can vary, its values in range; the full factorial grid
+    (the product of the list lengths, in Python's exact integers) at most MAX_SOLVES points."""
+    points = math.prod(len(values) for values in sweep.grid.values()) if sweep else 0
+    if points > MAX_SOLVES:
+        raise src.error(("sweep", "grid"), f"the grid has {points:.3g} points, more than {MAX_SOLVES} solves")
     for path, values in (sweep.grid if sweep else {}).items():
         where = ("sweep", "grid", path)
         _nominal_number(scene, path, src, where)

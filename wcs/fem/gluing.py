@@ -77,6 +77,13 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
             if getattr(spec, side) not in smesh.boundaries:
                 raise StudyError(f"unknown boundary {getattr(spec, side)!r}", path=f"{path}.{side}")
         sf, mf = smesh.boundaries[spec.slave], smesh.boundaries[spec.master]
+        sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])      # the bodies first: two sides of one
+        mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])      # body fail whatever their supports
+        if sb.size != 1:
+            raise StudyError("the slave side of a glue must lie on one body", path=f"{path}.slave")
+        if sb[0] in mb:
+            raise StudyError(f"slave and master of a glue belong to the same body ({smesh.bodies[sb[0]]!r}); "
+                             "a glue joins two different bodies", path=f"{path}.master")
         mi = integrals(smesh.mesh, sf, mf, exclude=sorted(taken), path=path)
         if mi.slave.size == 0 and taken.issuperset(np.unique(smesh.mesh.facets[:, sf]).tolist()):
             raise StudyError("every node of the slave side carries a support (or is glued by an earlier "
@@ -85,12 +92,6 @@ def build_glue(scene, smesh, supported_nodes=()) -> list[Glue]:
             raise StudyError(f"the glued sides do not face each other (no slave {side_kind} projects "
                              "onto the master side)", path=path)
         check_touching(smesh.mesh.p.T, mi, max(edge_size(smesh.mesh, sf), edge_size(smesh.mesh, mf)), path)
-        sb = np.unique(nb[np.unique(smesh.mesh.facets[:, sf])])
-        mb = np.unique(nb[np.unique(smesh.mesh.facets[:, mf])])
-        if sb.size != 1:
-            raise StudyError("the slave side of a glue must lie on one body", path=f"{path}.slave")
-        if sb[0] in mb:
-            raise StudyError("slave and master of a glue belong to the same body", path=f"{path}.master")
         taken.update(mi.slave.tolist())
         out.append(Glue(name, int(sb[0]), tuple(int(b) for b in mb), mi))
     return out

@@ -227,6 +227,8 @@ def load(path: str | Path) -> Results:
         raise StudyError(f"{path}: no such results file")
     if path.is_dir():
         raise StudyError(f"{path}: is a directory, not a results file")
+    if not path.is_file():                   # a FIFO or a device: reading would wait or never end
+        raise StudyError(f"{path}: not a regular file (a FIFO, a device or a socket), not a results file")
     try:
         ds = xr.open_dataset(path, engine="h5netcdf")
     except Exception:  # noqa: BLE001 - try the other engine before giving up

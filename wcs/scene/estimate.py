@@ -13,6 +13,8 @@ half the cells, and a P1 vector field has two unknowns per node.
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +24,21 @@ CELLS_PER_H2 = 4.0 / math.sqrt(3.0)     # cells per unit area at size 1
 CURVATURE_ELEMENTS = 24                 # Mesh.MeshSizeFromCurvature (the mesher's): elements per 2*pi of arc
 DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives none
 DEFAULT_GRADING = 0.5                   # size growth per unit distance away from a refine zone (the mesher's)
+# Peak memory of `wcs check` a cell, above the ~0.2 GB of the loaded modules: 2.8 GB at 5.4e5
+# triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
+# 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
+BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+
+
+def machine_memory() -> float:
+    """Bytes of memory of this machine: its physical memory (`os.sysconf`), or the control group's
+    limit (cgroup v2 `memory.max`) where that is lower."""
+    memory = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+    except OSError:
+        return memory
+    return min(memory, float(limit)) if limit.isdigit() else memory
 
 
 def shape_box(shape) -> tuple[float, float, float, float]:

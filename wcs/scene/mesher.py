@@ -493,7 +493,24 @@ def check_connected(sm: SceneMesh, path: str) -> SceneMesh:
     for b, name in enumerate(sm.bodies):
         pieces = np.unique(label[node_body == b]).size
         if pieces > 1:
+            refuse_roi_apart(sm, label, b, sm.roi_cells)
             where = f"{path}.{name}" if path == "scene.bodies" else path
             raise StudyError(f"body {name!r} consists of {pieces} pieces that do not touch; "
                              "make each piece a body of its own (with its own support or contact)", path=where)
     return sm
+
+
+def refuse_roi_apart(sm: SceneMesh, label: np.ndarray, b: int, rois: dict[str, np.ndarray]) -> None:
+    """StudyError at the embedded region of interest whose cells alone form a piece of body `b`
+    (`label`: the connected piece of every node): the mesher cut it out of the body without a
+    shared node (a region of interest far smaller than the cells around it), a fault of the
+    region of interest, not of the body's shape."""
+    cells = np.flatnonzero(sm.cell_body == b)
+    piece = label[sm.mesh.t[0, cells]]
+    for name, roi in rois.items():
+        inside = np.zeros(sm.cell_body.size, dtype=bool)
+        inside[roi] = True
+        if any(inside[cells[piece == k]].all() for k in np.unique(piece)):
+            raise StudyError(f"the region of interest is meshed apart from body {sm.bodies[b]!r} (its cells share "
+                             "no node with the rest of the body): it is far smaller than the cells around it; "
+                             "enlarge it", path=f"scene.regions_of_interest.{name}")

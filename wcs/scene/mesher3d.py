@@ -65,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher import closure, region_entity_sizes, fragment_pieces, piece_owners, region_names
+from .mesher import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -355,7 +355,8 @@ def build_mesh3d(scene: Scene, splits: int = 0) -> SceneMesh:
     t[1, negative], t[2, negative] = t[2, negative], t[1, negative].copy()
 
     sm = check_connected(SceneMesh(mesh=skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False), bodies=bodies,
-                                   regions=regions, cell_body=cell_body, cell_region=cell_region))
+                                   regions=regions, cell_body=cell_body, cell_region=cell_region),
+                         {name: np.flatnonzero(in_roi[j]) for j, name in enumerate(embed)})
     bnd = {name: select_faces(sm, spec, f"scene.boundaries.{name}")
            for name, spec in scene.boundaries.items()}
     roi_cells = {}
@@ -382,8 +383,9 @@ def _from_file(scene: Scene) -> SceneMesh:
     return check_connected(read_mesh_file(scene.mesh.file, scene, dim=3, select=select_faces))
 
 
-def check_connected(sm: SceneMesh) -> SceneMesh:
-    """A body is one connected piece of cells (as in 2D: each piece would need its own supports)."""
+def check_connected(sm: SceneMesh, rois: dict[str, np.ndarray] | None = None) -> SceneMesh:
+    """A body is one connected piece of cells (as in 2D: each piece would need its own supports);
+    `rois`: the cells of the embedded regions of interest, blamed when one is a piece alone."""
     t, n = sm.mesh.t, sm.mesh.p.shape[1]
     rows = np.tile(t[0], t.shape[0] - 1)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, t[1:].ravel())), shape=(n, n))
@@ -391,6 +393,7 @@ def check_connected(sm: SceneMesh) -> SceneMesh:
     for b, name in enumerate(sm.bodies):
         pieces = np.unique(label[sm.node_body == b]).size
         if pieces > 1:
+            refuse_roi_apart(sm, label, b, rois or {})
             raise StudyError(f"body {name!r} consists of {pieces} pieces that do not touch; make each "
                              "piece a body of its own (with its own support or contact)", path=f"scene.bodies.{name}")
     return sm

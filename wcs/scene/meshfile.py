@@ -50,7 +50,7 @@ import skfem
 from ..errors import StudyError
 from . import selectors
 from .meshdata import SceneMesh
-from .spec import GroupBoundary
+from .spec import MAX_NAME, GroupBoundary, _valid_name
 
 AREA_TOL = 1e-12            # |area| (|volume|) <= AREA_TOL * (bounding-box diagonal)^d -> degenerate
 INSIDE_TOL = 1e-9           # a point is inside a tetrahedron when its barycentric coordinates exceed this
@@ -122,8 +122,10 @@ def _read_gmsh(path: Path, kind: Kind):
     with Session():
         try:
             gmsh.merge(str(path))
-        except Exception as exc:  # gmsh raises a bare Exception with its last error
-            raise _fail(path, f"gmsh cannot read the file: {exc}") from None
+        except Exception as exc:  # gmsh raises a bare Exception with its last error, which may be empty
+            why = " ".join(str(exc).split())
+            raise _fail(path, f"gmsh cannot read the file: {why}" if why else
+                        "gmsh cannot read the file and gives no reason (not a mesh file gmsh parses)") from None
         ntags, coords, _ = gmsh.model.mesh.getNodes()
         ntags = np.asarray(ntags, dtype=np.int64)
         xyz = np.asarray(coords, dtype=float).reshape(-1, 3)
@@ -146,10 +148,17 @@ def _read_gmsh(path: Path, kind: Kind):
             groups.append((name, dim, conn))
     if ntags.size == 0:
         raise _fail(path, "the file holds no mesh nodes")
-    lookup = np.full(int(ntags.max()) + 1, -1, dtype=np.int64)
-    lookup[ntags] = np.arange(ntags.size)
-    groups = [(n, d, lookup[c]) for n, d, c in groups]
+    groups = [(n, d, _node_indices(ntags, c)) for n, d, c in groups]
     return xyz, groups
+
+
+def _node_indices(tags: np.ndarray, refs: np.ndarray) -> np.ndarray:
+    """The positions in `tags` of the node tags `refs` (-1 for a tag not among them), through the
+    sorted tags: gmsh's node tags may be sparse (a tag of 1e12 is valid), so no array of the
+    largest tag's length."""
+    order = np.argsort(tags, kind="stable")
+    pos = np.minimum(np.searchsorted(tags[order], refs), tags.size - 1)
+    return np.where(tags[order][pos] == refs, order[pos], -1)
 
 
 def _read_meshio(path: Path, kind: Kind):
@@ -370,6 +379,15 @@ def file_regions(raw: RawMesh) -> dict[str, dict[str, int]]:
     return out
 
 
+def _file_name(name: str, what: str, error) -> str:
+    """A region or boundary name the mesh file gives, held to the study's rules for names."""
+    try:
+        return _valid_name(name)
+    except ValueError as exc:
+        shown = ascii(name) if len(name) <= MAX_NAME else f"{ascii(name[:MAX_NAME])}..."
+        raise error(("mesh", "file"), f"{what} {shown}: {exc}") from None
+
+
 def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str]], list[tuple], list[str]]:
     """What a validated `Scene` (2D or 3D) meshed by ``mesh.file`` takes from the file: the
     file's absolute path, each body's region names (matched with the file's cell groups, filled
@@ -406,7 +424,7 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
                     raise error(("bodies", body, "regions", i),
                                 f"give the region's `name` (regions of '{body}' in {path.name}: "
                                 f"{', '.join(fregs)})")
-                named.append(next(iter(fregs)))
+                named.append(_file_name(next(iter(fregs)), f"{path.name}: {d}D physical group", error))
             elif region.name not in fregs:
                 raise error(("bodies", body, "regions", i, "name"),
                             f"no {d}D physical group '{body}:{region.name}' in {path.name} "
@@ -429,6 +447,7 @@ def prepare_scene(scene, base_dir: Path, error) -> tuple[str, dict[str, list[str
         body, piece = split_name(group)
         if not piece or body == "":
             raise error(("mesh", "file"), f"{path.name}: {d - 1}D physical group {group!r}: use `NAME` or `BODY:NAME`")
+        _file_name(piece, f"{path.name}: {d - 1}D physical group", error)
         if piece in seen:
             raise error(("mesh", "file"), f"{path.name}: {d - 1}D groups {seen[piece]!r} and {group!r} both "
                                           f"make boundary '{piece}'")

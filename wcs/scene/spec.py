@@ -51,9 +51,20 @@ KELVIN = {"gt": 0, "le": 1e5}
 FEATURE_MIN = 1e-6
 FEATURE = {"ge": FEATURE_MIN, "le": 1e6}
 
+MAX_NAME = 100      # characters of a name (it becomes part of file names, e.g. the study's output)
+
+
 def _valid_name(name: str) -> str:
+    """A name: 1 to MAX_NAME printable characters (no control character such as NUL, no lone
+    surrogate: it is written to results files and file names), no dots, spaces or brackets."""
     if not name or re.search(r"[.\s\[\]]", name):
         raise ValueError("a name may not contain dots, spaces or brackets")
+    if len(name) > MAX_NAME:
+        raise ValueError(f"a name has at most {MAX_NAME} characters, got {len(name)}")
+    bad = next((c for c in name if not c.isprintable()), None)
+    if bad is not None:
+        raise ValueError(f"a name may contain printable characters only, got {ascii(bad)} at "
+                         f"position {name.index(bad)}")
     return name
 
 
@@ -116,7 +127,8 @@ def _simple(points: list[list[float]]) -> list[list[float]]:
     return points
 
 
-Polygon = Annotated[list[XY], Field(min_length=3), AfterValidator(_simple)]
+MAX_VERTICES = 1000     # of a polygon: its simplicity check compares every pair of edges (1 s at 1000)
+Polygon = Annotated[list[XY], Field(min_length=3, max_length=MAX_VERTICES), AfterValidator(_simple)]
 
 
 def _has_length(ends: list[list[float]]) -> list[list[float]]:
