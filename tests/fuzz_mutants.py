@@ -830,8 +830,10 @@ def contact(rng):
             put(["scene", "boundaries", "pad_top"], {"body": "pad", "segment": [[0.5, 1.3], [1.5, 1.3]]}),
             put(["scene", "boundaries", "pad_left"], {"body": "pad", "segment": [[0.5, 0.8], [0.5, 1.3]]}),
             put(["scene", "boundaries", "pad_bottom"], {"body": "pad", "segment": [[0.5, 0.8], [1.5, 0.8]]}))),
+        ("the base slid 1000 m under the pad (a rigid translation, Tresca slip 1000 m)", "any",
+         put(S + ["base_bottom", "u", 0], 1000.0)),
     ])
-    return Mutant("contact", c[0], "2d", c[1], c[2], known="inputs")
+    return Mutant("contact", c[0], "2d", c[1], c[2], known="" if "slid" in c[0] else "inputs")
 
 
 LONG = "b" * 100_000
@@ -1001,7 +1003,7 @@ KINDS = {                  # kind: (generator, weight)
     "solid3d": ((solid3d, overlapping_bodies), 30),
     "selector": ((selector3d, selector2d), 30),
     "glue": ((glue,), 20),
-    "contact": ((contact,), 10),
+    "contact": ((contact,), 20),
     "refine": ((refine, refine3d), 25),
     "meshfile": ((meshfile, meshfile, meshfile_study), 35),
     "range": ((ranges, fuzzy), 35),
