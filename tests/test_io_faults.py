@@ -170,6 +170,20 @@ def test_an_output_name_too_long_or_under_a_file_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", path.name]
 
 
+def test_an_output_name_with_a_nul_is_refused_before_solving(tmp_path, capsys, monkeypatch):
+    """No file system takes a NUL in a name: `check` said ok to it and `run` failed at its output
+    lock as an internal error (exit 1, ValueError: embedded null byte)."""
+    path = plate(tmp_path, output=str(tmp_path / "o\x00ut.nc"))
+    import wcs.evaluation
+    monkeypatch.setattr(wcs.evaluation, "Evaluator", lambda *a: pytest.fail("meshed before the output was checked"))
+    for command in ("check", "run"):
+        assert main([command, str(path), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {path}: output: the output name ") and "NUL" in err, err
+        assert len(err.splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+
+
 @contextlib.contextmanager
 def read_only_folder(folder: Path):
     """A folder nobody may write in: a read-only tmpfs for root (who ignores modes), else mode 555."""

@@ -76,6 +76,8 @@ def check_output(output: str | Path, file: str | None = None, path: str | None =
     directory, names within the filesystem's limits, its folder creatable (created; with
     `create` false, as `wcs check` asks, nothing is created: the nearest existing folder above
     it must be a folder)."""
+    if "\0" in str(output):               # no file system takes it (os calls raise ValueError)
+        raise StudyError(f"the output name {str(output)!r} contains a NUL character", file=file, path=path)
     out = Path(output)
     if out.is_dir():
         raise StudyError(f"the output {out} is a directory; name a results file in it (e.g. {out / 'results.nc'})",
