@@ -108,7 +108,7 @@ def two_region_block(size=0.25) -> dict:
                 {"name": "upper", "material": "alu", "shape": {"box": [0, 0, 0.5, 2, 1, 1]}}]}},
             "boundaries": {"bottom": _plane([0, 0, 0], [0, 0, 1]), "top": _plane([0, 0, 1], [0, 0, 1]),
                            "left": _plane([0, 0, 0], [1, 0, 0]), "right": _plane([2, 0, 0], [1, 0, 0])},
-            "supports": {"bottom": {"u": [0.0, 0.0, 0.0]}, "left": {"normal": 0.0}},
+            "supports": {"bottom": {"u": [None, 0.0, 0.0]}, "left": {"normal": 0.0}},   # x held by left alone
             "loads": {"top": {"pressure": 2.0e6}, "right": {"traction": [1.0e5, 2.0e5, -1.0e5]}},
             "body_forces": {"upper": [0.0, 1.0e4, -1.0e4]},
             "thermal": {"reference": 293.0, "temperature": {"bottom": 303.0}, "sources": {"upper": 1.0e4}},
@@ -124,7 +124,7 @@ def two_region_block(size=0.25) -> dict:
             "materials.alu.E": [6.5e10, 7.5e10], "materials.alu.nu": [0.30, 0.36],
             "loads.top.pressure": [1.5e6, 2.5e6], "loads.right.traction.1": [1.0e5, 3.0e5],
             "loads.right.traction.2": [-2e5, 0.0], "body_forces.upper.2": [-2.0e4, 0.0],
-            "supports.bottom.u.0": [-1.0e-5, 1.0e-5], "supports.left.normal": [-1.0e-5, 1.0e-5],
+            "supports.bottom.u.1": [-1.0e-5, 1.0e-5], "supports.left.normal": [-1.0e-5, 1.0e-5],
             "thermal.temperature.bottom": [298.0, 308.0], "thermal.sources.upper": [0.5e4, 1.5e4],
             "thermal.reference": [290.0, 296.0]},
         "criteria": [
@@ -167,7 +167,7 @@ def pad_on_base_study(friction: dict, size=0.125) -> dict:
                 "base_top": {"body": "base", "box": [0.25, 0.25, 0, 0.75, 0.75, 0]},
                 "pad_bottom": {"body": "pad", "plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}},
                 "pad_top": _plane([0, 0, 0.25], [0, 0, 1])},
-            "supports": {"base_bottom": {"u": [0.0, 0.0, 0.0]}, "base_side": {"normal": 0.0},
+            "supports": {"base_bottom": {"u": [None, 0.0, 0.0]}, "base_side": {"normal": 0.0},
                          "pad_top": {"u": [1.0e-4, 0.5e-4, -1.0e-3]}},
             "body_forces": {"pad": [2.0e5, 1.0e5, -1.0e5]},
             "loads": {"base_front": {"pressure": 1.0e6}},

@@ -27,7 +27,6 @@ from .coefficients import Coefficients, ParameterMap
 from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
 from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
-from .dd.partition import subdomains_fault
 from .errors import SolveError, StudyError
 from .fem import forms, tet
 from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
@@ -129,6 +128,7 @@ class Model:
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
         if self.solver_method == "dd":
+            from .dd.partition import subdomains_fault    # the DD modules (and scipy.spatial) load only for dd
             fault = subdomains_fault(self.options.dd.subdomains, mesh.t.shape[1])
             if fault is not None:
                 raise StudyError(fault, path="solver.dd.subdomains")
