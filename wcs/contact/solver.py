@@ -154,13 +154,12 @@ def regularize(K: sp.spmatrix, pinned: np.ndarray) -> sp.csr_matrix:
     K.sum_duplicates()
     K.sort_indices()
     if len(pinned):
-        rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
-        diag = np.flatnonzero(rows == K.indices)
-        position = np.full(K.shape[0], -1)
-        position[rows[diag]] = diag
-        where = position[pinned]
-        if np.any(where < 0):
-            raise ValueError("a pinned dof has no diagonal entry in K")
+        where = np.zeros(len(pinned), dtype=int)
+        for n, j in enumerate(pinned):            # the diagonal entry in row j's sorted columns
+            a, b = K.indptr[j], K.indptr[j + 1]
+            where[n] = a + np.searchsorted(K.indices[a:b], j)
+            if where[n] == b or K.indices[where[n]] != j:
+                raise ValueError("a pinned dof has no diagonal entry in K")
         K.data[where] += np.where(K.data[where] > 0, K.data[where], 1.0)
     return K
 
@@ -238,6 +237,10 @@ def project(z, lo, hi, k=1):
     onto [−gw, gw] to the bit: the norm of one component is its absolute value and z/|z| = ±1."""
     out = np.clip(z, lo, hi)
     m = len(z) // (1 + k)
+    if k == 1:              # r ν = ±r where |z| (as the norm below takes it) passes r, else z: the same bits
+        t, r = z[m:], hi[m:]
+        out[m:] = np.where(np.sqrt(t * t) > r, np.copysign(r, t), t)
+        return out
     t, r = z[m:].reshape(k, m), hi[m:m + m]
     norm = np.linalg.norm(t, axis=0)
     slip = norm > r
@@ -257,10 +260,12 @@ def inside(z, lo, hi, k=1):
 def disc_slips(z, hi, k):
     """Slipping nodes on a disc (k ≥ 2, |z_t,i| > gw_i > 0): their component indices (n, k) and
     the generalized Jacobian of the projection there, D = gw/|z| (I − ννᵀ), ν = z/|z| (n, k, k)."""
+    if k == 1:              # no disc
+        return np.zeros((0, 1), dtype=int), np.zeros((0, 1, 1))
     m = len(z) // (1 + k)
     t, r = z[m:].reshape(k, m), hi[m:m + m]
     norm = np.linalg.norm(t, axis=0)
-    nodes = np.flatnonzero((norm > r) & (r > 0)) if k > 1 else np.zeros(0, dtype=int)
+    nodes = np.flatnonzero((norm > r) & (r > 0))
     nu = (t[:, nodes] / norm[nodes]).T
     D = (r[nodes] / norm[nodes])[:, None, None] * (np.eye(k) - nu[:, :, None] * nu[:, None, :])
     return m + nodes[:, None] + m * np.arange(k), D
@@ -506,7 +511,11 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None, 
         lam, alpha = step
         return _tied_split(W, lam, tied, m, k), alpha
     s = max(np.abs(W).max(initial=0.0), 1e-300)
-    M = np.block([[W[np.ix_(F, F)], -s * G[:, F].T], [s * G[:, F], np.zeros((r, r))]])
+    f = len(F)
+    M = np.zeros((f + r, f + r))          # [[W_FF, −s G_Fᵀ], [s G_F, 0]]
+    M[:f, :f] = W[np.ix_(F, F)]
+    M[:f, f:] = -s * G[:, F].T
+    M[f:, :f] = s * G[:, F]
     rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
     if disc is not None and len(disc[0]):
         J, D = disc
@@ -538,7 +547,9 @@ def _tied_split(W, lam, tied, m, k):
     """A tied pair (`_newton_point`) moved to the minimum norm split of its normal force; on a
     disc (k = 2) left at λt = 0. Newton's own bookkeeping: what a solution reports at such a
     node is the solver-independent split of `wcs.contact.zone.canonical_split`."""
-    pair = np.flatnonzero(tied[m:] & np.tile(np.diag(W)[:m] > 0, k)) if k == 1 else np.zeros(0, dtype=int)
+    if k > 1 or not tied.any():
+        return lam
+    pair = np.flatnonzero(tied[m:] & (np.diag(W)[:m] > 0))
     node = pair % m
     kappa = W[node, m + pair] / np.diag(W)[node]
     lam[node], lam[m + pair] = lam[node] / (1 + kappa**2), kappa * lam[node] / (1 + kappa**2)
