@@ -381,3 +381,24 @@ def test_newton_solve_does_not_import_cvxpy():
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+# ---- issue 26: the warm evaluation's fixed costs ---------------------------------------------
+
+def test_warm_2d_contact_solve_reuses_the_models_pinned_dofs(monkeypatch):
+    """A warm 2D evaluation of a floating body takes the pinned DOFs of the rigid modes the model
+    found once (a pivoted QR of R per solve was ~1 ms of 20 on the 1e4 pad) and gives the fresh
+    evaluator's answer to the bit."""
+    study = scenes.load("tresca-pad", _tresca_pad)
+    ev = Evaluator(study)
+    assert ev.evaluate(study.nominal()).status == 0
+    x = study.nominal() * 1.02
+    calls = []
+    real = cs.pinned_dofs
+    monkeypatch.setattr(cs, "pinned_dofs", lambda R: calls.append(1) or real(R))
+    warm = outcome(ev, x)
+    assert warm[0] == 0 and calls == []
+    monkeypatch.undo()
+    new = fresh(ev)
+    assert outcome(new, study.nominal())[0] == 0
+    assert same(outcome(new, x), warm)
