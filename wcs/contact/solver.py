@@ -253,8 +253,8 @@ def inside(z, lo, hi, k=1):
     """Components whose z lies inside B (the free set): z_n > 0, |z_t,i| < gw_i on each of the
     node's k tangent components."""
     m = len(z) // (1 + k)
-    return np.r_[(z[:m] > lo[:m]) & (z[:m] < hi[:m]),
-                 np.tile(np.linalg.norm(z[m:].reshape(k, m), axis=0) < hi[m:m + m], k)]
+    return np.concatenate([(z[:m] > lo[:m]) & (z[:m] < hi[:m]),
+                           np.tile(np.linalg.norm(z[m:].reshape(k, m), axis=0) < hi[m:m + m], k)])
 
 
 def disc_slips(z, hi, k):
@@ -516,7 +516,7 @@ def _newton_point(W, q, G, e, free, fixed_values, redundant, disc=None, c=None, 
     M[:f, :f] = W[np.ix_(F, F)]
     M[:f, f:] = -s * G[:, F].T
     M[f:, :f] = s * G[:, F]
-    rhs = np.r_[q[F] - W[F] @ lam, s * (e - G @ lam)]
+    rhs = np.concatenate([q[F] - W[F] @ lam, s * (e - G @ lam)])
     if disc is not None and len(disc[0]):
         J, D = disc
         P = np.searchsorted(F, J)                               # their rows and columns in M
