@@ -381,3 +381,42 @@ def test_newton_solve_does_not_import_cvxpy():
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+# ---- issue 26: the warm evaluation's fixed costs ---------------------------------------------
+
+def test_warm_2d_contact_solve_reuses_the_models_pinned_dofs(monkeypatch):
+    """A warm 2D evaluation of a floating body takes the pinned DOFs of the rigid modes the model
+    found once (a pivoted QR of R per solve was ~1 ms of 20 on the 1e4 pad) and gives the fresh
+    evaluator's answer to the bit."""
+    study = scenes.load("tresca-pad", _tresca_pad)
+    ev = Evaluator(study)
+    assert ev.evaluate(study.nominal()).status == 0
+    x = study.nominal() * 1.02
+    calls = []
+    real = cs.pinned_dofs
+    monkeypatch.setattr(cs, "pinned_dofs", lambda R: calls.append(1) or real(R))
+    warm = outcome(ev, x)
+    assert warm[0] == 0 and calls == []
+    monkeypatch.undo()
+    new = fresh(ev)
+    assert outcome(new, study.nominal())[0] == 0
+    assert same(outcome(new, x), warm)
+
+
+def test_dual_qp_restart_does_not_import_cvxpy():
+    """The tresca pad at a low shear cycles from the nominal data's active set and Newton restarts
+    from the dual QP, solved by Clarabel directly: cvxpy's import was 0.6 s of CPU (2-3 s on the
+    shared machine) of the first such evaluation in a process."""
+    code = ("import sys, wcs, wcs.contact.solver as cs\n"
+            "calls, qp = [], cs._dual_qp\n"
+            "cs._dual_qp = lambda *a, **k: calls.append(1) or qp(*a, **k)\n"
+            "s = wcs.load_study(sys.argv[1])\n"
+            "assert s.evaluate(s.nominal()).status == 0\n"
+            "e = s.evaluate({'loads.pad_top.traction.0': 1.0e5, 'contacts.interface.friction.slip_limit': 3.02e5})\n"
+            "assert e.status == 0, e.message\n"
+            "print(len(calls), 'cvxpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code, str(ROOT / "studies" / "validation" / "tresca-pad.yaml")],
+                         capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "1 False"

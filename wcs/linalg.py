@@ -285,6 +285,8 @@ class PardisoFactor:
         k = len(self.block)
         S = self._schur.reshape(k, k)
         Z = sla.cho_solve(sla.cho_factor(S), np.eye(k)) if self.mtype == 2 else np.linalg.inv(S)
+        if np.all(self.block[1:] > self.block[:-1]):      # PARDISO's order already (contact DOFs: np.unique)
+            return np.ascontiguousarray(Z)                 # what the gather below returns, without its index work
         rank = np.argsort(np.argsort(self.block))
         return Z[np.ix_(rank, rank)]
 

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from . import linalg
 from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
-from .contact.solver import ContactResult, factor_contact, pinned_dofs, regularize, solve_contact
+from .contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize, solve_contact
 from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
 from .errors import SolveError, StudyError
@@ -73,7 +73,7 @@ class Solution:
         """The contact factorization of this solution's reduced stiffness (`.factor.solve`, `.W`)."""
         if model.units is not None:
             return model.contact_operator(self.stiffness, self.scale)
-        return factor_contact(self.stiffness, model.contact_rows, model.R_r, self.factors.contact, model.dim == 3)
+        return model.contact_factor(self.stiffness)
 
 
 class Model:
@@ -487,16 +487,15 @@ class Model:
             from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
             res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
         else:
-            factored = None
-            if self.units is not None:
-                try:
-                    factored = self.contact_operator(Kr, scale)
-                except linalg.FactorizationError as exc:
-                    raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from exc
+            try:
+                factored = (self.contact_operator(Kr, scale) if self.units is not None
+                            else self.contact_factor(Kr))
+            except linalg.FactorizationError as exc:
+                raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from exc
             res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
                                 R=self.R_r, tol=tol, max_iter=max_iter,
                                 warm=warm if warm is not None or nominal or not self._anchored else cache.anchor,
-                                factor=None if factored else cache.contact, factored=factored, tol_fp=tol,
+                                factored=factored, tol_fp=tol,
                                 max_fp_iter=self.options.max_fixed_point_iterations)
             if cache.contact is None:
                 cache.contact = res.factor      # one factor object, refactored in place from now on
@@ -513,6 +512,12 @@ class Model:
         res = dataclasses.replace(res, factor=None)   # a solution reaches its factor by `contact_factor`
         u = self.elim.T @ res.u + u0
         return u, self.contact_state(res.lam_n, res.lam_t, u, res.active), res.iterations, res
+
+    def contact_factor(self, Kr: sp.csr_matrix):
+        """The contact factorization of Kr (`factor_contact`) on the model's pinned DOFs and
+        contact rows, made once (not per solve), in the factor object the cache holds."""
+        return factor_regularized(regularize(Kr, self.pinned), self.contact_rows, self.pinned,
+                                  self._cache.contact, self.dim == 3)
 
     @functools.cached_property
     def contact_rows(self) -> sp.csr_matrix:

@@ -46,9 +46,12 @@ def _unbalanced_lp(BnR, BtR, e, gw):
     Bn Rα ≤ 0, ±Bt Rα − σ ≤ 0, −1 ≤ α ≤ 1 (σ ≥ 0 follows), as Clarabel's A x + z = 0 + b,
     z ≥ 0."""
     m, r = BnR.shape
-    I, Zr, Zm = np.eye(m), np.zeros((r, m)), np.zeros((m, m))
-    A = np.block([[BnR, Zm], [BtR, -I], [-BtR, -I], [np.eye(r), Zr], [-np.eye(r), Zr]])
-    b = np.r_[np.zeros(3 * m), np.ones(2 * r)]
+    A = np.zeros((3 * m + 2 * r, r + m))      # [[BnR, 0], [BtR, −I], [−BtR, −I], [I, 0], [−I, 0]]
+    A[:m, :r], A[m:2 * m, :r], A[2 * m:3 * m, :r] = BnR, BtR, -BtR
+    A[m:2 * m, r:] = A[2 * m:3 * m, r:] = -np.eye(m)
+    A[3 * m:3 * m + r, :r], A[3 * m + r:, :r] = np.eye(r), -np.eye(r)
+    b = np.zeros(3 * m + 2 * r)
+    b[3 * m:] = 1.0
     s = _scale(e, gw)
     settings = clarabel.DefaultSettings()
     settings.verbose = False
