@@ -73,3 +73,30 @@ def test_a_loose_solver_tolerance_is_what_the_certificate_accepts(tmp_path):
         assert r.status == Status.SOLVED, r.message
         for name, value in t.phi.items():
             assert abs(r.phi[name] - value) <= 1e-2 * abs(value), name
+
+
+@pytest.mark.parametrize("slide", [1000.0, 4096.0])
+def test_a_base_slid_far_under_a_tresca_pad_gives_the_short_slides_answer(tmp_path, slide):
+    """A rigid translation of the base by u_x (the fuzz suite's 2D base: a pad pressed on a
+    base, Tresca) changes nothing but the displacements along x. At 1000 m Newton stopped
+    after two steps: its force scale was the tangents' trial force c q ~ 5e13 N against normal
+    forces of 7e5, and the certificate refused the answer (exit 1). The force a Tresca
+    tangent can carry is its bound g w."""
+    import fuzz_mutants
+
+    def nominal(u_x):
+        doc = fuzz_mutants.base("2d")
+        doc["scene"]["supports"]["base_bottom"]["u"][0] = u_x
+        path = tmp_path / f"pad-{u_x}.yaml"
+        path.write_text(fuzz_mutants.dump(doc))
+        study = wcs.load_study(path)
+        return Evaluator(study).evaluate(study.nominal())
+    far, near = nominal(slide), nominal(10.0)
+    assert far.status == Status.SOLVED, far.message
+    # settlement (vertical) and shear do not see the translation: a solve that carries u_x of
+    # 4096 m leaves round-off of eps·4096 m times K's condition (~1e3) ~ 1e-10 m in the 7e-6 m
+    # settlement, 1e-5 relative (measured 1.4e-6); a wrong active set moves them by O(1)
+    for name in ("settlement", "shear"):
+        assert far.phi[name] == pytest.approx(near.phi[name], rel=1e-5), name
+    pn_far, pn_near = far.state.contact.force_n, near.state.contact.force_n
+    assert np.abs(pn_far - pn_near).max() <= 1e-5 * np.abs(pn_near).max()

@@ -331,8 +331,10 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     free0: the free set of the first step instead of the one predicted from λ
     (the cold start: all closed and stuck, i.e. the glued problem).
     k: tangent components per node (d − 1); lo, hi: the bounds of B per component.
-    The stopping test is relative to the force scale max|c q| over the components B leaves
-    room for (lo < hi), or to max|λ|: a frictionless tangent's c q is a displacement times
+    The stopping test is relative to the force scale max min(|c q|, bound) over the components
+    B leaves room for (lo < hi), or to max|λ|: a Tresca tangent carries at most its bound g w
+    (a base slid rigidly by 1000 m under a Tresca pad made its c q 5e13 against normal forces of
+    7e5, and Newton stopped after 2 steps with the normals wrong); a frictionless tangent's c q is a displacement times
     a stiffness that no multiplier carries (a 3 m support translation on 3D Hertz made it
     2e4 times the normals' c q, and Newton stopped one step early at λn = −2.4e5). The
     iterate must also lie in B to tol × max|λ|: 1/W_ii ignores how the nodes share a load, so
@@ -348,7 +350,8 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     redundant = redundant_pairs(W, k)
     acting = np.any(W, axis=1)
     carried = hi > lo        # B degenerate (lo = hi: a frictionless tangent) carries no force
-    force = max(np.abs(c * q)[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
+    carries = np.minimum(np.abs(c * q), np.maximum(np.abs(lo), np.abs(hi)))   # no more than B lets through
+    force = max(carries[carried].max(initial=0.0), np.abs(e).max(initial=0.0), 1e-300)
 
     def residual(lam, alpha):
         z = lam + c * (q - W @ lam + G.T @ alpha)
