@@ -1,7 +1,9 @@
 """The commands `wcs run`, `wcs sweep` and `wcs solve --worst`: a run's messages and exit status.
 
-Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable),
-3 a worst value breaks its limit (with --fail-on-limit); bad input raises StudyError, which
+Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable; with
+--fail-on-limit also a verdict NOT ESTABLISHED: failed evaluations leave the criteria unknown
+somewhere in U_ad), 3 with --fail-on-limit a verdict FAIL (a worst value breaks its limit, or a
+data set has no equilibrium; `wcs/verdict.py`); bad input raises StudyError, which
 `wcs.cli.main` turns into exit 2.
 """
 from __future__ import annotations
@@ -25,6 +27,8 @@ from .runner import Runner
 from .status import Status, describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
 from .study import load_study
+from .verdict import attributes as verdict_attributes
+from .verdict import verdict
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
@@ -36,6 +40,9 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(summary_table(ds))
         if "mesh_check_value" in ds:
             print(meshcheck.summary(ds))
+    v = verdict(ds)
+    if not getattr(args, "quiet", False):
+        print(f"verdict: {v.text}")
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
         why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))
@@ -43,10 +50,18 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(f"error: no evaluation solved ({why or 'none run'}{first}); {out} records their statuses",
               file=sys.stderr)
         return 1
+    if not getattr(args, "fail_on_limit", False):
+        return 0
     broken = limits_broken(ds)
-    if broken and getattr(args, "fail_on_limit", False):
+    if broken:
         print(f"limit broken: {', '.join(broken)}", file=sys.stderr)
+    if broken or v.word == "FAIL":
+        if v.word == "FAIL" and v.reasons[0].startswith("no equilibrium"):
+            print(f"fail: {v.reasons[0]}", file=sys.stderr)
         return 3
+    if v.word == "NOT ESTABLISHED":
+        print(f"verdict not established: {'; '.join(v.reasons)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -84,6 +99,7 @@ class CheckedRunner(Runner):
         for part in parts:
             ds = ds.assign_coords(part.coords).assign(part.data_vars)
             ds.attrs.update(part.attrs)
+        ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
         if self.output is not None and self.root:
             write_netcdf(ds, self.output)
         return ds

@@ -18,6 +18,7 @@ from ..criteria import KINDS
 from ..errors import StudyError
 from ..results import widest
 from ..status import Status
+from ..verdict import Verdict, verdict
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
 KIND_LABEL = {k: v.label for k, v in KINDS.items()}
@@ -125,6 +126,7 @@ class Results:
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
     after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
+    verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
 
     @property
     def n_eval(self) -> int:
@@ -368,7 +370,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where, levels=levels, after_search=after_search(ds))
+                   source=where, levels=levels, after_search=after_search(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
 
 
 def _levels(ds: xr.Dataset) -> Levels | None:

@@ -14,6 +14,7 @@ import numpy as np
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
 from . import plots, plots3d
+from ..verdict import CLOSE
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
@@ -179,26 +180,10 @@ class Report:
     # ------------------------------------------------------------ sections
     def summary(self) -> str:
         r, a = self.res, self.res.attrs
-        v = self.mesh_verdicts()
         n_fail = int(r.failed.sum())
-        if "fail" in v:
-            broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
-            verdict, cls, why = "FAIL", "fail", f"broken limit: {', '.join(broken)}"
-        elif "marginal" in v:
-            marginal = [c.name for c, s in zip(r.criteria, v) if s == "marginal"]
-            verdict, cls, why = "MARGINAL", "none", (f"the limit of {', '.join(marginal)} lies within the worst "
-                                                     "value ± its estimated mesh error (see “The mesh's share”)")
-        elif r.incomplete:
-            verdict, cls, why = "INCOMPLETE RUN", "none", (f"no limit is broken among the {r.n_eval} evaluations "
-                                                            "in the file, but the run did not finish")
-        elif "pass" in v and "unknown" not in v:
-            verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit" + (
-                " and every minimum found above its lower limit" if any(
-                    math.isfinite(c.limit_lower) for c in r.criteria) else "")
-        elif "unknown" in v:
-            verdict, cls, why = "INCOMPLETE", "none", "no worst value for a criterion with a limit (every evaluation failed)"
-        else:
-            verdict, cls, why = "NO LIMITS", "none", "the study sets no limits; worst values are reported only"
+        v = r.verdict
+        verdict, why = v.label, "; ".join(v.reasons)
+        cls = {"FAIL": "fail", "PASS": "none" if v.unchecked else "pass"}.get(v.word, "none")
         what = {"run": "worst-scenario search", "sweep": "grid sweep", "solve": "single forward solve (nominal data)"}[r.kind]
         rows = [("study", esc(r.study)), ("results file", esc(self.source) or "—"),
                 ("created", esc(a.get("created", "—"))), ("kind", what),
@@ -209,8 +194,12 @@ class Report:
         if r.incomplete:
             body += (f'<p class="warn" id="incomplete"><b>This run is incomplete.</b> {esc(r.incomplete)}. '
                      'The worst values below are the best of the evaluations in this file only.</p>')
-        body += (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
-                 f'<p>{esc(why)}.</p>')
+        body += (f'<div class="verdict {cls}" id="verdict">{esc(verdict)}</div>'
+                 f'<p id="verdict-reasons">{esc(why)}.</p>')
+        if v.unchecked:
+            body += (f'<p class="warn" id="mesh-share-unknown"><b>The mesh\'s share is not estimated</b> for '
+                     f'{esc(", ".join(dict.fromkeys(v.unchecked)))}, whose margin is within '
+                     f'{CLOSE:.0%} of its limit: this verdict may change on a finer mesh (see “The mesh\'s share”).</p>')
         if r.warnings:
             body += ('<div class="warn" id="study-warnings"><b>Warnings of the study</b> (as `wcs check` '
                      'gives them):<ul>' + "".join(f"<li>{esc(w)}</li>" for w in r.warnings) + "</ul></div>")
