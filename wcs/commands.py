@@ -28,6 +28,7 @@ from .status import Status, describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
 from .study import load_study
 from .verdict import attributes as verdict_attributes
+from .validity import warnings as validity_warnings
 from .verdict import verdict
 
 
@@ -43,6 +44,8 @@ def _finish_command(args, study, ds, out: Path) -> int:
     v = verdict(ds)
     if not getattr(args, "quiet", False):
         print(f"verdict: {v.text}")
+    for w in validity_warnings(ds):
+        print(f"warning: {w}", file=sys.stderr)
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
         why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))
@@ -211,6 +214,8 @@ def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
     except WriteError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
+    for w in validity_warnings(res.fields):
+        print(f"warning: {w}", file=sys.stderr)
     if not getattr(args, "quiet", False):
         print("\n".join(header))
         for name, v in res.phi.items():

@@ -14,6 +14,10 @@ In order:
 - INCOMPLETE RUN: the run stopped before its end (`complete: no`).
 - PASS: every limit holds; NO LIMITS: the study sets none (failures are then named all the same).
 
+A solution outside the model's validity (strains, rotations or displacements too large for
+small-strain theory, wcs/validity.py) is named among the reasons, and a PASS on it is NOT
+ESTABLISHED: the numbers it rests on are not the physics'.
+
 Every failure is named with where in U_ad it lies (`region`). A verdict whose margin is within
 CLOSE of its limit while the mesh's share of the value was not estimated says so
 (`unchecked`): a finer mesh may turn it.
@@ -27,6 +31,7 @@ import numpy as np
 
 from .results import widest
 from .status import Status, describe
+from .validity import warnings as validity_warnings
 
 CLOSE = 0.05          # a margin within 5 % of its limit: the order of a P1 mesh's share of a stress or pressure
 SEPARATES = 0.25      # a parameter whose failed and solved data sets' mean positions in its interval differ by
@@ -166,30 +171,30 @@ def verdict(ds) -> Verdict:
                 held.append(said)
             if mesh not in ("PASS", "FAIL", "MARGINAL") and abs(margin) <= CLOSE * abs(limit):
                 unchecked.append(c)
-    fails = failures(ds)
-    sliding = fails and fails[0].startswith("no equilibrium")
-    other_failed = bool((~ok).any())
+    fails, invalid = failures(ds), validity_warnings(ds)
+    sliding = bool(fails) and fails[0].startswith("no equilibrium")
+    other_failed = bool((status != 0).any())
     limits = bool(broken or marginal or unknown or held)
     mesh_said = str(ds.attrs.get("mesh_check", "")) or "no mesh check in the file"
     tail = ([f"the margin of {', '.join(dict.fromkeys(unchecked))} is within {CLOSE:.0%} of its limit and the "
              f"mesh's share of it is not estimated (mesh check: {mesh_said}): a finer mesh may turn the verdict"]
             if unchecked else [])
     if sliding or broken:
-        reasons = ([fails[0]] if sliding else []) + ([f"limit broken: {'; '.join(broken)}"] if broken else [])
-        rest = fails[1:] if sliding else fails
-        return Verdict("FAIL", tuple(reasons + rest + tail), tuple(unchecked))
+        broke = [f"limit broken: {'; '.join(broken)}"] if broken else []
+        return Verdict("FAIL", tuple(fails[:sliding] + broke + fails[sliding:] + invalid + tail), tuple(unchecked))
     if marginal:
         return Verdict("MARGINAL", tuple([f"the limit lies within the extreme ± its estimated mesh error: "
-                                          f"{'; '.join(marginal)}"] + fails), tuple(unchecked))
-    if unknown or (limits and other_failed):
-        why = ([f"no value for {', '.join(dict.fromkeys(unknown))} (every evaluation failed)"] if unknown else [])
-        return Verdict("NOT ESTABLISHED", tuple(why + fails + tail), tuple(unchecked))
+                                          f"{'; '.join(marginal)}"] + fails + invalid), tuple(unchecked))
+    if unknown or (limits and (other_failed or invalid)):
+        why = [f"no value for {', '.join(dict.fromkeys(unknown))} (every evaluation failed)"] if unknown else []
+        return Verdict("NOT ESTABLISHED", tuple(why + fails + invalid + tail), tuple(unchecked))
     if str(ds.attrs.get("complete", "yes")) == "no":
         return Verdict("INCOMPLETE RUN", (f"no limit is broken among the {status.size} evaluations in the file, "
                                           "but the run did not finish",), tuple(unchecked))
     if limits:
         return Verdict("PASS", tuple([f"every limit holds: {'; '.join(held)}"] + tail), tuple(unchecked))
-    return Verdict("NO LIMITS", tuple(["the study sets no limits; worst values are reported only"] + fails), ())
+    return Verdict("NO LIMITS", tuple(["the study sets no limits; worst values are reported only"] + fails + invalid),
+                   ())
 
 
 def attributes(ds) -> dict:

@@ -18,6 +18,7 @@ from ..criteria import KINDS
 from ..errors import StudyError
 from ..results import widest
 from ..status import Status
+from ..validity import warnings as validity_warnings
 from ..verdict import Verdict, verdict
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
@@ -127,6 +128,8 @@ class Results:
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
     after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
     verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
+    small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields (worst cases)
+    validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.validity`)
 
     @property
     def n_eval(self) -> int:
@@ -370,7 +373,19 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where, levels=levels, after_search=after_search(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
+                   source=where, levels=levels, after_search=after_search(ds), small_strain=_small_strain(ds),
+                   validity=validity_warnings(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
+
+
+def _small_strain(ds: xr.Dataset) -> tuple[float, float] | None:
+    """The largest displacement-to-size ratio and displacement gradient of the file's solved
+    fields (a solve's, or every criterion's worst case); None when the file has none."""
+    for prefix in ("", "worst_"):
+        if f"{prefix}small_strain_gradient" in ds:
+            r, g = (ds[f"{prefix}small_strain_{m}"].values.astype(float) for m in ("displacement", "gradient"))
+            if np.isfinite(g).any():
+                return float(np.nanmax(r)), float(np.nanmax(g))
+    return None
 
 
 def _levels(ds: xr.Dataset) -> Levels | None:

@@ -14,6 +14,7 @@ import numpy as np
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
 from . import plots, plots3d
+from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
 from .data import KIND_LABEL, Results
 
@@ -190,6 +191,12 @@ class Report:
                 ("evaluations", f"{r.n_eval} ({n_fail} failed)"),
                 ("parameters", f"{len(r.params)} uncertain numbers"),
                 ("criteria", ", ".join(esc(c.name) for c in r.criteria))]
+        if r.small_strain is not None:
+            ratio, grad = r.small_strain
+            rows.append(("small strains", f"max |∇u| {grad:.3g} (small-strain theory: ≤ {MAX_GRADIENT:g}), max |u| / "
+                         f"body size {ratio:.3g} (≤ {MAX_DISPLACEMENT:g}), "
+                         f"{'at the solved case' if r.kind == 'solve' else 'over the worst cases'}"
+                         f"{'' if r.validity else ': within'}"))
         body = ""
         if r.incomplete:
             body += (f'<p class="warn" id="incomplete"><b>This run is incomplete.</b> {esc(r.incomplete)}. '
@@ -200,6 +207,10 @@ class Report:
             body += (f'<p class="warn" id="mesh-share-unknown"><b>The mesh\'s share is not estimated</b> for '
                      f'{esc(", ".join(dict.fromkeys(v.unchecked)))}, whose margin is within '
                      f'{CLOSE:.0%} of its limit: this verdict may change on a finer mesh (see “The mesh\'s share”).</p>')
+        if r.validity:
+            body += ('<div class="warn" id="small-strain"><b>Outside the model\'s validity</b> (small strains '
+                     'and small slips, see “small strains” below):<ul>'
+                     + "".join(f"<li>{esc(w)}</li>" for w in r.validity) + "</ul></div>")
         if r.warnings:
             body += ('<div class="warn" id="study-warnings"><b>Warnings of the study</b> (as `wcs check` '
                      'gives them):<ul>' + "".join(f"<li>{esc(w)}</li>" for w in r.warnings) + "</ul></div>")
@@ -498,8 +509,9 @@ class Report:
                 'observed order is log₂ r and Richardson\'s extrapolation f(h/4) + (f(h/4) − f(h/2))/(r − 1); '
                 'the estimated error is the extrapolated value minus the value on the study\'s mesh. The verdict '
                 'is MARGINAL when the limit lies within the extreme ± the estimated error (without an '
-                'observed order: ± the spread of the three values, of the two when the mesh was split once only '
-                'to stay within mesh.max_cells, as the note says).</p>')
+                'observed order: ± the spread of the three values; when the mesh was split once only, the error '
+                'of the two values with the linear elements\' theoretical order 1, 2 (f(h/2) − f(h)), as the note '
+                'says); NOT CHECKED where a limit is set but no estimate was made.</p>')
 
     def drivers(self) -> str:
         a = self.res.after_search

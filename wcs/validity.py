@@ -1,0 +1,86 @@
+"""Whether a solution stays where the model holds: small strains, small rotations, small slips.
+
+The model is linear elasticity with contact conditions between points paired in the undeformed
+configuration (thesis §1; seed [101] eq. (2.1)-(2.3)): the strain is ε = ½(∇u + ∇uᵀ), and the
+Green–Lagrange strain it stands for is E = ε + ½∇uᵀ∇u. The neglected term is at most |∇u|/2
+of |∇u| itself, so `MAX_GRADIENT` = 1e-2 keeps it below about 1 % of the strain (it also
+bounds the rotations, which ε does not see). The contact pairs and normals are those of the
+undeformed bodies: a body displaced by a noticeable share of its own size (`MAX_DISPLACEMENT`
+= 5 %) has moved to other contact points and normals than the model pairs — a slide of 6.4 m
+of a 10 cm block (E given in GPa instead of Pa) is a number without meaning.
+
+The two measures of a displacement field, from the P1 fields of the results file:
+- `displacement`: max over bodies of max |u| on the body / the diagonal of its bounding box;
+- `gradient`: max over cells of the spectral norm |∇u| (u is linear on each cell).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+MAX_GRADIENT = 1e-2          # |∇u|: ½∇uᵀ∇u, left out of the strain, stays below ~1 % of it
+MAX_DISPLACEMENT = 0.05      # max |u| / body size: the contact pairs of the undeformed bodies still face
+
+
+def gradients(coords: np.ndarray, cells: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """∇u of each P1 cell (cell, d, d), [i, j] = ∂u_i/∂x_j: the edges from the cell's first
+    vertex, E (d × d), and the displacement differences along them, D = E ∇uᵀ."""
+    edges = coords[cells[:, 1:]] - coords[cells[:, :1]]          # (cell, d, d): rows are edges
+    du = u[cells[:, 1:]] - u[cells[:, :1]]
+    return np.swapaxes(np.linalg.solve(edges, du), 1, 2)
+
+
+def measures(coords, cells, cell_body, u) -> tuple[float, float]:
+    """(max |u| / body size over the bodies, max |∇u| over the cells) of a displacement field."""
+    coords, cells, u = np.asarray(coords, float), np.asarray(cells, np.int64), np.asarray(u, float)
+    body = np.zeros(len(cells), int) if cell_body is None else np.asarray(cell_body, int)
+    ratio = 0.0
+    for b in np.unique(body):
+        nodes = np.unique(cells[body == b])
+        size = float(np.linalg.norm(coords[nodes].max(axis=0) - coords[nodes].min(axis=0)))
+        ratio = max(ratio, float(np.linalg.norm(u[nodes], axis=1).max()) / size)
+    grad = float(np.linalg.norm(gradients(coords, cells, u), ord=2, axis=(1, 2)).max()) if len(cells) else 0.0
+    return ratio, grad
+
+
+def warning(ratio: float, grad: float, where: str) -> str:
+    """One sentence when the measures leave the model's validity ("" when within, or unknown)."""
+    out = []
+    if grad > MAX_GRADIENT:
+        out.append(f"displacement gradients up to {grad:.3g} (strains or rotations beyond the {MAX_GRADIENT:g} of "
+                   f"small-strain theory)")
+    if ratio > MAX_DISPLACEMENT:
+        out.append(f"displacements up to {ratio:.3g} times a body's size (beyond {MAX_DISPLACEMENT:g}: the contact "
+                   f"pairs of the undeformed bodies no longer face)")
+    return (f"{where}: " + " and ".join(out) + "; the linear model does not hold there (check the data's units)"
+            if out else "")
+
+
+def variables(coords, cells, cell_body, u) -> dict:
+    """The two measures as scalar field variables (`small_strain_displacement`, `small_strain_gradient`)."""
+    ratio, grad = measures(coords, cells, cell_body, u)
+    return {"small_strain_displacement": ((), ratio, {
+                "long_name": "max |u| / body size (bounding-box diagonal) over the bodies",
+                "valid_max": MAX_DISPLACEMENT, "comment": "beyond valid_max the small-slip contact pairing fails"}),
+            "small_strain_gradient": ((), grad, {
+                "long_name": "max over cells of the spectral norm of the displacement gradient",
+                "valid_max": MAX_GRADIENT, "comment": "beyond valid_max small-strain theory fails"})}
+
+
+def warnings(ds) -> list[str]:
+    """The validity warnings of a results file: its solve's fields (`small_strain_*`), or the
+    worst case of each criterion (`worst_small_strain_*`, criterion)."""
+    out = []
+    if "small_strain_gradient" in ds:
+        w = warning(float(ds["small_strain_displacement"]), float(ds["small_strain_gradient"]), "the solved case")
+        out += [w] if w else []
+    if "worst_small_strain_gradient" in ds:
+        done = set()
+        for c in ds["criterion"].values:
+            r = float(ds["worst_small_strain_displacement"].sel(criterion=c))
+            g = float(ds["worst_small_strain_gradient"].sel(criterion=c))
+            if (r, g) in done:
+                continue
+            done.add((r, g))
+            w = warning(r, g, f"the worst case of {c}")
+            out += [w] if w else []
+    return out
