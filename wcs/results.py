@@ -75,8 +75,17 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
     ds["status"] = xr.Variable((), np.int32(ev.status), flag_attrs())
     ds["iterations"] = xr.Variable((), np.int32(ev.iterations))
     ds["wall_time"] = xr.Variable((), float(ev.wall_time), {"units": "s"})
+    units = ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)
+    ds["limit"] = xr.Variable(("criterion",), np.array([float(study.limits.get(n, np.nan)) for n in names]),
+                              {"long_name": "limit of each criterion (NaN where none)", "units": units})
+    if study.lower_limits:
+        ds["limit_lower"] = xr.Variable(("criterion",), np.array([float(study.lower_limits.get(n, np.nan))
+                                                                  for n in names]),
+                                        {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
     ds.attrs.update(provenance(study, evaluator))
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
+    from .verdict import attributes      # here: wcs.verdict reads results files with this module's `widest`
+    ds.attrs.update(attributes(ds))
     return ds
 
 

@@ -2,12 +2,15 @@
 
 The model is linear elasticity with contact conditions between points paired in the undeformed
 configuration (thesis §1; seed [101] eq. (2.1)-(2.3)): the strain is ε = ½(∇u + ∇uᵀ), and the
-Green–Lagrange strain it stands for is E = ε + ½∇uᵀ∇u. The neglected term is at most |∇u|/2
-of |∇u| itself, so `MAX_GRADIENT` = 1e-2 keeps it below about 1 % of the strain (it also
-bounds the rotations, which ε does not see). The contact pairs and normals are those of the
-undeformed bodies: a body displaced by a noticeable share of its own size (`MAX_DISPLACEMENT`
-= 5 %) has moved to other contact points and normals than the model pairs — a slide of 6.4 m
-of a 10 cm block (E given in GPa instead of Pa) is a number without meaning.
+Green–Lagrange strain it stands for is E = ε + ½∇uᵀ∇u. The neglected term is |∇u|/2 of |∇u|
+itself at most: `MAX_GRADIENT` = 0.1 keeps it within 5 % of the strain, the order of the mesh's
+own share (wcs/meshcheck.py), and it bounds the rotations too, which ε does not see. It lets
+the peaks of a few percent at contact edges pass (the cylinder of validation/hertz.yaml 0.023,
+the knee's insert 0.054 at the nominal data), not a rubber pad strained by 20 %
+(two-blocks-demo, 0.21) nor a modulus given in GPa where Pa is meant (10⁹ times the strain).
+The contact pairs and normals are those of the undeformed bodies: a body displaced by more than
+`MAX_DISPLACEMENT` = 5 % of its own size has moved onto other contact points and normals than
+the model pairs — a slide of 6.4 m of a 10 cm block is a number without meaning.
 
 The two measures of a displacement field, from the P1 fields of the results file:
 - `displacement`: max over bodies of max |u| on the body / the diagonal of its bounding box;
@@ -17,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-MAX_GRADIENT = 1e-2          # |∇u|: ½∇uᵀ∇u, left out of the strain, stays below ~1 % of it
+MAX_GRADIENT = 0.1           # |∇u|: ½∇uᵀ∇u, left out of the strain, stays within 5 % of it
 MAX_DISPLACEMENT = 0.05      # max |u| / body size: the contact pairs of the undeformed bodies still face
 
 
@@ -51,7 +54,7 @@ def warning(ratio: float, grad: float, where: str) -> str:
     if ratio > MAX_DISPLACEMENT:
         out.append(f"displacements up to {ratio:.3g} times a body's size (beyond {MAX_DISPLACEMENT:g}: the contact "
                    f"pairs of the undeformed bodies no longer face)")
-    return (f"{where}: " + " and ".join(out) + "; the linear model does not hold there (check the data's units)"
+    return (f"{where}: " + " and ".join(out) + "; the linear model does not hold there (a large deformation, or data in other units than SI)"
             if out else "")
 
 

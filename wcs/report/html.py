@@ -476,6 +476,8 @@ class Report:
             return (f'<p class="note" id="no-mesh-check">No mesh check in this file'
                     f'{": " + esc(said) if said else " (written without one)"}.</p>')
         units = {c.name: c.units for c in self.res.criteria}
+        limits = {(kind, c.name): math.isfinite(lim) for c in self.res.criteria     # a file of before NOT CHECKED
+                  for kind, lim in (("worst", c.limit), ("best", c.limit_lower))}
         nodes, seconds = a["mesh_check_nodes"].values, a["mesh_check_time"].values
         split, curve = (("every tetrahedron into eight", "curve or surface") if self.res.mesh is not None
                         and self.res.mesh.dim == 3 else ("every triangle into four", "curve"))
@@ -495,7 +497,7 @@ class Report:
                 + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
                 f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
-                f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
+                f'<td class="{cls} verdict-cell">{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
                 f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
                  for k, h in ((1, "h/2"), (2, "h/4"))]
