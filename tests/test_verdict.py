@@ -200,4 +200,6 @@ def test_a_run_with_moduli_in_gpa_records_the_worst_cases_measures(tmp_path, cap
     assert "verdict not established" in err
     ds = xr.open_dataset(nc, engine="h5netcdf")
     assert (ds["worst_small_strain_gradient"].values > validity.MAX_GRADIENT).all()
+    assert float(ds["nominal_small_strain_displacement"]) > validity.MAX_DISPLACEMENT     # the nominal case too
+    assert "the nominal case: displacement gradients up to" in ds.attrs["small_strain"]
     assert ds.attrs["verdict"] == "NOT ESTABLISHED" and "small-strain theory" in ds.attrs["small_strain"]

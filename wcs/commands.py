@@ -83,8 +83,9 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
 
 
 class CheckedRunner(Runner):
-    """A run whose results file also says what drives each extreme (`wcs/drivers.py`) and, unless
-    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): both are added after
+    """A run whose results file also says how far its nominal case leaves small-strain theory
+    (`wcs/validity.py`), what drives each extreme (`wcs/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): all are added after
     the search, under the run's lock, and the file is written again."""
 
     def __init__(self, *args, mesh_check: bool = True, **kw):
@@ -96,16 +97,26 @@ class CheckedRunner(Runner):
         if self.kind != "run" or not self.root:
             return ds
         found = support_extremes(ds)
-        parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers"))]
+        parts = [drivers(ds, found, lambda x: self.evaluate(x, True, "drivers")), self.nominal()]
         parts.append(meshcheck.mesh_check(self.study, ds, found)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
         for part in parts:
             ds = ds.assign_coords(part.coords).assign(part.data_vars)
             ds.attrs.update(part.attrs)
+        ds.attrs["small_strain"] = "\n".join(validity_warnings(ds))    # with the nominal case
         ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
         if self.output is not None and self.root:
             write_netcdf(ds, self.output)
         return ds
+
+    def nominal(self) -> xr.Dataset:
+        """`nominal_small_strain_*` (wcs/validity.py) of the nominal data set, solved once more
+        (NaN where it fails: its status is the search's business)."""
+        ev = self.evaluate(self.study.nominal(), False, "nominal")
+        ok = ev.status == 0
+        return xr.Dataset({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
+                                               dict(ev.fields[name].attrs) if ok else {})
+                           for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def _command(args, kind: str) -> int:

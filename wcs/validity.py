@@ -70,12 +70,15 @@ def variables(coords, cells, cell_body, u) -> dict:
 
 
 def warnings(ds) -> list[str]:
-    """The validity warnings of a results file: its solve's fields (`small_strain_*`), or the
-    worst case of each criterion (`worst_small_strain_*`, criterion)."""
+    """The validity warnings of a results file: its solve's fields (`small_strain_*`), or a run's
+    nominal case (`nominal_small_strain_*`) and the worst case of each criterion
+    (`worst_small_strain_*`, criterion)."""
     out = []
-    if "small_strain_gradient" in ds:
-        w = warning(float(ds["small_strain_displacement"]), float(ds["small_strain_gradient"]), "the solved case")
-        out += [w] if w else []
+    for prefix, where in (("", "the solved case"), ("nominal_", "the nominal case")):
+        if f"{prefix}small_strain_gradient" in ds:
+            w = warning(float(ds[f"{prefix}small_strain_displacement"]), float(ds[f"{prefix}small_strain_gradient"]),
+                        where)
+            out += [w] if w else []
     if "worst_small_strain_gradient" in ds:
         done = set()
         for c in ds["criterion"].values:

@@ -379,13 +379,12 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
 
 def _small_strain(ds: xr.Dataset) -> tuple[float, float] | None:
     """The largest displacement-to-size ratio and displacement gradient of the file's solved
-    fields (a solve's, or every criterion's worst case); None when the file has none."""
-    for prefix in ("", "worst_"):
-        if f"{prefix}small_strain_gradient" in ds:
-            r, g = (ds[f"{prefix}small_strain_{m}"].values.astype(float) for m in ("displacement", "gradient"))
-            if np.isfinite(g).any():
-                return float(np.nanmax(r)), float(np.nanmax(g))
-    return None
+    fields (a solve's, or a run's nominal case and every criterion's worst case); None when the file has none."""
+    r, g = ([np.ravel(ds[f"{prefix}small_strain_{m}"].values).astype(float) for prefix in ("", "nominal_", "worst_")
+             if f"{prefix}small_strain_{m}" in ds] for m in ("displacement", "gradient"))
+    if not g or not np.isfinite(np.concatenate(g)).any():
+        return None
+    return float(np.nanmax(np.concatenate(r))), float(np.nanmax(np.concatenate(g)))
 
 
 def _levels(ds: xr.Dataset) -> Levels | None:

@@ -195,7 +195,7 @@ class Report:
             ratio, grad = r.small_strain
             rows.append(("small strains", f"max |∇u| {grad:.3g} (small-strain theory: ≤ {MAX_GRADIENT:g}), max |u| / "
                          f"body size {ratio:.3g} (≤ {MAX_DISPLACEMENT:g}), "
-                         f"{'at the solved case' if r.kind == 'solve' else 'over the worst cases'}"
+                         f"{'at the solved case' if r.kind == 'solve' else 'over the nominal and the worst cases'}"
                          f"{'' if r.validity else ': within'}"))
         body = ""
         if r.incomplete:
