@@ -128,6 +128,7 @@ def test_a_verdict_inside_the_unknown_mesh_share_says_so(mesh_verdict):
     assert f"mesh's share of it is not estimated (mesh check: {attr})" in v.reasons[-1]
     html = render_report(ds, strict=True)
     assert 'id="verdict">FAIL (mesh share unknown)<' in html and 'id="mesh-share-unknown"' in html
+    assert '<td class="fail verdict-cell">FAIL (mesh share unknown)</td>' in html       # the limits table
     table = html[html.index('id="mesh-check-table"'):]
     table = table[:table.index("</table>")]
     assert ">NOT CHECKED<" in table and "no limit" not in table       # the limit is 1e7, not none

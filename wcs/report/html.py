@@ -234,6 +234,8 @@ class Report:
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
             label = {"pass": "PASS", "fail": "FAIL", "marginal": "MARGINAL", "none": "no limit", "unknown": "unknown"}[v]
             cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
+            if v in ("pass", "fail") and c.name in r.verdict.unchecked:    # within CLOSE, the mesh's share unknown
+                label, cls = label + " (mesh share unknown)", "fail" if v == "fail" else "none"
             low = ""
             if ends:
                 low = (f'<td class="num">{number(c.limit_lower, c.units) if math.isfinite(c.limit_lower) else "—"}</td>'
