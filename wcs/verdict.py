@@ -92,7 +92,10 @@ def region(x: np.ndarray, bad: np.ndarray, lower: np.ndarray, upper: np.ndarray,
 
 
 def _status(ds) -> np.ndarray:
-    return np.atleast_1d(ds["status"].values).astype(int) if "status" in ds else np.zeros(0, int)
+    """The status of each evaluation (a file without one: every evaluation of `phi` solved)."""
+    if "status" in ds:
+        return np.atleast_1d(ds["status"].values).astype(int)
+    return np.zeros(ds.sizes.get("eval", 1) if "phi" in ds else 0, int)
 
 
 def _x(ds, n: int, p: int) -> np.ndarray:
