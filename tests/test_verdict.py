@@ -152,6 +152,9 @@ def test_the_mesh_check_splits_once_beyond_max_cells_when_a_margin_is_close():
     assert once == (1,) and f"made all the same (up to {STRETCH:g} × it) because a margin is within " \
                             f"{CLOSE:.0%} of its limit" in why
     assert planned(study, cells * 2, 10, memory=16e9, close=True)[0] == ()   # 8 x: beyond the stretch too
+    knee = load_study(ROOT / "studies" / "knee-replacement-3d.yaml")     # 134435 tetrahedra, 642 contact nodes
+    assert planned(knee, 134435, 642, memory=25e9)[0] == ()                # split once: 1.08e6 > 1e6 cells
+    assert planned(knee, 134435, 642, memory=25e9, close=True)[0] == (1,)   # its FAIL by 0.2 %: split once
 
 
 def test_displacement_gradients_and_ratios_of_known_fields():

@@ -84,8 +84,6 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
                                         {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
     ds.attrs.update(provenance(study, evaluator))
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
-    from .verdict import attributes      # here: wcs.verdict reads results files with this module's `widest`
-    ds.attrs.update(attributes(ds))
     return ds
 
 

@@ -13,9 +13,9 @@ import numpy as np
 
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
-from . import plots, plots3d
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
+from . import plots, plots3d
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
