@@ -231,6 +231,31 @@ def test_the_mesh_is_split_once_only_when_twice_would_pass_max_cells(tmp_path, d
     assert ("every tetrahedron into eight" if dimension == 3 else "every triangle into four") in section
 
 
+def test_a_margin_within_five_percent_splits_once_beyond_max_cells(tmp_path):
+    """mesh.max_cells below the cells split once: the check is not run (NOT CHECKED, not "no
+    limit") unless an extreme lies within 5 % of its limit — the slab's worst 1066.9 against 1076
+    (0.9 %): then the mesh is split once all the same (4 x the cells, within 2 x max_cells), the
+    error 2 (f(h/2) - f(h)) with P1's order 1, MARGINAL, and the note says why."""
+    doc = yaml.safe_load(SLAB.read_text())
+    doc["search"]["budget"] = 6
+    cells = build_mesh(load_study(_write(tmp_path, doc, "plain")).scene).mesh.t.shape[1]
+    doc["scene"]["mesh"]["max_cells"] = 3 * cells
+    pick = {"extreme": "worst", "criterion": "warmth"}
+    doc["limits"] = {"warmth": 1500.0}                  # 40 % above the worst: no split
+    far = _run(_write(tmp_path, doc, "far"))
+    assert far.attrs["mesh_check"].startswith("not run: the mesh split once would have")
+    assert str(far["mesh_check_verdict"].sel(pick).values) == "NOT CHECKED"
+    doc["limits"] = {"warmth": 1076.0}
+    ds = _run(_write(tmp_path, doc, "close"))
+    f = ds["mesh_check_value"].sel(pick).values
+    assert np.isfinite(f[:2]).all() and np.isnan(f[2]) and ds["mesh_check_nodes"].values[1] > 0
+    assert float(ds["mesh_check_error"].sel(pick)) == pytest.approx(2 * (f[1] - f[0]), rel=1e-12)
+    assert str(ds["mesh_check_verdict"].sel(pick).values) == "MARGINAL"
+    assert f"the mesh split once has {4 * cells:.3g} cells, beyond mesh.max_cells = {3 * cells:g}: made all the " \
+           "same (up to 2 × it) because a margin is within 5% of its limit" in ds.attrs["mesh_check"]
+    assert ds.attrs["verdict"] == "MARGINAL"
+
+
 def _needed(d: int, k: int) -> float:
     """GB of the dense contact condensation on k contact rows: DENSE_BLOCKS[d] blocks of k × k
     float64 (measured on the 2D and the 3D tunnel, `wcs/meshcheck.py`)."""
