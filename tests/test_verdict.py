@@ -61,6 +61,7 @@ def test_a_pad_that_slides_off_in_part_of_the_box_fails_and_names_where(tmp_path
     assert f"verdict: FAIL: {first}" in out.out and f"fail: {first}" in out.err
     html = render_report(ds, strict=True)
     assert 'id="verdict">FAIL<' in html and first in html
+    assert f'<p class="failed-where">No equilibrium at {slides.sum()} of {len(x)} data sets' in html   # Failures
 
 
 def test_failed_evaluations_leave_the_verdict_not_established(capsys):

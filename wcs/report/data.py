@@ -19,7 +19,7 @@ from ..errors import StudyError
 from ..results import widest
 from ..status import Status
 from ..validity import warnings as validity_warnings
-from ..verdict import Verdict, verdict
+from ..verdict import Verdict, failures, verdict
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
 KIND_LABEL = {k: v.label for k, v in KINDS.items()}
@@ -130,6 +130,7 @@ class Results:
     verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
     small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields (worst cases)
     validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.validity`)
+    failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.verdict`)
 
     @property
     def n_eval(self) -> int:
@@ -374,7 +375,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
                    source=where, levels=levels, after_search=after_search(ds), small_strain=_small_strain(ds),
-                   validity=validity_warnings(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
+                   validity=validity_warnings(ds), failed_where=failures(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
 
 
 def _small_strain(ds: xr.Dataset) -> tuple[float, float] | None:

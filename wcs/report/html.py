@@ -427,7 +427,8 @@ class Report:
         n_fail = int(r.failed.sum())
         body = (f'<p>{n_fail} of {r.n_eval} evaluations failed'
                 f'{" (the evaluations in this file of an incomplete run)" if r.incomplete else ""}.</p>'
-                '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
+                + "".join(f'<p class="failed-where">{esc(w[0].upper() + w[1:])}.</p>' for w in r.failed_where)
+                + '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
         if n_fail:
             body += ('<p>Where in the box they happened (each evaluation a line over the parameters scaled to '
                      'the box; grey: solved):</p>' + img(plots.failures_figure(r), "failures in the box"))
