@@ -44,9 +44,11 @@ class Progress:
 
     def start(self, total: int, criteria: list[str], label: str = "evals") -> None:
         self.total, self.criteria, self.label = total, criteria, label
+        self.failed = 0
         self.t0 = time.perf_counter()
 
     def update(self, done: int, record: dict, best: dict) -> None:
+        self.failed += record["status"] != 0
         if self.mode == "quiet":
             return
         if self.mode == "verbose":
@@ -68,6 +70,7 @@ class Progress:
         eta = elapsed / done * (self.total - done) if done else 0.0
         line = (f"{self.label} {done}/{self.total}  best: "
                 + " ".join(f"{c}={_g(best.get(c))}" for c in self.criteria)
+                + (f"  {self.failed} failed" if self.failed else "")
                 + (f"  [done in {_clock(elapsed)}]" if final else f"  [eta {_clock(eta)}]"))
         pad = max(0, self._width - len(line))
         self._width = len(line)
