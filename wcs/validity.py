@@ -26,10 +26,15 @@ MAX_DISPLACEMENT = 0.05      # max |u| / body size: the contact pairs of the und
 
 def gradients(coords: np.ndarray, cells: np.ndarray, u: np.ndarray) -> np.ndarray:
     """∇u of each P1 cell (cell, d, d), [i, j] = ∂u_i/∂x_j: the edges from the cell's first
-    vertex, E (d × d), and the displacement differences along them, D = E ∇uᵀ."""
+    vertex, E (d × d), and the displacement differences along them, D = E ∇uᵀ (NaN on a cell
+    of no volume)."""
     edges = coords[cells[:, 1:]] - coords[cells[:, :1]]          # (cell, d, d): rows are edges
     du = u[cells[:, 1:]] - u[cells[:, :1]]
-    return np.swapaxes(np.linalg.solve(edges, du), 1, 2)
+    flat = np.linalg.det(edges) == 0
+    edges[flat] = np.eye(coords.shape[1])
+    out = np.swapaxes(np.linalg.solve(edges, du), 1, 2)
+    out[flat] = np.nan
+    return out
 
 
 def measures(coords, cells, cell_body, u) -> tuple[float, float]:
@@ -38,10 +43,14 @@ def measures(coords, cells, cell_body, u) -> tuple[float, float]:
     body = np.zeros(len(cells), int) if cell_body is None else np.asarray(cell_body, int)
     ratio = 0.0
     for b in np.unique(body):
-        nodes = np.unique(cells[body == b])
+        nodes = np.zeros(len(coords), bool)
+        nodes[cells[body == b].ravel()] = True
         size = float(np.linalg.norm(coords[nodes].max(axis=0) - coords[nodes].min(axis=0)))
         ratio = max(ratio, float(np.linalg.norm(u[nodes], axis=1).max()) / size)
-    grad = float(np.linalg.norm(gradients(coords, cells, u), ord=2, axis=(1, 2)).max()) if len(cells) else 0.0
+    g = gradients(coords, cells, u)
+    g = g[np.isfinite(g).all(axis=(1, 2))]
+    # the spectral norm: the square root of the largest eigenvalue of ∇uᵀ∇u (symmetric: cheaper than an SVD)
+    grad = float(np.sqrt(max(np.linalg.eigvalsh(np.einsum("cji,cjk->cik", g, g))[:, -1].max(), 0.0))) if len(g) else 0.0
     return ratio, grad
 
 
