@@ -209,9 +209,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")
     p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
-    p.add_argument("--fail-on-limit", action="store_true", help="exit 3 when the verdict is FAIL (a worst value breaks its limit, or a data set "
-                                                            "has no equilibrium), 1 when failed evaluations leave it not "
-                                                            "established")
+    p.add_argument("--fail-on-limit", action="store_true",
+                   help="exit 3 when the verdict is FAIL (a worst value breaks its limit, or a data set has no "
+                        "equilibrium), 1 when failed evaluations leave it not established")
     p.add_argument("--no-mesh-check", action="store_true",
                    help="skip re-solving the extreme data sets on the mesh refined once and twice")
     p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")

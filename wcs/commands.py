@@ -27,8 +27,8 @@ from .runner import Runner
 from .status import Status, describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
 from .study import load_study
-from .verdict import attributes as verdict_attributes
 from .validity import warnings as validity_warnings
+from .verdict import attributes as verdict_attributes
 from .verdict import verdict
 
 
@@ -59,7 +59,7 @@ def _finish_command(args, study, ds, out: Path) -> int:
     if broken:
         print(f"limit broken: {', '.join(broken)}", file=sys.stderr)
     if broken or v.word == "FAIL":
-        if v.word == "FAIL" and v.reasons[0].startswith("no equilibrium"):
+        if (ds["status"].values == Status.UNSOLVABLE).any():      # the verdict's first reason: where
             print(f"fail: {v.reasons[0]}", file=sys.stderr)
         return 3
     if v.word == "NOT ESTABLISHED":

@@ -63,8 +63,8 @@ def warning(ratio: float, grad: float, where: str) -> str:
     if ratio > MAX_DISPLACEMENT:
         out.append(f"displacements up to {ratio:.3g} times a body's size (beyond {MAX_DISPLACEMENT:g}: the contact "
                    f"pairs of the undeformed bodies no longer face)")
-    return (f"{where}: " + " and ".join(out) + "; the linear model does not hold there (a large deformation, or data in other units than SI)"
-            if out else "")
+    return (f"{where}: " + " and ".join(out) + "; the linear model does not hold there (a large deformation, "
+            "or data in other units than SI)" if out else "")
 
 
 def variables(coords, cells, cell_body, u) -> dict:

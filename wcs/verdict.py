@@ -193,7 +193,8 @@ def verdict(ds) -> Verdict:
         return Verdict("NOT ESTABLISHED", tuple(why + fails + invalid + tail), tuple(unchecked))
     if str(ds.attrs.get("complete", "yes")) == "no":
         return Verdict("INCOMPLETE RUN", tuple([f"no limit is broken among the {status.size} evaluations in the "
-                                                "file, but the run did not finish"] + fails + invalid), tuple(unchecked))
+                                                "file, but the run did not finish"] + fails + invalid),
+                       tuple(unchecked))
     if limits:
         return Verdict("PASS", tuple([f"every limit holds: {'; '.join(held)}"] + tail), tuple(unchecked))
     return Verdict("NO LIMITS", tuple(["the study sets no limits; worst values are reported only"] + fails + invalid),

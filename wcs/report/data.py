@@ -128,7 +128,7 @@ class Results:
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
     after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
     verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
-    small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields (worst cases)
+    small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields
     validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.validity`)
     failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.verdict`)
 
@@ -375,7 +375,8 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
                    source=where, levels=levels, after_search=after_search(ds), small_strain=_small_strain(ds),
-                   validity=validity_warnings(ds), failed_where=failures(ds), verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
+                   validity=validity_warnings(ds), failed_where=failures(ds),
+                   verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
 
 
 def _small_strain(ds: xr.Dataset) -> tuple[float, float] | None:

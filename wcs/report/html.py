@@ -193,8 +193,8 @@ class Report:
                 ("criteria", ", ".join(esc(c.name) for c in r.criteria))]
         if r.small_strain is not None:
             ratio, grad = r.small_strain
-            rows.append(("small strains", f"max |∇u| {grad:.3g} (small-strain theory: ≤ {MAX_GRADIENT:g}), max |u| / "
-                         f"body size {ratio:.3g} (≤ {MAX_DISPLACEMENT:g}), "
+            rows.append(("small strains", f"max |∇u| {grad:.3g} (small-strain theory: ≤ {MAX_GRADIENT:g}), "
+                         f"max |u| / body size {ratio:.3g} (≤ {MAX_DISPLACEMENT:g}), "
                          f"{'at the solved case' if r.kind == 'solve' else 'over the nominal and the worst cases'}"
                          f"{'' if r.validity else ': within'}"))
         body = ""
@@ -206,7 +206,8 @@ class Report:
         if v.unchecked:
             body += (f'<p class="warn" id="mesh-share-unknown"><b>The mesh\'s share is not estimated</b> for '
                      f'{esc(", ".join(dict.fromkeys(v.unchecked)))}, whose margin is within '
-                     f'{CLOSE:.0%} of its limit: this verdict may change on a finer mesh (see “The mesh\'s share”).</p>')
+                     f'{CLOSE:.0%} of its limit: this verdict may change on a finer mesh '
+                     '(see “The mesh\'s share”).</p>')
         if r.validity:
             body += ('<div class="warn" id="small-strain"><b>Outside the model\'s validity</b> (small strains '
                      'and small slips, see “small strains” below):<ul>'
@@ -500,7 +501,8 @@ class Report:
                 + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
                 f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
-                f'<td class="{cls} verdict-cell">{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
+                f'<td class="{cls} verdict-cell">'
+                f'{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
                 f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
                  for k, h in ((1, "h/2"), (2, "h/4"))]
