@@ -349,9 +349,11 @@ def test_progress_modes(capsys):
     rec = {"phi": np.array([1.0, 2.0]), "status": 0, "message": "solved", "stage": "sample", "wall_time": 0.1}
     p.update(1, rec, {"a": 1.0, "b": 2.0})
     p.update(2, rec, {"a": 1.5, "b": 2.0})
+    p.update(3, {**rec, "status": 3, "phi": np.full(2, np.nan)}, {"a": 1.5, "b": 2.0})   # the line counts failures
     p.finish()
     text = s.getvalue()
     assert text.startswith("\revals 1/10  best: a=1 b=2  [eta") and "\revals 2/10" in text and "\n" not in text[:-1]
+    assert "\revals 3/10  best: a=1.5 b=2  1 failed  [" in text
     q = io.StringIO()
     p = Progress("quiet", stream=q)
     p.start(10, ["a"])

@@ -108,7 +108,7 @@ def test_study_runs_and_reports(path, run_study, tmp_path):
     page = check_page(html.read_text())
     for c in map(str, ds["criterion"].values):
         verdict = page.limit_row(c)["verdict"]["text"]
-        assert verdict in ("PASS", "FAIL", "no limit"), (c, verdict)
+        assert verdict.removesuffix(" (mesh share unknown)") in ("PASS", "FAIL", "no limit"), (c, verdict)
 
 
 @pytest.mark.slow

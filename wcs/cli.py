@@ -1,5 +1,6 @@
-"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure, 2 bad input, 3 limit broken,
-4 `compare`: the files differ.
+"""The `wcs` command: parse, call, print. Exit 0 done, 1 failure (with --fail-on-limit also a
+verdict NOT ESTABLISHED), 2 bad input, 3 verdict FAIL with --fail-on-limit (a limit broken, or a
+data set without equilibrium; `wcs/verdict.py`), 4 `compare`: the files differ.
 
 Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
 solve --worst, `wcs/report/` for report, `wcs/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
@@ -207,7 +208,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")
     p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
-    p.add_argument("--fail-on-limit", action="store_true", help="exit 3 when a worst value breaks its limit")
+    p.add_argument("--fail-on-limit", action="store_true",
+                   help="exit 3 when the verdict is FAIL (a worst value breaks its limit, or a data set has no "
+                        "equilibrium), 1 when failed evaluations leave it not established")
     p.add_argument("--no-mesh-check", action="store_true",
                    help="skip re-solving the extreme data sets on the mesh refined once and twice")
     p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")

@@ -1,7 +1,9 @@
 """The commands `wcs run`, `wcs sweep` and `wcs solve --worst`: a run's messages and exit status.
 
-Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable),
-3 a worst value breaks its limit (with --fail-on-limit); bad input raises StudyError, which
+Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable; with
+--fail-on-limit also a verdict NOT ESTABLISHED: failed evaluations leave the criteria unknown
+somewhere in U_ad), 3 with --fail-on-limit a verdict FAIL (a worst value breaks its limit, or a
+data set has no equilibrium; `wcs/verdict.py`); bad input raises StudyError, which
 `wcs.cli.main` turns into exit 2.
 """
 from __future__ import annotations
@@ -25,6 +27,9 @@ from .runner import Runner
 from .status import Status, describe
 from .store import WriteError, check_output, incomplete_run, store_path, stored_count
 from .study import load_study
+from .validity import warnings as validity_warnings
+from .verdict import attributes as verdict_attributes
+from .verdict import verdict
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
@@ -36,6 +41,11 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(summary_table(ds))
         if "mesh_check_value" in ds:
             print(meshcheck.summary(ds))
+    v = verdict(ds)
+    if not getattr(args, "quiet", False):
+        print(f"verdict: {v.text}")
+    for w in validity_warnings(ds):
+        print(f"warning: {w}", file=sys.stderr)
     if failed == n:
         codes, counts = np.unique(ds["status"].values, return_counts=True)
         why = ", ".join(f"{m} with status {c} ({describe(int(c))})" for c, m in zip(codes, counts))
@@ -43,10 +53,18 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(f"error: no evaluation solved ({why or 'none run'}{first}); {out} records their statuses",
               file=sys.stderr)
         return 1
+    if not getattr(args, "fail_on_limit", False):
+        return 0
     broken = limits_broken(ds)
-    if broken and getattr(args, "fail_on_limit", False):
+    if broken:
         print(f"limit broken: {', '.join(broken)}", file=sys.stderr)
+    if broken or v.word == "FAIL":
+        if (ds["status"].values == Status.UNSOLVABLE).any():      # the verdict's first reason: where
+            print(f"fail: {v.reasons[0]}", file=sys.stderr)
         return 3
+    if v.word == "NOT ESTABLISHED":
+        print(f"verdict not established: {'; '.join(v.reasons)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -65,8 +83,9 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
 
 
 class CheckedRunner(Runner):
-    """A run whose results file also says what drives each extreme (`wcs/drivers.py`) and, unless
-    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): both are added after
+    """A run whose results file also says how far its nominal case leaves small-strain theory
+    (`wcs/validity.py`), what drives each extreme (`wcs/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): all are added after
     the search, under the run's lock, and the file is written again."""
 
     def __init__(self, *args, mesh_check: bool = True, **kw):
@@ -78,15 +97,26 @@ class CheckedRunner(Runner):
         if self.kind != "run" or not self.root:
             return ds
         found = support_extremes(ds)
-        parts = [drivers(ds, found, lambda x, gradients=True: self.evaluate(x, gradients, "drivers"))]
+        parts = [drivers(ds, found, lambda x, gradients=True: self.evaluate(x, gradients, "drivers")), self.nominal()]
         parts.append(meshcheck.mesh_check(self.study, ds, found)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
         for part in parts:
             ds = ds.assign_coords(part.coords).assign(part.data_vars)
             ds.attrs.update(part.attrs)
+        ds.attrs["small_strain"] = "\n".join(validity_warnings(ds))    # with the nominal case
+        ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
         if self.output is not None and self.root:
             write_netcdf(ds, self.output)
         return ds
+
+    def nominal(self) -> xr.Dataset:
+        """`nominal_small_strain_*` (wcs/validity.py) of the nominal data set, solved once more
+        (NaN where it fails: its status is the search's business)."""
+        ev = self.evaluate(self.study.nominal(), False, "nominal")
+        ok = ev.status == 0
+        return xr.Dataset({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
+                                               dict(ev.fields[name].attrs) if ok else {})
+                           for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def _command(args, kind: str) -> int:
@@ -195,6 +225,8 @@ def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
     except WriteError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
+    for w in validity_warnings(res.fields):
+        print(f"warning: {w}", file=sys.stderr)
     if not getattr(args, "quiet", False):
         print("\n".join(header))
         for name, v in res.phi.items():

@@ -1,10 +1,12 @@
 """The solution fields of one evaluation as an xarray.Dataset (the fields a results file holds):
-triangles with stress (xx, yy, zz, xy) in 2D, tetrahedra with (xx, yy, zz, yz, xz, xy) in 3D."""
+triangles with stress (xx, yy, zz, xy) in 2D, tetrahedra with (xx, yy, zz, yz, xz, xy) in 3D;
+and how far they leave small-strain theory (`small_strain_*`, wcs/validity.py)."""
 from __future__ import annotations
 
 import numpy as np
 import xarray as xr
 
+from . import validity
 from .fem import stress, tet
 
 
@@ -29,6 +31,7 @@ def fields_dataset(model, state) -> xr.Dataset:
         "shear_stress_intensity": (("cell",), shear_intensity(s),
                                    {"units": "Pa^2", "long_name": "shear stress intensity I2^2"}),
     }
+    data.update(validity.variables(mesh.p.T, mesh.t.T, model.smesh.cell_body, state.u.reshape(-1, d)))
     if state.T is not None:
         data["temperature"] = (("node",), state.T, {"units": "K", "long_name": "temperature"})
     if state.contact is not None:

@@ -44,9 +44,11 @@ class Progress:
 
     def start(self, total: int, criteria: list[str], label: str = "evals") -> None:
         self.total, self.criteria, self.label = total, criteria, label
+        self.failed = 0
         self.t0 = time.perf_counter()
 
     def update(self, done: int, record: dict, best: dict) -> None:
+        self.failed += record["status"] != 0
         if self.mode == "quiet":
             return
         if self.mode == "verbose":
@@ -68,6 +70,7 @@ class Progress:
         eta = elapsed / done * (self.total - done) if done else 0.0
         line = (f"{self.label} {done}/{self.total}  best: "
                 + " ".join(f"{c}={_g(best.get(c))}" for c in self.criteria)
+                + (f"  {self.failed} failed" if self.failed else "")
                 + (f"  [done in {_clock(elapsed)}]" if final else f"  [eta {_clock(eta)}]"))
         pad = max(0, self._width - len(line))
         self._width = len(line)
@@ -83,11 +86,13 @@ class Progress:
 
 
 def summary_table(ds) -> str:
-    """criterion, worst value, limit, margin, pass/fail, certificate (one row per criterion); the
+    """criterion, worst value, limit, margin, pass/fail ("pass where solved" when evaluations
+    failed: the study's verdict, `wcs.verdict`, says what that leaves), certificate (one row per criterion); the
     minimum and the lower limit beside them when some criterion asks for its minimum. A fuzzy
     study's row is its widest level (`wcs.results.widest`)."""
     ds = widest(ds)
     ends = "best_value" in ds
+    failed = int((ds["status"].values != 0).sum()) if "status" in ds else 0
     rows = [("criterion",) + (("best", "lower limit") if ends else ()) + ("worst", "limit", "margin", "result",
                                                                           "certificate")]
     for i, c in enumerate(ds["criterion"].values):
@@ -96,7 +101,7 @@ def summary_table(ds) -> str:
         if math.isnan(lim):
             margin, verdict = "", "-"
         elif math.isnan(w):
-            margin, verdict = "", "FAIL (no solved data set)"
+            margin, verdict = "", "not established (no solved data set)"
         else:
             margin, verdict = f"{lim - w:.4g}", "pass" if w <= lim else "FAIL"
         low = ()
@@ -104,11 +109,13 @@ def summary_table(ds) -> str:
             b, blim = float(ds["best_value"].values[i]), float(ds["limit_lower"].values[i])
             low = (_g(b), "" if math.isnan(blim) else _g(blim))
             if not math.isnan(blim):
-                ok = not math.isnan(b) and b >= blim
-                verdict = ("pass" if ok else "FAIL") if verdict in ("-", "pass") else verdict
+                verdict = (("not established (no solved data set)" if math.isnan(b) else "pass" if b >= blim
+                            else "FAIL") if verdict in ("-", "pass") else verdict)
         cert = str(ds["certificate"].values[i])
         if ends and str(ds["best_certificate"].values[i]) != "not-searched":
             cert = f"min {ds['best_certificate'].values[i]}, max {cert}"
+        if verdict == "pass" and failed:
+            verdict = f"pass where solved ({failed} failed)"
         rows.append((str(c),) + low + (_g(w), "" if math.isnan(lim) else _g(lim), margin, verdict, cert))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
     return "\n".join("  ".join(s.ljust(w) for s, w in zip(r, widths)).rstrip() for r in rows)
@@ -116,15 +123,16 @@ def summary_table(ds) -> str:
 
 def limits_broken(ds) -> list[str]:
     """Criteria whose worst value exceeds its limit or whose minimum falls below its lower limit
-    (a fuzzy study: at its widest level)."""
+    (a fuzzy study: at its widest level); one without a value breaks nothing: its verdict is not
+    established (`wcs.verdict`)."""
     ds = widest(ds)
     out = []
     for i, c in enumerate(ds["criterion"].values):
         w, lim = float(ds["worst_value"].values[i]), float(ds["limit"].values[i])
-        broken = not math.isnan(lim) and (math.isnan(w) or w > lim)
+        broken = w > lim
         if "limit_lower" in ds:
             b, blim = float(ds["best_value"].values[i]), float(ds["limit_lower"].values[i])
-            broken = broken or (not math.isnan(blim) and (math.isnan(b) or b < blim))
+            broken = broken or b < blim
         if broken:
             out.append(str(c))
     return out

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, linalg
+from . import __version__, linalg, validity
 from .status import Status, flag_attrs
 from .study import alpha_cut
 
@@ -75,7 +75,15 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
     ds["status"] = xr.Variable((), np.int32(ev.status), flag_attrs())
     ds["iterations"] = xr.Variable((), np.int32(ev.iterations))
     ds["wall_time"] = xr.Variable((), float(ev.wall_time), {"units": "s"})
+    units = ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)
+    ds["limit"] = xr.Variable(("criterion",), np.array([float(study.limits.get(n, np.nan)) for n in names]),
+                              {"long_name": "limit of each criterion (NaN where none)", "units": units})
+    if study.lower_limits:
+        ds["limit_lower"] = xr.Variable(("criterion",), np.array([float(study.lower_limits.get(n, np.nan))
+                                                                  for n in names]),
+                                        {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
     ds.attrs.update(provenance(study, evaluator))
+    ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
     return ds
 
 
@@ -290,6 +298,7 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
             ds = ds.assign_coords({c: template[c].values for c in template.coords if c not in ds.coords})
     ds.attrs.update(provenance_attrs or provenance(study, evaluator))
     ds.attrs.update(attrs or {})
+    ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))   # the worst cases' fields leave the model's validity
     if extremes:
         ds = ds.assign_coords(range_coords(study)).assign(range_variables(study, crit, extremes, unit_text))
     return ds

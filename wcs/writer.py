@@ -30,6 +30,7 @@ from .results import provenance, run_dataset, write_netcdf
 from .search.ranges import Extreme
 from .store import OutputLock, check_output
 from .study import alpha_cut
+from .verdict import attributes as verdict_attributes
 
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
 
@@ -177,9 +178,11 @@ class Writer:
                  else "fields of the best evaluation solved in this session so far"}
         if self.kind == "sweep":
             attrs["sweep_grid"] = "; ".join(f"{p}: {list(v)}" for p, v in self.study.sweep.grid.items())
-        return run_dataset(self.study, self.evaluator, records, worst=worst, certificate=certificate,
-                           notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=self.sweep_paths,
-                           provenance_attrs=self.provenance, extremes=extremes)
+        ds = run_dataset(self.study, self.evaluator, records, worst=worst, certificate=certificate,
+                         notes=notes, worst_fields=fields, attrs=attrs, sweep_paths=self.sweep_paths,
+                         provenance_attrs=self.provenance, extremes=extremes)
+        ds.attrs.update(verdict_attributes(ds))
+        return ds
 
     def due(self) -> bool:
         """Whether a rewrite now keeps the writing within WRITE_OVERHEAD of the run's time."""

@@ -18,6 +18,8 @@ from ..criteria import KINDS
 from ..errors import StudyError
 from ..results import widest
 from ..status import Status
+from ..validity import warnings as validity_warnings
+from ..verdict import Verdict, failures, verdict
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
 KIND_LABEL = {k: v.label for k, v in KINDS.items()}
@@ -125,6 +127,10 @@ class Results:
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
     after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
+    verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
+    small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields
+    validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.validity`)
+    failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.verdict`)
 
     @property
     def n_eval(self) -> int:
@@ -370,7 +376,19 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    incomplete="the run stopped before the end (complete: no)"
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
-                   source=where, levels=levels, after_search=after_search(ds))
+                   source=where, levels=levels, after_search=after_search(ds), small_strain=_small_strain(ds),
+                   validity=validity_warnings(ds), failed_where=failures(ds),
+                   verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
+
+
+def _small_strain(ds: xr.Dataset) -> tuple[float, float] | None:
+    """The largest displacement-to-size ratio and displacement gradient of the file's solved
+    fields (a solve's, or a run's nominal case and every criterion's worst case); None when the file has none."""
+    r, g = ([np.ravel(ds[f"{prefix}small_strain_{m}"].values).astype(float) for prefix in ("", "nominal_", "worst_")
+             if f"{prefix}small_strain_{m}" in ds] for m in ("displacement", "gradient"))
+    if not g or not np.isfinite(np.concatenate(g)).any():
+        return None
+    return float(np.nanmax(np.concatenate(r))), float(np.nanmax(np.concatenate(g)))
 
 
 def _levels(ds: xr.Dataset) -> Levels | None:

@@ -13,6 +13,8 @@ import numpy as np
 
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
+from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
+from ..verdict import CLOSE
 from . import plots, plots3d
 from .data import KIND_LABEL, Results
 
@@ -179,38 +181,37 @@ class Report:
     # ------------------------------------------------------------ sections
     def summary(self) -> str:
         r, a = self.res, self.res.attrs
-        v = self.mesh_verdicts()
         n_fail = int(r.failed.sum())
-        if "fail" in v:
-            broken = [c.name for c, s in zip(r.criteria, v) if s == "fail"]
-            verdict, cls, why = "FAIL", "fail", f"broken limit: {', '.join(broken)}"
-        elif "marginal" in v:
-            marginal = [c.name for c, s in zip(r.criteria, v) if s == "marginal"]
-            verdict, cls, why = "MARGINAL", "none", (f"the limit of {', '.join(marginal)} lies within the worst "
-                                                     "value ± its estimated mesh error (see “The mesh's share”)")
-        elif r.incomplete:
-            verdict, cls, why = "INCOMPLETE RUN", "none", (f"no limit is broken among the {r.n_eval} evaluations "
-                                                            "in the file, but the run did not finish")
-        elif "pass" in v and "unknown" not in v:
-            verdict, cls, why = "PASS", "pass", "every worst value found lies within its limit" + (
-                " and every minimum found above its lower limit" if any(
-                    math.isfinite(c.limit_lower) for c in r.criteria) else "")
-        elif "unknown" in v:
-            verdict, cls, why = "INCOMPLETE", "none", "no worst value for a criterion with a limit (every evaluation failed)"
-        else:
-            verdict, cls, why = "NO LIMITS", "none", "the study sets no limits; worst values are reported only"
+        v = r.verdict
+        verdict, why = v.label, "; ".join(v.reasons)
+        cls = {"FAIL": "fail", "PASS": "none" if v.unchecked else "pass"}.get(v.word, "none")
         what = {"run": "worst-scenario search", "sweep": "grid sweep", "solve": "single forward solve (nominal data)"}[r.kind]
         rows = [("study", esc(r.study)), ("results file", esc(self.source) or "—"),
                 ("created", esc(a.get("created", "—"))), ("kind", what),
                 ("evaluations", f"{r.n_eval} ({n_fail} failed)"),
                 ("parameters", f"{len(r.params)} uncertain numbers"),
                 ("criteria", ", ".join(esc(c.name) for c in r.criteria))]
+        if r.small_strain is not None:
+            ratio, grad = r.small_strain
+            rows.append(("small strains", f"max |∇u| {grad:.3g} (small-strain theory: ≤ {MAX_GRADIENT:g}), "
+                         f"max |u| / body size {ratio:.3g} (≤ {MAX_DISPLACEMENT:g}), "
+                         f"{'at the solved case' if r.kind == 'solve' else 'over the nominal and the worst cases'}"
+                         f"{'' if r.validity else ': within'}"))
         body = ""
         if r.incomplete:
             body += (f'<p class="warn" id="incomplete"><b>This run is incomplete.</b> {esc(r.incomplete)}. '
                      'The worst values below are the best of the evaluations in this file only.</p>')
-        body += (f'<div class="verdict {cls}" id="verdict">{verdict}</div>'
-                 f'<p>{esc(why)}.</p>')
+        body += (f'<div class="verdict {cls}" id="verdict">{esc(verdict)}</div>'
+                 f'<p id="verdict-reasons">{esc(why)}.</p>')
+        if v.unchecked:
+            body += (f'<p class="warn" id="mesh-share-unknown"><b>The mesh\'s share is not estimated</b> for '
+                     f'{esc(", ".join(dict.fromkeys(v.unchecked)))}, whose margin is within '
+                     f'{CLOSE:.0%} of its limit: this verdict may change on a finer mesh '
+                     '(see “The mesh\'s share”).</p>')
+        if r.validity:
+            body += ('<div class="warn" id="small-strain"><b>Outside the model\'s validity</b> (small strains '
+                     'and small slips, see “small strains” below):<ul>'
+                     + "".join(f"<li>{esc(w)}</li>" for w in r.validity) + "</ul></div>")
         if r.warnings:
             body += ('<div class="warn" id="study-warnings"><b>Warnings of the study</b> (as `wcs check` '
                      'gives them):<ul>' + "".join(f"<li>{esc(w)}</li>" for w in r.warnings) + "</ul></div>")
@@ -234,6 +235,8 @@ class Report:
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
             label = {"pass": "PASS", "fail": "FAIL", "marginal": "MARGINAL", "none": "no limit", "unknown": "unknown"}[v]
             cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
+            if v in ("pass", "fail") and c.name in r.verdict.unchecked:    # within CLOSE, the mesh's share unknown
+                label, cls = label + " (mesh share unknown)", "fail" if v == "fail" else "none"
             low = ""
             if ends:
                 low = (f'<td class="num">{number(c.limit_lower, c.units) if math.isfinite(c.limit_lower) else "—"}</td>'
@@ -425,7 +428,8 @@ class Report:
         n_fail = int(r.failed.sum())
         body = (f'<p>{n_fail} of {r.n_eval} evaluations failed'
                 f'{" (the evaluations in this file of an incomplete run)" if r.incomplete else ""}.</p>'
-                '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
+                + "".join(f'<p class="failed-where">{esc(w[0].upper() + w[1:])}.</p>' for w in r.failed_where)
+                + '<table id="status-table"><tr><th>status</th><th>meaning</th><th>count</th></tr>' + rows + "</table>")
         if n_fail:
             body += ('<p>Where in the box they happened (each evaluation a line over the parameters scaled to '
                      'the box; grey: solved):</p>' + img(plots.failures_figure(r), "failures in the box"))
@@ -476,6 +480,8 @@ class Report:
             return (f'<p class="note" id="no-mesh-check">No mesh check in this file'
                     f'{": " + esc(said) if said else " (written without one)"}.</p>')
         units = {c.name: c.units for c in self.res.criteria}
+        limits = {(kind, c.name): math.isfinite(lim) for c in self.res.criteria     # a file of before NOT CHECKED
+                  for kind, lim in (("worst", c.limit), ("best", c.limit_lower))}
         nodes, seconds = a["mesh_check_nodes"].values, a["mesh_check_time"].values
         split, curve = (("every tetrahedron into eight", "curve or surface") if self.res.mesh is not None
                         and self.res.mesh.dim == 3 else ("every triangle into four", "curve"))
@@ -495,7 +501,8 @@ class Report:
                 + f'<td class="num">{number(float(a["mesh_check_order"].sel(pick)))}</td>'
                 f'<td class="num">{number(float(a["mesh_check_extrapolated"].sel(pick)), u, 7)}</td>'
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
-                f'<td class="{cls} verdict-cell">{esc(ver) or "no limit"}</td>'
+                f'<td class="{cls} verdict-cell">'
+                f'{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
                 f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
                  for k, h in ((1, "h/2"), (2, "h/4"))]
@@ -509,8 +516,9 @@ class Report:
                 'observed order is log₂ r and Richardson\'s extrapolation f(h/4) + (f(h/4) − f(h/2))/(r − 1); '
                 'the estimated error is the extrapolated value minus the value on the study\'s mesh. The verdict '
                 'is MARGINAL when the limit lies within the extreme ± the estimated error (without an '
-                'observed order: ± the spread of the three values, of the two when the mesh was split once only '
-                'to stay within mesh.max_cells, as the note says).</p>')
+                'observed order: ± the spread of the three values; when the mesh was split once only, the error '
+                'of the two values with the linear elements\' theoretical order 1, 2 (f(h/2) − f(h)), as the note '
+                'says); NOT CHECKED where a limit is set but no estimate was made.</p>')
 
     def drivers(self) -> str:
         a = self.res.after_search
