@@ -1,4 +1,4 @@
-"""3D contact on the units of the stiffness (`wcs.contact.units`): bodies whose Young's moduli
+"""Contact on the units of the stiffness (`wcs.contact.units`): bodies whose Young's moduli
 move independently share their factorizations, a Poisson ratio refactors its own body alone,
 and the answers are those of the data (the shear patch's closed form, a fresh evaluator's bits).
 
@@ -8,6 +8,7 @@ tolerance 1e-10 and the 12-digit rounding of the moduli's directions (5e-13)."""
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from wcs.contact.units import stiffness_units
@@ -136,3 +137,48 @@ def test_a_body_apart_from_the_contact_is_a_unit_of_its_own():
         slip = DELTA - G * H * (2 / e_block + 2 / 2.0e10)
         assert abs(r.phi["slip"] - slip) < 1e-6 * slip
         assert np.array_equal(Evaluator(ev.study).evaluate(r.x).state.u, r.state.u)
+
+
+PAD = ROOT / "studies" / "validation" / "tresca-pad.yaml"
+
+
+def pad(uncertain: dict, plane: str) -> dict:
+    d = yaml.safe_load(PAD.read_text())
+    d["uncertain"] = uncertain
+    d["scene"]["plane"] = plane
+    return d
+
+
+@pytest.mark.parametrize("plane", ["strain", "stress"])
+def test_2d_contact_is_solved_on_its_units_too(plane):
+    """The Tresca pad (2D, the rubber pad floating on its steel base; plane stress's
+    λ* = 2λμ/(λ + 2μ) is homogeneous in the moduli too): two units, the base's and
+    the pad's. New Young's moduli keep both factorizations, a new Poisson ratio of the rubber
+    refactors the pad alone; each answer is a fresh evaluator's to the bit and the contact
+    problem of K(c) itself solved on one factor (`solve_contact` without the units) to 1e-10
+    of max|u|, the Newton tolerance: the two differ by round-off only (another order of
+    arithmetic, the moduli's directions rounded at 5e-13; measured 1-3e-13)."""
+    from wcs.contact.solver import solve_contact
+
+    ev = Evaluator(load_study(pad({"materials.rubber.E": [0.9e7, 1.1e7], "materials.steel.E": [2.0e11, 2.2e11],
+                                   "materials.rubber.nu": [0.4, 0.48]}, plane)))
+    m = ev.model
+    assert ev.evaluate(ev.study.nominal()).status == 0
+    names = [m.smesh.regions[r[0]][0] for r in m.units.regions]
+    assert sorted(names) == ["base", "pad"]
+    held = parts(ev)
+    rubber = names.index("pad")
+    for x, kept in [((1.05e7, 2.15e11, 0.45), (True, True)), ((0.93e7, 2.04e11, 0.45), (True, True)),
+                    ((0.97e7, 2.18e11, 0.41), (rubber != 0, rubber != 1))]:
+        r = ev.evaluate(dict(zip(["materials.rubber.E", "materials.steel.E", "materials.rubber.nu"], x)))
+        assert r.status == 0, r.message
+        assert [f is f0 and k is k0 for (f, k), (f0, k0) in zip(parts(ev), held)] == list(kept)
+        fresh = Evaluator(ev.study).evaluate(r.x)
+        assert fresh.phi == r.phi and np.array_equal(fresh.state.u, r.state.u)
+        c = ev.map.coefficients(*ev.study.data_set(r.x))
+        _, Kr, rhs, u0 = m.reduced_system(c, None)
+        z = m.zone
+        one = solve_contact(Kr, rhs, m.Bn_r, m.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip, R=m.R_r,
+                            tol=m.options.tolerance)
+        u = m.elim.T @ one.u + u0
+        assert np.abs(u - r.state.u).max() <= 1e-10 * np.abs(u).max()

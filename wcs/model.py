@@ -58,7 +58,7 @@ class Solution:
     # the matrices this solution factored, and the caches that factor them (`factor`, ...)
     stiffness: sp.csr_matrix | None = field(default=None, repr=False)
     conduction: sp.csr_matrix | None = field(default=None, repr=False)
-    scale: np.ndarray | float = 1.0        # 3D contact: the data set's reduced stiffness is s_u · stiffness on unit u
+    scale: np.ndarray | float = 1.0        # contact: the data set's reduced stiffness is s_u · stiffness on unit u
     factors: SimpleNamespace | None = field(default=None, repr=False, compare=False)
 
     def factor(self):
@@ -133,9 +133,9 @@ class Model:
             if fault is not None:
                 raise StudyError(fault, path="solver.dd.subdomains")
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
-        # 3D contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
+        # contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
         self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)
-                      if d == 3 and self.zone is not None and self.solver_method != "qp" else None)
+                      if self.zone is not None and self.solver_method != "qp" else None)
         self.pinned = (pinned_dofs(self.R_r) if self.zone is not None and self.R_r is not None
                        else np.zeros(0, dtype=int))
 
@@ -146,11 +146,11 @@ class Model:
         self._cache = SimpleNamespace(
             elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
             heat=linalg.HeldFactor(spd=True),        # Cholesky of the reduced conduction matrix
-            contact=None,                            # the contact factorization (3D: `UnitFactors`), refactored in place
+            contact=None,                            # the contact factorization (`UnitFactors`; method qp: a `ContactFactor`), refactored in place
             anchor=None,                             # contact state at the nominal data: other solves start from it
             anchor_tried=False,
             stiffness=None,                          # (coefficients, K) of the last K(c) assembled
-            direction=None)                          # (c*, K*, its units' blocks) of the last 3D contact stiffness
+            direction=None)                          # (c*, K*, its units' blocks) of the last contact stiffness
         for name, value in vars(self).items():
             if name != "_cache":
                 _read_only(value)
@@ -392,17 +392,18 @@ class Model:
 
     def _contact_stiffness(self, c: Coefficients, Kr) -> tuple[sp.csr_matrix, np.ndarray | float]:
         """(K*, s): the reduced stiffness the contact solver factors, and the scales s_u with
-        which the data set's stiffness is s_u K* on each unit u (`wcs.contact.units`). In 3D K
+        which the data set's stiffness is s_u K* on each unit u (`wcs.contact.units`). K
         is homogeneous of degree one in the moduli, so data sets that differ by one factor on
-        every λ and μ of a unit (its Young's modulus) share its K*_u and its bordered
+        every λ and μ of a unit (its Young's modulus) share its K*_u and its contact
         factorization with the Delassus block W*_u (the cost of a 3D evaluation: 8 of 13 s on
         the tunnel at 1.1e5 unknowns): K* is K(c*) with c* on each unit the moduli divided by
         the unit's first region's μ, rounded to 12 significant digits (so that round-off in
         λ/μ does not tell apart what is one direction), times the nominal data's μ of that
         region; s_u = μ / μ_nominal there. The data set is then solved with its moduli rounded
         at the 12th digit, a relative change of at most 5e-13, and its answer depends on its
-        data alone (K* on the directions, s on the data). 2D keeps K itself (its answers are
-        pinned to the bit), and so does the dual QP reference."""
+        data alone (K* on the directions, s on the data). In 2D too (the Tresca pad at 9.6e3
+        unknowns: a warm evaluation with a new rubber E 21 → 10 ms, no refactor); the dual QP
+        reference keeps K itself."""
         if self.units is None:
             return Kr, 1.0
         coef = self.stiffness_coefficients(c)
@@ -440,7 +441,7 @@ class Model:
         held = self._cache.direction
         blocks = held[2] if held is not None and held[1] is Ks else self._unit_blocks(Ks)
         if self._cache.contact is None:
-            self._cache.contact = UnitFactors(self.units.dofs, self.contact_rows, self.pinned)
+            self._cache.contact = UnitFactors(self.units.dofs, self.contact_rows, self.pinned, self.dim == 3)
         return self._cache.contact.of(blocks, scales)
 
     def reduced_system(self, c: Coefficients, T: np.ndarray | None):
@@ -452,7 +453,7 @@ class Model:
 
     def _reduced_load(self, c: Coefficients, T: np.ndarray | None):
         """(rhs, u0) of `reduced_system` with K(c) u0 summed over the cells the supports move
-        (`CellAffineOperator.apply`), K(c) not assembled: a 3D contact solve factors K* of its
+        (`CellAffineOperator.apply`), K(c) not assembled: a contact solve factors K* of its
         units' directions (`_contact_stiffness`), not K(c) (0.2 s at 1e5 unknowns)."""
         u0 = self.elim.U0 @ c.support_values
         Ku0 = self.K.apply(self.stiffness_coefficients(c), u0)

@@ -186,7 +186,7 @@ def test_time_per_evaluation_against_unknowns(tmp_path):
     for h in (0.1, 0.05, 0.025, 0.0125, 0.0075, 0.005, 0.0035):   # 1.2e3 ... 4.5e5 unknowns
         doc = copy.deepcopy(base)
         doc["scene"]["mesh"] = {"size": h}
-        doc["uncertain"]["materials.rubber.E"] = [0.9e7, 1.1e7]     # a new K each evaluation: numeric refactor
+        doc["uncertain"]["materials.rubber.E"] = [0.9e7, 1.1e7]     # a new K each evaluation: the pad unit rescaled
         study = study_from(doc, tmp_path, f"scale-{h}")
         x0 = study.nominal()
         study.evaluate(x0)                                   # mesh, assembly, first solve

@@ -3,8 +3,9 @@
 An evaluator of the Tresca pad (studies/validation, the cold-start bench's mesh: ~8.6e4
 unknowns; ~9.6e3 reported beside it) has solved once, at the nominal data; it then
 evaluates data sets across the box of the rubber's Young's modulus, the shear load and the
-slip limit (new materials, loads and slip limits: a numeric refactor and a contact re-solve
-each). Reference: one SuperLU factorization and solve (tuned: MMD_AT_PLUS_A,
+slip limit (new materials, loads and slip limits: a contact re-solve each; the new modulus
+rescales the pad's unit of the stiffness, `wcs.contact.units`, where it was a numeric refactor
+of the whole before 2D contact went on the units). Reference: one SuperLU factorization and solve (tuned: MMD_AT_PLUS_A,
 diag_pivot_thresh=0, SymmetricMode) of the same reduced stiffness, taken between the
 evaluations (interleaved, so that both see the same load on the shared machine). Times are
 the process's CPU seconds (one thread: see test_bench_cold_start), medians over the
@@ -20,7 +21,15 @@ with the Schur complement on the contact DOFs 8.9 ms and two solves 2.4 ms of 21
 W from the Schur complement 1.4, Newton 1.3, the solvability LP 1.0 ms; at 8.6e4 the
 refactor is ~0.15 of the ~0.21 s. The 12-01 snapshots (cc4a698, d7aa2b8) measure as 1a9c467
 on both sizes: no regression of this case since then; what the branch took back is per-solve
-work of the trust checks and of Newton's 2D steps (see the commits)."""
+work of the trust checks and of Newton's 2D steps (see the commits).
+
+2D contact on the units of the stiffness (the pad and the base factored each on its own, the
+rubber's E a scale on the pad's factor and W, no refactor), alternately on 1627508 and after,
+two rounds each, plus one: at 9.6e3 unknowns 0.535–0.536× before, 0.18–0.22× after (7.1 ms
+against SuperLU's 37–40 ms); at 8.6e4 0.235–0.240× before, 0.050–0.057× after (47–49 ms
+against 0.83–0.90 s). Where a warm evaluation goes now at 9.6e3 (cProfile, 7.7 ms): the
+units' solves 2.1 ms (two solves, two units), Newton 1.4, K(c) u0 over the supports' cells
+0.9, the solvability LP 0.8, the units' W (their holds check and the sum) 0.6, stresses 0.4."""
 from __future__ import annotations
 
 import statistics

@@ -1,11 +1,12 @@
-r"""The contact factorization of a stiffness made of units that no entry couples (3D).
+r"""The contact factorization of a stiffness made of units that no entry couples.
 
 A unit is a set of reduced DOFs closed under K's couplings: a connected component of K's
 graph, or several that share a material (their moduli always move together). Then
-K = blockdiag_u(K_u), and in 3D K_u is homogeneous of degree one in its moduli: when they
-are s_u times those of a direction c*_u, K_u = s_u K*_u. Each K*_u (regularized on its
-pinned DOFs) is factored bordered by the contact rows restricted to the unit,
-C_u = C[:, unit], which gives W*_u = C_u K*_u⁻¹ C_uᵀ (`factor_regularized`), and
+K = blockdiag_u(K_u), and K_u = Σ_j λ_j Kλ_j + μ_j Kμ_j is homogeneous of degree one in
+its moduli (in 2D too: plane stress's λ* = 2λμ/(λ + 2μ) is): when they are s_u times those
+of a direction c*_u, K_u = s_u K*_u. Each K*_u (regularized on its pinned DOFs) is factored
+with the contact rows restricted to the unit, C_u = C[:, unit], which gives
+W*_u = C_u K*_u⁻¹ C_uᵀ (`factor_regularized`), and
 
     K⁻¹ b = (K*_u⁻¹ b_u / s_u)_u,      W = C K⁻¹ Cᵀ = Σ_u W*_u / s_u,
 
@@ -82,10 +83,13 @@ class UnitFactors:
     block it is asked for is not the one it holds (`ContactFactor.holds`).
 
     dofs: the units' DOFs; C: the contact rows (all units'); pinned: the DOFs of the whole
-    on which the blocks are regularized (`regularize`)."""
+    on which the blocks are regularized (`regularize`); bordered: W*_u from the factor of
+    K*_u bordered by C_u (3D), else from the Schur complement on C_u's DOFs (2D: fewer, and
+    faster so, `factor_regularized`)."""
 
-    def __init__(self, dofs: tuple, C: sp.csr_matrix, pinned: np.ndarray):
+    def __init__(self, dofs: tuple, C: sp.csr_matrix, pinned: np.ndarray, bordered: bool = True):
         self.dofs = dofs
+        self.bordered = bordered
         self.borders = [C] if len(dofs) == 1 else [C[:, d].tocsr() for d in dofs]
         self.pinned = [np.searchsorted(d, pinned[np.isin(pinned, d)]) for d in dofs]
         self.parts: list[ContactFactor | None] = [None] * len(dofs)
@@ -95,7 +99,7 @@ class UnitFactors:
         the scales s_u."""
         scales = np.asarray(scales, dtype=float)
         for i, K in enumerate(blocks):
-            self.parts[i] = factor_regularized(K, self.borders[i], self.pinned[i], self.parts[i], True)
+            self.parts[i] = factor_regularized(K, self.borders[i], self.pinned[i], self.parts[i], self.bordered)
         W = self.parts[0].W / scales[0]
         for part, s in zip(self.parts[1:], scales[1:]):
             W += part.W / s
