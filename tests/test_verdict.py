@@ -169,7 +169,11 @@ def test_the_mesh_check_splits_once_beyond_max_cells_when_a_margin_is_close():
     assert planned(study, cells * 2, 10, memory=16e9, close=True)[0] == ()   # 8 x: beyond the stretch too
     knee = load_study(ROOT / "studies" / "knee-replacement-3d.yaml")     # 134435 tetrahedra, 642 contact nodes
     assert planned(knee, 134435, 642, memory=25e9)[0] == ()                # split once: 1.08e6 > 1e6 cells
-    assert planned(knee, 134435, 642, memory=25e9, close=True)[0] == (1,)   # its FAIL by 0.2 %: split once
+    # its FAIL by 0.2 %: split once where 1.08e6 tetrahedra (16 kB each, measured: 17.2 GB) fit in half
+    # the memory; on this 25 GB machine they do not (the split grew to 17.5 GB): the share stays unknown
+    assert planned(knee, 134435, 642, memory=64e9, close=True)[0] == (1,)
+    none, why = planned(knee, 134435, 642, memory=25e9, close=True)
+    assert none == () and "need about 17.2 GB to mesh and solve" in why
 
 
 def test_displacement_gradients_and_ratios_of_known_fields():
