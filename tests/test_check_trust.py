@@ -148,11 +148,13 @@ def test_guard_limit_is_a_study_option():
     assert 1e4 < load_study(doc).estimated_cells < 5e4
 
 
-def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch):
+def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch, tmp_path, capsys):
     """max_cells: 1e10 at size 1e-3 (5.8e6 cells, ~30 GB) meshed and solved until the machine
-    swapped: the estimated cells times BYTES_PER_CELL must fit in the machine's memory. At size
-    0.0025 the demo estimates 9.2e5 cells, 4.8 GB at 5200 bytes a cell: refused on a machine
-    of 4 GB, loaded on one of 8 GB."""
+    swapped. A 2D estimate beyond the memory is refused before meshing (a 3D one only beyond 4x
+    it: it may exceed the cells made by ~15x); the cells made are held to the memory itself,
+    before any assembly. At size 0.0025 the demo estimates 9.2e5 cells, 4.8 GB at 5200 bytes
+    a cell: refused on a machine of 4 GB, loaded on one of 8 GB."""
+    import wcs.scene.estimate as estimate
     import wcs.study
     doc = demo_doc()
     doc["scene"]["mesh"].update(size=0.0025, max_cells=10**10)
@@ -162,10 +164,16 @@ def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch):
     monkeypatch.setattr(wcs.study, "machine_memory", lambda: 4e9)
     with pytest.raises(StudyError) as info:
         load_study(doc)
-    assert info.value.path == "scene.mesh.size" and info.value.fault == (
+    assert info.value.path == "scene.mesh.size" and info.value.fault.startswith(
         f"the mesh would have about {cells:.3g} cells ({cells:.3g} unknowns), which needs about "
-        f"{cells * 5200 / 1e9:.3g} GB (5200 bytes a cell), more than this machine's 4 GB of memory (this size "
-        "contributes most); coarsen the mesh")
+        f"{cells * 5200 / 1e9:.3g} GB (5200 bytes a cell), more than this machine's 4 GB of memory")
+    # the cells made: a coarse demo (size 0.05, ~2e3 cells, ~1e7 bytes) on a machine of 1 MB
+    monkeypatch.setattr(estimate, "machine_memory", lambda: 1e6)
+    path = tmp_path / "demo.yaml"
+    path.write_text(yaml.safe_dump(demo_doc(), sort_keys=False))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: scene.mesh: the mesh has " in err and "more than this machine's 0.001 GB of memory" in err
 
 
 def test_profile_points_capped():

@@ -16,6 +16,7 @@ from .errors import SolveError, StudyError
 from .fem.gluing import glued_clusters
 from .model import Model, Solution
 from .scene.claims import check_claims
+from .scene.estimate import memory_fault
 from .scene.mesher import build_mesh
 from .scene.mesher3d import build_mesh3d
 from .sensitivity import gradients as adjoint_gradients
@@ -111,6 +112,9 @@ class Evaluator:
             self.smesh = build_mesh3d(study.scene, splits)
         else:
             self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
+        fault = memory_fault(self.smesh.mesh.t.shape[1], study.scene.dimension)
+        if fault is not None:                   # the cells made, before any assembly or solve
+            raise StudyError(fault, path="scene.mesh")
         t1 = time.perf_counter()
         self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
         check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}

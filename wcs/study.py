@@ -61,7 +61,7 @@ from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Se
 from .options import Strict as _Strict
 from .options import did_you_mean as _did_you_mean
 from .scene import spec3d
-from .scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, estimate_cells, estimate_cells3d, machine_memory,
+from .scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, ESTIMATE_EXCESS, estimate_cells, estimate_cells3d, machine_memory,
                              shape_box, solid_box)
 from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MAX_NAME, MODULUS,
                          POISSON, RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
@@ -662,10 +662,13 @@ def _refuse_many(scene, cells: float, path: str, about: str, src: _Source) -> No
                         f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
                         "`mesh.max_cells`")
     need, memory = cells * BYTES_PER_CELL[scene.dimension], machine_memory()
-    if need > memory:                               # a raised max_cells: meshing and solving would swap
+    excess = ESTIMATE_EXCESS[scene.dimension]
+    if need > excess * memory:                      # a raised max_cells: meshing and solving would swap
         raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, which needs about "
-                        f"{need / 1e9:.3g} GB ({BYTES_PER_CELL[scene.dimension]:g} bytes a cell), more than this "
-                        f"machine's {memory / 1e9:.3g} GB of memory (this size contributes most); coarsen the mesh")
+                        f"{need / 1e9:.3g} GB ({BYTES_PER_CELL[scene.dimension]:g} bytes a cell), more than "
+                        + (f"{excess:g} times " if excess != 1 else "")
+                        + f"this machine's {memory / 1e9:.3g} GB of memory (this size contributes most); coarsen "
+                        "the mesh")
 
 
 def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:

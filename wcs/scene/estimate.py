@@ -28,6 +28,12 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+# How far beyond the machine's memory an estimate may go before meshing: the cells made are held
+# to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
+# estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
+# one may exceed the cells gmsh makes by ~15x (3D Hertz's refined ball, whose validation run at
+# an estimate of 43 GB fits), and is refused beyond 4x the memory.
+ESTIMATE_EXCESS = {2: 1.0, 3: 4.0}
 
 
 def machine_memory() -> float:
@@ -39,6 +45,17 @@ def machine_memory() -> float:
     except OSError:
         return memory
     return min(memory, float(limit)) if limit.isdigit() else memory
+
+
+def memory_fault(cells: int, dimension: int) -> str | None:
+    """Why a mesh of `cells` cells cannot be solved on this machine (None if it can): its cells
+    times BYTES_PER_CELL beyond `machine_memory()`, where meshing on would swap."""
+    need, memory = cells * BYTES_PER_CELL[dimension], machine_memory()
+    if need <= memory:
+        return None
+    return (f"the mesh has {cells} cells, which need about {need / 1e9:.3g} GB ({BYTES_PER_CELL[dimension]:g} "
+            f"bytes a cell, measured), more than this machine's {memory / 1e9:.3g} GB of memory; coarsen the mesh "
+            "(`mesh.size`, `refine`) or lower `mesh.max_cells`")
 
 
 def shape_box(shape) -> tuple[float, float, float, float]:
