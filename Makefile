@@ -1,5 +1,9 @@
 # Set-up is part of every target: a fresh clone needs only `make run` / `make test`.
-PYTHON ?= python3
+# PETSc (petsc4py in the wheel dolfinx-solver-real, the iterative contact method) needs Python >= 3.12:
+# the first of python3.13, python3.12, python3 and pyenv's installed versions that is at least 3.12.
+PYTHON ?= $(shell for p in python3.13 python3.12 python3 $$HOME/.pyenv/versions/3.1[2-9]*/bin/python3; do \
+  command -v $$p >/dev/null 2>&1 && $$p -c 'import sys; sys.exit(sys.version_info < (3, 12))' 2>/dev/null \
+  && { echo $$p; break; }; done)
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
@@ -9,6 +13,7 @@ NAME   := $(basename $(notdir $(STUDY)))
 .PHONY: run test validate bench clean
 
 $(STAMP): pyproject.toml
+	@test -n "$(PYTHON)" || { echo "wcs needs Python >= 3.12 (python3.12 or python3.13 on PATH, or make PYTHON=/path/to/python3.12)"; exit 2; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
