@@ -110,3 +110,36 @@ def test_a_heated_coulomb_pad_converges_and_matches_the_socp():
     d["uncertain"]["thermal.sources.pad"] = [0.5e4, 1.5e4]
     a = solve_and_compare(d)
     assert (a.active == 1).any() and (a.active == 2).any()
+
+
+def test_unloaded_friction_held_block_is_reported_not_unique_not_a_solver_failure(tmp_path):
+    """The 3D Tresca shear patch without its loads: the block, held on top in x and y only,
+    rests on the base at zero contact force, and lifting it is free — the solution is not
+    unique (exit 2 naming the body), not "the contact solver did not converge" (exit 1).
+    Two causes, both of round-off: Rᵀf of the support's load was ~1e-16 of |R|ᵀ|f| and acted as
+    a load pulling the block off (`rigid_load`), and the dual QP's answer (λ ≈ 1e-9 N) lay outside
+    B by round-off, more than tol × max|λ|, so its Newton polish never stopped."""
+    import yaml
+
+    from wcs.cli import main
+    doc = yaml.safe_load(open("studies/validation/tresca-shear-patch-3d.yaml"))
+    doc["scene"]["loads"] = {}
+    path = tmp_path / "unloaded.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    import contextlib
+    import io
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(["check", str(path), "--quiet"])
+    assert code == 2, err.getvalue()
+    assert "body 'block'" in err.getvalue() and "not unique" in err.getvalue()
+
+
+def test_rigid_load_drops_round_off_only():
+    from wcs.contact.solvability import rigid_load
+    R = np.array([[1.0, 0.0], [1.0, 1.0], [1.0, -1.0]])
+    f = np.array([1e6, -1e6 + 1e-9, 3.0])      # mode 0: 3 + 1e-9 of a real load; mode 1: −1e6 − 3
+    e = rigid_load(R, f)
+    assert e[0] == pytest.approx(3.0 + 1e-9) and e[1] == pytest.approx(-1e6 - 3.0 + 1e-9)
+    g = np.array([1e6, -1e6 + 1e-7, 0.0])       # mode 0: 1e-7 against |R|ᵀ|f| = 2e6, round-off size → 0
+    assert rigid_load(R, g)[0] == 0.0 and rigid_load(R, g)[1] != 0.0

@@ -69,7 +69,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wcs import linalg
-from wcs.contact.solvability import CLARABEL_TIGHT, unbalanced_rigid_motion
+from wcs.contact.solvability import CLARABEL_TIGHT, rigid_load, unbalanced_rigid_motion
 from wcs.status import Status
 
 OPEN, STICK, SLIP = 0, 1, 2
@@ -385,7 +385,11 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     qp = _dual_qp(W, q, G, e, lo, hi, force, k)
     if qp is None:
         return lam, alpha, free, it, False
-    lam2, alpha2, free2, n, ok = _newton(W, q, G, e, lo, hi, *qp, tol, max_iter, fallback=False, k=k)
+    # the QP's λ projected onto B, as every start is: an interior-point answer lies outside B by
+    # round-off, and at a body resting without load (λ ≈ 1e-9 of the force scale, the 3D Tresca patch
+    # unloaded) that is more than tol × max|λ| (`in_b`), so its polish never stopped
+    lam2, alpha2, free2, n, ok = _newton(W, q, G, e, lo, hi, project(qp[0], lo, hi, k), qp[1], tol, max_iter,
+                                         fallback=False, k=k)
     return lam2, alpha2, free2, it + n, ok
 
 
@@ -732,7 +736,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     if R is not None and not coulomb and not checked:
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
         timings["solvability"] = time.perf_counter() - t0
-        if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
+        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
             return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
@@ -756,7 +760,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
         W = W.copy()               # (the factor's W stays as it is: it serves later solves)
         W[null], W[:, null], G[:, null] = 0.0, 0.0, 0.0
         q[null] = -np.r_[d, np.zeros(k * m)][null]
-    e = R.T @ f if R is not None else np.zeros(0)
+    e = rigid_load(R, f) if R is not None else np.zeros(0)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
@@ -781,7 +785,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
 
     if not ok and coulomb and R is not None:     # friction F p may be too weak to hold a floating body
         value, a = unbalanced_rigid_motion(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R)
-        if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
+        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
             return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body held by Coulomb friction: "
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
