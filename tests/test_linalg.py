@@ -130,3 +130,18 @@ def test_an_empty_schur_block_is_not_asked_of_pardiso():
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
     assert (run.returncode, run.stdout) == (0, "ok\n"), run.stderr[-2000:]
+
+
+@pytest.mark.skipif(linalg.backend() != "pardiso", reason="PARDISO is the x86_64 backend")
+def test_pardiso_error_codes_are_translated(monkeypatch):
+    """PARDISO's error −2 is "not enough memory", not a singular matrix: the message says so and
+    names the way out (the issue's 3D patch at a 0.01 contact face failed as 'singular')."""
+    A = sp.identity(4, format="csr")
+    F = linalg.PardisoFactor(A, spd=True)
+
+    def out_of_memory(*args):
+        args[-1]._obj.value = -2          # the `error` output argument, passed by reference
+
+    monkeypatch.setattr(F, "_lib", out_of_memory)
+    with pytest.raises(linalg.FactorizationError, match="error -2 .not enough memory.*iterative"):
+        F.refactor(A)

@@ -154,6 +154,22 @@ class SuperLUFactor:
         return 0.5 * (W + W.T)
 
 
+# MKL PARDISO's error codes (Intel oneMKL reference, "pardiso", output parameter `error`)
+PARDISO_ERRORS = {
+    -1: "input inconsistent",
+    -2: "not enough memory for the direct factor: use solver.method: iterative, or a coarser mesh",
+    -3: "reordering problem",
+    -4: "zero pivot: the matrix is singular or nearly so",
+    -5: "unclassified internal error",
+    -6: "reordering failed",
+    -7: "diagonal matrix is singular",
+    -8: "32-bit integer overflow: the factor is too large for the direct method; use solver.method: iterative",
+    -9: "not enough memory for the out-of-core factor",
+    -10: "cannot open the out-of-core files",
+    -11: "read/write error with the out-of-core files",
+}
+
+
 @functools.cache
 def _mkl_pardiso():
     """The `pardiso` entry point of the mkl_rt library that pypardiso locates."""
@@ -227,7 +243,8 @@ class PardisoFactor:
                   self._iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
                   b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
         if err.value != 0:
-            raise FactorizationError(f"PARDISO phase {phase} failed with error {err.value}")
+            raise FactorizationError(f"PARDISO phase {phase} failed with error {err.value} "
+                                     f"({PARDISO_ERRORS.get(err.value, 'unclassified error')})")
 
     def refactor(self, A: sp.spmatrix, border=None) -> "PardisoFactor":
         """Factor A (with `border`: a new border C, else the one held) on the analysis held."""
