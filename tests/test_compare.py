@@ -100,3 +100,50 @@ def test_one_and_two_mpi_ranks_agree(runs):
     p = subprocess.run(cmd, cwd=runs, env=env, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr + p.stdout
     assert main(["compare", str(runs / "a.nc"), str(runs / "mpi.nc")]) == 0
+
+
+def test_round_off_in_gaps_is_no_difference_with_a_tolerance_and_a_real_one_is(runs, capsys):
+    """Closed gaps are differences of positions: round-off of about 100 ulps of the model's extent
+    (the issue's 1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so `--rtol` alone exited 4;
+    the default floor (1e-12 of the lengths' scale, coordinates included) takes them as equal,
+    while a change of 1e-6 of the extent in one gap still counts, as it does with `--atol 0`."""
+    ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
+    extent = float(np.abs(ds["coords"].values).max())
+    noise = 100 * np.finfo(float).eps * extent
+    gap = ds["worst_contact_gap"].values
+    closed = np.abs(gap) < noise
+    assert closed.sum() >= 5                       # the study has closed gaps: round-off about zero
+
+    def round_off(ds):
+        g = ds["worst_contact_gap"].values
+        g[closed] += noise * np.where(np.arange(closed.sum()) % 2, 1.0, -1.0)
+    b = _edited(runs / "a.nc", runs / "gap-round-off.nc", round_off)
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3"]) == 0
+    assert "default floors" in capsys.readouterr().out
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3", "--atol", "0"]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4          # no tolerance: bitwise
+    capsys.readouterr()
+
+    def real(ds):
+        round_off(ds)
+        ds["worst_contact_gap"].values[np.flatnonzero(closed.ravel())[0] // gap.shape[-1],
+                                       np.flatnonzero(closed.ravel())[0] % gap.shape[-1]] += 1e-6 * extent
+    c = _edited(runs / "a.nc", runs / "gap-real.nc", real)
+    assert main(["compare", str(runs / "a.nc"), str(c), "--rtol", "1e-3"]) == 4
+    out = capsys.readouterr().out
+    assert "1 value(s) in worst_contact_gap" in out
+
+
+def test_atol_is_an_absolute_tolerance_on_every_float(runs, capsys):
+    ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
+    w = float(ds["worst_value"].values[0])
+
+    def shifted(ds):
+        ds["worst_value"].values[0] = w + 1e-3 * abs(w)
+    b = _edited(runs / "a.nc", runs / "atol.nc", shifted)
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", f"{2e-3 * abs(w)!r}"]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", f"{0.5e-3 * abs(w)!r}"]) == 4
+    capsys.readouterr()
+    for bad in ("-1", "nan", "inf"):
+        assert main(["compare", str(runs / "a.nc"), str(b), "--atol", bad]) == 2
+        assert "--atol must be a finite number >= 0" in capsys.readouterr().err
