@@ -86,6 +86,7 @@ def plan(study, ev) -> list[str]:
     """What the study asks of the scene, in the words of the study file (2D and 3D): the parameters
     with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
     and limits, the search, the solver and the output."""
+    from .criteria import in_words
     scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
@@ -101,7 +102,7 @@ def plan(study, ev) -> list[str]:
     senses = {c.name: c.sense for c in study.criteria}
     for c in ev.criteria:
         lim, low = study.limits.get(c.name), study.lower_limits.get(c.name)
-        lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
+        lines.append(f"    {c.name}: {in_words(c.kind, c.rois)} ({c.kind}) [{c.units}]"
                      + (f", sense {senses[c.name]}" if senses[c.name] != "max" else "")
                      + (f", lower limit {_fmt(low)}" if low is not None else "")
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
