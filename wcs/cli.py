@@ -203,7 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
         return p
     add("check", cmd_check, "validate a study and print what it will do")
     p = add("solve", cmd_solve, "one forward solve at the nominal data (or a worst case of a run)")
-    p.add_argument("-o", "--output", help="results file (.nc); a .vtu is written beside it")
+    p.add_argument("-o", "--output", help="results file (.nc); ParaView files beside it: OUT.vtm, a multiblock of "
+                                          "OUT.vtu (volume) and OUT-contact.vtu (contact surface)")
     p.add_argument("--worst", nargs=2, metavar=("RUN.nc", "CRITERION"),
                    help="solve the worst data set of CRITERION found by a run instead of the nominal one")
     p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")

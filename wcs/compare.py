@@ -5,7 +5,7 @@ every `worst_*` / `best_*` variable agree; 4 when they differ, with a table of w
 (variable, index, both values); 2 when a file is unreadable or of another study (StudyError).
 
 Agreement is exact (NaN equals NaN) or, with a tolerance, |a − b| ≤ A + R·max(|a|, |b|) for
-floating-point values (study-format.md §6); integers and text always compare exactly. Without
+floating-point values; integers and text always compare exactly. Without
 `--atol`, a relative tolerance R > 0 comes with a floor A per quantity (`floors`): FLOOR of the
 largest magnitude of that quantity in either file, so a closed gap of 1e-14 m against 0 (round-off
 of a difference of positions) is no difference while a real one is. Attributes other than the
