@@ -11,10 +11,10 @@ import pytest
 import xarray as xr
 
 from wcs.cli import main
-from wcs.paraview import TENSOR
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATION = ROOT / "studies" / "validation"
+TENSOR = ("XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ")       # VTK's 9-component tensor, row by row
 
 
 def blocks(vtm: Path) -> dict[str, meshio.Mesh]:

@@ -76,12 +76,13 @@ def _quantities(var: xr.DataArray) -> tuple[int | None, list[str]]:
 
 
 def _magnitudes(ds: xr.Dataset, name: str) -> dict[str, float]:
-    """Largest |value| of each quantity of one variable (NaN ignored)."""
+    """Largest finite |value| of each quantity of one variable (NaN and ±inf ignored)."""
     var = ds[name]
     axis, keys = _quantities(var)
     x = np.abs(var.values.astype(float))
+    x[~np.isfinite(x)] = 0.0
     parts = [x] if axis is None else [np.take(x, j, axis=axis) for j in range(len(keys))]
-    return {k: float(np.nanmax(v, initial=0.0)) for k, v in zip(keys, parts)}
+    return {k: float(np.max(v, initial=0.0)) for k, v in zip(keys, parts)}
 
 
 def floors(a: xr.Dataset, b: xr.Dataset) -> dict[str, float]:
@@ -173,9 +174,10 @@ def cmd_compare(args) -> int:
     if atol is None:
         atol = floors(a, b) if args.rtol > 0 else 0.0
     rows = differences(a, b, args.rtol, atol)
-    what = ("exactly" if args.rtol == 0 and not isinstance(atol, dict) and atol == 0 else
-            f"within rtol {args.rtol:g} and "
-            + (f"atol {atol:g}" if not isinstance(atol, dict) else f"the default floors ({FLOOR:g} of each quantity's scale)"))
+    if isinstance(atol, dict):
+        what = f"within rtol {args.rtol:g} and the default floors ({FLOOR:g} of each quantity's scale)"
+    else:
+        what = "exactly" if args.rtol == 0 and atol == 0 else f"within rtol {args.rtol:g} and atol {atol:g}"
     if not rows:
         if not args.quiet:
             print(f"{args.a} and {args.b} agree {what} in {', '.join(compared(a))}")
