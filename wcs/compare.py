@@ -185,4 +185,7 @@ def cmd_compare(args) -> int:
     variables = sorted({r[0] for r in rows})
     print(f"{args.a} and {args.b} differ ({what}): {len(rows)} value(s) in {', '.join(variables)}")
     print(table(rows, Path(args.a).name, Path(args.b).name))
+    if what == "exactly" and not differences(a, b, 0.0, floors(a, b)):
+        print(f"note: every difference is below the default floors ({FLOOR:g} of each quantity's scale), "
+              "round-off; a tolerance (--rtol R, any R > 0) accepts it")
     return 4
