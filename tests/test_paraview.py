@@ -118,3 +118,16 @@ def test_the_3d_tunnels_contact_pressure_is_on_its_contact_surface(tmp_path):
     with xr.open_dataset(out, engine="h5netcdf") as ds:
         b = check(out, ds, ["hanging", "footwall"])
     assert b["contact surface"].cells[0].data.shape[1] == 3
+
+
+def test_a_solve_without_contact_has_the_volume_only_and_no_stale_surface(tmp_path):
+    """heated-plate has no contact: the .vtm holds the volume (with its temperature), and an
+    OUT-contact.vtu left by an earlier solve to the same name is gone, not read as this one's."""
+    out = tmp_path / "plate.nc"
+    stale = tmp_path / "plate-contact.vtu"
+    stale.write_text("an earlier solve's contact surface")
+    assert main(["solve", str(ROOT / "studies" / "heated-plate.yaml"), "-o", str(out), "--quiet"]) == 0
+    b = blocks(out.with_suffix(".vtm"))
+    assert list(b) == ["volume"] and not stale.exists()
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        assert np.array_equal(b["volume"].point_data["temperature [K]"], ds["temperature"].values)

@@ -153,11 +153,19 @@ def _write(path: Path, text: str) -> None:
 
 def write_paraview(ds: xr.Dataset, path: str | Path, zone=None, facets: np.ndarray | None = None) -> Path:
     """OUT.vtm with OUT.vtu (the volume) and, with a contact `zone` and its slave `facets`,
-    OUT-contact.vtu beside it; returns the .vtm."""
+    OUT-contact.vtu beside it (without: an OUT-contact.vtu of an earlier solve is removed, not
+    left to be read as this one's); returns the .vtm."""
+    from .store import WriteError
     vtm = Path(path).with_suffix(".vtm")
+    surface = vtm.with_name(f"{vtm.stem}-contact.vtu")
     blocks = [("volume", vtm.with_suffix(".vtu"), volume(ds))]
     if zone is not None and "contact_pressure" in ds:
-        blocks.append(("contact surface", vtm.with_name(f"{vtm.stem}-contact.vtu"), contact_surface(ds, zone, facets)))
+        blocks.append(("contact surface", surface, contact_surface(ds, zone, facets)))
+    else:
+        try:
+            surface.unlink(missing_ok=True)
+        except OSError as e:
+            raise WriteError(f"cannot remove the stale {surface}: {e.strerror or e}") from None
     for _, file, parts in blocks:
         _write(file, vtu_text(*parts))
     _write(vtm, vtm_text([(name, file.name) for name, file, _ in blocks]))
