@@ -1,5 +1,6 @@
 """Criterion functionals Φ1–Φ6 [68, (4.29)–(4.34)]: each a maximum over regions of
-interest G_r of a mean over G_r.
+interest G_r of a mean over G_r — and beyond the seed, `contact_pressure_peak`: the largest
+nodal contact pressure in G_r (`in_words` says which reduction a criterion is).
 
 `KINDS` is the one registry of criterion kinds: a `Kind` holds everything the code
 knows of a kind (its value on a region, its partial derivatives for the adjoint,
