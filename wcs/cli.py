@@ -227,14 +227,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("a", help="results file (.nc)")
     p.add_argument("b", help="results file (.nc) of the same study")
     p.add_argument("--rtol", type=float, default=0.0,
-                   help="relative tolerance R for floating-point values: |a - b| <= A + R max(|a|, |b|) "
-                        "(default 0: exact, NaN equals NaN)")
+                   help="relative tolerance R for floating-point values: they agree when |a - b| <= A + "
+                        "R max(|a|, |b|) (default 0; NaN equals NaN)")
     p.add_argument("--atol", type=float, default=None,
-                   help="absolute tolerance A for floating-point values (default: 0 without --rtol; with --rtol, "
-                        "a floor per quantity of 1e-12 times its largest magnitude in either file: lengths "
-                        "(displacement, gap, slip) with the node coordinates, stresses and pressures in Pa "
-                        "together, each criterion by its units, each parameter by its box; so a closed gap "
-                        "of 1e-14 m on a 100 m model is round-off, not a 100%% difference)")
+                   help="absolute tolerance A for floating-point values (default: a floor per quantity, 1e-12 "
+                        "times its largest magnitude in either file: lengths (displacement, gap, slip) with the "
+                        "node coordinates, stresses and pressures in Pa together, each criterion by its units, "
+                        "each parameter by its box; so a closed gap of 1e-14 m on a 100 m model is round-off, "
+                        "not a 100%% difference. --atol 0 without --rtol: bitwise)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_compare)

@@ -4,11 +4,11 @@ Exit 0 when both files are of the same study (`study_sha256`) and `x`, `phi`, `s
 every `worst_*` / `best_*` variable agree; 4 when they differ, with a table of what differs
 (variable, index, both values); 2 when a file is unreadable or of another study (StudyError).
 
-Agreement is exact (NaN equals NaN) or, with a tolerance, |a − b| ≤ A + R·max(|a|, |b|) for
-floating-point values; integers and text always compare exactly. Without
-`--atol`, a relative tolerance R > 0 comes with a floor A per quantity (`floors`): FLOOR of the
-largest magnitude of that quantity in either file, so a closed gap of 1e-14 m against 0 (round-off
-of a difference of positions) is no difference while a real one is. Attributes other than the
+Floating-point values agree when |a − b| ≤ A + R·max(|a|, |b|) (NaN equals NaN; `--atol 0` and no
+`--rtol`: bitwise); integers and text always compare exactly. A defaults to a floor per quantity
+(`floors`): FLOOR of the largest magnitude of that quantity in either file, so a closed gap of
+1e-14 m against 0 (round-off of a difference of positions) is no difference while a real one
+is; R defaults to 0. Attributes other than the
 study hash (creation time, commit, solver wording) are not compared: the command is for
 reproducibility across versions, machines and MPI rank counts.
 """
@@ -171,10 +171,8 @@ def cmd_compare(args) -> int:
         if v is not None and not 0 <= v < np.inf:
             raise StudyError(f"{name} must be a finite number >= 0, got {v}", path=name)
     a, b = open_pair(args.a, args.b)
+    rows = differences(a, b, args.rtol, floors(a, b) if atol is None else atol)
     if atol is None:
-        atol = floors(a, b) if args.rtol > 0 else 0.0
-    rows = differences(a, b, args.rtol, atol)
-    if isinstance(atol, dict):
         what = f"within rtol {args.rtol:g} and the default floors ({FLOOR:g} of each quantity's scale)"
     else:
         what = "exactly" if args.rtol == 0 and atol == 0 else f"within rtol {args.rtol:g} and atol {atol:g}"
@@ -186,6 +184,6 @@ def cmd_compare(args) -> int:
     print(f"{args.a} and {args.b} differ ({what}): {len(rows)} value(s) in {', '.join(variables)}")
     print(table(rows, Path(args.a).name, Path(args.b).name))
     if what == "exactly" and not differences(a, b, 0.0, floors(a, b)):
-        print(f"note: every difference is below the default floors ({FLOOR:g} of each quantity's scale), "
-              "round-off; a tolerance (--rtol R, any R > 0) accepts it")
+        print(f"note: every difference is below the default floors ({FLOOR:g} of each quantity's scale): "
+              "round-off, which compare accepts without --atol 0")
     return 4
