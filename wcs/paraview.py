@@ -73,13 +73,9 @@ def contact_surface(ds: xr.Dataset, zone, facets: np.ndarray) -> tuple:
     `facets` (s, 2 or 3) the contact rows at the corners of each slave facet
     (`wcs.contact.zone.slave_segments`), the rows' fields those of the results file `ds`."""
     tangents = zone.tangents                                          # (m, d − 1, d)
-    m = tangents.shape[0]
-
-    def along(name: str) -> np.ndarray:                               # (m, d − 1) as the file has it
-        return ds[name].values.reshape(m, -1)
 
     def vector(name: str) -> np.ndarray:                              # Σ_k c_k t_k
-        return _lift(np.einsum("mk,mkd->md", along(name), tangents))
+        return _lift(np.einsum("mk,mkd->md", ds[name].values.reshape(len(tangents), -1), tangents))
     point_data = {"contact pressure [Pa]": ds["contact_pressure"].values, "gap [m]": ds["contact_gap"].values,
                   "slip [m]": vector("contact_slip"), "shear traction [Pa]": vector("contact_shear"),
                   "slip along tangents [m]": ds["contact_slip"].values,
