@@ -109,9 +109,10 @@ def test_one_and_two_mpi_ranks_agree(runs):
 def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, capsys):
     """Closed gaps are differences of positions: round-off of about 100 ulps of the model's extent
     (the issue's 1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so even `--rtol 1e-3`
-    exited 4; the default floor (1e-12 of the lengths' scale, coordinates included) takes them as
+    exited 4; the default floor (1e-12 of the gaps' scale, the coordinates') takes them as
     equal, with or without `--rtol`, while a change of 1e-6 of the extent in one gap still counts;
-    `--atol 0` compares without the floors (bitwise, and says the differences are below them)."""
+    `--atol 0` compares without the floors (bitwise, and says the differences are below them).
+    Slips are relative displacements: 100 ulps of the displacements' scale is round-off there."""
     ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
     extent = float(np.abs(ds["coords"].values).max())
     noise = 100 * np.finfo(float).eps * extent
@@ -119,9 +120,14 @@ def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, c
     closed = np.abs(gap) < noise
     assert closed.sum() >= 5                       # the study has closed gaps: round-off about zero
 
+    slip = ds["worst_contact_slip"].values
+    assert (slip == 0).any()                       # a node at zero slip: any change is 100 % there
+    slip_noise = 100 * np.finfo(float).eps * np.abs(ds["worst_displacement"].values).max()
+
     def round_off(ds):
         g = ds["worst_contact_gap"].values
         g[closed] += noise * np.where(np.arange(closed.sum()) % 2, 1.0, -1.0)
+        ds["worst_contact_slip"].values[...] += slip_noise             # slips: round-off of the displacements
     b = _edited(runs / "a.nc", runs / "gap-round-off.nc", round_off)
     assert main(["compare", str(runs / "a.nc"), str(b)]) == 0
     assert "default floors" in capsys.readouterr().out

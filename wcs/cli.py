@@ -231,10 +231,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "R max(|a|, |b|) (default 0; NaN equals NaN)")
     p.add_argument("--atol", type=float, default=None,
                    help="absolute tolerance A for floating-point values (default: a floor per quantity, 1e-12 "
-                        "times its largest magnitude in either file: lengths (displacement, gap, slip) with the "
-                        "node coordinates, stresses and pressures in Pa together, each criterion by its units, "
-                        "each parameter by its box; so a closed gap of 1e-14 m on a 100 m model is round-off, "
-                        "not a 100%% difference. --atol 0 without --rtol: bitwise)")
+                        "times its largest magnitude in either file: gaps with the node coordinates (a gap is a "
+                        "difference of positions), other lengths (displacement, slip) together, stresses and "
+                        "pressures in Pa together, each criterion by its units, each parameter by its box; so a "
+                        "closed gap of 1e-14 m on a 100 m model is round-off, not a 100%% difference. --atol 0 "
+                        "without --rtol: bitwise)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_compare)

@@ -24,6 +24,7 @@ from .errors import StudyError
 FLOOR = 1e-12   # the default absolute floor, relative to the largest magnitude of the quantity: ~1e4
                 # ulps, above the round-off of sums and differences of near-equal numbers (a closed
                 # gap is a difference of positions: ~1e-16 of the model's extent)
+POSITIONS = "contact_gap"   # differences of positions: their round-off scales with the coordinates
 CORE = ("x", "phi", "status")      # always compared; then every worst_* / best_* variable
 SHOWN = 20                         # rows of the table of differences
 
@@ -64,8 +65,10 @@ def _show(v) -> str:
 def _quantities(var: xr.DataArray) -> tuple[int | None, list[str]]:
     """Which physical quantity each element of a compared variable is: (axis, keys along it), or
     (None, [key]) for the whole variable. A parameter's values (dim `param`) are each their own
-    quantity; a criterion-wise variable (units "name: unit, ...") takes each criterion's units;
-    else the variable's units (a unitless variable: itself)."""
+    quantity; a gap is a difference of positions; a criterion-wise variable (units "name: unit,
+    ...") takes each criterion's units; else the variable's units (a unitless variable: itself)."""
+    if str(var.name).endswith(POSITIONS):
+        return None, ["positions"]
     if "param" in var.dims:
         return var.dims.index("param"), [f"param {p}" for p in var["param"].values]
     units = str(var.attrs.get("units", ""))
@@ -87,8 +90,8 @@ def _magnitudes(ds: xr.Dataset, name: str) -> dict[str, float]:
 
 def floors(a: xr.Dataset, b: xr.Dataset) -> dict[str, float]:
     """The default absolute tolerance of each quantity: FLOOR × its scale, the largest magnitude
-    of that quantity among the compared variables of both files; a length's scale includes the
-    node coordinates (gaps and slips are differences of positions), a parameter's its box."""
+    of that quantity among the compared variables of both files; the gaps' scale includes the node
+    coordinates (a gap is a difference of positions), a parameter's its box."""
     scale: dict[str, float] = {}
     for ds in (a, b):
         for name in compared(ds):
@@ -97,7 +100,7 @@ def floors(a: xr.Dataset, b: xr.Dataset) -> dict[str, float]:
                     scale[k] = max(scale.get(k, 0.0), m)
         for name in ("coords", "contact_coords"):
             if name in ds:
-                scale["units m"] = max(scale.get("units m", 0.0), float(np.abs(ds[name].values).max(initial=0.0)))
+                scale["positions"] = max(scale.get("positions", 0.0), float(np.abs(ds[name].values).max(initial=0.0)))
         if "param_lower" in ds and "param_upper" in ds:
             for p, lo, hi in zip(ds["param"].values, ds["param_lower"].values, ds["param_upper"].values):
                 scale[f"param {p}"] = max(scale.get(f"param {p}", 0.0), abs(lo), abs(hi))
