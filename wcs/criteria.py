@@ -659,6 +659,8 @@ def in_words(kind: str, regions: list[str]) -> str:
     """What a criterion is, in words: its kind's reduction over its region of interest, or the
     largest over several regions of the reduction over each ([68, (4.29)–(4.34)])."""
     label = KINDS[kind].label if kind in KINDS else (kind or "criterion")
+    if not regions:
+        return label
     if len(regions) == 1:
         return f"{label} over {regions[0]}"
     return f"the largest over {', '.join(regions)} of the {label} over each"

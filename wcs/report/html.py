@@ -93,11 +93,9 @@ def param_units(path: str) -> str:
 
 
 def _what(c) -> str:
-    """A criterion in words: its reduction over its regions (`wcs.criteria.in_words`), or its kind's
-    label where the file does not name its regions."""
-    if c.kind in KIND_LABEL and c.regions:
-        return in_words(c.kind, c.regions)
-    return KIND_LABEL.get(c.kind, c.kind or "—")
+    """A criterion in words: its reduction over its regions (`wcs.criteria.in_words`; its kind's
+    label where the file does not name its regions), "—" where the kind is unknown."""
+    return in_words(c.kind, c.regions) if c.kind in KIND_LABEL else (c.kind or "—")
 
 
 def number(v, units: str = "", digits: int = 4, difference: bool = False) -> str:
