@@ -242,5 +242,6 @@ def test_wcs_solve_of_a_3d_study_writes_the_3d_layout(tmp_path):
         assert np.array_equal(ds["temperature"].values, res.state.T)
     vtu = meshio.read(out.with_suffix(".vtu"))
     assert vtu.cells[0].type == "tetra" and vtu.cells[0].data.shape == (nc, 4)
-    assert np.array_equal(vtu.point_data["displacement"], res.state.u.reshape(-1, 3))
-    assert np.array_equal(vtu.cell_data["stress_yz"][0], res.state.stress[3])
+    assert np.array_equal(vtu.point_data["displacement [m]"], res.state.u.reshape(-1, 3))
+    tensor = vtu.cell_data["stress [Pa]"][0].reshape(-1, 3, 3)
+    assert np.array_equal(tensor[:, 1, 2], res.state.stress[3]) and np.array_equal(tensor[:, 2, 1], res.state.stress[3])

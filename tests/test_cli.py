@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -96,7 +97,8 @@ def test_solve_writes_netcdf_and_vtu(tmp_path, capsys):
     assert ds.attrs["mesh_nodes"] == ds.sizes["node"]
     import meshio
     m = meshio.read(out.with_suffix(".vtu"))
-    assert m.points.shape[0] == ds.sizes["node"] and "von_mises" in m.cell_data
+    assert m.points.shape[0] == ds.sizes["node"] and "von Mises stress [Pa]" in m.cell_data
+    assert np.array_equal(m.point_data["temperature [K]"], ds["temperature"].values)
 
 
 def test_console_script_exit_status_and_no_traceback(tmp_path):

@@ -1,4 +1,5 @@
-"""`wcs compare A.nc B.nc [--rtol R]`: 0 equal, 4 different (with a table), 2 unreadable / another study."""
+"""`wcs compare A.nc B.nc [--rtol R] [--atol A]`: 0 equal, 4 different (with a table), 2 unreadable /
+another study."""
 import os
 import re
 import shutil
@@ -35,9 +36,11 @@ def _edited(src: Path, dst: Path, edit) -> Path:
 
 
 def test_two_runs_of_one_study_agree(runs, capsys):
-    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc")]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc"), "--atol", "0"]) == 0     # bitwise
     out = capsys.readouterr().out
     assert "agree exactly" in out and "worst_value" in out and "phi" in out
+    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc")]) == 0
+    assert "agree within rtol 0 and the default floors" in capsys.readouterr().out
 
 
 def test_one_changed_evaluation_is_named(runs, capsys):
@@ -48,14 +51,15 @@ def test_one_changed_evaluation_is_named(runs, capsys):
     def edit(ds):
         ds["phi"].values[3, 0] = np.nextafter(old, np.inf)       # the smallest change there is
     b = _edited(runs / "a.nc", runs / "one-changed.nc", edit)
-    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", "0"]) == 4
     out = capsys.readouterr().out
     assert "1 value(s) in phi" in out
     row = [line for line in out.splitlines() if line.startswith("phi ")]
     assert len(row) == 1 and f"eval=3, criterion={crit}" in row[0]
     assert repr(old) in row[0] and repr(float(np.nextafter(old, np.inf))) in row[0]
-    # within a relative tolerance the one-ulp change is no difference; a 1e-6 change is
-    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-12"]) == 0
+    # within a relative tolerance, or the default floors, the one-ulp change is no difference; a 1e-6 change is
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-12", "--atol", "0"]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 0
 
     def bigger(ds):
         ds["worst_value"].values[0] *= 1 + 1e-6
@@ -99,4 +103,62 @@ def test_one_and_two_mpi_ranks_agree(runs):
            "--quiet", "--no-mesh-check"]
     p = subprocess.run(cmd, cwd=runs, env=env, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr + p.stdout
-    assert main(["compare", str(runs / "a.nc"), str(runs / "mpi.nc")]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(runs / "mpi.nc"), "--atol", "0"]) == 0     # bitwise
+
+
+def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, capsys):
+    """Closed gaps are differences of positions: round-off of about 100 ulps of the model's extent
+    (the issue's 1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so even `--rtol 1e-3`
+    exited 4; the default floor (1e-12 of the gaps' scale, the coordinates') takes them as
+    equal, with or without `--rtol`, while a change of 1e-6 of the extent in one gap still counts;
+    `--atol 0` compares without the floors (bitwise, and says the differences are below them).
+    Slips are relative displacements: 100 ulps of the displacements' scale is round-off there."""
+    ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
+    extent = float(np.abs(ds["coords"].values).max())
+    noise = 100 * np.finfo(float).eps * extent
+    gap = ds["worst_contact_gap"].values
+    closed = np.abs(gap) < noise
+    assert closed.sum() >= 5                       # the study has closed gaps: round-off about zero
+
+    slip = ds["worst_contact_slip"].values
+    assert (slip == 0).any()                       # a node at zero slip: any change is 100 % there
+    slip_noise = 100 * np.finfo(float).eps * np.abs(ds["worst_displacement"].values).max()
+
+    def round_off(ds):
+        g = ds["worst_contact_gap"].values
+        g[closed] += noise * np.where(np.arange(closed.sum()) % 2, 1.0, -1.0)
+        ds["worst_contact_slip"].values[...] += slip_noise             # slips: round-off of the displacements
+    b = _edited(runs / "a.nc", runs / "gap-round-off.nc", round_off)
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 0
+    assert "default floors" in capsys.readouterr().out
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3"]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3", "--atol", "0"]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", "0"]) == 4          # bitwise
+    assert "note: every difference is below the default floors" in capsys.readouterr().out
+
+    def real(ds):
+        round_off(ds)
+        ds["worst_contact_gap"].values[np.flatnonzero(closed.ravel())[0] // gap.shape[-1],
+                                       np.flatnonzero(closed.ravel())[0] % gap.shape[-1]] += 1e-6 * extent
+    c = _edited(runs / "a.nc", runs / "gap-real.nc", real)
+    assert main(["compare", str(runs / "a.nc"), str(c)]) == 4
+    out = capsys.readouterr().out
+    assert "1 value(s) in worst_contact_gap" in out
+    assert main(["compare", str(runs / "a.nc"), str(c), "--rtol", "1e-3"]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(c), "--atol", "0"]) == 4
+    assert "note: every difference" not in capsys.readouterr().out     # a real one among them
+
+
+def test_atol_is_an_absolute_tolerance_on_every_float(runs, capsys):
+    ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
+    w = float(ds["worst_value"].values[0])
+
+    def shifted(ds):
+        ds["worst_value"].values[0] = w + 1e-3 * abs(w)
+    b = _edited(runs / "a.nc", runs / "atol.nc", shifted)
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", f"{2e-3 * abs(w)!r}"]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b), "--atol", f"{0.5e-3 * abs(w)!r}"]) == 4
+    capsys.readouterr()
+    for bad in ("-1", "nan", "inf"):
+        assert main(["compare", str(runs / "a.nc"), str(b), "--atol", bad]) == 2
+        assert "--atol must be a finite number >= 0" in capsys.readouterr().err

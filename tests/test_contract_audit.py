@@ -114,9 +114,9 @@ def test_check_of_a_3d_range_study_prints_the_levels_units_senses_and_limits(tmp
     assert code == 0, err
     assert ("fuzzy: levels 0, 1, searched from the core (α = 1) outwards; the boxes above are the supports; "
             "cores: loads.block_top.traction.2 [-2.5e+06, -1.5e+06]") in out
-    assert "pressure: contact_pressure over interface [Pa], sense both, lower limit 1e+05, limit 1e+07" in out
-    assert "stress: von_mises over core [Pa], sense min, lower limit 1\n" in out
-    assert "settle: mean_normal_displacement over ball [m], limit 1\n" in out
+    assert "pressure: mean contact pressure (Φ6) over interface (contact_pressure) [Pa], sense both, lower limit 1e+05, limit 1e+07" in out
+    assert "stress: mean von Mises stress over core (von_mises) [Pa], sense min, lower limit 1\n" in out
+    assert "settle: mean normal displacement (Φ3/Φ4) over ball (mean_normal_displacement) [m], limit 1\n" in out
     assert "search: auto, budget 40 solves; solver: monolithic" in out
     assert "contacts.interface.friction.slip_limit[1,1]: [2e+05, 4e+05]  nominal 3e+05" in out
 

@@ -124,3 +124,87 @@ def test_contact_slip_flags_a_sliding_node_at_zero_slip():
     slip[k] = 0.0
     state = dataclasses.replace(state, contact=dataclasses.replace(state.contact, slip=slip))
     assert partials(crit, model, state, 0)[1] is True
+
+
+def test_contact_pressure_peak_is_the_largest_nodal_pressure_in_the_region():
+    """Φ = max over the contact nodes in G_r of the results' `contact_pressure` (a direct max over
+    the fields a results file holds, with the nodes picked by their coordinates), and above the
+    mean over the same region."""
+    study = tresca_pad([{"name": "peak_edge", "kind": "contact_pressure_peak", "regions": ["edge"]},
+                        {"name": "peak_all", "kind": "contact_pressure_peak", "regions": ["interface"]},
+                        {"name": "mean_edge", "kind": "contact_pressure", "regions": ["edge"]}])
+    ev = study.evaluate(study.nominal())
+    assert ev.status == 0
+    p, x = ev.fields["contact_pressure"].values, ev.fields["contact_coords"].values
+    in_edge = (x[:, 0] >= 1.3 - 1e-9) & (x[:, 0] <= 1.5 + 1e-9) & (np.abs(x[:, 1] - 1.0) <= 0.01)
+    assert in_edge.sum() >= 3
+    assert ev.phi["peak_edge"] == p[in_edge].max()
+    assert ev.phi["peak_all"] == p.max()
+    assert ev.phi["peak_edge"] > ev.phi["mean_edge"]
+    assert KIND_UNITS["contact_pressure_peak"] == "Pa"
+
+
+def test_contact_pressure_peak_gradient_against_finite_differences():
+    """The maximising node's pressure λ_k / w_k, differentiated by the adjoint as Φ6 is: central
+    differences agree (the rule of test_gradients.py) on the pad under its edge and overall."""
+    study = tresca_pad([{"name": "peak_edge", "kind": "contact_pressure_peak", "regions": ["edge"]},
+                        {"name": "peak_all", "kind": "contact_pressure_peak", "regions": ["interface"]}])
+    assert check_against_fd(study) < 1e-5
+
+
+def test_contact_pressure_peak_is_not_differentiable_where_the_maximising_node_ties():
+    """Two nodes at the peak pressure (to round-off): the maximum's derivative is one-sided, so
+    the partials say not differentiable; one node a little below (1e-4 of the peak) and it is
+    differentiable again."""
+    study = tresca_pad([{"name": "peak", "kind": "contact_pressure_peak", "regions": ["interface"]}])
+    ev = study.evaluate(study.nominal())
+    crit, model, state = ev.evaluator.criteria[0], ev.evaluator.model, ev.state
+    partials = KINDS["contact_pressure_peak"].partials
+    P, tie = partials(crit, model, state, 0)
+    c = state.contact
+    k = int(np.argmax(c.pressure))
+    assert tie is False and np.flatnonzero(P.lam_n).tolist() == [k] and P.lam_n[k] == 1.0 / c.weight[k]
+    j = int(np.argsort(c.pressure)[-2])
+    for share, expect in ((1.0 - 1e-12, True), (1.0 - 1e-4, False)):
+        force = c.force_n.copy()
+        force[j] = share * c.pressure[k] * c.weight[j]
+        s = dataclasses.replace(state, contact=dataclasses.replace(c, force_n=force))
+        assert partials(crit, model, s, 0)[1] is expect
+
+
+def test_criteria_name_their_reduction_in_the_terminal_and_the_report(tmp_path, capsys):
+    """`contact_pressure` is a mean, `contact_pressure_peak` the largest nodal value: `wcs solve`
+    and `wcs check` print each criterion with its reduction and region, the report's table too."""
+    doc = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
+    doc["scene"]["regions_of_interest"]["edge"] = {"box": [1.3, 0.99, 1.5, 1.01]}
+    doc["criteria"] = [{"name": "mean_p", "kind": "contact_pressure", "regions": ["interface"]},
+                       {"name": "peak_p", "kind": "contact_pressure_peak", "regions": ["interface", "edge"]}]
+    path = tmp_path / "pad.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    from wcs.cli import main
+    from wcs.report import data, html
+    assert main(["solve", str(path), "-o", str(tmp_path / "pad.nc")]) == 0
+    out = capsys.readouterr().out
+    assert "mean_p = " in out and "(mean contact pressure (Φ6) over interface)" in out
+    assert "(the largest over interface, edge of the largest nodal contact pressure over each)" in out
+    assert main(["check", str(path)]) == 0
+    assert "mean_p: mean contact pressure (Φ6) over interface (contact_pressure) [Pa]" in capsys.readouterr().out
+    page = html.Report(data.load(tmp_path / "pad.nc")).limits()          # the table, without the figures
+    assert '<td class="criterion-what">mean contact pressure (Φ6) over interface</td>' in page
+    assert "largest nodal contact pressure over each" in page
+
+
+@pytest.mark.slow
+def test_contact_pressure_peak_gradient_in_3d_on_the_tunnels_fault():
+    """3D (tetrahedra, two tangents per node, Tresca on the fault): the peak over the fault is
+    one node's (not tied, not non-smooth) and its adjoint gradient matches central differences
+    (measured: 1e-8 relative on E, nu, the rock's weight and the west load)."""
+    doc = yaml.safe_load((VALIDATION.parent / "tunnel-fault-3d.yaml").read_text())
+    doc.pop("limits", None)
+    doc["scene"]["regions_of_interest"]["fault_roi"] = {"boundary": "fault_f"}
+    doc["criteria"] = [{"name": "peak", "kind": "contact_pressure_peak", "regions": ["fault_roi"]}]
+    doc["uncertain"] = {k: doc["uncertain"][k] for k in list(doc["uncertain"])[:4]}
+    study = wcs.load_study(doc)
+    ev = study.evaluate(study.nominal())
+    assert ev.phi["peak"] == ev.fields["contact_pressure"].values.max()
+    assert check_against_fd(study) < 1e-5

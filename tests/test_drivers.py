@@ -123,3 +123,29 @@ def test_one_sided_differences_pointing_out_of_the_box_make_a_corner_maximum(sla
         out = drivers(ds, extremes(ds), lambda x, gradients=True: study.evaluate(x, gradients))
         note = str(out["drivers_note"].values[0, 0])
         assert ("a maximum along every edge of the box leaving it" in note) is said, note
+
+
+def test_drivers_below_the_round_off_of_the_criterion_are_no_effect(slab):
+    """Drivers of about 6e-10 of |Phi| everywhere (the issue's 6e-10 Pa against a 1e7 Pa mean
+    pressure, here against the slab's ~300 K): each is the largest, so relative to the largest
+    every parameter used to "move" the criterion; relative to |Phi| they are the solves'
+    round-off (IDLE = 1e-9), shown as "no effect", with no bars and no claim that every
+    parameter moves it. One real driver beside them keeps its bar and names the idle ones."""
+    phi = float(slab["worst_value"].values[0])
+    tiny = np.array([6e-10, 3e-10, 5e-10]) * abs(phi) * 1e-1
+    assert idle(tiny).tolist() == [False, False, False]          # against the largest alone
+    assert idle(tiny, phi).all() and not idle(tiny, 1e-3 * phi).any()
+    from wcs.report import data, html
+
+    def section(ds):                                               # the report's drivers, without the rest
+        return html.Report(data.from_dataset(ds, "slab")).drivers()
+    ds = slab.copy(deep=True)
+    ds["drivers"].values[0, 0] = tiny
+    page = section(ds)
+    assert "No effect: no parameter moves warmth beyond round-off at its worst data set" in page
+    assert "drivers of warmth" not in page and "Every parameter moves warmth" not in page
+    ds["drivers"].values[0, 0] = [1.0, 3e-10 * abs(phi), 5e-10 * abs(phi)]
+    page = section(ds)
+    assert page.count("drivers of warmth") == 1
+    assert ("Parameters that do not move warmth (to first order at its worst data set): "
+            "materials.clay.conductivity, materials.clay.E.") in page

@@ -156,5 +156,5 @@ def test_limits_and_senses_that_do_not_fit_are_refused(tmp_path, capsys, sense, 
 def test_check_prints_the_sense_and_both_limits(tmp_path, capsys):
     path = write(tmp_path, study_doc(COOLED, limits={"settlement": {"lower": 7e-3, "upper": 1e-2}}), COOLED)
     assert main(["check", str(path)]) == 0
-    assert "settlement: mean_normal_displacement over top [m], sense both, lower limit 0.007, limit 0.01" \
+    assert "settlement: mean normal displacement (Φ3/Φ4) over top (mean_normal_displacement) [m], sense both, lower limit 0.007, limit 0.01" \
         in capsys.readouterr().out

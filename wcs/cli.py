@@ -86,6 +86,7 @@ def plan(study, ev) -> list[str]:
     """What the study asks of the scene, in the words of the study file (2D and 3D): the parameters
     with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
     and limits, the search, the solver and the output."""
+    from .criteria import in_words
     scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
@@ -101,7 +102,7 @@ def plan(study, ev) -> list[str]:
     senses = {c.name: c.sense for c in study.criteria}
     for c in ev.criteria:
         lim, low = study.limits.get(c.name), study.lower_limits.get(c.name)
-        lines.append(f"    {c.name}: {c.kind} over {', '.join(c.rois)} [{c.units}]"
+        lines.append(f"    {c.name}: {in_words(c.kind, c.rois)} ({c.kind}) [{c.units}]"
                      + (f", sense {senses[c.name]}" if senses[c.name] != "max" else "")
                      + (f", lower limit {_fmt(low)}" if low is not None else "")
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
@@ -202,7 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
         return p
     add("check", cmd_check, "validate a study and print what it will do")
     p = add("solve", cmd_solve, "one forward solve at the nominal data (or a worst case of a run)")
-    p.add_argument("-o", "--output", help="results file (.nc); a .vtu is written beside it")
+    p.add_argument("-o", "--output", help="results file (.nc); ParaView files beside it: OUT.vtm, a multiblock of "
+                                          "OUT.vtu (volume) and OUT-contact.vtu (contact surface)")
     p.add_argument("--worst", nargs=2, metavar=("RUN.nc", "CRITERION"),
                    help="solve the worst data set of CRITERION found by a run instead of the nominal one")
     p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")
@@ -225,7 +227,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("a", help="results file (.nc)")
     p.add_argument("b", help="results file (.nc) of the same study")
     p.add_argument("--rtol", type=float, default=0.0,
-                   help="relative tolerance for floating-point values (default 0: exact, NaN equals NaN)")
+                   help="relative tolerance R for floating-point values: they agree when |a - b| <= A + "
+                        "R max(|a|, |b|) (default 0; NaN equals NaN)")
+    p.add_argument("--atol", type=float, default=None,
+                   help="absolute tolerance A for floating-point values (default: a floor per quantity, 1e-12 "
+                        "times its largest magnitude in either file: gaps with the node coordinates (a gap is a "
+                        "difference of positions), other lengths (displacement, slip) together, stresses and "
+                        "pressures in Pa together, each criterion by its units, each parameter by its box; so a "
+                        "closed gap of 1e-14 m on a 100 m model is round-off, not a 100%% difference. --atol 0 "
+                        "without --rtol: bitwise)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_compare)

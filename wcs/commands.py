@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from . import meshcheck
+from .criteria import KINDS, in_words
 from .drivers import drivers
 from .errors import StudyError
 from .evaluation import Evaluator
@@ -39,6 +40,7 @@ def _finish_command(args, study, ds, out: Path) -> int:
               f"{ds.attrs.get('solves_this_session')} solved now, {ds.attrs.get('answered_from_store')} "
               f"from the store; wrote {out}")
         print(summary_table(ds))
+        print(criteria_in_words(study))
         if "mesh_check_value" in ds:
             print(meshcheck.summary(ds))
     v = verdict(ds)
@@ -66,6 +68,12 @@ def _finish_command(args, study, ds, out: Path) -> int:
         print(f"verdict not established: {'; '.join(v.reasons)}", file=sys.stderr)
         return 1
     return 0
+
+
+def criteria_in_words(study) -> str:
+    """What each criterion is: its reduction over its regions and its units."""
+    return "\n".join(f"  {c.name}: {in_words(c.kind, list(c.regions))} [{KINDS[c.kind].units}]"
+                     for c in study.criteria)
 
 
 def _write_failure(e: WriteError, args, out: Path) -> int:
@@ -229,7 +237,8 @@ def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
         print(f"warning: {w}", file=sys.stderr)
     if not getattr(args, "quiet", False):
         print("\n".join(header))
+        what = {c.name: in_words(c.kind, list(c.regions)) for c in study.criteria}
         for name, v in res.phi.items():
-            print(f"  {name} = {v:.6g}")
+            print(f"  {name} = {v:.6g}  ({what[name]})")
         print(f"  wrote {out} and {vtu}")
     return 0

@@ -1,5 +1,6 @@
 """Criterion functionals Φ1–Φ6 [68, (4.29)–(4.34)]: each a maximum over regions of
-interest G_r of a mean over G_r.
+interest G_r of a mean over G_r — and beyond the seed, `contact_pressure_peak`: the largest
+nodal contact pressure in G_r (`in_words` says which reduction a criterion is).
 
 `KINDS` is the one registry of criterion kinds: a `Kind` holds everything the code
 knows of a kind (its value on a region, its partial derivatives for the adjoint,
@@ -635,6 +636,36 @@ def _pressure_partials(ell: np.ndarray, model, state) -> Partials:
     return Partials(lam_n=ell * dn, lam_t=lam_t if lam_t.any() else None)
 
 
+def _peak_pressure(crit, model, state, r) -> float:
+    """The largest nodal contact pressure λ_i / w_i over the contact rows next to G_r."""
+    return float(state.contact.pressure[crit.contact_masks[r]].max())
+
+
+def _peak_partials(crit, model, state, r):
+    """∂Φ/∂λ of the maximising row k's pressure λ_k / w_k (as Φ6's, `_pressure_partials`). The
+    maximum is differentiable where k is the only maximiser; another row in reach of it (within
+    REL_TOL of the peak, as the other kinds' ties) makes the point non-smooth, unless the peak is
+    0: then every row in G_r is open or unloaded and the active set decides."""
+    mask, p = crit.contact_masks[r], state.contact.pressure
+    rows = np.flatnonzero(mask)
+    k = rows[int(np.argmax(p[rows]))]
+    ell = np.zeros(p.size)
+    ell[k] = 1.0 / state.contact.weight[k]
+    tied = bool((p[rows] >= p[k] - REL_TOL * abs(p[k])).sum() > 1 and p[k] > 0)
+    return _pressure_partials(ell, model, state), tied
+
+
+def in_words(kind: str, regions: list[str]) -> str:
+    """What a criterion is, in words: its kind's reduction over its region of interest, or the
+    largest over several regions of the reduction over each ([68, (4.29)–(4.34)])."""
+    label = KINDS[kind].label if kind in KINDS else (kind or "criterion")
+    if not regions:
+        return label
+    if len(regions) == 1:
+        return f"{label} over {regions[0]}"
+    return f"the largest over {', '.join(regions)} of the {label} over each"
+
+
 KINDS: dict[str, Kind] = {
     "mean_temperature": Kind(
         "mean temperature (Φ1/Φ2)", "K",
@@ -646,15 +677,17 @@ KINDS: dict[str, Kind] = {
         value=lambda crit, model, state, r: crit.functionals[r] @ state.u,
         partials=lambda crit, model, state, r: (Partials(u=crit.functionals[r].copy()), False),
         functional=_normal_functional, options=("point", "direction")),
-    "shear_stress_intensity": _area_kind("shear stress intensity I₂² (Φ5)", "Pa^2", _shear_intensity, _dI2),
+    "shear_stress_intensity": _area_kind("mean shear stress intensity I₂² (Φ5)", "Pa^2", _shear_intensity, _dI2),
     "contact_pressure": Kind(
-        "contact pressure (Φ6)", "Pa",
+        "mean contact pressure (Φ6)", "Pa",
         value=lambda crit, model, state, r: crit.functionals[r] @ state.contact.force_n,
         partials=lambda crit, model, state, r: (_pressure_partials(crit.functionals[r], model, state), False),
         contact_functional=_pressure_functional, reads="contact", needs="contacts"),
-    "von_mises": _area_kind("von Mises stress", "Pa", _von_mises, _dvon_mises),
-    "principal_stress": _area_kind("largest principal stress σ₁ (in-plane in 2D)", "Pa", _principal_max,
+    "von_mises": _area_kind("mean von Mises stress", "Pa", _von_mises, _dvon_mises),
+    "principal_stress": _area_kind("mean largest principal stress σ₁ (in-plane in 2D)", "Pa", _principal_max,
                                    _dprincipal_max, _principal_kink),
     "contact_slip": Kind("mean contact slip |relative tangential displacement|", "m",
                          value=_slip_mean, partials=_slip_partials, reads="contact", needs="contacts"),
+    "contact_pressure_peak": Kind("largest nodal contact pressure", "Pa", value=_peak_pressure,
+                                  partials=_peak_partials, reads="contact", needs="contacts"),
 }

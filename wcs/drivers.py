@@ -19,7 +19,10 @@ maximum: D⁺_i ≤ 0 at the lower bound, D⁻_i ≥ 0 at the upper; the minimum
 extreme is a maximum (minimum) along every edge of the box leaving that corner, and the note
 says so. Where there is no number the drivers are NaN and the note says why: the adjoint's
 active-set system is singular; the solve failed. A parameter whose d_i is at most IDLE × the
-largest does not move the criterion (to first order, at the extreme).
+largest, or IDLE × |Φ| at the extreme, does not move the criterion (to first order, at the
+extreme): below |Φ| · 1e-9 an effect is the solves' round-off (eps · the condition number of the
+stiffness, 1e6–1e8 on these meshes, is 1e-10–1e-8 of Φ), such as the 6e-10 Pa drivers of a
+1e7 Pa mean pressure that no parameter moves.
 """
 from __future__ import annotations
 
@@ -31,17 +34,18 @@ import xarray as xr
 from .extremes import Extreme, kinds
 from .search.scaling import FD_STEP
 
-IDLE = 1e-9                     # d_i at most this share of the largest: the parameter does not move Φ
+IDLE = 1e-9                     # d_i at most this share of the largest or of |Φ|: the parameter does not move Φ
 
 NO_EXTREME = "no extreme found"
-NONSMOOTH = ("the criterion is not differentiable at the extreme (the active set or the maximising region "
-             "changes within reach of the data set)")
+NONSMOOTH = ("the criterion is not differentiable at the extreme (the active set, the maximising region or the "
+             "maximising contact node changes within reach of the data set)")
 
 
-def idle(d: np.ndarray) -> np.ndarray:
-    """The parameters that do not move the criterion: d_i ≤ IDLE · max d (all of them when max d = 0)."""
+def idle(d: np.ndarray, value: float = 0.0) -> np.ndarray:
+    """The parameters that do not move the criterion: d_i ≤ IDLE · max(max d, |Φ|), Φ = `value` at
+    the extreme (all of them when both are 0)."""
     d = np.asarray(d, float)
-    return d <= IDLE * np.max(d, initial=0.0)
+    return d <= IDLE * max(np.max(d, initial=0.0), abs(value) if np.isfinite(value) else 0.0)
 
 
 def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Dataset:

@@ -1,4 +1,4 @@
-"""Results files: provenance attributes, the nominal-solve file, and the .vtu for ParaView.
+"""Results files: provenance attributes, the nominal-solve file (and its ParaView files, `wcs.paraview`).
 
 NetCDF attributes hold strings and numbers only (no bool/dict/None).
 
@@ -9,7 +9,6 @@ A file is encoded in memory and written with one plain write + rename
 from __future__ import annotations
 
 import datetime as _dt
-import os
 import subprocess
 from pathlib import Path
 
@@ -98,39 +97,6 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     with uninterrupted():                           # a Ctrl-C waits for the end of the encoding
         data = ds.to_netcdf(engine="h5netcdf")      # bytes in memory: HDF5 never meets the disk's faults
         write_atomic(path, lambda fh: fh.write(data))
-    return path
-
-
-def write_vtu(ds: xr.Dataset, path: str | Path) -> Path:
-    """The fields of `ds` as a .vtu: triangles (points lifted to z = 0) or tetrahedra."""
-    import meshio
-    p = ds["coords"].values
-    u = ds["displacement"].values
-    three = p.shape[1] == 3
-    points = p if three else np.column_stack([p, np.zeros(len(p))])
-    point_data = {"displacement": u if three else np.column_stack([u, np.zeros(len(u))])}
-    if "temperature" in ds:
-        point_data["temperature"] = ds["temperature"].values
-    s = ds["stress"].values
-    cell_data = {f"stress_{c}": [s[:, k]] for k, c in enumerate(ds["component"].values)}
-    cell_data.update({
-        "von_mises": [ds["von_mises"].values],
-        "shear_stress_intensity": [ds["shear_stress_intensity"].values]})
-    cell_data.update({f"principal_{k + 1}": [ds["principal_stress"].values[:, k]]
-                      for k in range(ds["principal_stress"].shape[1])})
-    cell_data.update({"body": [ds["cell_body"].values], "region": [ds["cell_region"].values]})
-    mesh = meshio.Mesh(points, [("tetra" if three else "triangle", ds["cells"].values)],
-                       point_data=point_data, cell_data=cell_data)
-    from .store import WriteError
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        mesh.write(tmp, file_format="vtu")
-        os.replace(tmp, path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise WriteError(f"cannot write {path}: {e.strerror or e}") from None
     return path
 
 
@@ -380,8 +346,13 @@ def widest(ds: xr.Dataset) -> xr.Dataset:
 
 
 def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:
-    """The files of one solved scenario: OUT.nc (fields, data set, criteria) and OUT.vtu."""
+    """The files of one solved scenario: OUT.nc (fields, data set, criteria) and the ParaView
+    multiblock OUT.vtm (the volume OUT.vtu, the contact surface OUT-contact.vtu: `wcs.paraview`)."""
+    from .contact.zone import slave_segments
+    from .paraview import write_paraview
     ds = solve_dataset(study, evaluator, evaluation)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})
     out = write_netcdf(ds, out)
-    return out, write_vtu(ds, Path(out).with_suffix(".vtu"))
+    zone = evaluator.model.zone
+    facets = None if zone is None else slave_segments(zone, study.scene, evaluator.smesh)
+    return out, write_paraview(ds, out, zone, facets)

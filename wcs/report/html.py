@@ -11,7 +11,8 @@ import traceback
 
 import numpy as np
 
-from ..drivers import NO_EXTREME, idle
+from ..criteria import in_words
+from ..drivers import IDLE, NO_EXTREME, idle
 from ..extremes import pairs
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
@@ -89,6 +90,12 @@ def param_units(path: str) -> str:
         if re.search(pattern, path):
             return u
     return "–"
+
+
+def _what(c) -> str:
+    """A criterion in words: its reduction over its regions (`wcs.criteria.in_words`; its kind's
+    label where the file does not name its regions), "—" where the kind is unknown."""
+    return in_words(c.kind, c.regions) if c.kind in KIND_LABEL else (c.kind or "—")
 
 
 def number(v, units: str = "", digits: int = 4, difference: bool = False) -> str:
@@ -244,7 +251,7 @@ class Report:
             cert = esc(c.certificate) + (f" (max); {esc(c.best_certificate)} (min)" if c.searched_min else "")
             rows.append(
                 f'<tr data-criterion="{esc(c.name)}"><td>{esc(c.name)}</td>'
-                f'<td>{esc(KIND_LABEL.get(c.kind, c.kind or "—"))}</td>'
+                f'<td class="criterion-what">{esc(_what(c))}</td>'
                 f'<td>{esc(plots.unit_label(c.units))}</td>{low}'
                 f'<td class="num">{number(c.worst, c.units) if c.searched_max else "not searched"}</td>'
                 f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
@@ -253,7 +260,7 @@ class Report:
                 f'<td class="{cls} verdict-cell">{label}</td><td>{cert}'
                 f'{"<br><span class=note>" + esc(c.certificate_note) + "</span>" if c.certificate_note else ""}</td></tr>')
         head = "<th>lower limit</th><th>best value (min)</th>" if ends else ""
-        body = ('<table id="limits-table"><tr><th>criterion</th><th>kind</th><th>units</th>' + head +
+        body = ('<table id="limits-table"><tr><th>criterion</th><th>what it is</th><th>units</th>' + head +
                 '<th>worst value</th><th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
                 '<th>certificate</th></tr>' + "".join(rows) + "</table>"
                 '<p class="note">Every criterion is a maximum over its regions of interest; a limit is broken '
@@ -530,6 +537,7 @@ class Report:
                 '|∂Φ/∂xᵢ| · (uᵢ − lᵢ), the first-order change of the criterion when parameter i runs across '
                 'its interval, so parameters of different units compare. Red bars: the criterion grows with '
                 'the parameter; blue: it falls.</p>')
+        value = {(k, c.name): c.worst if k == "worst" else c.best for c in self.res.criteria for k in ("worst", "best")}
         for kind, c, pick in pairs(a):
             d = a["drivers"].sel(pick).values
             note = str(a["drivers_note"].sel(pick).values)
@@ -539,15 +547,27 @@ class Report:
             if not np.all(np.isfinite(d)):
                 body += f'<p class="warn no-gradient">No drivers: {esc(note)}.</p>'
                 continue
-            body += img(plots.drivers_figure(params, d, a["drivers_sign"].sel(pick).values, units.get(c, ""),
-                                             f"{c}: what drives its {kind} value"), f"drivers of {c}")
+            phi = value.get((kind, c), float("nan"))
+            none = idle(d, phi)
+            if none.all():
+                body += self._no_effect(c, kind, float(np.max(d, initial=0.0)), phi, units.get(c, ""))
+                continue
+            body += img(plots.drivers_figure(params, np.where(none, 0.0, d), a["drivers_sign"].sel(pick).values,
+                                             units.get(c, ""), f"{c}: what drives its {kind} value"), f"drivers of {c}")
             if note.startswith("one-sided differences"):
                 body += self._one_sided(a, pick, params, units.get(c, ""), note)
-            still = [p for p, z in zip(params, idle(d)) if z]
+            still = [p for p, z in zip(params, none) if z]
             body += (f'<p class="idle">Parameters that do not move {esc(c)} (to first order at its {esc(kind)} '
                      f'data set): {", ".join(esc(p) for p in still)}.</p>' if still else
                      f'<p class="idle">Every parameter moves {esc(c)} at its {esc(kind)} data set.</p>')
         return body
+
+    @staticmethod
+    def _no_effect(c: str, kind: str, largest: float, phi: float, units: str) -> str:
+        """Drivers all below round-off (`wcs.drivers.idle`): said in words, no bars."""
+        return (f'<p class="idle no-effect">No effect: no parameter moves {esc(c)} beyond round-off at its '
+                f'{esc(kind)} data set (the largest |∂Φ/∂xᵢ| · (uᵢ − lᵢ), {number(largest, units, difference=True)}, '
+                f'is at most {IDLE:g} of |Φ| = {number(abs(phi), units)}: the solves\' round-off).</p>')
 
     @staticmethod
     def _one_sided(a, pick, params, units: str, note: str) -> str:

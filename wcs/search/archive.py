@@ -180,8 +180,8 @@ class Archive:
     def _certify_rough(self, c, rec: Record, tol: float) -> tuple[str, str]:
         """A non-smooth point: the KKT sign test on its one-sided differences into the box, when the
         point is a corner of the box and they were taken (`auto.one_sided`)."""
-        why = ("the criterion is not differentiable here (the contact's active set or the criterion's "
-               "maximising region changes within reach of this data set)")
+        why = ("the criterion is not differentiable here (the contact's active set, or the criterion's "
+               "maximising region or contact node, changes within reach of this data set)")
         q = rec.inward.get(c)
         if q is None and not self.space.is_box_corner(rec.z):
             return "heuristic", (f"{why}, and the point is not a corner of the box (where one-sided differences into "
