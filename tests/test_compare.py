@@ -39,7 +39,9 @@ def test_two_runs_of_one_study_agree(runs, capsys):
     assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc"), "--atol", "0"]) == 0     # bitwise
     out = capsys.readouterr().out
     assert "agree exactly" in out and "worst_value" in out and "phi" in out
-    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc")]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc")]) == 0       # no option: bitwise too
+    assert "agree exactly" in capsys.readouterr().out
+    assert main(["compare", str(runs / "a.nc"), str(runs / "b.nc"), "--rtol", "0"]) == 0
     assert "agree within rtol 0 and the default floors" in capsys.readouterr().out
 
 
@@ -59,7 +61,8 @@ def test_one_changed_evaluation_is_named(runs, capsys):
     assert repr(old) in row[0] and repr(float(np.nextafter(old, np.inf))) in row[0]
     # within a relative tolerance, or the default floors, the one-ulp change is no difference; a 1e-6 change is
     assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-12", "--atol", "0"]) == 0
-    assert main(["compare", str(runs / "a.nc"), str(b)]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "0"]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4          # no option: bitwise
 
     def bigger(ds):
         ds["worst_value"].values[0] *= 1 + 1e-6
@@ -106,12 +109,12 @@ def test_one_and_two_mpi_ranks_agree(runs):
     assert main(["compare", str(runs / "a.nc"), str(runs / "mpi.nc"), "--atol", "0"]) == 0     # bitwise
 
 
-def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, capsys):
+def test_round_off_in_gaps_is_no_difference_with_a_tolerance_and_a_real_one_is(runs, capsys):
     """Closed gaps are differences of positions: round-off of about 100 ulps of the model's extent
     (the issue's 1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so even `--rtol 1e-3`
     exited 4; the default floor (1e-12 of the gaps' scale, the coordinates') takes them as
-    equal, with or without `--rtol`, while a change of 1e-6 of the extent in one gap still counts;
-    `--atol 0` compares without the floors (bitwise, and says the differences are below them).
+    equal under any `--rtol` (0 included), while a change of 1e-6 of the extent in one gap still counts;
+    no option, or `--atol 0`, compares bitwise (contract §6) and says the differences are below them.
     Slips are relative displacements: 100 ulps of the displacements' scale is round-off there."""
     ds = xr.load_dataset(runs / "a.nc", engine="h5netcdf")
     extent = float(np.abs(ds["coords"].values).max())
@@ -129,10 +132,11 @@ def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, c
         g[closed] += noise * np.where(np.arange(closed.sum()) % 2, 1.0, -1.0)
         ds["worst_contact_slip"].values[...] += slip_noise             # slips: round-off of the displacements
     b = _edited(runs / "a.nc", runs / "gap-round-off.nc", round_off)
-    assert main(["compare", str(runs / "a.nc"), str(b)]) == 0
+    assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "0"]) == 0          # the floors alone
     assert "default floors" in capsys.readouterr().out
     assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3"]) == 0
     assert main(["compare", str(runs / "a.nc"), str(b), "--rtol", "1e-3", "--atol", "0"]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(b)]) == 4                         # bitwise (contract §6)
     assert main(["compare", str(runs / "a.nc"), str(b), "--atol", "0"]) == 4          # bitwise
     assert "note: every difference is below the default floors" in capsys.readouterr().out
 
@@ -141,7 +145,7 @@ def test_round_off_in_gaps_is_no_difference_by_default_and_a_real_one_is(runs, c
         ds["worst_contact_gap"].values[np.flatnonzero(closed.ravel())[0] // gap.shape[-1],
                                        np.flatnonzero(closed.ravel())[0] % gap.shape[-1]] += 1e-6 * extent
     c = _edited(runs / "a.nc", runs / "gap-real.nc", real)
-    assert main(["compare", str(runs / "a.nc"), str(c)]) == 4
+    assert main(["compare", str(runs / "a.nc"), str(c), "--rtol", "0"]) == 4
     out = capsys.readouterr().out
     assert "1 value(s) in worst_contact_gap" in out
     assert main(["compare", str(runs / "a.nc"), str(c), "--rtol", "1e-3"]) == 4

@@ -226,16 +226,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("compare", help="exit 0 when two results files of one study agree, 4 with a table when not")
     p.add_argument("a", help="results file (.nc)")
     p.add_argument("b", help="results file (.nc) of the same study")
-    p.add_argument("--rtol", type=float, default=0.0,
+    p.add_argument("--rtol", type=float, default=None,
                    help="relative tolerance R for floating-point values: they agree when |a - b| <= A + "
-                        "R max(|a|, |b|) (default 0; NaN equals NaN)")
+                        "R max(|a|, |b|) (NaN equals NaN). Without --rtol and --atol the comparison is bitwise")
     p.add_argument("--atol", type=float, default=None,
-                   help="absolute tolerance A for floating-point values (default: a floor per quantity, 1e-12 "
+                   help="absolute tolerance A for floating-point values (default with --rtol: a floor per quantity, 1e-12 "
                         "times its largest magnitude in either file: gaps with the node coordinates (a gap is a "
                         "difference of positions), other lengths (displacement, slip) together, stresses and "
                         "pressures in Pa together, each criterion by its units, each parameter by its box; so a "
-                        "closed gap of 1e-14 m on a 100 m model is round-off, not a 100%% difference. --atol 0 "
-                        "without --rtol: bitwise)")
+                        "closed gap of 1e-14 m on a 100 m model is round-off, not a 100%% difference; --rtol 0 "
+                        "applies the floors alone)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--verbose", action="store_true")
     p.set_defaults(func=cmd_compare)

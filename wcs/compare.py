@@ -4,11 +4,12 @@ Exit 0 when both files are of the same study (`study_sha256`) and `x`, `phi`, `s
 every `worst_*` / `best_*` variable agree; 4 when they differ, with a table of what differs
 (variable, index, both values); 2 when a file is unreadable or of another study (StudyError).
 
-Floating-point values agree when |a − b| ≤ A + R·max(|a|, |b|) (NaN equals NaN; `--atol 0` and no
-`--rtol`: bitwise); integers and text always compare exactly. A defaults to a floor per quantity
-(`floors`): FLOOR of the largest magnitude of that quantity in either file, so a closed gap of
-1e-14 m against 0 (round-off of a difference of positions) is no difference while a real one
-is; R defaults to 0. Attributes other than the
+With neither option the comparison is bitwise (NaN equals NaN; the contract, §6: the command
+checks reproducibility). With a tolerance, floating-point values agree when
+|a − b| ≤ A + R·max(|a|, |b|); integers and text always compare exactly. Given `--rtol` alone,
+A is a floor per quantity (`floors`): FLOOR of the largest magnitude of that quantity in either
+file, so a closed gap of 1e-14 m against 0 (round-off of a difference of positions, 100 %
+relatively) is no difference while a real one is; R defaults to 0. Attributes other than the
 study hash (creation time, commit, solver wording) are not compared: the command is for
 reproducibility across versions, machines and MPI rank counts.
 """
@@ -169,16 +170,19 @@ def open_pair(path_a: str, path_b: str) -> tuple[xr.Dataset, xr.Dataset]:
 
 
 def cmd_compare(args) -> int:
-    atol = getattr(args, "atol", None)
-    for name, v in (("--rtol", args.rtol), ("--atol", atol)):
+    atol, rtol = getattr(args, "atol", None), getattr(args, "rtol", None)
+    for name, v in (("--rtol", rtol), ("--atol", atol)):
         if v is not None and not 0 <= v < np.inf:
             raise StudyError(f"{name} must be a finite number >= 0, got {v}", path=name)
     a, b = open_pair(args.a, args.b)
-    rows = differences(a, b, args.rtol, floors(a, b) if atol is None else atol)
+    if rtol is None and atol is None:           # bitwise
+        rtol, atol = 0.0, 0.0
+    rtol = rtol or 0.0
+    rows = differences(a, b, rtol, floors(a, b) if atol is None else atol)
     if atol is None:
-        what = f"within rtol {args.rtol:g} and the default floors ({FLOOR:g} of each quantity's scale)"
+        what = f"within rtol {rtol:g} and the default floors ({FLOOR:g} of each quantity's scale)"
     else:
-        what = "exactly" if args.rtol == 0 and atol == 0 else f"within rtol {args.rtol:g} and atol {atol:g}"
+        what = "exactly" if rtol == 0 and atol == 0 else f"within rtol {rtol:g} and atol {atol:g}"
     if not rows:
         if not args.quiet:
             print(f"{args.a} and {args.b} agree {what} in {', '.join(compared(a))}")
@@ -188,5 +192,5 @@ def cmd_compare(args) -> int:
     print(table(rows, Path(args.a).name, Path(args.b).name))
     if what == "exactly" and not differences(a, b, 0.0, floors(a, b)):
         print(f"note: every difference is below the default floors ({FLOOR:g} of each quantity's scale): "
-              "round-off, which compare accepts without --atol 0")
+              "round-off, which `--rtol 0` (a tolerance with the floors) accepts")
     return 4
