@@ -15,7 +15,7 @@ from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
-from . import plots, plots3d
+from . import plots, plots3d, view3d
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
@@ -23,6 +23,7 @@ SECTIONS = [
     ("limits", "Limits"),
     ("membership", "Membership function of each criterion (fuzzy data)"),
     ("scene", "The scene and mesh"),
+    ("view3d", "The model in 3D (interactive)"),
     ("mesh-check", "The mesh's share"),
     ("worst-data", "Worst data set per criterion"),
     ("drivers", "What drives the extremes"),
@@ -309,6 +310,19 @@ class Report:
         figure = plots3d.scene_figure3d(r) if r.mesh.dim == 3 else plots.scene_figure(r)
         return text + img(figure, "scene and mesh")
 
+    def view3d(self) -> str:
+        """The interactive 3D view of a 3D mesh (plotly.js embedded once, wcs/report/view3d.py)."""
+        return view3d.view_html(self.res)
+
+    def shown(self, sid: str) -> bool:
+        """Sections that exist for some files only: the membership functions of a fuzzy study, the
+        interactive view of a 3D mesh."""
+        if sid == "membership":
+            return self.res.levels is not None
+        if sid == "view3d":
+            return self.res.mesh is not None and self.res.mesh.dim == 3
+        return True
+
     def worst_data(self) -> str:
         r = self.res
         out = []
@@ -565,13 +579,14 @@ class Report:
     def render(self) -> str:
         r = self.res
         builders = {"summary": self.summary, "limits": self.limits, "membership": self.membership,
-                    "scene": self.scene,
+                    "scene": self.scene, "view3d": self.view3d,
                     "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
                     "mesh-check": self.mesh_check, "drivers": self.drivers,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
-        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)
-        nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in SECTIONS)
+        shown = [(sid, title) for sid, title in SECTIONS if self.shown(sid)]
+        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in shown)
+        nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in shown)
         return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>wcs report: {esc(r.study)}</title><style>{CSS}</style></head><body>"
                 f"<header><h1>Worst-scenario report: {esc(r.study)}</h1>"

@@ -27,14 +27,23 @@ EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
 VIEWS = ((25.0, -60.0), (25.0, 120.0))       # (elevation, azimuth) of the two views of the surface
 
 
-def outer_faces(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def outer_faces(cells: np.ndarray, coords: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(k, 3) vertex triples of the faces that belong to one tetrahedron only, oriented as
-    that tetrahedron's outward faces, and (k,) the cell each belongs to."""
+    that tetrahedron's outward faces, and (k,) the cell each belongs to. Without `coords` the
+    orientation is read off the vertex order (right for positively numbered tetrahedra); with
+    them each face is turned to point away from its cell's fourth vertex, whatever the order."""
     tri = cells[:, FACES].reshape(-1, 3)                     # (4 ncells, 3), cell-major
     key = np.sort(tri, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     once = counts[inverse.ravel()] == 1
-    return tri[once], np.flatnonzero(once) // 4
+    faces, owner = tri[once], np.flatnonzero(once) // 4
+    if coords is not None:
+        opposite = cells[owner, np.flatnonzero(once) % 4]    # face k is opposite vertex k
+        x = coords[faces]
+        n = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+        inward = np.einsum("ij,ij->i", n, coords[opposite] - x[:, 0]) > 0
+        faces[inward] = faces[inward][:, [0, 2, 1]]
+    return faces, owner
 
 
 def plane_section(coords: np.ndarray, cells: np.ndarray, point, normal) -> tuple[list[np.ndarray], np.ndarray]:
@@ -107,6 +116,55 @@ def _inside(spec: dict, x: np.ndarray) -> np.ndarray | None:
     return None
 
 
+def selected_faces(res: Results, name: str, faces: np.ndarray, owner: np.ndarray) -> np.ndarray | None:
+    """Mask over the outer `faces` of the boundary `name` of the scene (its selector as the solver
+    reads it: the three nodes on the set within the tolerance, on its body); None when the scene
+    does not define it geometrically."""
+    from ..scene.mesher3d import ABS_TOL, REL_TOL, surface_distance
+    from ..scene.spec3d import Boundary
+    spec = (res.scene.get("boundaries") or {}).get(name)
+    try:
+        b = Boundary.model_validate(spec)
+    except Exception:  # noqa: BLE001 - not a geometric face selector: said by the caller
+        return None
+    mesh = res.mesh
+    keep = np.ones(len(faces), bool)
+    if b.body is not None:
+        if mesh.cell_body is None or b.body not in mesh.bodies:
+            return None
+        keep = mesh.cell_body[owner] == mesh.bodies.index(b.body)
+    x = mesh.coords[faces].transpose(2, 1, 0)                    # (3 coordinates, 3 nodes, nfaces)
+    edges = np.linalg.norm(x - np.roll(x, 1, axis=1), axis=0).max(axis=0)
+    tol = REL_TOL * edges + ABS_TOL * float(np.linalg.norm(np.ptp(mesh.coords, axis=0)))
+    if b.plane is not None and b.plane.tolerance is not None:
+        tol = np.full(len(faces), b.plane.tolerance)
+    return keep & (surface_distance(b, x) <= tol).all(axis=0)
+
+
+def roi_cells(res: Results, name: str) -> np.ndarray | None:
+    """Mask over the cells of the region of interest `name`: the cells whose centroid is inside its
+    solid (box, ball, cylinder) and in its `body:`, or the cells under the faces of its boundary;
+    None when neither can be read from the scene."""
+    mesh = res.mesh
+    roi = dict((res.scene.get("regions_of_interest") or {}).get(name) or {})
+    if "boundary" in roi:
+        faces, owner = outer_faces(mesh.cells, mesh.coords)
+        sel = selected_faces(res, roi["boundary"], faces, owner)
+        if sel is None:
+            return None
+        out = np.zeros(len(mesh.cells), bool)
+        out[owner[sel]] = True
+        return out
+    inside = _inside(roi, mesh.coords[mesh.cells].mean(axis=1))
+    if inside is None:
+        return None
+    if roi.get("body") is not None:
+        if mesh.cell_body is None or roi["body"] not in mesh.bodies:
+            return None
+        inside &= mesh.cell_body == mesh.bodies.index(roi["body"])
+    return inside
+
+
 def section_plane(spec: dict, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """(point, normal, half width of the view) of the cut through a region of interest (or a
     face selector): a cylinder is cut across its axis at mid-length; a ball, sphere, box or
@@ -154,7 +212,7 @@ def _views(fig, x: np.ndarray, faces: np.ndarray, colours: np.ndarray, ncols: in
 def scene_figure3d(res: Results) -> bytes:
     """The outer surface of the scene coloured by region (or body), seen from two sides."""
     mesh = res.mesh
-    faces, owner = outer_faces(mesh.cells)
+    faces, owner = outer_faces(mesh.cells, mesh.coords)
     if mesh.cell_region is not None and len(mesh.regions) > 1:
         labels, of = [f"region {r}" for r in mesh.regions], mesh.cell_region
     elif mesh.cell_body is not None and mesh.bodies:
@@ -177,7 +235,7 @@ def surface_figure(res: Results, j: int) -> tuple[bytes, float]:
     u = f.displacement if f.displacement is not None else np.zeros_like(mesh.coords)
     mag = magnification(mesh, u)
     x = mesh.coords + mag * u
-    faces, owner = outer_faces(mesh.cells)
+    faces, owner = outer_faces(mesh.cells, mesh.coords)
     vm = _von_mises(f)
     fig = plt.figure(figsize=(11.0, 5.0))
     sc, su = stress_scale(vm if vm is not None else [0.0])
