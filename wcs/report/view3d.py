@@ -22,7 +22,7 @@ import numpy as np
 
 from .data import Results
 from .plots import CONTACT_COLORS, distinct_cases, length_scale, magnification, stress_scale
-from .plots3d import _von_mises, outer_faces, roi_cells, selected_faces
+from .plots3d import _von_mises, face_normals, outer_faces, outline, roi_cells, roi_frame, selected_faces
 
 PALETTE = ["#a6cee3", "#b2df8a", "#fdbf6f", "#cab2d6", "#fb9a99", "#ffff99", "#8dd3c7", "#bebada", "#80b1d3"]
 SUPPORT_COLOR, LOAD_COLOR, ROI_COLOR = "#1f5fbf", "#e08000", "#202020"
@@ -39,19 +39,6 @@ def compact(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The nodes a triangle set uses and the triangles renumbered into them."""
     nodes, local = np.unique(faces, return_inverse=True)
     return nodes, local.reshape(faces.shape)
-
-
-def outline(faces: np.ndarray) -> np.ndarray:
-    """(k, 2) node pairs of the edges that belong to one triangle of `faces` only: the set's rim."""
-    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    key, counts = np.unique(e, axis=0, return_counts=True)
-    return key[counts == 1]
-
-
-def face_normals(x: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit normals of the triangles x[faces] (outward for `outer_faces`)."""
-    n = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 def _lines(x: np.ndarray, pairs: np.ndarray, digits: float) -> tuple[list, list, list]:
@@ -221,10 +208,12 @@ def view_data(res: Results) -> dict:
         "legend": {"groupclick": "toggleitem", "itemsizing": "constant", "x": 0, "xanchor": "left", "y": 1,
                    "bgcolor": "rgba(255,255,255,0.7)"},
         "margin": {"l": 0, "r": 0, "t": 10, "b": 0}, "uirevision": "view", "height": 640}
-    frame = _roi_frame(res, lo, hi)
+    frame = roi_frame(res)
     return {"traces": traces, "layout": layout, "parts": [p[0] for p in parts], "contacts": [c[0] for c in contacts],
             "fields": fields, "cases": case_data, "magnification": mag, "missing": missing,
-            "frames": {"whole model": [lo.tolist(), hi.tolist()], **({"regions of interest": frame} if frame else {})}}
+            "frames": {"whole model": [lo.tolist(), hi.tolist()], **({"regions of interest": [
+                (frame[0] - 0.02 * np.ptp(frame, axis=0).max()).tolist(),
+                (frame[1] + 0.02 * np.ptp(frame, axis=0).max()).tolist()]} if frame else {})}}
 
 
 def _contact_values(f, contacts, x: np.ndarray, name: str):
@@ -245,21 +234,6 @@ def _contact_values(f, contacts, x: np.ndarray, name: str):
         tol = 1e-9 * float(np.ptp(x, axis=0).max())
         out.append(v[idx[k]] if np.all(d <= tol) else None)
     return out if any(o is not None for o in out) else None
-
-
-def _roi_frame(res: Results, lo: np.ndarray, hi: np.ndarray) -> list | None:
-    """The box around the cells of every region of interest, widened by half its size (None: none)."""
-    boxes = []
-    for name in res.scene.get("regions_of_interest") or {}:
-        cells = roi_cells(res, name)
-        if cells is not None and cells.any():
-            p = res.mesh.coords[np.unique(res.mesh.cells[cells])]
-            boxes.append((p.min(axis=0), p.max(axis=0)))
-    if not boxes:
-        return None
-    a, b = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
-    pad = 0.5 * (b - a).max()
-    return [np.maximum(a - pad, lo).tolist(), np.minimum(b + pad, hi).tolist()]
 
 
 CONTROLLER = r"""
