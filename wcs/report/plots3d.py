@@ -264,7 +264,7 @@ def shading(normals: np.ndarray, elev: float, azim: float) -> np.ndarray:
     shoulder, above (three faces of a cube seen from a corner get three shades)."""
     d = view_direction(elev, azim)
     left = np.cross(d, [0.0, 0.0, 1.0])
-    light = d + 0.8 * np.array([0.0, 0.0, 1.0]) + 0.4 * left / max(np.linalg.norm(left), 1e-12)
+    light = d + 1.2 * np.array([0.0, 0.0, 1.0]) + 0.6 * left / max(np.linalg.norm(left), 1e-12)
     return 0.35 + 0.65 * np.clip(normals @ (light / np.linalg.norm(light)), 0.0, 1.0)
 
 
@@ -385,24 +385,35 @@ def surface_figure(res: Results, j: int) -> tuple[bytes, float]:
 def cut_plane(res: Results, name: str) -> tuple[np.ndarray, np.ndarray, float]:
     """(point, normal, half width of the view) of the cut through the region of interest `name`:
     `section_plane` of its selector; when that plane cuts none of the region's cells (a region
-    thinner than its cells, or lying on a layer of nodes), it is moved along its normal to the
-    centroid of the region's cell nearest to it (a plane through a cell's centroid cuts that cell).
-    The view is at least twice as wide as the region's cells that the plane cuts."""
+    lying on a layer of nodes), it is moved along its normal to the centroid of the region's cell
+    nearest to it (a plane through a cell's centroid cuts that cell). The view is at least twice
+    as wide as the cut cell nearest to the point (of the region, or of the mesh when the region
+    holds no cell: smaller than the cells)."""
     mesh = res.mesh
     point, normal, half = section_plane(_roi_spec(res, name), mesh.coords)
     cells = roi_cells(res, name)
-    if cells is None or not cells.any():
-        return point, normal, half
-    k = np.flatnonzero(cells)
+    k = np.flatnonzero(cells) if cells is not None and cells.any() else np.arange(len(mesh.cells))
     d = (mesh.coords[mesh.cells[k]] - point) @ normal                # (cells, 4) signed distances
     cut = (d.min(axis=1) < 0) & (d.max(axis=1) > 0)
     if not cut.any():
         nearest = int(np.argmin(np.abs(d.mean(axis=1))))
         point = point + d[nearest].mean() * normal
-        cut = np.zeros(len(k), bool)
         cut[nearest] = True
-    size = float(np.median(np.ptp(mesh.coords[mesh.cells[k[cut]]], axis=1).max(axis=1)))
-    return point, normal, max(half, 2.0 * size)
+    x = mesh.coords[mesh.cells[k[cut]]]
+    nearest = int(np.argmin(np.linalg.norm(x.mean(axis=1) - point, axis=1)))
+    return point, normal, max(half, 2.0 * float(np.ptp(x[nearest], axis=0).max()))
+
+
+def cut_panel(res: Results, name: str):
+    """(point, e1, e2, half, polygons, cells) of the cut through region of interest `name`
+    (`cut_plane`): the cut polygons in the plane's coordinates (e1, e2) about `point` that reach into
+    the square view of half width `half`, and the cell of each."""
+    point, normal, half = cut_plane(res, name)
+    polygons, owner = plane_section(res.mesh.coords, res.mesh.cells, point, normal)
+    e1, e2 = plane_axes(normal)
+    flat = [np.column_stack([(p - point) @ e1, (p - point) @ e2]) for p in polygons]
+    near = [k for k, q in enumerate(flat) if np.all(q.min(axis=0) <= half) and np.all(q.max(axis=0) >= -half)]
+    return point, e1, e2, half, [flat[k] for k in near], owner[near]
 
 
 def cut_figure(res: Results, j: int) -> bytes | None:
@@ -415,22 +426,18 @@ def cut_figure(res: Results, j: int) -> bytes | None:
         return None
     fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.6), squeeze=False)
     for ax, name in zip(axes[0], names):
-        point, normal, half = cut_plane(res, name)
-        polygons, owner = plane_section(mesh.coords, mesh.cells, point, normal)
-        e1, e2 = plane_axes(normal)
-        flat = [np.column_stack([(p - point) @ e1, (p - point) @ e2]) for p in polygons]
-        near = [k for k, q in enumerate(flat) if np.all(q.min(axis=0) <= half) and np.all(q.max(axis=0) >= -half)]
-        if not near:
+        point, e1, e2, half, flat, owner = cut_panel(res, name)
+        if not flat:
             ax.set_title(f"{name}: the cut misses the mesh")
             continue
-        sc, su = stress_scale(vm[owner[near]])
-        pc = PolyCollection([flat[k] for k in near], array=vm[owner[near]] * sc, cmap="viridis", edgecolors="face")
+        sc, su = stress_scale(vm[owner])
+        pc = PolyCollection(flat, array=vm[owner] * sc, cmap="viridis", edgecolors="face")
         ax.add_collection(pc)
         fig.colorbar(pc, ax=ax, shrink=0.85, label=f"von Mises stress [{su}]")
         cells = roi_cells(res, name)
-        inside = None if cells is None else cells[owner[near]]
+        inside = None if cells is None else cells[owner]
         if inside is not None and inside.any():
-            ax.add_collection(PolyCollection([flat[near[k]] for k in np.flatnonzero(inside)], facecolors="none",
+            ax.add_collection(PolyCollection([flat[k] for k in np.flatnonzero(inside)], facecolors="none",
                                              edgecolors="k", linewidths=0.5))
         ax.set_xlim(-half, half), ax.set_ylim(-half, half), ax.set_aspect("equal")
         ax.set_xlabel(along(e1))
