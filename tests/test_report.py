@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -367,3 +368,23 @@ def test_a_temperature_difference_is_not_shown_in_celsius():
     from wcs.report.html import number
     assert number(300.0, "K").endswith("(26.9 °C)")
     assert "°C" not in number(0.00193, "K", difference=True)
+
+
+def test_an_incomplete_run_says_so_once_and_passes_nothing(contact_run, tmp_path):
+    """An incomplete run: one banner, which says "incomplete" once (before: "This run is incomplete.
+    the run is incomplete: …"), and no green PASS cell (a limit that holds among the evaluations so
+    far is not passed); a crisp study has no membership section (before: in every report)."""
+    ds, _ = contact_run
+    ds = ds.copy()
+    ds.attrs["complete"] = "no"
+    path = write_netcdf(ds, tmp_path / "stopped.nc")     # read with the store's account of the run
+    text = render_report(path, strict=True)
+    assert "--resume" in text
+    page = Page(text)
+    banner = text[text.index('id="incomplete">') + len('id="incomplete">'):]
+    banner = banner[:banner.index("</p>")]
+    assert text.count('id="incomplete"') == 1 and len(re.findall(r"\bincomplete\b", banner.lower())) == 1
+    assert page.limit_row("settlement")["verdict"]["text"] == "holds so far (incomplete run)"
+    assert not [c for r in page.rows for c in r["cells"] if "pass" in c["class"].split()]
+    assert page.limit_row("crack_pressure")["verdict"]["text"] == "FAIL"
+    assert "membership" not in page.ids and 'href="#membership"' not in text
