@@ -293,3 +293,56 @@ def test_contact_maps_read_as_the_scene_axes():
     x = np.column_stack([q @ [np.cos(turn), -np.sin(turn)], q @ [np.sin(turn), np.cos(turn)], np.full(400, 0.2)])
     _, e1, e2 = map_axes(x)
     assert e1 == pytest.approx([1, 0, 0], abs=1e-12) and e2 == pytest.approx([0, 1, 0], abs=1e-12)
+
+
+@pytest.mark.slow
+def test_the_3d_view_turns_and_switches_fields_in_chromium(fault_sm, tmp_path):
+    """Headless Chromium loads the 3D report: no console error, no request leaves the file, the
+    page is not wider than the window; a mouse drag turns the model (the camera moves, the picture
+    changes), the field list recolours it (von Mises per cell, then the contact pressure on the
+    contact surface with the bodies see-through). Screenshots stay in tmp_path for a reviewer."""
+    from PIL import Image
+    from cdp import Browser
+    from test_report import ensure_chromium
+    out, res = report3d(fault_sm, tmp_path)
+    d = view_json(out.read_text())
+    keys = [f["key"] for f in d["fields"]]
+
+    def pick(b, field):
+        b.evaluate(f"(() => {{ const s = document.getElementById('view3d-field'); s.value = '{keys.index(field)}';"
+                   "s.dispatchEvent(new Event('change')); return 1; })()")
+        return b.evaluate("wcsView3d.draw().then(() => 1)")
+
+    with Browser(ensure_chromium(), tmp_path, width=1280, height=1000) as b:
+        b.call("Network.enable", session=True)
+        b.open(out)
+        assert b.evaluate("window.wcsView3dReady.then(() => document.getElementById('view3d-plot').dataset.ready)") == "1"
+        assert b.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+        x, y, w, h = b.evaluate("(() => { const e = document.getElementById('view3d-plot'); e.scrollIntoView();"
+                                "const r = e.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()")
+        clip = {"x": x, "y": y + b.evaluate("window.scrollY"), "width": w, "height": h}
+        shots = {"start": b.screenshot(tmp_path / "view-start.png", clip)}
+        eye = "JSON.stringify(wcsView3d.plot._fullLayout.scene._scene.getCamera().eye)"
+        before = b.evaluate(eye)
+        b.drag(x + 0.5 * w, y + 0.5 * h, x + 0.5 * w + 220, y + 0.5 * h + 80)
+        assert b.evaluate(eye) != before
+        shots["turned"] = b.screenshot(tmp_path / "view-turned.png", clip)
+        pick(b, "von_mises")
+        part = d["parts"][0]
+        assert b.evaluate(f"wcsView3d.plot.data[{part}].intensitymode") == "cell"
+        assert b.evaluate(f"wcsView3d.plot.data[{part}].intensity.length") == len(decode(d["traces"][part]["i"]))
+        assert b.evaluate(f"wcsView3d.plot._fullData[{part}].colorbar.title.text").startswith("von Mises stress")
+        shots["von Mises"] = b.screenshot(tmp_path / "view-von-mises.png", clip)
+        pick(b, "contact_pressure")
+        contact = d["contacts"][0]
+        assert b.evaluate(f"wcsView3d.plot.data[{contact}].intensity.length") == len(decode(d["traces"][contact]["x"]))
+        assert b.evaluate(f"wcsView3d.plot.data[{part}].opacity") < 0.5
+        shots["contact pressure"] = b.screenshot(tmp_path / "view-contact-pressure.png", clip)
+        requests = [m["params"]["request"]["url"] for m in b.events if m.get("method") == "Network.requestWillBeSent"]
+        assert b.errors == []
+    assert all(u.startswith(("file:", "data:", "blob:")) for u in requests), requests
+    pixels = {k: np.asarray(Image.open(p).convert("RGB")).astype(int) for k, p in shots.items()}
+    for k, a in pixels.items():
+        assert len(np.unique(a[::4, ::4].reshape(-1, 3), axis=0)) > 100, f"{k}: a blank picture"
+    for a, b_ in (("start", "turned"), ("turned", "von Mises"), ("von Mises", "contact pressure")):
+        assert np.abs(pixels[a] - pixels[b_]).sum(axis=2).astype(bool).mean() > 0.02, (a, b_)
