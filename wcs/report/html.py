@@ -521,7 +521,7 @@ class Report:
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
                 f'<td class="{cls} verdict-cell">'
                 f'{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
-                f'<td class="note" style="min-width:16em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+                f'<td class="note" style="min-width:12em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
                  for k, h in ((1, "h/2"), (2, "h/4"))]
         head = "".join(f"<th>{h}</th>" for h in (
