@@ -1,13 +1,16 @@
-"""The report's figures of a 3D case (matplotlib, Agg), readable without ParaView: the deformed
-outer surface coloured by von Mises, cuts through each region of interest, and maps of contact
-pressure and slip on each contact surface in its own coordinates.
+"""The report's figures of a 3D case (matplotlib, Agg), readable without ParaView and in print:
+the outer surface (shaded, the supports, loads, contact surfaces and regions of interest outlined;
+the whole model and the model around the regions of interest), the deformed one coloured by von
+Mises, cuts through each region of interest, and maps of contact pressure and slip on each
+contact surface in the coordinates of its plane.
 
 Matplotlib renders the outer surface as one polygon per boundary triangle, painter-sorted
-(no depth buffer): exact for a convex body seen from outside, and close for the scenes here
-(a tunnel seen from outside its block). The geometry functions are pure functions over arrays:
-`outer_faces` (the triangles of a tetrahedral mesh that belong to one cell only), `plane_section`
-(the polygon where a plane cuts each tetrahedron); a contact surface is drawn in its own two
-coordinates (`wcs.contact.frame.surface_frame`: the principal directions of its points).
+(no depth buffer); only the faces towards the viewer are drawn (a closed surface's back faces
+are never seen), each lit by Lambert's law. The geometry functions are pure functions over arrays:
+`outer_faces` (the triangles of a tetrahedral mesh that belong to one cell only, outward),
+`plane_section` (the polygon where a plane cuts each tetrahedron), `selected_faces` (the outer
+faces of a boundary selector, as the solver selects them), `roi_cells` (a region of interest's
+cells, in its body); a contact surface is drawn in its plane's axes (`map_axes`).
 """
 from __future__ import annotations
 

@@ -41,17 +41,64 @@ def compact(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return nodes, local.reshape(faces.shape)
 
 
-def _lines(x: np.ndarray, pairs: np.ndarray, digits: float) -> tuple[list, list, list]:
-    """Polyline coordinates (None between segments), rounded to `digits` (a length)."""
-    out = [[], [], []]
-    for a, b in pairs:
-        for k in range(3):
-            out[k] += [round(float(x[a, k]) / digits) * digits, round(float(x[b, k]) / digits) * digits, None]
-    return tuple(out)
+def _round(v, step: float) -> list[float]:
+    """Coordinates rounded to a multiple of `step` (a length): short JSON for the few lines drawn."""
+    return [round(float(c) / step) * step for c in v]
 
 
-def _round(v: float, step: float) -> float:
-    return round(v / step) * step
+def _segments(points: list[tuple[np.ndarray, np.ndarray]], step: float) -> dict:
+    """x, y, z of a Scatter3d drawing the segments (a, b), None between them."""
+    out = {"x": [], "y": [], "z": []}
+    for a, b in points:
+        for k, axis in enumerate("xyz"):
+            out[axis] += _round([a[k], b[k]], step) + [None]
+    return out
+
+
+def _mesh3d(name: str, x: np.ndarray, faces: np.ndarray, group: str, title: str, **style) -> dict:
+    """A Mesh3d trace of the triangles x[faces] (only the nodes they use), in a legend group."""
+    nodes, tri = compact(faces)
+    return dict(type="mesh3d", name=name, legendgroup=group, legendgrouptitle={"text": title}, showlegend=True,
+                x=typed(x[nodes, 0]), y=typed(x[nodes, 1]), z=typed(x[nodes, 2]),
+                i=typed(tri[:, 0], "i4"), j=typed(tri[:, 1], "i4"), k=typed(tri[:, 2], "i4"),
+                flatshading=True, **style)
+
+
+def _parts(res: Results) -> list[tuple[str, str, np.ndarray]]:
+    """(name, body, cells) of each region, or each body when the mesh has no regions."""
+    mesh = res.mesh
+    if mesh.cell_region is not None and mesh.regions:
+        groups = [(r, mesh.cell_region == k) for k, r in enumerate(mesh.regions)]
+    elif mesh.cell_body is not None and mesh.bodies:
+        groups = [(b, mesh.cell_body == k) for k, b in enumerate(mesh.bodies)]
+    else:
+        groups = [("mesh", np.ones(len(mesh.cells), bool))]
+    out = []
+    for name, mask in groups:
+        cells = np.flatnonzero(mask)
+        if cells.size:
+            body = (mesh.bodies[int(np.bincount(mesh.cell_body[cells]).argmax())]
+                    if mesh.cell_body is not None and mesh.bodies else "")
+            out.append((name, body, cells))
+    return out
+
+
+def _load_arrows(x: np.ndarray, faces: np.ndarray, spec: dict, length: float) -> list:
+    """Segments of up to ARROWS arrows onto the loaded faces (shaft and two barbs, `length` long):
+    along a traction, or against the outward normal for a positive pressure."""
+    pick = np.linspace(0, len(faces) - 1, min(ARROWS, len(faces))).astype(int)
+    centre = x[faces[pick]].mean(axis=1)
+    if "traction" in spec:
+        d = np.broadcast_to(np.asarray(spec["traction"], float), centre.shape)
+    else:
+        d = -face_normals(x, faces[pick]) * (np.sign(float(spec.get("pressure", 1.0))) or 1.0)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300) * length
+    out = []
+    for p, v in zip(centre, d):
+        side = np.cross(v, [0, 0, 1.0] if abs(v[2]) < 0.9 * np.linalg.norm(v) else [1.0, 0, 0])
+        side *= 0.25 * np.linalg.norm(v) / np.linalg.norm(side)
+        out += [(p - v, p), (p - 0.3 * v + side, p), (p - 0.3 * v - side, p)]
+    return out
 
 
 def view_data(res: Results) -> dict:
@@ -59,148 +106,56 @@ def view_data(res: Results) -> dict:
     mesh = res.mesh
     x = mesh.coords
     scale = float(np.ptp(x, axis=0).max()) or 1.0
-    step = 1e-5 * scale
     faces, owner = outer_faces(mesh.cells, x)
-    traces, missing = [], []
-    parts, contacts = [], []              # (trace index, nodes, triangles, owner cells)
-
-    # ------------------------------------------------ one surface per region (or body)
-    if mesh.cell_region is not None and mesh.regions:
-        groups = [(f"{r}", mesh.cell_region == k) for k, r in enumerate(mesh.regions)]
-    elif mesh.cell_body is not None and mesh.bodies:
-        groups = [(f"{b}", mesh.cell_body == k) for k, b in enumerate(mesh.bodies)]
-    else:
-        groups = [("mesh", np.ones(len(mesh.cells), bool))]
-    for k, (name, mask) in enumerate(groups):
-        cells = np.flatnonzero(mask)
-        if not cells.size:
-            continue
+    traces, missing, parts, contacts = [], [], [], []     # parts: (trace, nodes, owner cells); contacts: (trace, pair, nodes)
+    lighting = {"ambient": 0.45, "diffuse": 0.75, "specular": 0.0, "roughness": 1.0, "fresnel": 0.0,
+                "facenormalsepsilon": 0, "vertexnormalsepsilon": 0}
+    for k, (name, body, cells) in enumerate(_parts(res)):
         f, o = outer_faces(mesh.cells[cells], x)
-        nodes, tri = compact(f)
-        body = (mesh.bodies[int(np.bincount(mesh.cell_body[cells]).argmax())]
-                if mesh.cell_body is not None and mesh.bodies else "")
-        traces.append(dict(
-            type="mesh3d", name=name, legendgroup=f"body {body}" if body else "mesh",
-            legendgrouptitle={"text": f"body {body}" if body else "mesh"}, showlegend=True,
-            x=typed(x[nodes, 0]), y=typed(x[nodes, 1]), z=typed(x[nodes, 2]),
-            i=typed(tri[:, 0], "i4"), j=typed(tri[:, 1], "i4"), k=typed(tri[:, 2], "i4"),
-            color=PALETTE[k % len(PALETTE)], flatshading=True,
-            lighting={"ambient": 0.45, "diffuse": 0.75, "specular": 0.0, "roughness": 1.0, "fresnel": 0.0,
-                      "facenormalsepsilon": 0, "vertexnormalsepsilon": 0},
-            lightposition={"x": 1e5, "y": -2e5, "z": 3e5}))
-        parts.append((len(traces) - 1, nodes, tri, cells[o]))
-
-    # ------------------------------------------------ contact surfaces (slave side)
+        group = f"body {body}" if body else "mesh"
+        traces.append(_mesh3d(name, x, f, group, group, color=PALETTE[k % len(PALETTE)], lighting=lighting,
+                              lightposition={"x": 1e5, "y": -2e5, "z": 3e5}))
+        parts.append((len(traces) - 1, compact(f)[0], cells[o]))
     for c, (pair, spec) in enumerate((res.scene.get("contacts") or {}).items()):
         sel = selected_faces(res, (spec or {}).get("slave", ""), faces, owner)
         if sel is None or not sel.any():
             missing.append(f"contact surface {pair}")
             continue
-        nodes, tri = compact(faces[sel])
-        traces.append(dict(
-            type="mesh3d", name=f"contact {pair}", legendgroup="contact", legendgrouptitle={"text": "contacts"},
-            x=typed(x[nodes, 0]), y=typed(x[nodes, 1]), z=typed(x[nodes, 2]),
-            i=typed(tri[:, 0], "i4"), j=typed(tri[:, 1], "i4"), k=typed(tri[:, 2], "i4"),
-            color=CONTACT_COLORS[c % len(CONTACT_COLORS)], flatshading=True, showlegend=True))
-        contacts.append((len(traces) - 1, pair, nodes))
-
-    # ------------------------------------------------ regions of interest
-    for name in res.scene.get("regions_of_interest") or {}:
-        roi = (res.scene["regions_of_interest"][name]) or {}
-        if "boundary" in roi:
+        traces.append(_mesh3d(f"contact {pair}", x, faces[sel], "contact", "contacts",
+                              color=CONTACT_COLORS[c % len(CONTACT_COLORS)]))
+        contacts.append((len(traces) - 1, pair, compact(faces[sel])[0]))
+    for name, roi in (res.scene.get("regions_of_interest") or {}).items():
+        if "boundary" in (roi or {}):
             sel = selected_faces(res, roi["boundary"], faces, owner)
-            f = faces[sel] if sel is not None else np.zeros((0, 3), int)
+            f = faces[sel] if sel is not None else faces[:0]
         else:
             cells = roi_cells(res, name)
-            f = outer_faces(mesh.cells[cells], x)[0] if cells is not None and cells.any() else np.zeros((0, 3), int)
+            f = outer_faces(mesh.cells[cells], x)[0] if cells is not None and cells.any() else faces[:0]
         if not len(f):
             missing.append(f"region of interest {name}")
             continue
-        nodes, tri = compact(f)
-        traces.append(dict(
-            type="mesh3d", name=name, legendgroup="roi", legendgrouptitle={"text": "regions of interest"},
-            x=typed(x[nodes, 0]), y=typed(x[nodes, 1]), z=typed(x[nodes, 2]),
-            i=typed(tri[:, 0], "i4"), j=typed(tri[:, 1], "i4"), k=typed(tri[:, 2], "i4"),
-            color=ROI_COLOR, opacity=0.45, flatshading=True, showlegend=True, visible="legendonly"))
-
-    # ------------------------------------------------ supports and loads: outlines, load arrows
+        traces.append(_mesh3d(name, x, f, "roi", "regions of interest", color=ROI_COLOR, opacity=0.45,
+                              visible="legendonly"))
     for what, colour in (("supports", SUPPORT_COLOR), ("loads", LOAD_COLOR)):
         for name, spec in (res.scene.get(what) or {}).items():
             sel = selected_faces(res, name, faces, owner)
             if sel is None or not sel.any():
                 missing.append(f"{what[:-1]} on {name}")
                 continue
-            lx, ly, lz = _lines(x, outline(faces[sel]), step)
-            label = f"{'support' if what == 'supports' else 'load'} {name}"
+            segments = [(x[a], x[b]) for a, b in outline(faces[sel])]
             if what == "loads":
-                pick = np.flatnonzero(sel)[np.linspace(0, sel.sum() - 1, min(ARROWS, sel.sum())).astype(int)]
-                centre = x[faces[pick]].mean(axis=1)
-                if "traction" in (spec or {}):
-                    d = np.broadcast_to(np.asarray(spec["traction"], float), centre.shape)
-                else:
-                    d = -face_normals(x, faces[pick]) * np.sign(float((spec or {}).get("pressure", 1.0)) or 1.0)
-                d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300) * 0.06 * scale
-                for p, v in zip(centre, d):          # an arrow onto the face: shaft and two barbs
-                    side = np.cross(v, [0, 0, 1.0] if abs(v[2]) < 0.9 * np.linalg.norm(v) else [1.0, 0, 0])
-                    side *= 0.25 * np.linalg.norm(v) / np.linalg.norm(side)
-                    for a, b in ((p - v, p), (p - 0.3 * v + side, p), (p - 0.3 * v - side, p)):
-                        for k, out in enumerate((lx, ly, lz)):
-                            out += [_round(float(a[k]), step), _round(float(b[k]), step), None]
-            traces.append(dict(type="scatter3d", mode="lines", name=label, x=lx, y=ly, z=lz,
-                               line={"color": colour, "width": 5}, legendgroup=what,
-                               legendgrouptitle={"text": what}, hoverinfo="name", showlegend=True))
-
-    # ------------------------------------------------ the cases and their fields
-    cases = distinct_cases(res)
-    fs = [res.worst_fields[j] for j, _ in cases]
-    us = [f.displacement for f in fs if f.displacement is not None]
-    mag = magnification(mesh, max(us, key=lambda u: float(np.nanmax(np.abs(u))))) if us else 1.0
-    fields = []
-
-    def add(key, label, on, mode, per_case, scaler, colorscale):
-        vals = [np.asarray(a, float) for v in per_case if v is not None for a in v if a is not None]
-        if not vals:
-            return
-        allv = np.concatenate(vals)
-        sc, units = scaler(allv)
-        finite = allv[np.isfinite(allv)] * sc
-        if not finite.size:
-            return
-        lo = float(np.min(finite))
-        lo = 0.0 if lo >= 0 else lo
-        hi = float(np.percentile(finite, 99.5))
-        fields.append({"key": key, "label": f"{label} [{units}]", "on": on, "mode": mode, "units": units,
-                       "cmin": lo, "cmax": hi if hi > lo else lo + 1.0, "colorscale": colorscale})
-        for case, v in zip(case_data, per_case):
-            case["values"][key] = None if v is None else [None if a is None else typed(np.asarray(a) * sc)
-                                                          for a in v]
-
-    case_data = [{"label": label, "values": {}, "displacement": None} for _, label in cases]
-    for case, f in zip(case_data, fs):
-        if f.displacement is not None:
-            case["displacement"] = [[typed(f.displacement[nodes, k]) for k in range(3)] for _, nodes, _, _ in parts]
-
-    def per_part(values, at_nodes: bool):
-        return None if values is None else [values[nodes] if at_nodes else values[cells]
-                                            for _, nodes, _, cells in parts]
-    add("u", "displacement |u|", "body", "vertex",
-        [per_part(None if f.displacement is None else np.linalg.norm(f.displacement, axis=1), True) for f in fs],
-        length_scale, "Viridis")
-    add("von_mises", "von Mises stress", "body", "cell", [per_part(_von_mises(f), False) for f in fs],
-        stress_scale, "Viridis")
-    add("s1", "largest principal stress σ₁", "body", "cell",
-        [per_part(None if f.principal_stress is None else f.principal_stress[:, 0], False) for f in fs],
-        stress_scale, "RdBu_r")
-    add("s3", "smallest principal stress σ₃", "body", "cell",
-        [per_part(None if f.principal_stress is None else f.principal_stress[:, -1], False) for f in fs],
-        stress_scale, "RdBu_r")
-    add("contact_pressure", "contact pressure −τₙ", "contact", "vertex",
-        [_contact_values(f, contacts, x, "contact_pressure") for f in fs], stress_scale, "Hot_r")
-    add("contact_slip", "slip |s|", "contact", "vertex",
-        [_contact_values(f, contacts, x, "contact_slip") for f in fs], length_scale, "Cividis")
-
+                segments += _load_arrows(x, faces[sel], spec or {}, 0.06 * scale)
+            traces.append(dict(type="scatter3d", mode="lines", name=f"{what[:-1]} {name}",
+                               **_segments(segments, 1e-5 * scale), line={"color": colour, "width": 5},
+                               legendgroup=what, legendgrouptitle={"text": what}, hoverinfo="name", showlegend=True))
+    cases, fields, mag = _cases(res, parts, contacts, missing)
     pad = 0.08 * scale                    # the axis box clips: the faces and load arrows lie inside
     lo, hi = x.min(axis=0) - pad, x.max(axis=0) + pad
+    frames = {"whole model": [lo.tolist(), hi.tolist()]}
+    frame = roi_frame(res)
+    if frame is not None:
+        margin = 0.02 * float(np.ptp(frame, axis=0).max())
+        frames["regions of interest"] = [(frame[0] - margin).tolist(), (frame[1] + margin).tolist()]
     layout = {
         "scene": {"aspectmode": "data", **{f"{a}axis": {"title": {"text": f"{a} [m]"}, "showspikes": False}
                                            for a in "xyz"},
@@ -208,32 +163,79 @@ def view_data(res: Results) -> dict:
         "legend": {"groupclick": "toggleitem", "itemsizing": "constant", "x": 0, "xanchor": "left", "y": 1,
                    "bgcolor": "rgba(255,255,255,0.7)"},
         "margin": {"l": 0, "r": 0, "t": 10, "b": 0}, "uirevision": "view", "height": 640}
-    frame = roi_frame(res)
     return {"traces": traces, "layout": layout, "parts": [p[0] for p in parts], "contacts": [c[0] for c in contacts],
-            "fields": fields, "cases": case_data, "magnification": mag, "missing": missing,
-            "frames": {"whole model": [lo.tolist(), hi.tolist()], **({"regions of interest": [
-                (frame[0] - 0.02 * np.ptp(frame, axis=0).max()).tolist(),
-                (frame[1] + 0.02 * np.ptp(frame, axis=0).max()).tolist()]} if frame else {})}}
+            "fields": fields, "cases": cases, "magnification": mag, "missing": missing, "frames": frames}
 
 
-def _contact_values(f, contacts, x: np.ndarray, name: str):
-    """The contact field `name` at each contact surface's vertices, matched to the file's contact
-    nodes of its pair by position (None for a surface whose vertices are not all among them)."""
+def _cases(res: Results, parts: list, contacts: list, missing: list) -> tuple[list, list, float]:
+    """Per distinct worst case its label, the displacement at each part's vertices and the values
+    of each field on each part or contact surface (`None` where the case lacks it); the fields
+    with their common colour range (0 or the least value to the 99.5th percentile over the cases,
+    in the units `stress_scale`/`length_scale` choose); the magnification of the deformed shape."""
+    chosen = distinct_cases(res)
+    fs = [res.worst_fields[j] for j, _ in chosen]
+    us = [f.displacement for f in fs if f.displacement is not None]
+    mag = magnification(res.mesh, max(us, key=lambda u: float(np.nanmax(np.abs(u))))) if us else 1.0
+    cases = [{"label": label, "values": {}, "displacement": None if f.displacement is None else
+              [[typed(f.displacement[nodes, k]) for k in range(3)] for _, nodes, _ in parts]}
+             for (_, label), f in zip(chosen, fs)]
+    fields = []
+
+    def per_part(values, at_nodes: bool):
+        return None if values is None else [values[nodes] if at_nodes else values[cells] for _, nodes, cells in parts]
+
+    def add(key, label, on, mode, per_case, scaler, colorscale):
+        vals = [np.asarray(a, float) for v in per_case if v is not None for a in v if a is not None]
+        allv = np.concatenate(vals) if vals else np.zeros(0)
+        finite = allv[np.isfinite(allv)]
+        if not finite.size:
+            return
+        sc, units = scaler(finite)
+        lo, hi = min(float(finite.min()) * sc, 0.0), float(np.percentile(finite, 99.5)) * sc
+        fields.append({"key": key, "label": f"{label} [{units}]", "on": on, "mode": mode, "units": units,
+                       "cmin": lo, "cmax": hi if hi > lo else lo + 1.0, "colorscale": colorscale})
+        for case, v in zip(cases, per_case):
+            case["values"][key] = None if v is None else [None if a is None else typed(np.asarray(a) * sc) for a in v]
+
+    add("u", "displacement |u|", "body", "vertex",
+        [per_part(None if f.displacement is None else np.linalg.norm(f.displacement, axis=1), True) for f in fs],
+        length_scale, "Viridis")
+    add("von_mises", "von Mises stress", "body", "cell", [per_part(_von_mises(f), False) for f in fs],
+        stress_scale, "Viridis")
+    for key, label, col in (("s1", "largest principal stress σ₁", 0), ("s3", "smallest principal stress σ₃", -1)):
+        add(key, label, "body", "cell",
+            [per_part(None if f.principal_stress is None else f.principal_stress[:, col], False) for f in fs],
+            stress_scale, "RdBu_r")
+    for key, label, scaler, colorscale in (("contact_pressure", "contact pressure −τₙ", stress_scale, "Hot_r"),
+                                           ("contact_slip", "slip |s|", length_scale, "Cividis")):
+        per_case = []
+        for f in fs:
+            values, unmatched = _contact_values(f, contacts, res.mesh.coords, key)
+            per_case.append(values)
+            missing += [m for m in (f"{label} on contact {pair} (its vertices are not the file's contact nodes)"
+                                    for pair in unmatched) if m not in missing]
+        add(key, label, "contact", "vertex", per_case, scaler, colorscale)
+    return cases, fields, mag
+
+
+def _contact_values(f, contacts, x: np.ndarray, name: str) -> tuple[list | None, list[str]]:
+    """The contact field `name` (a vector by its length) at each contact surface's vertices, matched
+    by position to the file's contact nodes of its pair (None for a surface whose vertices are not
+    all among them: such pairs are the second item); (None, []) when the case lacks the field."""
     from scipy.spatial import cKDTree
     if f is None or f.contact_coords is None or name not in f.contact:
-        return None
+        return None, []
     v = f.contact[name]
     v = np.linalg.norm(v, axis=1) if v.ndim == 2 else v
-    out = []
+    tol = 1e-9 * float(np.ptp(x, axis=0).max())
+    out, unmatched = [], []
     for _, pair, nodes in contacts:
         idx = np.flatnonzero(f.contact_pair == pair)
-        if not idx.size:
-            out.append(None)
-            continue
-        d, k = cKDTree(f.contact_coords[idx]).query(x[nodes])
-        tol = 1e-9 * float(np.ptp(x, axis=0).max())
-        out.append(v[idx[k]] if np.all(d <= tol) else None)
-    return out if any(o is not None for o in out) else None
+        d, k = cKDTree(f.contact_coords[idx]).query(x[nodes]) if idx.size else (np.inf, None)
+        ok = bool(np.all(d <= tol))
+        out.append(v[idx[k]] if ok else None)
+        unmatched += [] if ok else [pair]
+    return (out if any(o is not None for o in out) else None), unmatched
 
 
 CONTROLLER = r"""
