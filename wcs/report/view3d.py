@@ -153,9 +153,10 @@ def view_data(res: Results) -> dict:
     lo, hi = x.min(axis=0) - pad, x.max(axis=0) + pad
     frames = {"whole model": [lo.tolist(), hi.tolist()]}
     frame = roi_frame(res)
-    if frame is not None:
+    if frame is not None:                 # first (shown at first) when small in the model, as in the figures
         margin = 0.02 * float(np.ptp(frame, axis=0).max())
-        frames["regions of interest"] = [(frame[0] - margin).tolist(), (frame[1] + margin).tolist()]
+        around = {"regions of interest": [(frame[0] - margin).tolist(), (frame[1] + margin).tolist()]}
+        frames = {**around, **frames} if np.ptp(frame, axis=0).max() < 0.5 * scale else {**frames, **around}
     layout = {
         "scene": {"aspectmode": "data", **{f"{a}axis": {"title": {"text": f"{a} [m]"}, "showspikes": False}
                                            for a in "xyz"},
