@@ -350,3 +350,33 @@ def test_the_3d_view_turns_and_switches_fields_in_chromium(fault_sm, tmp_path):
         assert len(np.unique(a[::4, ::4].reshape(-1, 3), axis=0)) > 100, f"{k}: a blank picture"
     for a, b_ in (("start", "turned"), ("turned", "von Mises"), ("von Mises", "contact pressure")):
         assert np.abs(pixels[a] - pixels[b_]).sum(axis=2).astype(bool).mean() > 0.02, (a, b_)
+
+
+def test_the_scene_figure_outlines_every_support_load_contact_and_region(fault_sm):
+    """Each support, load, contact surface and region of interest of the scene is outlined in the
+    static scene figure (`scene_sets`), none left out (before: none drawn)."""
+    from wcs.report.data import from_dataset
+    from wcs.report.plots3d import outer_faces, scene_sets
+    res = from_dataset(synthetic_solve3d(fault_sm.mesh, fault_sm))
+    faces, owner = outer_faces(res.mesh.cells, res.mesh.coords)
+    sets, missing = scene_sets(res, faces, owner)
+    assert missing == [] and [(k, n) for k, n, _ in sets] == [
+        ("support", "bottom"), ("load", "right"), ("contact", "fault"),
+        ("region of interest", "core"), ("region of interest", "near_fault")]
+    assert all(mask.any() for _, _, mask in sets)
+
+
+def test_a_thin_axis_shows_its_ends_instead_of_crowded_ticks():
+    """The 3D tunnel's 120 x 10 x 120 m slice: the 10 m axis gets no ticks, its two ends in its
+    label (before: its tick labels ran into each other and into the next axis's); the others at
+    most five ticks."""
+    from wcs.report.plots import plt
+    from wcs.report.plots3d import _axes_ticks
+    fig = plt.figure()
+    ax = fig.add_subplot(projection="3d")
+    lo, hi = np.array([-60.0, 0.0, -60.0]), np.array([60.0, 10.0, 60.0])
+    ax.set_xlim(lo[0], hi[0]), ax.set_ylim(lo[1], hi[1]), ax.set_zlim(lo[2], hi[2])
+    _axes_ticks(ax, lo, hi)
+    assert list(ax.get_yticks()) == [] and ax.get_ylabel() == "y 0 … 10 m"
+    assert 2 <= len(ax.get_xticks()) <= 5 and 2 <= len(ax.get_zticks()) <= 5
+    plt.close(fig)
