@@ -380,3 +380,18 @@ def test_a_thin_axis_shows_its_ends_instead_of_crowded_ticks():
     assert list(ax.get_yticks()) == [] and ax.get_ylabel() == "y 0 … 10 m"
     assert 2 <= len(ax.get_xticks()) <= 5 and 2 <= len(ax.get_zticks()) <= 5
     plt.close(fig)
+
+
+def test_the_contact_surface_drawn_is_where_the_file_has_contact_nodes(fault_sm):
+    """A contact solved on a candidate zone, part of its slave surface (the 3D Hertz sphere): the
+    view draws the slave faces whose nodes the file holds, coloured by their values, and names
+    nothing as missing (before the fix: the whole surface, its field not drawn)."""
+    from wcs.report.data import from_dataset
+    from wcs.report.view3d import view_data
+    ds = synthetic_solve3d(fault_sm.mesh, fault_sm)
+    ds = ds.isel(contact_node=np.flatnonzero(ds["contact_coords"].values[:, 1] <= 0.5))
+    d = view_data(from_dataset(ds))
+    ci = d["contacts"][0]
+    xc = np.column_stack([decode(d["traces"][ci][a]) for a in "xyz"])
+    assert d["missing"] == [] and len(xc) > 10 and xc[:, 1].max() <= 0.5 + 1e-6
+    assert decode(d["cases"][0]["values"]["contact_pressure"][0]) == pytest.approx(1 + xc[:, 1], rel=1e-6)

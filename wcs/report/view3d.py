@@ -118,8 +118,10 @@ def view_data(res: Results) -> dict:
         parts.append((len(traces) - 1, compact(f)[0], cells[o]))
     for c, (pair, spec) in enumerate((res.scene.get("contacts") or {}).items()):
         sel = selected_faces(res, (spec or {}).get("slave", ""), faces, owner)
+        if sel is not None:
+            sel[np.flatnonzero(sel)[~_on_contact_nodes(res, pair, x[faces[sel]])]] = False
         if sel is None or not sel.any():
-            missing.append(f"contact surface {pair}")
+            missing.append(f"contact surface {pair} (no outer face of its slave boundary holds the file's contact nodes)")
             continue
         traces.append(_mesh3d(f"contact {pair}", x, faces[sel], "contact", "contacts",
                               color=CONTACT_COLORS[c % len(CONTACT_COLORS)]))
@@ -132,7 +134,7 @@ def view_data(res: Results) -> dict:
             cells = roi_cells(res, name)
             f = outer_faces(mesh.cells[cells], x)[0] if cells is not None and cells.any() else faces[:0]
         if not len(f):
-            missing.append(f"region of interest {name}")
+            missing.append(f"region of interest {name} (no cell or face selected)")
             continue
         traces.append(_mesh3d(name, x, f, "roi", "regions of interest", color=ROI_COLOR, opacity=0.45,
                               visible="legendonly"))
@@ -140,7 +142,7 @@ def view_data(res: Results) -> dict:
         for name, spec in (res.scene.get(what) or {}).items():
             sel = selected_faces(res, name, faces, owner)
             if sel is None or not sel.any():
-                missing.append(f"{what[:-1]} on {name}")
+                missing.append(f"{what[:-1]} on {name} (no outer face selected)")
                 continue
             segments = [(x[a], x[b]) for a, b in outline(faces[sel])]
             if what == "loads":
@@ -217,6 +219,19 @@ def _cases(res: Results, parts: list, contacts: list, missing: list) -> tuple[li
                                     for pair in unmatched) if m not in missing]
         add(key, label, "contact", "vertex", per_case, scaler, colorscale)
     return cases, fields, mag
+
+
+def _on_contact_nodes(res: Results, pair: str, tri: np.ndarray) -> np.ndarray:
+    """Mask over the triangles tri (k, 3 vertices, 3): those whose vertices are all among the file's
+    contact nodes of `pair` (the candidate zone of the contact solve may be part of its surface);
+    all of them when the file has no contact nodes."""
+    from scipy.spatial import cKDTree
+    f = next((f for f in res.worst_fields if f is not None and f.contact_coords is not None), None)
+    known = None if f is None else f.contact_coords[f.contact_pair == pair]
+    if known is None or not len(known):
+        return np.ones(len(tri), bool)
+    d, _ = cKDTree(known).query(tri.reshape(-1, 3))
+    return (d.reshape(-1, 3) <= 1e-9 * float(np.ptp(res.mesh.coords, axis=0).max())).all(axis=1)
 
 
 def _contact_values(f, contacts, x: np.ndarray, name: str) -> tuple[list | None, list[str]]:
@@ -316,8 +331,8 @@ def view_html(res: Results, plotly_js: str | None = None) -> str:
         '<option value="-1">none: the regions in their colours</option>'
     frames = "".join(f'<option value="{esc(k)}">{esc(k)}</option>' for k in d["frames"])
     data = json.dumps(d, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
-    note = (f'<p class="warn" id="view3d-missing">Not drawn: {esc(", ".join(d["missing"]))} (not a geometric '
-            'face selector of the scene, or it selects no outer face).</p>' if d["missing"] else "")
+    note = (f'<p class="warn" id="view3d-missing">Not drawn: {esc("; ".join(d["missing"]))}.</p>'
+            if d["missing"] else "")
     return (
         '<p>Drag to turn, scroll to zoom, right-drag to move. Click a legend entry to hide or show a region, '
         'a contact surface, a region of interest (hidden at first), the supports (blue outlines) or the loads '
