@@ -144,6 +144,7 @@ def test_the_report_of_a_3d_file_draws_the_surface_cuts_and_contact_maps(fault, 
         assert f'alt="{alt}' in html, alt
     assert html.count("data:image/png;base64,") >= 4
     assert html.count("plotly.js v") == 1 and 'id="view3d-plot"' in html and 'href="#view3d"' in html
+    assert 'id="membership"' not in html and 'href="#membership"' not in html          # a crisp study
 
 
 # ---------------------------------------------------------------- issue 27: what the assessor sees in 3D
