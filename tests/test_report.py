@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -367,3 +368,56 @@ def test_a_temperature_difference_is_not_shown_in_celsius():
     from wcs.report.html import number
     assert number(300.0, "K").endswith("(26.9 °C)")
     assert "°C" not in number(0.00193, "K", difference=True)
+
+
+def test_an_incomplete_run_says_so_once_and_passes_nothing(contact_run, tmp_path):
+    """An incomplete run: one banner, which says "incomplete" once (before: "This run is incomplete.
+    the run is incomplete: …"), and no green PASS cell (a limit that holds among the evaluations so
+    far is not passed); a crisp study has no membership section (before: in every report)."""
+    ds, _ = contact_run
+    ds = ds.copy()
+    ds.attrs["complete"] = "no"
+    from wcs.report.data import load
+    from wcs.report.html import Report
+    path = write_netcdf(ds, tmp_path / "stopped.nc")     # read with the store's account of the run
+    report = Report(load(path), str(path), strict=True)
+    text = report.summary() + report.limits()            # the sections concerned, not the figures: fast
+    assert "--resume" in text
+    page = Page(text)
+    banner = text[text.index('id="incomplete">') + len('id="incomplete">'):]
+    banner = banner[:banner.index("</p>")]
+    assert text.count('id="incomplete"') == 1 and len(re.findall(r"\bincomplete\b", banner.lower())) == 1
+    assert page.limit_row("settlement")["verdict"]["text"] == "holds so far (incomplete run)"
+    assert not [c for r in page.rows for c in r["cells"] if "pass" in c["class"].split()]
+    assert page.limit_row("crack_pressure")["verdict"]["text"] == "FAIL"
+    assert not report.shown("membership")
+
+
+@pytest.mark.slow
+def test_the_mesh_check_table_keeps_within_the_page_in_chromium(tmp_path):
+    """The mesh check's table with three meshes and a long note (the 3D tunnel's) fits the page
+    Chromium draws at 1280 px: the page is no wider than the window and the table scrolls inside
+    the page's column (before, it ran off the page)."""
+    from cdp import Browser
+    from test_verdict import _knee_like
+    note = ("split once only (the mesh split 2 times would have 1.59e+06 cells, beyond mesh.max_cells = 1e+06): "
+            "f(h/2) − f(h) = 1.231e+12; no order observed: the error assumes the linear elements' theoretical "
+            "order 1 (stresses and contact tractions converge as h; displacements faster, so it overstates theirs)")
+    ds = _knee_like("PASS", "done: the extreme data sets re-solved on the mesh split once and twice")
+    ds["mesh_check_value"][:] = [[[6.563921e13, 6.687069e13, 6.751234e13]]]
+    ds["mesh_check_nodes"][:] = [6268, 41502, 301234]
+    ds["mesh_check_time"][:] = [0.0, 59.4, 412.0]
+    for name, v in (("order", 1.23), ("extrapolated", 6.810217e13), ("error", 2.463e12)):
+        ds[f"mesh_check_{name}"][:] = [[v]]
+    ds["mesh_check_note"][:] = np.array([[note]], dtype=object)
+    ds["criterion_units"] = ("criterion", np.array(["Pa^2"], dtype=object))
+    html_path = tmp_path / "mesh-check.html"
+    html_path.write_text(render_report(ds, strict=True), encoding="utf-8")
+    with Browser(ensure_chromium(), tmp_path, width=1280, height=1000) as b:
+        b.open(html_path)
+        page, window = b.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
+        table, box = b.evaluate("(() => { const t = document.getElementById('mesh-check-table').parentElement;"
+                                "return [t.getBoundingClientRect().right, document.querySelector('main')"
+                                ".getBoundingClientRect().right]; })()")
+        assert b.errors == []
+    assert page <= window and table <= box, (page, window, table, box)

@@ -16,7 +16,8 @@ from ..errors import StudyError
 __all__ = ["cmd_report", "render_report", "write_report", "SECTION_IDS"]
 
 
-SECTION_IDS = ["summary", "limits", "membership", "scene", "mesh-check", "worst-data", "drivers", "worst-fields", "contact",
+# the sections of every report; besides them "membership" (a fuzzy study) and "view3d" (a 3D mesh)
+SECTION_IDS = ["summary", "limits", "scene", "mesh-check", "worst-data", "drivers", "worst-fields", "contact",
                "criteria-vs-parameters", "best-so-far", "failures", "provenance"]
 
 

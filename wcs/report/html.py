@@ -16,7 +16,7 @@ from ..drivers import IDLE, NO_EXTREME, idle
 from ..extremes import pairs
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
-from . import plots, plots3d
+from . import plots, plots3d, view3d
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
@@ -24,6 +24,7 @@ SECTIONS = [
     ("limits", "Limits"),
     ("membership", "Membership function of each criterion (fuzzy data)"),
     ("scene", "The scene and mesh"),
+    ("view3d", "The model in 3D (interactive)"),
     ("mesh-check", "The mesh's share"),
     ("worst-data", "Worst data set per criterion"),
     ("drivers", "What drives the extremes"),
@@ -69,6 +70,9 @@ pre{background:#f6f8fa;border:1px solid #d0d7de;padding:10px;font-size:12px;over
 dl.kv{display:grid;grid-template-columns:max-content auto;gap:2px 16px;font-size:13px}
 dl.kv dt{font-weight:bold}
 dl.kv dd{margin:0;font-family:monospace;word-break:break-all}
+.wide{overflow-x:auto;max-width:100%}
+.view3d-controls{font-size:13px;margin:6px 0}
+.view3d-controls label{margin-right:12px}
 """
 
 NOT_SEARCHED = "Its maximum is not searched (sense: min): see its minimum under Limits."
@@ -206,8 +210,7 @@ class Report:
                          f"{'' if r.validity else ': within'}"))
         body = ""
         if r.incomplete:
-            body += (f'<p class="warn" id="incomplete"><b>This run is incomplete.</b> {esc(r.incomplete)}. '
-                     'The worst values below are the best of the evaluations in this file only.</p>')
+            body += incomplete_banner(r.incomplete)
         body += (f'<div class="verdict {cls}" id="verdict">{esc(verdict)}</div>'
                  f'<p id="verdict-reasons">{esc(why)}.</p>')
         if v.unchecked:
@@ -244,6 +247,8 @@ class Report:
             cls = {"pass": "pass", "fail": "fail"}.get(v, "none")
             if v in ("pass", "fail") and c.name in r.verdict.unchecked:    # within CLOSE, the mesh's share unknown
                 label, cls = label + " (mesh share unknown)", "fail" if v == "fail" else "none"
+            if v == "pass" and r.incomplete:                  # the evaluations so far only: no PASS
+                label, cls = "holds so far (incomplete run)", "none"
             low = ""
             if ends:
                 low = (f'<td class="num">{number(c.limit_lower, c.units) if math.isfinite(c.limit_lower) else "—"}</td>'
@@ -315,6 +320,19 @@ class Report:
                 f'regions of interest: {", ".join(esc(x) for x in rois) or "—"}.</p>')
         figure = plots3d.scene_figure3d(r) if r.mesh.dim == 3 else plots.scene_figure(r)
         return text + img(figure, "scene and mesh")
+
+    def view3d(self) -> str:
+        """The interactive 3D view of a 3D mesh (plotly.js embedded once, wcs/report/view3d.py)."""
+        return view3d.view_html(self.res)
+
+    def shown(self, sid: str) -> bool:
+        """Sections that exist for some files only: the membership functions of a fuzzy study, the
+        interactive view of a 3D mesh."""
+        if sid == "membership":
+            return fuzzy(self.res)
+        if sid == "view3d":
+            return self.res.mesh is not None and self.res.mesh.dim == 3
+        return True
 
     def worst_data(self) -> str:
         r = self.res
@@ -501,7 +519,7 @@ class Report:
             err = float(a["mesh_check_error"].sel(pick))
             pct = f" ({100 * err / abs(f[0]):+.2g} %)".replace("-", "−") if np.isfinite(err) and f[0] else ""
             ver = str(a["mesh_check_verdict"].sel(pick).values)
-            cls = {"PASS": "pass", "FAIL": "fail"}.get(ver, "none")
+            cls = {"PASS": "none" if self.res.incomplete else "pass", "FAIL": "fail"}.get(ver, "none")
             rows.append(
                 f'<tr data-criterion="{esc(c)}" data-extreme="{esc(kind)}"><td>{esc(c)}</td><td>{esc(kind)}</td>'
                 + "".join(f'<td class="num">{number(v, u, 7)}</td>' for v in f)
@@ -510,13 +528,14 @@ class Report:
                 f'<td class="num">{number(err, u, difference=True)}{pct}</td>'
                 f'<td class="{cls} verdict-cell">'
                 f'{esc(ver) or ("NOT CHECKED" if limits.get((kind, c)) else "no limit")}</td>'
-                f'<td class="note" style="min-width:24em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
+                f'<td class="note" style="min-width:12em">{esc(a["mesh_check_note"].sel(pick).values)}</td></tr>')
         built = [f"{h} ({nodes[k]} nodes, {seconds[k]:.3g} s)" if nodes[k] >= 0 else f"{h} (not built)"
                  for k, h in ((1, "h/2"), (2, "h/4"))]
         head = "".join(f"<th>{h}</th>" for h in (
             "criterion", "extreme", f"h ({nodes[0]} nodes)", *built, "observed order", "extrapolated",
             "estimated error of the h value", "verdict", "note"))
-        return (f'<p>{esc(said)}.</p><table id="mesh-check-table"><tr>{head}</tr>{"".join(rows)}</table>'
+        return (f'<p>{esc(said)}.</p><div class="wide"><table id="mesh-check-table"><tr>{head}</tr>{"".join(rows)}'
+                '</table></div>'
                 '<p class="note">Each extreme data set is solved again on the study\'s mesh split once and twice '
                 f'({split}, new nodes of curved boundaries on the {curve}: the same geometry, h '
                 'halved exactly). With f(h), f(h/2), f(h/4) and r = (f(h/2) − f(h))/(f(h/4) − f(h/2)) &gt; 1 the '
@@ -585,13 +604,14 @@ class Report:
     def render(self) -> str:
         r = self.res
         builders = {"summary": self.summary, "limits": self.limits, "membership": self.membership,
-                    "scene": self.scene,
+                    "scene": self.scene, "view3d": self.view3d,
                     "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
                     "mesh-check": self.mesh_check, "drivers": self.drivers,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
-        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)
-        nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in SECTIONS)
+        shown = [(sid, title) for sid, title in SECTIONS if self.shown(sid)]
+        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in shown)
+        nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in shown)
         return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>wcs report: {esc(r.study)}</title><style>{CSS}</style></head><body>"
                 f"<header><h1>Worst-scenario report: {esc(r.study)}</h1>"
@@ -620,6 +640,20 @@ def limit_membership(alpha, best, worst, lower: float, upper: float) -> str:
                 f"{what.capitalize()} for every data set of membership ≥ {alpha[0]:g}, the lowest level searched.")
     return (f"{what.capitalize()} for every data set of membership ≥ {alpha[first]:g}; a data set of "
             f"membership ≥ {alpha[first - 1]:g} breaks {'them' if what.endswith('limits hold') else 'it'}.")
+
+
+def fuzzy(res: Results) -> bool:
+    """A fuzzy study (`wcs.study._levels`): its file has α-levels, or its study a `fuzzy:` entry or a
+    fuzzy number ({support, core})."""
+    doc = res.study_doc or {}
+    return res.levels is not None or doc.get("fuzzy") is not None or any(
+        isinstance(v, dict) and "core" in v for v in (doc.get("uncertain") or {}).values())
+
+
+def incomplete_banner(why: str) -> str:
+    """The summary's one warning of an incomplete run: `why` (`wcs.store.incomplete_run`) said once."""
+    why = why.removeprefix("the run is incomplete: ")
+    return f'<p class="warn" id="incomplete"><b>This run is incomplete</b>: {esc(why)}.</p>'
 
 
 def _kv(rows) -> str:
