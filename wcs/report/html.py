@@ -13,6 +13,7 @@ import numpy as np
 
 from ..drivers import NO_EXTREME, idle
 from ..extremes import pairs
+from ..progress import phase
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
 from . import plots, plots3d
@@ -570,7 +571,12 @@ class Report:
                     "mesh-check": self.mesh_check, "drivers": self.drivers,
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
-        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in SECTIONS)
+        parts = []
+        with phase("report", len(SECTIONS)) as progress:            # a part: a section
+            for sid, title in SECTIONS:
+                parts.append(self.guarded(sid, title, builders[sid]))
+                progress.step()
+        sections = "".join(parts)
         nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in SECTIONS)
         return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>wcs report: {esc(r.study)}</title><style>{CSS}</style></head><body>"
