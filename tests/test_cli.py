@@ -172,7 +172,8 @@ def test_output_into_a_missing_directory_is_bad_input_and_nothing_is_created(com
     study = tiny_study(tmp_path)
     target = tmp_path / "missing" / "deeper" / ("r.html" if command == "report" else "x.nc")
     source = tmp_path / "r.nc" if command == "report" else study
-    source.touch()
+    if command == "report":                             # a real results file to report on
+        assert main(["run", str(study), "-o", str(source), "--quiet", "--no-mesh-check"]) == 0
     code, text, err = run_cli([command, source, "-o", target], capsys)
     assert code == 2 and f"the directory {target.parent} does not exist" in err and "-o" in err, err
     assert not (tmp_path / "missing").exists()
@@ -252,3 +253,43 @@ def test_ctrl_c_exits_130_says_how_to_resume_and_the_resumed_run_is_the_uninterr
     assert b.sizes["eval"] > stored                     # it was stopped before its end
     for v in ("x", "phi", "status", "worst_value", "worst_x"):
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
+
+
+def _readme_block(after: str, fence: str = "```yaml") -> str:
+    """The first fenced block of README.md after the line `after`."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    rest = text[text.index(after):]
+    start = rest.index(fence) + len(fence)
+    return rest[start:rest.index("```", start)]
+
+
+def test_the_readme_3d_example_is_a_study_that_checks(tmp_path, capsys):
+    """The README's 3D syntax (solids, face and region selectors, 3-vectors) is a study `check` takes."""
+    import yaml
+    doc = yaml.safe_load(_readme_block("## Three dimensions"))
+    assert doc["scene"]["dimension"] == 3
+    shape = doc["scene"]["bodies"]["block"]["regions"][0]["shape"]
+    assert {"box", "minus"} <= set(shape)
+    path = write_study(doc, tmp_path)
+    code, out, err = run_cli(["check", path], capsys)
+    assert code == 0 and out.endswith("ok\n"), err
+    assert "hole:" in out and "region of interest under_pad" in out and "warning" not in err
+
+
+def test_the_readme_mpi_line_runs_as_written(tmp_path):
+    """The README's MPI command, typed in a checkout whose .venv this is (mpiexec is not on PATH
+    there: it is the venv's, from the mpich wheel)."""
+    line = next(ln.strip() for ln in (ROOT / "README.md").read_text().splitlines()
+                if "mpiexec -n" in ln and ln.startswith("    ") and "wcs run" in ln)
+    command = line.split("#")[0].split()
+    assert "STUDY.yaml" in command
+    (tmp_path / ".venv").symlink_to(Path(sys.executable).parent.parent)
+    tiny_study(tmp_path, "STUDY.yaml")
+    env = {k: v for k, v in __import__("os").environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PATH"] = ":".join(p for p in env.get("PATH", "").split(":") if Path(p) != Path(sys.executable).parent)
+    env["PYTHONPATH"] = str(ROOT)
+    proc = subprocess.run(command + ["--no-mesh-check", "-q"], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    with xr.open_dataset(tmp_path / "results" / "heated-plate.nc", engine="h5netcdf") as ds:
+        assert ds.sizes["eval"] == 3 and ds.attrs["complete"] == "yes"
