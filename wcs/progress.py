@@ -80,7 +80,7 @@ class Progress:
         self.tick = tick
         self._last = 0.0
         self._width = 0
-        self._search = None                # (total, criteria, label, budget) while a search runs
+        self._search = False               # a search's line is up (start .. finish)
         self._phases: list[Phase] = []
         self._lock = threading.RLock()
         self._ticker = None
@@ -101,7 +101,7 @@ class Progress:
         self.done, self.best = 0, {}
         self.stage, self.stage_start, self.stage_end = "", 0, total
         self.t0 = time.perf_counter()
-        self._times = deque([(self.t0, 0)], maxlen=WINDOW + 1)
+        self._times = deque(maxlen=WINDOW + 1)      # (time, done) of the last updates
         with self._lock:
             self._search = True
         self._start_ticker()
@@ -131,11 +131,17 @@ class Progress:
         self._draw(now)
 
     def eta(self) -> float | None:
-        """Seconds left of the batch being answered: the measured time per evaluation (the last
-        WINDOW of them, wall clock: solves, answers from the store and MPI ranks as they come)
-        times the evaluations left in it; None before the first is measured."""
+        """Seconds left of the batch being answered: the measured time per evaluation times the
+        evaluations left in it; None before the first is measured. The time per evaluation is
+        the wall clock between the last WINDOW updates (solves, answers from the store, MPI ranks'
+        batches as they come), from the first update on: the first evaluation's cold start (the
+        analysis, the first factorization: in 3D many warm evaluations long) is no rate; until
+        two updates are apart, the time since the start per evaluation."""
+        if not self._times:
+            return None
         (t_a, n_a), (t_b, n_b) = self._times[0], self._times[-1]
-        return (t_b - t_a) / (n_b - n_a) * max(self.stage_end - self.done, 0) if n_b > n_a else None
+        rate = (t_b - t_a) / (n_b - n_a) if t_b > t_a else (t_b - self.t0) / n_b
+        return rate * max(self.stage_end - self.done, 0)
 
     def _search_text(self, now: float, final: bool = False) -> str:
         count = f"{self.done} (budget {self.total})" if self.budget else f"{self.done}/{self.total}"
@@ -154,7 +160,7 @@ class Progress:
             if self.mode == "line" and self._search:
                 self._write(self._search_text(time.perf_counter(), final=True) + "\n")  # the final count
                 self._width = 0
-            self._search = None
+            self._search = False
         self._stop_ticker()
 
     # ---- any other long phase -----------------------------------------------------------------
