@@ -231,7 +231,9 @@ def test_ctrl_c_exits_130_says_how_to_resume_and_the_resumed_run_is_the_uninterr
     script.write_text(SLOW_EVALUATIONS)
     proc = subprocess.Popen([sys.executable, str(script), "run", str(study), "-o", str(out), "--no-mesh-check"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+                            env={**os.environ, "PYTHONPATH": str(ROOT)},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))   # as in a terminal
+                            # (a process started with `&` by a non-interactive shell ignores SIGINT)
     store = tmp_path / "hp.nc.store"
     deadline = time.monotonic() + 120
     while len(list(store.glob("*.npz"))) < 2 and proc.poll() is None and time.monotonic() < deadline:

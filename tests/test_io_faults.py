@@ -265,8 +265,9 @@ def test_ctrl_c_inside_a_write_ends_between_writes_and_resume_is_bitwise(tmp_pat
     path = pad(tmp_path, budget=6)
     clean = wcs.run(wcs.load_study(path), tmp_path / "clean.nc")
     out = tmp_path / "out.nc"
-    proc = wcs_process(tmp_path, "run", path, "-o", out, "--quiet", WHERE=where, NTH=nth)
-    _, err = proc.communicate(timeout=120)
+    proc = wcs_process(tmp_path, "run", path, "-o", out, "--quiet", WHERE=where, NTH=nth,
+                       preexec=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))   # as in a terminal, not
+    _, err = proc.communicate(timeout=120)                                            # as pytest run with `&`
     lines = err_lines(err)                # exit 130 and the command that continues (issue 27)
     assert proc.returncode == 130 and len(lines) == 1 and lines[0].startswith("interrupted: the "), err
     assert lines[0].endswith(f"continue with `wcs run {path} -o {out} --resume`"), err
