@@ -20,6 +20,7 @@ import numpy as np
 
 from . import __version__
 from .errors import StudyError
+from .parallel import rank, world
 from .progress import INTERRUPTED, Progress, reporting
 
 
@@ -286,14 +287,13 @@ def held_back(verbose: bool):
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
-        from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
-        configure_threads()
     verbose = getattr(args, "verbose", False)
-    from .parallel import rank, world
     progress = Progress.from_args(args) if rank(world()) == 0 else Progress("quiet")
     try:
         with held_back(verbose), reporting(progress):
+            if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
+                from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
+                configure_threads()
             if getattr(args, "output", None):
                 output_folder(args.output)
             return args.func(args)
