@@ -17,8 +17,6 @@ import threading
 import time
 from collections import deque
 
-from .results import widest
-
 INTERRUPTED = 130    # the exit status of a command stopped by Ctrl-C (SIGINT), as a shell's 128 + 2
 WINDOW = 20          # the ETA of a search: the rate of its last WINDOW evaluations (wall clock)
 
@@ -251,6 +249,12 @@ def current() -> Progress:
 def phase(name: str, total: int | None = None) -> Phase:
     """A long phase of the current command: `with phase("mesh check", n) as p: ... p.step()`."""
     return current().phase(name, total)
+
+
+def widest(ds):
+    """A fuzzy study's results at its widest level, as `wcs.results.widest` (not imported from
+    there: the solvers mark their phases here, and wcs.results imports the study that imports them)."""
+    return ds.isel(level=int(ds["level"].values.argmin())) if "level" in ds.dims else ds
 
 
 def summary_table(ds) -> str:
