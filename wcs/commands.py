@@ -117,8 +117,8 @@ def _interrupted(args, out: Path) -> int:
     n = stored_count(out)
     if rank(world()) == 0:
         print("interrupted: " + (f"before any evaluation was stored; start again with `{resume_command(args, '--fresh')}`"
-                                 if not n else f"the {n} evaluations finished are kept in {store_path(out)} ({out} "
-                                 f"holds them, marked incomplete); continue with `{resume_command(args)}`"),
+                                 if not n else f"the {n} evaluations finished are kept in {store_path(out)}; "
+                                 f"continue with `{resume_command(args)}`"),
               file=sys.stderr, flush=True)
     return INTERRUPTED
 
@@ -255,7 +255,8 @@ def solve_worst(args) -> int:
     if extra:
         point = dict(zip(study.parameters.names, map(float, x)))
         point.update(extra)
-    res = ev.evaluate(point)
+    with phase("solve"):
+        res = ev.evaluate(point)
     if res.status != 0:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
@@ -271,7 +272,8 @@ def solve_nominal(args) -> int:
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    res = ev.evaluate(study.nominal())
+    with phase("solve"):
+        res = ev.evaluate(study.nominal())
     if res.status != 0:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if Status(res.status).scene_fault else 1
