@@ -458,11 +458,13 @@ def test_a_run_and_its_report_show_every_long_phase_on_a_terminal(tmp_path, caps
     for line in ("\rmeshing  [", "\rassembly  [", "\rworst cases' fields 1/",
                  "\rdrivers", "\rmesh check 0/", "\rmesh check 1/", "  [eta 0:00] › meshing  ["):
         assert line in err, line
-    assert main(["report", str(out)]) == 0
+    one = tmp_path / "one.nc"                              # a solve file: a report of few figures
+    assert main(["solve", str(path), "-o", str(one)]) == 0 and "\rsolve  [" in capsys.readouterr().err
+    assert main(["report", str(one)]) == 0
     err = capsys.readouterr().err
     assert "\rreport 0/" in err and "\rreport 1/" in err
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
-    assert main(["run", str(path), "-o", str(out), "--fresh"]) == 0
+    assert main(["check", str(path)]) == 0
     assert "\r" not in capsys.readouterr().err           # a log: no carriage returns
 
 
