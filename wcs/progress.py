@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import shutil
 import sys
 import threading
 import time
@@ -198,7 +199,7 @@ class Progress:
             if self.mode != "line":
                 return
             self._last = now
-            line = self._text(now)
+            line = self._text(now)[:shutil.get_terminal_size((120, 24)).columns - 1]   # one row: \r redraws it
             if line:
                 self._write(line)
                 self._width = len(line)
