@@ -15,7 +15,9 @@ disk is always a complete, readable file of the evaluations up to its last rewri
 (`complete: no` until the run ends; `wcs report` and `wcs solve --worst` say so).
 
 Faults: the output is checked and locked before anything is solved; a second run on the
-same output is refused. A failed write stops the run with `WriteError` and leaves the store
+same output is refused. A run without `resume` starts afresh: an earlier run's results file and
+store at its output are removed (`wcs run` asks for `--fresh` first). Ctrl-C (KeyboardInterrupt)
+rewrites the results file with every evaluation finished, marked incomplete, and goes on up. A failed write stops the run with `WriteError` and leaves the store
 and the last results file intact, so `--resume` continues from there.
 
 Resume: the strategy is deterministic given its seed and the outcomes it is sent, so
@@ -336,8 +338,9 @@ class Runner:
     def _worst_fields(self, worst: dict) -> dict:
         """Fields of each criterion's worst case, re-solved (an evaluation does not depend on history)."""
         fields, by_key = {}, {}
-        rows = {worst[c][2] for c in self.criteria if c in worst}
-        with phase("worst cases' fields", len(rows)) as progress:
+        records = [self.ledger.records[worst[c][2]] for c in self.criteria if c in worst]
+        with phase("worst cases' fields", len({key(self.study.sha256, r["x"], r.get("sweep")) for r in records})) \
+                as progress:
             for c in self.criteria:
                 if c not in worst:
                     fields[c] = None
