@@ -281,7 +281,7 @@ def held_back(verbose: bool):
     with warnings.catch_warnings():
         if not verbose:
             warnings.simplefilter("ignore")
-            root.addHandler(quiet)           # no handler: the logging module's last resort prints
+            root.addHandler(quiet)           # without a handler, logging prints them on stderr
         try:
             yield
         finally:
