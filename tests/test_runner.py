@@ -4,6 +4,7 @@ The runner is tested with a tiny deterministic strategy of its own (`tiny`), so 
 not depend on the search strategies (wcs/search/) beyond their contract.
 """
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -290,7 +291,7 @@ def test_fail_on_limit_exit_3(tmp_path, capsys):
     assert main(["run", str(path), "-o", str(out), "--fail-on-limit"]) == 3
     text = capsys.readouterr().out
     assert "heave" in text and "FAIL" in text and "certificate" in text
-    assert main(["run", str(path), "-o", str(out), "--quiet"]) == 0
+    assert main(["run", str(path), "-o", str(out), "--quiet", "--fresh"]) == 0
 
 
 def test_sweep(tmp_path):
@@ -344,7 +345,7 @@ def test_progress_modes(capsys):
     import io
     from wcs.progress import Progress
     s = io.StringIO()
-    p = Progress("line", stream=s, interval=0)
+    p = Progress("line", stream=s, interval=0, tick=None)
     p.start(10, ["a", "b"])
     rec = {"phi": np.array([1.0, 2.0]), "status": 0, "message": "solved", "stage": "sample", "wall_time": 0.1}
     p.update(1, rec, {"a": 1.0, "b": 2.0})
@@ -352,7 +353,8 @@ def test_progress_modes(capsys):
     p.update(3, {**rec, "status": 3, "phi": np.full(2, np.nan)}, {"a": 1.5, "b": 2.0})   # the line counts failures
     p.finish()
     text = s.getvalue()
-    assert text.startswith("\revals 1/10  best: a=1 b=2  [eta") and "\revals 2/10" in text and "\n" not in text[:-1]
+    assert text.startswith("\revals 1/10  best: a=1 b=2  [0:00, eta") and "\revals 2/10" in text
+    assert "\n" not in text[:-1] and text.endswith("[done in 0:00]  \n")
     assert "\revals 3/10  best: a=1.5 b=2  1 failed  [" in text
     q = io.StringIO()
     p = Progress("quiet", stream=q)
@@ -360,6 +362,110 @@ def test_progress_modes(capsys):
     p.update(1, rec, {"a": 1.0})
     assert q.getvalue() == ""
     assert Progress(None, stream=io.StringIO()).mode == "quiet"        # not a terminal: quiet
+
+
+def shown(stream) -> str:
+    """The line a terminal shows last (each drawn over the one before it after a carriage return)."""
+    return stream.getvalue().split("\r")[-1].rstrip(" ")
+
+
+class Clock:
+    """time.perf_counter for wcs.progress: `now` seconds."""
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self):
+        return self.now
+
+
+def test_the_eta_of_a_search_is_its_batch_at_the_measured_rate_not_its_budget(monkeypatch):
+    """The first ETA of the 3D knee said 22 min (its whole budget at the first evaluation's pace)
+    for a run of under 3: the search stops by itself, its budget is a cap. The ETA is the batch
+    being answered at the rate measured over the last evaluations, the cold first one left out."""
+    import io
+
+    import wcs.progress
+    clock = Clock()
+    monkeypatch.setattr(wcs.progress, "time", clock)
+    s = io.StringIO()
+    p = wcs.progress.Progress("line", stream=s, interval=0, tick=None)
+    p.start(200, ["a"], budget=True)
+    p.batch("sample", 10)
+    rec = {"phi": np.array([1.0]), "status": 0, "message": "solved", "stage": "sample", "wall_time": 2.0}
+    clock.now = 8.0                        # a cold first evaluation: 8 s
+    p.update(1, rec, {"a": 1.0})
+    assert s.getvalue().endswith("evals 1 (budget 200)  sample 1/10  best: a=1  [0:08, eta 1:12 for sample]")
+    for k in range(2, 5):                  # then 2 s each
+        clock.now += 2.0
+        p.update(k, rec, {"a": 1.0})
+    assert s.getvalue().endswith("sample 4/10  best: a=1  [0:14, eta 0:12 for sample]")    # 6 left x 2 s
+    p.batch("corner", 3)
+    assert p.eta() == pytest.approx(3 * 2.0)
+    for k in range(5, 5 + wcs.progress.WINDOW):
+        clock.now += 2.0
+        p.update(k, rec, {"a": 1.0})
+    assert p.eta() == 0.0 and p.stage_end == 7
+    p.batch("local", 5)
+    assert p.eta() == pytest.approx(5 * 2.0)
+    p.finish()
+    assert s.getvalue().split("\r")[-1].rstrip(" \n") == "evals 24 (budget 200)  best: a=1  [done in 0:54]"
+    assert "\revals 5 (budget 200)  corner 1/3  best: a=1  [0:16, eta 0:04 for corner]" in s.getvalue()
+
+
+def test_a_phase_shows_its_parts_and_eta_and_its_line_goes_when_it_ends(monkeypatch):
+    import io
+
+    import wcs.progress
+    from wcs.progress import Progress, phase, reporting
+    clock = Clock()
+    monkeypatch.setattr(wcs.progress, "time", clock)
+    s = io.StringIO()
+    with reporting(Progress("line", stream=s, interval=0, tick=None)):
+        with phase("mesh check", 4) as p:
+            assert shown(s) == "mesh check 0/4  [eta …]"
+            clock.now = 10.0
+            p.step()
+            with phase("meshing"):          # inside it: both on the line
+                clock.now = 12.0
+                phase("assembly").__enter__().__exit__()
+                assert shown(s) == "mesh check 1/4  [eta 0:36] › meshing  [0:02]"
+            p.step()
+            assert shown(s) == "mesh check 2/4  [eta 0:12]"
+    assert s.getvalue().endswith("\r" + " " * len("mesh check 2/4  [eta 0:12]") + "\r")     # cleared
+    v = io.StringIO()
+    with reporting(Progress("verbose", stream=v)):
+        with phase("report", 2) as p:
+            p.step()
+            p.step()
+    assert v.getvalue() == "report 2/2 in 0:00\n"
+    q = io.StringIO()                       # a log (not a terminal): nothing
+    with reporting(Progress(None, stream=q)), phase("mesh check", 2) as p:
+        p.step()
+    assert q.getvalue() == "" and wcs.progress.current().mode == "quiet"
+
+
+def test_a_run_and_its_report_show_every_long_phase_on_a_terminal(tmp_path, capsys, monkeypatch):
+    """Meshing, assembly, the search, the worst cases' fields, the drivers, the mesh check and the
+    report's sections each have their line (they ran silent after the search's "done": a minute
+    of mesh check and of report on the 3D knee)."""
+    monkeypatch.setattr(runner, "get_strategy", REAL_GET_STRATEGY)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    path = study_file(tmp_path, "heated-plate.yaml", search={"method": "auto", "sample": {"n": 2}, "budget": 4})
+    out = tmp_path / "hp.nc"
+    assert main(["run", str(path), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"\revals [1-4] \(budget 4\)  \w+ \d/\d  best: heave=", err)     # throttled: 0.2 s apart
+    for line in ("\rmeshing  [", "\rassembly  [", "\rworst cases' fields 1/",
+                 "\rdrivers", "\rmesh check 0/", "\rmesh check 1/", "  [eta 0:00] › meshing  ["):
+        assert line in err, line
+    one = tmp_path / "one.nc"                              # a solve file: a report of few figures
+    assert main(["solve", str(path), "-o", str(one)]) == 0 and "\rsolve  [" in capsys.readouterr().err
+    assert main(["report", str(one)]) == 0
+    err = capsys.readouterr().err
+    assert "\rreport 0/" in err and "\rreport 1/" in err
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    assert main(["check", str(path)]) == 0
+    assert "\r" not in capsys.readouterr().err           # a log: no carriage returns
 
 
 def test_with_the_registered_strategy(tmp_path, monkeypatch, capsys):

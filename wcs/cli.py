@@ -1,6 +1,7 @@
 """The `wcs` command: parse, call, print. Exit 0 done, 1 failure (with --fail-on-limit also a
 verdict NOT ESTABLISHED), 2 bad input, 3 verdict FAIL with --fail-on-limit (a limit broken, or a
-data set without equilibrium; `wcs/verdict.py`), 4 `compare`: the files differ.
+data set without equilibrium; `wcs/verdict.py`), 4 `compare`: the files differ, 130 interrupted
+(Ctrl-C; `run` and `sweep` say how to resume).
 
 Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
 solve --worst, `wcs/report/` for report, `wcs/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
@@ -8,14 +9,19 @@ solvers."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import sys
 import traceback
 import warnings
+from pathlib import Path
 
 import numpy as np
 
 from . import __version__
 from .errors import StudyError
+from .parallel import rank, world
+from .progress import INTERRUPTED, Progress, phase, reporting
 
 
 def _fmt(v) -> str:
@@ -127,7 +133,8 @@ def cmd_check(args) -> int:
     study = load_study(args.study)
     check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
-    res = ev.evaluate(study.nominal())
+    with phase("nominal solve"):
+        res = ev.evaluate(study.nominal())
     for w in study.warnings:
         print(f"warning: {study.file}: {w}", file=sys.stderr)
     if not args.quiet:
@@ -141,7 +148,9 @@ def cmd_check(args) -> int:
         print(f"  nominal solve: {res.message} in {res.wall_time:.2f} s; "
               + ", ".join(f"{k} = {v:.4g}" for k, v in res.phi.items()))
         p = study.parameters                                # a solve away from the nominal state
-        print(mesh_check_cost(study, ev, ev.evaluate((p.lower + p.upper) / 2).wall_time))
+        with phase("a solve at the centre of the box"):
+            warm = ev.evaluate((p.lower + p.upper) / 2).wall_time
+        print(mesh_check_cost(study, ev, warm))
         print("ok")
     return 0
 
@@ -190,6 +199,28 @@ def cmd_compare(args) -> int:
     return compare(args)
 
 
+QUIET = "print nothing but warnings and errors (no progress, no summary)"
+VERBOSE = ("show what is otherwise held back: the traceback of an internal error, the warnings of the "
+           "libraries (numpy, scipy, cvxpy, ...), one line per evaluation instead of the progress line "
+           "and one per finished phase")
+
+
+def _common(p) -> None:
+    """-q/--quiet and -v/--verbose, the same for every command (both: tracebacks and warnings, no
+    progress)."""
+    p.add_argument("-q", "--quiet", action="store_true", help=QUIET)
+    p.add_argument("-v", "--verbose", action="store_true", help=VERBOSE)
+
+
+def _previous(p) -> None:
+    """--resume / --fresh: what to do with the results of an earlier run at the output."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--resume", action="store_true",
+                   help="continue the run at the output from its evaluation store (only what it lacks is solved)")
+    g.add_argument("--fresh", action="store_true",
+                   help="discard the run at the output (results file and evaluation store) and start over")
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="wcs", description="Worst-scenario analysis of contact problems of elastic bodies.")
     ap.add_argument("--version", action="version", version=f"wcs {__version__}")
@@ -197,31 +228,30 @@ def build_parser() -> argparse.ArgumentParser:
     def add(name, func, help):
         p = sub.add_parser(name, help=help)
         p.add_argument("study", help="study file (YAML)")
-        p.add_argument("--quiet", action="store_true", help="print nothing but errors")
-        p.add_argument("--verbose", action="store_true", help="print tracebacks of internal errors")
+        _common(p)
         p.set_defaults(func=func)
         return p
     add("check", cmd_check, "validate a study and print what it will do")
     p = add("solve", cmd_solve, "one forward solve at the nominal data (or a worst case of a run)")
-    p.add_argument("-o", "--output", help="results file (.nc); ParaView files beside it: OUT.vtm, a multiblock of "
-                                          "OUT.vtu (volume) and OUT-contact.vtu (contact surface)")
+    p.add_argument("-o", "--output", help="results file (.nc) in an existing folder; ParaView files beside it: "
+                                          "OUT.vtm, a multiblock of OUT.vtu (volume) and OUT-contact.vtu (contact surface)")
     p.add_argument("--worst", nargs=2, metavar=("RUN.nc", "CRITERION"),
                    help="solve the worst data set of CRITERION found by a run instead of the nominal one")
     p = add("run", cmd_run, "the worst-scenario study: search U_ad for the maximum of every criterion")
-    p.add_argument("-o", "--output", help="results file (.nc); default: the study's `output`")
-    p.add_argument("--resume", action="store_true", help="continue an interrupted run from its results file")
+    p.add_argument("-o", "--output", help="results file (.nc) in an existing folder; default: the study's `output`")
+    _previous(p)
     p.add_argument("--fail-on-limit", action="store_true",
                    help="exit 3 when the verdict is FAIL (a worst value breaks its limit, or a data set has no "
                         "equilibrium), 1 when failed evaluations leave it not established")
     p.add_argument("--no-mesh-check", action="store_true",
                    help="skip re-solving the extreme data sets on the mesh refined once and twice")
     p = add("sweep", cmd_sweep, "evaluate the full factorial grid of the study's `sweep:` block")
-    p.add_argument("-o", "--output", help="results file (.nc)")
+    p.add_argument("-o", "--output", help="results file (.nc) in an existing folder")
+    _previous(p)
     p = sub.add_parser("report", help="an HTML repository-safety report of a results file")
     p.add_argument("results", help="results file (.nc) of `wcs run` or `wcs sweep`")
-    p.add_argument("-o", "--output", help="report file (.html); default: beside the results file")
-    p.add_argument("--quiet", action="store_true")
-    p.add_argument("--verbose", action="store_true")
+    p.add_argument("-o", "--output", help="report file (.html) in an existing folder; default: beside the results file")
+    _common(p)
     p.set_defaults(func=cmd_report)
     p = sub.add_parser("compare", help="exit 0 when two results files of one study agree, 4 with a table when not")
     p.add_argument("a", help="results file (.nc)")
@@ -236,24 +266,49 @@ def build_parser() -> argparse.ArgumentParser:
                         "pressures in Pa together, each criterion by its units, each parameter by its box; so a "
                         "closed gap of 1e-14 m on a 100 m model is round-off, not a 100%% difference; --rtol 0 "
                         "applies the floors alone)")
-    p.add_argument("--quiet", action="store_true")
-    p.add_argument("--verbose", action="store_true")
+    _common(p)
     p.set_defaults(func=cmd_compare)
     return ap
 
 
+def output_folder(output: str) -> None:
+    """StudyError (exit 2) unless the folder of `-o OUTPUT` exists: a typed path is not created
+    (a typo would silently make folders and put the results where nobody looks)."""
+    folder = Path(output).absolute().parent
+    if not folder.is_dir():
+        what = "is not a directory" if folder.exists() else "does not exist"
+        raise StudyError(f"the directory {folder} {what}; create it first or name an existing one",
+                         file=f"-o {output}")
+
+
+@contextlib.contextmanager
+def held_back(verbose: bool):
+    """The libraries' warnings (numpy's and scipy's RuntimeWarnings, cvxpy's "Solution may be
+    inaccurate", skfem's logged notes) kept from stderr, where they came before the line that
+    matters: what they warn of is judged by wcs and said in its own words. `verbose` shows them."""
+    root = logging.getLogger()
+    quiet = logging.NullHandler()
+    with warnings.catch_warnings():
+        if not verbose:
+            warnings.simplefilter("ignore")
+            root.addHandler(quiet)           # without a handler, logging prints them on stderr
+        try:
+            yield
+        finally:
+            root.removeHandler(quiet)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
-        from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
-        configure_threads()
+    verbose = getattr(args, "verbose", False)
+    progress = Progress.from_args(args) if rank(world()) == 0 else Progress("quiet")
     try:
-        # a library's warnings (cvxpy's "Solution may be inaccurate", numpy's and scipy's
-        # RuntimeWarnings) are kept from stderr, where they came before the line that matters:
-        # what they warn of is judged by wcs and said in its own words; `--verbose` shows them
-        with warnings.catch_warnings():
-            if not getattr(args, "verbose", False):
-                warnings.simplefilter("ignore")
+        with held_back(verbose), reporting(progress):
+            if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
+                from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
+                configure_threads()
+            if getattr(args, "output", None):
+                output_folder(args.output)
             return args.func(args)
     except StudyError as e:
         print(f"error: {e.in_file(getattr(args, 'study', None) or getattr(args, 'results', None) or args.a)}",
@@ -261,9 +316,9 @@ def main(argv=None) -> int:
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 1
+        return INTERRUPTED
     except Exception as e:  # noqa: BLE001 - the last line of defence: one line, not a traceback
-        if getattr(args, "verbose", False):
+        if verbose:
             traceback.print_exc()
         print(f"error: internal failure ({type(e).__name__}: {e}); rerun with --verbose for details",
               file=sys.stderr)

@@ -8,6 +8,7 @@ data set has no equilibrium; `wcs/verdict.py`); bad input raises StudyError, whi
 """
 from __future__ import annotations
 
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -22,11 +23,11 @@ from .errors import StudyError
 from .evaluation import Evaluator
 from .extremes import support_extremes
 from .parallel import rank, world
-from .progress import Progress, limits_broken, summary_table
+from .progress import INTERRUPTED, current, limits_broken, phase, summary_table
 from .results import widest, write_netcdf, write_solution
 from .runner import Runner
 from .status import Status, describe
-from .store import WriteError, check_output, incomplete_run, store_path, stored_count
+from .store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
 from .study import load_study
 from .validity import warnings as validity_warnings
 from .verdict import attributes as verdict_attributes
@@ -76,13 +77,67 @@ def criteria_in_words(study) -> str:
                      for c in study.criteria)
 
 
+def resume_command(args, how: str = "--resume") -> str:
+    """The command line that continues (`how`: --resume) or restarts (--fresh) the `wcs run`/`wcs
+    sweep` of `args`, as typed (its study, -o and flags; under MPI with its launcher and rank count)."""
+    comm = world()
+    words = ([] if comm is None else ["mpiexec", "-n", str(comm.size)]) + ["wcs", args.command, str(args.study)]
+    words += ["-o", str(args.output)] if args.output else []
+    words += [how] + [flag for flag, on in (("--fail-on-limit", getattr(args, "fail_on_limit", False)),
+                                                   ("--no-mesh-check", getattr(args, "no_mesh_check", False))) if on]
+    return " ".join(map(shlex.quote, words))
+
+
+def previous_run(out: Path) -> str | None:
+    """What an earlier run left at `out` (None: nothing; a run holding the lock there is the lock's
+    business): a complete or partial results file and the evaluation store beside it."""
+    store = stored_count(out)
+    if writer(out) is not None or out.is_dir() or (not out.exists() and store is None):
+        return None                   # a folder: `check_output` names the fault
+    kept = [] if store is None else [f"its evaluation store {store_path(out)} holds {store}"]
+    if out.exists():
+        try:
+            with xr.open_dataset(out, engine="h5netcdf") as ds:
+                state = "complete" if str(ds.attrs.get("complete", "yes")) == "yes" else "partial"
+                kept.insert(0, f"a {state} results file of {int(ds.sizes.get('eval', 0))} evaluations")
+        except (OSError, ValueError):
+            kept.insert(0, "a file that is not a results file")
+    else:
+        kept[0] = f"a partial run: {kept[0]}"
+    return "; ".join(kept)
+
+
+def _refuse_previous(args, out: Path) -> None:
+    """StudyError (exit 2) when an earlier run is at `out` and neither --resume nor --fresh says
+    what to do with it: a run is not discarded by omission, complete or partial (a complete one
+    is the evidence a report was made from; --resume answers its every evaluation from the store)."""
+    if getattr(args, "resume", False) or getattr(args, "fresh", False):
+        return
+    found = previous_run(out)
+    if found is not None:
+        raise StudyError(f"an earlier run is here ({found}): say what to do with it: --resume continues it "
+                         f"(solving only what its store lacks), --fresh discards it and starts over",
+                         file=str(out))
+
+
+def _interrupted(args, out: Path) -> int:
+    """Ctrl-C: what is kept and the command that continues, exit 130."""
+    n = stored_count(out)
+    if rank(world()) == 0:
+        print("interrupted: " + (f"before any evaluation was stored; start again with `{resume_command(args, '--fresh')}`"
+                                 if not n else f"the {n} evaluations finished are kept in {store_path(out)}; "
+                                 f"continue with `{resume_command(args)}`"),
+              file=sys.stderr, flush=True)
+    return INTERRUPTED
+
+
 def _write_failure(e: WriteError, args, out: Path) -> int:
     """One line for a failed write (the store keeps every evaluation finished before it), exit 1;
     under MPI the other ranks are stopped with it."""
     n = stored_count(out)
     kept = "" if n is None else f"; the store {store_path(out)} keeps every evaluation finished so far ({n})"
-    if n is not None and args.command == "run":
-        kept += f": continue with `wcs run {args.study} -o {out} --resume`"
+    if n is not None:
+        kept += f": continue with `{resume_command(args)}`"
     print(f"error: {e}{kept}", file=sys.stderr, flush=True)
     comm = world()
     if comm is not None:
@@ -105,7 +160,13 @@ class CheckedRunner(Runner):
         if self.kind != "run" or not self.root:
             return ds
         found = support_extremes(ds)
-        parts = [drivers(ds, found, lambda x, gradients=True: self.evaluate(x, gradients, "drivers")), self.nominal()]
+        with phase("drivers") as progress:              # solves: as many as the extremes need
+            def solve(x, gradients=True):
+                progress.step()
+                return self.evaluate(x, gradients, "drivers")
+            parts = [drivers(ds, found, solve)]
+        with phase("nominal case"):
+            parts.append(self.nominal())
         parts.append(meshcheck.mesh_check(self.study, ds, found)
                      if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
         for part in parts:
@@ -138,12 +199,15 @@ def _command(args, kind: str) -> int:
         out, where = Path(study.output), (str(study.file), "output")
         if kind == "sweep":
             out = out.with_name(out.stem + "-sweep.nc")
+    _refuse_previous(args, out)
     try:
-        r = CheckedRunner(study, out, bool(getattr(args, "resume", False)), Progress.from_args(args), kind=kind,
+        r = CheckedRunner(study, out, bool(getattr(args, "resume", False)), current(), kind=kind,
                           where=where, mesh_check=not getattr(args, "no_mesh_check", False))
         ds = r.run() if kind == "run" else r.sweep()
     except WriteError as e:
         return _write_failure(e, args, out)
+    except KeyboardInterrupt:
+        return _interrupted(args, out)
     return _finish_command(args, study, ds, out) if rank(world()) == 0 else 0
 
 
@@ -199,7 +263,8 @@ def solve_worst(args) -> int:
     if extra:
         point = dict(zip(study.parameters.names, map(float, x)))
         point.update(extra)
-    res = ev.evaluate(point)
+    with phase("solve"):
+        res = ev.evaluate(point)
     if res.status != 0:
         print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
@@ -215,7 +280,8 @@ def solve_nominal(args) -> int:
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    res = ev.evaluate(study.nominal())
+    with phase("solve"):
+        res = ev.evaluate(study.nominal())
     if res.status != 0:
         print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if Status(res.status).scene_fault else 1

@@ -15,6 +15,7 @@ from .criteria import build_criteria, embedded_rois
 from .errors import SolveError, StudyError
 from .fem.gluing import glued_clusters
 from .model import Model, Solution
+from .progress import phase
 from .scene.claims import check_claims
 from .scene.estimate import memory_fault
 from .scene.mesher import build_mesh
@@ -108,15 +109,17 @@ class Evaluator:
     def __init__(self, study, comm=None, splits: int = 0):
         t0 = time.perf_counter()
         self.study = study
-        if study.scene.dimension == 3:
-            self.smesh = build_mesh3d(study.scene, splits)
-        else:
-            self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
+        with phase("meshing"):
+            if study.scene.dimension == 3:
+                self.smesh = build_mesh3d(study.scene, splits)
+            else:
+                self.smesh = build_mesh(study.scene, embedded_rois(study.criteria), splits)
         fault = memory_fault(self.smesh.mesh.t.shape[1], study.scene.dimension)
         if fault is not None:                   # the cells made, before any assembly or solve
             raise StudyError(fault, path="scene.mesh")
         t1 = time.perf_counter()
-        self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+        with phase("assembly"):
+            self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
         check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
                      | set(study.sweep.grid if study.sweep else ()))
         check_bonded_contrast(study.scene, study.uncertain, bonded_materials(self.smesh, self.model))

@@ -44,6 +44,7 @@ import numpy as np
 from .errors import StudyError
 from .evaluation import Evaluator
 from .extremes import Extreme, kinds, pairs
+from .progress import phase
 from .scene.estimate import BYTES_PER_CELL, DEFAULT_MAX_CELLS, machine_memory
 from .store import key
 from .verdict import CLOSE
@@ -291,33 +292,36 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme]) -> xr.Dataset:
     elif not splits:
         status = f"not run: {short}"
     else:
-        for j, s in enumerate(splits, start=1):
-            t0 = time.perf_counter()
-            try:
-                ev = Evaluator(study, splits=s)
-            except StudyError as err:
-                status = f"not available: {err.fault}"
-                break
-            nodes[j] = ev.smesh.mesh.p.shape[1]
-            solved = {}
-            for e in found:
-                if not e.found:
-                    continue
-                k = key(study.sha256, e.x, None)
-                if k not in solved:
-                    try:
-                        solved[k] = (ev.evaluate(e.x), "")
-                    except StudyError:
-                        raise
-                    except Exception as err:  # noqa: BLE001 - a failed solve on a refined mesh is data
-                        solved[k] = (None, f"{type(err).__name__}: {err}")
-                res, why = solved[k]
-                if res is not None and res.status == 0:
-                    values[ext.index(e.kind), crit.index(e.criterion), j] = res.phi[e.criterion]
-                else:
-                    why = why or f"status {int(res.status)}: {res.message}"
-                    failures.setdefault((e.kind, e.criterion), []).append(f"h/{2 ** s}: {why}")
-            seconds[j] = time.perf_counter() - t0
+        distinct = len({key(study.sha256, e.x, None) for e in found if e.found})
+        with phase("mesh check", distinct * len(splits)) as progress:   # a part: a data set on a mesh
+            for j, s in enumerate(splits, start=1):
+                t0 = time.perf_counter()
+                try:
+                    ev = Evaluator(study, splits=s)
+                except StudyError as err:
+                    status = f"not available: {err.fault}"
+                    break
+                nodes[j] = ev.smesh.mesh.p.shape[1]
+                solved = {}
+                for e in found:
+                    if not e.found:
+                        continue
+                    k = key(study.sha256, e.x, None)
+                    if k not in solved:
+                        try:
+                            solved[k] = (ev.evaluate(e.x), "")
+                        except StudyError:
+                            raise
+                        except Exception as err:  # noqa: BLE001 - a failed solve on a refined mesh is data
+                            solved[k] = (None, f"{type(err).__name__}: {err}")
+                        progress.step()
+                    res, why = solved[k]
+                    if res is not None and res.status == 0:
+                        values[ext.index(e.kind), crit.index(e.criterion), j] = res.phi[e.criterion]
+                    else:
+                        why = why or f"status {int(res.status)}: {res.message}"
+                        failures.setdefault((e.kind, e.criterion), []).append(f"h/{2 ** s}: {why}")
+                seconds[j] = time.perf_counter() - t0
     tol = max(float(study.solver.tolerance), 1e-12)
     order, extrap, error = (np.full((len(ext), len(crit)), np.nan) for _ in range(3))
     verdicts = np.full((len(ext), len(crit)), "", dtype=object)

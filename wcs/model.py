@@ -557,8 +557,9 @@ class Model:
         if res.alpha is None:                     # the QP reference reports unboundedness only
             names = ", ".join(f"'{b}'" for b, _ in self.floating)
             return (f"the load on the floating bodies {names} is not balanced by contact and friction "
-                    f"({res.message}); solvability L(w) <= j(w) (load work at most friction work for every "
-                    f"admissible rigid motion w) fails ([21, Remark 2.1])")
+                    f"({res.message}): the load must be balanced on the rigid motions of a floating body, "
+                    f"its work at most the friction's for every admissible rigid motion w (solvability "
+                    f"L(w) <= j(w); seed [21, Remark 2.1])")
         alpha = np.asarray(res.alpha, float)
         k, moved = 0, []                          # (load work, share of the motion, body) of each body it moves
         for body, modes in self.floating:
@@ -576,8 +577,9 @@ class Model:
         return (f"body '{best}' is held only by contact and its load is not balanced: "
                 f"net load ({net}) {'N' if d == 3 else 'N/m'} drives a rigid motion"
                 + "".join(f" (with body '{b}')" for b in along)
-                + f" that friction and contact do not resist (load work {work:.3g} > friction work); "
-                f"solvability L(w) <= j(w) fails ([21, Remark 2.1])")
+                + f" that friction and contact do not resist (load work {work:.3g} > friction work): the load "
+                f"must be balanced on the rigid motions of a floating body (solvability L(w) <= j(w); "
+                f"seed [21, Remark 2.1])")
 
     def _free_motion_message(self, beta: np.ndarray) -> str:
         """Name the floating body whose rigid motion the active contact leaves free, and the motion."""

@@ -15,7 +15,9 @@ disk is always a complete, readable file of the evaluations up to its last rewri
 (`complete: no` until the run ends; `wcs report` and `wcs solve --worst` say so).
 
 Faults: the output is checked and locked before anything is solved; a second run on the
-same output is refused. A failed write stops the run with `WriteError` and leaves the store
+same output is refused. A run without `resume` starts afresh: an earlier run's results file and
+store at its output are removed (`wcs run` asks for `--fresh` first). Ctrl-C (KeyboardInterrupt)
+rewrites the results file with every evaluation finished, marked incomplete, and goes on up. A failed write stops the run with `WriteError` and leaves the store
 and the last results file intact, so `--resume` continues from there.
 
 Resume: the strategy is deterministic given its seed and the outcomes it is sent, so
@@ -35,6 +37,7 @@ write of the results file ("write").
 """
 from __future__ import annotations
 
+import contextlib
 import inspect
 import itertools
 import time
@@ -49,11 +52,12 @@ from .errors import StudyError
 from .evaluation import Evaluation, Evaluator
 from .parallel import rank, world
 from .problem import build_problem
+from .progress import phase, reporting
 from .record import Ledger, from_evaluation, open_store
 from .search import STRATEGIES, Outcome
 from .search.ranges import ranges
 from .status import Status
-from .store import key
+from .store import WriteError, key
 from .study import alpha_cut, load_study, parameter_vector
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
@@ -95,7 +99,8 @@ class Runner:
         if self.output is not None:                # before anything is meshed or solved
             self.lock = claim_output(self.comm, self.output, where, study.sha256 if resume else None)
         try:
-            self._prepare(study, progress, kind, resume, evaluator)
+            with self._reporting(progress):
+                self._prepare(study, progress, kind, resume, evaluator)
         except BaseException:
             self.release()
             raise
@@ -118,9 +123,19 @@ class Runner:
             self.has_gradients = False
         self.writer = Writer(study, self.evaluator, self.output, kind, self.sweep_paths, self.root,
                              self.has_gradients)
+        if self.output is not None and self.root and not resume:       # a new run: no earlier results beside it
+            try:
+                self.output.unlink(missing_ok=True)
+            except OSError as e:
+                raise WriteError(f"cannot remove the earlier results file {self.output}: {e.strerror or e}") from None
         store = None if self.output is None else open_store(self.comm, self.output, study.sha256, kind, resume)
         self.ledger = Ledger(self.criteria, store, writes=self.root)
         self._report(Event("prepare", time.perf_counter() - t0))
+
+    def _reporting(self, progress=None):
+        """The run's progress is the current one (its phases: meshing, the worst cases' fields, ...)."""
+        progress = progress if progress is not None else getattr(self, "progress", None)
+        return reporting(progress) if progress is not None and self.root else contextlib.nullcontext()
 
     def release(self) -> None:
         """Give the output up to the next run (the lock; the process's end does it too)."""
@@ -171,6 +186,8 @@ class Runner:
         before = len(ledger.records)
         want_grad = gradients and self.has_gradients
         points = list(points)
+        if self.progress is not None:
+            self.progress.batch(stage, len(points))
         rows: list[int] = []
         pending: list[tuple[str, object, object]] = []   # (key, point, sweep values) to solve
 
@@ -234,15 +251,29 @@ class Runner:
     # ---- the search ---------------------------------------------------------------------------
     def run(self, strategy=None) -> xr.Dataset:
         try:
-            return self._search(strategy)
+            with self._reporting():
+                return self._search(strategy)
+        except KeyboardInterrupt:
+            self._keep()
+            raise
         finally:
             self.release()
 
     def sweep(self) -> xr.Dataset:
         try:
-            return self._sweep()
+            with self._reporting():
+                return self._sweep()
+        except KeyboardInterrupt:
+            self._keep()
+            raise
         finally:
             self.release()
+
+    def _keep(self) -> None:
+        """Ctrl-C: the results file rewritten with every evaluation finished, marked incomplete
+        (`--resume` finishes it; the store holds them already, a failed write loses nothing)."""
+        with contextlib.suppress(WriteError):
+            self.writer.write(self.ledger, self.stats, None)
 
     def _search(self, strategy) -> xr.Dataset:
         search = self.study.search
@@ -255,7 +286,7 @@ class Runner:
         gen = ranges(factory, problem, search, np.random.default_rng(search.sample.seed),
                      {c: senses[c] for c in self.criteria}, cuts)
         if self.progress is not None:
-            self.progress.start(budget, self.criteria)
+            self.progress.start(budget, self.criteria, budget=True)
         result = None
         try:
             batch = next(gen)
@@ -307,21 +338,25 @@ class Runner:
     def _worst_fields(self, worst: dict) -> dict:
         """Fields of each criterion's worst case, re-solved (an evaluation does not depend on history)."""
         fields, by_key = {}, {}
-        for c in self.criteria:
-            if c not in worst:
-                fields[c] = None
-                continue
-            rec = self.ledger.records[worst[c][2]]
-            k = key(self.study.sha256, rec["x"], rec.get("sweep"))
-            if k not in by_key:
-                point = rec["x"]
-                if rec.get("sweep") is not None:
-                    point = dict(zip(self.names, map(float, rec["x"])))
-                    point.update(zip(self.sweep_paths, map(float, rec["sweep"])))
-                ev = self.evaluate(point, False, "worst-fields")
-                self.stats["field_solves"] += 1
-                by_key[k] = ev.fields if ev.status == 0 else None
-            fields[c] = by_key[k]
+        records = [self.ledger.records[worst[c][2]] for c in self.criteria if c in worst]
+        with phase("worst cases' fields", len({key(self.study.sha256, r["x"], r.get("sweep")) for r in records})) \
+                as progress:
+            for c in self.criteria:
+                if c not in worst:
+                    fields[c] = None
+                    continue
+                rec = self.ledger.records[worst[c][2]]
+                k = key(self.study.sha256, rec["x"], rec.get("sweep"))
+                if k not in by_key:
+                    point = rec["x"]
+                    if rec.get("sweep") is not None:
+                        point = dict(zip(self.names, map(float, rec["x"])))
+                        point.update(zip(self.sweep_paths, map(float, rec["sweep"])))
+                    ev = self.evaluate(point, False, "worst-fields")
+                    self.stats["field_solves"] += 1
+                    by_key[k] = ev.fields if ev.status == 0 else None
+                    progress.step()
+                fields[c] = by_key[k]
         return fields
 
     def _write(self) -> xr.Dataset:

@@ -230,7 +230,7 @@ class Store:
                 raise StudyError(
                     f"the evaluation store {self.folder} belongs to another study file "
                     f"(study_sha256 {info.get('study_sha256', '?')[:12]}..., this study "
-                    f"{study_sha256[:12]}...); run without --resume to start over", file=str(self.folder))
+                    f"{study_sha256[:12]}...); run with --fresh instead to start over", file=str(self.folder))
         else:
             text = json.dumps({"study_sha256": study_sha256, "kind": kind}).encode()
             write_atomic(meta, lambda fh: fh.write(text))

@@ -47,7 +47,7 @@ def check_resumable(output: Path, study_sha256: str) -> None:
     if sha != study_sha256:
         raise StudyError(f"cannot resume: the results file was written for another study file "
                          f"(study_sha256 {str(sha)[:12]}..., this study {study_sha256[:12]}...); "
-                         f"run without --resume to start over", file=str(output))
+                         f"run with --fresh instead to start over", file=str(output))
 
 
 def claim_output(comm, output: Path, where: tuple, resume_sha256: str | None) -> OutputLock | None:

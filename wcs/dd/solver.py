@@ -61,6 +61,7 @@ import scipy.sparse as sp
 from wcs.fem.affine import CellAffineOperator
 from wcs.status import DDOutcome, Status
 from wcs.options import DomainDecomposition, Solver
+from wcs.progress import phase
 
 from .interface import HELD_KEPT, PairUnit, SetupError, Unit, _orth, admissible, rigid_basis, tangent_rows
 from .partition import Partition, facet_components, node_unknowns, partition
@@ -337,7 +338,8 @@ def decomposition(model, options) -> Decomposition:
     key = (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
-        per_model[key] = build_decomposition(model, dd)
+        with phase("DD set-up"):
+            per_model[key] = build_decomposition(model, dd)
     return per_model[key]
 
 
@@ -618,8 +620,9 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
         if rc is None:
             if hist["q"] and hist["q"][-1] > 1 and hist["dU"][-1] > hist["dU"][0]:     # the iterates were growing
                 return DDOutcome.DIVERGED, (f"successive approximations diverged: contraction estimate q = "
-                                            f"{hist['q'][-1]:.3g} ≥ 1 at step {k - 1} ([21, Cor. 7.1] needs "
-                                            f"q = 2β² < 1), then at step {k} the {msg}"), U
+                                            f"{hist['q'][-1]:.3g} ≥ 1 at step {k - 1} (they converge only "
+                                            f"when they contract, q = 2β² < 1; seed [21, Cor. 7.1]), then at "
+                                            f"step {k} the {msg}"), U
             return DDOutcome.LOCAL_FAILED, msg, U
         b = F - rc
         if o["step"] == "glued":     # S U^k = F − S_con(U) + L U, L = Σ_p R_pᵀ S⁰_p R_p
@@ -690,7 +693,8 @@ def _successive(dec, S0, F, U0, d, g, Fc, weight, o, info, team=None):
             kind = DDOutcome.DIVERGED if n_dU > first else DDOutcome.STAGNATED
             return kind, (f"successive approximations {kind.value} at step {k}: contraction estimate "
                           f"q = {qbar:.3g} ≥ 1 over the last {patience} steps (‖ΔU‖/‖U‖ = {n_dU / max(n_U, 1e-300):.3g}); "
-                          f"[21, Cor. 7.1] needs q = 2β² < 1 — try relaxation or larger pairs"), U
+                          f"they converge only when they contract, q = 2β² < 1 (seed [21, Cor. 7.1]): try "
+                          f"relaxation or larger pairs"), U
         rate = (n_dU / hist["dU"][0]) ** (1.0 / (k - 1)) if k > 1 and hist["dU"][0] > 0 else np.nan
         if np.isfinite(rate) and rate < 1 and k >= 10:       # overall rate: Aitken's q_k fluctuate
             need = np.log(tol * n_U / n_dU) / np.log(rate)
@@ -956,7 +960,8 @@ def solve_heat_dd(model, c, options=None, *, comm=None):
     per_model = _CACHE.setdefault(model, {})
     key = ("heat", o["subdomains"], o["pair_size"])
     if key not in per_model:
-        per_model[key] = build_heat_decomposition(model, options)
+        with phase("DD set-up (heat)"):
+            per_model[key] = build_heat_decomposition(model, options)
     dec = per_model[key]
     team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
     Kh = model.H(c.kappa)

@@ -14,6 +14,7 @@ import numpy as np
 from ..criteria import in_words
 from ..drivers import IDLE, NO_EXTREME, idle
 from ..extremes import pairs
+from ..progress import phase
 from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..verdict import CLOSE
 from . import plots, plots3d, view3d
@@ -610,7 +611,12 @@ class Report:
                     "criteria-vs-parameters": self.scatter, "best-so-far": self.best,
                     "failures": self.failures, "provenance": self.provenance}
         shown = [(sid, title) for sid, title in SECTIONS if self.shown(sid)]
-        sections = "".join(self.guarded(sid, title, builders[sid]) for sid, title in shown)
+        parts = []
+        with phase("report", len(shown)) as progress:               # a part: a section
+            for sid, title in shown:
+                parts.append(self.guarded(sid, title, builders[sid]))
+                progress.step()
+        sections = "".join(parts)
         nav = "".join(f'<a href="#{sid}">{esc(t)}</a>' for sid, t in shown)
         return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>wcs report: {esc(r.study)}</title><style>{CSS}</style></head><body>"
