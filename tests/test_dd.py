@@ -501,3 +501,40 @@ def test_local_contact_solves_redo_nothing_their_data_set_fixes(tmp_path, monkey
     assert vouched.status == checked.status == Status.SOLVED, (vouched.message, checked.message)
     for a in ("u", "lam_n", "lam_t"):
         np.testing.assert_array_equal(getattr(vouched, a), getattr(checked, a))
+
+
+@pytest.mark.parametrize("step", ["newton", "seed"])
+def test_a_failed_local_contact_solve_stops_either_step_and_says_so(step, tmp_path, monkeypatch):
+    """A pair's local contact solve that fails (here every one, unsolvable) stops the outer
+    iteration with LOCAL_FAILED, no displacement and the pair's own message, in interface
+    Newton's residual as in the seed's successive approximations (one loop over the own pairs'
+    solves serves both)."""
+    import re
+    from wcs.contact.solver import ContactResult
+    from wcs.dd import pair
+    from wcs.status import Status
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    Kr, rhs, u0 = reduced_system(model, study.scene)
+    monkeypatch.setattr(pair, "solve_contact",
+                        lambda *a, **k: ContactResult(None, None, None, Status.UNSOLVABLE, "no balance"))
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, {**OPTS, "dd": {"subdomains": 8, "step": step}})
+    assert res.status == dds.DDOutcome.LOCAL_FAILED and res.u is None, res.message
+    assert re.fullmatch(r"contact solve of pair \d+: no balance", res.message), res.message
+
+
+def test_no_function_of_the_decomposition_takes_a_long_parameter_list():
+    """The outer iterations take one state (`wcs.dd.iterations.Iteration`: decomposition,
+    operators, load, bounds, options, info, ranks, cache) instead of the 11–14 positional
+    parameters they passed around (issue 25), the units' pieces one `Field`: no function of
+    wcs.dd but a constructor takes more than 8 parameters (`self` not counted)."""
+    import ast
+    from wcs import dd
+    long = []
+    for path in sorted(Path(dd.__file__).parent.glob("*.py")):
+        for f in ast.walk(ast.parse(path.read_text())):
+            if isinstance(f, ast.FunctionDef) and f.name != "__init__":
+                a = f.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) - int(bool(a.args) and a.args[0].arg == "self")
+                if n > 8:
+                    long.append(f"{path.name}:{f.lineno} {f.name} ({n})")
+    assert not long, long

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,26 +31,63 @@ def dofs_of_nodes(T: sp.spmatrix, ncomp: int):
     return node_of_dof, M
 
 
-def _local_pieces(t_nodes, cells, ncomp, T, node_dofs, local, group, p, components):
-    """Local nodes, DOFs, elimination block, affine operator, per-component admissible modes
-    (the kernel's pieces) and the rigid-motion traces of every component in the reduced local
-    DOFs (Tᵀ of the motions: a support removes the components it fixes) for the coarse space."""
-    nodes = np.unique(t_nodes[:, cells])
-    dofs = np.unique(node_dofs[nodes].indices)
+class Field(NamedTuple):
+    """The field the units discretize (displacements, or temperatures): the nodes of its
+    unknowns cell by cell `t_nodes` (a column a cell), its components per node `ncomp`, the
+    elimination T (its columns on one node each; `node_of_dof`, `node_dofs`: `dofs_of_nodes`),
+    the cells' matrices as affine pieces `local` (`CellAffineOperator`), the cells' regions
+    and the mesh's points."""
+    t_nodes: np.ndarray
+    ncomp: int
+    T: sp.spmatrix
+    node_of_dof: np.ndarray
+    node_dofs: sp.csr_matrix
+    local: np.ndarray
+    region: np.ndarray
+    p: np.ndarray
+
+
+def _field(t_nodes, ncomp: int, T, local, region, p) -> Field:
+    return Field(t_nodes, ncomp, T, *dofs_of_nodes(T, ncomp), local, region, p)
+
+
+def _local_pieces(f: Field, cells: np.ndarray, components: list):
+    """Local DOFs, elimination block, affine operator, per-component admissible modes (the
+    kernel's pieces) and the rigid-motion traces of every component in the reduced local DOFs
+    (Tᵀ of the motions: a support removes the components it fixes) for the coarse space."""
+    ncomp = f.ncomp
+    nodes = np.unique(f.t_nodes[:, cells])
+    dofs = np.unique(f.node_dofs[nodes].indices)
     rows = (ncomp * nodes[:, None] + np.arange(ncomp)).ravel()
-    Tloc = sp.csr_matrix(T[rows][:, dofs])
-    lt = np.searchsorted(nodes, t_nodes[:, cells])
-    op = CellAffineOperator(lt, nodes.size, local[:, cells], group[cells])
+    Tloc = sp.csr_matrix(f.T[rows][:, dofs])
+    lt = np.searchsorted(nodes, f.t_nodes[:, cells])
+    op = CellAffineOperator(lt, nodes.size, f.local[:, cells], f.region[cells])
     modes, traces = [], []
     for comp in components:
-        cn = np.unique(t_nodes[:, comp])
-        R = rigid_basis(p, cn, ncomp)
+        cn = np.unique(f.t_nodes[:, comp])
+        R = rigid_basis(f.p, cn, ncomp)
         M = np.zeros((rows.size, R.shape[1]))
         pos = (ncomp * np.searchsorted(nodes, cn)[:, None] + np.arange(ncomp)).ravel()
         M[pos] = R
         modes.append(admissible(M, Tloc))
         traces.append(Tloc.T @ M)
-    return nodes, dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
+    return dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
+
+
+def _linear_unit(f: Field, index: int, part: Partition, s: int, f2t: np.ndarray) -> tuple[Unit, np.ndarray]:
+    """The linear unit of subdomain s, its kernel the admissible rigid motions of its
+    facet-connected components, and their traces."""
+    cells = part.cells(s)
+    dofs, Tloc, op, modes, trace = _local_pieces(f, cells, facet_components(cells, f2t))
+    Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
+    return Unit(index, (s,), dofs, op, Tloc, Z), trace
+
+
+def _joined(f: Field, part: Partition, units: list, traces: list, timings: dict) -> Decomposition:
+    """The decomposition of the units joined on their interface: its DOFs and regions set."""
+    nif = _interface(units, f.T.shape[1])
+    _interface_regions(units, part, f)
+    return Decomposition(part, units, nif, f.T.shape[1], traces, timings)
 
 
 def _interface(units, ndof):
@@ -127,16 +165,14 @@ def build_decomposition(model, dd) -> Decomposition:
     smesh, mesh = model.smesh, model.smesh.mesh
     dim = mesh.p.shape[0]
     part = model_partition(model, dd)
-    T = model.elim.T
-    node_of_dof, node_dofs = dofs_of_nodes(T, dim)
+    f = _field(mesh.t, dim, model.elim.T, model.K.local, smesh.cell_region, mesh.p)
     Bn, Bt = model.Bn_r, model.Bt_r
     contact_of_row = model.zone.contact_of_node
     units, traces = [], []
-    for q, (subs, contacts) in enumerate(zip(part.pairs, part.pair_contacts)):
+    for subs, contacts in zip(part.pairs, part.pair_contacts):
         cells = np.flatnonzero(np.isin(part.subdomain, subs))
         comps = [c for s in subs for c in facet_components(part.cells(s), mesh.f2t)]
-        nodes, dofs, Tloc, op, modes, trace = _local_pieces(mesh.t, cells, dim, T, node_dofs, model.K.local,
-                                                            smesh.cell_region, mesh.p, comps)
+        dofs, Tloc, op, modes, trace = _local_pieces(f, cells, comps)
         rows = np.flatnonzero(np.isin(contact_of_row, contacts))
         outside = np.setdiff1d(np.unique(Bn[rows].indices), dofs)
         if outside.size:
@@ -145,16 +181,10 @@ def build_decomposition(model, dd) -> Decomposition:
                               Bn[rows][:, dofs], Bt[tangent_rows(rows, Bn.shape[0], dim - 1)][:, dofs]))
         traces.append(trace)
     for s in part.linear:
-        cells = part.cells(s)
-        comps = facet_components(cells, mesh.f2t)
-        nodes, dofs, Tloc, op, modes, trace = _local_pieces(mesh.t, cells, dim, T, node_dofs, model.K.local,
-                                                            smesh.cell_region, mesh.p, comps)
-        Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
-        units.append(Unit(len(units), (s,), dofs, op, Tloc, Z))
+        unit, trace = _linear_unit(f, len(units), part, s, mesh.f2t)
+        units.append(unit)
         traces.append(trace)
-    nif = _interface(units, T.shape[1])
-    _interface_regions(units, part, mesh.t, node_of_dof, smesh.cell_region)
-    return Decomposition(part, units, nif, T.shape[1], traces, {"setup": time.perf_counter() - t0})
+    return _joined(f, part, units, traces, {"setup": time.perf_counter() - t0})
 
 
 def build_heat_decomposition(model, options) -> Decomposition:
@@ -163,26 +193,19 @@ def build_heat_decomposition(model, options) -> Decomposition:
     part = model_partition(model, Solver.of(options).dd)    # the elastic partition (no elastic units needed)
     smesh, mesh = model.smesh, model.smesh.mesh
     heat_of_node = model.P.indices                       # P: one entry per row
-    th = heat_of_node[mesh.t]
-    T = model.heat_elim.T
-    node_of_dof, node_dofs = dofs_of_nodes(T, 1)
+    f = _field(heat_of_node[mesh.t], 1, model.heat_elim.T, model.H.local, smesh.cell_region, mesh.p)
     units, traces = [], []
     for s in range(part.nsub):
-        cells = part.cells(s)
-        comps = facet_components(cells, mesh.f2t)
-        _, dofs, Tloc, op, modes, trace = _local_pieces(th, cells, 1, T, node_dofs, model.H.local,
-                                                        smesh.cell_region, mesh.p, comps)
-        Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
-        units.append(Unit(s, (s,), dofs, op, Tloc, Z))
+        unit, trace = _linear_unit(f, s, part, s, mesh.f2t)
+        units.append(unit)
         traces.append(trace)
-    nif = _interface(units, T.shape[1])
-    _interface_regions(units, part, th, node_of_dof, smesh.cell_region)
-    return Decomposition(part, units, nif, T.shape[1], traces)
+    return _joined(f, part, units, traces, {})
 
 
-def _interface_regions(units, part, t_nodes, node_of_dof, cell_region) -> None:
+def _interface_regions(units, part: Partition, f: Field) -> None:
     """For every unit, the (interface DOF position, region) pairs of its cells around each
     interface DOF's node: `u.interface_regions`, for `unit_rho`."""
+    t_nodes, node_of_dof, cell_region = f.t_nodes, f.node_of_dof, f.region
     for u in units:
         cells = np.flatnonzero(np.isin(part.subdomain, u.subdomains))
         node_cell = sp.csr_matrix((np.ones(t_nodes.shape[0] * cells.size),
