@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from wcs.fem.affine import CellAffineOperator
-from wcs.options import DomainDecomposition, Solver
+from wcs.options import DomainDecomposition
 
 from .kernels import _orth, admissible, rigid_basis
 from .pair import PairUnit, tangent_rows
@@ -187,10 +187,11 @@ def build_decomposition(model, dd) -> Decomposition:
     return _joined(f, part, units, traces, {"setup": time.perf_counter() - t0})
 
 
-def build_heat_decomposition(model, options) -> Decomposition:
+def build_heat_decomposition(model, dd) -> Decomposition:
     """Units of the heat equation: every subdomain of the elastic partition, all linear
-    (contacts conduct perfectly: both sides share the heat nodes, which become interface DOFs)."""
-    part = model_partition(model, Solver.of(options).dd)    # the elastic partition (no elastic units needed)
+    (contacts conduct perfectly: both sides share the heat nodes, which become interface DOFs;
+    `dd` as in `build_decomposition`)."""
+    part = model_partition(model, DomainDecomposition.of(dd))    # the elastic partition (no elastic units needed)
     smesh, mesh = model.smesh, model.smesh.mesh
     heat_of_node = model.P.indices                       # P: one entry per row
     f = _field(heat_of_node[mesh.t], 1, model.heat_elim.T, model.H.local, smesh.cell_region, mesh.p)

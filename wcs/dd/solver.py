@@ -47,6 +47,14 @@ stagnates (results/bench/dd_iterations_nonlinear.csv).
 MPI: `solve_dd(..., comm=)` / `solve_heat_dd(..., comm=)` distribute the units over
 the communicator's ranks (team.py: deterministic gathers summed in unit order, so
 the result is bitwise the serial one).
+
+This module holds the entry points and the per-model cache of decompositions; the parts:
+partition.py (subdomains and pairs), decomposition.py (the units on them, the interface,
+the stiffness weights and loads), unit.py and pair.py (a linear subdomain's and a contact
+pair's local solves; kernels.py their kernel bases), operator.py (the interface operators
+S, S0, J_k with their preconditioner and coarse space; pcg.py the PCG), iterations.py (the
+outer iteration: its state `Iteration`, interface Newton, the Coulomb fixed point, the
+seed's step, the ρ estimate), team.py (the ranks).
 """
 from __future__ import annotations
 
@@ -109,13 +117,14 @@ def _start_tolerance(options, o: dict) -> float:
     return o["pcg_tolerance"]
 
 
-def decomposition(model, options) -> Decomposition:
-    """The model's decomposition for these `solver` options (built once, cached on the model)."""
+def decomposition(model, options, heat: bool = False) -> Decomposition:
+    """The model's decomposition for these `solver` options, of the elastic problem or (`heat`)
+    of the thermal step (built once, cached on the model)."""
     dd = Solver.of(options).dd
-    key = (dd.subdomains, dd.pair_size)
+    key = ("heat",) * heat + (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
-        per_model[key] = build_decomposition(model, dd)
+        per_model[key] = (build_heat_decomposition if heat else build_decomposition)(model, dd)
     return per_model[key]
 
 
@@ -297,11 +306,7 @@ def solve_heat_dd(model, c, options=None, *, comm=None):
     the same temperature as `Model.solve_heat(c)`. comm: as in `solve_dd`.
     """
     o = _dd_options(options)
-    per_model = _CACHE.setdefault(model, {})
-    key = ("heat", o["subdomains"], o["pair_size"])
-    if key not in per_model:
-        per_model[key] = build_heat_decomposition(model, options)
-    dec = per_model[key]
+    dec = decomposition(model, options, heat=True)
     team = Team(comm, dec.units, model.smesh.mesh.p.shape[0])
     Kh = model.H(c.kappa)
     Th0 = model.heat_elim.U0 @ c.temperature_values
