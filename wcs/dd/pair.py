@@ -176,11 +176,16 @@ class PairUnit(Unit):
         G = _gram(X)
         return G, G @ self._Sbc.T
 
+    def _check_held(self, rows: np.ndarray) -> None:
+        """SetupError where the contact rows `rows` held leave a rigid motion of a floating half
+        free (the contact block with them held is then singular)."""
+        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
+            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
+
     def _held_cholesky(self, rows: np.ndarray, basis=None):
         """((d, f, W), Cholesky factor of Nᵀ Σ⁰_cc N) for the rows `rows` held (`_held`), or
         SetupError where they leave a rigid motion of a floating half free."""
-        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
-            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
+        self._check_held(rows)
         d, f, W = _null_basis(self._C_c[rows]) if basis is None else basis
         SN = self._Scc[:, f] - self._Scc[:, d] @ W
         return (d, f, W), _cho(SN[f] - W.T @ SN[d], f"the contact block of pair {self.index} with {len(rows)} rows held")
@@ -216,8 +221,7 @@ class PairUnit(Unit):
         (the slipping nodes' discs), last: S'' + W_Aᵀ (A G'' Aᵀ + D)⁻¹ W_A, W_A = A G'' Σ⁰_cB
         (Woodbury; G'' the inverse of the contact block with the held rows)."""
         rows = np.asarray(rows, dtype=np.int64)
-        if self.R_c is not None and null_space(self._C_c[rows], self.R_c).shape[1]:
-            raise SetupError(f"pair {self.index}: the {len(rows)} contact rows held leave a floating half free")
+        self._check_held(rows)
         released = ~np.isin(self.glue_rows, rows)
         try:
             M = sla.cho_factor(-self._H[np.ix_(released, released)])
@@ -335,6 +339,7 @@ class PairUnit(Unit):
         return self._g[self.xB] - self._Sbc @ self._glued_c
 
     def _local(self, V, u_c):
+        """The local solution with interface values V and contact DOFs u_c (one solve)."""
         uX = np.zeros(self.X.size)
         uX[self.xB], uX[self.xc] = V, u_c
         u = np.zeros(self.dofs.size)
