@@ -18,6 +18,8 @@ from .pcg import Coarse, CoarseSingular, pcg
 from .team import Team
 from .unit import SetupError
 
+LOCAL_MAX_ITERATIONS = 200     # semismooth Newton steps of a pair's local contact solve
+
 
 @dataclass
 class Iteration:
@@ -46,6 +48,25 @@ class Iteration:
     def slip_bounds(self) -> np.ndarray:
         """The Tresca slip bounds g·w of the zone rows."""
         return self.slip * self.weight
+
+    @property
+    def first_bounds(self) -> np.ndarray | None:
+        """The slip bounds of the first Tresca problem: g·w, or for Coulomb None (all stick, its
+        fixed point's start)."""
+        return None if self.friction.any() else self.slip_bounds
+
+    def contact(self, p, V: np.ndarray):
+        """Pair p's local contact solve with interface values V (`PairUnit.contact`) on its rows'
+        gaps, weights, slip limits and friction coefficients."""
+        rows = p.rows
+        return p.contact(V, self.d[rows], self.weight[rows], self.slip[rows], _coulomb(self.friction, rows),
+                         self.o["contact_tolerance"], LOCAL_MAX_ITERATIONS)
+
+    def tresca(self, p, V: np.ndarray, bound: np.ndarray | None):
+        """Pair p's local Tresca solve with interface values V (`PairUnit.tresca`) on its rows'
+        gaps and slip bounds `bound` (None: all stick)."""
+        return p.tresca(V, self.d[p.rows], None if bound is None else bound[p.rows], self.o["contact_tolerance"],
+                        LOCAL_MAX_ITERATIONS)
 
 
 def _local_solves(it: Iteration, U: np.ndarray, solve) -> tuple[np.ndarray | None, str]:
@@ -81,7 +102,6 @@ def successive(it: Iteration, U0: np.ndarray):
     history `anderson` steps, least squares in the S0 energy inner product; the history
     is cleared when the residual grows)."""
     dec, o, info, team, F = it.dec, it.o, it.info, it.team, it.F
-    d, g, Fc, weight = it.d, it.slip, it.friction, it.weight
     S0 = it.S if o["step"] == "glued" else it.S0          # the operator each step inverts
     pairs = dec.pairs
     tol, budget, patience = o["tolerance"], o["max_iterations"], o["patience"]
@@ -89,10 +109,6 @@ def successive(it: Iteration, U0: np.ndarray):
     mode = relax.lower() if isinstance(relax, str) else "fixed"
     aitken, anderson = mode == "aitken", mode == "anderson"
     omega = 1.0 if isinstance(relax, str) else float(relax)
-
-    def s_con(U):
-        return _local_solves(it, U, lambda p, V: p.contact(V, d[p.rows], weight[p.rows], g[p.rows],
-                                                           coulomb_of(Fc, p.rows), o["contact_tolerance"], 200))
 
     U, SU = U0.copy(), S0.apply(U0)
     hist = {"dU": [], "U": [], "q": [], "omega": [], "pcg2": [], "estimate": []}
@@ -105,7 +121,7 @@ def successive(it: Iteration, U0: np.ndarray):
     acc = []                  # Anderson: (f, Sf, g, Sg) of previous steps
     beta = o["mixing"]
     for k in range(1, budget + 1):
-        rc, msg = s_con(U)
+        rc, msg = _local_solves(it, U, it.contact)
         if rc is None:
             if hist["q"] and hist["q"][-1] > 1 and hist["dU"][-1] > hist["dU"][0]:     # the iterates were growing
                 return DDOutcome.DIVERGED, (f"successive approximations diverged: contraction estimate q = "
@@ -220,8 +236,7 @@ def _contact_residual(it: Iteration, U: np.ndarray, bound: np.ndarray | None):
     if it.cache.get("residual", (None,))[0] == key:
         return it.cache["residual"][1]
     team = it.team
-    rc, error = _local_solves(it, U, lambda p, V: p.tresca(V, it.d[p.rows], None if bound is None else bound[p.rows],
-                                                           it.o["contact_tolerance"], 200))
+    rc, error = _local_solves(it, U, lambda p, V: it.tresca(p, V, bound))
     if rc is None:
         out = (None, None, error)
     else:
@@ -260,10 +275,10 @@ def rho_estimate(it: Iteration, U0: np.ndarray) -> tuple[float, int] | None:
     `rho_steps` steps; it stops as soon as the bound reaches `seed_rho` (the seed's step is
     then ruled out whatever more steps would give). The seed's step
     U^k = S0⁻¹(F − S_con(U^{k−1})) [21, (4.37)] contracts near the solution only if ρ < 1
-    ([21, Cor. 7.1]: 2β² < 1). The contacts are Tresca problems with the slip bounds g·w,
-    Coulomb's all stick (its fixed point's first). None: a local contact solve failed."""
+    ([21, Cor. 7.1]: 2β² < 1). The contacts are the first Tresca problem's (`first_bounds`:
+    interface Newton's first residual). None: a local contact solve failed."""
     dec, S0, o, team = it.dec, it.S0, it.o, it.team
-    _, free, _ = _contact_residual(it, U0, None if it.friction.any() else it.slip_bounds)
+    _, free, _ = _contact_residual(it, U0, it.first_bounds)
     if free is None:
         return None
     L = _linearised(it, free)
@@ -288,14 +303,14 @@ def coulomb_newton(it: Iteration, U: np.ndarray):
     dec, o, info, team, weight = it.dec, it.o, it.info, it.team, it.weight
     gw = it.slip_bounds
     coulomb = bool(it.friction.any())
-    bound, p_old = (None if coulomb else gw), None
+    bound, p_old = it.first_bounds, None
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
     for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
         status, message, U = _newton(it, U, bound)
         if status != DDOutcome.CONVERGED or not coulomb:
             return status, message, U
-        lam = {i: p.result.lam_n for i, p in ((p.index, p) for p in team.local(dec.pairs))}
+        lam = {p.index: p.result.lam_n for p in team.local(dec.pairs)}
         lam_n = np.zeros(weight.size)
         for part in team.allgather(lam):
             for i, ln in part.items():
@@ -394,7 +409,7 @@ def _newton(it: Iteration, U: np.ndarray, bound: np.ndarray | None):
                               f"(residual {hist['residual'][-1]:.3g})"), U
 
 
-def coulomb_of(F: np.ndarray, rows: np.ndarray) -> np.ndarray | None:
+def _coulomb(F: np.ndarray, rows: np.ndarray) -> np.ndarray | None:
     """The friction coefficients of the zone rows `rows` for a local contact solve: None where
     none is positive (Tresca)."""
     Fr = F[rows]

@@ -69,7 +69,7 @@ from wcs.options import Solver
 
 from .decomposition import (Decomposition, build_decomposition, build_heat_decomposition, distribute_load,
                             injections, sizes, stiffness_measure, unit_rho)
-from .iterations import Iteration, coulomb_newton, coulomb_of, rho_estimate, successive
+from .iterations import Iteration, coulomb_newton, rho_estimate, successive
 from .operator import InterfaceOperator
 from .pair import tangent_rows
 from .pcg import CoarseSingular, pcg
@@ -258,8 +258,7 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
             if step == "newton":         # the last Tresca problem's solve at U: Newton's last residual
                 res = u.result
             else:
-                _, res = u.contact(U[u.gamma], d[u.rows], z.weight[u.rows], g[u.rows], coulomb_of(F, u.rows),
-                                   o["contact_tolerance"], 200)
+                _, res = it.contact(u, U[u.gamma])
             tm["contact"] += time.perf_counter() - tc
             team.charge(u, "contact", tc)
             if res.status != Status.SOLVED:
