@@ -10,8 +10,9 @@ import scipy.sparse as sp
 import yaml
 
 import wcs
+from wcs.dd import decomposition as ddd
 from wcs.dd import solver as dds
-from wcs.dd.interface import rigid_basis
+from wcs.dd.kernels import rigid_basis
 from wcs.dd.partition import rcb
 from wcs.model import Model
 from wcs.scene.mesher import build_mesh
@@ -115,14 +116,14 @@ def test_local_matrices_sum_to_the_global_one_and_kernels(tmp_path):
 
 def test_partition_rule_and_determinism(tmp_path):
     study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
-    a = dds.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
-    b = dds.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
+    a = ddd.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
+    b = ddd.build_decomposition(model, {"subdomains": 8, "pair_size": 0.5})
     np.testing.assert_array_equal(a.part.subdomain, b.part.subdomain)
     part = a.part
     t = model.smesh.mesh.t
     # every contact node lies in cells of exactly one subdomain (Γ ∩ Γ_c = ∅), and the
     # two sides of the contact are in one pair
-    for k, body, nodes in dds.contact_sides(model):
+    for k, body, nodes in ddd.contact_sides(model):
         cells = np.flatnonzero(np.isin(t, nodes).any(axis=0))
         subs = np.unique(part.subdomain[cells])
         assert subs.size == 1
@@ -163,14 +164,14 @@ def test_pair_linearised_by_an_update_of_the_glued_pair(name, edit, nsub, tmp_pa
     (N: scipy's null_space of the held rows) to rounding; the linearised pair keeps the glued
     Neumann solve."""
     from scipy.linalg import null_space
-    from wcs.dd import interface
+    from wcs.dd import pair
     study, model = build(name, tmp_path, edit)
     Kr, rhs, u0 = reduced_system(model, study.scene)
     opts = {"tolerance": 1e-8, "dd": {"subdomains": nsub}}
     assert dds.solve_dd(model, study.scene, Kr, rhs, u0, opts).status == dds.DDOutcome.CONVERGED
     calls = []
-    basis = interface._null_basis
-    monkeypatch.setattr(interface, "_null_basis", lambda C: calls.append(C) or basis(C))
+    basis = pair._null_basis
+    monkeypatch.setattr(pair, "_null_basis", lambda C: calls.append(C) or basis(C))
     rng = np.random.default_rng(1)
     for p in dds.decomposition(model, opts).pairs:
         for pool in (p.glue_rows, np.arange(2 * p.rows.size)):
@@ -317,8 +318,8 @@ def test_injections_weigh_each_interface_node_by_its_own_material(tmp_path):
     res = dds.solve_dd(model, study.scene, Kr, rhs, u0, opts)
     assert res.info["pcg1_converged"] and res.info["pcg1"] <= 48, res.info["pcg1"]
     c = model.coefficients(study.scene)
-    rho = dds.stiffness_measure(c.lam, c.mu)
-    spread = [w.max() / w.min() for w in (dds._unit_rho(u, rho) for u in dds.decomposition(model, opts).units)]
+    rho = ddd.stiffness_measure(c.lam, c.mu)
+    spread = [w.max() / w.min() for w in (ddd.unit_rho(u, rho) for u in dds.decomposition(model, opts).units)]
     assert max(spread) > 100                           # a unit with metal and polyethylene at its interface
 
 
@@ -350,27 +351,28 @@ def test_an_evaluation_repeats_no_local_solve_and_keeps_what_its_data_fix(tmp_pa
     condensation (no sparse solve for it) and PCG1's answer U⁰, and every answer is bitwise the one of a
     decomposition built afresh; a new load condenses anew, new stiffness data empty the rest."""
     import dataclasses
-    from wcs.dd import interface
+    from wcs.dd.pair import PairUnit
+    from wcs.dd.unit import Unit
     study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
     c = model.coefficients(study.scene)
     _, Kr, rhs, u0 = model.reduced_system(c, None)
     opts = {"tolerance": 1e-8, "dd": {"subdomains": 4}}
     calls = {"tresca": 0, "held": 0, "columns": 0, "condense": 0}
-    tresca, held, apply_S = interface.PairUnit.tresca, interface.PairUnit.held_schur, interface.Unit.apply_S
+    tresca, held, apply_S = PairUnit.tresca, PairUnit.held_schur, Unit.apply_S
 
     def count(name, f):
         def wrapped(self, *a, **k):
             calls[name] += 1
             return f(self, *a, **k)
         return wrapped
-    monkeypatch.setattr(interface.PairUnit, "tresca", count("tresca", tresca))
-    monkeypatch.setattr(interface.PairUnit, "held_schur", count("held", held))
-    monkeypatch.setattr(interface.Unit, "_condense", count("condense", interface.Unit._condense))
+    monkeypatch.setattr(PairUnit, "tresca", count("tresca", tresca))
+    monkeypatch.setattr(PairUnit, "held_schur", count("held", held))
+    monkeypatch.setattr(Unit, "_condense", count("condense", Unit._condense))
 
     def columns(self, v):                       # a linear unit's product with a coarse basis
         calls["columns"] += v.ndim == 2 and self.kind == "linear"
         return apply_S(self, v)
-    monkeypatch.setattr(interface.Unit, "apply_S", columns)
+    monkeypatch.setattr(Unit, "apply_S", columns)
 
     def solve(coefficients, load=rhs):
         for k in calls:
@@ -430,7 +432,7 @@ def test_unit_matrix_from_its_affine_pieces(tmp_path, monkeypatch):
     """A unit's A_u(c) = Σ c_gk A_u^{gk} from its reduced pieces (`Unit._matrix`) is the scatter of
     the weighted cell matrices reduced by Tᵀ K T (the path above `AFFINE_PIECES` coefficients) to
     round-off, on the same pattern, for new data too."""
-    from wcs.dd import interface
+    from wcs.dd import unit
     study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
     dec = dds.decomposition(model, {"dd": {"subdomains": 4}})
     kc = model.stiffness_coefficients(model.coefficients(study.scene))
@@ -441,7 +443,7 @@ def test_unit_matrix_from_its_affine_pieces(tmp_path, monkeypatch):
             ref = u._reduce(u.op(data))
             assert np.array_equal(A.indptr, ref.indptr) and np.array_equal(A.indices, ref.indices)
             assert np.abs(A.data - ref.data).max() <= 1e-14 * np.abs(ref.data).max()
-    monkeypatch.setattr(interface, "AFFINE_PIECES", 0)
+    monkeypatch.setattr(unit, "AFFINE_PIECES", 0)
     u = copy.copy(dec.units[0])
     u._reduce = u._pieces = None
     assert np.array_equal(u._matrix(kc).data, dec.units[0]._reduce(dec.units[0].op(kc)).data)
@@ -457,7 +459,7 @@ def test_local_contact_solves_redo_nothing_their_data_set_fixes(tmp_path, monkey
     solve with the factor handed as `factored` is bitwise the one through `factor_contact`."""
     import dataclasses
     import wcs.contact.solver as cs
-    from wcs.dd import interface
+    from wcs.dd import pair
     from wcs.status import Status
     study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
     c = model.coefficients(study.scene)
@@ -472,10 +474,10 @@ def test_local_contact_solves_redo_nothing_their_data_set_fixes(tmp_path, monkey
         return wrapped
     for name in ("factor_contact", "regularize", "pinned_dofs"):           # as the contact solver calls them
         monkeypatch.setattr(cs, name, count(name, getattr(cs, name)))
-    monkeypatch.setattr(interface.PairUnit, "_contact_factor",
-                        count("contact_factor", interface.PairUnit._contact_factor))
+    monkeypatch.setattr(pair.PairUnit, "_contact_factor",
+                        count("contact_factor", pair.PairUnit._contact_factor))
     last = []
-    monkeypatch.setattr(interface, "solve_contact", count("solves", lambda *a, **k: last.append((a, k)) or
+    monkeypatch.setattr(pair, "solve_contact", count("solves", lambda *a, **k: last.append((a, k)) or
                                                           cs.solve_contact(*a, **k)))
 
     def solve(coefficients):
@@ -499,3 +501,40 @@ def test_local_contact_solves_redo_nothing_their_data_set_fixes(tmp_path, monkey
     assert vouched.status == checked.status == Status.SOLVED, (vouched.message, checked.message)
     for a in ("u", "lam_n", "lam_t"):
         np.testing.assert_array_equal(getattr(vouched, a), getattr(checked, a))
+
+
+@pytest.mark.parametrize("step", ["newton", "seed"])
+def test_a_failed_local_contact_solve_stops_either_step_and_says_so(step, tmp_path, monkeypatch):
+    """A pair's local contact solve that fails (here every one, unsolvable) stops the outer
+    iteration with LOCAL_FAILED, no displacement and the pair's own message, in interface
+    Newton's residual as in the seed's successive approximations (one loop over the own pairs'
+    solves serves both)."""
+    import re
+    from wcs.contact.solver import ContactResult
+    from wcs.dd import pair
+    from wcs.status import Status
+    study, model = build("validation/tresca-pad.yaml", tmp_path, _small_pad)
+    Kr, rhs, u0 = reduced_system(model, study.scene)
+    monkeypatch.setattr(pair, "solve_contact",
+                        lambda *a, **k: ContactResult(None, None, None, Status.UNSOLVABLE, "no balance"))
+    res = dds.solve_dd(model, study.scene, Kr, rhs, u0, {**OPTS, "dd": {"subdomains": 8, "step": step}})
+    assert res.status == dds.DDOutcome.LOCAL_FAILED and res.u is None, res.message
+    assert re.fullmatch(r"contact solve of pair \d+: no balance", res.message), res.message
+
+
+def test_no_function_of_the_decomposition_takes_a_long_parameter_list():
+    """The outer iterations take one state (`wcs.dd.iterations.Iteration`: decomposition,
+    operators, load, bounds, options, info, ranks, cache) instead of the 11–14 positional
+    parameters they passed around (issue 25), the units' pieces one `Field`: no function of
+    wcs.dd but a constructor takes more than 8 parameters (`self` not counted)."""
+    import ast
+    from wcs import dd
+    long = []
+    for path in sorted(Path(dd.__file__).parent.glob("*.py")):
+        for f in ast.walk(ast.parse(path.read_text())):
+            if isinstance(f, ast.FunctionDef) and f.name != "__init__":
+                a = f.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) - int(bool(a.args) and a.args[0].arg == "self")
+                if n > 8:
+                    long.append(f"{path.name}:{f.lineno} {f.name} ({n})")
+    assert not long, long

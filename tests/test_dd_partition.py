@@ -1,6 +1,6 @@
 """The DD partition (wcs.dd.partition) balanced by unknowns: the largest unit's share of the
 unknowns on the tunnel, the knee and Hertz, determinism, the support-sliver rule, and a 3D mesh;
-and the units' one factorization each (wcs.dd.interface): reused, no sparse solve per PCG
+and the units' one factorization each (wcs.dd.unit, wcs.dd.pair): reused, no sparse solve per PCG
 iteration, the solvability LP once per evaluation, the dual QP only as a counted restart.
 
 Before (bands of fixed thickness δ = pair_size · H): the pair held 69.6 % of the unknowns of the
@@ -15,10 +15,12 @@ import skfem
 import yaml
 
 import wcs
+from wcs.dd import decomposition as ddd
 from wcs.dd import solver as dds
-from wcs.dd.interface import SetupError
 from wcs.dd.partition import node_unknowns, partition
+from wcs.dd.unit import SetupError
 from wcs.model import Model
+from wcs.options import DomainDecomposition
 from wcs.scene.mesher import build_mesh
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -46,11 +48,11 @@ def test_largest_unit_share_of_the_unknowns(name, most, tmp_path):
     """Shares before: 0.70, 0.90, 0.97 (the pair). After (pair_size 0.5): every pair holds its
     floating bodies plus bands of about pair_size · n/N unknowns per contact side."""
     model = model_of(name, tmp_path)
-    dec = dds.build_decomposition(model, {"subdomains": 12, "pair_size": 0.5})
+    dec = ddd.build_decomposition(model, {"subdomains": 12, "pair_size": 0.5})
     n = dec.ndof
     sizes = np.array([u.dofs.size for u in dec.units])
     assert sizes.max() <= most * n, sizes / n
-    sides = len(dds.contact_sides(model))
+    sides = len(ddd.contact_sides(model))
     target = 0.5 * n / 12
     in_pairs = sum(u.dofs.size for u in dec.pairs)
     # the bands (pairs without their floating bodies) hold about `target` each: within 1.6×
@@ -63,12 +65,12 @@ def test_largest_unit_share_of_the_unknowns(name, most, tmp_path):
 
 def test_partition_is_deterministic_and_keeps_contact_nodes_interior(tmp_path):
     model = model_of("tunnel-fault.yaml", tmp_path)
-    opts = dds.DomainDecomposition(subdomains=12)
-    a, b = dds.model_partition(model, opts), dds.model_partition(model, opts)
+    opts = DomainDecomposition(subdomains=12)
+    a, b = ddd.model_partition(model, opts), ddd.model_partition(model, opts)
     np.testing.assert_array_equal(a.subdomain, b.subdomain)
     assert a.pairs == b.pairs and a.pair_contacts == b.pair_contacts
     t = model.smesh.mesh.t
-    for k, _, nodes in dds.contact_sides(model):
+    for k, _, nodes in ddd.contact_sides(model):
         subs = np.unique(a.subdomain[np.isin(t, nodes).any(axis=0)])
         assert subs.size == 1 and any(subs[0] in p and k in ks for p, ks in zip(a.pairs, a.pair_contacts))
     assert len(a.pairs) == 2                      # one pair per fault: the thin bands do not touch
@@ -79,7 +81,7 @@ def test_no_linear_subdomain_is_anchored_by_a_sliver_of_a_support(tmp_path):
     touched the support over < 1/4 of its extent (nearly floating, outside the coarse space).
     Now every linear subdomain's supported nodes span ≥ 1/4 of its extent, or it has none."""
     model = model_of("tunnel-fault.yaml", tmp_path)
-    part = dds.model_partition(model, dds.DomainDecomposition(subdomains=12))
+    part = ddd.model_partition(model, DomainDecomposition(subdomains=12))
     mesh = model.smesh.mesh
     supported = node_unknowns(model.elim.T, 2) < 2
     for s in part.linear:
@@ -112,7 +114,7 @@ def test_partition_of_a_tetrahedral_mesh():
     np.testing.assert_array_equal(part.subdomain, again.subdomain)
 
 
-# ---- one factorization per unit, reused (wcs.dd.interface) ------------------------------------
+# ---- one factorization per unit, reused (wcs.dd.unit, wcs.dd.pair) -----------------------------
 PAD = STUDIES / "validation" / "tresca-pad.yaml"
 
 
@@ -237,27 +239,21 @@ def test_pair_schur_complement_with_rows_held(tmp_path):
         p.held_schur(np.arange(p.rows.size))
 
 
-def test_interior_solves_from_the_one_factor(tmp_path):
-    """interior_solve(b) from the factor with the Schur block: A_II x = b for a linear unit; for
-    a pair the glued problem A_II x + C_Iᵀμ = b, C_I x = 0 (residual in the range of C_Iᵀ).
-    Residuals as backward errors, against ‖A_II‖ ‖x‖ (measured ≈ 1e-12 on both meshes)."""
+def test_interior_values_from_the_one_factor(tmp_path):
+    """A unit's local solution with its interface values prescribed, from the factor with the
+    Schur block: A_YY u_Y = f_Y − A_YX u_X on the DOFs Y outside the block X (a linear unit's
+    `interior(V)`, X = B; a pair's `_local(V, u_c)`, X = B and its contact DOFs). Residuals as
+    backward errors, against ‖A‖ ‖u‖ (measured 8e-16 to 1.1e-12 on the 7 units)."""
     study, model = small_pad(tmp_path)
     c = model.coefficients(study.scene)
     dec = dds.decomposition(model, {"dd": {"subdomains": 8}})
     rng = np.random.default_rng(3)
     for u in dec.units:
         u.assemble(model.stiffness_coefficients(c))
-        u.set_load(np.zeros(u.dofs.size))
-        A_II = u.A[u.I][:, u.I]
-        b = rng.standard_normal(u.I.size) * abs(A_II).max()
-        x = u.interior_solve(b)
-        r = A_II @ x - b
-        scale = abs(A_II).max() * np.abs(x).max()
-        if u.kind == "linear":
-            assert np.abs(r).max() <= 1e-10 * scale
-        else:
-            C = u.C[:, u.I].toarray()
-            assert np.abs(C @ x).max() <= 1e-9 * np.abs(x).max()
-            mu = np.linalg.lstsq(C.T, r, rcond=None)[0]
-            assert np.abs(C.T @ mu - r).max() <= 1e-10 * scale
-            assert np.abs(r).max() > 1e-6 * np.abs(b).max()          # the glue carries force
+        scale = abs(u.A).max()
+        u.set_load(rng.standard_normal(u.dofs.size) * scale)
+        V = rng.standard_normal(u.B.size)
+        x = u.interior(V) if u.kind == "linear" else u._local(V, rng.standard_normal(u.c.size))
+        assert np.array_equal(x[u.B], V)
+        r = (u.A @ x - u.f)[u.Y]
+        assert np.abs(r).max() <= 1e-10 * scale * np.abs(x).max()

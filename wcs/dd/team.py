@@ -41,6 +41,7 @@ from __future__ import annotations
 import os
 import time
 from collections import defaultdict
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -191,33 +192,33 @@ class Team:
             pos[r] += n
         return allp
 
-    def _allgatherv(self, send: np.ndarray, counts, displ) -> np.ndarray:
-        """Every rank's `send` concatenated in rank order (`counts` numbers from each)."""
-        from mpi4py import MPI
+    @contextmanager
+    def _message(self):
+        """One collective message, counted and timed (`comm`, `comm_cpu`); with `probe` its wait
+        for the slowest rank first, apart (`wait`: the imbalance, not the transfer)."""
         t, c = time.perf_counter(), time.process_time()
-        if self.probe:                       # diagnostics: separate the wait (imbalance) from the transfer
+        if self.probe:
             self.comm.Barrier()
             self.timings["wait"] += time.perf_counter() - t
-        recv = np.empty(int(sum(counts)))
-        self.comm.Allgatherv([np.asarray(send, float), MPI.DOUBLE], [recv, (counts, displ), MPI.DOUBLE])
+        yield
         self.messages += 1
         self.timings["comm"] += time.perf_counter() - t
         self.timings["comm_cpu"] += time.process_time() - c
+
+    def _allgatherv(self, send: np.ndarray, counts, displ) -> np.ndarray:
+        """Every rank's `send` concatenated in rank order (`counts` numbers from each)."""
+        from mpi4py import MPI
+        recv = np.empty(int(sum(counts)))
+        with self._message():
+            self.comm.Allgatherv([np.asarray(send, float), MPI.DOUBLE], [recv, (counts, displ), MPI.DOUBLE])
         return recv
 
     def allgather(self, obj) -> list:
         """Python objects of every rank, in rank order (small, rare: status, final pieces)."""
         if self.comm is None:
             return [obj]
-        t, c = time.perf_counter(), time.process_time()
-        if self.probe:
-            self.comm.Barrier()
-            self.timings["wait"] += time.perf_counter() - t
-        out = self.comm.allgather(obj)
-        self.messages += 1
-        self.timings["comm"] += time.perf_counter() - t
-        self.timings["comm_cpu"] += time.process_time() - c
-        return out
+        with self._message():
+            return self.comm.allgather(obj)
 
     def first_error(self, error):
         """The first rank's error message (or None) on every rank: no rank is left waiting."""
