@@ -7,7 +7,7 @@ import pytest
 import scenes
 
 import wcs.contact.methods as methods
-from wcs.contact.methods import METHODS, Decomposition, Primal
+from wcs.contact.methods import METHODS, Decomposition, Primal, method_of
 from wcs.evaluation import Evaluator
 
 
@@ -21,8 +21,8 @@ def test_the_registry_holds_every_method_a_study_can_name():
     from wcs.options import Solver
     named = set(get_args(Solver.model_fields["method"].annotation)) - {"auto"}
     assert named <= set(METHODS)
-    assert isinstance(METHODS["dd"], Decomposition) and isinstance(METHODS["qp"], Primal)
-    assert METHODS["monolithic"].anchored and not METHODS["qp"].anchored
+    assert isinstance(method_of("dd"), Decomposition) and isinstance(method_of("qp"), Primal)
+    assert method_of("monolithic").anchored and not method_of("qp").anchored
 
 
 @pytest.mark.parametrize("name", ["monolithic", "qp"])
@@ -35,7 +35,7 @@ def test_a_model_solves_through_its_registered_method(monkeypatch, name):
     plain = Evaluator(study).evaluate(x)
     assert plain.status == 0, plain.message
     calls = []
-    method = METHODS[name]
+    method = method_of(name)
     counted = dataclasses.replace(method, solve_problem=lambda model, p: calls.append(p) or method.solve_problem(model, p))
     monkeypatch.setitem(METHODS, name, counted)
     ev = Evaluator(study)

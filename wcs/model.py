@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from . import linalg
 from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
-from .contact.methods import METHODS, ContactMethod
+from .contact.methods import ContactMethod, method_of
 from .contact.problem import ContactProblem
 from .contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize
 from .contact.units import UnitFactors, stiffness_units
@@ -63,11 +63,11 @@ class Solution:
     scale: np.ndarray | float = 1.0        # contact: the data set's reduced stiffness is s_u · stiffness on unit u
     factors: SimpleNamespace | None = field(default=None, repr=False, compare=False)
 
-    def factor(self):
+    def factor(self) -> linalg.Factor:
         """The factorization of this solution's reduced stiffness (no contact)."""
         return self.factors.elastic.of(self.stiffness)
 
-    def heat_factor(self):
+    def heat_factor(self) -> linalg.Factor:
         """The factorization of this solution's reduced conduction matrix."""
         return self.factors.heat.of(self.conduction)
 
@@ -127,7 +127,7 @@ class Model:
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
-        self.method: ContactMethod = METHODS[self.solver_method]   # `wcs.contact.methods`
+        self.method: ContactMethod = method_of(self.solver_method)   # `wcs.contact.methods`
         self.method.check(self)
         self._anchored = self.zone is not None and self.method.anchored
         # contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
@@ -586,7 +586,7 @@ class Model:
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
 
 
-def _factor(held: linalg.HeldFactor, A):
+def _factor(held: linalg.HeldFactor, A) -> linalg.Factor:
     """`held` holding the SPD matrix A (a held stiffness, a conduction matrix with fixed
     temperatures), by Cholesky: its analysis reads the pattern only; an LU's scaling and
     matching read the values of the first matrix factored, so every later answer depended on

@@ -1,13 +1,16 @@
 """Contact methods by name (`solver.method`): how `Model.solve` solves a data set's contact.
 
 A method is a `ContactMethod` registered in `METHODS` under the name a study gives; the
-model looks its method up once and then asks it, never its name. Most methods solve the
-model's `ContactProblem` in one call (`Primal`, with a function of the model and the
-problem returning a `ContactResult`); the domain decomposition solves the model itself
-(`Decomposition`). A new method is one module, its registration line here and its tests.
+model looks its method up once (`method_of`) and then asks it, never its name. Most methods
+solve the model's `ContactProblem` in one call (`Primal`, with a function of the model and
+the problem returning a `ContactResult`); the domain decomposition solves the model itself
+(`Decomposition`). A new method is one module, its registration line here and its tests; a
+method whose module loads a heavy library (cvxpy, PETSc) is registered by the module's
+name and loaded when a study names it.
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -69,12 +72,6 @@ def newton(model, problem: ContactProblem) -> ContactResult:
     return solve_condensed(problem, factored=factored, **settings(model.options))
 
 
-def convex(model, problem: ContactProblem) -> ContactResult:
-    """The dual QP reference (cvxpy + Clarabel, `wcs.contact.qp`), at its own tolerances."""
-    from wcs.contact.qp import solve_qp     # cvxpy: loaded only for the reference solver
-    return solve_qp(problem)
-
-
 @dataclass(frozen=True)
 class Primal:
     """A method that solves the model's `ContactProblem` in one call, `solve_problem(model,
@@ -100,7 +97,7 @@ class Primal:
         if self.polish and adjoint:
             res = model._solve_contact(c, Ks, rhs, u0, nominal, None, scale, self)[3]
             warm = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, "")
-            return METHODS["monolithic"].solve(model, c, Kr, rhs, u0, nominal, adjoint, warm,
+            return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm,
                                                f"{self.name}, polished by monolithic for the adjoint")
         u, contact, iterations, res = model._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, self)
         return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale)
@@ -139,17 +136,27 @@ class Decomposition:
             used = f"monolithic after dd {dd.message}"
         else:
             raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
-        return METHODS["monolithic"].solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
 
 
-METHODS: dict[str, ContactMethod] = {}
+METHODS: dict[str, ContactMethod | str] = {}
 
 
-def register(name: str, method: ContactMethod) -> None:
-    """Make `method` the one a study names `name` (`solver.method`)."""
+def register(name: str, method: ContactMethod | str) -> None:
+    """Make `method` the one a study names `name` (`solver.method`); a string
+    "module:attribute" names a method loaded when it is first asked for (`method_of`)."""
     METHODS[name] = method
 
 
+def method_of(name: str) -> ContactMethod:
+    """The method registered as `name`, loaded on first use."""
+    method = METHODS[name]
+    if isinstance(method, str):
+        module, attribute = method.split(":")
+        method = METHODS[name] = getattr(importlib.import_module(module), attribute)
+    return method
+
+
 register("monolithic", Primal("monolithic", newton, anchored=True, units=True, assembles=False))
-register("qp", Primal("qp", convex, polish=True))
+register("qp", "wcs.contact.qp:QP")           # cvxpy: loaded only for the reference solver
 register("dd", Decomposition())

@@ -9,15 +9,11 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from wcs.contact.laws import Coulomb, Tresca, law_of
-
-if TYPE_CHECKING:
-    from wcs.contact.solver import ContactResult
 
 
 @dataclass(frozen=True)
@@ -36,7 +32,7 @@ class ContactProblem:
     g: np.ndarray | None = None
     F: np.ndarray | None = None
     R: np.ndarray | None = None
-    warm: ContactResult | None = None
+    warm: object = None             # a `wcs.contact.solver.ContactResult`
     scale: np.ndarray | float = 1.0
 
     def __post_init__(self):

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..status import Status
+from .methods import Primal
 from .problem import ContactProblem
 from .solver import ContactResult
 
@@ -98,3 +99,6 @@ def solve_qp(problem: ContactProblem, *, tol=1e-10, tol_fp=1e-8, max_fp_iter=50)
                    else (Status.FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged"))
     return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=driven.fixed_point_iterations,
                          timings=timings)
+
+
+QP = Primal("qp", lambda model, problem: solve_qp(problem), polish=True)   # at its own tolerances
