@@ -76,7 +76,7 @@ def newton(model, problem: ContactProblem) -> ContactResult:
 class Primal:
     """A method that solves the model's `ContactProblem` in one call, `solve_problem(model,
     problem)`. polish: the adjoint needs the monolithic factorization and active set, so for
-    it the answer is polished by 'monolithic' (Newton from its multipliers)."""
+    it the answer is polished by 'monolithic' (Newton from its multipliers and active set)."""
     name: str
     solve_problem: Callable[[object, ContactProblem], ContactResult]
     anchored: bool = False
@@ -96,7 +96,7 @@ class Primal:
         Ks, scale = model._contact_stiffness(c, Kr)
         if self.polish and adjoint:
             res = model._solve_contact(c, Ks, rhs, u0, nominal, None, scale, self)[3]
-            warm = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, "")
+            warm = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, "", active=res.active)
             return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm,
                                                f"{self.name}, polished by monolithic for the adjoint")
         u, contact, iterations, res = model._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, self)
