@@ -53,7 +53,9 @@ def test_registering_a_method_is_one_line(monkeypatch):
         seen.append(problem)
         return methods.newton(model, problem)
 
-    monkeypatch.setitem(METHODS, "monolithic", Primal("probe", probe, anchored=True, units=True, assembles=False))
+    monkeypatch.setitem(METHODS, "probe", Primal("probe", probe, anchored=True, units=True, assembles=False))
+    monkeypatch.setitem(METHODS, "monolithic", METHODS["probe"])     # a study can name only the options' methods
     ev = Evaluator(patch("monolithic"))
     out = ev.evaluate(ev.study.nominal())
     assert out.status == 0 and len(seen) == 1 and ev.model.method.name == "probe"
+    assert out.message == "solved"                                   # a method's own name reads as plainly solved
