@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .coefficients import ParameterMap
+from .contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
 from .errors import SolveError, StudyError
 from .fem.gluing import glued_clusters
@@ -143,7 +144,7 @@ class Evaluator:
         grad, nonsmooth = None, False
         if gradients:
             grad, nonsmooth = adjoint_gradients(self, state, x, others)
-        message = "solved" if state.solver in ("direct", "monolithic", "dd", "qp") else f"solved ({state.solver})"
+        message = "solved" if state.solver in ("direct", *METHODS) else f"solved ({state.solver})"
         return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
                           state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)
 

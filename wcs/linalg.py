@@ -33,6 +33,7 @@ import ctypes
 import functools
 import os
 from importlib import metadata
+from typing import Protocol
 
 import numpy as np
 import scipy.linalg as sla
@@ -67,6 +68,13 @@ except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
 
 class FactorizationError(RuntimeError):
     """The backend could not factor the matrix (singular, not positive definite, ...)."""
+
+
+class Factor(Protocol):
+    """What solves with a matrix A it holds (a factorization, or an operator made of them):
+    `solve(b)` returns A⁻¹ b for b of shape (n,) or (n, k)."""
+
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
 def configure_threads() -> int:
@@ -338,7 +346,7 @@ class HeldFactor:
         self._factor = None
         self._held = None            # (indptr, indices, data) of the factored matrix; None while refactoring
 
-    def of(self, A: sp.spmatrix):
+    def of(self, A: sp.spmatrix) -> Factor:
         A = _csr(A)
         held = self._held
         if held is not None and all(np.array_equal(a, b) for a, b in zip(held, (A.indptr, A.indices, A.data))):

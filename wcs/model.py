@@ -24,7 +24,9 @@ import scipy.sparse as sp
 from . import linalg
 from .choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
-from .contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize, solve_contact
+from .contact.methods import ContactMethod, method_of
+from .contact.problem import ContactProblem
+from .contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize
 from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
 from .errors import SolveError, StudyError
@@ -37,7 +39,7 @@ from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
-from .status import DDOutcome, Status
+from .status import Status
 from .options import Solver
 
 
@@ -61,19 +63,17 @@ class Solution:
     scale: np.ndarray | float = 1.0        # contact: the data set's reduced stiffness is s_u · stiffness on unit u
     factors: SimpleNamespace | None = field(default=None, repr=False, compare=False)
 
-    def factor(self):
+    def factor(self) -> linalg.Factor:
         """The factorization of this solution's reduced stiffness (no contact)."""
         return self.factors.elastic.of(self.stiffness)
 
-    def heat_factor(self):
+    def heat_factor(self) -> linalg.Factor:
         """The factorization of this solution's reduced conduction matrix."""
         return self.factors.heat.of(self.conduction)
 
     def contact_factor(self, model):
         """The contact factorization of this solution's reduced stiffness (`.factor.solve`, `.W`)."""
-        if model.units is not None:
-            return model.contact_operator(self.stiffness, self.scale)
-        return model.contact_factor(self.stiffness)
+        return model.factored(self.stiffness, self.scale)
 
 
 class Model:
@@ -127,15 +127,12 @@ class Model:
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
-        if self.solver_method == "dd":
-            from .dd.partition import subdomains_fault    # the DD modules (and scipy.spatial) load only for dd
-            fault = subdomains_fault(self.options.dd.subdomains, mesh.t.shape[1])
-            if fault is not None:
-                raise StudyError(fault, path="solver.dd.subdomains")
-        self._anchored = self.zone is not None and self.solver_method == "monolithic"
+        self.method: ContactMethod = method_of(self.solver_method)   # `wcs.contact.methods`
+        self.method.check(self)
+        self._anchored = self.zone is not None and self.method.anchored
         # contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
         self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)
-                      if self.zone is not None and self.solver_method != "qp" else None)
+                      if self.zone is not None and self.method.units else None)
         self.pinned = (pinned_dofs(self.R_r) if self.zone is not None and self.R_r is not None
                        else np.zeros(0, dtype=int))
 
@@ -357,7 +354,7 @@ class Model:
             body, modes = next(iter(floating.items()))
             raise StudyError(f"body '{body}' is not held: {_describe_modes(modes, self.dim)} are free "
                              "(add a support, or a contact that holds it)", path=f"scene.bodies.{body}")
-        if self.units is not None and self.solver_method == "monolithic":   # K(c) itself unused
+        if self.units is not None and not self.method.assembles:   # K(c) itself unused
             Kr, rhs, u0 = None, *self._reduced_load(c, T)
         else:
             K, Kr, rhs, u0 = self.reduced_system(c, T)
@@ -366,29 +363,10 @@ class Model:
             w = _factor(cache.elastic, Kr).solve(rhs)
             u = self.elim.T @ w + u0
             return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), w=w, stiffness=Kr, **own)
-        qp = self.solver_method == "qp"
-        used, warm = "qp" if qp else "monolithic", None
-        if self.solver_method == "dd":
-            dd = self._solve_dd(c, Kr, rhs, u0)
-            if dd.status is DDOutcome.CONVERGED and not adjoint:
-                contact = self.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
-                return Solution(u=dd.u, T=T, stress=self.cell_stress(dd.u, T, c),
-                                iterations=int(dd.info.get("successive", 0)), solver=f"dd: {dd.message}", contact=contact, **own)
-            if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
-                warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
-                used = "dd, polished by monolithic for the adjoint"
-            elif self.options.fallback:
-                used = f"monolithic after dd {dd.message}"
-            else:
-                raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
-        Ks, scale = self._contact_stiffness(c, Kr)
-        if qp and adjoint:      # the adjoint needs the Newton's factorization and active set: polish qp's answer
-            res = self._solve_contact(c, Ks, rhs, u0, nominal, None, scale, qp=True)[3]
-            warm, qp = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, ""), False
-            used = "qp, polished by monolithic for the adjoint"
-        u, contact, iterations, res = self._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, qp)
-        return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), solver=used, iterations=iterations,
-                        contact=contact, w=res.u, raw=res, stiffness=Ks, scale=scale, **own)
+        out = self.method.solve(self, c, Kr, rhs, u0, nominal, adjoint)
+        return Solution(u=out.u, T=T, stress=self.cell_stress(out.u, T, c), solver=out.solver,
+                        iterations=out.iterations, contact=out.contact, w=out.w, raw=out.raw,
+                        stiffness=out.stiffness, scale=out.scale, **own)
 
     def _contact_stiffness(self, c: Coefficients, Kr) -> tuple[sp.csr_matrix, np.ndarray | float]:
         """(K*, s): the reduced stiffness the contact solver factors, and the scales s_u with
@@ -436,6 +414,13 @@ class Model:
             blocks.append(B)
         return blocks
 
+    def factored(self, K: sp.csr_matrix, scale):
+        """What solves with the contact stiffness (s_u · K on unit u) and holds its W
+        (`.factor.solve`, `.W`): the units' factors (`contact_operator`), else one factor of K."""
+        if self.units is not None:
+            return self.contact_operator(K, scale)
+        return self.contact_factor(K)
+
     def contact_operator(self, Ks: sp.csr_matrix, scales):
         """The solves with K = blockdiag(s_u K*_u) and its W (`UnitFactors.of`), Ks = K*."""
         held = self._cache.direction
@@ -464,42 +449,26 @@ class Model:
         return solve_dd(self, self.scene, Kr, rhs, u0, self.options, coefficients=c, comm=self.comm)
 
     def _heat(self, c: Coefficients, adjoint: bool):
-        """The thermal step (T, θ, reduced conduction matrix): by the decomposition when the
-        study asks for dd (θ and the matrix None: the adjoint needs the direct factorization),
-        else directly."""
-        if self.solver_method == "dd" and not adjoint:
-            from .dd.solver import solve_heat_dd     # as in `_solve_dd`
-            T, _, status, _ = solve_heat_dd(self, c, self.options, comm=self.comm)
-            if status is DDOutcome.CONVERGED:
-                return T, None, None
+        """The thermal step (T, θ, reduced conduction matrix): by the method's own solve where it
+        has one (the decomposition; θ and the matrix None: the adjoint needs the direct
+        factorization), else directly."""
+        T = None if adjoint else self.method.heat(self, c)
+        if T is not None:
+            return T, None, None
         theta, Kh = self._heat_theta(c)
         return self.P @ theta, theta, Kh
 
-    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm=None, scale=1.0, qp: bool = False):
-        """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`), by
-        the dual QP reference (cvxpy) when `qp`, else by the semismooth Newton."""
+    def _solve_contact(self, c: Coefficients, Kr, rhs, u0, nominal: bool, warm, scale, method):
+        """The contact problem of stiffness s_u · Kr on each unit u (`_contact_stiffness`) by
+        `method.solve_problem` (`wcs.contact.methods.Primal`), started from `warm`, else (a
+        method `anchored` on the model) from the anchor."""
         z = self.zone
         cache = self._cache
-        g, F = c.slip, c.coulomb
-        d = z.gap - z.Bn @ u0
-        tol, max_iter = self.options.tolerance, self.options.max_iterations
-        Fc = F if F.any() else None
-        if qp:
-            from .contact.qp import solve_contact_qp     # cvxpy: loaded only for the reference solver
-            res = solve_contact_qp(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc, R=self.R_r)
-        else:
-            try:
-                factored = (self.contact_operator(Kr, scale) if self.units is not None
-                            else self.contact_factor(Kr))
-            except linalg.FactorizationError as exc:
-                raise SolveError(f"factorization failed: {exc}", status=Status.SINGULAR) from exc
-            res = solve_contact(Kr, rhs, self.Bn_r, self.Bt_r, d, z.weight, g=g, F=Fc,
-                                R=self.R_r, tol=tol, max_iter=max_iter,
-                                warm=warm if warm is not None or nominal or not self._anchored else cache.anchor,
-                                factored=factored, tol_fp=tol,
-                                max_fp_iter=self.options.max_fixed_point_iterations)
-            if cache.contact is None:
-                cache.contact = res.factor      # one factor object, refactored in place from now on
+        F = c.coulomb
+        problem = ContactProblem(Kr, rhs, self.Bn_r, self.Bt_r, z.gap - z.Bn @ u0, z.weight, c.slip,
+                                 F if F.any() else None, self.R_r,
+                                 warm if warm is not None or nominal or not self._anchored else cache.anchor, scale)
+        res = method.solve_problem(self, problem)
         anchor = nominal and self._anchored and warm is None
         cache.anchor_tried |= anchor            # a failure too: then every solve starts cold
         if res.status == Status.UNSOLVABLE:
@@ -516,9 +485,13 @@ class Model:
 
     def contact_factor(self, Kr: sp.csr_matrix):
         """The contact factorization of Kr (`factor_contact`) on the model's pinned DOFs and
-        contact rows, made once (not per solve), in the factor object the cache holds."""
-        return factor_regularized(regularize(Kr, self.pinned), self.contact_rows, self.pinned,
-                                  self._cache.contact, self.dim == 3)
+        contact rows, made once (not per solve), in the factor object the cache holds (one
+        factor object, refactored in place from the first one on)."""
+        cf = factor_regularized(regularize(Kr, self.pinned), self.contact_rows, self.pinned,
+                                self._cache.contact, self.dim == 3)
+        if self._cache.contact is None:
+            self._cache.contact = cf
+        return cf
 
     @functools.cached_property
     def contact_rows(self) -> sp.csr_matrix:
@@ -615,7 +588,7 @@ class Model:
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
 
 
-def _factor(held: linalg.HeldFactor, A):
+def _factor(held: linalg.HeldFactor, A) -> linalg.Factor:
     """`held` holding the SPD matrix A (a held stiffness, a conduction matrix with fixed
     temperatures), by Cholesky: its analysis reads the pattern only; an LU's scaling and
     matching read the values of the first matrix factored, so every later answer depended on

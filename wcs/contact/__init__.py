@@ -1,1 +1,2 @@
-"""Contact solvers: the condensed semismooth Newton method (`solver`) and the cvxpy reference (`qp`)."""
+"""Contact: a solve's data (`problem`), the friction laws that drive it (`laws`), the methods
+by name (`methods`: the condensed semismooth Newton `solver`, the cvxpy reference `qp`)."""

@@ -27,6 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..status import Status
+from .methods import Primal
+from .problem import ContactProblem
 from .solver import ContactResult
 
 
@@ -64,24 +66,39 @@ def solve_contact_qp(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10,
                      tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact through cvxpy + Clarabel. R is accepted for API symmetry
     (the convex program needs no rigid modes; unbalanced loads show up as unboundedness)."""
+    return solve_qp(ContactProblem(K, f, Bn, Bt, d, w, g, F, R), tol=tol, tol_fp=tol_fp, max_fp_iter=max_fp_iter)
+
+
+class _TrescaQP:
+    """The Tresca problems of one contact problem as convex programs (`_tresca_qp`), for the
+    bounds a law gives (`wcs.contact.laws.TrescaSolve`); `last` holds the last one's answer."""
+
+    def __init__(self, problem: ContactProblem, tol: float):
+        self.problem, self.tol, self.last = problem, tol, None
+
+    def __call__(self, gw):
+        p = self.problem
+        self.last = _tresca_qp(p.K, p.f, p.Bn, p.Bt, p.d, gw, self.tol)
+        return self.last[1], self.last[0] is not None, 0
+
+
+def solve_qp(problem: ContactProblem, *, tol=1e-10, tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+    """`solve_contact_qp` of a `ContactProblem`, its law driving the convex programs. Coulomb
+    starts stuck: slip bounds above g·w by Σ|f|, finite (a convex program's bound), beyond
+    what any load can shear; its bounds g·w + F λn take the program's λn, a dual of the
+    nonnegative cone (never negative)."""
     t0 = time.perf_counter()
-    m = Bn.shape[0]
-    w = np.asarray(w, dtype=float)
-    gw_fixed = np.zeros(m) if g is None else np.asarray(g, dtype=float) * w
-    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
-    coulomb = bool(np.any(Fc > 0))
-    stuck = gw_fixed + np.abs(f).sum() if coulomb else gw_fixed
-    u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, stuck, tol)
-    fp, fp_ok = 0, not coulomb
-    while coulomb and u is not None and fp < max_fp_iter and not fp_ok:
-        p_old = ln / w
-        u, ln, lt, st = _tresca_qp(K, f, Bn, Bt, d, gw_fixed + Fc * np.maximum(ln, 0.0), tol)
-        fp += 1
-        fp_ok = u is not None and np.linalg.norm(ln / w - p_old) <= tol_fp * max(np.linalg.norm(ln / w), 1e-300)
+    law, tresca = problem.law, _TrescaQP(problem, tol)
+    driven = law.drive(tresca, law.start(None, np.abs(problem.f).sum()), tol_fp, max_fp_iter)
+    u, ln, lt, st = tresca.last
     timings = {"total": time.perf_counter() - t0}
     if u is None:
         code = Status.UNSOLVABLE if st in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) else Status.SINGULAR
         return ContactResult(None, None, None, code, f"cvxpy status {st}", timings=timings)
-    status, msg = ((Status.SOLVED, st) if fp_ok
+    status, msg = ((Status.SOLVED, st) if driven.settled
                    else (Status.FIXED_POINT_NOT_CONVERGED, "Coulomb fixed point not converged"))
-    return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=fp, timings=timings)
+    return ContactResult(u, ln, lt, status, msg, fixed_point_iterations=driven.fixed_point_iterations,
+                         timings=timings)
+
+
+QP = Primal("qp", lambda model, problem: solve_qp(problem), polish=True)   # at its own tolerances

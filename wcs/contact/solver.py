@@ -69,6 +69,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wcs import linalg
+from wcs.contact.problem import ContactProblem
 from wcs.contact.solvability import CLARABEL_TIGHT, rigid_load, unbalanced_rigid_motion
 from wcs.status import Status
 
@@ -692,6 +693,29 @@ def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
     return ""
 
 
+class _TrescaNewton:
+    """The Tresca problems of one condensed system (W, q, G, e) by semismooth Newton
+    (`_newton`), for the bounds a law gives (`wcs.contact.laws.TrescaSolve`): each started
+    from the last one's (λ, α), projected onto the new bounds; the first from the warm
+    result's active set (`_first_free_set`). `qp`: a cycle restarts from the dual QP."""
+
+    def __init__(self, W, q, G, e, lam, alpha, warm, tol, max_iter, qp, k):
+        self.W, self.q, self.G, self.e, self.lam, self.alpha = W, q, G, e, lam, alpha
+        self.warm, self.tol, self.max_iter, self.k = warm, tol, max_iter, k
+        self.options = {"k": k} if qp else {"fallback": False, "k": k}
+        self.free = None
+
+    def __call__(self, gw):
+        k, m = self.k, len(gw)
+        lo = np.r_[np.zeros(m), -np.tile(gw, k)]
+        hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
+        free0 = _first_free_set(self.warm, gw, k) if self.free is None else None
+        self.lam, self.alpha, self.free, n, ok = _newton(self.W, self.q, self.G, self.e, lo, hi,
+                                                         project(self.lam, lo, hi, k), self.alpha, self.tol,
+                                                         self.max_iter, free0, **self.options)
+        return self.lam[:m], ok, n
+
+
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
                   factored: ContactFactor | None = None,
@@ -718,20 +742,24 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
             (CONTACT_NOT_CONVERGED).
     """
+    return solve_condensed(ContactProblem(K, f, Bn, Bt, d, w, g, F, R, warm), tol=tol, max_iter=max_iter,
+                           factor=factor, factored=factored, tol_fp=tol_fp, max_fp_iter=max_fp_iter,
+                           checked=checked, qp=qp)
+
+
+def solve_condensed(problem: ContactProblem, *, tol=1e-10, max_iter=100, factor: ContactFactor | None = None,
+                    factored=None, tol_fp=1e-8, max_fp_iter=50, checked: bool = False,
+                    qp: bool = True) -> ContactResult:
+    """`solve_contact` of a `ContactProblem`: its law (`wcs.contact.laws`) drives the
+    semismooth Newton of the condensed system over Tresca problems (`_TrescaNewton`); the
+    problem's `scale` is in `factored` (`wcs.contact.units`), K is then not used."""
     t0 = time.perf_counter()
     timings = {}
-    m = Bn.shape[0]
-    k = Bt.shape[0] // m if m else 1                  # tangent components per node: d − 1
-    f, d, w = (np.asarray(a, dtype=float) for a in (f, d, w))
-    C = sp.vstack([Bn, Bt]).tocsr()
-    R = None if R is None else np.asarray(R, dtype=float).reshape(len(f), -1)
-    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
-    coulomb = bool(np.any(Fc > 0))
-    gw_fixed = np.zeros(m) if g is None else np.asarray(g, dtype=float) * w
-    gw = gw_fixed
-    if coulomb:
-        warm_p = warm is not None and warm.lam_n is not None
-        gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
+    K, f, Bn, Bt, d, w, R, warm = (problem.K, problem.f, problem.Bn, problem.Bt, problem.d, problem.w,
+                                   problem.R, problem.warm)
+    m, k, C, law = problem.m, problem.k, problem.C, problem.law
+    coulomb = law.coulomb
+    gw = law.start(warm.lam_n if warm is not None else None, np.inf)     # Coulomb: all stick, or warm
 
     if R is not None and not coulomb and not checked:
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
@@ -763,24 +791,11 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     e = rigid_load(R, f) if R is not None else np.zeros(0)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     alpha = np.zeros(G.shape[0]) if warm is None or warm.alpha is None else warm.alpha
-    lo = np.r_[np.zeros(m), -np.tile(gw, k)]
-    hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
-    no_qp = {"k": k} if qp else {"fallback": False, "k": k}
-    lam, alpha, free, iters, ok = _newton(W, q, G, e, lo, hi, project(lam, lo, hi, k), alpha, tol, max_iter,
-                                          _first_free_set(warm, gw, k), **no_qp)
-    fp_iters, fp_ok = 0, True
-    if coulomb:
-        fp_ok = False
-        while ok and fp_iters < max_fp_iter and not fp_ok:
-            p_old = lam[:m] / w
-            gw = gw_fixed + Fc * lam[:m]
-            lo[m:], hi[m:] = -np.tile(gw, k), np.tile(gw, k)
-            lam, alpha, free, n, ok = _newton(W, q, G, e, lo, hi, project(lam, lo, hi, k), alpha, tol, max_iter,
-                                              **no_qp)
-            iters += n
-            fp_iters += 1
-            p = lam[:m] / w
-            fp_ok = np.linalg.norm(p - p_old) <= tol_fp * max(np.linalg.norm(p), 1e-300)
+    newton = _TrescaNewton(W, q, G, e, lam, alpha, warm, tol, max_iter, qp, k)
+    driven = law.drive(newton, gw, tol_fp, max_fp_iter)
+    lam, alpha, free = newton.lam, newton.alpha, newton.free
+    gw, ok, fp_ok, iters, fp_iters = (driven.gw, driven.ok, driven.settled, driven.iterations,
+                                      driven.fixed_point_iterations)
     timings["newton"] = time.perf_counter() - t
 
     if not ok and coulomb and R is not None:     # friction F p may be too weak to hold a floating body

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from wcs.contact.solver import ContactFactor, factor_regularized
+from wcs.linalg import Factor
 
 
 @dataclass(frozen=True)
@@ -56,8 +57,8 @@ def stiffness_units(pattern: sp.csr_matrix, region_dofs: list[np.ndarray], regio
 
 @dataclass(frozen=True)
 class UnitSolve:
-    """Solves with blockdiag(s_u K*_u) from the factors of the K*_u."""
-    factors: tuple
+    """Solves with blockdiag(s_u K*_u) from the factors of the K*_u (a `linalg.Factor`)."""
+    factors: tuple[Factor, ...]
     dofs: tuple
     scales: np.ndarray
 
@@ -74,7 +75,7 @@ class UnitSolve:
 @dataclass(frozen=True)
 class ScaledUnits:
     """What `solve_contact(..., factored=)` and the adjoint use: `factor.solve` with K and W."""
-    factor: UnitSolve
+    factor: Factor
     W: np.ndarray
 
 
