@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wcs.contact.laws import Coulomb, Tresca
 from wcs.status import DDOutcome, Status
 
 from .decomposition import Decomposition
@@ -298,30 +299,37 @@ def rho_estimate(it: Iteration, U0: np.ndarray) -> tuple[float, int] | None:
 
 def coulomb_newton(it: Iteration, U: np.ndarray):
     """Interface Newton for Tresca (slip bounds g·w); for Coulomb the fixed point over
-    Tresca problems of the monolithic path: first all stick, then bounds g·w + F λn from the
-    last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w; at most max_fixed_point_iterations
-    Tresca solves). Returns (status, message, U); the pairs' `result` is the last Tresca
-    problem's solve at U."""
+    Tresca problems that every contact method shares (`wcs.contact.laws.Coulomb`): first all
+    stick, then bounds g·w + F λn from the last pressures, until ‖Δp‖ ≤ tol ‖p‖ (p = λn / w;
+    at most max_fixed_point_iterations Tresca solves, the first included). Returns (status,
+    message, U); the pairs' `result` is the last Tresca problem's solve at U."""
     dec, o, info, team, weight = it.dec, it.o, it.info, it.team, it.weight
-    gw = it.slip_bounds
     coulomb = bool(it.friction.any())
-    bound, p_old = it.first_bounds, None
+    law = Coulomb(it.slip_bounds, it.friction, weight) if coulomb else Tresca(it.slip_bounds)
     info["newton"] = info["pcg2"] = info["successive"] = 0
     info["history"] = {"residual": [], "pcg2": [], "eta": [], "step": []}
-    for j in range(1, (o["max_fixed_point_iterations"] if coulomb else 1) + 1):
-        status, message, U = _newton(it, U, bound)
+    last = {"U": U, "solves": 0}
+
+    def tresca(gw):       # one interface Newton, from the last U; all-infinite bounds: all stick
+        status, message, last["U"] = _newton(it, last["U"], None if np.isinf(gw).all() else gw)
+        last.update(status=status, message=message, solves=last["solves"] + 1)
         if status != DDOutcome.CONVERGED or not coulomb:
-            return status, message, U
+            return None, status == DDOutcome.CONVERGED, 0
+        info["fixed_point"] = last["solves"]
         lam = {p.index: p.result.lam_n for p in team.local(dec.pairs)}
         lam_n = np.zeros(weight.size)
         for part in team.allgather(lam):
             for i, ln in part.items():
                 lam_n[dec.units[i].rows] = ln
-        p = lam_n / weight
-        info["fixed_point"] = j
-        if p_old is not None and np.linalg.norm(p - p_old) <= o["tolerance"] * max(np.linalg.norm(p), 1e-300):
-            return status, f"{message}; Coulomb fixed point: {j} Tresca problems", U
-        p_old, bound = p, gw + it.friction * lam_n
+        return lam_n, True, 0
+
+    # DD counts the first Tresca problem in max_fixed_point_iterations; the law counts those after it
+    driven = law.drive(tresca, law.start(None, np.inf), o["tolerance"], o["max_fixed_point_iterations"] - 1)
+    status, message, U = last["status"], last["message"], last["U"]
+    if not driven.ok or not coulomb:
+        return status, message, U
+    if driven.settled:
+        return status, f"{message}; Coulomb fixed point: {last['solves']} Tresca problems", U
     return (DDOutcome.BUDGET, f"Coulomb fixed point did not converge in {o['max_fixed_point_iterations']} "
             f"Tresca problems", U)
 
