@@ -127,6 +127,8 @@ class Model:
             self.R_r = (T.T @ np.hstack([m for _, m in self.floating])) if self.floating else None
         self.comm = comm               # MPI communicator the DD solver spreads its subdomains over
         self.solver_method, self.solver_reason = self._choose_solver(scene)
+        if self.solver_method == "iterative":
+            self._iterative_fault()
         if self.solver_method == "dd":
             from .dd.partition import subdomains_fault    # the DD modules (and scipy.spatial) load only for dd
             fault = subdomains_fault(self.options.dd.subdomains, mesh.t.shape[1])
@@ -135,7 +137,7 @@ class Model:
         self._anchored = self.zone is not None and self.solver_method == "monolithic"
         # contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
         self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)
-                      if self.zone is not None and self.solver_method != "qp" else None)
+                      if self.zone is not None and self.solver_method not in ("qp", "iterative") else None)
         self.pinned = (pinned_dofs(self.R_r) if self.zone is not None and self.R_r is not None
                        else np.zeros(0, dtype=int))
 
@@ -381,6 +383,17 @@ class Model:
                 used = f"monolithic after dd {dd.message}"
             else:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
+        if self.solver_method == "iterative":
+            res = self._solve_iterative(c, Kr, rhs, u0)
+            if not adjoint:
+                u = self.elim.T @ res.u + u0
+                return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), iterations=res.iterations,
+                                solver=f"iterative: {res.iterations} Newton steps, {res.krylov_iterations} CG iterations",
+                                contact=self.contact_state(res.lam_n, res.lam_t, u, res.active), w=res.u, raw=res,
+                                stiffness=Kr, **own)
+            # the adjoint needs the direct factorization and W: polished by the monolithic solver (visibly)
+            warm = ContactResult(None, res.lam_n, res.lam_t, Status.SOLVED, "", active=res.active)
+            used = "iterative, polished by monolithic for the adjoint"
         Ks, scale = self._contact_stiffness(c, Kr)
         if qp and adjoint:      # the adjoint needs the Newton's factorization and active set: polish qp's answer
             res = self._solve_contact(c, Ks, rhs, u0, nominal, None, scale, qp=True)[3]
@@ -513,6 +526,37 @@ class Model:
         res = dataclasses.replace(res, factor=None)   # a solution reaches its factor by `contact_factor`
         u = self.elim.T @ res.u + u0
         return u, self.contact_state(res.lam_n, res.lam_t, u, res.active), res.iterations, res
+
+    def _iterative_fault(self):
+        """`solver.method: iterative` on a scene it cannot solve yet: StudyError (exit 2)."""
+        if self.options.iterative.preconditioner == "bddc":
+            raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
+                             path="solver.iterative.preconditioner")
+
+    def _solve_iterative(self, c: Coefficients, Kr, rhs, u0):
+        """The contact problem of stiffness Kr by the iterative method (`wcs.contact.iterative`)."""
+        from .contact.iterative import solve_contact_iterative     # PETSc: loaded only for this method
+        z = self.zone
+        F = c.coulomb
+        res = solve_contact_iterative(Kr, rhs, self.Bn_r, self.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip,
+                                      F=F if F.any() else None, R=self.R_r, tol=self.options.tolerance,
+                                      max_iter=self.options.max_iterations, near_nullspace=self.near_nullspace,
+                                      rtol=self.options.iterative.tolerance, tol_fp=self.options.tolerance,
+                                      max_fp_iter=self.options.max_fixed_point_iterations)
+        if res.status == Status.UNSOLVABLE:
+            raise SolveError(self._unbalanced_message(res, rhs), status=Status.UNSOLVABLE)
+        if res.status != Status.SOLVED:
+            raise SolveError(res.message, status=res.status)
+        return res
+
+    @functools.cached_property
+    def near_nullspace(self) -> np.ndarray:
+        """Each body's rigid motions on the reduced unknowns (least squares through u = T w):
+        the near-nullspace of the algebraic multigrid."""
+        from .contact.iterative import reduced_modes
+        nodes = [np.flatnonzero(self.smesh.node_body == b) for b in range(len(self.smesh.bodies))]
+        p = self.smesh.mesh.p
+        return reduced_modes(self.elim.T, np.hstack([rigid_modes(p, n, self.nnodes) for n in nodes if len(n)]))
 
     def contact_factor(self, Kr: sp.csr_matrix):
         """The contact factorization of Kr (`factor_contact`) on the model's pinned DOFs and

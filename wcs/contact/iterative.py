@@ -1,0 +1,379 @@
+r"""Contact by a primal–dual active set on the primal unknowns, with Krylov solves on PETSc.
+
+The same discrete problem as `wcs.contact.solver.solve_contact` (read its docstring for the
+signs): K u + Bnᵀλn + Btᵀλt = f, Bn u ≤ d ⊥ λn ≥ 0, and λt = Π(λt + c Bt u) on the friction
+discs |λt,i| ≤ g_i w_i — but the Delassus operator W = C K⁻¹ Cᵀ is never formed.
+
+Newton step. With z = λ + c ⊙ (C u − [d; 0]) the active-set prediction of the semismooth
+Newton method (Hüeber, Stadler, Wohlmuth, SIAM J. Sci. Comput. 30 (2008)) is: a normal row with
+z_n > 0 is closed (C_i u = d_i), a tangent with |z_t| ≤ gw sticks (C_i u = 0), others are open
+(λn = 0) or slip. In 2D a slipping tangent carries the known force λt = gw sign z; on a disc
+(3D) λt = Π(z) = gw ν, ν = z/|z|, is linearised with the Jacobian D = γ(I − ννᵀ), γ = gw/|z|,
+of the projection: λt − D(λt + c r_t) = Π(z) gives λt = gw ν + c γ/(1 − γ) ττᵀ r_t (τ ⊥ ν in the
+tangent plane, r_t = Bt u), a spring across the slip. D is symmetric, so the Newton matrix
+K + Σ Btᵀ (cγ/(1 − γ) ττᵀ) Bt is symmetric positive definite and every step is solved by CG.
+
+Elimination of the closed and stuck rows (the seed's dual basis, [101] (24)–(25)): each row's
+slave part touches one slave node only (node-to-node rows: coefficient ±1 on both nodes of the
+pair; dual mortar rows: 1 on the slave node in the row's direction, −D⁻¹M on master nodes),
+so the unknowns that only the rows of one contact node touch (its *own* unknowns) hold an
+invertible block of its active rows. One pivot per active row is chosen among them (QR with
+column pivoting), and with P the pivots, O the rest, C_A u = b_A gives
+u_P = C_AP⁻¹(b_A − C_AO u_O) with C_AP block diagonal (one block per node): u = Z u_O + u_b,
+Z = [−C_AP⁻¹ C_AO; I]. The step solves Zᵀ K Z u_O = Zᵀ(f − K u_b) by CG preconditioned by
+GAMG with the rigid-body near-nullspace restricted to O (the rows of C vanish on a rigid
+motion common to both sides). The multipliers of the active rows are the residual on the
+pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linearly dependent on its
+other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
+no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
+act on nothing (supports on both sides) are never active (λ = 0). An active row without an
+own unknown that is not such a combination cannot be eliminated here: SolveError, never a
+wrong number.
+
+Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
+0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
+mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
+‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from wcs.contact.solvability import unbalanced_rigid_motion
+from wcs.contact.solver import ContactResult, _first_free_set, _states, conditions_violated, project
+from wcs.errors import SolveError
+from wcs.status import Status
+
+ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
+NULL = 1e-10         # a contact row with ‖C_i‖ ≤ NULL max‖C_j‖ acts on round-off only
+DEPENDENT = 1e-8     # relative singular value below which a node's active rows are dependent
+
+
+def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
+                            warm: ContactResult | None = None, near_nullspace=None, rtol=1e-12,
+                            tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+    """Tresca (g) or Coulomb (F) contact by the primal active set with CG + GAMG (module docstring).
+
+    Arguments and result as `solve_contact` (no factor: `factor` is None). near_nullspace:
+    (n, r) rigid-body modes of K's unknowns for GAMG (6 in 3D, 3 in 2D); rtol: relative
+    residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
+    their CG iterations in total. Floating bodies (R): the load's balance is checked as in
+    `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
+    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet).
+    Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
+    (all-stick) solution or the warm pressures."""
+    t0 = time.perf_counter()
+    m = Bn.shape[0]
+    k = Bt.shape[0] // m if m else 1
+    f, d, w = (np.asarray(a, dtype=float) for a in (f, d, w))
+    C = sp.vstack([Bn, Bt]).tocsr()
+    K = sp.csr_matrix(K, dtype=float)
+    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
+    coulomb = bool(np.any(Fc > 0))
+    gw_fixed = np.zeros(m) if g is None else np.asarray(g, dtype=float) * w
+    gw = gw_fixed
+    if coulomb:
+        warm_p = warm is not None and warm.lam_n is not None
+        gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
+    R = None if R is None or not np.asarray(R).size else np.asarray(R, dtype=float).reshape(len(f), -1)
+    if R is not None and not coulomb:
+        value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
+        if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
+            return ContactResult(None, None, None, Status.UNSOLVABLE,
+                                 f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
+                                 f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
+                                 alpha=alpha)
+    rows = _Rows(C, m, k)
+    step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
+    c = _scales(K, C, m, k)
+    lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
+    free0 = _first_free_set(warm, gw, k)
+    u, lam, free, iters, ok = _newton(step, c, lam, free0, gw, m, k, tol, max_iter, rtol)
+    fp_iters, fp_ok = 0, True
+    if coulomb:
+        fp_ok = False
+        while ok and fp_iters < max_fp_iter and not fp_ok:
+            p_old = lam[:m] / w
+            gw = gw_fixed + Fc * lam[:m]
+            u, lam, free, n, ok = _newton(step, c, lam, None, gw, m, k, tol, max_iter, rtol)
+            iters += n
+            fp_iters += 1
+            p = lam[:m] / w
+            fp_ok = np.linalg.norm(p - p_old) <= tol_fp * max(np.linalg.norm(p), 1e-300)
+    status, message = Status.SOLVED, "converged"
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
+    if violation:
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"iterative active set stopped at an answer that violates {violation}: not reported")
+    elif not ok:
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"iterative active set did not converge in {iters} Newton steps: {step.failure}" if step.failure else
+            f"iterative active set did not converge ({iters} Newton steps: an active set cycled or the budget "
+            f"of {max_iter} ran out)")
+    elif not fp_ok:
+        status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
+    timings = {"total": time.perf_counter() - t0}
+    return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
+                         _states(free, m, gw), None, None, timings, free=free, gw=gw,
+                         krylov_iterations=step.krylov)
+
+
+def _scales(K, C, m, k):
+    """c ≈ 1 / diag(W) without W: 1 / Σ_j C_ij² / K_jj per row (a node's tangents: one c, their mean)."""
+    with np.errstate(divide="ignore"):
+        cw = 1.0 / (C.multiply(C) @ (1.0 / K.diagonal()))
+    cw[m:] = np.tile(cw[m:].reshape(k, m).mean(axis=0), k)
+    return np.where(np.isfinite(cw), cw, 0.0)
+
+
+def _newton(step, c, lam, free0, gw, m, k, tol, max_iter, rtol):
+    """The semismooth Newton iteration of the module docstring: (u, λ, free, steps, converged).
+
+    free0: the free set (closed normals, stuck tangents) of the first step (None: predicted
+    from λ, with u = 0 the prediction z = λ). Stops when the answer of a step solved to `rtol`
+    satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
+    pattern met again at full accuracy is a cycle (not converged)."""
+    lo = np.r_[np.zeros(m), -np.tile(gw, k)]
+    hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
+    u = np.zeros(step.n)
+    carried = hi > lo
+    seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
+    for it in range(max_iter + 1):
+        z = lam + c * (step.C @ u - step.b)
+        phi = lam - project(z, lo, hi, k)
+        size = np.abs(phi).max(initial=0.0)
+        if it > 0 or free0 is None:
+            scale = max(np.abs(lam).max(initial=0.0), np.minimum(np.abs(z), hi)[carried].max(initial=0.0), 1e-300)
+            in_b = np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
+            if it > 0 and eta <= rtol and size <= tol * scale and in_b:
+                return u, lam, _free(z, lo, hi, k, step.rows), it, True
+            ratio = size / phi_old if phi_old else 1.0
+            eta = rtol if phi_old is None or size <= tol * scale else min(ETA_MAX, max(rtol, 0.9 * min(ratio, 1.0) ** 2))
+            phi_old = size
+            free = _free(z, lo, hi, k, step.rows)
+        else:
+            free, eta = free0 & step.rows.acting, ETA_MAX
+        key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
+        if it == max_iter or (k == 1 and key in tight):
+            break
+        if key in seen:          # a pattern met again: solve it exactly (a loose step may have mispredicted)
+            eta = rtol
+        seen.add(key)
+        if eta <= rtol:
+            tight.add(key)
+        try:
+            u, lam = step.solve(free, z, gw, c, k, eta)
+        except (_KrylovFailure, _Unheld) as exc:
+            step.failure = str(exc)
+            break
+    return u, lam, _free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), it, False
+
+
+def _free(z, lo, hi, k, rows):
+    """Closed normals and stuck tangents predicted from z (tangents with gw > 0 only), on rows that act."""
+    m = len(z) // (1 + k)
+    closed = z[:m] > 0
+    stick = (np.linalg.norm(z[m:].reshape(k, m), axis=0) <= hi[m:m + m]) & (hi[m:m + m] > 0)
+    return np.r_[closed, np.tile(stick, k)] & rows.acting
+
+
+class _KrylovFailure(Exception):
+    """A Krylov solve that did not reach its tolerance."""
+
+
+class _Unheld(Exception):
+    """A step whose closed and stuck rows leave a rigid mode of a floating body free (its
+    system is singular); the rigid modes are not projected out yet."""
+
+
+class _Rows:
+    """The contact rows grouped by node, with the unknowns each node has to itself."""
+
+    def __init__(self, C: sp.csr_matrix, m: int, k: int):
+        self.m, self.k = m, k
+        norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
+        self.acting = norms > NULL * max(norms.max(initial=0.0), 1e-300)
+        Cc = C.tocoo()
+        node = Cc.row % m if m else Cc.row
+        n = C.shape[1]
+        lo = np.full(n, m)
+        hi = np.full(n, -1)
+        np.minimum.at(lo, Cc.col, node)
+        np.maximum.at(hi, Cc.col, node)
+        own = (lo == hi)[Cc.col] & (Cc.data != 0)
+        order = np.argsort(node[own], kind="stable")
+        cols = Cc.col[own][order]
+        start = np.searchsorted(node[own][order], np.arange(m + 1))
+        self.own = [np.unique(cols[start[i]:start[i + 1]]) for i in range(m)]
+        self.C = C
+        self._pivots = {}
+
+    def node_rows(self, i):
+        return i + self.m * np.arange(1 + self.k)
+
+    def pivots(self, i, active):
+        """(rows, pivots, block⁻¹): the node's independent active rows, one own unknown each,
+        and the inverse of C on them; rows dependent on the others are left out. SolveError
+        where an active row is neither."""
+        key = (i, active.tobytes())
+        if key not in self._pivots:
+            rows = self.node_rows(i)[active]
+            own = self.own[i]
+            B = self.C[rows][:, own].toarray() if len(own) else np.zeros((len(rows), 0))
+            _, r, piv = sla.qr(B.T, mode="economic", pivoting=True) if len(own) else (None, np.zeros((0, 0)), [])
+            diag = np.abs(np.diag(r)) if len(own) else np.zeros(0)
+            rank = int(np.sum(diag > DEPENDENT * max(diag.max(initial=0.0), 1e-300)))
+            keep = np.sort(np.asarray(piv[:rank], dtype=int))
+            for j in np.setdiff1d(np.arange(len(rows)), keep):
+                self._check_dependent(rows[keep], rows[j], i)
+            Bk = B[keep]
+            _, _, cpiv = sla.qr(Bk, mode="economic", pivoting=True)
+            cols = own[np.sort(cpiv[:len(keep)])]
+            block = self.C[rows[keep]][:, cols].toarray()
+            self._pivots[key] = (rows[keep], cols, np.linalg.inv(block))
+        return self._pivots[key]
+
+    def _check_dependent(self, rows, row, i):
+        """row is a combination of rows on all unknowns (not only on the node's own), else SolveError."""
+        A = self.C[rows].toarray().T
+        b = self.C[row].toarray().ravel()
+        x = np.linalg.lstsq(A, b, rcond=None)[0] if len(rows) else np.zeros(0)
+        if np.linalg.norm(A @ x - b) > 1e-8 * np.linalg.norm(b):
+            raise SolveError(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its "
+                             "slave side is held by supports or shared): not supported by the iterative method",
+                             status=Status.OTHER_FAILURE)
+
+
+class _Stepper:
+    """One Newton step: eliminate the free (closed, stuck) rows, CG + GAMG on the rest."""
+
+    def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
+        self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
+        self.failure = ""
+        self.n = K.shape[0]
+        self.N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
+        self.krylov = 0
+
+    def solve(self, free, z, gw, c, k, eta):
+        """(u, λ) of the step with the free set `free` (the slip data from z)."""
+        m, n = self.rows.m, self.n
+        C, K = self.C, self.K
+        rows, piv, blocks = [], [], []
+        for i in np.flatnonzero(free.reshape(1 + k, m).any(axis=0)):
+            r, p, inv = self.rows.pivots(i, free[self.rows.node_rows(i)])
+            rows.append(r)
+            piv.append(p)
+            blocks.append(inv)
+        rows = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+        P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
+        Binv = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
+        if self.R is not None:
+            G = C[rows] @ self.R
+            sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if len(rows) else []
+            if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
+                raise _Unheld("the closed and stuck contact rows of a Newton step leave a floating body free "
+                              "(its rigid modes are not projected out by the iterative method yet)")
+        lam0, Kt = self._slip(free, z, gw, c, k)
+        O = np.setdiff1d(np.arange(n), P)
+        CA = C[rows]
+        X = (Binv @ CA[:, O]).tocsr()                   # u_P = Binv b_A − X u_O
+        Z = sp.vstack([sp.identity(len(O), format="csr"), -X]).tocsr()
+        perm = np.r_[O, P]
+        Z = sp.csr_matrix((Z.data, Z.indices, Z.indptr), shape=(n, len(O)))[np.argsort(perm)]
+        ub = np.zeros(n)
+        ub[P] = Binv @ self.b[rows]
+        rhs0 = self.f - C.T @ lam0
+        A = (Z.T @ Kt @ Z).tocsr()
+        v, its, ok = krylov_solve(A, Z.T @ (rhs0 - Kt @ ub), eta,
+                                  None if self.N is None else self.N[O])
+        self.krylov += its
+        if not ok:
+            raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
+        u = Z @ v + ub
+        lam = lam0 + self._spring_force(u)
+        res = rhs0 - Kt @ u
+        lam[rows] = Binv.T @ res[P]
+        return u, lam
+
+    def _slip(self, free, z, gw, c, k):
+        """The slipping tangents' known forces λ0 (2D: gw sign z; disc: gw ν) and K plus the disc
+        springs Btᵀ (cγ/(1 − γ) ττᵀ) Bt of the module docstring."""
+        m = self.rows.m
+        lam0 = np.zeros((1 + k) * m)
+        self._springs = None
+        t = z[m:].reshape(k, m)
+        norm = np.linalg.norm(t, axis=0)
+        slip = ~free[m:m + m] & (gw > 0) & self.rows.acting[m:m + m] & (norm > 0)
+        nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
+        lam0[m:] = (np.where(slip, gw, 0.0) * nu).ravel()
+        if k == 1:
+            return lam0, self.K
+        gamma = np.divide(gw, norm, out=np.zeros_like(norm), where=slip)
+        nodes = np.flatnonzero(slip & (gamma < 1))
+        tau = np.stack([-nu[1, nodes], nu[0, nodes]])
+        s = c[m + nodes] * gamma[nodes] / (1 - gamma[nodes])
+        # ττᵀ r_t = τ (τ · Bt u): one row per slipping node, Q = Σ_j τ_j Bt_j
+        Q = sp.diags(tau[0]) @ self.C[m + nodes] + sp.diags(tau[1]) @ self.C[2 * m + nodes]
+        self._springs = (nodes, tau, s, Q.tocsr())
+        return lam0, (self.K + Q.T @ sp.diags(s) @ Q).tocsr()
+
+    def _spring_force(self, u):
+        """The disc springs' part cγ/(1 − γ) τ (τ · Bt u) of λt (zero without discs)."""
+        m = self.rows.m
+        out = np.zeros(len(self.b))
+        if self._springs is None:
+            return out
+        nodes, tau, s, Q = self._springs
+        a = s * (Q @ u)
+        out[m + nodes] = a * tau[0]
+        out[2 * m + nodes] = a * tau[1]
+        return out
+
+
+def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
+    """CG + GAMG on the SPD A to ‖r‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged).
+    near_nullspace: (n, r) columns (orthonormalised here) that A nearly annihilates."""
+    import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
+    from petsc4py import PETSc
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros(0), 0, True
+    A = A.tocsr()
+    A.sort_indices()
+    M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                 A.data), comm=PETSc.COMM_SELF)
+    M.setOption(PETSc.Mat.Option.SPD, True)
+    vecs = []
+    if near_nullspace is not None and near_nullspace.shape[1]:
+        Q, r, _ = sla.qr(near_nullspace, mode="economic", pivoting=True)
+        rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
+        vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF) for j in range(rank)]
+        M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOperators(M)
+    ksp.setType("cg")
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.getPC().setType("gamg")
+    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max(1000, n // 10))
+    x, rhs = M.createVecs()
+    rhs.setArray(b)
+    ksp.solve(rhs, x)
+    ok = ksp.getConvergedReason() > 0
+    out = x.getArray().copy()
+    its = ksp.getIterationNumber()
+    for o in [ksp, M, x, rhs, *vecs]:
+        o.destroy()
+    return out, its, ok
+
+
+def reduced_modes(T: sp.spmatrix, R: np.ndarray) -> np.ndarray:
+    """The columns of R (rigid motions of the dofs) on the reduced unknowns w of u = T w, by
+    least squares: (TᵀT)⁻¹ Tᵀ R (exact where a motion is in the range of T; T's columns are
+    a support's free directions and glued slaves follow their masters)."""
+    from scipy.sparse.linalg import splu
+    T = sp.csc_matrix(T)
+    return splu((T.T @ T).tocsc()).solve(np.asarray(T.T @ R))
