@@ -1,0 +1,140 @@
+"""solver.method iterative (`wcs.contact.iterative`): the same discrete problem as the condensed
+semismooth Newton of `wcs.contact.solver`, solved by a primal active set with CG + GAMG.
+
+Tolerance 1e-7 relative (issue 25): both methods satisfy the same KKT system, the direct one to
+round-off, the iterative one to the final CG residual 1e-12 of the right-hand side; measured
+agreement is 1e-11–1e-13, so 1e-7 leaves four orders of margin while a wrong active node
+moves the multipliers by ≥ 1e-3. Tractions are compared as the model reports them
+(`Model.contact_state`, the canonical split of tied rows: a tangent parallel to its normal
+carries no force of its own, and the two methods split such a pair differently).
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from test_contact_solver import args, two_blocks
+from test_glue3d import plane, stack
+from wcs.contact import solver as cs
+from wcs.contact.iterative import solve_contact_iterative
+from wcs.errors import StudyError
+from wcs.evaluation import Evaluator
+from wcs.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+VALIDATION = ROOT / "studies" / "validation"
+AGREE = 1e-7
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)
+
+
+def study(path, method="monolithic", **mesh):
+    d = yaml.safe_load(Path(path).read_text())
+    d["scene"].setdefault("mesh", {}).update(mesh)
+    d["solver"] = {**d.get("solver", {}), "method": method}
+    return d
+
+
+def both(path, **mesh):
+    """The model of a study and its nominal contact problem solved by both methods."""
+    M = Evaluator(load_study(study(path, **mesh))).model
+    c = M.nominal
+    T = M._heat(c, False)[0] if M.thermal else None
+    _, Kr, rhs, u0 = M.reduced_system(c, T)
+    z = M.zone
+    P = dict(K=Kr, f=rhs, Bn=M.Bn_r, Bt=M.Bt_r, d=z.gap - z.Bn @ u0, w=z.weight, g=c.slip,
+             F=c.coulomb if c.coulomb.any() else None, R=M.R_r)
+    direct = cs.solve_contact(**P, tol=1e-10)
+    iterative = solve_contact_iterative(**P, tol=1e-10, near_nullspace=M.near_nullspace, rtol=1e-12)
+    return M, direct, iterative
+
+
+def assert_agree(M, direct, iterative):
+    assert direct.status == 0, direct.message
+    assert iterative.status == 0, iterative.message
+    assert rel(iterative.u, direct.u) <= AGREE
+    states = [M.contact_state(r.lam_n, r.lam_t, M.elim.T @ r.u, r.active) for r in (direct, iterative)]
+    assert rel(states[1].force_n, states[0].force_n) <= AGREE
+    assert rel(states[1].force_t, states[0].force_t) <= AGREE
+    assert iterative.iterations >= 1 and iterative.krylov_iterations >= iterative.iterations
+
+
+@pytest.mark.parametrize("g", [None, 0.004])
+def test_2d_blocks_frictionless_and_tresca_agree_with_the_direct_method(g):
+    P = two_blocks(20)
+    m = P["Bn"].shape[0]
+    gw = None if g is None else np.full(m, g)
+    direct = cs.solve_contact(*args(P), g=gw, tol=1e-10)
+    iterative = solve_contact_iterative(*args(P), g=gw, tol=1e-10, rtol=1e-12)
+    assert direct.status == 0 and iterative.status == 0, iterative.message
+    assert rel(iterative.u, direct.u) <= AGREE
+    assert rel(iterative.lam_n, direct.lam_n) <= AGREE
+    if g is not None:       # partial slip: 17 stuck, 4 slipping nodes
+        assert rel(iterative.lam_t, direct.lam_t) <= AGREE
+        assert np.array_equal(iterative.active, direct.active) and (direct.active == cs.SLIP).sum() >= 2
+
+
+def test_the_3d_block_patch_agrees_with_the_direct_method():
+    """Node-to-node, frictionless, the block floating along z and held by the contact."""
+    assert_agree(*both(VALIDATION / "block-on-block-3d.yaml"))
+
+
+def test_the_3d_tresca_shear_patch_agrees_with_the_direct_method():
+    """Every node slipping on its disc: the linearised disc projection (the springs across the slip)."""
+    M, direct, iterative = both(VALIDATION / "tresca-shear-patch-3d.yaml")
+    assert_agree(M, direct, iterative)
+    assert (iterative.active == cs.SLIP).all()
+
+
+def test_a_3d_dual_mortar_patch_agrees_with_the_direct_method():
+    assert_agree(*both(VALIDATION / "mortar-patch-3d.yaml"))
+
+
+@pytest.mark.slow
+def test_the_2d_tunnel_agrees_with_the_direct_method():
+    """Tresca with open, stuck and slipping fault nodes; fault nodes on rollers on both sides
+    (tied rows: a tangent dependent on its normal carries no multiplier of its own)."""
+    assert_agree(*both(ROOT / "studies" / "tunnel-fault.yaml"))
+
+
+def glued_contact() -> dict:
+    """A pad pressed on a block glued (nonmatching, mortar) on a base: glue eliminated in K, mortar contact."""
+    d = stack(0.25, 0.125)
+    sc = d["scene"]
+    sc["bodies"]["pad"] = {"regions": [{"material": "soft", "shape": {"box": [0, 0, 0.25, 1, 1, 0.5]}}],
+                           "mesh": {"size": 0.25}}
+    sc["boundaries"].update(top=plane([0, 0, 0.5], [0, 0, 1]), block_top=plane([0, 0, 0.25], [0, 0, 1], "block"),
+                            pad_bottom=plane([0, 0, 0.25], [0, 0, 1], "pad"))
+    sc["contacts"] = {"c": {"slave": "pad_bottom", "master": "block_top"}}
+    return d
+
+
+def test_a_glued_stack_under_a_mortar_contact_agrees_with_the_direct_method(tmp_path):
+    path = tmp_path / "glued.yaml"
+    path.write_text(yaml.safe_dump(glued_contact()))
+    M, direct, iterative = both(path)
+    assert len(M.glue) == 1 and M.zone.discretization == ["mortar"]
+    assert_agree(M, direct, iterative)
+
+
+def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():
+    path = VALIDATION / "tresca-shear-patch-3d.yaml"
+    results = []
+    for method in ("monolithic", "iterative"):
+        ev = Evaluator(load_study(study(path, method)))
+        results.append(ev.evaluate(ev.study.nominal()))
+    assert results[1].status == 0, results[1].message
+    assert results[1].phi.keys() == results[0].phi.keys()
+    for name, value in results[0].phi.items():
+        np.testing.assert_allclose(results[1].phi[name], value, rtol=AGREE)
+    assert "iterative" in results[1].message and "CG iterations" in results[1].message
+
+
+def test_bddc_is_refused_until_it_exists():
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"]["iterative"] = {"preconditioner": "bddc"}
+    with pytest.raises(StudyError, match="BDDC"):
+        Evaluator(load_study(d))
