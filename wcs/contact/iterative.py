@@ -104,6 +104,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
             fp_iters += 1
             p = lam[:m] / w
             fp_ok = np.linalg.norm(p - p_old) <= tol_fp * max(np.linalg.norm(p), 1e-300)
+    step.krylov_solver.close()
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
     if violation:
@@ -255,7 +256,8 @@ class _Stepper:
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
         self.failure = ""
         self.n = K.shape[0]
-        self.N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
+        N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
+        self.krylov_solver = Krylov(N)
         self.krylov = 0
 
     def solve(self, free, z, gw, c, k, eta):
@@ -270,7 +272,7 @@ class _Stepper:
             blocks.append(inv)
         rows = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
         P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
-        Binv = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
+        Binv = _block_diagonal(blocks)
         if self.R is not None:
             G = C[rows] @ self.R
             sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if len(rows) else []
@@ -279,17 +281,14 @@ class _Stepper:
                               "(its rigid modes are not projected out by the iterative method yet)")
         lam0, Kt = self._slip(free, z, gw, c, k)
         O = np.setdiff1d(np.arange(n), P)
-        CA = C[rows]
-        X = (Binv @ CA[:, O]).tocsr()                   # u_P = Binv b_A − X u_O
-        Z = sp.vstack([sp.identity(len(O), format="csr"), -X]).tocsr()
-        perm = np.r_[O, P]
-        Z = sp.csr_matrix((Z.data, Z.indices, Z.indptr), shape=(n, len(O)))[np.argsort(perm)]
+        X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
+        # Z: u = Z x + u_b with x_P = 0, i.e. Zᵀ K Z of the unknowns O, kept at K's size (rows P: diag K)
+        Z = sp.csr_matrix((np.r_[np.ones(len(O)), -X.data], (np.r_[O, P[X.row]], np.r_[O, O[X.col]])), shape=(n, n))
         ub = np.zeros(n)
         ub[P] = Binv @ self.b[rows]
         rhs0 = self.f - C.T @ lam0
-        A = (Z.T @ Kt @ Z).tocsr()
-        v, its, ok = krylov_solve(A, Z.T @ (rhs0 - Kt @ ub), eta,
-                                  None if self.N is None else self.N[O])
+        A = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+        v, its, ok = self.krylov_solver.solve(A, Z.T @ (rhs0 - Kt @ ub), eta)
         self.krylov += its
         if not ok:
             raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
@@ -334,40 +333,106 @@ class _Stepper:
         return out
 
 
-def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
-    """CG + GAMG on the SPD A to ‖r‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged).
-    near_nullspace: (n, r) columns (orthonormalised here) that A nearly annihilates."""
-    import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
-    from petsc4py import PETSc
-    n = A.shape[0]
-    if n == 0:
-        return np.zeros(0), 0, True
+def _block_diagonal(blocks) -> sp.csr_matrix:
+    """The block-diagonal matrix of small dense square blocks."""
+    sizes = np.array([len(b) for b in blocks], dtype=int)
+    start = np.r_[0, np.cumsum(sizes)]
+    r = [s + np.repeat(np.arange(n), n) for s, n in zip(start, sizes)]
+    c = [s + np.tile(np.arange(n), n) for s, n in zip(start, sizes)]
+    data = [np.ravel(b) for b in blocks]
+    if not blocks:
+        return sp.csr_matrix((0, 0))
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(r), np.concatenate(c))), shape=(start[-1], start[-1]))
+
+
+class Krylov:
+    """CG preconditioned by GAMG, the preconditioner kept from one Newton step to the next.
+
+    The steps' matrices are K's size (`_Stepper.solve`) and differ only on the rows of the
+    contact nodes whose state changed, so a GAMG hierarchy built for an earlier step still
+    preconditions a later one (CG needs only an SPD preconditioner: the answer is the solve's
+    to its tolerance, the preconditioner changes its cost); it is rebuilt when a solve took
+    more than `REBUILD` times the iterations per digit of residual reduction of the solve it
+    was built for (plus 10).
+    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
+
+    REBUILD = 2.0
+
+    def __init__(self, near_nullspace=None):
+        self.N = near_nullspace
+        self.ksp = self.P = None
+        self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
+
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
+        """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
+        import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
+        from petsc4py import PETSc
+        n = A.shape[0]
+        if n == 0:
+            return np.zeros(0), 0, True
+        M = _petsc_matrix(A, PETSc)
+        fresh = self.ksp is None
+        if fresh:
+            self._build(M, PETSc)
+        self.ksp.setOperators(M, self.P)
+        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max(1000, n // 10))
+        x, rhs = M.createVecs()
+        rhs.setArray(b)
+        self.ksp.solve(rhs, x)
+        ok = self.ksp.getConvergedReason() > 0
+        its = self.ksp.getIterationNumber()
+        out = x.getArray().copy()
+        for o in (x, rhs):
+            o.destroy()
+        digits = -np.log10(rtol)
+        if fresh:
+            self.rate = its / digits
+        elif not ok or its > self.REBUILD * self.rate * digits + 10:     # the hierarchy has aged: rebuild and solve again
+            self.close()
+            x, more, ok = self.solve(A, b, rtol)
+            return x, its + more, ok
+        return out, its, ok
+
+    def _build(self, M, PETSc):
+        if self.N is not None and self.N.shape[1]:
+            Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
+            rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
+            vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF)
+                    for j in range(rank)]
+            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setType("cg")
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.getPC().setType("gamg")
+        ksp.setOperators(M, M)
+        ksp.setUp()
+        ksp.getPC().setReusePreconditioner(True)
+        self.ksp, self.P = ksp, M
+
+    def close(self):
+        if self.ksp is not None:
+            self.ksp.destroy()
+            self.P.destroy()
+        self.ksp = self.P = None
+
+
+def _petsc_matrix(A: sp.csr_matrix, PETSc):
     A = A.tocsr()
     A.sort_indices()
+    n = A.shape[0]
     M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
                                                  A.data), comm=PETSc.COMM_SELF)
     M.setOption(PETSc.Mat.Option.SPD, True)
-    vecs = []
-    if near_nullspace is not None and near_nullspace.shape[1]:
-        Q, r, _ = sla.qr(near_nullspace, mode="economic", pivoting=True)
-        rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
-        vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF) for j in range(rank)]
-        M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    ksp.setOperators(M)
-    ksp.setType("cg")
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    ksp.getPC().setType("gamg")
-    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max(1000, n // 10))
-    x, rhs = M.createVecs()
-    rhs.setArray(b)
-    ksp.solve(rhs, x)
-    ok = ksp.getConvergedReason() > 0
-    out = x.getArray().copy()
-    its = ksp.getIterationNumber()
-    for o in [ksp, M, x, rhs, *vecs]:
-        o.destroy()
-    return out, its, ok
+    return M
+
+
+def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
+    """One CG + GAMG solve of the SPD A (`Krylov`): (x, iterations, converged)."""
+    solver = Krylov(near_nullspace)
+    try:
+        return solver.solve(A, b, rtol)
+    finally:
+        solver.close()
 
 
 def reduced_modes(T: sp.spmatrix, R: np.ndarray) -> np.ndarray:
