@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from test_contact_solver import args, two_blocks
+from test_3d_patch import floating
 from test_glue3d import plane, stack
 from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
@@ -32,7 +33,7 @@ def rel(a, b):
 
 
 def study(path, method="monolithic", **mesh):
-    d = yaml.safe_load(Path(path).read_text())
+    d = yaml.safe_load(yaml.safe_dump(path)) if isinstance(path, dict) else yaml.safe_load(Path(path).read_text())
     d["scene"].setdefault("mesh", {}).update(mesh)
     d["solver"] = {**d.get("solver", {}), "method": method}
     return d
@@ -112,12 +113,22 @@ def glued_contact() -> dict:
     return d
 
 
-def test_a_glued_stack_under_a_mortar_contact_agrees_with_the_direct_method(tmp_path):
-    path = tmp_path / "glued.yaml"
-    path.write_text(yaml.safe_dump(glued_contact()))
-    M, direct, iterative = both(path)
+def test_a_glued_stack_under_a_mortar_contact_agrees_with_the_direct_method():
+    M, direct, iterative = both(glued_contact())
     assert len(M.glue) == 1 and M.zone.discretization == ["mortar"]
     assert_agree(M, direct, iterative)
+
+
+@pytest.mark.parametrize("friction", [{"slip_limit": 3.0e5}, {"coefficient": 0.3}], ids=["tresca", "coulomb"])
+def test_a_block_held_only_by_contact_and_friction_agrees_with_the_direct_method(friction):
+    """All six rigid motions of the block free (R given): the glued start holds them, and the
+    stuck nodes keep holding them; partial slip on discs; Coulomb: the fixed point over Tresca."""
+    M, direct, iterative = both(floating(friction))
+    assert [r.shape[1] for _, r in M.floating] == [6]
+    assert_agree(M, direct, iterative)
+    assert (iterative.active == cs.SLIP).any() and (iterative.active == cs.STICK).any()
+    if "coefficient" in friction:
+        assert iterative.fixed_point_iterations >= 2
 
 
 def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():

@@ -92,14 +92,14 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     free0 = _first_free_set(warm, gw, k)
-    u, lam, free, iters, ok = _newton(step, c, lam, free0, gw, m, k, tol, max_iter, rtol)
+    u, lam, free, iters, ok = _newton(step, c, np.zeros(len(f)), lam, free0, gw, m, k, tol, max_iter, rtol)
     fp_iters, fp_ok = 0, True
     if coulomb:
         fp_ok = False
         while ok and fp_iters < max_fp_iter and not fp_ok:
             p_old = lam[:m] / w
             gw = gw_fixed + Fc * lam[:m]
-            u, lam, free, n, ok = _newton(step, c, lam, None, gw, m, k, tol, max_iter, rtol)
+            u, lam, free, n, ok = _newton(step, c, u, lam, None, gw, m, k, tol, max_iter, rtol)
             iters += n
             fp_iters += 1
             p = lam[:m] / w
@@ -131,16 +131,15 @@ def _scales(K, C, m, k):
     return np.where(np.isfinite(cw), cw, 0.0)
 
 
-def _newton(step, c, lam, free0, gw, m, k, tol, max_iter, rtol):
+def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol):
     """The semismooth Newton iteration of the module docstring: (u, λ, free, steps, converged).
 
-    free0: the free set (closed normals, stuck tangents) of the first step (None: predicted
-    from λ, with u = 0 the prediction z = λ). Stops when the answer of a step solved to `rtol`
+    (u, λ): the start; free0: the free set (closed normals, stuck tangents) of the first step
+    (None: predicted from (u, λ)). Stops when the answer of a step solved to `rtol`
     satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
     pattern met again at full accuracy is a cycle (not converged)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
-    u = np.zeros(step.n)
     carried = hi > lo
     seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
     for it in range(max_iter + 1):
@@ -187,7 +186,7 @@ class _KrylovFailure(Exception):
 
 
 class _Unheld(Exception):
-    """A step whose closed and stuck rows leave a rigid mode of a floating body free (its
+    """A step whose closed and stuck rows (and disc springs) leave a rigid mode of a floating body free (its
     system is singular); the rigid modes are not projected out yet."""
 
 
@@ -273,13 +272,14 @@ class _Stepper:
         rows = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
         P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
         Binv = _block_diagonal(blocks)
-        if self.R is not None:
-            G = C[rows] @ self.R
-            sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if len(rows) else []
+        lam0, Kt = self._slip(free, z, gw, c, k)
+        if self.R is not None:      # the rigid modes held by the closed and stuck rows and the disc springs
+            held = C[rows] if self._springs is None else sp.vstack([C[rows], self._springs[3]])
+            G = held @ self.R
+            sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if G.shape[0] else []
             if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
                 raise _Unheld("the closed and stuck contact rows of a Newton step leave a floating body free "
                               "(its rigid modes are not projected out by the iterative method yet)")
-        lam0, Kt = self._slip(free, z, gw, c, k)
         O = np.setdiff1d(np.arange(n), P)
         X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
         # Z: u = Z x + u_b with x_P = 0, i.e. Zᵀ K Z of the unknowns O, kept at K's size (rows P: diag K)
