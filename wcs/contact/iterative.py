@@ -205,10 +205,13 @@ class _Rows:
         np.minimum.at(lo, Cc.col, node)
         np.maximum.at(hi, Cc.col, node)
         own = (lo == hi)[Cc.col] & (Cc.data != 0)
-        order = np.argsort(node[own], kind="stable")
-        cols = Cc.col[own][order]
-        start = np.searchsorted(node[own][order], np.arange(m + 1))
-        self.own = [np.unique(cols[start[i]:start[i + 1]]) for i in range(m)]
+        on, oc = node[own].astype(np.int64), Cc.col[own].astype(np.int64)
+        pairs = np.unique(on * n + oc)                   # (node, own unknown), by node then unknown
+        start = np.searchsorted(pairs // n, np.arange(m + 1))
+        self.own = np.split(pairs % n, start[1:-1]) if m else []
+        # B[i]: C on node i's rows (1 + k) and own unknowns, dense, padded to the widest node
+        self.B = np.zeros((m, 1 + k, int(np.diff(start).max(initial=0))))
+        np.add.at(self.B, (on, Cc.row[own] // m, np.searchsorted(pairs, on * n + oc) - start[on]), Cc.data[own])
         self.C = C
         self._pivots = {}
 
@@ -223,17 +226,15 @@ class _Rows:
         if key not in self._pivots:
             rows = self.node_rows(i)[active]
             own = self.own[i]
-            B = self.C[rows][:, own].toarray() if len(own) else np.zeros((len(rows), 0))
+            B = self.B[i][active][:, :len(own)]
             _, r, piv = sla.qr(B.T, mode="economic", pivoting=True) if len(own) else (None, np.zeros((0, 0)), [])
             diag = np.abs(np.diag(r)) if len(own) else np.zeros(0)
             rank = int(np.sum(diag > DEPENDENT * max(diag.max(initial=0.0), 1e-300)))
             keep = np.sort(np.asarray(piv[:rank], dtype=int))
             for j in np.setdiff1d(np.arange(len(rows)), keep):
                 self._check_dependent(rows[keep], rows[j], i)
-            Bk = B[keep]
-            _, _, cpiv = sla.qr(Bk, mode="economic", pivoting=True)
-            cols = own[np.sort(cpiv[:len(keep)])]
-            block = self.C[rows[keep]][:, cols].toarray()
+            chosen = np.sort(sla.qr(B[keep], mode="economic", pivoting=True)[2][:len(keep)]) if len(keep) else keep
+            cols, block = own[chosen], B[keep][:, chosen]
             self._pivots[key] = (rows[keep], cols, np.linalg.inv(block))
         return self._pivots[key]
 
