@@ -134,7 +134,7 @@ class Model:
             fault = subdomains_fault(self.options.dd.subdomains, mesh.t.shape[1])
             if fault is not None:
                 raise StudyError(fault, path="solver.dd.subdomains")
-        self._anchored = self.zone is not None and self.solver_method == "monolithic"
+        self._anchored = self.zone is not None and self.solver_method in ("monolithic", "iterative")
         # contact: the units of the reduced stiffness, each factored on its own (`wcs.contact.units`)
         self.units = (stiffness_units(self.reduce.pattern, self._region_dofs(), self.region_material)
                       if self.zone is not None and self.solver_method not in ("qp", "iterative") else None)
@@ -384,7 +384,7 @@ class Model:
             else:
                 raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         if self.solver_method == "iterative":
-            res = self._solve_iterative(c, Kr, rhs, u0)
+            res = self._solve_iterative(c, Kr, rhs, u0, nominal)
             if not adjoint:
                 u = self.elim.T @ res.u + u0
                 return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), iterations=res.iterations,
@@ -533,16 +533,24 @@ class Model:
             raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
                              path="solver.iterative.preconditioner")
 
-    def _solve_iterative(self, c: Coefficients, Kr, rhs, u0):
-        """The contact problem of stiffness Kr by the iterative method (`wcs.contact.iterative`)."""
+    def _solve_iterative(self, c: Coefficients, Kr, rhs, u0, nominal: bool):
+        """The contact problem of stiffness Kr by the iterative method (`wcs.contact.iterative`),
+        started as the monolithic one: the nominal data cold (their answer is the anchor), any
+        other data from the anchor."""
         from .contact.iterative import solve_contact_iterative     # PETSc: loaded only for this method
+        cache = self._cache
         z = self.zone
         F = c.coulomb
         res = solve_contact_iterative(Kr, rhs, self.Bn_r, self.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip,
                                       F=F if F.any() else None, R=self.R_r, tol=self.options.tolerance,
                                       max_iter=self.options.max_iterations, near_nullspace=self.near_nullspace,
                                       rtol=self.options.iterative.tolerance, tol_fp=self.options.tolerance,
-                                      max_fp_iter=self.options.max_fixed_point_iterations)
+                                      max_fp_iter=self.options.max_fixed_point_iterations,
+                                      warm=None if nominal else cache.anchor)
+        if nominal:
+            cache.anchor_tried = True
+            if res.status == Status.SOLVED and cache.anchor is None:
+                cache.anchor = res
         if res.status == Status.UNSOLVABLE:
             raise SolveError(self._unbalanced_message(res, rhs), status=Status.UNSOLVABLE)
         if res.status != Status.SOLVED:

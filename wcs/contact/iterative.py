@@ -92,7 +92,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     free0 = _first_free_set(warm, gw, k)
-    u, lam, free, iters, ok = _newton(step, c, np.zeros(len(f)), lam, free0, gw, m, k, tol, max_iter, rtol)
+    u, lam, free, iters, ok = _newton(step, c, np.zeros(len(f)), lam, free0, gw, m, k, tol, max_iter, rtol,
+                                      ETA_MAX if warm is None else rtol)
     fp_iters, fp_ok = 0, True
     if coulomb:
         fp_ok = False
@@ -131,11 +132,12 @@ def _scales(K, C, m, k):
     return np.where(np.isfinite(cw), cw, 0.0)
 
 
-def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol):
+def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):
     """The semismooth Newton iteration of the module docstring: (u, λ, free, steps, converged).
 
     (u, λ): the start; free0: the free set (closed normals, stuck tangents) of the first step
-    (None: predicted from (u, λ)). Stops when the answer of a step solved to `rtol`
+    (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
+    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step solved to `rtol`
     satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
     pattern met again at full accuracy is a cycle (not converged)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
@@ -156,7 +158,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol):
             phi_old = size
             free = _free(z, lo, hi, k, step.rows)
         else:
-            free, eta = free0 & step.rows.acting, ETA_MAX
+            free, eta = free0 & step.rows.acting, eta0
         key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
         if it == max_iter or (k == 1 and key in tight):
             break
