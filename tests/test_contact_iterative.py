@@ -90,6 +90,7 @@ def test_the_3d_tresca_shear_patch_agrees_with_the_direct_method():
     assert (iterative.active == cs.SLIP).all()
 
 
+@pytest.mark.slow
 def test_a_3d_dual_mortar_patch_agrees_with_the_direct_method():
     assert_agree(*both(VALIDATION / "mortar-patch-3d.yaml"))
 
