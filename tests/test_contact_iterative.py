@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import yaml
 
 from test_contact_solver import args, two_blocks
@@ -21,6 +22,7 @@ from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
+from wcs.status import Status
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -76,6 +78,17 @@ def test_2d_blocks_frictionless_and_tresca_agree_with_the_direct_method(g):
     if g is not None:       # partial slip: 17 stuck, 4 slipping nodes
         assert rel(iterative.lam_t, direct.lam_t) <= AGREE
         assert np.array_equal(iterative.active, direct.active) and (direct.active == cs.SLIP).sum() >= 2
+
+
+def test_rows_with_no_unknown_of_their_own_are_refused_not_solved():
+    """Two contact nodes on the same pair of DOFs (a row repeated): neither has an unknown of
+    its own to eliminate; the iterative method says so (status OTHER_FAILURE, no answer)."""
+    P = two_blocks(10)
+    Bn, Bt = (sp.vstack([B, B[:1]]).tocsr() for B in (P["Bn"], P["Bt"]))
+    res = solve_contact_iterative(P["K"], P["f"], Bn, Bt, np.r_[P["d"], 0.0], np.r_[P["w"], P["w"][0]],
+                                  tol=1e-10, rtol=1e-12)
+    assert res.status == Status.OTHER_FAILURE and res.u is None
+    assert "no unknown of its own" in res.message
 
 
 def test_the_3d_block_patch_agrees_with_the_direct_method():

@@ -27,8 +27,8 @@ pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linear
 other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
 no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
 act on nothing (supports on both sides) are never active (λ = 0). An active row without an
-own unknown that is not such a combination cannot be eliminated here: SolveError, never a
-wrong number.
+own unknown that is not such a combination cannot be eliminated here: status OTHER_FAILURE,
+never a wrong number.
 
 Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
 0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
@@ -45,7 +45,6 @@ import scipy.sparse as sp
 
 from wcs.contact.solvability import unbalanced_rigid_motion
 from wcs.contact.solver import ContactResult, _first_free_set, _states, conditions_violated, project
-from wcs.errors import SolveError
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -63,7 +62,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
     their CG iterations in total. Floating bodies (R): the load's balance is checked as in
     `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
-    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet).
+    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet), as
+    does an active row with no unknown of its own (module docstring).
     Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
     (all-stick) solution or the warm pressures."""
     t0 = time.perf_counter()
@@ -111,6 +111,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     if violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set stopped at an answer that violates {violation}: not reported")
+    elif step.unsupported:
+        status, message = Status.OTHER_FAILURE, f"iterative method: {step.failure}"
     elif not ok:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set did not converge in {iters} Newton steps: {step.failure}" if step.failure else
@@ -169,8 +171,11 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             tight.add(key)
         try:
             u, lam = step.solve(free, z, gw, c, k, eta)
-        except (_KrylovFailure, _Unheld) as exc:
+        except _KrylovFailure as exc:
             step.failure = str(exc)
+            break
+        except _Unsupported as exc:
+            step.failure, step.unsupported = str(exc), True
             break
     return u, lam, _free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), it, False
 
@@ -187,9 +192,10 @@ class _KrylovFailure(Exception):
     """A Krylov solve that did not reach its tolerance."""
 
 
-class _Unheld(Exception):
-    """A step whose closed and stuck rows (and disc springs) leave a rigid mode of a floating body free (its
-    system is singular); the rigid modes are not projected out yet."""
+class _Unsupported(Exception):
+    """A step this method cannot take (yet): an active row with no unknown of its own to
+    eliminate, or closed and stuck rows (and disc springs) that leave a rigid mode of a
+    floating body free (a singular system: the rigid modes are not projected out yet)."""
 
 
 class _Rows:
@@ -222,7 +228,7 @@ class _Rows:
 
     def pivots(self, i, active):
         """(rows, pivots, block⁻¹): the node's independent active rows, one own unknown each,
-        and the inverse of C on them; rows dependent on the others are left out. SolveError
+        and the inverse of C on them; rows dependent on the others are left out. _Unsupported
         where an active row is neither."""
         key = (i, active.tobytes())
         if key not in self._pivots:
@@ -241,14 +247,14 @@ class _Rows:
         return self._pivots[key]
 
     def _check_dependent(self, rows, row, i):
-        """row is a combination of rows on all unknowns (not only on the node's own), else SolveError."""
+        """row is a combination of rows on all unknowns (not only on the node's own), else _Unsupported."""
         A = self.C[rows].toarray().T
         b = self.C[row].toarray().ravel()
         x = np.linalg.lstsq(A, b, rcond=None)[0] if len(rows) else np.zeros(0)
         if np.linalg.norm(A @ x - b) > 1e-8 * np.linalg.norm(b):
-            raise SolveError(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its "
-                             "slave side is held by supports or shared): not supported by the iterative method",
-                             status=Status.OTHER_FAILURE)
+            raise _Unsupported(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its slave "
+                               "side is held by supports or shared with another contact node): not supported by the "
+                               "iterative method")
 
 
 class _Stepper:
@@ -256,7 +262,7 @@ class _Stepper:
 
     def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
-        self.failure = ""
+        self.failure, self.unsupported = "", False
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
@@ -281,7 +287,7 @@ class _Stepper:
             G = held @ self.R
             sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if G.shape[0] else []
             if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
-                raise _Unheld("the closed and stuck contact rows of a Newton step leave a floating body free "
+                raise _Unsupported("the closed and stuck contact rows of a Newton step leave a floating body free "
                               "(its rigid modes are not projected out by the iterative method yet)")
         O = np.setdiff1d(np.arange(n), P)
         X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
