@@ -145,6 +145,13 @@ def test_a_block_held_only_by_contact_and_friction_agrees_with_the_direct_method
         assert iterative.fixed_point_iterations >= 2
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["hertz-3d.yaml", "hertz-mortar.yaml"])
+def test_hertz_3d_and_2d_mortar_agree_with_the_direct_method(name):
+    """3D Hertz (dual mortar, 274 rows, 18 Newton steps from the glued start) and 2D Hertz by mortar."""
+    assert_agree(*both(VALIDATION / name))
+
+
 def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():
     path = VALIDATION / "tresca-shear-patch-3d.yaml"
     results = []

@@ -120,7 +120,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
             f"of {max_iter} ran out)")
     elif not fp_ok:
         status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
-    timings = {"total": time.perf_counter() - t0}
+    timings = {**step.timings, **step.krylov_solver.timings, "total": time.perf_counter() - t0}
     return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
                          _states(free, m, gw), None, None, timings, free=free, gw=gw,
                          krylov_iterations=step.krylov)
@@ -263,6 +263,7 @@ class _Stepper:
     def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
         self.failure, self.unsupported = "", False
+        self.timings = {"eliminate": 0.0}       # seconds: pivots, Z and Zᵀ K Z of the steps
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
@@ -270,6 +271,7 @@ class _Stepper:
 
     def solve(self, free, z, gw, c, k, eta):
         """(u, λ) of the step with the free set `free` (the slip data from z)."""
+        t0 = time.perf_counter()
         m, n = self.rows.m, self.n
         C, K = self.C, self.K
         rows, piv, blocks = [], [], []
@@ -297,7 +299,9 @@ class _Stepper:
         ub[P] = Binv @ self.b[rows]
         rhs0 = self.f - C.T @ lam0
         A = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
-        v, its, ok = self.krylov_solver.solve(A, Z.T @ (rhs0 - Kt @ ub), eta)
+        b = Z.T @ (rhs0 - Kt @ ub)
+        self.timings["eliminate"] += time.perf_counter() - t0
+        v, its, ok = self.krylov_solver.solve(A, b, eta)
         self.krylov += its
         if not ok:
             raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
@@ -366,11 +370,13 @@ class Krylov:
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
 
     REBUILD = 2.0
+    MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
     def __init__(self, near_nullspace=None):
         self.N = near_nullspace
         self.ksp = self.P = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0}    # seconds
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
@@ -381,10 +387,13 @@ class Krylov:
             return np.zeros(0), 0, True
         M = _petsc_matrix(A, PETSc)
         fresh = self.ksp is None
+        t = time.perf_counter()
         if fresh:
             self._build(M, PETSc)
+        self.timings["gamg_setup"] += time.perf_counter() - t
+        t = time.perf_counter()
         self.ksp.setOperators(M, self.P)
-        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max(1000, n // 10))
+        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
         x, rhs = M.createVecs()
         rhs.setArray(b)
         self.ksp.solve(rhs, x)
@@ -393,6 +402,7 @@ class Krylov:
         out = x.getArray().copy()
         for o in (x, rhs):
             o.destroy()
+        self.timings["cg"] += time.perf_counter() - t
         digits = -np.log10(rtol)
         if fresh:
             self.rate = its / digits
