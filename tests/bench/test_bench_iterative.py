@@ -8,7 +8,8 @@ thread. Measured in one run, as ratios:
   to 1e-8, CG to 1e-8); goal ≤ 10× linear;
 - `warm`: the same contact solve after new loads and a new Young's modulus of the block,
   started from the cold answer; goal ≤ 3× linear;
-- peak memory of the process (resident set); goal ≤ 8 GB.
+- peak memory of the process (resident set); goal ≤ 8 GB. Beside it the peak and the resident
+  set once the model is built (mesh, assembly, criteria: not the contact method's).
 
 WCS_BENCH_ITERATIVE="size face" sets the mesh size and the contact face's size (default
 "0.04 0.01": ≈ 1e6 unknowns, ≈ 1e4 contact nodes). Table: results/bench/bench_iterative.csv.
@@ -48,6 +49,11 @@ def peak_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
 
 
+def rss_gb() -> float:
+    """The resident set now (the model's share before the solves)."""
+    return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e9
+
+
 def problem(model, c):
     _, Kr, rhs, u0 = model.reduced_system(c, None)
     z = model.zone
@@ -63,6 +69,7 @@ def measure(size: float, face: float) -> list:
     P = problem(model, c)
     n, m = P["K"].shape[0], P["Bn"].shape[0]
     N = model.near_nullspace
+    model_peak, model_rss = peak_gb(), rss_gb()
 
     t = time.perf_counter()          # the glued system of the first Newton step, solved once, fresh
     C = model.contact_rows
@@ -84,7 +91,8 @@ def measure(size: float, face: float) -> list:
     assert warm.status == 0, warm.message
     return [size, face, n, m, round(t_model, 1), round(t_linear, 2), linear_its, round(t_cold, 2), cold.iterations,
             cold.krylov_iterations, round(t_warm, 2), warm.iterations, warm.krylov_iterations,
-            round(t_cold / t_linear, 2), round(t_warm / t_linear, 2), round(peak_gb(), 2)]
+            round(t_cold / t_linear, 2), round(t_warm / t_linear, 2), round(model_peak, 2), round(model_rss, 2),
+            round(peak_gb(), 2), {k: round(v, 1) for k, v in cold.timings.items()}]
 
 
 @pytest.mark.bench
@@ -93,5 +101,6 @@ def test_bench_iterative_contact_at_scale():
     row = measure(size, face)
     path = write_table("bench_iterative", ["size", "face", "unknowns", "contact_nodes", "model_s", "linear_s",
                                            "linear_its", "cold_s", "newton", "krylov", "warm_s", "warm_newton",
-                                           "warm_krylov", "cold_over_linear", "warm_over_linear", "peak_gb"], [row])
+                                           "warm_krylov", "cold_over_linear", "warm_over_linear", "model_peak_gb",
+                                           "model_rss_gb", "peak_gb", "cold_timings_s"], [row])
     print(path.read_text())

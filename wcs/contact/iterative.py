@@ -80,6 +80,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
         warm_p = warm is not None and warm.lam_n is not None
         gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
     R = None if R is None or not np.asarray(R).size else np.asarray(R, dtype=float).reshape(len(f), -1)
+    timings = {}
     if R is not None and not coulomb:
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
         if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
@@ -87,7 +88,10 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
                                  alpha=alpha)
+        timings["solvability"] = time.perf_counter() - t0
+    t = time.perf_counter()
     rows = _Rows(C, m, k)
+    timings["rows"] = time.perf_counter() - t
     step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
@@ -120,7 +124,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
             f"of {max_iter} ran out)")
     elif not fp_ok:
         status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
-    timings = {**step.timings, **step.krylov_solver.timings, "total": time.perf_counter() - t0}
+    timings.update(**step.timings, **step.krylov_solver.timings, total=time.perf_counter() - t0)
     return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
                          _states(free, m, gw), None, None, timings, free=free, gw=gw,
                          krylov_iterations=step.krylov)
