@@ -17,6 +17,7 @@ import yaml
 
 from test_contact_solver import args, two_blocks
 from test_3d_patch import floating
+from test_contact3d_robust import tunnel_fault_3d
 from test_glue3d import plane, stack
 from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
@@ -143,6 +144,15 @@ def test_a_block_held_only_by_contact_and_friction_agrees_with_the_direct_method
     assert (iterative.active == cs.SLIP).any() and (iterative.active == cs.STICK).any()
     if "coefficient" in friction:
         assert iterative.fixed_point_iterations >= 2
+
+
+def test_a_3d_tunnel_slice_on_rollers_agrees_with_the_direct_method():
+    """Tresca on a fault whose nodes are on rollers front and back: one tangent of such a node is
+    held by the supports (a row of round-off), the other slips or sticks alone; a node's state
+    and its slip force are those of its acting tangent (the first tangent held: it cycled)."""
+    M, direct, iterative = both(tunnel_fault_3d())
+    assert_agree(M, direct, iterative)
+    assert np.array_equal(iterative.active, direct.active)
 
 
 @pytest.mark.slow

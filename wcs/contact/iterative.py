@@ -33,7 +33,9 @@ never a wrong number.
 Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
 0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
 mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
-‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`.
+‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. A step
+with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
+Newton does).
 """
 from __future__ import annotations
 
@@ -44,7 +46,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wcs.contact.solvability import unbalanced_rigid_motion
-from wcs.contact.solver import ContactResult, _first_free_set, _states, conditions_violated, project
+from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
+                                project)
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -131,11 +134,13 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
 
 
 def _scales(K, C, m, k):
-    """c ≈ 1 / diag(W) without W: 1 / Σ_j C_ij² / K_jj per row (a node's tangents: one c, their mean)."""
-    with np.errstate(divide="ignore"):
-        cw = 1.0 / (C.multiply(C) @ (1.0 / K.diagonal()))
-    cw[m:] = np.tile(cw[m:].reshape(k, m).mean(axis=0), k)
-    return np.where(np.isfinite(cw), cw, 0.0)
+    """c ≈ 1 / diag(W) without W, as `wcs.contact.solver.scales` takes it: 1 / w_i with the
+    estimate w_i = Σ_j C_ij² / K_jj of W_ii, on a node's k tangents their mean w (a tangent held
+    by supports, w = 0, halves it: with c = 1/0 taken as 0 a slice of a 3D tunnel on rollers
+    front and back predicted its stick/slip from λ alone and cycled)."""
+    dW = C.multiply(C) @ (1.0 / K.diagonal())
+    dW[m:] = np.tile(dW[m:].reshape(k, m).mean(axis=0), k)
+    return 1.0 / np.where(dW > 0, dW, 1.0)
 
 
 def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):
@@ -149,6 +154,10 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
     carried = hi > lo
+
+    def merit(u, lam):
+        phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
+        return phi @ phi
     seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
@@ -158,7 +167,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             scale = max(np.abs(lam).max(initial=0.0), np.minimum(np.abs(z), hi)[carried].max(initial=0.0), 1e-300)
             in_b = np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
             if it > 0 and eta <= rtol and size <= tol * scale and in_b:
-                return u, lam, _free(z, lo, hi, k, step.rows), it, True
+                return u, lam, _by_node(_free(z, lo, hi, k, step.rows), m, k), it, True
             ratio = size / phi_old if phi_old else 1.0
             eta = rtol if phi_old is None or size <= tol * scale else min(ETA_MAX, max(rtol, 0.9 * min(ratio, 1.0) ** 2))
             phi_old = size
@@ -174,14 +183,45 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         if eta <= rtol:
             tight.add(key)
         try:
-            u, lam = step.solve(free, z, gw, c, k, eta)
+            u1, lam1 = step.solve(free, z, gw, c, k, eta)
         except _KrylovFailure as exc:
             step.failure = str(exc)
             break
         except _Unsupported as exc:
             step.failure, step.unsupported = str(exc), True
             break
-    return u, lam, _free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), it, False
+        discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
+        if discs and (it > 0 or free0 is None):
+            u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
+        else:
+            u, lam = u1, lam1
+    return u, lam, _by_node(_free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), m, k), it, False
+
+
+def _step_length(merit, u, lam, u1, lam1, theta):
+    """The step (u, λ) → (u1, λ1) shortened by halving until the merit θ = ‖Φ‖² decreases by
+    Armijo's rule θ(t) ≤ (1 − 2 ARMIJO t) θ(0); the full step where none down to MIN_STEP does
+    (as `wcs.contact.solver._step_length`: on discs full steps cycled with period 2 between
+    stick and slip of a few fault nodes of a 3D tunnel slice). Both ends are in equilibrium
+    (K u + Cᵀλ = f is linear), so only the complementarity is measured."""
+    t = 1.0
+    while t > MIN_STEP:
+        ut, lt = u + t * (u1 - u), lam + t * (lam1 - lam)
+        if merit(ut, lt) <= (1.0 - 2.0 * ARMIJO * t) * theta:
+            return ut, lt
+        t *= 0.5
+    return u1, lam1
+
+
+def _stuck(free, m, k):
+    """Nodes whose tangents stick (any of their acting tangent rows in the free set)."""
+    return free[m:].reshape(k, m).any(axis=0)
+
+
+def _by_node(free, m, k):
+    """The free set with every tangent row of a stuck node in it (a tangent held by supports
+    too), as `solve_contact` reports it: `_states` reads a node's state from its first tangent."""
+    return np.r_[free[:m], np.tile(_stuck(free, m, k), k)]
 
 
 def _free(z, lo, hi, k, rows):
@@ -209,6 +249,7 @@ class _Rows:
         self.m, self.k = m, k
         norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
         self.acting = norms > NULL * max(norms.max(initial=0.0), 1e-300)
+        self.disc = self.acting[m:].reshape(k, m).any(axis=0)     # nodes with a tangent that acts
         Cc = C.tocoo()
         node = Cc.row % m if m else Cc.row
         n = C.shape[1]
@@ -321,9 +362,9 @@ class _Stepper:
         m = self.rows.m
         lam0 = np.zeros((1 + k) * m)
         self._springs = None
-        t = z[m:].reshape(k, m)
+        t = z[m:].reshape(k, m) * self.rows.acting[m:].reshape(k, m)    # a tangent held by supports: no force
         norm = np.linalg.norm(t, axis=0)
-        slip = ~free[m:m + m] & (gw > 0) & self.rows.acting[m:m + m] & (norm > 0)
+        slip = ~_stuck(free, m, k) & (gw > 0) & self.rows.disc & (norm > 0)
         nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
         lam0[m:] = (np.where(slip, gw, 0.0) * nu).ravel()
         if k == 1:
