@@ -8,6 +8,7 @@ moves the multipliers by ≥ 1e-3. Tractions are compared as the model reports t
 (`Model.contact_state`, the canonical split of tied rows: a tangent parallel to its normal
 carries no force of its own, and the two methods split such a pair differently).
 """
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -203,3 +204,10 @@ def test_bddc_is_refused_until_it_exists():
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
     with pytest.raises(StudyError, match="BDDC"):
         Evaluator(load_study(d))
+
+
+def test_without_petsc_the_study_is_refused_with_the_way_out(monkeypatch):
+    monkeypatch.setitem(sys.modules, "dolfinx_solver", None)       # import dolfinx_solver raises ImportError
+    with pytest.raises(StudyError, match="dolfinx-solver-real") as info:
+        Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
+    assert info.value.path == "solver.method"
