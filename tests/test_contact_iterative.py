@@ -163,6 +163,13 @@ def test_hertz_3d_and_2d_mortar_agree_with_the_direct_method(name):
     assert_agree(*both(VALIDATION / name))
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["tunnel-fault-3d.yaml", "tunnel-fault-oblique-3d.yaml"])
+def test_the_shipped_3d_tunnels_agree_with_the_direct_method(name):
+    """Tresca on the 3D fault (529 nodes: open, stuck, slipping on discs; rollers front and back)."""
+    assert_agree(*both(ROOT / "studies" / name))
+
+
 def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():
     path = VALIDATION / "tresca-shear-patch-3d.yaml"
     results = []
