@@ -11,6 +11,15 @@ thread. Measured in one run, as ratios:
 - peak memory of the process (resident set); goal ≤ 8 GB. Beside it the peak and the resident
   set once the model is built (mesh, assembly, criteria: not the contact method's).
 
+Measured (2 cores shared with other jobs, load 3–8, one thread; ratios in one run):
+  0.2/0.1     2.7e3 unknowns,   144 contact nodes: linear 15 CG its; cold 2 Newton, 43 CG its
+  0.08/0.02   6.1e4 unknowns,  3019 contact nodes: linear 17 its; cold 2.1×, warm 1.8×, peak 1.1 GB
+  0.022/0.01  6.0e5 unknowns, 11826 contact nodes: linear 70 s (21 its); cold 1.1× (2 Newton, 136 its),
+              warm 1.4×; peak 8.1 GB, of which the model (mesh, assembly, criteria) 7.2 GB before any solve
+  0.018/0.01  8.0e5 unknowns, 11822 contact nodes: linear 56 s (23 its); cold 2.6× (2 Newton, 145 its),
+              warm 2.5× (1 Newton, 93 its); peak 10.8 GB (the model's build ≈ 9.4 GB)
+The CG iterations of one linear solve grow 15 → 17 → 21 → 23 over a 300× refinement.
+
 WCS_BENCH_ITERATIVE="size face" sets the mesh size and the contact face's size (default
 "0.04 0.01": ≈ 1e6 unknowns, ≈ 1e4 contact nodes). Table: results/bench/bench_iterative.csv.
 """
