@@ -148,8 +148,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
 
     (u, λ): the start; free0: the free set (closed normals, stuck tangents) of the first step
     (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
-    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step solved to `rtol`
-    satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
+    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
+    solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
     pattern met again at full accuracy is a cycle (not converged)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
@@ -201,8 +201,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
 def _step_length(merit, u, lam, u1, lam1, theta):
     """The step (u, λ) → (u1, λ1) shortened by halving until the merit θ = ‖Φ‖² decreases by
     Armijo's rule θ(t) ≤ (1 − 2 ARMIJO t) θ(0); the full step where none down to MIN_STEP does
-    (as `wcs.contact.solver._step_length`: on discs full steps cycled with period 2 between
-    stick and slip of a few fault nodes of a 3D tunnel slice). Both ends are in equilibrium
+    (the globalization of `wcs.contact.solver._step_length`, whose full steps on discs cycled
+    with period 2 on a 3D tunnel). Both ends are in equilibrium
     (K u + Cᵀλ = f is linear), so only the complementarity is measured."""
     t = 1.0
     while t > MIN_STEP:
