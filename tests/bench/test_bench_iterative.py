@@ -18,7 +18,10 @@ Measured (2 cores shared with other jobs, load 3–8, one thread; ratios in one 
               warm 1.4×; peak 8.1 GB, of which the model (mesh, assembly, criteria) 7.2 GB before any solve
   0.018/0.01  8.0e5 unknowns, 11822 contact nodes: linear 56 s (23 its); cold 2.6× (2 Newton, 145 its),
               warm 2.5× (1 Newton, 93 its); peak 10.8 GB (the model's build ≈ 9.4 GB)
-The CG iterations of one linear solve grow 15 → 17 → 21 → 23 over a 300× refinement.
+  0.0165/0.01 9.1e5 unknowns, 11821 contact nodes: linear 50 s (23 its); cold 2.1× (2 Newton, 149 its:
+              GAMG set-up 32 s, CG 63 s, elimination 8.6 s), warm 1.5× (1 Newton, 94 its); peak 12.3 GB,
+              the model's build 10.1 GB (8.5 GB resident once built)
+The CG iterations of one linear solve grow 15 → 17 → 21 → 23 → 23 over a 340× refinement.
 
 WCS_BENCH_ITERATIVE="size face" sets the mesh size and the contact face's size (default
 "0.04 0.01": ≈ 1e6 unknowns, ≈ 1e4 contact nodes). Table: results/bench/bench_iterative.csv.
