@@ -43,7 +43,7 @@ OTHER = {
     "solver.dd.patience": 3, "solver.dd.step": "glued", "solver.dd.seed_rho": 0.9, "solver.dd.rho_steps": 3, "solver.dd.pcg_tolerance": 1e-7,
     "solver.dd.pcg_max_iterations": 100, "solver.dd.inner_tolerance": 1e-9, "solver.dd.forcing": 0.2,
     "solver.dd.contact_tolerance": 1e-9, "solver.dd.anderson": 3, "solver.dd.anderson_restart": 10.0,
-    "solver.dd.mixing": 0.5,
+    "solver.dd.mixing": 0.5, "solver.iterative.preconditioner": "amg", "solver.iterative.tolerance": 1e-10,
 }
 
 # the values the code used before the options were typed (its `.get(name, default)` calls and

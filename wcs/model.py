@@ -483,6 +483,14 @@ class Model:
         u = self.elim.T @ res.u + u0
         return u, self.contact_state(res.lam_n, res.lam_t, u, res.active), res.iterations, res
 
+    @functools.cached_property
+    def near_nullspace(self) -> np.ndarray:
+        """The rigid motions of the whole mesh on the reduced unknowns (least squares through
+        u = T w): the near-nullspace of the algebraic multigrid. One set for all bodies: per body
+        (12 columns for two bodies) the coarse grids grew and a CG solve on 3D Hertz took 3×."""
+        from .contact.iterative import reduced_modes
+        return reduced_modes(self.elim.T, rigid_modes(self.smesh.mesh.p, np.arange(self.nnodes), self.nnodes))
+
     def contact_factor(self, Kr: sp.csr_matrix):
         """The contact factorization of Kr (`factor_contact`) on the model's pinned DOFs and
         contact rows, made once (not per solve), in the factor object the cache holds (one

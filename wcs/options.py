@@ -134,9 +134,16 @@ class DomainDecomposition(Options):
             raise ValueError("must be 'aitken', 'anderson' or a fixed ω in (0, 2]") from None
 
 
+class Iterative(Options):
+    preconditioner: Literal["auto", "amg", "bddc"] = Field(
+        "auto", description="preconditioner of the Krylov solves (auto: amg; bddc is not implemented yet)")
+    tolerance: Tolerance = Field(1e-8, gt=0, le=1e-2, description="relative residual each Krylov solve is driven to")
+
+
 class Solver(Options):
-    method: Literal["auto", "monolithic", "dd", "qp"] = Field(
-        "auto", description="contact solver (qp: the cvxpy reference)")
+    method: Literal["auto", "monolithic", "dd", "qp", "iterative"] = Field(
+        "auto", description="contact solver (qp: the cvxpy reference; iterative: active set with CG + "
+        "algebraic multigrid on PETSc, no dense condensation)")
     tolerance: Tolerance = Field(1e-8, gt=0, le=1e-2, description="relative tolerance of the contact solve "
                              "(above 1e-2 a \"solved\" state is not a solution)")
     max_iterations: int = Field(200, ge=1, le=100_000, description="iteration budget of the contact solve "
@@ -145,3 +152,4 @@ class Solver(Options):
                                             "Coulomb fixed point (slip bound from the last pressures)")
     dd: DomainDecomposition = Field(default_factory=DomainDecomposition, description="the domain decomposition")
     fallback: bool = Field(True, description="a failed dd solve falls back to the monolithic solver (visibly)")
+    iterative: Iterative = Field(default_factory=Iterative, description="the iterative method's Krylov solves")

@@ -227,7 +227,8 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
         "wall_time": (("eval",), col("wall_time", float), {"long_name": "wall time of the evaluation", "units": "s"}),
         "iterations": (("eval",), col("iterations", np.int32),
                        {"long_name": "solver iterations: semismooth Newton iterations of the contact solve "
-                                     "(0 for a model without contact: one direct sparse solve)"}),
+                                     "(solver.method iterative: its Newton steps, its CG iterations in the message; "
+                                     "0 for a model without contact: one direct sparse solve)"}),
         "grad": (("eval", "criterion", "param"), grad,
                  {"long_name": "gradient dPhi/dx of each criterion (adjoint, on the active set of the evaluation); "
                                "NaN where not computed", "units": "criterion units per parameter units"}),

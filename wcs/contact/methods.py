@@ -160,3 +160,4 @@ def method_of(name: str) -> ContactMethod:
 register("monolithic", Primal("monolithic", newton, anchored=True, units=True, assembles=False))
 register("qp", "wcs.contact.qp:QP")           # cvxpy: loaded only for the reference solver
 register("dd", Decomposition())
+register("iterative", "wcs.contact.iterative:METHOD")   # PETSc: loaded only for the iterative method

@@ -93,6 +93,7 @@ class ContactResult:
     timings: dict = field(default_factory=dict)
     free: np.ndarray | None = None   # (d·m,) final Newton free set: closed normals, stuck tangents
     gw: np.ndarray | None = None     # (m,) final slip bounds g·w (+ F·λn for Coulomb)
+    krylov_iterations: int = 0       # iterative method: Krylov iterations over all its Newton steps
 
 
 @dataclass

@@ -1,0 +1,547 @@
+r"""Contact by a primal–dual active set on the primal unknowns, with Krylov solves on PETSc.
+
+The same discrete problem as `wcs.contact.solver.solve_contact` (read its docstring for the
+signs): K u + Bnᵀλn + Btᵀλt = f, Bn u ≤ d ⊥ λn ≥ 0, and λt = Π(λt + c Bt u) on the friction
+discs |λt,i| ≤ g_i w_i — but the Delassus operator W = C K⁻¹ Cᵀ is never formed.
+
+Newton step. With z = λ + c ⊙ (C u − [d; 0]) the active-set prediction of the semismooth
+Newton method (Hüeber, Stadler, Wohlmuth, SIAM J. Sci. Comput. 30 (2008)) is: a normal row with
+z_n > 0 is closed (C_i u = d_i), a tangent with |z_t| ≤ gw sticks (C_i u = 0), others are open
+(λn = 0) or slip. In 2D a slipping tangent carries the known force λt = gw sign z; on a disc
+(3D) λt = Π(z) = gw ν, ν = z/|z|, is linearised with the Jacobian D = γ(I − ννᵀ), γ = gw/|z|,
+of the projection: λt − D(λt + c r_t) = Π(z) gives λt = gw ν + c γ/(1 − γ) ττᵀ r_t (τ ⊥ ν in the
+tangent plane, r_t = Bt u), a spring across the slip. D is symmetric, so the Newton matrix
+K + Σ Btᵀ (cγ/(1 − γ) ττᵀ) Bt is symmetric positive definite and every step is solved by CG.
+
+Elimination of the closed and stuck rows (the seed's dual basis, [101] (24)–(25)): each row's
+slave part touches one slave node only (node-to-node rows: coefficient ±1 on both nodes of the
+pair; dual mortar rows: 1 on the slave node in the row's direction, −D⁻¹M on master nodes),
+so the unknowns that only the rows of one contact node touch (its *own* unknowns) hold an
+invertible block of its active rows. One pivot per active row is chosen among them (QR with
+column pivoting), and with P the pivots, O the rest, C_A u = b_A gives
+u_P = C_AP⁻¹(b_A − C_AO u_O) with C_AP block diagonal (one block per node): u = Z u_O + u_b,
+Z = [−C_AP⁻¹ C_AO; I]. The step solves Zᵀ K Z u_O = Zᵀ(f − K u_b) by CG preconditioned by
+GAMG with the rigid-body near-nullspace restricted to O (the rows of C vanish on a rigid
+motion common to both sides). The multipliers of the active rows are the residual on the
+pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linearly dependent on its
+other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
+no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
+act on nothing (supports on both sides) are never active (λ = 0). An active row without an
+own unknown that is not such a combination cannot be eliminated here: status OTHER_FAILURE,
+never a wrong number.
+
+Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
+0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
+mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
+‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. A step
+with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
+Newton does).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from wcs.contact.laws import law_of
+from wcs.contact.solvability import rigid_load, unbalanced_rigid_motion
+from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
+                                project)
+from wcs.status import Status
+
+ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
+NULL = 1e-10         # a contact row with ‖C_i‖ ≤ NULL max‖C_j‖ acts on round-off only
+DEPENDENT = 1e-8     # relative singular value below which a node's active rows are dependent
+
+
+def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
+                            warm: ContactResult | None = None, near_nullspace=None, rtol=1e-12,
+                            tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+    """Tresca (g) or Coulomb (F) contact by the primal active set with CG + GAMG (module docstring).
+
+    Arguments and result as `solve_contact` (no factor: `factor` is None). near_nullspace:
+    (n, r) rigid-body modes of K's unknowns for GAMG (6 in 3D, 3 in 2D); rtol: relative
+    residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
+    their CG iterations in total. Floating bodies (R): the load's balance is checked as in
+    `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
+    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet), as
+    does an active row with no unknown of its own (module docstring).
+    Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
+    (all-stick) solution or the warm pressures."""
+    t0 = time.perf_counter()
+    m = Bn.shape[0]
+    k = Bt.shape[0] // m if m else 1
+    f, d, w = (np.asarray(a, dtype=float) for a in (f, d, w))
+    C = sp.vstack([Bn, Bt]).tocsr()
+    K = sp.csr_matrix(K, dtype=float)
+    Fc = np.zeros(m) if F is None else np.asarray(F, dtype=float)
+    coulomb = bool(np.any(Fc > 0))
+    law = law_of(w, g, Fc if coulomb else None)
+    gw = law.start(warm.lam_n if warm is not None and warm.lam_n is not None else None, np.inf)
+    R = None if R is None or not np.asarray(R).size else np.asarray(R, dtype=float).reshape(len(f), -1)
+    timings = {}
+    if R is not None and not coulomb:
+        value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
+        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
+            return ContactResult(None, None, None, Status.UNSOLVABLE,
+                                 f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
+                                 f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
+                                 alpha=alpha)
+        timings["solvability"] = time.perf_counter() - t0
+    t = time.perf_counter()
+    rows = _Rows(C, m, k)
+    timings["rows"] = time.perf_counter() - t
+    step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
+    c = _scales(K, C, m, k)
+    lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
+    state = {"u": np.zeros(len(f)), "lam": lam, "free0": _first_free_set(warm, gw, k),
+             "eta": ETA_MAX if warm is None else rtol}
+
+    def tresca(bounds):     # one Tresca problem from the last answer (the law drives them: `wcs.contact.laws`)
+        state["u"], state["lam"], state["free"], n, ok = _newton(
+            step, c, state["u"], state["lam"], state["free0"], bounds, m, k, tol, max_iter, rtol, state["eta"])
+        state["free0"], state["eta"] = None, ETA_MAX
+        return state["lam"][:m], ok, n
+
+    driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
+    u, lam, free, gw = state["u"], state["lam"], state["free"], driven.gw
+    iters, fp_iters, ok, fp_ok = driven.iterations, driven.fixed_point_iterations, driven.ok, driven.settled
+    step.krylov_solver.close()
+    status, message = Status.SOLVED, "converged"
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
+    if violation:
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"iterative active set stopped at an answer that violates {violation}: not reported")
+    elif step.unsupported:
+        status, message = Status.OTHER_FAILURE, f"iterative method: {step.failure}"
+    elif not ok:
+        status, message = Status.CONTACT_NOT_CONVERGED, (
+            f"iterative active set did not converge in {iters} Newton steps: {step.failure}" if step.failure else
+            f"iterative active set did not converge ({iters} Newton steps: an active set cycled or the budget "
+            f"of {max_iter} ran out)")
+    elif not fp_ok:
+        status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
+    timings.update(**step.timings, **step.krylov_solver.timings, total=time.perf_counter() - t0)
+    return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
+                         _states(free, m, gw), None, None, timings, free=free, gw=gw,
+                         krylov_iterations=step.krylov)
+
+
+def _scales(K, C, m, k):
+    """c ≈ 1 / diag(W) without W, as `wcs.contact.solver.scales` takes it: 1 / w_i with the
+    estimate w_i = Σ_j C_ij² / K_jj of W_ii, on a node's k tangents their mean w (a tangent held
+    by supports, w = 0, halves it: with c = 1/0 taken as 0 a slice of a 3D tunnel on rollers
+    front and back predicted its stick/slip from λ alone and cycled)."""
+    dW = C.multiply(C) @ (1.0 / K.diagonal())
+    dW[m:] = np.tile(dW[m:].reshape(k, m).mean(axis=0), k)
+    return 1.0 / np.where(dW > 0, dW, 1.0)
+
+
+def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):
+    """The semismooth Newton iteration of the module docstring: (u, λ, free, steps, converged).
+
+    (u, λ): the start; free0: the free set (closed normals, stuck tangents) of the first step
+    (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
+    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
+    solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
+    pattern met again at full accuracy is a cycle (not converged)."""
+    lo = np.r_[np.zeros(m), -np.tile(gw, k)]
+    hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
+    carried = hi > lo
+
+    def merit(u, lam):
+        phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
+        return phi @ phi
+    seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
+    for it in range(max_iter + 1):
+        z = lam + c * (step.C @ u - step.b)
+        phi = lam - project(z, lo, hi, k)
+        size = np.abs(phi).max(initial=0.0)
+        if it > 0 or free0 is None:
+            scale = max(np.abs(lam).max(initial=0.0), np.minimum(np.abs(z), hi)[carried].max(initial=0.0), 1e-300)
+            in_b = np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
+            if it > 0 and eta <= rtol and size <= tol * scale and in_b:
+                return u, lam, _by_node(_free(z, lo, hi, k, step.rows), m, k), it, True
+            ratio = size / phi_old if phi_old else 1.0
+            eta = rtol if phi_old is None or size <= tol * scale else min(ETA_MAX, max(rtol, 0.9 * min(ratio, 1.0) ** 2))
+            phi_old = size
+            free = _free(z, lo, hi, k, step.rows)
+        else:
+            free, eta = free0 & step.rows.acting, eta0
+        key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
+        if it == max_iter or (k == 1 and key in tight):
+            break
+        if key in seen:          # a pattern met again: solve it exactly (a loose step may have mispredicted)
+            eta = rtol
+        seen.add(key)
+        if eta <= rtol:
+            tight.add(key)
+        try:
+            u1, lam1 = step.solve(free, z, gw, c, k, eta)
+        except _KrylovFailure as exc:
+            step.failure = str(exc)
+            break
+        except _Unsupported as exc:
+            step.failure, step.unsupported = str(exc), True
+            break
+        discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
+        if discs and (it > 0 or free0 is None):
+            u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
+        else:
+            u, lam = u1, lam1
+    return u, lam, _by_node(_free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), m, k), it, False
+
+
+def _step_length(merit, u, lam, u1, lam1, theta):
+    """The step (u, λ) → (u1, λ1) shortened by halving until the merit θ = ‖Φ‖² decreases by
+    Armijo's rule θ(t) ≤ (1 − 2 ARMIJO t) θ(0); the full step where none down to MIN_STEP does
+    (the globalization of `wcs.contact.solver._step_length`, whose full steps on discs cycled
+    with period 2 on a 3D tunnel). Both ends are in equilibrium
+    (K u + Cᵀλ = f is linear), so only the complementarity is measured."""
+    t = 1.0
+    while t > MIN_STEP:
+        ut, lt = u + t * (u1 - u), lam + t * (lam1 - lam)
+        if merit(ut, lt) <= (1.0 - 2.0 * ARMIJO * t) * theta:
+            return ut, lt
+        t *= 0.5
+    return u1, lam1
+
+
+def _stuck(free, m, k):
+    """Nodes whose tangents stick (any of their acting tangent rows in the free set)."""
+    return free[m:].reshape(k, m).any(axis=0)
+
+
+def _by_node(free, m, k):
+    """The free set with every tangent row of a stuck node in it (a tangent held by supports
+    too), as `solve_contact` reports it: `_states` reads a node's state from its first tangent."""
+    return np.r_[free[:m], np.tile(_stuck(free, m, k), k)]
+
+
+def _free(z, lo, hi, k, rows):
+    """Closed normals and stuck tangents predicted from z (tangents with gw > 0 only), on rows that act."""
+    m = len(z) // (1 + k)
+    closed = z[:m] > 0
+    stick = (np.linalg.norm(z[m:].reshape(k, m), axis=0) <= hi[m:m + m]) & (hi[m:m + m] > 0)
+    return np.r_[closed, np.tile(stick, k)] & rows.acting
+
+
+class _KrylovFailure(Exception):
+    """A Krylov solve that did not reach its tolerance."""
+
+
+class _Unsupported(Exception):
+    """A step this method cannot take (yet): an active row with no unknown of its own to
+    eliminate, or closed and stuck rows (and disc springs) that leave a rigid mode of a
+    floating body free (a singular system: the rigid modes are not projected out yet)."""
+
+
+class _Rows:
+    """The contact rows grouped by node, with the unknowns each node has to itself."""
+
+    def __init__(self, C: sp.csr_matrix, m: int, k: int):
+        self.m, self.k = m, k
+        norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
+        self.acting = norms > NULL * max(norms.max(initial=0.0), 1e-300)
+        self.disc = self.acting[m:].reshape(k, m).any(axis=0)     # nodes with a tangent that acts
+        Cc = C.tocoo()
+        node = Cc.row % m if m else Cc.row
+        n = C.shape[1]
+        lo = np.full(n, m)
+        hi = np.full(n, -1)
+        np.minimum.at(lo, Cc.col, node)
+        np.maximum.at(hi, Cc.col, node)
+        own = (lo == hi)[Cc.col] & (Cc.data != 0)
+        on, oc = node[own].astype(np.int64), Cc.col[own].astype(np.int64)
+        pairs = np.unique(on * n + oc)                   # (node, own unknown), by node then unknown
+        start = np.searchsorted(pairs // n, np.arange(m + 1))
+        self.own = np.split(pairs % n, start[1:-1]) if m else []
+        # B[i]: C on node i's rows (1 + k) and own unknowns, dense, padded to the widest node
+        self.B = np.zeros((m, 1 + k, int(np.diff(start).max(initial=0))))
+        np.add.at(self.B, (on, Cc.row[own] // m, np.searchsorted(pairs, on * n + oc) - start[on]), Cc.data[own])
+        self.C = C
+        self._pivots = {}
+
+    def node_rows(self, i):
+        return i + self.m * np.arange(1 + self.k)
+
+    def pivots(self, i, active):
+        """(rows, pivots, block⁻¹): the node's independent active rows, one own unknown each,
+        and the inverse of C on them; rows dependent on the others are left out. _Unsupported
+        where an active row is neither."""
+        key = (i, active.tobytes())
+        if key not in self._pivots:
+            rows = self.node_rows(i)[active]
+            own = self.own[i]
+            B = self.B[i][active][:, :len(own)]
+            _, r, piv = sla.qr(B.T, mode="economic", pivoting=True) if len(own) else (None, np.zeros((0, 0)), [])
+            diag = np.abs(np.diag(r)) if len(own) else np.zeros(0)
+            rank = int(np.sum(diag > DEPENDENT * max(diag.max(initial=0.0), 1e-300)))
+            keep = np.sort(np.asarray(piv[:rank], dtype=int))
+            for j in np.setdiff1d(np.arange(len(rows)), keep):
+                self._check_dependent(rows[keep], rows[j], i)
+            chosen = np.sort(sla.qr(B[keep], mode="economic", pivoting=True)[2][:len(keep)]) if len(keep) else keep
+            cols, block = own[chosen], B[keep][:, chosen]
+            self._pivots[key] = (rows[keep], cols, np.linalg.inv(block))
+        return self._pivots[key]
+
+    def _check_dependent(self, rows, row, i):
+        """row is a combination of rows on all unknowns (not only on the node's own), else _Unsupported."""
+        A = self.C[rows].toarray().T
+        b = self.C[row].toarray().ravel()
+        x = np.linalg.lstsq(A, b, rcond=None)[0] if len(rows) else np.zeros(0)
+        if np.linalg.norm(A @ x - b) > 1e-8 * np.linalg.norm(b):
+            raise _Unsupported(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its slave "
+                               "side is held by supports or shared with another contact node): not supported by the "
+                               "iterative method")
+
+
+class _Stepper:
+    """One Newton step: eliminate the free (closed, stuck) rows, CG + GAMG on the rest."""
+
+    def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
+        self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
+        self.failure, self.unsupported = "", False
+        self.timings = {"eliminate": 0.0}       # seconds: pivots, Z and Zᵀ K Z of the steps
+        self.n = K.shape[0]
+        N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
+        self.krylov_solver = Krylov(N)
+        self.krylov = 0
+
+    def solve(self, free, z, gw, c, k, eta):
+        """(u, λ) of the step with the free set `free` (the slip data from z)."""
+        t0 = time.perf_counter()
+        m, n = self.rows.m, self.n
+        C, K = self.C, self.K
+        rows, piv, blocks = [], [], []
+        for i in np.flatnonzero(free.reshape(1 + k, m).any(axis=0)):
+            r, p, inv = self.rows.pivots(i, free[self.rows.node_rows(i)])
+            rows.append(r)
+            piv.append(p)
+            blocks.append(inv)
+        rows = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+        P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
+        Binv = _block_diagonal(blocks)
+        lam0, Kt = self._slip(free, z, gw, c, k)
+        if self.R is not None:      # the rigid modes held by the closed and stuck rows and the disc springs
+            held = C[rows] if self._springs is None else sp.vstack([C[rows], self._springs[3]])
+            G = held @ self.R
+            sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if G.shape[0] else []
+            if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
+                raise _Unsupported("the closed and stuck contact rows of a Newton step leave a floating body free "
+                              "(its rigid modes are not projected out by the iterative method yet)")
+        O = np.setdiff1d(np.arange(n), P)
+        X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
+        # Z: u = Z x + u_b with x_P = 0, i.e. Zᵀ K Z of the unknowns O, kept at K's size (rows P: diag K)
+        Z = sp.csr_matrix((np.r_[np.ones(len(O)), -X.data], (np.r_[O, P[X.row]], np.r_[O, O[X.col]])), shape=(n, n))
+        ub = np.zeros(n)
+        ub[P] = Binv @ self.b[rows]
+        rhs0 = self.f - C.T @ lam0
+        A = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+        b = Z.T @ (rhs0 - Kt @ ub)
+        self.timings["eliminate"] += time.perf_counter() - t0
+        v, its, ok = self.krylov_solver.solve(A, b, eta)
+        self.krylov += its
+        if not ok:
+            raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
+        u = Z @ v + ub
+        lam = lam0 + self._spring_force(u)
+        res = rhs0 - Kt @ u
+        lam[rows] = Binv.T @ res[P]
+        return u, lam
+
+    def _slip(self, free, z, gw, c, k):
+        """The slipping tangents' known forces λ0 (2D: gw sign z; disc: gw ν) and K plus the disc
+        springs Btᵀ (cγ/(1 − γ) ττᵀ) Bt of the module docstring."""
+        m = self.rows.m
+        lam0 = np.zeros((1 + k) * m)
+        self._springs = None
+        t = z[m:].reshape(k, m) * self.rows.acting[m:].reshape(k, m)    # a tangent held by supports: no force
+        norm = np.linalg.norm(t, axis=0)
+        slip = ~_stuck(free, m, k) & (gw > 0) & self.rows.disc & (norm > 0)
+        nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
+        lam0[m:] = (np.where(slip, gw, 0.0) * nu).ravel()
+        if k == 1:
+            return lam0, self.K
+        gamma = np.divide(gw, norm, out=np.zeros_like(norm), where=slip)
+        nodes = np.flatnonzero(slip & (gamma < 1))
+        tau = np.stack([-nu[1, nodes], nu[0, nodes]])
+        s = c[m + nodes] * gamma[nodes] / (1 - gamma[nodes])
+        # ττᵀ r_t = τ (τ · Bt u): one row per slipping node, Q = Σ_j τ_j Bt_j
+        Q = sp.diags(tau[0]) @ self.C[m + nodes] + sp.diags(tau[1]) @ self.C[2 * m + nodes]
+        self._springs = (nodes, tau, s, Q.tocsr())
+        return lam0, (self.K + Q.T @ sp.diags(s) @ Q).tocsr()
+
+    def _spring_force(self, u):
+        """The disc springs' part cγ/(1 − γ) τ (τ · Bt u) of λt (zero without discs)."""
+        m = self.rows.m
+        out = np.zeros(len(self.b))
+        if self._springs is None:
+            return out
+        nodes, tau, s, Q = self._springs
+        a = s * (Q @ u)
+        out[m + nodes] = a * tau[0]
+        out[2 * m + nodes] = a * tau[1]
+        return out
+
+
+def _block_diagonal(blocks) -> sp.csr_matrix:
+    """The block-diagonal matrix of small dense square blocks."""
+    sizes = np.array([len(b) for b in blocks], dtype=int)
+    start = np.r_[0, np.cumsum(sizes)]
+    r = [s + np.repeat(np.arange(n), n) for s, n in zip(start, sizes)]
+    c = [s + np.tile(np.arange(n), n) for s, n in zip(start, sizes)]
+    data = [np.ravel(b) for b in blocks]
+    if not blocks:
+        return sp.csr_matrix((0, 0))
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(r), np.concatenate(c))), shape=(start[-1], start[-1]))
+
+
+class Krylov:
+    """CG preconditioned by GAMG, the preconditioner kept from one Newton step to the next.
+
+    The steps' matrices are K's size (`_Stepper.solve`) and differ only on the rows of the
+    contact nodes whose state changed, so a GAMG hierarchy built for an earlier step still
+    preconditions a later one (CG needs only an SPD preconditioner: the answer is the solve's
+    to its tolerance, the preconditioner changes its cost); it is rebuilt when a solve took
+    more than `REBUILD` times the iterations per digit of residual reduction of the solve it
+    was built for (plus 10).
+    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
+
+    REBUILD = 2.0
+    MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
+
+    def __init__(self, near_nullspace=None):
+        self.N = near_nullspace
+        self.ksp = self.P = None
+        self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0}    # seconds
+
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
+        """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
+        import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
+        from petsc4py import PETSc
+        n = A.shape[0]
+        if n == 0:
+            return np.zeros(0), 0, True
+        M = _petsc_matrix(A, PETSc)
+        fresh = self.ksp is None
+        t = time.perf_counter()
+        if fresh:
+            self._build(M, PETSc)
+        self.timings["gamg_setup"] += time.perf_counter() - t
+        t = time.perf_counter()
+        self.ksp.setOperators(M, self.P)
+        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
+        x, rhs = M.createVecs()
+        rhs.setArray(b)
+        self.ksp.solve(rhs, x)
+        ok = self.ksp.getConvergedReason() > 0
+        its = self.ksp.getIterationNumber()
+        out = x.getArray().copy()
+        for o in (x, rhs):
+            o.destroy()
+        self.timings["cg"] += time.perf_counter() - t
+        digits = -np.log10(rtol)
+        if fresh:
+            self.rate = its / digits
+        elif not ok or its > self.REBUILD * self.rate * digits + 10:     # the hierarchy has aged: rebuild and solve again
+            self.close()
+            x, more, ok = self.solve(A, b, rtol)
+            return x, its + more, ok
+        return out, its, ok
+
+    def _build(self, M, PETSc):
+        if self.N is not None and self.N.shape[1]:
+            Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
+            rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
+            vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF)
+                    for j in range(rank)]
+            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setType("cg")
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.getPC().setType("gamg")
+        ksp.setOperators(M, M)
+        ksp.setUp()
+        ksp.getPC().setReusePreconditioner(True)
+        self.ksp, self.P = ksp, M
+
+    def close(self):
+        if self.ksp is not None:
+            self.ksp.destroy()
+            self.P.destroy()
+        self.ksp = self.P = None
+
+
+def _petsc_matrix(A: sp.csr_matrix, PETSc):
+    A = A.tocsr()
+    A.sort_indices()
+    n = A.shape[0]
+    M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                 A.data), comm=PETSc.COMM_SELF)
+    M.setOption(PETSc.Mat.Option.SPD, True)
+    return M
+
+
+def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
+    """One CG + GAMG solve of the SPD A (`Krylov`): (x, iterations, converged)."""
+    solver = Krylov(near_nullspace)
+    try:
+        return solver.solve(A, b, rtol)
+    finally:
+        solver.close()
+
+
+def reduced_modes(T: sp.spmatrix, R: np.ndarray) -> np.ndarray:
+    """The columns of R (rigid motions of the dofs) on the reduced unknowns w of u = T w, by
+    least squares: (TᵀT)⁻¹ Tᵀ R (exact where a motion is in the range of T; T's columns are
+    a support's free directions and glued slaves follow their masters)."""
+    from scipy.sparse.linalg import splu
+    T = sp.csc_matrix(T)
+    return splu((T.T @ T).tocsc()).solve(np.asarray(T.T @ R))
+
+
+def _solve_problem(model, p) -> ContactResult:
+    """The model's contact problem by `solve_contact_iterative`, with its rigid modes as GAMG's
+    near-nullspace and the study's tolerances (`solver.iterative.tolerance` for the Krylov solves)."""
+    from wcs.contact.methods import settings
+    return solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
+                                   near_nullspace=model.near_nullspace, rtol=model.options.iterative.tolerance,
+                                   **settings(model.options))
+
+
+def _method():
+    from wcs.contact.methods import Primal, Solved
+    from wcs.errors import StudyError
+
+    class Iterative(Primal):
+        """`solver.method: iterative`: anchored as monolithic (the nominal data cold, every other
+        data set from their answer), K(c) assembled, no units; the adjoint polished by the
+        monolithic method (visibly: the solver string says so)."""
+
+        def check(self, model) -> None:
+            if model.options.iterative.preconditioner == "bddc":
+                raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
+                                 path="solver.iterative.preconditioner")
+            try:
+                import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)
+                import petsc4py  # noqa: F401
+            except ImportError as exc:
+                raise StudyError(f"the iterative method needs PETSc ({exc}): install the wheel dolfinx-solver-real "
+                                 "(Python >= 3.12), or use monolithic", path="solver.method") from None
+
+        def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
+            out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+            if used is None and not adjoint and out.raw is not None:
+                out = Solved(out.u, out.contact, out.iterations,
+                             f"iterative: {out.raw.iterations} Newton steps, {out.raw.krylov_iterations} CG iterations",
+                             out.w, out.raw, out.stiffness, out.scale)
+            return out
+
+    return Iterative("iterative", _solve_problem, anchored=True, polish=True)
+
+
+METHOD = _method()
