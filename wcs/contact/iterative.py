@@ -39,6 +39,7 @@ Newton does).
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -46,9 +47,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wcs.contact.laws import law_of
+from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import rigid_load, unbalanced_rigid_motion
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
                                 project)
+from wcs.errors import StudyError
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -507,41 +510,33 @@ def reduced_modes(T: sp.spmatrix, R: np.ndarray) -> np.ndarray:
 def _solve_problem(model, p) -> ContactResult:
     """The model's contact problem by `solve_contact_iterative`, with its rigid modes as GAMG's
     near-nullspace and the study's tolerances (`solver.iterative.tolerance` for the Krylov solves)."""
-    from wcs.contact.methods import settings
     return solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
                                    near_nullspace=model.near_nullspace, rtol=model.options.iterative.tolerance,
                                    **settings(model.options))
 
 
-def _method():
-    from wcs.contact.methods import Primal, Solved
-    from wcs.errors import StudyError
+class Iterative(Primal):
+    """`solver.method: iterative`: anchored as monolithic (the nominal data cold, every other data
+    set from their answer), K(c) assembled, no units; the adjoint polished by the monolithic method
+    (visibly: the solver string says so)."""
 
-    class Iterative(Primal):
-        """`solver.method: iterative`: anchored as monolithic (the nominal data cold, every other
-        data set from their answer), K(c) assembled, no units; the adjoint polished by the
-        monolithic method (visibly: the solver string says so)."""
+    def check(self, model) -> None:
+        if model.options.iterative.preconditioner == "bddc":
+            raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
+                             path="solver.iterative.preconditioner")
+        try:
+            import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)
+            import petsc4py  # noqa: F401
+        except ImportError as exc:
+            raise StudyError(f"the iterative method needs PETSc ({exc}): install the wheel dolfinx-solver-real "
+                             "(Python >= 3.12), or use monolithic", path="solver.method") from None
 
-        def check(self, model) -> None:
-            if model.options.iterative.preconditioner == "bddc":
-                raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
-                                 path="solver.iterative.preconditioner")
-            try:
-                import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)
-                import petsc4py  # noqa: F401
-            except ImportError as exc:
-                raise StudyError(f"the iterative method needs PETSc ({exc}): install the wheel dolfinx-solver-real "
-                                 "(Python >= 3.12), or use monolithic", path="solver.method") from None
-
-        def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
-            out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
-            if used is None and not adjoint and out.raw is not None:
-                out = Solved(out.u, out.contact, out.iterations,
-                             f"iterative: {out.raw.iterations} Newton steps, {out.raw.krylov_iterations} CG iterations",
-                             out.w, out.raw, out.stiffness, out.scale)
-            return out
-
-    return Iterative("iterative", _solve_problem, anchored=True, polish=True)
+    def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
+        out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        if used is None and not adjoint and out.raw is not None:
+            out = dataclasses.replace(out, solver=f"iterative: {out.raw.iterations} Newton steps, "
+                                                  f"{out.raw.krylov_iterations} CG iterations")
+        return out
 
 
-METHOD = _method()
+METHOD = Iterative("iterative", _solve_problem, anchored=True, polish=True)
