@@ -218,3 +218,18 @@ def test_without_petsc_the_study_is_refused_with_the_way_out(monkeypatch):
     with pytest.raises(StudyError, match="dolfinx-solver-real") as info:
         Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
     assert info.value.path == "solver.method"
+
+
+def test_a_warm_start_from_its_own_answer_ends_at_once_on_discs():
+    """Started from its own answer (the anchor of every other data set), the method takes it up,
+    displacement and multipliers: one Newton step. From u = 0 with the warm multipliers every
+    slipping node sat on the rim of its disc, where the linearised projection degenerates, and CG
+    failed (2000 iterations) on the shipped 3D tunnel's second solve."""
+    M, direct, cold = both(VALIDATION / "tresca-shear-patch-3d.yaml")
+    c = M.nominal
+    _, Kr, rhs, u0 = M.reduced_system(c, None)
+    z = M.zone
+    warm = solve_contact_iterative(Kr, rhs, M.Bn_r, M.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip, tol=1e-10,
+                                   near_nullspace=M.near_nullspace, rtol=1e-8, warm=cold)
+    assert warm.status == 0, warm.message
+    assert warm.iterations <= 1 and rel(warm.u, direct.u) <= AGREE

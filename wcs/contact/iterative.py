@@ -99,7 +99,11 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
-    state = {"u": np.zeros(len(f)), "lam": lam, "free0": _first_free_set(warm, gw, k),
+    # a warm start takes the warm answer's displacement with its multipliers: from u = 0, z = λ + c (C u − b)
+    # put every slipping node on the rim of its disc (|z_t| = gw), where the linearised projection's spring
+    # across the slip degenerates; CG then failed (2000 iterations) on the first step of the 3D tunnel
+    u_start = warm.u if warm is not None and warm.u is not None and len(warm.u) == len(f) else np.zeros(len(f))
+    state = {"u": np.array(u_start, dtype=float), "lam": lam, "free0": _first_free_set(warm, gw, k),
              "eta": ETA_MAX if warm is None else rtol}
 
     def tresca(bounds):     # one Tresca problem from the last answer (the law drives them: `wcs.contact.laws`)
