@@ -3,7 +3,7 @@
 Pure functions of facts about a study; each returns (choice, reason) where the reason names the
 chart that justifies the rule, so a caller can put it in the results file or a log line.
 
-    solver_method(SolverFacts(...))  -> ("monolithic" | "dd", reason)
+    solver_method(SolverFacts(...))  -> ("monolithic" | "dd" | "iterative", reason)
     search_method(SearchFacts(...))  -> ("auto" | "local" | "global" | "sample", reason)
     mesh_size(MeshFacts(...))        -> (size [m], reason)
 
@@ -40,22 +40,47 @@ class SolverFacts:
     stiffness_contrast: float = 1.0     # max E / min E over bodies in contact (>= 1)
     max_nu: float = 0.3                 # largest Poisson ratio of any material
     dd_converges: bool | None = None    # the DD converged on this scene family (a dd_stability point or a trial)
+    dimension: int = 2                  # 2 or 3
+    costs: dict | None = None           # method -> (peak bytes, seconds) of one evaluation (wcs.scene.estimate)
+    memory: float = float("inf")        # bytes of memory of the machine (`machine_memory`)
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
-    """`solver.method: auto` -> "monolithic" or "dd" (never "qp": the cvxpy reference, 28-87x slower
-    than the monolithic Newton for the same answer, forward_hertz.png). The reason carries a
-    P1-locking warning when some material has nu > NU_LOCKING."""
-    method, why = _solver_rule(f)
+    """`solver.method: auto` -> "monolithic", "dd" or "iterative" (never "qp": the cvxpy reference,
+    28-87x slower than the monolithic Newton for the same answer, forward_hertz.png). The reason
+    carries a P1-locking warning when some material has nu > NU_LOCKING."""
+    method, why = _size_rule(f) or _solver_rule(f)
     if f.max_nu > NU_LOCKING:
         why += (f"; warning: nu = {f.max_nu:g} > {NU_LOCKING:g}: P1 elements lock (Hertz peak pressure "
                 "8% off at 0.49, 27% at 0.499, stability_materials.png)")
     return method, why
 
 
+def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
+    """"iterative" where the estimated direct condensation would not fit in memory, or (3D) would
+    be slower than the iterative method by the estimate; None: the rules below decide (2D keeps
+    its measured rules: the contact zones are small there)."""
+    if not f.contact or f.costs is None:
+        return None
+    direct, iterative = f.costs["monolithic"], f.costs["iterative"]
+    words = (f"one evaluation estimated at {_cost(*direct)} by the monolithic method, "
+             f"{_cost(*iterative)} by the iterative one")
+    if direct[0] > f.memory and iterative[0] <= f.memory:
+        return "iterative", f"{words}: the monolithic method would not fit in this machine's {f.memory / 1e9:.3g} GB"
+    if f.dimension == 3 and iterative[1] < direct[1] and iterative[0] <= f.memory:
+        return "iterative", f"{words}: the monolithic method would be slower"
+    return None
+
+
+def _cost(memory: float, seconds: float) -> str:
+    return f"{memory / 1e9:.3g} GB and {seconds:.2g} s"
+
+
 def _solver_rule(f: SolverFacts) -> tuple[str, str]:
     if not f.contact:
         return "monolithic", "no contact: one sparse factorization and solve, nothing to iterate"
+    if f.dimension == 3:
+        return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
     if f.gradients:
         return "monolithic", ("the search asks adjoint gradients, which need the monolithic factorization "
                               "(a DD answer is polished by the monolithic solver anyway, wcs/model.py)")

@@ -35,6 +35,7 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
+from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, machine_memory
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
@@ -169,13 +170,29 @@ class Model:
         return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene) -> tuple[str, str]:
-        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py); in 3D
-        the monolithic solver (the decomposition solves tetrahedra too, measured 4-12x slower)."""
+        """The study's `solver.method`, `auto` resolved by the benchmark-derived rule
+        (wcs/choose.py), with the estimated peak memory and time of one evaluation in the reason;
+        StudyError (exit 2) where that estimate exceeds the machine's memory."""
+        rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
+        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1],
+                                stiffness_nnz=self.reduce.pattern.nnz, contact_rows=rows, thermal=self.thermal)
+        memory = machine_memory()
         method = self.options.method
-        if method != "auto":
-            return method, "chosen in the study"
-        if self.dim == 3:
-            return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
+        if method == "auto":
+            method, why = solver_method(self._solver_facts(scene, facts, memory))
+        else:
+            why = "chosen in the study"
+        need, seconds = evaluation_cost(facts, method)
+        if need > memory:
+            out = ("a coarser mesh (`mesh.size`, `refine`)" if method == "iterative" or rows == 0 else
+                   "use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)")
+            raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
+                             f"({facts.unknowns} unknowns, {rows} contact rows: the dense W alone is "
+                             f"{8e-9 * rows**2:.3g} GB), more than this machine's {memory / 1e9:.3g} GB of memory; "
+                             f"{out}", path="solver.method")
+        return method, f"{why}; one evaluation estimated at {cost_words(need, seconds)}"
+
+    def _solver_facts(self, scene, facts: EvaluationFacts, memory: float) -> SolverFacts:
         mats = [scene.materials[m] for m in set(self.region_material)]
         pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
                  for m in mats]
@@ -186,9 +203,10 @@ class Model:
         friction = ("coulomb" if any(f.coefficient for f in laws)
                     else "tresca" if any(f.slip_limit for f in laws)
                     else "none")
-        facts = SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
-                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus))
-        return solver_method(facts)
+        costs = {m: evaluation_cost(facts, m) for m in ("monolithic", "iterative")}
+        return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
+                           stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
+                           dimension=self.dim, costs=costs, memory=memory)
 
     # ---- structure -----------------------------------------------------------------
     def _region_dofs(self) -> list[np.ndarray]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -334,3 +335,61 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
     if solid.cylinder is not None and not solid.intersect:
         return spec3d.Refinement(cylinder=solid.cylinder, size=size)
     return spec3d.Refinement(box=list(solid_box(solid)), size=size)
+
+
+# ---- one evaluation's peak memory and time, from the assembled model (before any solve)
+# The direct methods factor the reduced stiffness K (n unknowns, nnz entries) with PARDISO and
+# condense the contact onto its m rows C = [Bn; Bt]: the dense Delassus operator W = C K⁺ Cᵀ
+# (3D: the Schur complement of K bordered by C), 8 m² bytes, held W_COPIES times at the peak
+# (W, its unit sum, the active block factored by each Newton step), O(m · nnz(L)) work to form
+# and O(m³) to factor. The iterative method holds K, its GAMG hierarchy and Krylov vectors:
+# O(nnz) memory and time. Measured (cal.py in the commit message: VmHWM of /proc/self/status
+# and the wall time of `Evaluator` + one nominal `evaluate`, 2 cores shared) on the 3D tunnel
+# with ring/fault sizes 0.8/2.5 (shipped), 0.6/1.5, 0.6/1.0, block-on-block-3d and hertz-3d:
+BASE_BYTES = 0.25e9             # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
+MODEL_BYTES_PER_NNZ = 300.0     # the assembled model: cell matrices of K(c), K's pattern, B, T, stress operator
+FACTOR_BYTES_PER_NNZ = 60.0     # the factor of K at 1e5 unknowns (3D: its fill grows like n^(1/3))
+W_COPIES = 4.0                  # dense m x m arrays alive at the peak (14.5 GB at m = 20961 in the issue)
+FACTOR_SECONDS_PER_NNZ = 2e-6   # factor and solves of K at 1e5 unknowns (3D: grows like n^(1/3))
+SCHUR_SECONDS = 1e-9            # per contact row and factor entry: forming W
+DENSE_SECONDS = 1e-10           # per m³: the Newton steps' dense factors of the active rows
+ITERATIVE_BYTES_PER_NNZ = 400.0  # K, its GAMG hierarchy, PETSc copies, Krylov vectors
+ITERATIVE_SECONDS_PER_NNZ = 2e-5  # Newton steps x CG iterations x (K and hierarchy products)
+DIRECT_METHODS = ("monolithic", "qp", "dd")
+
+
+@dataclass(frozen=True)
+class EvaluationFacts:
+    """What the assembled model tells of one evaluation's size."""
+    dimension: int              # 2 or 3
+    unknowns: int               # reduced displacement unknowns n
+    stiffness_nnz: int          # entries of the reduced stiffness K
+    contact_rows: int = 0       # rows m of the contact operator C = [Bn; Bt] (0: no contact)
+    thermal: bool = False       # a heat step first (a scalar conduction factor: n/d unknowns)
+
+
+def _fill(f: EvaluationFacts) -> float:
+    """Factor entries per entry of K: nested dissection fill grows like n^(1/3) in 3D, like log n in 2D."""
+    if f.dimension == 3:
+        return (f.unknowns / 1e5) ** (1 / 3)
+    return max(1.0, math.log(f.unknowns) / math.log(1e5))
+
+
+def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
+    """(peak bytes, seconds) of one evaluation with `method` (monolithic, qp, dd: the direct factor
+    and the dense W; dd and qp fall back to or are polished by the monolithic solver, so they need
+    its memory; iterative: O(nnz)), from the constants above."""
+    nnz, m = float(f.stiffness_nnz), float(f.contact_rows)
+    heat = 1.0 + (1.0 / f.dimension**2 if f.thermal else 0.0)       # the conduction matrix: nnz / d²
+    base = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz
+    if method == "iterative" and m > 0:
+        return (base + ITERATIVE_BYTES_PER_NNZ * nnz * heat, ITERATIVE_SECONDS_PER_NNZ * nnz * heat)
+    factor = _fill(f) * nnz * heat
+    memory = base + FACTOR_BYTES_PER_NNZ * factor + W_COPIES * 8.0 * m * m
+    seconds = FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor + DENSE_SECONDS * m**3
+    return memory, seconds
+
+
+def cost_words(memory: float, seconds: float) -> str:
+    """'about 3.1 GB peak and 40 s' (an estimate's words in a reason or a refusal)."""
+    return f"about {memory / 1e9:.3g} GB peak and {seconds:.2g} s"
