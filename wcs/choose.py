@@ -42,7 +42,7 @@ class SolverFacts:
     dd_converges: bool | None = None    # the DD converged on this scene family (a dd_stability point or a trial)
     dimension: int = 2                  # 2 or 3
     costs: dict | None = None           # method -> (peak bytes, seconds) of one evaluation (wcs.scene.estimate)
-    memory: float = float("inf")        # bytes of memory of the machine (`machine_memory`)
+    memory: float = float("inf")        # bytes one evaluation may take (USABLE_SHARE of `machine_memory`)
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
@@ -50,6 +50,8 @@ def solver_method(f: SolverFacts) -> tuple[str, str]:
     28-87x slower than the monolithic Newton for the same answer, forward_hertz.png). The reason
     carries a P1-locking warning when some material has nu > NU_LOCKING."""
     method, why = _size_rule(f) or _solver_rule(f)
+    if f.contact and f.costs is not None and method != "iterative":
+        why += f"; the iterative method estimated at {_cost(*f.costs['iterative'])}"
     if f.max_nu > NU_LOCKING:
         why += (f"; warning: nu = {f.max_nu:g} > {NU_LOCKING:g}: P1 elements lock (Hertz peak pressure "
                 "8% off at 0.49, 27% at 0.499, stability_materials.png)")
@@ -66,7 +68,7 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
     words = (f"one evaluation estimated at {_cost(*direct)} by the monolithic method, "
              f"{_cost(*iterative)} by the iterative one")
     if direct[0] > f.memory and iterative[0] <= f.memory:
-        return "iterative", f"{words}: the monolithic method would not fit in this machine's {f.memory / 1e9:.3g} GB"
+        return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
     if f.dimension == 3 and iterative[1] < direct[1] and iterative[0] <= f.memory:
         return "iterative", f"{words}: the monolithic method would be slower"
     return None

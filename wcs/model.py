@@ -35,7 +35,7 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, machine_memory
+from .scene.estimate import USABLE_SHARE, EvaluationFacts, cost_words, evaluation_cost, machine_memory
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
@@ -176,7 +176,8 @@ class Model:
         rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
         facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1],
                                 stiffness_nnz=self.reduce.pattern.nnz, contact_rows=rows, thermal=self.thermal)
-        memory = machine_memory()
+        total = machine_memory()
+        memory = USABLE_SHARE * total                 # the rest is the system's
         method = self.options.method
         if method == "auto":
             method, why = solver_method(self._solver_facts(scene, facts, memory))
@@ -184,12 +185,14 @@ class Model:
             why = "chosen in the study"
         need, seconds = evaluation_cost(facts, method)
         if need > memory:
-            out = ("a coarser mesh (`mesh.size`, `refine`)" if method == "iterative" or rows == 0 else
-                   "use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)")
+            direct = method != "iterative" and rows > 0
+            size = f"{facts.unknowns} unknowns" + (f", {rows} contact rows: the dense W alone is {8e-9 * rows**2:.3g} GB"
+                                                   if direct else "")
+            out = ("use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)"
+                   if direct and self.options.method != "auto" else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
-                             f"({facts.unknowns} unknowns, {rows} contact rows: the dense W alone is "
-                             f"{8e-9 * rows**2:.3g} GB), more than this machine's {memory / 1e9:.3g} GB of memory; "
-                             f"{out}", path="solver.method")
+                             f"({size}), more than the {memory / 1e9:.3g} GB it may take of this machine's "
+                             f"{total / 1e9:.3g} GB of memory; {out}", path="solver.method")
         return method, f"{why}; one evaluation estimated at {cost_words(need, seconds)}"
 
     def _solver_facts(self, scene, facts: EvaluationFacts, memory: float) -> SolverFacts:

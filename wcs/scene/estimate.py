@@ -338,24 +338,39 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 
 
 # ---- one evaluation's peak memory and time, from the assembled model (before any solve)
-# The direct methods factor the reduced stiffness K (n unknowns, nnz entries) with PARDISO and
-# condense the contact onto its m rows C = [Bn; Bt]: the dense Delassus operator W = C K⁺ Cᵀ
-# (3D: the Schur complement of K bordered by C), 8 m² bytes, held W_COPIES times at the peak
-# (W, its unit sum, the active block factored by each Newton step), O(m · nnz(L)) work to form
-# and O(m³) to factor. The iterative method holds K, its GAMG hierarchy and Krylov vectors:
-# O(nnz) memory and time. Measured (cal.py in the commit message: VmHWM of /proc/self/status
-# and the wall time of `Evaluator` + one nominal `evaluate`, 2 cores shared) on the 3D tunnel
-# with ring/fault sizes 0.8/2.5 (shipped), 0.6/1.5, 0.6/1.0, block-on-block-3d and hertz-3d:
-BASE_BYTES = 0.25e9             # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
-MODEL_BYTES_PER_NNZ = 300.0     # the assembled model: cell matrices of K(c), K's pattern, B, T, stress operator
-FACTOR_BYTES_PER_NNZ = 60.0     # the factor of K at 1e5 unknowns (3D: its fill grows like n^(1/3))
-W_COPIES = 4.0                  # dense m x m arrays alive at the peak (14.5 GB at m = 20961 in the issue)
-FACTOR_SECONDS_PER_NNZ = 2e-6   # factor and solves of K at 1e5 unknowns (3D: grows like n^(1/3))
-SCHUR_SECONDS = 1e-9            # per contact row and factor entry: forming W
-DENSE_SECONDS = 1e-10           # per m³: the Newton steps' dense factors of the active rows
-ITERATIVE_BYTES_PER_NNZ = 400.0  # K, its GAMG hierarchy, PETSc copies, Krylov vectors
-ITERATIVE_SECONDS_PER_NNZ = 2e-5  # Newton steps x CG iterations x (K and hierarchy products)
-DIRECT_METHODS = ("monolithic", "qp", "dd")
+# The direct methods factor the reduced stiffness K (n unknowns, nnz entries) with PARDISO (3D:
+# bordered by the contact rows C = [Bn; Bt], m of them) and condense the contact onto C: the dense
+# Delassus operator W = C K⁺ Cᵀ, 8 m² bytes, held W_COPIES times at the peak (PARDISO's Schur
+# complement, W, its sum over the units, the Newton steps' active blocks and their factors),
+# O(m · nnz(L)) work to form and O(m³) to factor. The iterative method holds K, its GAMG
+# hierarchy and Krylov vectors: O(nnz) memory, O(nnz) work a Newton step. A thermal step adds a
+# direct factor of the conduction matrix (nnz / d² entries) to either.
+# Measured with /tmp/est/cal.py (in the commit message): VmRSS after `Evaluator` and VmHWM of
+# /proc/self/status after one nominal `evaluate` (the peak above the assembled model), and the
+# wall time of that evaluate, 2 shared cores, on the 3D tunnel with ring/fault sizes 0.8/2.5 (the
+# shipped one: 1.6e4 unknowns, 1587 contact rows), 0.6/1.5 and 0.6/1.0 (4.4e4, 6033 rows: 2.1 GB
+# above the model, 66 s), block-on-block-3d at sizes 0.1 and 0.05, and hertz-3d; the direct
+# constants are the least-squares fit of those (within 25% of each peak, 1.2-2x of each time; the
+# fit gives 6.3 copies of W, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
+# its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
+BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
+MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
+#                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
+FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
+FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
+W_COPIES = 6.3                  # dense m x m arrays alive at the peak
+EVALUATION_SECONDS = 4.3        # an evaluation's fixed part (stresses, criteria, the contact state)
+FACTOR_SECONDS_PER_NNZ = 5.2e-6   # factor and solves, per entry of K at 1e5 unknowns (fill as above)
+SCHUR_SECONDS = 2.8e-9          # per contact row and factor entry: forming W
+DENSE_SECONDS = 1.75e-10        # per m³: the Newton steps' dense factors of the active rows
+ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
+ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
+#                                   measured (block-on-block-3d at 0.05, the shipped tunnel)
+ITERATIVE_STEP_SECONDS = 1.3e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
+#                                   1.0-1.4e-6 measured (hertz-3d, block-on-block-3d at 0.05, the shipped tunnel)
+ITERATIVE_STEPS = 20            # Newton steps of an evaluation, assumed (hertz-3d took 19, the patch 2)
+# the kernel killed the fine tunnel at 24 GB of this machine's 25.3: the rest is the system's
+USABLE_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -369,25 +384,26 @@ class EvaluationFacts:
 
 
 def _fill(f: EvaluationFacts) -> float:
-    """Factor entries per entry of K: nested dissection fill grows like n^(1/3) in 3D, like log n in 2D."""
-    if f.dimension == 3:
-        return (f.unknowns / 1e5) ** (1 / 3)
-    return max(1.0, math.log(f.unknowns) / math.log(1e5))
+    """Factor entries per entry of K relative to 1e5 unknowns: nested dissection's fill grows
+    like n^(1/3) in 3D (1 in 2D, whose fill grows like log n only)."""
+    return (f.unknowns / 1e5) ** (1 / 3) if f.dimension == 3 else 1.0
 
 
 def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
-    """(peak bytes, seconds) of one evaluation with `method` (monolithic, qp, dd: the direct factor
-    and the dense W; dd and qp fall back to or are polished by the monolithic solver, so they need
-    its memory; iterative: O(nnz)), from the constants above."""
-    nnz, m = float(f.stiffness_nnz), float(f.contact_rows)
-    heat = 1.0 + (1.0 / f.dimension**2 if f.thermal else 0.0)       # the conduction matrix: nnz / d²
-    base = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz
+    """(peak bytes, seconds) of one evaluation with `method` from the constants above: monolithic,
+    qp and dd the direct factor and the dense W (dd and qp fall back to or are polished by the
+    monolithic solver, so they need its memory), iterative O(nnz) (a scene without contact:
+    one direct factor, whatever the method)."""
+    nnz, m, fill = float(f.stiffness_nnz), float(f.contact_rows), _fill(f)
+    heat = fill * nnz / f.dimension**2 if f.thermal else 0.0       # the conduction factor's entries
+    memory = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz + FACTOR_BYTES_PER_NNZ * heat
+    seconds = EVALUATION_SECONDS + FACTOR_SECONDS_PER_NNZ * heat
     if method == "iterative" and m > 0:
-        return (base + ITERATIVE_BYTES_PER_NNZ * nnz * heat, ITERATIVE_SECONDS_PER_NNZ * nnz * heat)
-    factor = _fill(f) * nnz * heat
-    memory = base + FACTOR_BYTES_PER_NNZ * factor + W_COPIES * 8.0 * m * m
-    seconds = FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor + DENSE_SECONDS * m**3
-    return memory, seconds
+        return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
+                seconds + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
+    factor = fill * nnz
+    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + W_COPIES * 8.0 * m * m,
+            seconds + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor + DENSE_SECONDS * m**3)
 
 
 def cost_words(memory: float, seconds: float) -> str:
