@@ -349,20 +349,21 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # /proc/self/status after one nominal `evaluate` (the peak above the assembled model), and the
 # wall time of that evaluate, 2 shared cores, on the 3D tunnel with ring/fault sizes 0.8/2.5 (the
 # shipped one: 1.6e4 unknowns, 1587 contact rows), 0.6/1.5 and 0.6/1.0 (4.4e4, 6033 rows: 2.1 GB
-# above the model, 66 s), block-on-block-3d at sizes 0.1 and 0.05, and hertz-3d; the direct
-# constants are the least-squares fit of those (within 25% of each peak, 1.2-2x of each time; the
-# fit gives 6.3 copies of W, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
-# its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
+# above the model, 66 s), block-on-block-3d at sizes 0.1 and 0.05, hertz-3d, and (time) the 2D
+# tunnel, hip and two-blocks demo; the direct constants are the least-squares fits of those (the
+# peak above the model within 25%, the time 0.5-1.25x the measured one; the fit gives 6.3 copies
+# of W, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after its third 3.5 GB array
+# and was killed at 24 GB: 6 or more copies).
 BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
 MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
 #                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
 FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
 W_COPIES = 6.3                  # dense m x m arrays alive at the peak
-EVALUATION_SECONDS = 4.3        # an evaluation's fixed part (stresses, criteria, the contact state)
-FACTOR_SECONDS_PER_NNZ = 5.2e-6   # factor and solves, per entry of K at 1e5 unknowns (fill as above)
-SCHUR_SECONDS = 2.8e-9          # per contact row and factor entry: forming W
-DENSE_SECONDS = 1.75e-10        # per m³: the Newton steps' dense factors of the active rows
+EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # an evaluation's fixed part (3D: stresses, criteria on tetrahedra)
+FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
+SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
+DENSE_SECONDS = 1.58e-10        # per m³: the Newton steps' dense factors of the active rows
 ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
 ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
 #                                   measured (block-on-block-3d at 0.05, the shipped tunnel)
@@ -397,7 +398,7 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
     nnz, m, fill = float(f.stiffness_nnz), float(f.contact_rows), _fill(f)
     heat = fill * nnz / f.dimension**2 if f.thermal else 0.0       # the conduction factor's entries
     memory = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz + FACTOR_BYTES_PER_NNZ * heat
-    seconds = EVALUATION_SECONDS + FACTOR_SECONDS_PER_NNZ * heat
+    seconds = EVALUATION_SECONDS[f.dimension] + FACTOR_SECONDS_PER_NNZ * heat
     if method == "iterative" and m > 0:
         return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
                 seconds + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
