@@ -36,7 +36,7 @@ def facts_of(f: EvaluationFacts, memory: float) -> SolverFacts:
 def test_fine_tunnel_direct_estimate_is_what_killed_it():
     need, _ = evaluation_cost(FINE_TUNNEL, "monolithic")
     assert need > 24e9                                       # the kernel killed it at 24 GB
-    assert need > W_COPIES * 8 * 20961**2                    # the dense W, held W_COPIES times
+    assert need > W_COPIES[3] * 8 * 20961**2                    # the dense W, held W_COPIES times
     assert evaluation_cost(FINE_TUNNEL, "iterative")[0] < 8e9     # the bound for the iterative method
     assert evaluation_cost(FINE_TUNNEL, "dd")[0] == need     # dd falls back to the monolithic solver
 

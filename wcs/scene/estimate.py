@@ -359,17 +359,23 @@ MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness
 #                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
 FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
-W_COPIES = 6.3                  # dense m x m arrays alive at the peak
-EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # an evaluation's fixed part (3D: stresses, criteria on tetrahedra)
+W_COPIES = {2: 24.0, 3: 6.3}    # dense m x m arrays alive at the peak (2D: the dense inverse block (K⁺)_SS on about
+#                                 2m DOFs instead of the bordered factor: 22-25 measured on the 2D tunnel at m = 1348
+#                                 and 2692, wcs/meshcheck.py DENSE_BLOCKS)
+EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # the direct method's fixed part (the 3D fit's intercept)
 FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
 SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
-DENSE_SECONDS = 1.58e-10        # per m³: the Newton steps' dense factors of the active rows
+DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of the active rows (2D: on the ~2m DOFs
+                 3: 1.58e-10}   # of (K⁺)_SS, 40 s at m = 2692 cold, wcs/meshcheck.py CONDENSATION)
 ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
 ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
 #                                   measured (block-on-block-3d at 0.05, the shipped tunnel)
-ITERATIVE_STEP_SECONDS = 1.3e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
-#                                   1.0-1.4e-6 measured (hertz-3d, block-on-block-3d at 0.05, the shipped tunnel)
-ITERATIVE_STEPS = 20            # Newton steps of an evaluation, assumed (hertz-3d took 19, the patch 2)
+ITERATIVE_SECONDS = 1.2         # the iterative method's fixed part (PETSc set-up): fit of the three below
+ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
+#                                   0.7e-6 frictionless (block-on-block-3d at 0.1 and 0.05: 2 steps, 1.4 and 2.5 s;
+#                                   hertz-3d: 19 steps, 4.9 s), 1.3e-6 with Tresca friction (the shipped tunnel)
+ITERATIVE_STEPS = 20            # Newton steps of an evaluation, not known before solving: assumed (hertz-3d took
+#                                 19, the patch 2: its time estimate is an upper one, up to 10x there)
 # the kernel killed the fine tunnel at 24 GB of this machine's 25.3: the rest is the system's
 USABLE_SHARE = 0.9
 
@@ -398,13 +404,14 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
     nnz, m, fill = float(f.stiffness_nnz), float(f.contact_rows), _fill(f)
     heat = fill * nnz / f.dimension**2 if f.thermal else 0.0       # the conduction factor's entries
     memory = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz + FACTOR_BYTES_PER_NNZ * heat
-    seconds = EVALUATION_SECONDS[f.dimension] + FACTOR_SECONDS_PER_NNZ * heat
+    seconds = FACTOR_SECONDS_PER_NNZ * heat
     if method == "iterative" and m > 0:
         return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
-                seconds + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
-    factor = fill * nnz
-    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + W_COPIES * 8.0 * m * m,
-            seconds + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor + DENSE_SECONDS * m**3)
+                seconds + ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
+    factor, d = fill * nnz, f.dimension
+    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + W_COPIES[d] * 8.0 * m * m,
+            seconds + EVALUATION_SECONDS[d] + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor
+            + DENSE_SECONDS[d] * m**3)
 
 
 def cost_words(memory: float, seconds: float) -> str:
