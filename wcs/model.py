@@ -174,8 +174,9 @@ class Model:
         (wcs/choose.py), with the estimated peak memory and time of one evaluation in the reason;
         StudyError (exit 2) where that estimate exceeds the machine's memory."""
         rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
-        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1],
-                                stiffness_nnz=self.reduce.pattern.nnz, contact_rows=rows, thermal=self.thermal)
+        units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
+        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.pattern.nnz,
+                                contact_rows=rows, units=units, thermal=self.thermal)
         total = machine_memory()
         memory = USABLE_SHARE * total                 # the rest is the system's
         method = self.options.method

@@ -340,8 +340,9 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # ---- one evaluation's peak memory and time, from the assembled model (before any solve)
 # The direct methods factor the reduced stiffness K (n unknowns, nnz entries) with PARDISO (3D:
 # bordered by the contact rows C = [Bn; Bt], m of them) and condense the contact onto C: the dense
-# Delassus operator W = C K⁺ Cᵀ, 8 m² bytes, held W_COPIES times at the peak (PARDISO's Schur
-# complement, W, its sum over the units, the Newton steps' active blocks and their factors),
+# Delassus operator W = C K⁺ Cᵀ, 8 m² bytes, held W_COPIES + u times at the peak (PARDISO's Schur
+# complement, W, the Newton steps' active blocks and their factors; and one W*_u for each of the u
+# units of the stiffness, wcs/contact/units.py, summed into W),
 # O(m · nnz(L)) work to form and O(m³) to factor. The iterative method holds K, its GAMG
 # hierarchy and Krylov vectors: O(nnz) memory, O(nnz) work a Newton step. A thermal step adds a
 # direct factor of the conduction matrix (nnz / d² entries) to either.
@@ -352,16 +353,16 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # above the model, 66 s), block-on-block-3d at sizes 0.1 and 0.05, hertz-3d, and (time) the 2D
 # tunnel, hip and two-blocks demo; the direct constants are the least-squares fits of those (the
 # peak above the model within 25%, the time 0.5-1.25x the measured one; the fit gives 6.3 copies
-# of W, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after its third 3.5 GB array
-# and was killed at 24 GB: 6 or more copies).
+# of W on the one-unit tunnels, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
+# its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
 BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
 MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
 #                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
 FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
-W_COPIES = {2: 24.0, 3: 6.3}    # dense m x m arrays alive at the peak (2D: the dense inverse block (K⁺)_SS on about
-#                                 2m DOFs instead of the bordered factor: 22-25 measured on the 2D tunnel at m = 1348
-#                                 and 2692, wcs/meshcheck.py DENSE_BLOCKS)
+W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse
+#                                 block (K⁺)_SS on about 2m DOFs instead of the bordered factor: 22-25 in all measured
+#                                 on the one-unit 2D tunnel at m = 1348 and 2692, wcs/meshcheck.py DENSE_BLOCKS)
 EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # the direct method's fixed part (the 3D fit's intercept)
 FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
 SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
@@ -387,6 +388,7 @@ class EvaluationFacts:
     unknowns: int               # reduced displacement unknowns n
     stiffness_nnz: int          # entries of the reduced stiffness K
     contact_rows: int = 0       # rows m of the contact operator C = [Bn; Bt] (0: no contact)
+    units: int = 1              # units of the stiffness (wcs/contact/units.py), or an upper bound of them
     thermal: bool = False       # a heat step first (a scalar conduction factor: n/d unknowns)
 
 
@@ -409,7 +411,7 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
         return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
                 seconds + ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
     factor, d = fill * nnz, f.dimension
-    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + W_COPIES[d] * 8.0 * m * m,
+    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + (W_COPIES[d] + f.units) * 8.0 * m * m,
             seconds + EVALUATION_SECONDS[d] + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor
             + DENSE_SECONDS[d] * m**3)
 
