@@ -346,7 +346,7 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # O(m · nnz(L)) work to form and O(m³) to factor. The iterative method holds K, its GAMG
 # hierarchy and Krylov vectors: O(nnz) memory, O(nnz) work a Newton step. A thermal step adds a
 # direct factor of the conduction matrix (nnz / d² entries) to either.
-# Measured with /tmp/est/cal.py (in the commit message): VmRSS after `Evaluator` and VmHWM of
+# Measured with tests/bench/evaluation_cost.py: VmRSS after `Evaluator` and VmHWM of
 # /proc/self/status after one nominal `evaluate` (the peak above the assembled model), and the
 # wall time of that evaluate, 2 shared cores, on the 3D tunnel with ring/fault sizes 0.8/2.5 (the
 # shipped one: 1.6e4 unknowns, 1587 contact rows), 0.6/1.5 and 0.6/1.0 (4.4e4, 6033 rows: 2.1 GB
@@ -377,6 +377,9 @@ ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hier
 #                                   hertz-3d: 19 steps, 4.9 s), 1.3e-6 with Tresca friction (the shipped tunnel)
 ITERATIVE_STEPS = 20            # Newton steps of an evaluation, not known before solving: assumed (hertz-3d took
 #                                 19, the patch 2: its time estimate is an upper one, up to 10x there)
+# the other direct methods' time against the monolithic one's, at least: qp (the cvxpy reference) 28-87x
+# (forward_hertz.png), dd 1.1-2.3x in 2D at 1e5-4e5 unknowns (dd_cost.csv), 4-12x on tetrahedra
+SLOWER = {"qp": {2: 28.0, 3: 28.0}, "dd": {2: 1.1, 3: 4.0}}
 # the kernel killed the fine tunnel at 24 GB of this machine's 25.3: the rest is the system's
 USABLE_SHARE = 0.9
 
@@ -401,8 +404,8 @@ def _fill(f: EvaluationFacts) -> float:
 def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
     """(peak bytes, seconds) of one evaluation with `method` from the constants above: monolithic,
     qp and dd the direct factor and the dense W (dd and qp fall back to or are polished by the
-    monolithic solver, so they need its memory), iterative O(nnz) (a scene without contact:
-    one direct factor, whatever the method)."""
+    monolithic solver, so they need its memory; their time is SLOWER's multiple), iterative
+    O(nnz) (a scene without contact: one direct factor, whatever the method)."""
     nnz, m, fill = float(f.stiffness_nnz), float(f.contact_rows), _fill(f)
     heat = fill * nnz / f.dimension**2 if f.thermal else 0.0       # the conduction factor's entries
     memory = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz + FACTOR_BYTES_PER_NNZ * heat
@@ -411,9 +414,10 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
         return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
                 seconds + ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
     factor, d = fill * nnz, f.dimension
+    slower = SLOWER[method][d] if method in SLOWER and m > 0 else 1.0
     return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + (W_COPIES[d] + f.units) * 8.0 * m * m,
-            seconds + EVALUATION_SECONDS[d] + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor
-            + DENSE_SECONDS[d] * m**3)
+            seconds + slower * (EVALUATION_SECONDS[d] + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor
+                                + DENSE_SECONDS[d] * m**3))
 
 
 def cost_words(memory: float, seconds: float) -> str:
