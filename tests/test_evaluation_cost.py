@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 import wcs.model
-from wcs.choose import SolverFacts, solver_method
+from wcs.choose import ITERATIVE_MARGIN, SolverFacts, solver_method
 from wcs.cli import main
 from wcs.evaluation import Evaluator
 from wcs.results import provenance
@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # 0.5 m, whose `check` died after 3 minutes on a 3.27 GiB W (MemoryError at 14.5 GB under a cap,
 # killed by the kernel at 24 GB without one)
 SHIPPED_TUNNEL = EvaluationFacts(dimension=3, unknowns=15845, stiffness_nnz=541361, contact_rows=1587)
+SPLIT_TUNNEL = EvaluationFacts(dimension=3, unknowns=113362, stiffness_nnz=4373922, contact_rows=5856)
 FINE_TUNNEL = EvaluationFacts(dimension=3, unknowns=137005, stiffness_nnz=5255141, contact_rows=20961)
 MACHINE = USABLE_SHARE * 25.3e9      # what this machine (machine_memory(): 25.3 GB) gives one evaluation
 
@@ -50,6 +51,14 @@ def test_auto_picks_iterative_where_direct_would_not_fit():
 def test_auto_keeps_monolithic_on_the_shipped_tunnel():
     method, why = solver_method(facts_of(SHIPPED_TUNNEL, MACHINE))
     assert method == "monolithic" and "the iterative method estimated at" in why
+    # split once by the mesh check: 150 s estimated by the monolithic method, 89 s by the iterative one
+    assert solver_method(facts_of(SPLIT_TUNNEL, MACHINE))[0] == "monolithic"
+    # 3D, both fit: the iterative method for speed only beyond ITERATIVE_MARGIN
+    slow = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 100.0 / ITERATIVE_MARGIN * 1.01)}
+    assert solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=slow, memory=MACHINE))[0] == "monolithic"
+    fast = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 100.0 / ITERATIVE_MARGIN * 0.99)}
+    method, why = solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE))
+    assert method == "iterative" and why.endswith("the monolithic method would be more than 2x slower")
     # and in 2D only memory moves the choice (its zones are small; the measured rules stay)
     flat = EvaluationFacts(dimension=2, unknowns=15845, stiffness_nnz=200000, contact_rows=8000)
     costs = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 1.0)}
