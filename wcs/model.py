@@ -194,7 +194,12 @@ class Model:
             raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
                              f"({size}), more than the {memory / 1e9:.3g} GB it may take of this machine's "
                              f"{total / 1e9:.3g} GB of memory; {out}", path="solver.method")
-        return method, f"{why}; one evaluation estimated at {cost_words(need, seconds)}"
+        why += f"; one evaluation estimated at {cost_words(need, seconds)}"
+        polish = evaluation_cost(facts, "monolithic")[0]     # the iterative adjoint is polished by the monolithic method
+        if method == "iterative" and polish > memory:
+            why += (f"; warning: its adjoint gradients (the search's, the drivers') are polished by the monolithic "
+                    f"method, estimated at {polish / 1e9:.3g} GB: beyond the {memory / 1e9:.3g} GB")
+        return method, why
 
     def _solver_facts(self, scene, facts: EvaluationFacts, memory: float) -> SolverFacts:
         mats = [scene.materials[m] for m in set(self.region_material)]
