@@ -93,6 +93,13 @@ def test_check_prints_the_estimate_and_refuses_beyond_the_memory(tmp_path, capsy
     assert (f"{path}: solver.method: one evaluation with the monolithic method is estimated at {words}" in err
             and f"more than the {USABLE_SHARE * need / 1e9:.3g} GB it may take of this machine's {need / 1e9:.3g} GB "
                 "of memory; use solver.method: iterative" in err)
+    # fits alone; two MPI processes on the machine (each its own model and evaluations) do not
+    monkeypatch.setattr(wcs.model, "machine_memory", lambda: 1.5 * need / USABLE_SHARE)
+    assert main(["check", str(path), "--quiet"]) == 0
+    monkeypatch.setenv("MPI_LOCALNRANKS", "2")
+    assert main(["check", str(path), "--quiet"]) == 2
+    assert (f"more than the {0.75 * need / 1e9:.3g} GB it may take of this machine's {1.5 * need / USABLE_SHARE / 1e9:.3g} "
+            "GB of memory, shared by 2 MPI processes; use solver.method: iterative" in capsys.readouterr().err)
 
 
 @pytest.mark.slow

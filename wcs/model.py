@@ -35,7 +35,7 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from .scene.estimate import USABLE_SHARE, EvaluationFacts, cost_words, evaluation_cost, machine_memory
+from .scene.estimate import USABLE_SHARE, EvaluationFacts, cost_words, evaluation_cost, machine_memory, machine_ranks
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
@@ -177,8 +177,8 @@ class Model:
         units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
         facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.pattern.nnz,
                                 contact_rows=rows, units=units, thermal=self.thermal)
-        total = machine_memory()
-        memory = USABLE_SHARE * total                 # the rest is the system's
+        total, ranks = machine_memory(), machine_ranks()
+        memory = USABLE_SHARE * total / ranks         # the rest is the system's; MPI ranks evaluate at once
         method = self.options.method
         if method == "auto":
             method, why = solver_method(self._solver_facts(scene, facts, memory))
@@ -193,7 +193,8 @@ class Model:
                    if direct and self.options.method != "auto" else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
                              f"({size}), more than the {memory / 1e9:.3g} GB it may take of this machine's "
-                             f"{total / 1e9:.3g} GB of memory; {out}", path="solver.method")
+                             f"{total / 1e9:.3g} GB of memory" + (f", shared by {ranks} MPI processes" if ranks > 1 else "")
+                             + f"; {out}", path="solver.method")
         why += f"; one evaluation estimated at {cost_words(need, seconds)}"
         polish = evaluation_cost(facts, "monolithic")[0]     # the iterative adjoint is polished by the monolithic method
         if method == "iterative" and polish > memory:

@@ -48,6 +48,15 @@ def machine_memory() -> float:
     return min(memory, float(limit)) if limit.isdigit() else memory
 
 
+def machine_ranks() -> int:
+    """Processes of this `mpiexec` launch on this machine, each with its own model and its own
+    evaluations (MPICH's MPI_LOCALNRANKS, Open MPI's OMPI_COMM_WORLD_LOCAL_SIZE; 1 without one)."""
+    for name in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE"):
+        if os.environ.get(name, "").isdigit():
+            return max(1, int(os.environ[name]))
+    return 1
+
+
 def memory_fault(cells: int, dimension: int) -> str | None:
     """Why a mesh of `cells` cells cannot be solved on this machine (None if it can): its cells
     times BYTES_PER_CELL beyond `machine_memory()`, where meshing on would swap."""
