@@ -8,19 +8,23 @@ moves the multipliers by ≥ 1e-3. Tractions are compared as the model reports t
 (`Model.contact_state`, the canonical split of tied rows: a tangent parallel to its normal
 carries no force of its own, and the two methods split such a pair differently).
 """
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import yaml
 
 from test_contact_solver import args, two_blocks
 from test_3d_patch import floating
+from test_contact3d_robust import tunnel_fault_3d
 from test_glue3d import plane, stack
 from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
+from wcs.status import Status
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,6 +82,17 @@ def test_2d_blocks_frictionless_and_tresca_agree_with_the_direct_method(g):
         assert np.array_equal(iterative.active, direct.active) and (direct.active == cs.SLIP).sum() >= 2
 
 
+def test_rows_with_no_unknown_of_their_own_are_refused_not_solved():
+    """Two contact nodes on the same pair of DOFs (a row repeated): neither has an unknown of
+    its own to eliminate; the iterative method says so (status OTHER_FAILURE, no answer)."""
+    P = two_blocks(10)
+    Bn, Bt = (sp.vstack([B, B[:1]]).tocsr() for B in (P["Bn"], P["Bt"]))
+    res = solve_contact_iterative(P["K"], P["f"], Bn, Bt, np.r_[P["d"], 0.0], np.r_[P["w"], P["w"][0]],
+                                  tol=1e-10, rtol=1e-12)
+    assert res.status == Status.OTHER_FAILURE and res.u is None
+    assert "no unknown of its own" in res.message
+
+
 def test_the_3d_block_patch_agrees_with_the_direct_method():
     """Node-to-node, frictionless, the block floating along z and held by the contact."""
     assert_agree(*both(VALIDATION / "block-on-block-3d.yaml"))
@@ -132,6 +147,29 @@ def test_a_block_held_only_by_contact_and_friction_agrees_with_the_direct_method
         assert iterative.fixed_point_iterations >= 2
 
 
+def test_a_3d_tunnel_slice_on_rollers_agrees_with_the_direct_method():
+    """Tresca on a fault whose nodes are on rollers front and back: one tangent of such a node is
+    held by the supports (a row of round-off), the other slips or sticks alone; a node's state
+    and its slip force are those of its acting tangent (the first tangent held: it cycled)."""
+    M, direct, iterative = both(tunnel_fault_3d())
+    assert_agree(M, direct, iterative)
+    assert np.array_equal(iterative.active, direct.active)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["hertz-3d.yaml", "hertz-mortar.yaml"])
+def test_hertz_3d_and_2d_mortar_agree_with_the_direct_method(name):
+    """3D Hertz (dual mortar, 274 rows, 18 Newton steps from the glued start) and 2D Hertz by mortar."""
+    assert_agree(*both(VALIDATION / name))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["tunnel-fault-3d.yaml", "tunnel-fault-oblique-3d.yaml"])
+def test_the_shipped_3d_tunnels_agree_with_the_direct_method(name):
+    """Tresca on the 3D fault (529 nodes: open, stuck, slipping on discs; rollers front and back)."""
+    assert_agree(*both(ROOT / "studies" / name))
+
+
 def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():
     path = VALIDATION / "tresca-shear-patch-3d.yaml"
     results = []
@@ -173,3 +211,10 @@ def test_bddc_is_refused_until_it_exists():
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
     with pytest.raises(StudyError, match="BDDC"):
         Evaluator(load_study(d))
+
+
+def test_without_petsc_the_study_is_refused_with_the_way_out(monkeypatch):
+    monkeypatch.setitem(sys.modules, "dolfinx_solver", None)       # import dolfinx_solver raises ImportError
+    with pytest.raises(StudyError, match="dolfinx-solver-real") as info:
+        Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
+    assert info.value.path == "solver.method"

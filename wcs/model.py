@@ -560,6 +560,12 @@ class Model:
         if self.options.iterative.preconditioner == "bddc":
             raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
                              path="solver.iterative.preconditioner")
+        try:
+            import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)
+            import petsc4py  # noqa: F401
+        except ImportError as exc:
+            raise StudyError(f"the iterative method needs PETSc ({exc}): install the wheel dolfinx-solver-real "
+                             "(Python >= 3.12), or use monolithic", path="solver.method") from None
 
     def _solve_iterative(self, c: Coefficients, Kr, rhs, u0, nominal: bool):
         """The contact problem of stiffness Kr by the iterative method (`wcs.contact.iterative`),

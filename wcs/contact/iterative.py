@@ -27,13 +27,15 @@ pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linear
 other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
 no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
 act on nothing (supports on both sides) are never active (λ = 0). An active row without an
-own unknown that is not such a combination cannot be eliminated here: SolveError, never a
-wrong number.
+own unknown that is not such a combination cannot be eliminated here: status OTHER_FAILURE,
+never a wrong number.
 
 Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
 0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
 mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
-‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`.
+‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. A step
+with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
+Newton does).
 """
 from __future__ import annotations
 
@@ -44,8 +46,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wcs.contact.solvability import unbalanced_rigid_motion
-from wcs.contact.solver import ContactResult, _first_free_set, _states, conditions_violated, project
-from wcs.errors import SolveError
+from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
+                                project)
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -63,7 +65,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
     their CG iterations in total. Floating bodies (R): the load's balance is checked as in
     `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
-    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet).
+    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet), as
+    does an active row with no unknown of its own (module docstring).
     Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
     (all-stick) solution or the warm pressures."""
     t0 = time.perf_counter()
@@ -80,6 +83,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
         warm_p = warm is not None and warm.lam_n is not None
         gw = gw_fixed + Fc * warm.lam_n if warm_p else np.full(m, np.inf)
     R = None if R is None or not np.asarray(R).size else np.asarray(R, dtype=float).reshape(len(f), -1)
+    timings = {}
     if R is not None and not coulomb:
         value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
         if value > 1e-9 * max(np.abs(R.T @ f).sum(), 1e-300):
@@ -87,7 +91,10 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
                                  alpha=alpha)
+        timings["solvability"] = time.perf_counter() - t0
+    t = time.perf_counter()
     rows = _Rows(C, m, k)
+    timings["rows"] = time.perf_counter() - t
     step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
@@ -111,6 +118,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     if violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set stopped at an answer that violates {violation}: not reported")
+    elif step.unsupported:
+        status, message = Status.OTHER_FAILURE, f"iterative method: {step.failure}"
     elif not ok:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set did not converge in {iters} Newton steps: {step.failure}" if step.failure else
@@ -118,18 +127,20 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
             f"of {max_iter} ran out)")
     elif not fp_ok:
         status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
-    timings = {"total": time.perf_counter() - t0}
+    timings.update(**step.timings, **step.krylov_solver.timings, total=time.perf_counter() - t0)
     return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
                          _states(free, m, gw), None, None, timings, free=free, gw=gw,
                          krylov_iterations=step.krylov)
 
 
 def _scales(K, C, m, k):
-    """c ≈ 1 / diag(W) without W: 1 / Σ_j C_ij² / K_jj per row (a node's tangents: one c, their mean)."""
-    with np.errstate(divide="ignore"):
-        cw = 1.0 / (C.multiply(C) @ (1.0 / K.diagonal()))
-    cw[m:] = np.tile(cw[m:].reshape(k, m).mean(axis=0), k)
-    return np.where(np.isfinite(cw), cw, 0.0)
+    """c ≈ 1 / diag(W) without W, as `wcs.contact.solver.scales` takes it: 1 / w_i with the
+    estimate w_i = Σ_j C_ij² / K_jj of W_ii, on a node's k tangents their mean w (a tangent held
+    by supports, w = 0, halves it: with c = 1/0 taken as 0 a slice of a 3D tunnel on rollers
+    front and back predicted its stick/slip from λ alone and cycled)."""
+    dW = C.multiply(C) @ (1.0 / K.diagonal())
+    dW[m:] = np.tile(dW[m:].reshape(k, m).mean(axis=0), k)
+    return 1.0 / np.where(dW > 0, dW, 1.0)
 
 
 def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):
@@ -137,12 +148,16 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
 
     (u, λ): the start; free0: the free set (closed normals, stuck tangents) of the first step
     (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
-    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step solved to `rtol`
-    satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
+    answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
+    solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
     pattern met again at full accuracy is a cycle (not converged)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
     carried = hi > lo
+
+    def merit(u, lam):
+        phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
+        return phi @ phi
     seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
@@ -152,7 +167,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             scale = max(np.abs(lam).max(initial=0.0), np.minimum(np.abs(z), hi)[carried].max(initial=0.0), 1e-300)
             in_b = np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
             if it > 0 and eta <= rtol and size <= tol * scale and in_b:
-                return u, lam, _free(z, lo, hi, k, step.rows), it, True
+                return u, lam, _by_node(_free(z, lo, hi, k, step.rows), m, k), it, True
             ratio = size / phi_old if phi_old else 1.0
             eta = rtol if phi_old is None or size <= tol * scale else min(ETA_MAX, max(rtol, 0.9 * min(ratio, 1.0) ** 2))
             phi_old = size
@@ -168,11 +183,45 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         if eta <= rtol:
             tight.add(key)
         try:
-            u, lam = step.solve(free, z, gw, c, k, eta)
-        except (_KrylovFailure, _Unheld) as exc:
+            u1, lam1 = step.solve(free, z, gw, c, k, eta)
+        except _KrylovFailure as exc:
             step.failure = str(exc)
             break
-    return u, lam, _free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), it, False
+        except _Unsupported as exc:
+            step.failure, step.unsupported = str(exc), True
+            break
+        discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
+        if discs and (it > 0 or free0 is None):
+            u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
+        else:
+            u, lam = u1, lam1
+    return u, lam, _by_node(_free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), m, k), it, False
+
+
+def _step_length(merit, u, lam, u1, lam1, theta):
+    """The step (u, λ) → (u1, λ1) shortened by halving until the merit θ = ‖Φ‖² decreases by
+    Armijo's rule θ(t) ≤ (1 − 2 ARMIJO t) θ(0); the full step where none down to MIN_STEP does
+    (the globalization of `wcs.contact.solver._step_length`, whose full steps on discs cycled
+    with period 2 on a 3D tunnel). Both ends are in equilibrium
+    (K u + Cᵀλ = f is linear), so only the complementarity is measured."""
+    t = 1.0
+    while t > MIN_STEP:
+        ut, lt = u + t * (u1 - u), lam + t * (lam1 - lam)
+        if merit(ut, lt) <= (1.0 - 2.0 * ARMIJO * t) * theta:
+            return ut, lt
+        t *= 0.5
+    return u1, lam1
+
+
+def _stuck(free, m, k):
+    """Nodes whose tangents stick (any of their acting tangent rows in the free set)."""
+    return free[m:].reshape(k, m).any(axis=0)
+
+
+def _by_node(free, m, k):
+    """The free set with every tangent row of a stuck node in it (a tangent held by supports
+    too), as `solve_contact` reports it: `_states` reads a node's state from its first tangent."""
+    return np.r_[free[:m], np.tile(_stuck(free, m, k), k)]
 
 
 def _free(z, lo, hi, k, rows):
@@ -187,9 +236,10 @@ class _KrylovFailure(Exception):
     """A Krylov solve that did not reach its tolerance."""
 
 
-class _Unheld(Exception):
-    """A step whose closed and stuck rows (and disc springs) leave a rigid mode of a floating body free (its
-    system is singular); the rigid modes are not projected out yet."""
+class _Unsupported(Exception):
+    """A step this method cannot take (yet): an active row with no unknown of its own to
+    eliminate, or closed and stuck rows (and disc springs) that leave a rigid mode of a
+    floating body free (a singular system: the rigid modes are not projected out yet)."""
 
 
 class _Rows:
@@ -199,6 +249,7 @@ class _Rows:
         self.m, self.k = m, k
         norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
         self.acting = norms > NULL * max(norms.max(initial=0.0), 1e-300)
+        self.disc = self.acting[m:].reshape(k, m).any(axis=0)     # nodes with a tangent that acts
         Cc = C.tocoo()
         node = Cc.row % m if m else Cc.row
         n = C.shape[1]
@@ -222,7 +273,7 @@ class _Rows:
 
     def pivots(self, i, active):
         """(rows, pivots, block⁻¹): the node's independent active rows, one own unknown each,
-        and the inverse of C on them; rows dependent on the others are left out. SolveError
+        and the inverse of C on them; rows dependent on the others are left out. _Unsupported
         where an active row is neither."""
         key = (i, active.tobytes())
         if key not in self._pivots:
@@ -241,14 +292,14 @@ class _Rows:
         return self._pivots[key]
 
     def _check_dependent(self, rows, row, i):
-        """row is a combination of rows on all unknowns (not only on the node's own), else SolveError."""
+        """row is a combination of rows on all unknowns (not only on the node's own), else _Unsupported."""
         A = self.C[rows].toarray().T
         b = self.C[row].toarray().ravel()
         x = np.linalg.lstsq(A, b, rcond=None)[0] if len(rows) else np.zeros(0)
         if np.linalg.norm(A @ x - b) > 1e-8 * np.linalg.norm(b):
-            raise SolveError(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its "
-                             "slave side is held by supports or shared): not supported by the iterative method",
-                             status=Status.OTHER_FAILURE)
+            raise _Unsupported(f"contact row {row} (node {i}) has no unknown of its own to eliminate (its slave "
+                               "side is held by supports or shared with another contact node): not supported by the "
+                               "iterative method")
 
 
 class _Stepper:
@@ -256,7 +307,8 @@ class _Stepper:
 
     def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
-        self.failure = ""
+        self.failure, self.unsupported = "", False
+        self.timings = {"eliminate": 0.0}       # seconds: pivots, Z and Zᵀ K Z of the steps
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
@@ -264,6 +316,7 @@ class _Stepper:
 
     def solve(self, free, z, gw, c, k, eta):
         """(u, λ) of the step with the free set `free` (the slip data from z)."""
+        t0 = time.perf_counter()
         m, n = self.rows.m, self.n
         C, K = self.C, self.K
         rows, piv, blocks = [], [], []
@@ -281,7 +334,7 @@ class _Stepper:
             G = held @ self.R
             sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if G.shape[0] else []
             if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
-                raise _Unheld("the closed and stuck contact rows of a Newton step leave a floating body free "
+                raise _Unsupported("the closed and stuck contact rows of a Newton step leave a floating body free "
                               "(its rigid modes are not projected out by the iterative method yet)")
         O = np.setdiff1d(np.arange(n), P)
         X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
@@ -291,7 +344,9 @@ class _Stepper:
         ub[P] = Binv @ self.b[rows]
         rhs0 = self.f - C.T @ lam0
         A = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
-        v, its, ok = self.krylov_solver.solve(A, Z.T @ (rhs0 - Kt @ ub), eta)
+        b = Z.T @ (rhs0 - Kt @ ub)
+        self.timings["eliminate"] += time.perf_counter() - t0
+        v, its, ok = self.krylov_solver.solve(A, b, eta)
         self.krylov += its
         if not ok:
             raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
@@ -307,9 +362,9 @@ class _Stepper:
         m = self.rows.m
         lam0 = np.zeros((1 + k) * m)
         self._springs = None
-        t = z[m:].reshape(k, m)
+        t = z[m:].reshape(k, m) * self.rows.acting[m:].reshape(k, m)    # a tangent held by supports: no force
         norm = np.linalg.norm(t, axis=0)
-        slip = ~free[m:m + m] & (gw > 0) & self.rows.acting[m:m + m] & (norm > 0)
+        slip = ~_stuck(free, m, k) & (gw > 0) & self.rows.disc & (norm > 0)
         nu = np.divide(t, norm, out=np.zeros_like(t), where=slip)
         lam0[m:] = (np.where(slip, gw, 0.0) * nu).ravel()
         if k == 1:
@@ -360,11 +415,13 @@ class Krylov:
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
 
     REBUILD = 2.0
+    MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
     def __init__(self, near_nullspace=None):
         self.N = near_nullspace
         self.ksp = self.P = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0}    # seconds
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
@@ -375,10 +432,13 @@ class Krylov:
             return np.zeros(0), 0, True
         M = _petsc_matrix(A, PETSc)
         fresh = self.ksp is None
+        t = time.perf_counter()
         if fresh:
             self._build(M, PETSc)
+        self.timings["gamg_setup"] += time.perf_counter() - t
+        t = time.perf_counter()
         self.ksp.setOperators(M, self.P)
-        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max(1000, n // 10))
+        self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
         x, rhs = M.createVecs()
         rhs.setArray(b)
         self.ksp.solve(rhs, x)
@@ -387,6 +447,7 @@ class Krylov:
         out = x.getArray().copy()
         for o in (x, rhs):
             o.destroy()
+        self.timings["cg"] += time.perf_counter() - t
         digits = -np.log10(rtol)
         if fresh:
             self.rate = its / digits
