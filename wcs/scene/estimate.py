@@ -29,6 +29,11 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+# Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
+# modules): 7.0 and 7.6 kB on the 3D tunnel at 2.2e5 and 7.0e4 tetrahedra, 3.4 kB on the two-blocks demo at
+# 2.3e5 triangles (thermal): what the cells made must fit before assembly; the solve's own memory, which
+# depends on the method, is estimated after assembly (`evaluation_cost`)
+MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 7.6e3}
 # How far beyond the machine's memory an estimate may go before meshing: the cells made are held
 # to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
 # estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
@@ -58,14 +63,15 @@ def machine_ranks() -> int:
 
 
 def memory_fault(cells: int, dimension: int) -> str | None:
-    """Why a mesh of `cells` cells cannot be solved on this machine (None if it can): its cells
-    times BYTES_PER_CELL beyond `machine_memory()`, where meshing on would swap."""
-    need, memory = cells * BYTES_PER_CELL[dimension], machine_memory()
+    """Why a mesh of `cells` cells cannot be assembled on this machine (None if it can): its cells
+    times MODEL_BYTES_PER_CELL beyond `machine_memory()`, where assembling on would swap (the
+    solve is held to the memory after assembly, by the method's `evaluation_cost`)."""
+    need, memory = cells * MODEL_BYTES_PER_CELL[dimension], machine_memory()
     if need <= memory:
         return None
-    return (f"the mesh has {cells} cells, which need about {need / 1e9:.3g} GB ({BYTES_PER_CELL[dimension]:g} "
-            f"bytes a cell, measured), more than this machine's {memory / 1e9:.3g} GB of memory; coarsen the mesh "
-            "(`mesh.size`, `refine`) or lower `mesh.max_cells`")
+    return (f"the mesh has {cells} cells, which need about {need / 1e9:.3g} GB to assemble "
+            f"({MODEL_BYTES_PER_CELL[dimension]:g} bytes a cell, measured), more than this machine's "
+            f"{memory / 1e9:.3g} GB of memory; coarsen the mesh (`mesh.size`, `refine`) or lower `mesh.max_cells`")
 
 
 def shape_box(shape) -> tuple[float, float, float, float]:
