@@ -60,10 +60,12 @@ def test_auto_keeps_monolithic_on_the_shipped_tunnel():
     method, why = solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE))
     assert method == "iterative" and why.endswith("the monolithic method would be more than 2x slower")
     # and in 2D only memory moves the choice (its zones are small; the measured rules stay)
-    flat = EvaluationFacts(dimension=2, unknowns=15845, stiffness_nnz=200000, contact_rows=8000)
     costs = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 1.0)}
-    assert solver_method(SolverFacts(unknowns=flat.unknowns, costs=costs, memory=MACHINE))[0] == "monolithic"
-    assert solver_method(SolverFacts(unknowns=flat.unknowns, costs=costs, memory=0.8e9))[0] == "iterative"
+    assert solver_method(SolverFacts(unknowns=15845, costs=costs, memory=MACHINE))[0] == "monolithic"
+    assert solver_method(SolverFacts(unknowns=15845, costs=costs, memory=0.8e9))[0] == "iterative"
+    # never the iterative method where PETSc is not installed: the direct one, and the reason says so
+    method, why = solver_method(SolverFacts(unknowns=15845, costs=costs, memory=0.8e9, iterative_installed=False))
+    assert method == "monolithic" and "the iterative method (not installed: PETSc, the wheel dolfinx-solver-real)" in why
 
 
 def block_doc(method: str) -> dict:

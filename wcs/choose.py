@@ -48,6 +48,7 @@ class SolverFacts:
     dimension: int = 2                  # 2 or 3
     costs: dict | None = None           # method -> (peak bytes, seconds) of one evaluation (wcs.scene.estimate)
     memory: float = float("inf")        # bytes one evaluation may take (USABLE_SHARE of `machine_memory`)
+    iterative_installed: bool = True    # PETSc (petsc4py and the wheel dolfinx-solver-real) importable
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
@@ -56,7 +57,8 @@ def solver_method(f: SolverFacts) -> tuple[str, str]:
     carries a P1-locking warning when some material has nu > NU_LOCKING."""
     method, why = _size_rule(f) or _solver_rule(f)
     if f.contact and f.costs is not None and method != "iterative":
-        why += f"; the iterative method estimated at {_cost(*f.costs['iterative'])}"
+        why += (f"; the iterative method{'' if f.iterative_installed else ' (not installed: PETSc, the wheel dolfinx-solver-real)'}"
+                f" estimated at {_cost(*f.costs['iterative'])}")
     if f.max_nu > NU_LOCKING:
         why += (f"; warning: nu = {f.max_nu:g} > {NU_LOCKING:g}: P1 elements lock (Hertz peak pressure "
                 "8% off at 0.49, 27% at 0.499, stability_materials.png)")
@@ -67,7 +69,7 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
     """"iterative" where the estimated direct condensation would not fit in memory, or (3D) would
     be ITERATIVE_MARGIN times slower than the iterative method by the estimate; None: the rules
     below decide (2D keeps its measured rules: the contact zones are small there)."""
-    if not f.contact or f.costs is None:
+    if not f.contact or f.costs is None or not f.iterative_installed:
         return None
     direct, iterative = f.costs["monolithic"], f.costs["iterative"]
     words = (f"one evaluation estimated at {_cost(*direct)} by the monolithic method, "

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -180,8 +181,9 @@ class Model:
         total, ranks = machine_memory(), machine_ranks()
         memory = USABLE_SHARE * total / ranks         # the rest is the system's; MPI ranks evaluate at once
         method = self.options.method
+        installed = all(importlib.util.find_spec(m) for m in ("dolfinx_solver", "petsc4py"))   # the iterative method's PETSc
         if method == "auto":
-            method, why = solver_method(self._solver_facts(scene, facts, memory))
+            method, why = solver_method(self._solver_facts(scene, facts, memory, installed))
         else:
             why = "chosen in the study"
         need, seconds = evaluation_cost(facts, method)
@@ -190,7 +192,9 @@ class Model:
             size = f"{facts.unknowns} unknowns" + (f", {rows} contact rows: the dense W alone is {8e-9 * rows**2:.3g} GB"
                                                    if direct else "")
             out = ("use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)"
-                   if direct and self.options.method != "auto" else "a coarser mesh (`mesh.size`, `refine`)")
+                   if direct and self.options.method != "auto" else
+                   "install PETSc (the wheel dolfinx-solver-real) for the iterative method, or a coarser mesh "
+                   "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
                              f"({size}), more than the {memory / 1e9:.3g} GB it may take of this machine's "
                              f"{total / 1e9:.3g} GB of memory" + (f", shared by {ranks} MPI processes" if ranks > 1 else "")
@@ -202,7 +206,7 @@ class Model:
                     f"method, estimated at {polish / 1e9:.3g} GB: beyond the {memory / 1e9:.3g} GB")
         return method, why
 
-    def _solver_facts(self, scene, facts: EvaluationFacts, memory: float) -> SolverFacts:
+    def _solver_facts(self, scene, facts: EvaluationFacts, memory: float, installed: bool) -> SolverFacts:
         mats = [scene.materials[m] for m in set(self.region_material)]
         pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
                  for m in mats]
@@ -216,7 +220,7 @@ class Model:
         costs = {m: evaluation_cost(facts, m) for m in ("monolithic", "iterative")}
         return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
-                           dimension=self.dim, costs=costs, memory=memory)
+                           dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed)
 
     # ---- structure -----------------------------------------------------------------
     def _region_dofs(self) -> list[np.ndarray]:
