@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-import wcs.model
+import wcs.scene.estimate as estimate
 from wcs.choose import ITERATIVE_MARGIN, SolverFacts, solver_method
 from wcs.cli import main
 from wcs.evaluation import Evaluator
@@ -88,7 +88,7 @@ def test_check_prints_the_estimate_and_refuses_beyond_the_memory(tmp_path, capsy
         contact_rows=ev.model.Bn_r.shape[0] + ev.model.Bt_r.shape[0], units=2), "monolithic")
     words = f"about {need / 1e9:.3g} GB peak and {seconds:.2g} s"
     assert provenance(study, ev)["solver_choice"] == f"monolithic: chosen in the study; one evaluation estimated at {words}"
-    monkeypatch.setattr(wcs.model, "machine_memory", lambda: need)
+    monkeypatch.setattr(estimate, "machine_memory", lambda: need)
     assert main(["check", str(path)]) == 2
     out, err = capsys.readouterr()
     assert "Traceback" not in err and "nominal solve" not in out
@@ -96,7 +96,7 @@ def test_check_prints_the_estimate_and_refuses_beyond_the_memory(tmp_path, capsy
             and f"more than the {USABLE_SHARE * need / 1e9:.3g} GB it may take of this machine's {need / 1e9:.3g} GB "
                 "of memory; use solver.method: iterative" in err)
     # fits alone; two MPI processes on the machine (each its own model and evaluations) do not
-    monkeypatch.setattr(wcs.model, "machine_memory", lambda: 1.5 * need / USABLE_SHARE)
+    monkeypatch.setattr(estimate, "machine_memory", lambda: 1.5 * need / USABLE_SHARE)
     assert main(["check", str(path), "--quiet"]) == 0
     monkeypatch.setenv("MPI_LOCALNRANKS", "2")
     assert main(["check", str(path), "--quiet"]) == 2
@@ -167,7 +167,6 @@ def test_cells_are_held_to_the_assembly_not_to_the_direct_solve(monkeypatch):
     the solve's memory is the method's, estimated after assembly: 1.8e6 tetrahedra (1e6 unknowns,
     the iterative method's scale) are no longer refused on 25.3 GB for the direct method's 16 kB a
     cell (28.8 GB); 4e6 are (30 GB to assemble)."""
-    import wcs.scene.estimate as estimate
     monkeypatch.setattr(estimate, "machine_memory", lambda: 25.3e9)
     assert estimate.memory_fault(1_800_000, 3) is None
     assert estimate.memory_fault(4_000_000, 3).startswith(

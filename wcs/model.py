@@ -36,7 +36,7 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from .scene.estimate import USABLE_SHARE, EvaluationFacts, cost_words, evaluation_cost, machine_memory, machine_ranks
+from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import DDOutcome, Status
@@ -178,8 +178,7 @@ class Model:
         units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
         facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.pattern.nnz,
                                 contact_rows=rows, units=units, thermal=self.thermal)
-        total, ranks = machine_memory(), machine_ranks()
-        memory = USABLE_SHARE * total / ranks         # the rest is the system's; MPI ranks evaluate at once
+        memory = evaluation_memory()
         method = self.options.method
         installed = all(importlib.util.find_spec(m) for m in ("dolfinx_solver", "petsc4py"))   # the iterative method's PETSc
         if method == "auto":
@@ -189,16 +188,11 @@ class Model:
         need, seconds = evaluation_cost(facts, method)
         if need > memory:
             direct = method != "iterative" and rows > 0
-            size = f"{facts.unknowns} unknowns" + (f", {rows} contact rows: the dense W alone is {8e-9 * rows**2:.3g} GB"
-                                                   if direct else "")
             out = ("use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)"
                    if direct and self.options.method != "auto" else
                    "install PETSc (the wheel dolfinx-solver-real) for the iterative method, or a coarser mesh "
                    "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
-            raise StudyError(f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} "
-                             f"({size}), more than the {memory / 1e9:.3g} GB it may take of this machine's "
-                             f"{total / 1e9:.3g} GB of memory" + (f", shared by {ranks} MPI processes" if ranks > 1 else "")
-                             + f"; {out}", path="solver.method")
+            raise StudyError(f"{evaluation_fault(facts, method)}; {out}", path="solver.method")
         why += f"; one evaluation estimated at {cost_words(need, seconds)}"
         polish = evaluation_cost(facts, "monolithic")[0]     # the iterative adjoint is polished by the monolithic method
         if method == "iterative" and polish > memory:

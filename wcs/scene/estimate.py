@@ -435,6 +435,23 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
                                 + DENSE_SECONDS[d] * m**3))
 
 
+def evaluation_memory() -> float:
+    """Bytes one evaluation may take: USABLE_SHARE of `machine_memory()`, shared by the
+    `machine_ranks()` processes that evaluate at once."""
+    return USABLE_SHARE * machine_memory() / machine_ranks()
+
+
+def evaluation_fault(f: EvaluationFacts, method: str) -> str:
+    """Why one evaluation with `method` does not fit (its estimate beyond `evaluation_memory()`)."""
+    need, seconds = evaluation_cost(f, method)
+    ranks = machine_ranks()
+    size = f"{f.unknowns} unknowns" + (f", {f.contact_rows} contact rows: the dense W alone is "
+                                       f"{8e-9 * f.contact_rows**2:.3g} GB" if method != "iterative" and f.contact_rows else "")
+    return (f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} ({size}), more "
+            f"than the {evaluation_memory() / 1e9:.3g} GB it may take of this machine's {machine_memory() / 1e9:.3g} GB "
+            f"of memory" + (f", shared by {ranks} MPI processes" if ranks > 1 else ""))
+
+
 def cost_words(memory: float, seconds: float) -> str:
     """'about 3.1 GB peak and 40 s' (an estimate's words in a reason or a refusal)."""
     return f"about {memory / 1e9:.3g} GB peak and {seconds:.2g} s"
