@@ -3,7 +3,7 @@
 Pure functions of facts about a study; each returns (choice, reason) where the reason names the
 chart that justifies the rule, so a caller can put it in the results file or a log line.
 
-    solver_method(SolverFacts(...))  -> ("monolithic" | "dd", reason)
+    solver_method(SolverFacts(...))  -> ("monolithic" | "dd" | "iterative", reason)
     search_method(SearchFacts(...))  -> ("auto" | "local" | "global" | "sample", reason)
     mesh_size(MeshFacts(...))        -> (size [m], reason)
 
@@ -29,6 +29,11 @@ DD_MAX_CONTRAST = 10.0          # dd_stability.png: with E_pad/E_base <= 0.1 the
 DD_MAX_NU = 0.45                # stability_materials.png: the DD fails (status 5) from nu = 0.49
 NU_LOCKING = 0.45               # stability_materials.png: P1 Hertz peak-pressure error 2% at 0.45, 8% at 0.49,
 #                                 27% at 0.499, 135% at 0.4999 (0.2% at 0.3): say so in the reason
+ITERATIVE_MARGIN = 2.0          # 3D: auto takes the iterative method for speed where its estimated time is under half
+#                                 the monolithic one's: its Newton steps are not known before solving (2 on the
+#                                 block patch, 19 on Hertz, >200 on the tunnel with Tresca, not converged there yet:
+#                                 wcs/scene/estimate.py ITERATIVE_STEPS); the shipped tunnel split once for the mesh
+#                                 check (1.1e5 unknowns, 5856 contact rows: 150 s against 89 s) stays monolithic
 
 
 @dataclass(frozen=True)
@@ -40,22 +45,51 @@ class SolverFacts:
     stiffness_contrast: float = 1.0     # max E / min E over bodies in contact (>= 1)
     max_nu: float = 0.3                 # largest Poisson ratio of any material
     dd_converges: bool | None = None    # the DD converged on this scene family (a dd_stability point or a trial)
+    dimension: int = 2                  # 2 or 3
+    costs: dict | None = None           # method -> (peak bytes, seconds) of one evaluation (wcs.scene.estimate)
+    memory: float = float("inf")        # bytes one evaluation may take (USABLE_SHARE of `machine_memory`)
+    iterative_installed: bool = True    # PETSc (petsc4py and the wheel dolfinx-solver-real) importable
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
-    """`solver.method: auto` -> "monolithic" or "dd" (never "qp": the cvxpy reference, 28-87x slower
-    than the monolithic Newton for the same answer, forward_hertz.png). The reason carries a
-    P1-locking warning when some material has nu > NU_LOCKING."""
-    method, why = _solver_rule(f)
+    """`solver.method: auto` -> "monolithic", "dd" or "iterative" (never "qp": the cvxpy reference,
+    28-87x slower than the monolithic Newton for the same answer, forward_hertz.png). The reason
+    carries a P1-locking warning when some material has nu > NU_LOCKING."""
+    method, why = _size_rule(f) or _solver_rule(f)
+    if f.contact and f.costs is not None and method != "iterative":
+        why += (f"; the iterative method{'' if f.iterative_installed else ' (not installed: PETSc, the wheel dolfinx-solver-real)'}"
+                f" estimated at {_cost(*f.costs['iterative'])}")
     if f.max_nu > NU_LOCKING:
         why += (f"; warning: nu = {f.max_nu:g} > {NU_LOCKING:g}: P1 elements lock (Hertz peak pressure "
                 "8% off at 0.49, 27% at 0.499, stability_materials.png)")
     return method, why
 
 
+def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
+    """"iterative" where the estimated direct condensation would not fit in memory, or (3D) would
+    be ITERATIVE_MARGIN times slower than the iterative method by the estimate; None: the rules
+    below decide (2D keeps its measured rules: the contact zones are small there)."""
+    if not f.contact or f.costs is None or not f.iterative_installed:
+        return None
+    direct, iterative = f.costs["monolithic"], f.costs["iterative"]
+    words = (f"one evaluation estimated at {_cost(*direct)} by the monolithic method, "
+             f"{_cost(*iterative)} by the iterative one")
+    if direct[0] > f.memory and iterative[0] <= f.memory:
+        return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
+    if f.dimension == 3 and ITERATIVE_MARGIN * iterative[1] < direct[1] and iterative[0] <= f.memory:
+        return "iterative", f"{words}: the monolithic method would be more than {ITERATIVE_MARGIN:g}x slower"
+    return None
+
+
+def _cost(memory: float, seconds: float) -> str:
+    return f"{memory / 1e9:.3g} GB and {seconds:.2g} s"
+
+
 def _solver_rule(f: SolverFacts) -> tuple[str, str]:
     if not f.contact:
         return "monolithic", "no contact: one sparse factorization and solve, nothing to iterate"
+    if f.dimension == 3:
+        return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
     if f.gradients:
         return "monolithic", ("the search asks adjoint gradients, which need the monolithic factorization "
                               "(a DD answer is polished by the monolithic solver anyway, wcs/model.py)")

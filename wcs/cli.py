@@ -114,7 +114,8 @@ def plan(study, ev) -> list[str]:
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
     s = study.search
     method = study.solver.method
-    solver = method if method != "auto" else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})"
+    solver = (f"{method} ({ev.model.solver_reason})" if method != "auto"
+              else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})")
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
                  + ("" if scene.contacts else " (no contact: one direct solve per data set)"))
     lines.append(f"  output: {study.output}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -37,6 +38,7 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
+from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import Status
@@ -164,13 +166,36 @@ class Model:
         return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
 
     def _choose_solver(self, scene) -> tuple[str, str]:
-        """`solver.method: auto` resolved by the benchmark-derived rule (wcs/choose.py); in 3D
-        the monolithic solver (the decomposition solves tetrahedra too, measured 4-12x slower)."""
+        """The study's `solver.method`, `auto` resolved by the benchmark-derived rule
+        (wcs/choose.py), with the estimated peak memory and time of one evaluation in the reason;
+        StudyError (exit 2) where that estimate exceeds the machine's memory."""
+        rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
+        units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
+        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.pattern.nnz,
+                                contact_rows=rows, units=units, thermal=self.thermal)
+        memory = evaluation_memory()
         method = self.options.method
-        if method != "auto":
-            return method, "chosen in the study"
-        if self.dim == 3:
-            return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
+        installed = all(importlib.util.find_spec(m) for m in ("dolfinx_solver", "petsc4py"))   # the iterative method's PETSc
+        if method == "auto":
+            method, why = solver_method(self._solver_facts(scene, facts, memory, installed))
+        else:
+            why = "chosen in the study"
+        need, seconds = evaluation_cost(facts, method)
+        if need > memory:
+            direct = method != "iterative" and rows > 0
+            out = ("use solver.method: iterative (it never forms the dense W), or a coarser mesh (`mesh.size`, `refine`)"
+                   if direct and self.options.method != "auto" else
+                   "install PETSc (the wheel dolfinx-solver-real) for the iterative method, or a coarser mesh "
+                   "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
+            raise StudyError(f"{evaluation_fault(facts, method)}; {out}", path="solver.method")
+        why += f"; one evaluation estimated at {cost_words(need, seconds)}"
+        polish = evaluation_cost(facts, "monolithic")[0]     # the iterative adjoint is polished by the monolithic method
+        if method == "iterative" and polish > memory:
+            why += (f"; warning: its adjoint gradients (the search's, the drivers') are polished by the monolithic "
+                    f"method, estimated at {polish / 1e9:.3g} GB: beyond the {memory / 1e9:.3g} GB")
+        return method, why
+
+    def _solver_facts(self, scene, facts: EvaluationFacts, memory: float, installed: bool) -> SolverFacts:
         mats = [scene.materials[m] for m in set(self.region_material)]
         pairs = [lame({"lambda": m.lam, "mu": m.mu} if m.lam is not None else {"E": m.E, "nu": m.nu})
                  for m in mats]
@@ -181,9 +206,10 @@ class Model:
         friction = ("coulomb" if any(f.coefficient for f in laws)
                     else "tresca" if any(f.slip_limit for f in laws)
                     else "none")
-        facts = SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
-                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus))
-        return solver_method(facts)
+        costs = {m: evaluation_cost(facts, m) for m in ("monolithic", "iterative")}
+        return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
+                           stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
+                           dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed)
 
     # ---- structure -----------------------------------------------------------------
     def _region_dofs(self) -> list[np.ndarray]:

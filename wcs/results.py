@@ -42,6 +42,7 @@ def provenance(study, evaluator) -> dict:
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "solver": f"{study.solver.method} ({linalg.backend()})",
+        "solver_choice": f"{evaluator.model.solver_method}: {evaluator.model.solver_reason}",   # auto's reason, the estimate
         **({"dimension": 3} if study.scene.dimension == 3 else {"plane": study.scene.plane}),
         "mesh_nodes": int(mesh.p.shape[1]),
         "mesh_cells": int(mesh.t.shape[1]),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,11 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+# Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
+# modules): 7.0 and 7.6 kB on the 3D tunnel at 2.2e5 and 7.0e4 tetrahedra, 3.4 kB on the two-blocks demo at
+# 2.3e5 triangles (thermal): what the cells made must fit before assembly; the solve's own memory, which
+# depends on the method, is estimated after assembly (`evaluation_cost`)
+MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 7.6e3}
 # How far beyond the machine's memory an estimate may go before meshing: the cells made are held
 # to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
 # estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
@@ -47,15 +53,25 @@ def machine_memory() -> float:
     return min(memory, float(limit)) if limit.isdigit() else memory
 
 
+def machine_ranks() -> int:
+    """Processes of this `mpiexec` launch on this machine, each with its own model and its own
+    evaluations (MPICH's MPI_LOCALNRANKS, Open MPI's OMPI_COMM_WORLD_LOCAL_SIZE; 1 without one)."""
+    for name in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE"):
+        if os.environ.get(name, "").isdigit():
+            return max(1, int(os.environ[name]))
+    return 1
+
+
 def memory_fault(cells: int, dimension: int) -> str | None:
-    """Why a mesh of `cells` cells cannot be solved on this machine (None if it can): its cells
-    times BYTES_PER_CELL beyond `machine_memory()`, where meshing on would swap."""
-    need, memory = cells * BYTES_PER_CELL[dimension], machine_memory()
+    """Why a mesh of `cells` cells cannot be assembled on this machine (None if it can): its cells
+    times MODEL_BYTES_PER_CELL beyond `machine_memory()`, where assembling on would swap (the
+    solve is held to the memory after assembly, by the method's `evaluation_cost`)."""
+    need, memory = cells * MODEL_BYTES_PER_CELL[dimension], machine_memory()
     if need <= memory:
         return None
-    return (f"the mesh has {cells} cells, which need about {need / 1e9:.3g} GB ({BYTES_PER_CELL[dimension]:g} "
-            f"bytes a cell, measured), more than this machine's {memory / 1e9:.3g} GB of memory; coarsen the mesh "
-            "(`mesh.size`, `refine`) or lower `mesh.max_cells`")
+    return (f"the mesh has {cells} cells, which need about {need / 1e9:.3g} GB to assemble "
+            f"({MODEL_BYTES_PER_CELL[dimension]:g} bytes a cell, measured), more than this machine's "
+            f"{memory / 1e9:.3g} GB of memory; coarsen the mesh (`mesh.size`, `refine`) or lower `mesh.max_cells`")
 
 
 def shape_box(shape) -> tuple[float, float, float, float]:
@@ -334,3 +350,108 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
     if solid.cylinder is not None and not solid.intersect:
         return spec3d.Refinement(cylinder=solid.cylinder, size=size)
     return spec3d.Refinement(box=list(solid_box(solid)), size=size)
+
+
+# ---- one evaluation's peak memory and time, from the assembled model (before any solve)
+# The direct methods factor the reduced stiffness K (n unknowns, nnz entries) with PARDISO (3D:
+# bordered by the contact rows C = [Bn; Bt], m of them) and condense the contact onto C: the dense
+# Delassus operator W = C K⁺ Cᵀ, 8 m² bytes, held W_COPIES + u times at the peak (PARDISO's Schur
+# complement, W, the Newton steps' active blocks and their factors; and one W*_u for each of the u
+# units of the stiffness, wcs/contact/units.py, summed into W),
+# O(m · nnz(L)) work to form and O(m³) to factor. The iterative method holds K, its GAMG
+# hierarchy and Krylov vectors: O(nnz) memory, O(nnz) work a Newton step. A thermal step adds a
+# direct factor of the conduction matrix (nnz / d² entries) to either.
+# Measured with tests/bench/evaluation_cost.py: VmRSS after `Evaluator` and VmHWM of
+# /proc/self/status after one nominal `evaluate` (the peak above the assembled model), and the
+# wall time of that evaluate, 2 shared cores, on the 3D tunnel with ring/fault sizes 0.8/2.5 (the
+# shipped one: 1.6e4 unknowns, 1587 contact rows), 0.6/1.5 and 0.6/1.0 (4.4e4, 6033 rows: 2.1 GB
+# above the model, 66 s), block-on-block-3d at sizes 0.1 and 0.05, hertz-3d, and (time) the 2D
+# tunnel, hip and two-blocks demo; the direct constants are the least-squares fits of those (the
+# peak above the model within 25%, the time 0.5-1.25x the measured one; the fit gives 6.3 copies
+# of W on the one-unit tunnels, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
+# its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
+BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
+MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
+#                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
+FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
+FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
+W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse
+#                                 block (K⁺)_SS on about 2m DOFs instead of the bordered factor: 22-25 in all measured
+#                                 on the one-unit 2D tunnel at m = 1348 and 2692, wcs/meshcheck.py DENSE_BLOCKS)
+EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # the direct method's fixed part (the 3D fit's intercept)
+FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
+SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
+DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of the active rows (2D: on the ~2m DOFs
+                 3: 1.58e-10}   # of (K⁺)_SS, 40 s at m = 2692 cold, wcs/meshcheck.py CONDENSATION)
+ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
+ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
+#                                   measured (block-on-block-3d at 0.05, the shipped tunnel)
+ITERATIVE_SECONDS = 1.2         # the iterative method's fixed part (PETSc set-up): fit of the three below
+ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
+#                                   0.7e-6 frictionless (block-on-block-3d at 0.1 and 0.05: 2 steps, 1.4 and 2.5 s;
+#                                   hertz-3d: 19 steps, 4.9 s), 1.3e-6 with Tresca friction (the shipped tunnel)
+ITERATIVE_STEPS = 20            # Newton steps of an evaluation, not known before solving: assumed (hertz-3d took
+#                                 19, the patch 2: its time estimate is an upper one, up to 10x there)
+# the other direct methods' time against the monolithic one's, at least: qp (the cvxpy reference) 28-87x
+# (forward_hertz.png), dd 1.1-2.3x in 2D at 1e5-4e5 unknowns (dd_cost.csv), 4-12x on tetrahedra
+SLOWER = {"qp": {2: 28.0, 3: 28.0}, "dd": {2: 1.1, 3: 4.0}}
+# the kernel killed the fine tunnel at 24 GB of this machine's 25.3: the rest is the system's
+USABLE_SHARE = 0.9
+
+
+@dataclass(frozen=True)
+class EvaluationFacts:
+    """What the assembled model tells of one evaluation's size."""
+    dimension: int              # 2 or 3
+    unknowns: int               # reduced displacement unknowns n
+    stiffness_nnz: int          # entries of the reduced stiffness K
+    contact_rows: int = 0       # rows m of the contact operator C = [Bn; Bt] (0: no contact)
+    units: int = 1              # units of the stiffness (wcs/contact/units.py), or an upper bound of them
+    thermal: bool = False       # a heat step first (a scalar conduction factor: n/d unknowns)
+
+
+def _fill(f: EvaluationFacts) -> float:
+    """Factor entries per entry of K relative to 1e5 unknowns: nested dissection's fill grows
+    like n^(1/3) in 3D (1 in 2D, whose fill grows like log n only)."""
+    return (f.unknowns / 1e5) ** (1 / 3) if f.dimension == 3 else 1.0
+
+
+def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
+    """(peak bytes, seconds) of one evaluation with `method` from the constants above: monolithic,
+    qp and dd the direct factor and the dense W (dd and qp fall back to or are polished by the
+    monolithic solver, so they need its memory; their time is SLOWER's multiple), iterative
+    O(nnz) (a scene without contact: one direct factor, whatever the method)."""
+    nnz, m, fill = float(f.stiffness_nnz), float(f.contact_rows), _fill(f)
+    heat = fill * nnz / f.dimension**2 if f.thermal else 0.0       # the conduction factor's entries
+    memory = BASE_BYTES + MODEL_BYTES_PER_NNZ * nnz + FACTOR_BYTES_PER_NNZ * heat
+    seconds = FACTOR_SECONDS_PER_NNZ * heat
+    if method == "iterative" and m > 0:
+        return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
+                seconds + ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
+    factor, d = fill * nnz, f.dimension
+    slower = SLOWER[method][d] if method in SLOWER and m > 0 else 1.0
+    return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + (W_COPIES[d] + f.units) * 8.0 * m * m,
+            seconds + slower * (EVALUATION_SECONDS[d] + FACTOR_SECONDS_PER_NNZ * factor + SCHUR_SECONDS * m * factor
+                                + DENSE_SECONDS[d] * m**3))
+
+
+def evaluation_memory() -> float:
+    """Bytes one evaluation may take: USABLE_SHARE of `machine_memory()`, shared by the
+    `machine_ranks()` processes that evaluate at once."""
+    return USABLE_SHARE * machine_memory() / machine_ranks()
+
+
+def evaluation_fault(f: EvaluationFacts, method: str) -> str:
+    """Why one evaluation with `method` does not fit (its estimate beyond `evaluation_memory()`)."""
+    need, seconds = evaluation_cost(f, method)
+    ranks = machine_ranks()
+    size = f"{f.unknowns} unknowns" + (f", {f.contact_rows} contact rows: the dense W alone is "
+                                       f"{8e-9 * f.contact_rows**2:.3g} GB" if method != "iterative" and f.contact_rows else "")
+    return (f"one evaluation with the {method} method is estimated at {cost_words(need, seconds)} ({size}), more "
+            f"than the {evaluation_memory() / 1e9:.3g} GB it may take of this machine's {machine_memory() / 1e9:.3g} GB "
+            f"of memory" + (f", shared by {ranks} MPI processes" if ranks > 1 else ""))
+
+
+def cost_words(memory: float, seconds: float) -> str:
+    """'about 3.1 GB peak and 40 s' (an estimate's words in a reason or a refusal)."""
+    return f"about {memory / 1e9:.3g} GB peak and {seconds:.2g} s"
