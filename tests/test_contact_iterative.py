@@ -233,3 +233,16 @@ def test_a_warm_start_from_its_own_answer_ends_at_once_on_discs():
                                    near_nullspace=M.near_nullspace, rtol=1e-8, warm=cold)
     assert warm.status == 0, warm.message
     assert warm.iterations <= 1 and rel(warm.u, direct.u) <= AGREE
+
+
+def test_the_results_file_names_the_iterative_solver(tmp_path):
+    """The results file's `solver` says what solved the contact (PETSc's CG + GAMG), not only the
+    direct backend the heat step would use ("iterative (pardiso)" before)."""
+    import xarray as xr
+
+    from wcs.cli import main
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(study(VALIDATION / "tresca-shear-patch-3d.yaml", "iterative")), encoding="utf-8")
+    assert main(["solve", str(path), "-o", str(tmp_path / "out.nc"), "-q"]) == 0
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert ds.attrs["solver"].startswith("iterative (contact: PETSc CG + GAMG")

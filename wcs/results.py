@@ -41,7 +41,8 @@ def provenance(study, evaluator) -> dict:
         "git_commit": git_commit(),
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "solver": f"{study.solver.method} ({linalg.backend()})",
+        "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.backend()})"
+                   if evaluator.model.solver_method == "iterative" else f"{study.solver.method} ({linalg.backend()})"),
         "solver_choice": f"{evaluator.model.solver_method}: {evaluator.model.solver_reason}",   # auto's reason, the estimate
         **({"dimension": 3} if study.scene.dimension == 3 else {"plane": study.scene.plane}),
         "mesh_nodes": int(mesh.p.shape[1]),
