@@ -59,6 +59,12 @@ def test_auto_keeps_monolithic_on_the_shipped_tunnel():
     fast = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 100.0 / ITERATIVE_MARGIN * 0.99)}
     method, why = solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE))
     assert method == "iterative" and why.endswith("the monolithic method would be more than 2x slower")
+    # not for speed where a body is held by contact alone (the iterative method does not project its
+    # rigid modes yet: the 3D mesh-file pad was picked and refused, exit 1); for memory it still is
+    assert solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE,
+                                     floating=True))[0] == "monolithic"
+    assert solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=0.8e9,
+                                     floating=True))[0] == "iterative"
     # and in 2D only memory moves the choice (its zones are small; the measured rules stay)
     costs = {"monolithic": (1e9, 100.0), "iterative": (0.5e9, 1.0)}
     assert solver_method(SolverFacts(unknowns=15845, costs=costs, memory=MACHINE))[0] == "monolithic"

@@ -209,7 +209,8 @@ class Model:
         costs = {m: evaluation_cost(facts, m) for m in ("monolithic", "iterative")}
         return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
-                           dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed)
+                           dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed,
+                           floating=self.zone is not None and self.R_r is not None)
 
     # ---- structure -----------------------------------------------------------------
     def _region_dofs(self) -> list[np.ndarray]:
