@@ -255,7 +255,8 @@ def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.nda
     K = model.stiffness(c)
     U0 = model.elim.U0.tocsc()
     KU0 = (K @ U0).tocsc()
-    contact = ContactAdjoint(model, state) if state.raw is not None else None
+    own = getattr(model.method, "adjoint", None)      # a method with its own adjoint (the iterative one)
+    contact = None if state.raw is None else own(model, state) if own is not None else ContactAdjoint(model, state)
     Kh = model.H(c.kappa) if model.thermal else None
     return [_coefficient_gradient(model, state, P, contact, U0, KU0, Kh) for P in partials]
 
