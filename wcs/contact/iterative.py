@@ -56,6 +56,7 @@ from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
 NULL = 1e-10         # a contact row with ‖C_i‖ ≤ NULL max‖C_j‖ acts on round-off only
+BALANCE = 1e-6       # relative residual of a floating body's equilibrium above which an adjoint is refused
 DEPENDENT = 1e-8     # relative singular value below which a node's active rows are dependent
 
 
@@ -556,12 +557,16 @@ class IterativeAdjoint:
     Krylov tolerance; μ_E = C_EP⁻ᵀ (φ_w − K z)_P on the pivots. The operator and its GAMG
     hierarchy are built once for all criteria. As ContactAdjoint: a tangent tied to its
     closed node's normal (rollers on both sides: `Model.tied`) and a row acting on nothing carry
-    μ = 0. Refused (`solve` gives None, `refusal` says why): floating bodies (rigid modes R:
-    where z is mostly a rigid motion R β, its deformation, which makes μ ~ K z, lies below the
-    round-off of z — on the floating Tresca pad 1e-14 of it, and μ came out wrong by 1e11
-    relative, still 1e5 with β solved first; W's multiplier space does not lose it), Coulomb
-    coupling of a slipping tangent to its node's normal (the transpose is not symmetric: not
-    built yet), a row without an own unknown, CG not converged."""
+    μ = 0. Floating bodies (rigid modes R) need no projection where the equalities hold every
+    rigid mode (the system is then regular), but where z is mostly a rigid motion R β its
+    deformation, which makes μ ~ K z, lies below z's round-off (the mean pressure on the
+    floating Tresca pad: μ wrong by 1e11 relative; solving again for z − R β did not help). μ
+    must balance the rigid modes, Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured 1e-10 of
+    its terms where the gradient agrees with ContactAdjoint's, 1e-2–1e-1 where it does not, so
+    above `BALANCE` the solve is refused. Refused (`solve` gives None, `refusal` or `failure`
+    says why): that imbalance, Coulomb coupling of a slipping tangent to its node's normal (the
+    transpose is not symmetric: not built yet), a row without an own unknown, CG not
+    converged."""
 
     def __init__(self, model, state):
         from wcs.sensitivity import _slip_frame
@@ -581,10 +586,6 @@ class IterativeAdjoint:
         self.D, self.fixed = np.flatnonzero(spring), np.flatnonzero(~free)
         self.C, self.Q, self.m, self.n, self.R = C, Q, m, n, model.R_r
         self.refusal = self.failure = ""        # why every solve / the last solve gave None
-        if self.R is not None:
-            self.refusal = ("the iterative adjoint does not support floating bodies yet (use solver.method "
-                            "monolithic for gradients)")
-            return
         F = np.asarray(state.coefficients.coulomb, float)
         tang = self.fixed[self.fixed >= m]
         if np.any((self.sigma[tang - m] != 0) & (F[(tang - m) % m] > 0)):
@@ -623,6 +624,15 @@ class IterativeAdjoint:
         mu = np.zeros(n)
         mu[self.rows] = mu_E
         mu[self.D] = (C[self.D] @ z - phi[self.D]) / self.compliance
+        if self.R is not None:      # the rigid modes' equilibrium Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (class docstring)
+            load = C[np.r_[self.rows, self.D]].T @ mu[np.r_[self.rows, self.D]]
+            off = np.max(np.abs(self.R.T @ (phi_w - load)) / np.maximum(
+                np.abs(self.R).T @ (np.abs(phi_w) + np.abs(load)), 1e-300))
+            if off > BALANCE:
+                self.failure = (f"iterative adjoint: the multipliers leave a floating body unbalanced (relative "
+                                f"{off:.1e} > {BALANCE:.0e}: its rigid motion's round-off; use solver.method "
+                                "monolithic for gradients)")
+                return None
         mu[self.fixed] = phi[self.fixed] - C[self.fixed] @ z
         return z, mu, self.sigma
 
