@@ -557,16 +557,19 @@ class IterativeAdjoint:
     Krylov tolerance; μ_E = C_EP⁻ᵀ (φ_w − K z)_P on the pivots. The operator and its GAMG
     hierarchy are built once for all criteria. As ContactAdjoint: a tangent tied to its
     closed node's normal (rollers on both sides: `Model.tied`) and a row acting on nothing carry
-    μ = 0. Floating bodies (rigid modes R) need no projection where the equalities hold every
-    rigid mode (the system is then regular), but where z is mostly a rigid motion R β its
-    deformation, which makes μ ~ K z, lies below z's round-off (the mean pressure on the
-    floating Tresca pad: μ wrong by 1e11 relative; solving again for z − R β did not help). μ
-    must balance the rigid modes, Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured 1e-10 of
-    its terms where the gradient agrees with ContactAdjoint's, 1e-2–1e-1 where it does not, so
-    above `BALANCE` the solve is refused. Refused (`solve` gives None, `refusal` or `failure`
-    says why): that imbalance, Coulomb coupling of a slipping tangent to its node's normal (the
-    transpose is not symmetric: not built yet), a row without an own unknown, CG not
-    converged."""
+    μ = 0. Floating bodies (rigid modes R, K R = 0): the equalities then hold every rigid mode
+    (the forward step checks it) and the system is regular, but z may be mostly a rigid motion
+    whose deformation, which makes μ ~ K z, would lie below the round-off of K z (the mean
+    pressure on the floating contact patch: μ wrong by 1e7 relative, worse the tighter CG).
+    So the rigid part that fits the equalities best, R α with α = argmin ‖C_E R α − φ_E‖, is
+    taken out first and the system solved for z − R α (K R α = 0 exactly, Kt R α = S R α with S
+    the springs). Where φ_E is itself rigid to round-off (the mean pressure over the whole face
+    of the floating Tresca pad) even that leaves μ as noise; μ must balance the rigid modes,
+    Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured ≤ 1e-9 of its terms where the gradient
+    agrees with ContactAdjoint's, 1e-1 on that pad, so above `BALANCE` the solve is refused.
+    Refused (`solve` gives None, `refusal` or `failure` says why): that imbalance, Coulomb
+    coupling of a slipping tangent to its node's normal (the transpose is not symmetric: not
+    built yet), a row without an own unknown, CG not converged."""
 
     def __init__(self, model, state):
         from wcs.sensitivity import _slip_frame
@@ -598,7 +601,8 @@ class IterativeAdjoint:
             self.refusal = f"iterative adjoint: {exc}"
             return
         Cd = C[self.D]
-        self.Kt = (K + Cd.T @ sp.diags(1.0 / compliance[self.D]) @ Cd).tocsr()
+        self.S = (Cd.T @ sp.diags(1.0 / compliance[self.D]) @ Cd).tocsr()
+        self.Kt = (K + self.S).tocsr()
         self.compliance = compliance[self.D]
         self.Z0 = _basis(C, self.rows, self.P, self.Binv, np.zeros(len(self.rows)))[0]
         self.A = _eliminated(self.Z0, self.Kt, K, self.P)
@@ -618,7 +622,15 @@ class IterativeAdjoint:
             t = np.r_[np.zeros(m), phi_lam_t]
             phi += t if self.Q is None else self.Q @ t
         rhs = phi_w + C[self.D].T @ (phi[self.D] / self.compliance)
-        z, mu_E = self._equalities(rhs, phi[self.rows])
+        e, Ra = phi[self.rows], 0.0
+        if self.R is not None:      # the best-fitting rigid part first (class docstring)
+            CR = C[self.rows] @ self.R
+            Ra = self.R @ np.linalg.lstsq(CR, e, rcond=None)[0]
+            e = e - C[self.rows] @ Ra
+            rhs = rhs - self.S @ Ra
+        z, mu_E = self._equalities(rhs, e)
+        if z is not None:
+            z = z + Ra
         if z is None:
             return None
         mu = np.zeros(n)
