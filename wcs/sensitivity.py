@@ -33,7 +33,9 @@ contact node, …); the chain rule to the parameters x uses the exact ∂c/∂x 
 parameter map (`wcs.coefficients.ParameterMap.jacobian`).
 
 Every factorization is the solution's own (`Solution.factor`, `heat_factor`,
-`contact_factor`): the adjoint of a solution is the same whatever was solved after it.
+`contact_factor`): the adjoint of a solution is the same whatever was solved after it. A
+method with its own adjoint (`adjoint(model, state)`: the iterative one's `IterativeAdjoint`,
+the same system by CG on the final active set, no W) gives (z, μ, σ) in its place.
 """
 from __future__ import annotations
 
