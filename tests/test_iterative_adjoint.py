@@ -104,3 +104,21 @@ def test_2d_tunnel_agrees_with_the_monolithic_adjoint():
 @pytest.mark.slow
 def test_2d_tunnel_iterative_gradients_against_finite_differences():
     assert check_against_fd(load(ROOT / "studies" / "tunnel-fault.yaml", "iterative")) < 1e-5
+
+
+def test_coulomb_slip_on_closed_nodes_is_refused_not_approximated():
+    """Coulomb: a slipping closed node's λt = σ(g w + F λn) couples its tangent to its normal and
+    the adjoint system is not symmetric: not built yet, so the gradient is None (and the point
+    flagged), never the Tresca gradient at frozen bounds."""
+    d = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
+    d["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.4}
+    d["uncertain"] = {"contacts.interface.friction.coefficient": [0.3, 0.5],
+                      "loads.pad_top.traction.0": [1.0e5, 3.0e5]}
+    d["solver"] = {"method": "iterative"}
+    study = wcs.load_study(d)
+    ev = study.evaluate(study.nominal(), gradients=True)
+    assert ev.status == 0 and "iterative" in ev.message, ev.message
+    raw = ev.state.raw
+    m = raw.lam_n.size
+    assert np.any(raw.free[:m] & ~raw.free[m:2 * m])           # closed and slipping nodes
+    assert all(g is None for g in ev.grad.values()) and ev.nonsmooth

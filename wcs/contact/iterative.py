@@ -568,8 +568,9 @@ class IterativeAdjoint:
     Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured ≤ 1e-9 of its terms where the gradient
     agrees with ContactAdjoint's, 1e-1 on that pad, so above `BALANCE` the solve is refused.
     Refused (`solve` gives None, `refusal` or `failure` says why): that imbalance, Coulomb
-    coupling of a slipping tangent to its node's normal (the transpose is not symmetric: not
-    built yet), a row without an own unknown, CG not converged."""
+    coupling of a slipping tangent to its closed node's normal (the transpose is not symmetric:
+    not built yet; on an open node, λn = 0 fixed, it only adds σ F μt to the node's μn), a row
+    without an own unknown, CG not converged."""
 
     def __init__(self, model, state):
         from wcs.sensitivity import _slip_frame
@@ -591,10 +592,12 @@ class IterativeAdjoint:
         self.refusal = self.failure = ""        # why every solve / the last solve gave None
         F = np.asarray(state.coefficients.coulomb, float)
         tang = self.fixed[self.fixed >= m]
-        if np.any((self.sigma[tang - m] != 0) & (F[(tang - m) % m] > 0)):
-            self.refusal = ("the iterative adjoint does not support Coulomb friction on slipping nodes yet "
+        tang = tang[(self.sigma[tang - m] != 0) & (F[(tang - m) % m] > 0)]     # λ_t = σ(g w + F λn)
+        if np.any(free[(tang - m) % m]):
+            self.refusal = ("the iterative adjoint does not support Coulomb friction on closed slipping nodes yet "
                             "(use solver.method monolithic for gradients)")
             return
+        self.coupled, self.F = tang, F  # on open nodes (λn = 0 fixed) the coupling only adds to μn
         try:
             self.rows, self.P, self.Binv = _pivots(rows, self.E, k)
         except _Unsupported as exc:
@@ -646,6 +649,8 @@ class IterativeAdjoint:
                                 "monolithic for gradients)")
                 return None
         mu[self.fixed] = phi[self.fixed] - C[self.fixed] @ z
+        node = (self.coupled - m) % m       # Nᵀ's open normal row: μn − Σ σ F μt = φn − Bn z
+        np.add.at(mu, node, self.sigma[self.coupled - m] * np.asarray(self.F)[node] * mu[self.coupled])
         return z, mu, self.sigma
 
     def _equalities(self, rhs, e):
