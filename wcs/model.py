@@ -189,10 +189,6 @@ class Model:
                    "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"{evaluation_fault(facts, method)}; {out}", path="solver.method")
         why += f"; one evaluation estimated at {cost_words(need, seconds)}"
-        polish = evaluation_cost(facts, "monolithic")[0]     # the iterative adjoint is polished by the monolithic method
-        if method == "iterative" and polish > memory:
-            why += (f"; warning: its adjoint gradients (the search's, the drivers') are polished by the monolithic "
-                    f"method, estimated at {polish / 1e9:.3g} GB: beyond the {memory / 1e9:.3g} GB")
         return method, why
 
     def _solver_facts(self, scene, facts: EvaluationFacts, memory: float, installed: bool) -> SolverFacts:

@@ -33,7 +33,9 @@ contact node, …); the chain rule to the parameters x uses the exact ∂c/∂x 
 parameter map (`wcs.coefficients.ParameterMap.jacobian`).
 
 Every factorization is the solution's own (`Solution.factor`, `heat_factor`,
-`contact_factor`): the adjoint of a solution is the same whatever was solved after it.
+`contact_factor`): the adjoint of a solution is the same whatever was solved after it. A
+method with its own adjoint (`adjoint(model, state)`: the iterative one's `IterativeAdjoint`,
+the same system by CG on the final active set, no W) gives (z, μ, σ) in its place.
 """
 from __future__ import annotations
 
@@ -255,7 +257,8 @@ def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.nda
     K = model.stiffness(c)
     U0 = model.elim.U0.tocsc()
     KU0 = (K @ U0).tocsc()
-    contact = ContactAdjoint(model, state) if state.raw is not None else None
+    own = getattr(model.method, "adjoint", None)      # a method with its own adjoint (the iterative one)
+    contact = None if state.raw is None else own(model, state) if own is not None else ContactAdjoint(model, state)
     Kh = model.H(c.kappa) if model.thermal else None
     return [_coefficient_gradient(model, state, P, contact, U0, KU0, Kh) for P in partials]
 

@@ -56,6 +56,7 @@ from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
 NULL = 1e-10         # a contact row with ‖C_i‖ ≤ NULL max‖C_j‖ acts on round-off only
+BALANCE = 1e-6       # relative residual of a floating body's equilibrium above which an adjoint is refused
 DEPENDENT = 1e-8     # relative singular value below which a node's active rows are dependent
 
 
@@ -320,17 +321,9 @@ class _Stepper:
     def solve(self, free, z, gw, c, k, eta):
         """(u, λ) of the step with the free set `free` (the slip data from z)."""
         t0 = time.perf_counter()
-        m, n = self.rows.m, self.n
+        n = self.n
         C, K = self.C, self.K
-        rows, piv, blocks = [], [], []
-        for i in np.flatnonzero(free.reshape(1 + k, m).any(axis=0)):
-            r, p, inv = self.rows.pivots(i, free[self.rows.node_rows(i)])
-            rows.append(r)
-            piv.append(p)
-            blocks.append(inv)
-        rows = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
-        P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
-        Binv = _block_diagonal(blocks)
+        rows, P, Binv = _pivots(self.rows, free, k)
         lam0, Kt = self._slip(free, z, gw, c, k)
         if self.R is not None:      # the rigid modes held by the closed and stuck rows and the disc springs
             held = C[rows] if self._springs is None else sp.vstack([C[rows], self._springs[3]])
@@ -339,14 +332,9 @@ class _Stepper:
             if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
                 raise _Unsupported("the closed and stuck contact rows of a Newton step leave a floating body free "
                               "(its rigid modes are not projected out by the iterative method yet)")
-        O = np.setdiff1d(np.arange(n), P)
-        X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
-        # Z: u = Z x + u_b with x_P = 0, i.e. Zᵀ K Z of the unknowns O, kept at K's size (rows P: diag K)
-        Z = sp.csr_matrix((np.r_[np.ones(len(O)), -X.data], (np.r_[O, P[X.row]], np.r_[O, O[X.col]])), shape=(n, n))
-        ub = np.zeros(n)
-        ub[P] = Binv @ self.b[rows]
+        Z, ub = _basis(C, rows, P, Binv, self.b[rows])
         rhs0 = self.f - C.T @ lam0
-        A = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+        A = _eliminated(Z, Kt, K, P)
         b = Z.T @ (rhs0 - Kt @ ub)
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
@@ -392,6 +380,37 @@ class _Stepper:
         out[m + nodes] = a * tau[0]
         out[2 * m + nodes] = a * tau[1]
         return out
+
+
+def _pivots(rows: _Rows, free, k):
+    """(rows, pivots P, C_AP⁻¹) of the free rows (`_Rows.pivots`, node by node)."""
+    m = rows.m
+    out, piv, blocks = [], [], []
+    for i in np.flatnonzero(free.reshape(1 + k, m).any(axis=0)):
+        r, p, inv = rows.pivots(i, free[rows.node_rows(i)])
+        out.append(r)
+        piv.append(p)
+        blocks.append(inv)
+    out = np.concatenate(out) if out else np.zeros(0, dtype=int)
+    P = np.concatenate(piv) if piv else np.zeros(0, dtype=int)
+    return out, P, _block_diagonal(blocks)
+
+
+def _basis(C, rows, P, Binv, b_rows):
+    """(Z, u_b) with u = Z x + u_b, x_P = 0, satisfying C_rows u = b_rows (module docstring)."""
+    n = C.shape[1]
+    O = np.setdiff1d(np.arange(n), P)
+    X = (Binv @ C[rows][:, O]).tocoo()             # u_P = Binv b_A − X u_O
+    Z = sp.csr_matrix((np.r_[np.ones(len(O)), -X.data], (np.r_[O, P[X.row]], np.r_[O, O[X.col]])), shape=(n, n))
+    ub = np.zeros(n)
+    ub[P] = Binv @ b_rows
+    return Z, ub
+
+
+def _eliminated(Z, Kt, K, P):
+    """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0)."""
+    n = K.shape[0]
+    return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:
@@ -519,10 +538,141 @@ def _solve_problem(model, p) -> ContactResult:
                                    **settings(model.options))
 
 
+class IterativeAdjoint:
+    r"""The adjoint of an iterative contact solution on its final active set, without W: what
+    `wcs.sensitivity.ContactAdjoint` gives, (z, μ, σ) for one criterion's partials, by one CG +
+    GAMG solve with the Newton step's elimination.
+
+    In the slip frame (`wcs.sensitivity._slip_frame`: C turned by Q, the free rows A — closed
+    normals, stuck tangents, ν⊥ rows with the compliance D = |s|/gw — and the fixed rows B),
+    the last Newton step's system is [K, C_Aᵀ, C_Bᵀ; C_A, −D, 0; 0, 0, I] [u; λ_A; λ_B] =
+    [f; d_A; h_B] (Tresca); its transpose with the partials (φ_w, φ_λ) as right-hand side is
+
+        K z + C_Aᵀ μ_A = φ_w,   C_A z − D μ_A = φ_A,   μ_B = φ_B − C_B z,
+
+    the module docstring's N-system with u eliminated instead of λ. The rows with compliance
+    are springs (μ = (C z − φ)/D: K + C_Dᵀ D⁻¹ C_D, the step's cγ/(1 − γ) = gw/|s| at the
+    answer), the equalities E are eliminated node by node (`_Rows.pivots`, z = Z x + z_b with
+    C_E z_b = φ_E) and Zᵀ K Z x = Zᵀ(φ_w − K z_b) is solved by CG + GAMG to the study's
+    Krylov tolerance; μ_E = C_EP⁻ᵀ (φ_w − K z)_P on the pivots. The operator and its GAMG
+    hierarchy are built once for all criteria. As ContactAdjoint: a tangent tied to its
+    closed node's normal (rollers on both sides: `Model.tied`) and a row acting on nothing carry
+    μ = 0. Floating bodies (rigid modes R, K R = 0): the equalities then hold every rigid mode
+    (the forward step checks it) and the system is regular, but z may be mostly a rigid motion
+    whose deformation, which makes μ ~ K z, would lie below the round-off of K z (the mean
+    pressure on the floating contact patch: μ wrong by 1e7 relative, worse the tighter CG).
+    So the rigid part that fits the equalities best, R α with α = argmin ‖C_E R α − φ_E‖, is
+    taken out first and the system solved for z − R α (K R α = 0 exactly, Kt R α = S R α with S
+    the springs). Where φ_E is itself rigid to round-off (the mean pressure over the whole face
+    of the floating Tresca pad) even that leaves μ as noise; μ must balance the rigid modes,
+    Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured ≤ 1e-9 of its terms where the gradient
+    agrees with ContactAdjoint's, 1e-1 on that pad, so above `BALANCE` the solve is refused.
+    Refused (`solve` gives None, `refusal` or `failure` says why): that imbalance, Coulomb
+    coupling of a slipping tangent to its closed node's normal (the transpose is not symmetric:
+    not built yet; on an open node, λn = 0 fixed, it only adds σ F μt to the node's μn), a row
+    without an own unknown, CG not converged."""
+
+    def __init__(self, model, state):
+        from wcs.sensitivity import _slip_frame
+        res = state.raw
+        m = res.lam_n.size
+        C = model.contact_rows
+        n = C.shape[0]
+        k = n // m - 1
+        Q, self.sigma, compliance, free = _slip_frame(model, state, m, k)
+        if Q is not None:
+            C = (Q @ C).tocsr()
+        K = sp.csr_matrix(state.stiffness)        # the method factors no units: the data set's own
+        rows = _Rows(C, m, k)
+        spring = free & (compliance > 0)
+        tied = np.r_[np.zeros(m, bool), model.tied[0] & np.tile(free[:m], k)] & (compliance == 0)
+        self.E = free & ~spring & ~tied & rows.acting
+        self.D, self.fixed = np.flatnonzero(spring), np.flatnonzero(~free)
+        self.C, self.Q, self.m, self.n, self.R = C, Q, m, n, model.R_r
+        self.refusal = self.failure = ""        # why every solve / the last solve gave None
+        F = np.asarray(state.coefficients.coulomb, float)
+        tang = self.fixed[self.fixed >= m]
+        tang = tang[(self.sigma[tang - m] != 0) & (F[(tang - m) % m] > 0)]     # λ_t = σ(g w + F λn)
+        if np.any(free[(tang - m) % m]):
+            self.refusal = ("the iterative adjoint does not support Coulomb friction on closed slipping nodes yet "
+                            "(use solver.method monolithic for gradients)")
+            return
+        self.coupled, self.F = tang, F  # on open nodes (λn = 0 fixed) the coupling only adds to μn
+        try:
+            self.rows, self.P, self.Binv = _pivots(rows, self.E, k)
+        except _Unsupported as exc:
+            self.refusal = f"iterative adjoint: {exc}"
+            return
+        Cd = C[self.D]
+        self.S = (Cd.T @ sp.diags(1.0 / compliance[self.D]) @ Cd).tocsr()
+        self.Kt = (K + self.S).tocsr()
+        self.compliance = compliance[self.D]
+        self.Z0 = _basis(C, self.rows, self.P, self.Binv, np.zeros(len(self.rows)))[0]
+        self.A = _eliminated(self.Z0, self.Kt, K, self.P)
+        self.rtol = model.options.iterative.tolerance
+        self.krylov = Krylov(model.near_nullspace)
+
+    def solve(self, phi_w: np.ndarray, phi_lam_n: np.ndarray | None, phi_lam_t: np.ndarray | None = None):
+        """(z, μ, σ) as `ContactAdjoint.solve` (μ in the slip frame), or None where refused (`refusal`)
+        or CG failed (`failure`)."""
+        if self.refusal:
+            return None
+        m, n, C = self.m, self.n, self.C
+        phi = np.zeros(n)
+        if phi_lam_n is not None:
+            phi[:m] += phi_lam_n
+        if phi_lam_t is not None:
+            t = np.r_[np.zeros(m), phi_lam_t]
+            phi += t if self.Q is None else self.Q @ t
+        rhs = phi_w + C[self.D].T @ (phi[self.D] / self.compliance)
+        e, Ra = phi[self.rows], 0.0
+        if self.R is not None:      # the best-fitting rigid part first (class docstring)
+            CR = C[self.rows] @ self.R
+            Ra = self.R @ np.linalg.lstsq(CR, e, rcond=None)[0]
+            e = e - C[self.rows] @ Ra
+            rhs = rhs - self.S @ Ra
+        z, mu_E = self._equalities(rhs, e)
+        if z is not None:
+            z = z + Ra
+        if z is None:
+            return None
+        mu = np.zeros(n)
+        mu[self.rows] = mu_E
+        mu[self.D] = (C[self.D] @ z - phi[self.D]) / self.compliance
+        if self.R is not None:      # the rigid modes' equilibrium Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (class docstring)
+            load = C[np.r_[self.rows, self.D]].T @ mu[np.r_[self.rows, self.D]]
+            off = np.max(np.abs(self.R.T @ (phi_w - load)) / np.maximum(
+                np.abs(self.R).T @ (np.abs(phi_w) + np.abs(load)), 1e-300))
+            if off > BALANCE:
+                self.failure = (f"iterative adjoint: the multipliers leave a floating body unbalanced (relative "
+                                f"{off:.1e} > {BALANCE:.0e}: its rigid motion's round-off; use solver.method "
+                                "monolithic for gradients)")
+                return None
+        mu[self.fixed] = phi[self.fixed] - C[self.fixed] @ z
+        node = (self.coupled - m) % m       # Nᵀ's open normal row: μn − Σ σ F μt = φn − Bn z
+        np.add.at(mu, node, self.sigma[self.coupled - m] * np.asarray(self.F)[node] * mu[self.coupled])
+        return z, mu, self.sigma
+
+    def _equalities(self, rhs, e):
+        """(y, μ_E) of Kt y + C_Eᵀ μ_E = rhs, C_E y = e by CG on the eliminated operator; (None,
+        None) where CG fails (`failure` says so)."""
+        yb = _basis(self.C, self.rows, self.P, self.Binv, e)[1]
+        x, its, ok = self.krylov.solve(self.A, self.Z0.T @ (rhs - self.Kt @ yb), self.rtol)
+        if not ok:
+            self.failure = f"iterative adjoint: CG did not reach the relative residual {self.rtol:.1e} in {its} iterations"
+            return None, None
+        y = self.Z0 @ x + yb
+        return y, self.Binv.T @ (rhs - self.Kt @ y)[self.P]
+
+
 class Iterative(Primal):
     """`solver.method: iterative`: anchored as monolithic (the nominal data cold, every other data
-    set from their answer), K(c) assembled, no units; the adjoint polished by the monolithic method
-    (visibly: the solver string says so)."""
+    set from their answer), K(c) assembled, no units; the adjoint by `IterativeAdjoint` on the
+    iterative answer's active set (no W)."""
+
+    def adjoint(self, model, state) -> IterativeAdjoint:
+        """The contact adjoint of a solution of this method (`wcs.sensitivity.coefficient_gradients`)."""
+        return IterativeAdjoint(model, state)
 
     def check(self, model) -> None:
         if model.options.iterative.preconditioner == "bddc":
@@ -537,10 +687,10 @@ class Iterative(Primal):
 
     def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
         out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
-        if used is None and not adjoint and out.raw is not None:
+        if used is None and out.raw is not None:
             out = dataclasses.replace(out, solver=f"iterative: {out.raw.iterations} Newton steps, "
                                                   f"{out.raw.krylov_iterations} CG iterations")
         return out
 
 
-METHOD = Iterative("iterative", _solve_problem, anchored=True, polish=True)
+METHOD = Iterative("iterative", _solve_problem, anchored=True)
