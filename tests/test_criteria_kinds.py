@@ -208,3 +208,22 @@ def test_contact_pressure_peak_gradient_in_3d_on_the_tunnels_fault():
     ev = study.evaluate(study.nominal())
     assert ev.phi["peak"] == ev.fields["contact_pressure"].values.max()
     assert check_against_fd(study) < 1e-5
+
+
+def test_distance_to_graded_triangles_is_the_minimum_over_all_of_them():
+    """The nearest-facet search of the contact criteria, classed by triangle size, finds exactly
+    the minimum over every triangle on a face graded 100x (3D Hertz from a .msh: one search radius
+    for all triangles made it an all-pairs search, 64 s of a 72 s solve)."""
+    from types import SimpleNamespace
+
+    from wcs.criteria import _distance_to_facets, _triangle_distances
+    rng = np.random.default_rng(1)
+    n = 1500
+    c = rng.uniform(-1, 1, (n, 3))
+    c[:, 2] = 0.0
+    size = 0.002 + 0.2 * np.linalg.norm(c, axis=1) ** 3
+    tri = c[:, None, :] + size[:, None, None] * rng.normal(size=(n, 3, 3))
+    mesh = SimpleNamespace(p=tri.reshape(-1, 3).T, facets=np.arange(3 * n).reshape(n, 3).T)
+    x = rng.uniform(-1, 1, (200, 3)) * [1.0, 1.0, 0.05]
+    brute = np.array([_triangle_distances(np.repeat(xi[None], n, 0), tri).min() for xi in x])
+    assert np.array_equal(_distance_to_facets(mesh, np.arange(n), x), brute)

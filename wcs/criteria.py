@@ -180,9 +180,11 @@ def _distance_to_facets(mesh, facets, x: np.ndarray) -> np.ndarray:
     """(k,) distance of the points x (k, d) to the nearest of the given boundary facets. 3D: the
     triangles near each point only — a triangle lies within r (its vertices' largest distance
     from its centroid) of its centroid, so with u the distance to the triangle of the nearest
-    centroid, no triangle whose centroid is farther than u + max r can be nearer (exact: the
-    same minimum as over every triangle; over all pairs, 6e7 of them on a 1e5 shear patch's
-    contact criteria, it took 25 s)."""
+    centroid, no triangle whose centroid is farther than u + r can be nearer (exact: the same
+    minimum as over every triangle; over all pairs, 6e7 of them on a 1e5 shear patch's contact
+    criteria, it took 25 s). The triangles are searched in classes of r within a factor 2, each
+    with its own largest r: with one r for all, a graded face (3D Hertz from a .msh: r from
+    0.0024 to 0.157 m) made every point collect ~2,200 of 2,438 triangles, 64 of a 72 s solve."""
     if mesh.p.shape[0] == 2:
         a, b = mesh.p[:, mesh.facets[0, facets]].T, mesh.p[:, mesh.facets[1, facets]].T
         return dist_segments(x[:, 0], x[:, 1], a, b)
@@ -191,15 +193,17 @@ def _distance_to_facets(mesh, facets, x: np.ndarray) -> np.ndarray:
     if len(x) == 0 or len(tri) == 0:
         return np.full(len(x), np.inf)
     centroid = tri.mean(axis=1)
-    reach = np.linalg.norm(tri - centroid[:, None], axis=2).max()
-    tree = cKDTree(centroid)
-    _, nearest = tree.query(x)
+    reach = np.linalg.norm(tri - centroid[:, None], axis=2).max(axis=1)
+    _, nearest = cKDTree(centroid).query(x)
     bound = _triangle_distances(x, tri[nearest])
-    near = tree.query_ball_point(x, bound + reach)
-    point = np.repeat(np.arange(len(x)), [len(j) for j in near])
-    cand = np.concatenate([np.asarray(j, dtype=np.int64) for j in near])
+    level = np.floor(np.log2(np.maximum(reach, 1e-300) / max(reach.max(), 1e-300))).astype(int)
     out = np.full(len(x), np.inf)
-    np.minimum.at(out, point, _triangle_distances(x[point], tri[cand]))
+    for L in np.unique(np.maximum(level, -60)):
+        members = np.flatnonzero(np.maximum(level, -60) == L)
+        near = cKDTree(centroid[members]).query_ball_point(x, bound + reach[members].max())
+        point = np.repeat(np.arange(len(x)), [len(j) for j in near])
+        cand = members[np.concatenate([np.asarray(j, dtype=np.int64) for j in near])]
+        np.minimum.at(out, point, _triangle_distances(x[point], tri[cand]))
     return out
 
 
