@@ -1,0 +1,121 @@
+"""wcs against Kratos Multiphysics 10.4.4 (issue 25, "Ahead of the peer"): the 3D block-on-block
+patch (studies/validation/block-on-block-3d.yaml) read by both codes from ONE gmsh file
+(tests/bench/kratos_mesh.py: contact band meshed at `face`, the rest at 0.2), frictionless,
+one thread each (OMP/OPENBLAS/MKL_NUM_THREADS=1), whole processes run alternately
+(wcs iterative, wcs monolithic, Kratos, ...; WCS_BENCH_KRATOS_REPEAT rounds, default 3), each
+timed by wall clock and its peak resident set (getrusage of the finished child).
+
+- wcs: `wcs solve` of the patch study with `mesh: {file: ...}` and `solver.method` iterative,
+  then monolithic; the answer read back is the largest contact pressure (the patch test's
+  exact value is the applied 2 MPa at every contact node).
+- Kratos: tests/bench/kratos_patch.py run by the interpreter in WCS_KRATOS_PYTHON (Kratos in
+  its own venv: KratosMultiphysics, -StructuralMechanics-, -ContactStructuralMechanics-,
+  -LinearSolversApplication 10.4.4 from PyPI); mortar ALM frictionless contact, AMGCL. Its
+  answer is the largest and smallest normal contact pressure on the slave face.
+Both must give 2 MPa to 1 % for the comparison to count. Without WCS_KRATOS_PYTHON the Kratos
+rows say "absent". WCS_BENCH_KRATOS_FACES picks the face sizes (default "0.04 0.02 0.01").
+Table: results/bench/bench_kratos.csv.
+"""
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from common import ROOT, OUT, write_table
+from kratos_mesh import write_patch_msh
+
+PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"
+DRIVER = Path(__file__).with_name("kratos_patch.py")
+PRESSURE = 2.0e6
+ONE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def patch_study(msh: Path, method: str) -> dict:
+    """The patch study on the file mesh: the file's groups replace the geometric boundaries."""
+    d = yaml.safe_load(PATCH.read_text())
+    s = d["scene"]
+    s["mesh"] = {"file": msh.name}
+    s["bodies"] = {"base": {"regions": [{"material": "stiff"}]}, "block": {"regions": [{"material": "soft"}]}}
+    s.pop("boundaries")
+    s["regions_of_interest"].pop("core")              # a box cannot be cut from a file's cells
+    d["criteria"] = [c for c in d["criteria"] if c["name"] == "pressure"]
+    d["solver"] = {"method": method}
+    return d
+
+
+def run(cmd: list[str], cwd: Path) -> tuple[float, float, subprocess.CompletedProcess]:
+    """Wall seconds and peak resident set (GB) of one child process (run alone, one at a time)."""
+    env = {**os.environ, **ONE_THREAD}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    t = time.perf_counter()
+    p = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    # ru_maxrss of the children is the largest of any child so far: valid only when it grew
+    return wall, (peak / 1e6 if peak > before else float("nan")), p
+
+
+def wcs_case(work: Path, msh: Path, method: str) -> list[str]:
+    study = work / f"patch-{method}.yaml"
+    study.write_text(yaml.safe_dump(patch_study(msh, method)))
+    return [sys.executable, "-m", "wcs.cli", "solve", "-q", "-o", str(work / f"{method}.nc"), str(study)]
+
+
+def wcs_answer(nc: Path) -> dict:
+    """Unknowns, contact nodes and the extreme contact pressures of the nominal solve."""
+    with xr.open_dataset(nc) as ds:
+        p = ds["contact_pressure"].values
+        return {"unknowns": 3 * ds.sizes["node"], "contact_nodes": ds.sizes["contact_node"],
+                "p_max": float(p.max()), "p_min": float(p.min())}
+
+
+@pytest.mark.bench
+def test_bench_kratos_patch(tmp_path):
+    faces = [float(f) for f in os.environ.get("WCS_BENCH_KRATOS_FACES", "0.04 0.02 0.01").split()]
+    repeat = int(os.environ.get("WCS_BENCH_KRATOS_REPEAT", "3"))
+    kratos = os.environ.get("WCS_KRATOS_PYTHON")
+    if not kratos:
+        print("Kratos absent: set WCS_KRATOS_PYTHON to the python of a venv with KratosMultiphysics")
+    rows = []
+    for face in faces:
+        work = tmp_path / f"face{face}"
+        work.mkdir()
+        msh = work / "patch.msh"
+        write_patch_msh(msh, face)
+        cases = {m: wcs_case(work, msh, m) for m in ("iterative", "monolithic")}
+        if kratos:
+            cases["kratos"] = [kratos, str(DRIVER), str(msh), str(work / "kratos")]
+        runs = {k: [] for k in cases}
+        for _ in range(repeat):
+            for name, cmd in cases.items():          # alternating: A B C A B C ...
+                wall, peak, p = run(cmd, work)
+                runs[name].append((wall, peak, p.returncode, p.stdout[-2000:] + p.stderr[-2000:]))
+        for name, rs in runs.items():
+            ok = [r for r in rs if r[2] == 0]
+            answer = {}
+            if ok and name == "kratos":
+                answer = json.loads(ok[-1][3].strip().splitlines()[-1])
+            elif ok:
+                answer = wcs_answer(work / f"{name}.nc")
+            walls, peaks = [r[0] for r in ok], [r[1] for r in ok]
+            rows.append([face, name, len(ok), len(rs),
+                         round(float(np.median(walls)), 2) if ok else "failed",
+                         round(min(walls), 2) if ok else "", round(max(walls), 2) if ok else "",
+                         round(float(np.nanmax(peaks)), 3) if ok else "",
+                         json.dumps(answer) if ok else rs[-1][3].strip().splitlines()[-1][:200]])
+            print(rows[-1], flush=True)
+    if not kratos:
+        rows.append(["", "kratos", 0, 0, "absent (WCS_KRATOS_PYTHON unset)", "", "", "", ""])
+    path = write_table("bench_kratos", ["face", "code", "ok_runs", "runs", "wall_median_s", "wall_min_s",
+                                        "wall_max_s", "peak_gb", "answer"], rows)
+    print(path.read_text())
