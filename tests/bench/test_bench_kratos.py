@@ -14,8 +14,10 @@ timed by wall clock and its peak resident set (getrusage of the finished child).
   answer is the largest and smallest normal contact pressure on the slave face.
 The patch test's exact answer: contact pressure 2 MPa, the top lowered by
 0.5·2e6/5e9 + 0.5·2e6/2e10 = 2.5e-4 m (uniaxial stress, sides free). Both codes must give the
-top displacement to 0.1 % and the pressure to 2 % (Kratos' mortar multipliers at the face's
-edges differ by ≈ 1 %) for the comparison to count: asserted per successful run. Without WCS_KRATOS_PYTHON the Kratos
+top displacement to 0.1 % and the contact pressure at the face's centre to 1 % for the
+comparison to count (asserted per successful run; wcs gives both to 1e-7, Kratos the
+displacement to 4e-4 and its nodal multipliers scatter by ≈ 0.5 % inside the face, up to 2.5 %
+at the face's edges); the extreme pressures are reported beside. Without WCS_KRATOS_PYTHON the Kratos
 rows say "absent". WCS_BENCH_KRATOS_FACES picks the face sizes (default "0.04 0.02 0.01").
 Table: results/bench/bench_kratos.csv.
 """
@@ -78,8 +80,10 @@ def wcs_answer(nc: Path) -> dict:
     with xr.open_dataset(nc) as ds:
         p = ds["contact_pressure"].values
         top = ds["coords"].values[:, 2] > 0.5 - 1e-9
+        xy = ds["contact_coords"].values[:, :2]
+        centre = np.argmin(((xy - 0.5) ** 2).sum(axis=1))
         return {"unknowns": 3 * ds.sizes["node"], "contact_nodes": ds.sizes["contact_node"],
-                "p_max": float(p.max()), "p_min": float(p.min()),
+                "p_centre": float(p[centre]), "p_max": float(p.max()), "p_min": float(p.min()),
                 "top_uz_min": float(ds["displacement"].values[top, 2].min())}
 
 
@@ -91,8 +95,7 @@ def json_line(text: str) -> dict:
 def check(answer: dict) -> None:
     """The patch test's exact answer (module docstring), so that both codes solved the same problem."""
     assert answer["top_uz_min"] == pytest.approx(-TOP_UZ, rel=1e-3), answer
-    assert answer["p_min"] == pytest.approx(PRESSURE, rel=2e-2), answer
-    assert answer["p_max"] == pytest.approx(PRESSURE, rel=2e-2), answer
+    assert answer["p_centre"] == pytest.approx(PRESSURE, rel=1e-2), answer
 
 
 @pytest.mark.bench
@@ -128,12 +131,12 @@ def test_bench_kratos_patch(tmp_path):
                          round(float(np.median(walls)), 2) if ok else "failed",
                          round(min(walls), 2) if ok else "", round(max(walls), 2) if ok else "",
                          round(max(peaks), 3) if ok else "",
-                         f"{a['p_min']:.6g}" if ok else "", f"{a['p_max']:.6g}" if ok else "",
+                         f"{a['p_centre']:.6g}" if ok else "", f"{a['p_min']:.6g}" if ok else "", f"{a['p_max']:.6g}" if ok else "",
                          f"{a['top_uz_min']:.6g}" if ok else "", "" if ok else rs[-1][3]])
             print(rows[-1], flush=True)
     if not kratos:
-        rows.append(["", "kratos", "", "", 0, 0, "absent (WCS_KRATOS_PYTHON unset)", "", "", "", "", "", "", ""])
+        rows.append(["", "kratos", "", "", 0, 0, "absent (WCS_KRATOS_PYTHON unset)", "", "", "", "", "", "", "", ""])
     path = write_table("bench_kratos", ["face", "code", "unknowns", "contact_nodes", "ok_runs", "runs",
-                                        "wall_median_s", "wall_min_s", "wall_max_s", "peak_gb", "p_min", "p_max",
+                                        "wall_median_s", "wall_min_s", "wall_max_s", "peak_gb", "p_centre", "p_min", "p_max",
                                         "top_uz_min", "failure"], rows)
     print(path.read_text())
