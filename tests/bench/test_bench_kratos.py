@@ -113,7 +113,7 @@ def test_bench_kratos_patch(tmp_path):
         write_patch_msh(msh, face)
         cases = {m: wcs_case(work, msh, m) for m in ("iterative", "monolithic")}
         if kratos:
-            cases["kratos"] = [kratos, str(DRIVER), str(msh), str(work / "kratos")]
+            cases["kratos"] = [kratos, str(DRIVER), "patch", str(msh), str(work / "kratos")]
         runs = {k: [] for k in cases}
         for _ in range(repeat):
             for name, cmd in cases.items():          # alternating: A B C A B C ...
