@@ -152,6 +152,16 @@ def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, 
     return rows
 
 
+def assert_fair(rows: list) -> None:
+    """Every answer given is right (the failure column of a row that ran says only that Kratos'
+    Newton stopped unconverged) and wcs' iterative method solved every round. The monolithic
+    method may refuse (exit 2 with its memory and time estimate: face 0.01 needs ≈ 76 GB):
+    that is its result, kept in the table."""
+    wrong = [r for r in rows if r[4] and r[-1] not in ("", "Newton not converged")]
+    assert not wrong, f"an answer is off (the failure column): {wrong}"
+    assert all(r[4] == r[5] for r in rows if r[1] == "iterative"), "wcs' iterative method failed: see the table"
+
+
 def kratos_python() -> str | None:
     kratos = os.environ.get("WCS_KRATOS_PYTHON")
     if not kratos:
@@ -177,7 +187,7 @@ def test_bench_kratos_patch(tmp_path):
         cmd = kratos and [kratos, str(DRIVER), "patch", str(work / "mesh.msh"), str(work / "kratos")]
         rows += compare(work, face, studies, cmd, check_patch, 0.5, (0.5, 0.5))
     print(write_table("bench_kratos", HEADER, rows + absent_row(kratos)).read_text())
-    assert not [r for r in rows if r[-1]], "a code failed or solved another problem: see the failure column"
+    assert_fair(rows)
 
 
 @pytest.mark.bench
@@ -194,5 +204,4 @@ def test_bench_kratos_hertz(tmp_path):
     cmd = kratos and [kratos, str(DRIVER), "hertz", str(tmp_path / "mesh.msh"), str(tmp_path / "kratos")]
     rows = compare(tmp_path, h, studies, cmd, check_hertz, 1.0, (0.0, 0.0))
     print(write_table("bench_kratos_hertz", HEADER, rows + absent_row(kratos)).read_text())
-    wrong = [r for r in rows if r[-1] and r[-1] != "Newton not converged"]
-    assert not wrong, "a code failed or solved another problem: see the failure column"
+    assert_fair(rows)
