@@ -24,6 +24,22 @@ edges (measured 2026-12-06): the table reports them.
 Without WCS_KRATOS_PYTHON the Kratos
 rows say "absent". WCS_BENCH_KRATOS_FACES picks the face sizes (default "0.04 0.02 0.01").
 Table: results/bench/bench_kratos.csv.
+
+Measured 2026-12-06 (2 shared cores, load 3-4; medians of 3 alternating rounds; peak RSS):
+  face  unknowns  contact  wcs iterative     wcs monolithic          Kratos (ALM, AMGCL)
+  0.04   10,515      788    4.6 s 0.45 GB     4.5 s 0.74 GB           1.7 s 0.23 GB (3 Newton)
+  0.02   37,329    3,015    7.1 s 0.72 GB    48.4 s 5.54 GB           7.8 s 0.28 GB (3 Newton)
+  0.01  143,562   11,820   30.4 s 1.87 GB    refused (est. 76 GB)    29.5 s 0.78 GB (2 Newton)
+wcs iterative at 0.02 (cProfile, 10.5 s): PETSc GAMG set-up 1.8 s + CG 1.9 s (2 Newton steps);
+the rest is fixed cost: imports ≈ 2-4 s (cvxpy alone 1.9 s, imported for the floating block's
+solvability check), the .msh overlap check 2.2 s, the NetCDF/VTU written ≈ 1 s.
+3D Hertz at a/24 (94,593 unknowns, 1 round): wcs iterative 144 s, monolithic 108 s, both
+8.9 GB; Kratos diverged (Newton residual 1e107, "Zero pivot in ILU"; at a/8 it stopped
+unconverged after 30 Newton steps). wcs' time and memory there go to building the contact
+pressure criterion (cProfile of monolithic: 64 of 72 s "assembly" in
+criteria._distance_to_facets): its KD-tree prune uses ONE reach, the largest
+vertex-centroid distance over all facets of block_top (0.157 m on the graded face, median
+0.0024 m), so each query point gathers ≈ 2,200 of the 2,438 facets: all pairs.
 """
 from __future__ import annotations
 
