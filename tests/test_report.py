@@ -136,7 +136,10 @@ def check_page(text) -> Page:
     missing = [s for s in SECTION_IDS if s not in page.ids]
     assert not missing, f"sections missing: {missing}"
     assert "report-error" not in text, "a section failed to draw"
-    assert "<script" not in text.lower() and "<link" not in text.lower()
+    lower = text.lower()
+    # self-contained: no linked stylesheet or script; a script only inline, and only for the 3D view
+    assert "<link" not in lower and "<script src" not in lower
+    assert ("<script" in lower) == ('id="view3d"' in text), "a script on a page without the 3D view"
     assert page.images
     for src in page.images:
         assert src.startswith("data:image/png;base64,"), src[:60]
