@@ -2,6 +2,8 @@
 of a tetrahedral mesh cover its surface exactly (areas of a meshed box to round-off), a plane
 cut of the tetrahedra covers the body's cross-section exactly, and a surface's own frame spans
 its plane."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -396,3 +398,43 @@ def test_the_contact_surface_drawn_is_where_the_file_has_contact_nodes(fault_sm)
     xc = np.column_stack([decode(d["traces"][ci][a]) for a in "xyz"])
     assert d["missing"] == [] and len(xc) > 10 and xc[:, 1].max() <= 0.5 + 1e-6
     assert decode(d["cases"][0]["values"]["contact_pressure"][0]) == pytest.approx(1 + xc[:, 1], rel=1e-6)
+
+
+def drive_view(html: Path, folder: Path) -> dict:
+    """Headless Chromium on a report's 3D view, as an assessor uses it: the page loads with no
+    console error and no request leaving the file, a mouse drag turns the model, the field list
+    recolours it (von Mises, then the contact pressure where the file has contact); each state's
+    screenshot (kept in `folder` for a reviewer) shows a picture, and each differs from the last.
+    Returns the screenshots' paths."""
+    from PIL import Image
+    from cdp import Browser
+    from test_report import ensure_chromium
+    keys = [f["key"] for f in view_json(html.read_text())["fields"]]
+    with Browser(ensure_chromium(), folder, width=1280, height=1000) as b:
+        b.call("Network.enable", session=True)
+        b.open(html)
+        assert b.evaluate("window.wcsView3dReady.then(() => document.getElementById('view3d-plot').dataset.ready)") == "1"
+        x, y, w, h = b.evaluate("(() => { const e = document.getElementById('view3d-plot'); e.scrollIntoView();"
+                                "const r = e.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()")
+        clip = {"x": x, "y": y + b.evaluate("window.scrollY"), "width": w, "height": h}
+        shots = {"start": b.screenshot(folder / f"{html.stem}-start.png", clip)}
+        eye = "JSON.stringify(wcsView3d.plot._fullLayout.scene._scene.getCamera().eye)"
+        before = b.evaluate(eye)
+        b.drag(x + 0.5 * w, y + 0.5 * h, x + 0.5 * w + 220, y + 0.5 * h + 80)
+        assert b.evaluate(eye) != before
+        shots["turned"] = b.screenshot(folder / f"{html.stem}-turned.png", clip)
+        for field in ("von_mises", "contact_pressure"):
+            if field in keys:
+                b.evaluate(f"(() => {{ const s = document.getElementById('view3d-field'); s.value = '{keys.index(field)}';"
+                           "s.dispatchEvent(new Event('change')); return 1; })()")
+                b.evaluate("wcsView3d.draw().then(() => 1)")
+                shots[field] = b.screenshot(folder / f"{html.stem}-{field}.png", clip)
+        requests = [m["params"]["request"]["url"] for m in b.events if m.get("method") == "Network.requestWillBeSent"]
+        assert b.errors == []
+    assert all(u.startswith(("file:", "data:", "blob:")) for u in requests), requests
+    pixels = [np.asarray(Image.open(p).convert("RGB")).astype(int) for p in shots.values()]
+    for name, a in zip(shots, pixels):
+        assert len(np.unique(a[::4, ::4].reshape(-1, 3), axis=0)) > 100, f"{name}: a blank picture"
+    for (name, a), b_ in zip(list(zip(shots, pixels))[1:], pixels):
+        assert np.abs(a - b_).sum(axis=2).astype(bool).mean() > 0.02, f"{name}: the picture did not change"
+    return shots
