@@ -48,7 +48,7 @@ import scipy.sparse as sp
 
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
-from wcs.contact.solvability import rigid_load, unbalanced_rigid_motion
+from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
                                 project)
 from wcs.errors import StudyError
@@ -87,8 +87,9 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     R = None if R is None or not np.asarray(R).size else np.asarray(R, dtype=float).reshape(len(f), -1)
     timings = {}
     if R is not None and not coulomb:
-        value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
-        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
+        found = unbalanced(f, Bn, Bt, gw, R)
+        if found is not None:
+            value, alpha = found
             return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",

@@ -30,6 +30,13 @@ def rigid_load(R, f) -> np.ndarray:
     return np.where(np.abs(e) <= 1e-12 * (np.abs(R).T @ np.abs(f)), 0.0, e)
 
 
+def unbalanced(f, Bn, Bt, gw, R):
+    """(value, α) of `unbalanced_rigid_motion` when the load is unbalanced beyond round-off
+    (value > 1e-9 of the load's work on the rigid modes, `rigid_load`), else None."""
+    value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
+    return (value, alpha) if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300) else None
+
+
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):
     """max fᵀRα − Σ gw_i |(Bt Rα)_i| over admissible rigid motions (Bn Rα ≤ 0), α ∈ [−1, 1]^r
     (3D: |α| ≤ 1).

@@ -70,7 +70,7 @@ import scipy.sparse as sp
 
 from wcs import linalg
 from wcs.contact.problem import ContactProblem
-from wcs.contact.solvability import CLARABEL_TIGHT, rigid_load, unbalanced_rigid_motion
+from wcs.contact.solvability import CLARABEL_TIGHT, rigid_load, unbalanced
 from wcs.status import Status
 
 OPEN, STICK, SLIP = 0, 1, 2
@@ -763,9 +763,10 @@ def solve_condensed(problem: ContactProblem, *, tol=1e-10, max_iter=100, factor:
     gw = law.start(warm.lam_n if warm is not None else None, np.inf)     # Coulomb: all stick, or warm
 
     if R is not None and not coulomb and not checked:
-        value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
+        found = unbalanced(f, Bn, Bt, gw, R)
         timings["solvability"] = time.perf_counter() - t0
-        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
+        if found is not None:
+            value, alpha = found
             return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body: fᵀv − j(v) = {value:.3e} > 0 "
                                  f"for the admissible rigid motion v = Rα, α = {np.array2string(alpha, precision=4)}",
@@ -800,8 +801,9 @@ def solve_condensed(problem: ContactProblem, *, tol=1e-10, max_iter=100, factor:
     timings["newton"] = time.perf_counter() - t
 
     if not ok and coulomb and R is not None:     # friction F p may be too weak to hold a floating body
-        value, a = unbalanced_rigid_motion(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R)
-        if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300):
+        found = unbalanced(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R)
+        if found is not None:
+            value, a = found
             return ContactResult(None, None, None, Status.UNSOLVABLE,
                                  f"unbalanced load on a floating body held by Coulomb friction: "
                                  f"fᵀv − j(v) = {value:.3e} > 0 at the last pressures, α = "
