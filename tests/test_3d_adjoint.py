@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 import wcs
 from wcs.contact import solver as cs
-from wcs.sensitivity import ContactAdjoint
+from wcs.model.sensitivity import ContactAdjoint
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_3d_patch import E_BASE, E_BLOCK, G, H, shear_patch  # noqa: E402

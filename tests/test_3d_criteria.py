@@ -13,9 +13,9 @@ import pytest
 
 import wcs
 from test_3d_adjoint import two_region_block
-from wcs import criteria
+from wcs.model import criteria
 from wcs.errors import StudyError
-from wcs.fem import tet
+from wcs.geometry import tet
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.scene.selectors import Selection
 from wcs.study import load_scene
@@ -228,7 +228,7 @@ def test_the_distance_to_facets_is_the_minimum_over_every_triangle():
     minimum, to the bit, as the distance to every triangle: random triangles of all sizes, points
     inside and around their cloud."""
     from types import SimpleNamespace
-    from wcs.criteria import _distance_to_facets, _triangle_distances
+    from wcs.model.criteria import _distance_to_facets, _triangle_distances
     rng = np.random.default_rng(0)
     tri = rng.random((300, 3, 3)) * rng.choice([0.01, 0.1, 1.0], (300, 1, 1)) + rng.random((300, 1, 3))
     x = rng.random((200, 3)) * 3 - 1

@@ -21,9 +21,9 @@ from skfem import Basis, ElementTetP1, ElementVector, LinearForm, asm
 from skfem.helpers import dot
 
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
-from wcs.fem import tet
-from wcs.model import Model, rigid_modes
+from wcs.model.evaluation import Evaluator
+from wcs.geometry import tet
+from wcs.model.model import Model, rigid_modes
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import load_study
 

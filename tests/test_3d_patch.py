@@ -17,7 +17,7 @@ import yaml
 
 from wcs.cli import main
 from wcs.contact.qp import solve_contact_qp
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"

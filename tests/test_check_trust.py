@@ -10,8 +10,9 @@ import yaml
 from bad_studies import demo_doc, write_study
 from wcs.cli import main
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
-from wcs.scene import estimate, geometry, mesher
+from wcs.model.evaluation import Evaluator
+from wcs.scene import estimate, geometry
+from wcs.scene import mesher2d as mesher
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,8 +85,8 @@ def test_facing_away_refused_by_either_discretization(tmp_path, capsys, discreti
 
 def test_empty_uncertain_runs_the_nominal_data():
     """`uncertain: {}` is U_ad = {nominal}: a run is one evaluation, the nominal one."""
-    from wcs.evaluation import Evaluator
-    from wcs.runner import run
+    from wcs.model.evaluation import Evaluator
+    from wcs.run.runner import run
     doc = doc_of("contact-patch.yaml")
     doc["uncertain"] = {}
     study = load_study(doc)

@@ -35,7 +35,7 @@ def test_auto_solver_is_resolved_and_reported():
 
 
 def test_default_mesh_size_follows_the_rule():
-    from wcs.scene.mesher import default_size
+    from wcs.scene.mesher2d import default_size
     def rock(**shape):
         return typed_scene({"mesh": {"size": 1.0}, "bodies": {"rock": {"regions": [
             {"material": "m", "shape": {"rectangle": [-60, -60, 60, 60], **shape}}]}}})

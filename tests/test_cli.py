@@ -211,7 +211,7 @@ def test_library_logging_stays_off_stderr_unless_verbose(tmp_path, capsys, monke
 
 SLOW_EVALUATIONS = """
 import functools, sys, time
-import wcs.evaluation as E
+import wcs.model.evaluation as E
 solve = E.Evaluator.evaluate
 E.Evaluator.evaluate = functools.wraps(solve)(lambda self, *a, **k: (time.sleep(0.3), solve(self, *a, **k))[1])
 from wcs.cli import main

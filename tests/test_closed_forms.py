@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import wcs
-from wcs.evaluation import Evaluator
-from wcs.materials import lame, thermal_beta
+from wcs.model.evaluation import Evaluator
+from wcs.model.materials import lame, thermal_beta
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 RTOL = 1e-8

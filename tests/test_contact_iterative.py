@@ -23,7 +23,7 @@ from test_glue3d import plane, stack
 from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.status import Status
 from wcs.study import load_study
 

@@ -8,7 +8,7 @@ import scenes
 
 import wcs.contact.methods as methods
 from wcs.contact.methods import METHODS, Decomposition, Primal, method_of
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 
 
 def patch(study):

@@ -8,7 +8,7 @@ import pytest
 
 from scenes import load
 from test_gradients import TOL, check_against_fd
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 
 # regions of interest on the flat contact y = 1 (x ∈ [0, 2], slave edges 0.1 or 0.15 long) and
 # the x-intervals of the contact line they hold

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from wcs.contact.units import stiffness_units
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]

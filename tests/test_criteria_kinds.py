@@ -1,4 +1,4 @@
-"""The criterion kinds added through the registry alone (`wcs.criteria.KINDS`): the largest
+"""The criterion kinds added through the registry alone (`wcs.model.criteria.KINDS`): the largest
 principal stress and the mean contact slip, each with adjoint gradients against central
 finite differences (the rule of test_gradients.py: 1e-5 relative plus the FD noise floor),
 and the schema, the adjoint and the report reading them from the one entry."""
@@ -11,7 +11,7 @@ import yaml
 
 import wcs
 from test_gradients import TOL, VALIDATION, check_against_fd
-from wcs.criteria import KINDS, _principal_kink
+from wcs.model.criteria import KINDS, _principal_kink
 from wcs.errors import StudyError
 from wcs.report.data import KIND_LABEL, KIND_UNITS
 
@@ -216,7 +216,7 @@ def test_distance_to_graded_triangles_is_the_minimum_over_all_of_them():
     for all triangles made it an all-pairs search, 64 s of a 72 s solve)."""
     from types import SimpleNamespace
 
-    from wcs.criteria import _distance_to_facets, _triangle_distances
+    from wcs.model.criteria import _distance_to_facets, _triangle_distances
     rng = np.random.default_rng(1)
     n = 1500
     c = rng.uniform(-1, 1, (n, 3))

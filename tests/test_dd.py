@@ -14,8 +14,8 @@ from wcs.dd import decomposition as ddd
 from wcs.dd import solver as dds
 from wcs.dd.kernels import rigid_basis
 from wcs.dd.partition import rcb
-from wcs.model import Model
-from wcs.scene.mesher import build_mesh
+from wcs.model.model import Model
+from wcs.scene.mesher2d import build_mesh
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 

@@ -162,7 +162,7 @@ def test_a_decomposition_that_is_one_pair_solves_without_falling_back(capfd):
     went to LAPACK (`dpotrf` of order 0: info −4, and dsyrk printed "illegal value") and
     every evaluation fell back to monolithic."""
     dd = study("validation/mortar-patch-3d.yaml", STRICT)
-    from wcs.evaluation import Evaluator
+    from wcs.model.evaluation import Evaluator
     ev = Evaluator(dd)
     assert dds.decomposition(ev.model, ev.model.options).nif == 0
     got = ev.evaluate(dd.nominal())

@@ -19,9 +19,9 @@ from wcs.dd import decomposition as ddd
 from wcs.dd import solver as dds
 from wcs.dd.partition import node_unknowns, partition
 from wcs.dd.unit import SetupError
-from wcs.model import Model
+from wcs.model.model import Model
 from wcs.options import DomainDecomposition
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 

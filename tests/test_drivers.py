@@ -8,8 +8,8 @@ import pytest
 import xarray as xr
 
 from wcs.cli import main
-from wcs.drivers import drivers, idle
-from wcs.extremes import extremes
+from wcs.results.drivers import drivers, idle
+from wcs.results.extremes import extremes
 from wcs.report import render_report
 from wcs.study import load_study
 

@@ -106,8 +106,8 @@ def test_tunnel_thermal_shear_reaches_what_slsqp_from_one_flip_neighbours_finds(
     Tolerance 1e-6: both points are KKT points to the search's relative tolerance."""
     from scipy.optimize import minimize
 
-    from wcs.evaluation import Evaluator
-    from wcs.problem import build_problem
+    from wcs.model.evaluation import Evaluator
+    from wcs.run.problem import build_problem
     from wcs.search import auto
     from wcs.search.scaling import Space
 

@@ -13,8 +13,8 @@ import yaml
 import wcs.scene.estimate as estimate
 from wcs.choose import ITERATIVE_MARGIN, SolverFacts, solver_method
 from wcs.cli import main
-from wcs.evaluation import Evaluator
-from wcs.results import provenance
+from wcs.model.evaluation import Evaluator
+from wcs.results.dataset import provenance
 from wcs.scene.estimate import USABLE_SHARE, W_COPIES, EvaluationFacts, evaluation_cost
 from wcs.study import load_study
 
@@ -135,7 +135,7 @@ def test_fine_tunnel_refused_by_monolithic_and_iterative_by_auto(tmp_path, capsy
 PEAK = """
 import re, sys, yaml
 import dolfinx_solver
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 doc = yaml.safe_load(open(sys.argv[1]))
 doc["solver"] = {"method": sys.argv[2]}

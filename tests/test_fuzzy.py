@@ -19,12 +19,12 @@ import yaml
 import wcs
 from search_problems import vertex_ranges
 from test_mpi import serial_and_two_ranks
-from wcs import runner
+from wcs.run import runner
 from wcs.cli import main
 from wcs.report import render_report
 from wcs.report.html import limit_membership
 from wcs.search import Worst
-from wcs.store import store_path
+from wcs.results.store import store_path
 from wcs.study import _read_yaml, alpha_cut
 
 ROOT = Path(__file__).resolve().parents[1]

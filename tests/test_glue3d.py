@@ -22,7 +22,7 @@ import yaml
 
 from wcs.contact.mortar3d import mortar_integrals3d
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.scene.session import Session
 from wcs.study import load_study

@@ -16,9 +16,9 @@ import yaml
 
 import wcs
 from wcs.contact.zone import canonical_split, held_rows, tied_rows
-from wcs.problem import build_problem
+from wcs.run.problem import build_problem
 from wcs.search.archive import Archive
-from wcs.sensitivity import contact_nonsmooth
+from wcs.model.sensitivity import contact_nonsmooth
 
 TUNNEL_3D = Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault-3d.yaml"
 

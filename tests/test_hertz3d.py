@@ -21,7 +21,7 @@ from wcs.contact.mortar3d import jump_rows, oriented_facets, triangle_normals
 from wcs.contact.pairs import tangents
 from wcs.contact.solver import solve_contact
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"

@@ -28,11 +28,11 @@ import xarray as xr
 import yaml
 
 import wcs
-import wcs.runner as runner
+import wcs.run.runner as runner
 from wcs.cli import main
 from wcs.report.data import from_dataset, load
 from wcs.report.html import Report
-from wcs.store import store_path, writer
+from wcs.results.store import store_path, writer
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -81,15 +81,15 @@ import os, signal, sys, time, functools
 sys.path.insert(0, {here!r})
 import numpy as np
 import xarray as xr
-import wcs.evaluation, wcs.runner
+import wcs.model.evaluation, wcs.run.runner
 from test_runner import tiny
-wcs.runner.get_strategy = lambda name: tiny
-solve = wcs.evaluation.Evaluator.evaluate
+wcs.run.runner.get_strategy = lambda name: tiny
+solve = wcs.model.evaluation.Evaluator.evaluate
 @functools.wraps(solve)
 def slow(self, *a, **k):
     time.sleep(float(os.environ.get("SLEEP", "0")))
     return solve(self, *a, **k)
-wcs.evaluation.Evaluator.evaluate = slow
+wcs.model.evaluation.Evaluator.evaluate = slow
 where, nth, calls = os.environ.get("WHERE"), int(os.environ.get("NTH", "0")), []
 def interrupting(real):
     def write(*a, **k):
@@ -174,8 +174,8 @@ def test_an_output_name_with_a_nul_is_refused_before_solving(tmp_path, capsys, m
     """No file system takes a NUL in a name: `check` said ok to it and `run` failed at its output
     lock as an internal error (exit 1, ValueError: embedded null byte)."""
     path = plate(tmp_path, output=str(tmp_path / "o\x00ut.nc"))
-    import wcs.evaluation
-    monkeypatch.setattr(wcs.evaluation, "Evaluator", lambda *a: pytest.fail("meshed before the output was checked"))
+    import wcs.model.evaluation
+    monkeypatch.setattr(wcs.model.evaluation, "Evaluator", lambda *a: pytest.fail("meshed before the output was checked"))
     for command in ("check", "run"):
         assert main([command, str(path), "--quiet"]) == 2
         err = capsys.readouterr().err
@@ -202,8 +202,8 @@ def read_only_folder(folder: Path):
 
 def test_a_read_only_output_folder_is_refused_before_solving(tmp_path, capsys, monkeypatch):
     path = plate(tmp_path)
-    import wcs.evaluation
-    monkeypatch.setattr(wcs.evaluation, "Evaluator", lambda *a: pytest.fail("meshed before the output was checked"))
+    import wcs.model.evaluation
+    monkeypatch.setattr(wcs.model.evaluation, "Evaluator", lambda *a: pytest.fail("meshed before the output was checked"))
     with read_only_folder(tmp_path / "ro") as ro:
         assert main(["run", str(path), "-o", str(ro / "out.nc"), "--quiet"]) == 2
     err = capsys.readouterr().err

@@ -1,7 +1,7 @@
 """The adjoint of `solver.method: iterative` (`wcs.contact.iterative.IterativeAdjoint`): one CG +
 GAMG solve per criterion on the iterative answer's final active set, no dense W.
 
-Tolerances: the gradients agree with the monolithic adjoint (`wcs.sensitivity.ContactAdjoint`,
+Tolerances: the gradients agree with the monolithic adjoint (`wcs.model.sensitivity.ContactAdjoint`,
 LU of W) to AGREE = 1e-6 relative — both solve the same linear system on the same active set,
 the iterative one to the Krylov tolerance 1e-12 of the right-hand side (measured agreement
 1e-9–1e-16); against central finite differences the rule of tests/test_gradients.py (1e-5
@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 import wcs
-from wcs import model as model_module
-from wcs import sensitivity
+from wcs.model import model as model_module
+from wcs.model import sensitivity
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_gradients import TOL, check_against_fd  # noqa: E402

@@ -10,7 +10,7 @@ import yaml
 
 from scenes import typed_scene
 from wcs.errors import StudyError
-from wcs.scene import mesher
+from wcs.scene import mesher2d as mesher
 from wcs.scene import selectors
 from wcs.scene.selectors import Selection, facet_lengths, facet_normals, nodal_normals
 from wcs.scene.spec import Boundary, RegionOfInterest

@@ -10,10 +10,10 @@ import yaml
 
 from test_contact_pressure import hertz_mean
 from wcs.cli import main
-from wcs.evaluation import Evaluator
-from wcs.meshcheck import Richardson, refined_nodes, richardson, verdict
+from wcs.model.evaluation import Evaluator
+from wcs.results.meshcheck import Richardson, refined_nodes, richardson, verdict
 from wcs.report import render_report
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]

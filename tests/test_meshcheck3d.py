@@ -19,11 +19,11 @@ from scipy.spatial import cKDTree
 from test_meshfile3d import FILE, write_block_msh
 from wcs.cli import main
 from wcs.errors import StudyError
-from wcs.fem.tet import volumes
-from wcs.meshcheck import ORDER_RANGE, cost, machine_memory, planned, refined_nodes
+from wcs.geometry.tet import volumes
+from wcs.results.meshcheck import ORDER_RANGE, cost, machine_memory, planned, refined_nodes
 from wcs.report.data import from_dataset
 from wcs.report.html import Report
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import load_scene, load_study
 
@@ -259,7 +259,7 @@ def test_a_margin_within_five_percent_splits_once_beyond_max_cells(tmp_path):
 
 def _needed(d: int, k: int) -> float:
     """GB of the dense contact condensation on k contact rows: DENSE_BLOCKS[d] blocks of k × k
-    float64 (measured on the 2D and the 3D tunnel, `wcs/meshcheck.py`)."""
+    float64 (measured on the 2D and the 3D tunnel, `wcs/results/meshcheck.py`)."""
     return {2: 24, 3: 8}[d] * 8 * k * k / 1e9
 
 

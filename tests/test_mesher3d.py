@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from wcs.errors import StudyError
-from wcs.fem.tet import volumes
+from wcs.geometry.tet import volumes
 from wcs.scene import selectors
 from wcs.scene.mesher3d import build_mesh3d as mesh_typed
 from wcs.scene.spec import RegionOfInterest

@@ -9,7 +9,7 @@ import yaml
 
 from wcs.cli import main
 from wcs.errors import StudyError
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 from wcs.scene.spec import GroupBoundary
 from wcs.study import load_study
 

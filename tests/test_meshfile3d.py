@@ -22,7 +22,7 @@ import yaml
 
 from test_fuzz_check import mutate
 from wcs.cli import main
-from wcs.fem.tet import volumes
+from wcs.geometry.tet import volumes
 from wcs.scene.mesher3d import ALGORITHM_3D, build_mesh3d
 from wcs.scene.session import Session
 from wcs.scene.spec import GroupBoundary

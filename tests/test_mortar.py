@@ -18,7 +18,7 @@ import wcs
 from wcs.cli import main
 from wcs.contact.mortar import mortar_integrals, sides_match
 from wcs.fem.gluing import build_glue, substitution
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 
 from scenes import VALIDATION, load, solve, typed_scene  # noqa: F401 - shared scene helpers
 

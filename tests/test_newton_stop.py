@@ -10,7 +10,7 @@ import yaml
 
 import wcs
 from wcs.contact import solver as cs
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.status import Status
 
 

@@ -11,10 +11,10 @@ from pydantic import BaseModel
 
 import wcs
 from search_problems import drive, interior
-from wcs import runner
+from wcs.run import runner
 from wcs.cli import main
 from wcs.dd import solver as dds
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.search import Worst
 from wcs.study import Search, Solver
 

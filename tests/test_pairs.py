@@ -12,7 +12,7 @@ from wcs.contact.pairs import (normal_jump_matrix, pair_contact, pair_sides,
                                tangent_jump_matrix)
 from wcs.errors import StudyError
 from scenes import typed_scene
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 from wcs.scene.selectors import select_boundary
 from wcs.scene.spec import Boundary, Contact
 

@@ -9,9 +9,9 @@ import threadpoolctl
 import yaml
 
 import wcs
-from wcs.coefficients import ParameterMap, flatten
-from wcs.model import Model
-from wcs.sensitivity import gradients
+from wcs.model.coefficients import ParameterMap, flatten
+from wcs.model.model import Model
+from wcs.model.sensitivity import gradients
 
 DATA = Path(__file__).resolve().parent / "data"
 ALL_KINDS = DATA / "gradients-all-kinds.yaml"     # every parameter kind, thermal step, contact, a profile

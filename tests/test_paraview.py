@@ -1,4 +1,4 @@
-"""ParaView files of `wcs solve` and `wcs solve --worst` (`wcs.paraview`): a .vtm multiblock of
+"""ParaView files of `wcs solve` and `wcs solve --worst` (`wcs.results.paraview`): a .vtm multiblock of
 the volume (.vtu: displacement, the stress tensor, von Mises, named bodies and regions, units in
 the names) and the contact surface (-contact.vtu: the results file's contact fields on the slave
 facets), read back with meshio and compared with the results file."""

@@ -22,7 +22,7 @@ from wcs.cli import main
 from wcs.progress import limits_broken, summary_table
 from wcs.report import render_report
 from wcs.report.html import number
-from wcs.extremes import extremes
+from wcs.results.extremes import extremes
 from wcs.study import _read_yaml
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
 """`wcs report`: the HTML report of a results file (issue 6, items 4-5).
 
-The results file of `wcs run` has the layout of wcs.results.run_dataset; `synthetic_run` builds one
+The results file of `wcs run` has the layout of wcs.results.dataset.run_dataset; `synthetic_run` builds one
 in that layout from real forward solves, so the report is tested independently of the
 search. Run `python tests/test_report.py STUDY.yaml OUT.nc [N]` to write such a file.
 """
@@ -23,7 +23,7 @@ import wcs
 from wcs.cli import main
 from wcs.status import flag_attrs
 from wcs.report import SECTION_IDS, render_report, write_report
-from wcs.results import provenance, write_netcdf
+from wcs.results.dataset import provenance, write_netcdf
 
 ROOT = Path(__file__).resolve().parents[1]
 MESH_VARS = ("coords", "cells", "cell_body", "cell_region")
@@ -34,7 +34,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def synthetic_run(study_path, n=6, seed=0, failures=(), limits=None, stage=None,
                   certificates=None, with_fields=True) -> xr.Dataset:
-    """A results Dataset in the layout of wcs.results.run_dataset from n real evaluations at
+    """A results Dataset in the layout of wcs.results.dataset.run_dataset from n real evaluations at
     points of the box (a random design plus the upper corner). `failures`: evaluation
     indices recorded as failed (status 1, phi NaN); `limits`: {criterion: limit}
     overriding the study's."""
@@ -224,7 +224,7 @@ def test_sweep_without_fields_or_certificates(tmp_path):
 
 def test_report_of_a_real_run_file(tmp_path, capsys):
     """The file `wcs run` writes (when the runner is there) reads as the synthetic one."""
-    pytest.importorskip("wcs.runner")
+    pytest.importorskip("wcs.run.runner")
     nc = tmp_path / "run.nc"
     assert main(["run", str(ROOT / "studies/heated-plate.yaml"), "-o", str(nc), "--quiet"]) == 0
     out = tmp_path / "run.html"

@@ -103,7 +103,7 @@ def synthetic_solve3d(mesh, sm=None) -> "xr.Dataset":
     components, contact fields with a tangent dimension of 2) from an analytic displacement:
     only the report's reading and drawing are tested here, not a solve."""
     import xarray as xr
-    from wcs.fem.tet import principal, strain_operator, stresses, von_mises
+    from wcs.geometry.tet import principal, strain_operator, stresses, von_mises
     p, t = mesh.p, mesh.t
     u = np.column_stack([1e-3 * p[0] * p[2], -2e-4 * p[1], 5e-4 * p[2] ** 2 - 1e-4 * p[0]])
     e = (strain_operator(p, t) @ u.ravel()).reshape(6, -1)
@@ -128,7 +128,7 @@ def synthetic_solve3d(mesh, sm=None) -> "xr.Dataset":
     ds["contact_pressure"] = ("contact_node", 1e6 * (1 + x[:, 1]))
     ds["contact_slip"] = (("contact_node", "tangent"), np.column_stack([1e-4 * x[:, 1], 2e-5 * np.ones(len(x))]))
     ds["contact_tangents"] = (("contact_node", "tangent", "dim"), np.broadcast_to([t1, t2], (len(x), 2, 3)).copy())
-    if sm is not None:                   # the bodies, as `wcs.fields` writes them
+    if sm is not None:                   # the bodies, as `wcs.model.fields` writes them
         ds["cell_body"] = ("cell", sm.cell_body.astype(np.int32))
         ds = ds.assign_coords(body=sm.bodies)
     ds.attrs.update(study="fault-block-3d", study_yaml=STUDY3D)

@@ -1,4 +1,4 @@
-"""The results-file helpers of wcs/results.py: units, status flags, the run layout, NetCDF round trip."""
+"""The results-file helpers of wcs/results/dataset.py: units, status flags, the run layout, NetCDF round trip."""
 from pathlib import Path
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 import xarray as xr
 
 import wcs
-from wcs.evaluation import Evaluator
-from wcs.results import parameter_units, run_dataset, status_attrs, worst_field_variables, write_netcdf
+from wcs.model.evaluation import Evaluator
+from wcs.results.dataset import parameter_units, run_dataset, status_attrs, worst_field_variables, write_netcdf
 from wcs.status import Status
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,12 +19,12 @@ import xarray as xr
 import yaml
 
 import wcs
-import wcs.runner as runner
+import wcs.run.runner as runner
 from wcs.cli import main
-from wcs.commands import solve_worst
-from wcs.problem import build_problem
+from wcs.run.commands import solve_worst
+from wcs.run.problem import build_problem
 from wcs.search import Batch, Worst
-from wcs.store import Store, store_path
+from wcs.results.store import Store, store_path
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"
@@ -129,7 +129,7 @@ def test_results_file_layout(tmp_path):
 
 def test_contact_study_layout_and_lipschitz(tmp_path):
     study = wcs.load_study(STUDIES / "two-blocks-demo.yaml")
-    from wcs.evaluation import Evaluator
+    from wcs.model.evaluation import Evaluator
     problem = build_problem(study, Evaluator(study))
     # 6 profile points -> 5 differences, two signs each; ds = 1.0 m / 5
     assert problem.A_ub.shape == (10, 9)
@@ -180,16 +180,16 @@ def test_kill_9_then_resume(tresca, tmp_path):
         sys.path.insert(0, {str(HERE)!r})
         import functools
         import time
-        import wcs.evaluation
-        import wcs.runner
+        import wcs.model.evaluation
+        import wcs.run.runner
         from test_runner import tiny
-        wcs.runner.get_strategy = lambda name: tiny
-        solve = wcs.evaluation.Evaluator.evaluate
+        wcs.run.runner.get_strategy = lambda name: tiny
+        solve = wcs.model.evaluation.Evaluator.evaluate
         @functools.wraps(solve)           # keeps the signature: the runner asks for gradients by it
         def slow(self, *a, **k):          # 0.2 s per evaluation: the kill lands mid-run, not after it
             time.sleep(0.2)
             return solve(self, *a, **k)
-        wcs.evaluation.Evaluator.evaluate = slow
+        wcs.model.evaluation.Evaluator.evaluate = slow
         from wcs.cli import main
         sys.exit(main(sys.argv[1:]))
     """))
@@ -331,7 +331,7 @@ def test_solve_worst(tresca, tmp_path):
 
 
 def test_store_keys_exact_bits(tmp_path):
-    from wcs.store import key
+    from wcs.results.store import key
     x = np.array([1.0, 2.0])
     assert key("s", x) == key("s", x.copy()) != key("s", np.nextafter(x, 3)) != key("t", x)
     st = Store(tmp_path / "st", "abc")

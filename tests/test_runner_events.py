@@ -8,7 +8,7 @@ import numpy as np
 
 import wcs
 from test_runner import study_file, tiny
-from wcs.runner import Runner
+from wcs.run.runner import Runner
 
 WCS = Path(wcs.__file__).resolve().parent
 LAYERS = ("problem", "record", "writer", "runner", "commands")     # each imports only those before it

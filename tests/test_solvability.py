@@ -43,7 +43,7 @@ def test_an_evaluator_loads_neither_scipy_optimize_nor_scipy_spatial():
     """A fresh process that imports the evaluator (what `wcs run` does before its first
     evaluation) does not load scipy.optimize (~0.15 s with the scipy.spatial, scipy.special and
     scipy.fft it pulls in): the solvability LP goes to Clarabel, the KD-tree loads with 3D faces."""
-    code = ("import sys, wcs.evaluation; "
+    code = ("import sys, wcs.model.evaluation; "
             "print(' '.join(m for m in ('scipy.optimize', 'scipy.spatial') if m in sys.modules))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env=dict(os.environ, PYTHONPATH=str(ROOT)))

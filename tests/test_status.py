@@ -9,9 +9,9 @@ import xarray as xr
 
 import wcs
 from wcs.status import DDOutcome
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.report.data import status_meanings
-from wcs.results import run_dataset, solve_dataset, write_netcdf
+from wcs.results.dataset import run_dataset, solve_dataset, write_netcdf
 from wcs.status import Status, describe
 
 ROOT = Path(__file__).resolve().parents[1]

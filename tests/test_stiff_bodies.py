@@ -22,7 +22,7 @@ from scenes import load
 from test_3d_patch import DELTA, E_BLOCK, G, H, P, shear_patch
 from wcs.cli import main
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -174,7 +174,7 @@ def test_a_bonded_contrast_within_the_bound_keeps_the_closed_form_to_its_round_o
     """glued-layers at a contrast of 7e8 (steel stand-in 2.1e19 Pa, concrete 3e10 Pa): stresses
     σ_yy = −p in both layers and the settlement Σ h p/(λ+2μ) to 1e-13 × the contrast (ten
     times the measured 1e-14)."""
-    from wcs.materials import lame
+    from wcs.model.materials import lame
     ev = Evaluator(load_study(_layers(3e10, 2.1e19)))
     res = ev.evaluate(ev.study.nominal())
     assert res.status == 0, res.message

@@ -9,7 +9,7 @@ import yaml
 
 from wcs.cli import main
 from wcs.contact.pairs import pair_contact
-from wcs.scene.mesher import build_mesh
+from wcs.scene.mesher2d import build_mesh
 from wcs.scene.spec import Material
 from wcs.study import load_study
 

@@ -12,7 +12,7 @@ from skfem.helpers import dot
 from reference_forms import conduction, div_div, strain_strain
 from wcs import linalg
 from wcs.dd.kernels import rigid_basis
-from wcs.fem import tet
+from wcs.geometry import tet
 from wcs.fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
 from wcs.fem.constraints import Constraint, eliminate
 

@@ -22,7 +22,7 @@ import yaml
 import wcs.contact.solver as cs
 from wcs.contact.qp import solve_contact_qp
 from wcs.contact.solver import OPEN, SLIP, STICK, solve_contact
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.status import Status
 from wcs.study import load_study
 

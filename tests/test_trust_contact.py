@@ -20,9 +20,9 @@ import scenes
 import wcs
 import wcs.contact.solver as cs
 import wcs.contact.methods as methods
-from wcs.coefficients import flatten
-from wcs.evaluation import Evaluator
-from wcs.model import Model
+from wcs.model.coefficients import flatten
+from wcs.model.evaluation import Evaluator
+from wcs.model.model import Model
 
 ROOT = Path(__file__).resolve().parents[1]
 

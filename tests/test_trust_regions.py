@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from wcs.errors import StudyError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"

@@ -2,7 +2,7 @@
 
 Each study is run by `wcs run` at a small budget (BUDGET solves, the mesh as in the
 file) from a copy of its file; the run must solve every evaluation (status 0), write a
-results file with every variable wcs.results.run_dataset writes, and `wcs report` must make an
+results file with every variable wcs.results.dataset.run_dataset writes, and `wcs report` must make an
 HTML page with all its sections. The tunnel study must show the seed's qualitative
 picture: the fault slips, and stresses concentrate at the tunnel wall
 (studies/figures.py computes the numbers and draws results/tunnel-*.png).

@@ -1,7 +1,7 @@
-"""The verdict of a results file (`wcs/verdict.py`, issue 26 items 2, 3 and 6): no equilibrium
+"""The verdict of a results file (`wcs/results/verdict.py`, issue 26 items 2, 3 and 6): no equilibrium
 somewhere in U_ad is FAIL with the failed region named, never PASS; other failures leave it NOT
 ESTABLISHED; a margin within a few percent whose mesh share is not estimated says so; a solution
-outside small-strain theory is flagged (`wcs/validity.py`). The terminal, the exit status of
+outside small-strain theory is flagged (`wcs/model/validity.py`). The terminal, the exit status of
 `--fail-on-limit`, the results file and the report give the same verdict."""
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import pytest
 import xarray as xr
 import yaml
 
-from wcs import validity
+from wcs.model import validity
 from wcs.cli import main
-from wcs.commands import _finish_command
+from wcs.run.commands import _finish_command
 from wcs.report import render_report
 from wcs.status import Status, flag_attrs
-from wcs.verdict import region, verdict
+from wcs.results.verdict import region, verdict
 
 ROOT = Path(__file__).resolve().parents[1]
 PAD = ROOT / "studies" / "validation" / "tresca-pad.yaml"
@@ -157,7 +157,7 @@ def test_strains_beyond_small_strain_theory_warn_and_meaningless_ones_leave_a_pa
 
 
 def test_the_mesh_check_splits_once_beyond_max_cells_when_a_margin_is_close():
-    from wcs.meshcheck import CLOSE, STRETCH, planned
+    from wcs.results.meshcheck import CLOSE, STRETCH, planned
     from wcs.study import load_study
     study = load_study(PAD)
     cells = int(study.scene.mesh.max_cells or 1e6) // 3                # split once: 4/3 x max_cells, within 2 x

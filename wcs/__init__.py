@@ -8,6 +8,7 @@ Tresca friction; [28] knee replacement with Coulomb friction; [33] mortar FEM fo
 problems; [68] quasi-coupled thermo-elasticity, DD and worst scenario; [101] dynamic contact in
 viscoelasticity, dual mortar, primal-dual active set.
 """
+from . import run   # the package wcs.run, callable: wcs.run(study) (wcs/run/__init__.py)
 from .errors import SolveError, StudyError
 
 __version__ = "0.1.0"
@@ -17,12 +18,6 @@ def load_study(path_or_mapping, base_dir=None):
     """Load and validate a study file or mapping (raises StudyError on bad input); see wcs.study.load_study."""
     from .study import load_study as _load
     return _load(path_or_mapping, base_dir)
-
-
-def run(study, output=None, resume=False, progress=None, **kwargs):
-    """The whole worst-scenario study -> xarray.Dataset (the results file's content); see wcs.runner.run."""
-    from .runner import run as _run
-    return _run(study, output=output, resume=resume, progress=progress, **kwargs)
 
 
 __all__ = ["StudyError", "SolveError", "load_study", "run", "__version__"]

@@ -97,7 +97,7 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
         return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
     if f.gradients:
         return "monolithic", ("the search asks adjoint gradients, which need the monolithic factorization "
-                              "(a DD answer is polished by the monolithic solver anyway, wcs/model.py)")
+                              "(a DD answer is polished by the monolithic solver anyway, wcs/model/model.py)")
     if f.friction != "none":
         return "monolithic", ("friction: the DD's successive approximations stagnate or a local solve fails "
                               "in 31 of 32 Tresca cases (dd_stability.png b); its interface Newton converges "

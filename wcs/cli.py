@@ -1,10 +1,10 @@
 """The `wcs` command: parse, call, print. Exit 0 done, 1 failure (with --fail-on-limit also a
 verdict NOT ESTABLISHED), 2 bad input, 3 verdict FAIL with --fail-on-limit (a limit broken, or a
-data set without equilibrium; `wcs/verdict.py`), 4 `compare`: the files differ, 130 interrupted
+data set without equilibrium; `wcs/results/verdict.py`), 4 `compare`: the files differ, 130 interrupted
 (Ctrl-C; `run` and `sweep` say how to resume).
 
-Each command imports what it needs when it runs (`wcs/commands.py` for run, sweep and
-solve --worst, `wcs/report/` for report, `wcs/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
+Each command imports what it needs when it runs (`wcs/run/commands.py` for run, sweep and
+solve --worst, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
 solvers."""
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from . import __version__
 from .errors import StudyError
-from .parallel import rank, world
+from .run.parallel import rank, world
 from .progress import INTERRUPTED, Progress, phase, reporting
 
 
@@ -92,7 +92,7 @@ def plan(study, ev) -> list[str]:
     """What the study asks of the scene, in the words of the study file (2D and 3D): the parameters
     with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
     and limits, the search, the solver and the output."""
-    from .criteria import in_words
+    from .model.criteria import in_words
     scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
@@ -126,9 +126,9 @@ def cmd_check(args) -> int:
     """Load, mesh and assemble the study, and solve its nominal data set once: what the nominal
     solve refuses as bad input (status 3, the solvability condition) `check` refuses too (exit 2);
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
-    from .evaluation import Evaluator
+    from .model.evaluation import Evaluator
     from .status import Status
-    from .store import check_output
+    from .results.store import check_output
     from .study import load_study
     from .scene.summary3d import summary3d
     study = load_study(args.study)
@@ -159,7 +159,7 @@ def cmd_check(args) -> int:
 def mesh_check_cost(study, ev, warm_solve: float) -> str:
     """What the mesh check of `wcs run` will cost: the refined meshes' unknowns and a time estimate
     from the study's mesh (`warm_solve`: seconds of a solve at the centre of the box)."""
-    from .meshcheck import SPLITS, cost, planned
+    from .results.meshcheck import SPLITS, cost, planned
     if study.scene.mesh.file is not None:
         return "  mesh check: not available (a mesh read from a file has no geometry to refine on)"
     n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
@@ -176,17 +176,17 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
 
 
 def cmd_solve(args) -> int:
-    from .commands import solve_nominal, solve_worst
+    from .run.commands import solve_nominal, solve_worst
     return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 
 def cmd_run(args) -> int:
-    from .commands import cmd_run as run
+    from .run.commands import cmd_run as run
     return run(args)
 
 
 def cmd_sweep(args) -> int:
-    from .commands import cmd_sweep as sweep
+    from .run.commands import cmd_sweep as sweep
     return sweep(args)
 
 
@@ -196,7 +196,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import cmd_compare as compare
+    from .results.compare import cmd_compare as compare
     return compare(args)
 
 

@@ -253,16 +253,16 @@ def phase(name: str, total: int | None = None) -> Phase:
 
 
 def widest(ds):
-    """A fuzzy study's results at its widest level, as `wcs.results.widest` (not imported from
-    there: the solvers mark their phases here, and wcs.results imports the study that imports them)."""
+    """A fuzzy study's results at its widest level, as `wcs.results.dataset.widest` (not imported from
+    there: the solvers mark their phases here, and wcs.results.dataset imports the study that imports them)."""
     return ds.isel(level=int(ds["level"].values.argmin())) if "level" in ds.dims else ds
 
 
 def summary_table(ds) -> str:
     """criterion, worst value, limit, margin, pass/fail ("pass where solved" when evaluations
-    failed: the study's verdict, `wcs.verdict`, says what that leaves), certificate (one row per criterion); the
+    failed: the study's verdict, `wcs.results.verdict`, says what that leaves), certificate (one row per criterion); the
     minimum and the lower limit beside them when some criterion asks for its minimum. A fuzzy
-    study's row is its widest level (`wcs.results.widest`)."""
+    study's row is its widest level (`wcs.results.dataset.widest`)."""
     ds = widest(ds)
     ends = "best_value" in ds
     failed = int((ds["status"].values != 0).sum()) if "status" in ds else 0
@@ -297,7 +297,7 @@ def summary_table(ds) -> str:
 def limits_broken(ds) -> list[str]:
     """Criteria whose worst value exceeds its limit or whose minimum falls below its lower limit
     (a fuzzy study: at its widest level); one without a value breaks nothing: its verdict is not
-    established (`wcs.verdict`)."""
+    established (`wcs.results.verdict`)."""
     ds = widest(ds)
     out = []
     for i, c in enumerate(ds["criterion"].values):

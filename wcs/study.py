@@ -21,7 +21,7 @@ file writes it, `lambda` included).
 A Lipschitz friction profile (`uncertain: {contacts.<c>.friction.slip_limit:
 {range, lipschitz, points}}`) is `points` parameters named `<path>[0]` ...
 `<path>[points-1]`: values of g at equally spaced points along the contact
-(`wcs.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
+(`wcs.model.coefficients` interpolates them onto the contact nodes). The slope bound |g[i+1] - g[i]| <= C*ds
 needs the contact length (ds = length / (points - 1)), so it is only stored here. In 3D a
 profile is a Lipschitz function on the contact surface: `points: [nu, nv]` values on a grid over
 the slave face in its two principal directions (`wcs.contact.frame`), bilinear in between,
@@ -53,7 +53,7 @@ from pydantic import (
 )
 
 from .choose import MeshFacts, mesh_size
-from .criteria import KINDS
+from .model.criteria import KINDS
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
 from .options import MAX_SOLVES
@@ -1079,7 +1079,7 @@ class Study:
     @cached_property
     def _evaluator(self):
         """The evaluator of this study, built on the first solve."""
-        from .evaluation import Evaluator   # the solvers (gmsh, scikit-fem, PARDISO) load on the first solve
+        from .model.evaluation import Evaluator   # the solvers (gmsh, scikit-fem, PARDISO) load on the first solve
         return Evaluator(self)
 
     def evaluate(self, values, gradients: bool = False):

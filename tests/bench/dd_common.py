@@ -9,8 +9,8 @@ import yaml
 
 import wcs
 from wcs.dd import solver as dds
-from wcs.model import Model
-from wcs.scene.mesher import build_mesh
+from wcs.model.model import Model
+from wcs.scene.mesher2d import build_mesh
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"

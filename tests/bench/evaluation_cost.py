@@ -20,7 +20,7 @@ def status(key: str) -> float:
 
 def main(path: str, method: str) -> None:
     import dolfinx_solver  # noqa: F401  (PETSc's libraries, as the iterative method loads them)
-    from wcs.evaluation import Evaluator
+    from wcs.model.evaluation import Evaluator
     from wcs.scene.estimate import EvaluationFacts, evaluation_cost
     from wcs.study import load_study
     doc = yaml.safe_load(open(path))

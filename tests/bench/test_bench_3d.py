@@ -54,7 +54,7 @@ from common import STUDIES, measure, write_table
 from wcs import linalg
 from wcs.contact import solver as cs
 from wcs.contact.solver import pinned_dofs, regularize
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.fem.affine import CellAffineOperator, elastic_cell_matrices
 from wcs.study import load_study
 

@@ -35,7 +35,7 @@ COLD = textwrap.dedent("""
         return time.perf_counter(), time.process_time()
     t0 = clock()
     import wcs
-    from wcs.evaluation import Evaluator
+    from wcs.model.evaluation import Evaluator
     t1 = clock()
     study = wcs.load_study(sys.argv[1])
     t2 = clock()

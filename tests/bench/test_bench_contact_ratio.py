@@ -12,9 +12,9 @@ import scipy.sparse.linalg as spla
 import yaml
 
 import wcs
-from wcs.coefficients import ParameterMap
-from wcs.model import Model
-from wcs.scene.mesher import build_mesh
+from wcs.model.coefficients import ParameterMap
+from wcs.model.model import Model
+from wcs.scene.mesher2d import build_mesh
 
 PAD = Path(__file__).resolve().parents[2] / "studies" / "validation" / "tresca-pad.yaml"
 

@@ -47,7 +47,7 @@ import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
 from petsc4py import PETSc  # noqa: F401
 
 from wcs.contact.iterative import _Rows, _Stepper, solve_contact_iterative
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.scene import estimate
 from wcs.study import load_study
 

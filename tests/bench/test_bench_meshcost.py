@@ -1,4 +1,4 @@
-"""The mesh check's contact bound (`wcs/meshcheck.py`): the dense blocks a contact solve holds at
+"""The mesh check's contact bound (`wcs/results/meshcheck.py`): the dense blocks a contact solve holds at
 its peak, DENSE_BLOCKS[d] × 8 k² bytes on k contact rows, and the k³ time law of CONDENSATION,
 measured on one cold nominal solve of the 2D and the 3D tunnel at finer fault meshes than the
 shipped ones, each in a fresh process: the rise of the resident set's peak (VmHWM) over the
@@ -18,7 +18,7 @@ import sys
 import pytest
 
 from common import ROOT, STUDIES, write_table
-from wcs.meshcheck import DENSE_BLOCKS, condensation_seconds
+from wcs.results.meshcheck import DENSE_BLOCKS, condensation_seconds
 
 pytestmark = pytest.mark.bench
 
@@ -28,7 +28,7 @@ from pathlib import Path
 import yaml
 from wcs import linalg
 linalg.configure_threads()
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
 def status(key):

@@ -31,8 +31,8 @@ import pytest
 import yaml
 
 import wcs
-from wcs.evaluation import Evaluator
-from wcs.runner import Runner
+from wcs.model.evaluation import Evaluator
+from wcs.run.runner import Runner
 from wcs.study import Search
 
 from common import STUDIES, save_figure, write_table
@@ -60,7 +60,7 @@ def tunnel_coarse(tmp_path, factor=2.0):
 
 class NaNGradients:
     """An Evaluator whose evaluations carry NaN rows instead of None for a criterion whose
-    adjoint gradient is unavailable. The runner (wcs/record.py, `from_evaluation`)
+    adjoint gradient is unavailable. The runner (wcs/run/record.py, `from_evaluation`)
     stacks `np.asarray(None, float)` there and the results dataset then fails to broadcast
     (seen on the tunnel before the adjoint handled redundant contact constraints); NaN rows
     are what it means (the archive treats non-finite gradients as absent)."""
@@ -234,9 +234,9 @@ def test_study_time_breakdown(tmp_path):
     t_run = time.perf_counter() - t1
     total = time.perf_counter() - t0
     ev = runner.evaluator
-    # the adjoint's cost per evaluation, timed on its own (wcs.sensitivity.gradients on a solved state)
+    # the adjoint's cost per evaluation, timed on its own (wcs.model.sensitivity.gradients on a solved state)
     # at a few of the run's points; the rest of an evaluation with gradients is its forward solve
-    from wcs.sensitivity import gradients as adjoint
+    from wcs.model.sensitivity import gradients as adjoint
     inner = ev._ev
     xs = np.asarray(ds["x"].values)[:: max(1, len(ds["x"]) // 8)][:8]
     tn, ta = [], []

@@ -34,7 +34,7 @@ import yaml
 
 import wcs
 from wcs.errors import SolveError
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 from wcs.status import Status
 
 from common import STUDIES, save_figure, write_table

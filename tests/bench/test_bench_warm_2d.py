@@ -41,7 +41,7 @@ import scipy.sparse.linalg as spla
 import yaml
 
 import wcs
-from wcs.evaluation import Evaluator
+from wcs.model.evaluation import Evaluator
 
 from common import STUDIES, write_table
 

@@ -59,7 +59,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import StudyError
-from ..fem import tet
+from ..geometry import tet
 from ..scene.selectors import _clip
 from .pairs import check_near, check_penetration, side_extent, tangents
 

@@ -48,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import StudyError
-from ..fem import tet
+from ..geometry import tet
 from ..scene.selectors import facet_lengths, facet_normals, nodal_normals
 
 SNAP = 1e-9             # |s| (facet parameter) below this -> the projection is the master node

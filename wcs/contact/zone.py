@@ -1,5 +1,5 @@
 """The contact zone of a scene: every contact's node pairs stacked into one set
-of jump operators (the friction data per node are coefficients: `wcs.coefficients`).
+of jump operators (the friction data per node are coefficients: `wcs.model.coefficients`).
 
 Rows are the paired slave nodes of all contacts, in scene order. `Bn u ≤ gap`
 is non-penetration, `Bt u` the relative tangential slip (see `pairs.py`). In 3D each

@@ -5,7 +5,7 @@ a new coefficient table costs one weighted scatter into a fixed pattern
 (O(cells), no quadrature), and every K(c) has the same CSR pattern so a
 sparse factorization reuses its symbolic analysis.
 
-Cells are triangles (p of shape (2, n)) or tetrahedra (p of shape (3, n), `wcs.fem.tet`).
+Cells are triangles (p of shape (2, n)) or tetrahedra (p of shape (3, n), `wcs.geometry.tet`).
 Vector fields use d×d node blocks (dof = d·node + component, scikit-fem's
 order for ElementVector(ElementTriP1 / ElementTetP1)): the pattern is built on node pairs
 (9 per triangle, 16 per tetrahedron) and expanded through a block-sparse (BSR) matrix.
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from . import tet
+from ..geometry import tet
 from .stress import gradient_operator
 
 

@@ -1,6 +1,6 @@
 """The coefficients of a data set and the parameter map x → coefficients.
 
-The model's operators are affine combinations of fixed pieces (`wcs.model`); what a data
+The model's operators are affine combinations of fixed pieces (`wcs.model.model`); what a data
 set changes is one flat coefficient vector c (`Coefficients`, laid out by `FIELDS`).
 `ParameterMap` compiles, once per study, how the data vector x reaches c:
 
@@ -10,7 +10,7 @@ set changes is one flat coefficient vector c (`Coefficients`, laid out by `FIELD
    specific weights, support values, temperatures, heat sources, friction data — with A
    one sparse matrix;
 3. the moduli on top: per material (E, ν) or (λ, μ), and α, give the λ, μ of the 2D
-   stiffness (λ* = 2λμ/(λ + 2μ) in plane stress) and β (`wcs.materials`); in 3D the λ, μ and
+   stiffness (λ* = 2λμ/(λ + 2μ) in plane stress) and β (`wcs.model.materials`); in 3D the λ, μ and
    β = (3λ + 2μ)α of the full Hooke law, the ones plane strain keeps;
 4. a Lipschitz slip-limit profile: g per contact node interpolated linearly in arc length
    from the profile's points (the seed's Tresca data g ∈ U_ad, a Lipschitz set); on a 3D
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .contact.frame import grid_weights, hat_weights, surface_grid
+from ..contact.frame import grid_weights, hat_weights, surface_grid
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",

@@ -24,10 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact.zone import slave_segments
-from .errors import StudyError
-from .fem import stress, tet
-from .scene.selectors import (Selection, boundary_facets, dist_segments, distance_function, facet_lengths,
+from ..contact.zone import slave_segments
+from ..errors import StudyError
+from ..fem import stress
+from ..geometry import tet
+from ..scene.selectors import (Selection, boundary_facets, dist_segments, distance_function, facet_lengths,
                               facet_normals, select_region)
 
 CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
@@ -525,7 +526,7 @@ def _stress_partials(model, state, sel: Selection, dpsi: np.ndarray) -> Partials
 
 def _invariants(s: np.ndarray):
     """The stress module of the components s: `wcs.fem.stress` (4: xx yy zz xy) or
-    `wcs.fem.tet` (6: xx yy zz yz xz xy)."""
+    `wcs.geometry.tet` (6: xx yy zz yz xz xy)."""
     return tet if len(s) == 6 else stress
 
 

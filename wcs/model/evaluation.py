@@ -11,18 +11,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .coefficients import ParameterMap
-from .contact.methods import METHODS
+from ..contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
-from .errors import SolveError, StudyError
-from .fem.gluing import glued_clusters
+from ..errors import SolveError, StudyError
+from ..fem.gluing import glued_clusters
 from .model import Model, Solution
-from .progress import phase
-from .scene.claims import check_claims
-from .scene.estimate import memory_fault
-from .scene.mesher import build_mesh
-from .scene.mesher3d import build_mesh3d
+from ..progress import phase
+from ..scene.claims import check_claims
+from ..scene.estimate import memory_fault
+from ..scene.mesher2d import build_mesh
+from ..scene.mesher3d import build_mesh3d
 from .sensitivity import gradients as adjoint_gradients
-from .status import Status
+from ..status import Status
 
 
 @dataclass
@@ -103,7 +103,7 @@ def bonded_materials(smesh, model) -> list[tuple[list[str], list[str]]]:
 class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
     study's mesh refined that many times, every triangle split into four, every tetrahedron into
-    eight (the mesh check, `wcs/meshcheck.py`). A 3D scene is meshed into tetrahedra
+    eight (the mesh check, `wcs/results/meshcheck.py`). A 3D scene is meshed into tetrahedra
     (`wcs.scene.mesher3d`); what 3D does not do yet is refused by name (exit 2), never answered
     with a number."""
 

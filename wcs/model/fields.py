@@ -1,13 +1,14 @@
 """The solution fields of one evaluation as an xarray.Dataset (the fields a results file holds):
 triangles with stress (xx, yy, zz, xy) in 2D, tetrahedra with (xx, yy, zz, yz, xz, xy) in 3D;
-and how far they leave small-strain theory (`small_strain_*`, wcs/validity.py)."""
+and how far they leave small-strain theory (`small_strain_*`, wcs/model/validity.py)."""
 from __future__ import annotations
 
 import numpy as np
 import xarray as xr
 
 from . import validity
-from .fem import stress, tet
+from ..fem import stress
+from ..geometry import tet
 
 
 def fields_dataset(model, state) -> xr.Dataset:

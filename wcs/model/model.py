@@ -3,7 +3,7 @@ thermal solve and one elastic solve per data set.
 
 `Model(scene, smesh)` reads the *structure* of the scene (which regions, loads, supports
 exist) and is read-only once built; `Model.solve(c)` takes the `Coefficients` of a data
-set (`wcs.coefficients.ParameterMap`) and combines the pieces: the data are piecewise
+set (`wcs.model.coefficients.ParameterMap`) and combines the pieces: the data are piecewise
 constant on regions and boundary parts, so every operator is an affine combination of
 fixed matrices. The mesh gives the dimension: P1 triangles (plane strain or stress) or P1
 tetrahedra (3D), dof = d·node + component either way. A solve returns a `Solution` that
@@ -22,27 +22,28 @@ from types import SimpleNamespace
 import numpy as np
 import scipy.sparse as sp
 
-from . import linalg
-from .choose import SolverFacts, solver_method
+from .. import linalg
+from ..choose import SolverFacts, solver_method
 from .coefficients import Coefficients, ParameterMap
-from .contact.methods import ContactMethod, method_of
-from .contact.problem import ContactProblem
-from .contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize
-from .contact.units import UnitFactors, stiffness_units
-from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
-from .errors import SolveError, StudyError
-from .fem import forms, tet
-from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
-from .fem.constraints import Constraint, Elimination, Reduction, eliminate
-from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
-from .fem.rigid import rigid_modes
-from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
+from ..contact.methods import ContactMethod, method_of
+from ..contact.problem import ContactProblem
+from ..contact.solver import ContactResult, factor_regularized, pinned_dofs, regularize
+from ..contact.units import UnitFactors, stiffness_units
+from ..contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
+from ..errors import SolveError, StudyError
+from ..fem import forms
+from ..geometry import tet
+from ..fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
+from ..fem.constraints import Constraint, Elimination, Reduction, eliminate
+from ..fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
+from ..fem.rigid import rigid_modes
+from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
-from .scene.meshdata import SceneMesh
-from .scene.selectors import nodal_normals
-from .status import Status
-from .options import Solver
+from ..scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
+from ..scene.meshdata import SceneMesh
+from ..scene.selectors import nodal_normals
+from ..status import Status
+from ..options import Solver
 
 
 @dataclass(frozen=True)
@@ -345,7 +346,7 @@ class Model:
         return self.P @ self._heat_theta(c)[0]
 
     def _heat_theta(self, c: Coefficients) -> tuple[np.ndarray, sp.csr_matrix]:
-        """The temperature on the heat nodes (θ of `wcs.sensitivity`) by the direct solve, and
+        """The temperature on the heat nodes (θ of `wcs.model.sensitivity`) by the direct solve, and
         the reduced conduction matrix it factored."""
         Kh = self.H(c.kappa)
         Kr = self.reduce_heat(Kh)
@@ -468,7 +469,7 @@ class Model:
         return self.Tt @ (self.mechanical_load(c, T) - Ku0), u0
 
     def _solve_dd(self, c, Kr, rhs, u0):
-        from .dd.solver import solve_dd     # the DD modules (and scipy.spatial) load only for method dd
+        from ..dd.solver import solve_dd     # the DD modules (and scipy.spatial) load only for method dd
         return solve_dd(self, self.scene, Kr, rhs, u0, self.options, coefficients=c, comm=self.comm)
 
     def _heat(self, c: Coefficients, adjoint: bool):
@@ -511,7 +512,7 @@ class Model:
         """The rigid motions of the whole mesh on the reduced unknowns (least squares through
         u = T w): the near-nullspace of the algebraic multigrid. One set for all bodies: per body
         (12 columns for two bodies) the coarse grids grew and a CG solve on 3D Hertz took 3×."""
-        from .contact.iterative import reduced_modes
+        from ..contact.iterative import reduced_modes
         return reduced_modes(self.elim.T, rigid_modes(self.smesh.mesh.p, np.arange(self.nnodes), self.nnodes))
 
     def contact_factor(self, Kr: sp.csr_matrix):
@@ -610,7 +611,7 @@ class Model:
                 f"unique (add a support, friction, or a contact that holds it)")
 
     def cell_stress(self, u: np.ndarray, T: np.ndarray | None, c: Coefficients) -> np.ndarray:
-        """(4, ncells) in 2D (`wcs.fem.stress`), (6, ncells) in 3D (`wcs.fem.tet`)."""
+        """(4, ncells) in 2D (`wcs.fem.stress`), (6, ncells) in 3D (`wcs.geometry.tet`)."""
         reg = self.smesh.cell_region
         dT = cell_mean(self.smesh.mesh.t, T) - c.reference if T is not None else np.zeros(reg.size)
         if self.dim == 3:

@@ -30,7 +30,7 @@ contact z = K⁻¹ φ_w. The heat step adds one more adjoint solve with the load
 ∂Φ/∂θ + Pᵀ Σ_j β_j B_jᵀ (T z). All of it yields ∂Φ/∂c for the flat coefficient
 vector c (moduli per region, loads, support values, temperatures, slip limits per
 contact node, …); the chain rule to the parameters x uses the exact ∂c/∂x of the
-parameter map (`wcs.coefficients.ParameterMap.jacobian`).
+parameter map (`wcs.model.coefficients.ParameterMap.jacobian`).
 
 Every factorization is the solution's own (`Solution.factor`, `heat_factor`,
 `contact_factor`): the adjoint of a solution is the same whatever was solved after it. A
@@ -45,7 +45,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .coefficients import flatten
-from .contact.solver import redundant_pairs
+from ..contact.solver import redundant_pairs
 from .criteria import KINDS, REL_TOL, Partials, node_norm
 
 

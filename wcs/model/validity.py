@@ -4,7 +4,7 @@ The model is linear elasticity with contact conditions between points paired in 
 configuration (thesis §1; seed [101] eq. (2.1)-(2.3)): the strain is ε = ½(∇u + ∇uᵀ), and the
 Green–Lagrange strain it stands for is E = ε + ½∇uᵀ∇u. The neglected term is |∇u|/2 of |∇u|
 itself at most: `MAX_GRADIENT` = 0.1 keeps it within 5 % of the strain, the order of the mesh's
-own share (wcs/meshcheck.py), and it bounds the rotations too, which ε does not see. It lets
+own share (wcs/results/meshcheck.py), and it bounds the rotations too, which ε does not see. It lets
 the peaks of a few percent at contact edges pass (the cylinder of validation/hertz.yaml 0.023,
 the knee's insert 0.054 at the nominal data), not a rubber pad strained by 20 %
 (two-blocks-demo, 0.21) nor a modulus given in GPa where Pa is meant (10⁹ times the strain).

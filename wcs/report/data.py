@@ -1,4 +1,4 @@
-"""Read a results file (`param`, `x`, `phi`, `status`, `worst_*`, …; see wcs.results) into one
+"""Read a results file (`param`, `x`, `phi`, `status`, `worst_*`, …; see wcs.results.dataset) into one
 plain structure for the report.
 
 Accepts the file of `wcs run` and `wcs sweep` (evaluations along `eval`, worst-case
@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..criteria import KINDS
+from ..model.criteria import KINDS
 from ..errors import StudyError
-from ..results import widest
+from ..results.dataset import widest
 from ..status import Status
-from ..validity import warnings as validity_warnings
-from ..verdict import Verdict, failures, verdict
+from ..model.validity import warnings as validity_warnings
+from ..results.verdict import Verdict, failures, verdict
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
 KIND_LABEL = {k: v.label for k, v in KINDS.items()}
@@ -127,10 +127,10 @@ class Results:
     warnings: list[str] = field(default_factory=list)   # the study's warnings (`wcs check`)
     levels: Levels | None = None            # a fuzzy study's ranges per α-level
     after_search: xr.Dataset | None = None  # drivers* and mesh_check* (`after_search`), when recorded
-    verdict: Verdict | None = None          # the study's verdict (`wcs.verdict`), as the terminal gives it
+    verdict: Verdict | None = None          # the study's verdict (`wcs.results.verdict`), as the terminal gives it
     small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields
-    validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.validity`)
-    failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.verdict`)
+    validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.model.validity`)
+    failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.results.verdict`)
 
     @property
     def n_eval(self) -> int:
@@ -247,7 +247,7 @@ def load(path: str | Path) -> Results:
         ds.load()
     res = from_dataset(ds, str(path))
     if res.incomplete:           # the store and the lock beside the file tell how far the run got
-        from ..store import incomplete_run
+        from ..results.store import incomplete_run
         res.incomplete = incomplete_run(path, res.n_eval, _text(res.attrs.get("study_file", "STUDY.yaml")))
     return res
 
@@ -402,7 +402,7 @@ def _levels(ds: xr.Dataset) -> Levels | None:
 
 
 def after_search(ds: xr.Dataset) -> xr.Dataset | None:
-    """What `wcs run` adds after the search (`wcs/drivers.py`, `wcs/meshcheck.py`): the drivers*
+    """What `wcs run` adds after the search (`wcs/results/drivers.py`, `wcs/results/meshcheck.py`): the drivers*
     and mesh_check* variables with the `mesh_check` attribute; None when the file has neither."""
     names = [v for v in ds.data_vars if str(v).startswith(("drivers", "mesh_check_"))]
     if not names and "mesh_check" not in ds.attrs:

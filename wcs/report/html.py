@@ -11,12 +11,12 @@ import traceback
 
 import numpy as np
 
-from ..criteria import in_words
-from ..drivers import IDLE, NO_EXTREME, idle
-from ..extremes import pairs
+from ..model.criteria import in_words
+from ..results.drivers import IDLE, NO_EXTREME, idle
+from ..results.extremes import pairs
 from ..progress import phase
-from ..validity import MAX_DISPLACEMENT, MAX_GRADIENT
-from ..verdict import CLOSE
+from ..model.validity import MAX_DISPLACEMENT, MAX_GRADIENT
+from ..results.verdict import CLOSE
 from . import plots, plots3d, view3d
 from .data import KIND_LABEL, Results
 
@@ -98,7 +98,7 @@ def param_units(path: str) -> str:
 
 
 def _what(c) -> str:
-    """A criterion in words: its reduction over its regions (`wcs.criteria.in_words`; its kind's
+    """A criterion in words: its reduction over its regions (`wcs.model.criteria.in_words`; its kind's
     label where the file does not name its regions), "—" where the kind is unknown."""
     return in_words(c.kind, c.regions) if c.kind in KIND_LABEL else (c.kind or "—")
 
@@ -584,7 +584,7 @@ class Report:
 
     @staticmethod
     def _no_effect(c: str, kind: str, largest: float, phi: float, units: str) -> str:
-        """Drivers all below round-off (`wcs.drivers.idle`): said in words, no bars."""
+        """Drivers all below round-off (`wcs.results.drivers.idle`): said in words, no bars."""
         return (f'<p class="idle no-effect">No effect: no parameter moves {esc(c)} beyond round-off at its '
                 f'{esc(kind)} data set (the largest |∂Φ/∂xᵢ| · (uᵢ − lᵢ), {number(largest, units, difference=True)}, '
                 f'is at most {IDLE:g} of |Φ| = {number(abs(phi), units)}: the solves\' round-off).</p>')
@@ -657,7 +657,7 @@ def fuzzy(res: Results) -> bool:
 
 
 def incomplete_banner(why: str) -> str:
-    """The summary's one warning of an incomplete run: `why` (`wcs.store.incomplete_run`) said once."""
+    """The summary's one warning of an incomplete run: `why` (`wcs.results.store.incomplete_run`) said once."""
     why = why.removeprefix("the run is incomplete: ")
     return f'<p class="warn" id="incomplete"><b>This run is incomplete</b>: {esc(why)}.</p>'
 

@@ -23,7 +23,7 @@ from matplotlib.tri import Triangulation
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from ..contact.frame import surface_frame
-from ..fem.tet import von_mises
+from ..geometry.tet import von_mises
 from .data import Results
 from .plots import CONTACT_COLORS, length_scale, magnification, plt, png, stress_scale
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .errors import StudyError
+from ..errors import StudyError
 
 FLOOR = 1e-12   # the default absolute floor, relative to the largest magnitude of the quantity: ~1e4
                 # ulps, above the round-off of sums and differences of near-equal numbers (a closed

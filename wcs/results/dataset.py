@@ -1,9 +1,9 @@
-"""Results files: provenance attributes, the nominal-solve file (and its ParaView files, `wcs.paraview`).
+"""Results files: provenance attributes, the nominal-solve file (and its ParaView files, `wcs.results.paraview`).
 
 NetCDF attributes hold strings and numbers only (no bool/dict/None).
 
 A file is encoded in memory and written with one plain write + rename
-(`wcs.store.write_atomic`): a full disk or a removed folder is an ordinary
+(`wcs.results.store.write_atomic`): a full disk or a removed folder is an ordinary
 `WriteError` and the previous file stays whole, never a fault inside HDF5.
 """
 from __future__ import annotations
@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, linalg, validity
-from .status import Status, flag_attrs
-from .study import alpha_cut
+from .. import __version__, linalg
+from ..model import validity
+from ..status import Status, flag_attrs
+from ..study import alpha_cut
 
 
 def git_commit() -> str:
@@ -120,7 +121,7 @@ CERTIFICATES = "corner-kkt: KKT sign pattern holds at a vertex; local-kkt: KKT c
 
 def parameter_units(path: str) -> str:
     """Units of an addressable number (its dotted path, `[i]` of a profile ignored)."""
-    from .study import _address
+    from ..study import _address
     pattern = _address(path.split("[")[0])
     if pattern is None:
         return "1"
@@ -350,8 +351,8 @@ def widest(ds: xr.Dataset) -> xr.Dataset:
 
 def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:
     """The files of one solved scenario: OUT.nc (fields, data set, criteria) and the ParaView
-    multiblock OUT.vtm (the volume OUT.vtu, the contact surface OUT-contact.vtu: `wcs.paraview`)."""
-    from .contact.zone import slave_segments
+    multiblock OUT.vtm (the volume OUT.vtu, the contact surface OUT-contact.vtu: `wcs.results.paraview`)."""
+    from ..contact.zone import slave_segments
     from .paraview import write_paraview
     ds = solve_dataset(study, evaluator, evaluation)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})

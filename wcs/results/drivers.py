@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from .extremes import Extreme, kinds
-from .search.scaling import FD_STEP
+from ..search.scaling import FD_STEP
 
 IDLE = 1e-9                     # d_i at most this share of the largest or of |Φ|: the parameter does not move Φ
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .search.ranges import Extreme
+from ..search.ranges import Extreme
 
 if TYPE_CHECKING:
     import xarray as xr

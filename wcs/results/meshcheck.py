@@ -41,11 +41,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import StudyError
-from .evaluation import Evaluator
+from ..errors import StudyError
+from ..model.evaluation import Evaluator
 from .extremes import Extreme, kinds, pairs
-from .progress import phase
-from .scene.estimate import BYTES_PER_CELL, DEFAULT_MAX_CELLS, machine_memory
+from ..progress import phase
+from ..scene.estimate import BYTES_PER_CELL, DEFAULT_MAX_CELLS, machine_memory
 from .store import key
 from .verdict import CLOSE
 

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import StudyError
+from ..errors import StudyError
 
 META = "meta.json"
 NAME_EXTRA = 14      # the longest name a run writes beside OUT, `.OUT.<pid>.part`, is 14 bytes longer

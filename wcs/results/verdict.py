@@ -7,7 +7,7 @@ In order:
   balanced by contact and friction — it slides off or lifts away), whatever the limits; or a
   worst value breaks its limit (a best value its lower limit) outside the mesh's estimated error.
 - MARGINAL: a broken or kept limit lies within the extreme ± its estimated mesh error
-  (`mesh_check_verdict`, wcs/meshcheck.py).
+  (`mesh_check_verdict`, wcs/results/meshcheck.py).
 - NOT ESTABLISHED: a criterion with a limit has no value (every evaluation failed), or some
   evaluations failed otherwise (no convergence, a singular system, ...): the criteria are unknown
   there, and the largest may lie among them.
@@ -15,7 +15,7 @@ In order:
 - PASS: every limit holds; NO LIMITS: the study sets none (failures are then named all the same).
 
 A solution outside the model's validity (strains, rotations or displacements too large for
-small-strain theory, wcs/validity.py) is named among the reasons of every verdict, as a warning
+small-strain theory, wcs/model/validity.py) is named among the reasons of every verdict, as a warning
 beside the word (the word and the exit status stay those of the limits: a rubber pad strained
 by 20 % is warned of); a solution whose strains or displacements reach `MEANINGLESS` (a body
 moving by its own size, a modulus in GPa where Pa is meant) makes a PASS NOT ESTABLISHED: the
@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .results import widest
-from .status import Status, describe
-from .validity import meaningless
-from .validity import warnings as validity_warnings
+from .dataset import widest
+from ..status import Status, describe
+from ..model.validity import meaningless
+from ..model.validity import warnings as validity_warnings
 
 CLOSE = 0.05          # a margin within 5 % of its limit: the order of a P1 mesh's share of a stress or pressure
 SEPARATES = 0.25      # a parameter whose failed and solved data sets' mean positions in its interval differ by

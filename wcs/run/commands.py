@@ -3,7 +3,7 @@
 Exit 0 done, 1 failure (no evaluation solved, a failed write, the worst case not solvable; with
 --fail-on-limit also a verdict NOT ESTABLISHED: failed evaluations leave the criteria unknown
 somewhere in U_ad), 3 with --fail-on-limit a verdict FAIL (a worst value breaks its limit, or a
-data set has no equilibrium; `wcs/verdict.py`); bad input raises StudyError, which
+data set has no equilibrium; `wcs/results/verdict.py`); bad input raises StudyError, which
 `wcs.cli.main` turns into exit 2.
 """
 from __future__ import annotations
@@ -16,22 +16,22 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import meshcheck
-from .criteria import KINDS, in_words
-from .drivers import drivers
-from .errors import StudyError
-from .evaluation import Evaluator
-from .extremes import support_extremes
+from ..results import meshcheck
+from ..model.criteria import KINDS, in_words
+from ..results.drivers import drivers
+from ..errors import StudyError
+from ..model.evaluation import Evaluator
+from ..results.extremes import support_extremes
 from .parallel import rank, world
-from .progress import INTERRUPTED, current, limits_broken, phase, summary_table
-from .results import widest, write_netcdf, write_solution
+from ..progress import INTERRUPTED, current, limits_broken, phase, summary_table
+from ..results.dataset import widest, write_netcdf, write_solution
 from .runner import Runner
-from .status import Status, describe
-from .store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
-from .study import load_study
-from .validity import warnings as validity_warnings
-from .verdict import attributes as verdict_attributes
-from .verdict import verdict
+from ..status import Status, describe
+from ..results.store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
+from ..study import load_study
+from ..model.validity import warnings as validity_warnings
+from ..results.verdict import attributes as verdict_attributes
+from ..results.verdict import verdict
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
@@ -147,8 +147,8 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
 
 class CheckedRunner(Runner):
     """A run whose results file also says how far its nominal case leaves small-strain theory
-    (`wcs/validity.py`), what drives each extreme (`wcs/drivers.py`) and, unless
-    `mesh_check` is False, how much of it is the mesh (`wcs/meshcheck.py`): all are added after
+    (`wcs/model/validity.py`), what drives each extreme (`wcs/results/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/results/meshcheck.py`): all are added after
     the search, under the run's lock, and the file is written again."""
 
     def __init__(self, *args, mesh_check: bool = True, **kw):
@@ -179,7 +179,7 @@ class CheckedRunner(Runner):
         return ds
 
     def nominal(self) -> xr.Dataset:
-        """`nominal_small_strain_*` (wcs/validity.py) of the nominal data set, solved once more
+        """`nominal_small_strain_*` (wcs/model/validity.py) of the nominal data set, solved once more
         (NaN where it fails: its status is the search's business)."""
         ev = self.evaluate(self.study.nominal(), False, "nominal")
         ok = ev.status == 0

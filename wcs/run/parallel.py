@@ -30,7 +30,7 @@ def rank(comm) -> int:
 def agree(comm, error: Exception | None) -> None:
     """Raise on every rank if any rank failed, so that no rank is left waiting in a
     collective step; a StudyError keeps its file, key path and fault."""
-    from .errors import StudyError
+    from ..errors import StudyError
     if comm is not None:
         report = None if error is None else (isinstance(error, StudyError), str(getattr(error, "fault", error)),
                                              getattr(error, "file", None), getattr(error, "path", None))

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contact.frame import surface_grid
-from .search import Problem
+from ..contact.frame import surface_grid
+from ..search import Problem
 
 
 def contact_length(evaluator, contact: str) -> float:

@@ -1,12 +1,12 @@
 """The record of a run: one `Record` per evaluation, in evaluation order, and the store behind it.
 
 A `Record` is the one form of an evaluation that everything after the solve reads: the
-results file (`wcs.results.run_dataset`, one row each), the evaluation store (`to_store` /
-`from_store`, one file each, `wcs/store.py`), the progress display, and the search (an
+results file (`wcs.results.dataset.run_dataset`, one row each), the evaluation store (`to_store` /
+`from_store`, one file each, `wcs/results/store.py`), the progress display, and the search (an
 `Outcome` built from it). Failures are records too (status code, NaN criteria).
 
 The `Ledger` keeps a run's records with the first row of each store key (the exact bits of
-the data set, `wcs.store.key`), so a point asked again is answered without a solve, and the
+the data set, `wcs.results.store.key`), so a point asked again is answered without a solve, and the
 best value of each criterion with its row. Behind it the store holds every record of the
 runs of this study file on this output: `--resume` asks the same questions again and gets
 the stored answers (a point whose stored record lacks gradients that are now wanted is
@@ -19,10 +19,10 @@ from typing import NotRequired, TypedDict
 
 import numpy as np
 
-from .errors import StudyError
+from ..errors import StudyError
 from .parallel import agree, rank
-from .search import Outcome
-from .store import Store, WriteError, store_path
+from ..search import Outcome
+from ..results.store import Store, WriteError, store_path
 
 
 class Record(TypedDict):

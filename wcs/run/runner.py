@@ -2,15 +2,15 @@
 
     ds = wcs.run(study, output=None, resume=False, progress=None)
 
-The runner builds the search `Problem` from the study (`wcs/problem.py`), creates the
+The runner builds the search `Problem` from the study (`wcs/run/problem.py`), creates the
 strategy registered under `search.method` with `numpy.random.default_rng(seed)`, drives it
 through `wcs.search.ranges` (the ends of each criterion's range its `sense` asks for, and the
-α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/record.py`), failures
+α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/run/record.py`), failures
 included (status code, NaN criteria); the budget is a hard cap on records.
 
 Incremental writing: each finished evaluation goes at once to the evaluation store (one
 atomically renamed file per evaluation), and the results file is rewritten while the run
-goes (`wcs/writer.py`). A kill -9 loses the evaluation in flight only; the NetCDF file on
+goes (`wcs/run/writer.py`). A kill -9 loses the evaluation in flight only; the NetCDF file on
 disk is always a complete, readable file of the evaluations up to its last rewrite
 (`complete: no` until the run ends; `wcs report` and `wcs solve --worst` say so).
 
@@ -48,17 +48,17 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .errors import StudyError
-from .evaluation import Evaluation, Evaluator
+from ..errors import StudyError
+from ..model.evaluation import Evaluation, Evaluator
 from .parallel import rank, world
 from .problem import build_problem
-from .progress import phase, reporting
+from ..progress import phase, reporting
 from .record import Ledger, from_evaluation, open_store
-from .search import STRATEGIES, Outcome
-from .search.ranges import ranges
-from .status import Status
-from .store import WriteError, key
-from .study import alpha_cut, load_study, parameter_vector
+from ..search import STRATEGIES, Outcome
+from ..search.ranges import ranges
+from ..status import Status
+from ..results.store import WriteError, key
+from ..study import alpha_cut, load_study, parameter_vector
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):

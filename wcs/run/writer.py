@@ -2,12 +2,12 @@
 goes, marked incomplete until it ends.
 
 Before anything is meshed or solved, rank 0 checks the output (not a directory, a name the
-filesystem takes, its folder creatable) and locks it (`OUT.lock`, `wcs/store.py`), so a
+filesystem takes, its folder creatable) and locks it (`OUT.lock`, `wcs/results/store.py`), so a
 second run on the same output is refused; with `--resume` the results file there must be
 this study file's.
 
 The NetCDF file is built from the ledger in memory and written whole (temp + rename,
-`wcs.results.write_netcdf`) after an evaluation whenever the time since the last rewrite is
+`wcs.results.dataset.write_netcdf`) after an evaluation whenever the time since the last rewrite is
 at least 1/WRITE_OVERHEAD times what that rewrite cost — at most 4% overhead — and always at
 the end. Until the end it says `complete: no`, its certificates are `in-progress` and its
 worst fields are those of the best evaluation solved in this session so far; at the end the
@@ -23,14 +23,14 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .errors import StudyError
+from ..errors import StudyError
 from .parallel import agree, rank
 from .record import Ledger
-from .results import provenance, run_dataset, write_netcdf
-from .search.ranges import Extreme
-from .store import OutputLock, check_output
-from .study import alpha_cut
-from .verdict import attributes as verdict_attributes
+from ..results.dataset import provenance, run_dataset, write_netcdf
+from ..search.ranges import Extreme
+from ..results.store import OutputLock, check_output
+from ..study import alpha_cut
+from ..results.verdict import attributes as verdict_attributes
 
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import StudyError
-from ..fem import tet
+from ..geometry import tet
 from .selectors import facet_normals, nodal_normals
 
 RANK = 1e-8     # singular values below this x the largest: dependent rows (as wcs.fem.constraints)

@@ -377,12 +377,12 @@ FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
 W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse
 #                                 block (K⁺)_SS on about 2m DOFs instead of the bordered factor: 22-25 in all measured
-#                                 on the one-unit 2D tunnel at m = 1348 and 2692, wcs/meshcheck.py DENSE_BLOCKS)
+#                                 on the one-unit 2D tunnel at m = 1348 and 2692, wcs/results/meshcheck.py DENSE_BLOCKS)
 EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # the direct method's fixed part (the 3D fit's intercept)
 FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
 SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
 DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of the active rows (2D: on the ~2m DOFs
-                 3: 1.58e-10}   # of (K⁺)_SS, 40 s at m = 2692 cold, wcs/meshcheck.py CONDENSATION)
+                 3: 1.58e-10}   # of (K⁺)_SS, 40 s at m = 2692 cold, wcs/results/meshcheck.py CONDENSATION)
 ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
 ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
 #                                   measured (block-on-block-3d at 0.05, the shipped tunnel)

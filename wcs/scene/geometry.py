@@ -11,7 +11,7 @@ listed shapes) and ``intersect: [shape, ...]`` (intersected with each listed
 shape in turn).  ``intersect`` is applied before ``minus`` (they commute).
 
 Everything here works on the gmsh model that is current when it is called;
-``wcs.scene.mesher`` owns the gmsh session.
+``wcs.scene.mesher2d`` owns the gmsh session.
 """
 from __future__ import annotations
 

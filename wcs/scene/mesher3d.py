@@ -28,7 +28,7 @@ bodies, so G_r is a union of cells (``SceneMesh.roi_cells``; a ball or cylinder:
 mesh); ``boundary: NAME`` (the facets of a named boundary, nothing embedded) is
 ``wcs.scene.selectors.select_region``'s (given a typed ``RegionOfInterest``), which takes this mesh as it is.
 
-How it is done (as the 2D ``wcs.scene.mesher``): every region solid and every embedded region
+How it is done (as the 2D ``wcs.scene.mesher2d``): every region solid and every embedded region
 of interest goes through one ``occ.fragment``, so regions of a body share nodes and touching
 bodies have matching triangles on their common faces; a piece belongs to the region covering it;
 a piece covered by two bodies, or by two regions of one body, is an overlap (``StudyError`` at
@@ -65,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
+from .mesher2d import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -192,7 +192,7 @@ def _refinements(scene: Scene, entries: list[Refinement], path0: str):
 
 def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=None, owner=None) -> None:
     """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
-    zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher`),
+    zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher2d`),
     and at most a region's own size in its volumes and on their faces, edges and corners
     (``entity_size``: {(dim, tag): size}, `mesher.region_entity_sizes`); a uniform size is
     gmsh's own bound ``Mesh.MeshSizeMax``. A zone with `body` sizes only that body's volumes and

@@ -29,7 +29,7 @@ class Frozen(Strict):
 # (K is block diagonal over bodies, W = Σ_bodies C K_b⁻¹ Cᵀ), so its contrast with the
 # bodies it touches costs no digit (tests/test_stiff_bodies.py: to E = 1e20 Pa). Regions
 # bonded in one body (or glued) share one factorization, and their contrast has its own
-# bound (`wcs.evaluation.BONDED_CONTRAST_MAX`).
+# bound (`wcs.model.evaluation.BONDED_CONTRAST_MAX`).
 MODULUS = {"ge": 1.0, "le": 1e20}                 # E, mu [Pa]
 LAME = {"ge": -1e20, "le": 1e24}                  # lambda [Pa] (nu -> 0.5 makes it ~1e3 E)
 RIGID_HINT = ("for a rigid body, make it the master of its contact and hold its contact side fixed with a support "

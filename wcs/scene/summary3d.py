@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.tet import volumes
+from ..geometry.tet import volumes
 from .estimate import DEFAULT_MAX_CELLS
 from .meshdata import SceneMesh
 
