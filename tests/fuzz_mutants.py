@@ -189,7 +189,7 @@ BASES = {"2d": B2, "3d": B3, "glue": G2, "msh2d": M2, "msh3d": M3}
 
 @functools.cache
 def _parsed(name: str) -> dict:
-    from wcs.study import _Loader
+    from wcs.study.source import _Loader
     return yaml.load(BASES[name], Loader=_Loader)
 
 

@@ -25,7 +25,7 @@ from wcs.model.evaluation import Evaluator
 from wcs.geometry import tet
 from wcs.model.model import Model, rigid_modes
 from wcs.scene.mesher3d import build_mesh3d
-from wcs.study import load_study
+from wcs import load_study
 
 E, NU, ALPHA = 2.0e11, 0.3, 1.2e-5
 LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))

@@ -18,7 +18,7 @@ import yaml
 from wcs.cli import main
 from wcs.contact.qp import solve_contact_qp
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"

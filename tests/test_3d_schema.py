@@ -16,7 +16,7 @@ import yaml
 from test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.scene import spec3d
-from wcs.study import load_study
+from wcs import load_study
 
 STUDY = """
 study: block-on-block-3d

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 

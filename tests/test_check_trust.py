@@ -13,7 +13,7 @@ from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
 from wcs.scene import estimate, geometry
 from wcs.scene import mesher2d as mesher
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATION = ROOT / "studies" / "validation"
@@ -156,13 +156,13 @@ def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch, tmp_path,
     before any assembly. At size 0.0025 the demo estimates 9.2e5 cells, 4.8 GB at 5200 bytes
     a cell: refused on a machine of 4 GB, loaded on one of 8 GB."""
     import wcs.scene.estimate as estimate
-    import wcs.study
+    import wcs.study.resources
     doc = demo_doc()
     doc["scene"]["mesh"].update(size=0.0025, max_cells=10**10)
-    monkeypatch.setattr(wcs.study, "machine_memory", lambda: 8e9)
+    monkeypatch.setattr(wcs.study.resources, "machine_memory", lambda: 8e9)
     cells = load_study(doc).estimated_cells
     assert 9e5 < cells < 9.5e5
-    monkeypatch.setattr(wcs.study, "machine_memory", lambda: 4e9)
+    monkeypatch.setattr(wcs.study.resources, "machine_memory", lambda: 4e9)
     with pytest.raises(StudyError) as info:
         load_study(doc)
     assert info.value.path == "scene.mesh.size" and info.value.fault.startswith(

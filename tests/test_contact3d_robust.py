@@ -20,7 +20,7 @@ import pytest
 from wcs.contact.qp import solve_contact_qp
 from wcs.contact.solver import conditions_violated
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 from test_3d_adjoint import pad_on_base_study
 

@@ -10,7 +10,7 @@ import yaml
 
 from test_3d_schema import STUDY, run, write
 from wcs.contact.frame import grid_weights, surface_frame, surface_grid
-from wcs.study import load_study
+from wcs import load_study
 
 
 def rotated_rectangle(n=(31, 13), sides=(3.0, 1.2), seed=0):

@@ -25,7 +25,7 @@ from wcs.contact.iterative import solve_contact_iterative
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
 from wcs.status import Status
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATION = ROOT / "studies" / "validation"

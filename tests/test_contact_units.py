@@ -13,7 +13,7 @@ import yaml
 
 from wcs.contact.units import stiffness_units
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 SHEAR = ROOT / "studies" / "validation" / "tresca-shear-patch-3d.yaml"

@@ -26,7 +26,8 @@ from test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.scene.mesher3d import build_mesh3d
-from wcs.study import _read_yaml, load_study
+from wcs import load_study
+from wcs.study.source import _read_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 

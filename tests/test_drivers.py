@@ -11,7 +11,7 @@ from wcs.cli import main
 from wcs.results.drivers import drivers, idle
 from wcs.results.extremes import extremes
 from wcs.report import render_report
-from wcs.study import load_study
+from wcs import load_study
 
 SLAB = Path(__file__).resolve().parent / "data" / "heated-slab.yaml"
 

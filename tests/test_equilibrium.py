@@ -17,7 +17,7 @@ import pytest
 import scipy.sparse as sp
 
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 

@@ -16,7 +16,7 @@ from wcs.cli import main
 from wcs.model.evaluation import Evaluator
 from wcs.results.dataset import provenance
 from wcs.scene.estimate import USABLE_SHARE, W_COPIES, EvaluationFacts, evaluation_cost
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 # the facts of the assembled model (reduced unknowns, nnz of the reduced K, contact rows) as
@@ -136,7 +136,7 @@ PEAK = """
 import re, sys, yaml
 import dolfinx_solver
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 doc = yaml.safe_load(open(sys.argv[1]))
 doc["solver"] = {"method": sys.argv[2]}
 ev = Evaluator(load_study(doc))

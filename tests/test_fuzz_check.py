@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from wcs.cli import main
-from wcs.study import _Loader as study_loader
+from wcs.study.source import _Loader as study_loader
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))

@@ -25,7 +25,8 @@ from wcs.report import render_report
 from wcs.report.html import limit_membership
 from wcs.search import Worst
 from wcs.results.store import store_path
-from wcs.study import _read_yaml, alpha_cut
+from wcs.study.fuzzy import alpha_cut
+from wcs.study.source import _read_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 PLATE = ROOT / "studies" / "heated-plate.yaml"

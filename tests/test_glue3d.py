@@ -25,7 +25,7 @@ from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.scene.session import Session
-from wcs.study import load_study
+from wcs import load_study
 
 from test_3d_model import solve
 

@@ -22,7 +22,7 @@ from wcs.contact.pairs import tangents
 from wcs.contact.solver import solve_contact
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
 PATCH, HERTZ = VALIDATION / "mortar-patch-3d.yaml", VALIDATION / "hertz-3d.yaml"

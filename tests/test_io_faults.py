@@ -388,7 +388,7 @@ def test_run_prints_the_study_warnings(tmp_path, capsys):
 def test_a_device_a_fifo_or_an_oversized_study_file_is_refused_unread(tmp_path, capsys):
     """/dev/zero never ends and a FIFO blocks until written: refused from their file type, never
     read; a study over MAX_FILE_BYTES (a valid one, padded with a comment) is refused with its size."""
-    from wcs.study import MAX_FILE_BYTES
+    from wcs.study.source import MAX_FILE_BYTES
     fifo = tmp_path / "fifo.yaml"
     os.mkfifo(fifo)
     for path, kind in (("/dev/zero", "a device"), (fifo, "a FIFO"), (tmp_path, "a directory")):
@@ -414,7 +414,7 @@ def test_a_device_a_fifo_or_an_oversized_study_file_is_refused_unread(tmp_path, 
 def test_a_shape_tree_multiplied_by_aliases_is_refused_before_validation(tmp_path, capsys):
     """Seven levels of ten aliases each make one region's `minus` a tree of 1e7 rectangles in 3 kB
     of YAML (before: validating it never ended): the expanded document is counted first."""
-    from wcs.study import MAX_NODES
+    from wcs.study.source import MAX_NODES
 
     def tree(level):
         hole = "{rectangle: [0.9, 0.4, 1.1, 0.6]}" if level == 0 else tree(level - 1)

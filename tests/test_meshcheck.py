@@ -14,7 +14,7 @@ from wcs.model.evaluation import Evaluator
 from wcs.results.meshcheck import Richardson, refined_nodes, richardson, verdict
 from wcs.report import render_report
 from wcs.scene.mesher2d import build_mesh
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 SLAB = ROOT / "tests" / "data" / "heated-slab.yaml"

@@ -25,7 +25,8 @@ from wcs.report.data import from_dataset
 from wcs.report.html import Report
 from wcs.scene.mesher2d import build_mesh
 from wcs.scene.mesher3d import build_mesh3d
-from wcs.study import load_scene, load_study
+from wcs import load_study
+from wcs.study import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SLAB = ROOT / "tests" / "data" / "heated-slab.yaml"

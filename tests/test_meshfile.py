@@ -11,7 +11,7 @@ from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.scene.mesher2d import build_mesh
 from wcs.scene.spec import GroupBoundary
-from wcs.study import load_study
+from wcs import load_study
 
 STUDIES = Path(__file__).resolve().parent.parent / "studies"
 DEMO = STUDIES / "user-mesh-demo.yaml"

@@ -26,7 +26,7 @@ from wcs.geometry.tet import volumes
 from wcs.scene.mesher3d import ALGORITHM_3D, build_mesh3d
 from wcs.scene.session import Session
 from wcs.scene.spec import GroupBoundary
-from wcs.study import load_study
+from wcs import load_study
 
 SIZE = 0.25
 LOWER, UPPER, BLOCK = [0, 0, -0.5, 1, 1, -0.25], [0, 0, -0.25, 1, 1, 0], [0.2, 0.2, 0, 0.8, 0.8, 0.4]

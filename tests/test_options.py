@@ -16,7 +16,7 @@ from wcs.cli import main
 from wcs.dd import solver as dds
 from wcs.model.evaluation import Evaluator
 from wcs.search import Worst
-from wcs.study import Search, Solver
+from wcs.options import Search, Solver
 
 ROOT = Path(__file__).resolve().parents[1]
 PAD = ROOT / "studies" / "validation" / "tresca-pad.yaml"

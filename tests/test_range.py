@@ -23,7 +23,7 @@ from wcs.progress import limits_broken, summary_table
 from wcs.report import render_report
 from wcs.report.html import number
 from wcs.results.extremes import extremes
-from wcs.study import _read_yaml
+from wcs.study.source import _read_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 COOLED = ROOT / "studies" / "validation" / "cooled-layer.yaml"

@@ -23,7 +23,7 @@ from test_3d_patch import DELTA, E_BLOCK, G, H, P, shear_patch
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 SSNV128 = ROOT / "tests" / "data" / "ssnv128.yaml"

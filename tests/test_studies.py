@@ -11,7 +11,7 @@ from wcs.cli import main
 from wcs.contact.pairs import pair_contact
 from wcs.scene.mesher2d import build_mesh
 from wcs.scene.spec import Material
-from wcs.study import load_study
+from wcs import load_study
 
 ALL = sorted((Path(__file__).resolve().parent.parent / "studies").glob("*.yaml"))
 STUDIES = [p for p in ALL if yaml.safe_load(p.read_text(encoding="utf-8"))["scene"].get("dimension", 2) == 2]

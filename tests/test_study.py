@@ -12,7 +12,11 @@ from pydantic import BaseModel, ValidationError
 from bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
 from wcs.scene.spec import Material, Scene, Shape
-from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, Uncertain, get_path, load_study
+from wcs import load_study
+from wcs.options import DomainDecomposition, SampleDesign, Search
+from wcs.study.paths import get_path
+from wcs.study.source import LIBRARIES
+from wcs.study.uncertain import Uncertain
 
 SLIP = "contacts.interface.friction.slip_limit"
 

@@ -24,7 +24,7 @@ from wcs.contact.qp import solve_contact_qp
 from wcs.contact.solver import OPEN, SLIP, STICK, solve_contact
 from wcs.model.evaluation import Evaluator
 from wcs.status import Status
-from wcs.study import load_study
+from wcs import load_study
 
 from test_contact3d_robust import solve_and_compare, tunnel_fault_3d
 

@@ -12,7 +12,7 @@ import yaml
 
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 

@@ -158,7 +158,7 @@ def test_strains_beyond_small_strain_theory_warn_and_meaningless_ones_leave_a_pa
 
 def test_the_mesh_check_splits_once_beyond_max_cells_when_a_margin_is_close():
     from wcs.results.meshcheck import CLOSE, STRETCH, planned
-    from wcs.study import load_study
+    from wcs import load_study
     study = load_study(PAD)
     cells = int(study.scene.mesh.max_cells or 1e6) // 3                # split once: 4/3 x max_cells, within 2 x
     none, why = planned(study, cells, 10, memory=16e9)

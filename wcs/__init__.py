@@ -7,6 +7,23 @@ thesis numbers them:
 Tresca friction; [28] knee replacement with Coulomb friction; [33] mortar FEM for 2D elliptic
 problems; [68] quasi-coupled thermo-elasticity, DD and worst scenario; [101] dynamic contact in
 viscoelasticity, dual mortar, primal-dual active set.
+
+Layers, from the bottom up: a module imports only from its own layer and the layers below it
+(tests/test_imports.py holds the code to this list, and `search` to the first layer alone).
+
+    1. errors, status, linalg, options, progress, choose: low-level, one idea each, used everywhere
+    2. geometry: mesh geometry shared by fem, scene and contact (tetrahedra, normals, mortar integrals)
+    3. fem: finite elements with scikit-fem (affine pieces, constraints, stresses, glued interfaces)
+    4. scene: shapes, meshers (gmsh) and mesh files -> a mesh with named bodies, regions, boundaries
+    5. contact: contact problems, friction laws, pairs and mortar rows, the contact methods
+    6. dd: the seed's domain decomposition, a contact method of its own
+    7. search: the search strategies of the worst scenario (they see a `Problem`, not a study)
+    8. model: the forward evaluation of one data set (`Evaluator`)
+    9. study: study files read and validated into a plain `Study`
+    10. results: the results file, its store, extremes, verdict, drivers, mesh check
+    11. report: the HTML report of a results file
+    12. run: running a study (the runner, the commands, the study paired with its evaluator)
+    13. cli (and this package's own __init__): the command line and the Python API
 """
 from . import run   # the package wcs.run, callable: wcs.run(study) (wcs/run/__init__.py)
 from .errors import SolveError, StudyError
@@ -15,8 +32,10 @@ __version__ = "0.1.0"
 
 
 def load_study(path_or_mapping, base_dir=None):
-    """Load and validate a study file or mapping (raises StudyError on bad input); see wcs.study.load_study."""
-    from .study import load_study as _load
+    """Load and validate a study file or mapping (raises StudyError on bad input): the plain
+    `wcs.study.Study` paired with its evaluator, built on the first `study.evaluate(x)`
+    (`wcs.run.evaluable`)."""
+    from .run.evaluable import load_study as _load
     return _load(path_or_mapping, base_dir)
 
 

@@ -129,7 +129,7 @@ def cmd_check(args) -> int:
     from .model.evaluation import Evaluator
     from .status import Status
     from .results.store import check_output
-    from .study import load_study
+    from .study.load import load_study
     from .scene.summary3d import summary3d
     study = load_study(args.study)
     check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving

@@ -22,7 +22,7 @@ def main(path: str, method: str) -> None:
     import dolfinx_solver  # noqa: F401  (PETSc's libraries, as the iterative method loads them)
     from wcs.model.evaluation import Evaluator
     from wcs.scene.estimate import EvaluationFacts, evaluation_cost
-    from wcs.study import load_study
+    from wcs import load_study
     doc = yaml.safe_load(open(path))
     doc["solver"] = {**doc.get("solver", {}), "method": method}
     study = load_study(doc)

@@ -56,7 +56,7 @@ from wcs.contact import solver as cs
 from wcs.contact.solver import pinned_dofs, regularize
 from wcs.model.evaluation import Evaluator
 from wcs.fem.affine import CellAffineOperator, elastic_cell_matrices
-from wcs.study import load_study
+from wcs import load_study
 
 pytestmark = pytest.mark.bench
 NODES_PER_SIDE = 33                       # 3 · 33³ = 1.08e5 unknowns, 1.9e5 tetrahedra

@@ -49,7 +49,7 @@ from petsc4py import PETSc  # noqa: F401
 from wcs.contact.iterative import _Rows, _Stepper, solve_contact_iterative
 from wcs.model.evaluation import Evaluator
 from wcs.scene import estimate
-from wcs.study import load_study
+from wcs import load_study
 
 PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"
 

@@ -29,7 +29,7 @@ import yaml
 from wcs import linalg
 linalg.configure_threads()
 from wcs.model.evaluation import Evaluator
-from wcs.study import load_study
+from wcs import load_study
 
 def status(key):
     line = next(s for s in Path("/proc/self/status").read_text().splitlines() if s.startswith(key))

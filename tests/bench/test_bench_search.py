@@ -33,7 +33,7 @@ import yaml
 import wcs
 from wcs.model.evaluation import Evaluator
 from wcs.run.runner import Runner
-from wcs.study import Search
+from wcs.options import Search
 
 from common import STUDIES, save_figure, write_table
 

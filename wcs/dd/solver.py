@@ -37,8 +37,8 @@ subdomain interfaces Γ (reduced DOFs shared by two or more units):
 
 Entry points: `solve_dd` (elasticity with contact, on the model's reduced
 system) and `solve_heat_dd` (the thermal step: the same decomposition, all
-subdomains linear). Options: the study's `solver` block (`wcs.study.Solver`, its
-`dd` block `wcs.study.DomainDecomposition`: each option with its default there);
+subdomains linear). Options: the study's `solver` block (`wcs.options.Solver`, its
+`dd` block `wcs.options.DomainDecomposition`: each option with its default there);
 `tolerance` and `max_iterations` (the budget of successive approximations) apply.
 `relaxation: anderson` (with `anderson`, `mixing`, `anderson_restart`) measured worse
 than Aitken on the off-centre pad, converges on the tunnel with β = 0.1 where Aitken

@@ -649,7 +649,7 @@ def limit_membership(alpha, best, worst, lower: float, upper: float) -> str:
 
 
 def fuzzy(res: Results) -> bool:
-    """A fuzzy study (`wcs.study._levels`): its file has α-levels, or its study a `fuzzy:` entry or a
+    """A fuzzy study (`wcs.study.fuzzy._levels`): its file has α-levels, or its study a `fuzzy:` entry or a
     fuzzy number ({support, core})."""
     doc = res.study_doc or {}
     return res.levels is not None or doc.get("fuzzy") is not None or any(

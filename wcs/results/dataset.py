@@ -18,7 +18,7 @@ import xarray as xr
 from .. import __version__, linalg
 from ..model import validity
 from ..status import Status, flag_attrs
-from ..study import alpha_cut
+from ..study.fuzzy import alpha_cut
 
 
 def git_commit() -> str:
@@ -121,7 +121,7 @@ CERTIFICATES = "corner-kkt: KKT sign pattern holds at a vertex; local-kkt: KKT c
 
 def parameter_units(path: str) -> str:
     """Units of an addressable number (its dotted path, `[i]` of a profile ignored)."""
-    from ..study import _address
+    from ..study.paths import _address
     pattern = _address(path.split("[")[0])
     if pattern is None:
         return "1"

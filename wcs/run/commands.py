@@ -28,7 +28,7 @@ from ..results.dataset import widest, write_netcdf, write_solution
 from .runner import Runner
 from ..status import Status, describe
 from ..results.store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
-from ..study import load_study
+from ..study.load import load_study
 from ..model.validity import warnings as validity_warnings
 from ..results.verdict import attributes as verdict_attributes
 from ..results.verdict import verdict

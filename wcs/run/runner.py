@@ -58,7 +58,9 @@ from ..search import STRATEGIES, Outcome
 from ..search.ranges import ranges
 from ..status import Status
 from ..results.store import WriteError, key
-from ..study import alpha_cut, load_study, parameter_vector
+from ..study.data import parameter_vector
+from ..study.fuzzy import alpha_cut
+from ..study.load import load_study
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):

@@ -29,7 +29,7 @@ from .record import Ledger
 from ..results.dataset import provenance, run_dataset, write_netcdf
 from ..search.ranges import Extreme
 from ..results.store import OutputLock, check_output
-from ..study import alpha_cut
+from ..study.fuzzy import alpha_cut
 from ..results.verdict import attributes as verdict_attributes
 
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)

@@ -11,7 +11,7 @@ the runner evaluates them (in parallel where it can, from its store when it
 has seen the exact same bits before, which is how `--resume` replays a run)
 and sends back one `Outcome` per point, in order. Every outcome carries every
 criterion (criteria share evaluations). The strategy must stop before the
-budget (`config.budget`, forward solves; `config`: the study's `wcs.study.Search`, or
+budget (`config.budget`, forward solves; `config`: the study's `wcs.options.Search`, or
 a mapping it validates) is spent; the runner enforces it
 as a hard cap and sends back only the outcomes it could afford (a shorter
 list) when a batch would overrun, and the strategy then returns. When done, it

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..study import Search
+from ..options import Search
 from .archive import Archive
 from .ascent import advance, ascend, note_runs, runs_from
 from .designs import lhs

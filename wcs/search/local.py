@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from ..study import Search
+from ..options import Search
 from .archive import Archive
 from .ascent import ascend
 from .designs import design

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..study import Search
+from ..options import Search
 from . import Outcome
 
 MIN = ".min"     # suffix of the objective −Φ of a criterion's minimum

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import warnings
 
-from ..study import Search
+from ..options import Search
 from .archive import Archive
 from .designs import design
 
