@@ -544,7 +544,7 @@ class IterativeAdjoint:
     `wcs.model.sensitivity.ContactAdjoint` gives, (z, μ, σ) for one criterion's partials, by one CG +
     GAMG solve with the Newton step's elimination.
 
-    In the slip frame (`wcs.model.sensitivity._slip_frame`: C turned by Q, the free rows A — closed
+    In the slip frame (`wcs.contact.slipframe._slip_frame`: C turned by Q, the free rows A — closed
     normals, stuck tangents, ν⊥ rows with the compliance D = |s|/gw — and the fixed rows B),
     the last Newton step's system is [K, C_Aᵀ, C_Bᵀ; C_A, −D, 0; 0, 0, I] [u; λ_A; λ_B] =
     [f; d_A; h_B] (Tresca); its transpose with the partials (φ_w, φ_λ) as right-hand side is
@@ -574,7 +574,7 @@ class IterativeAdjoint:
     without an own unknown, CG not converged."""
 
     def __init__(self, model, state):
-        from wcs.model.sensitivity import _slip_frame
+        from wcs.contact.slipframe import _slip_frame
         res = state.raw
         m = res.lam_n.size
         C = model.contact_rows

@@ -4,7 +4,7 @@ A method is a `ContactMethod` registered in `METHODS` under the name a study giv
 model looks its method up once (`method_of`) and then asks it, never its name. Most methods
 solve the model's `ContactProblem` in one call (`Primal`, with a function of the model and
 the problem returning a `ContactResult`); the domain decomposition solves the model itself
-(`Decomposition`). A new method is one module, its registration line here and its tests; a
+(`wcs.dd.method`). A new method is one module, its registration line here and its tests; a
 method whose module loads a heavy library (cvxpy, PETSc) is registered by the module's
 name and loaded when a study names it.
 """
@@ -19,8 +19,8 @@ import numpy as np
 from wcs import linalg
 from wcs.contact.problem import ContactProblem
 from wcs.contact.solver import ContactResult, solve_condensed
-from wcs.errors import SolveError, StudyError
-from wcs.status import DDOutcome, Status
+from wcs.errors import SolveError
+from wcs.status import Status
 
 
 @dataclass(frozen=True)
@@ -103,42 +103,6 @@ class Primal:
         return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale)
 
 
-@dataclass(frozen=True)
-class Decomposition:
-    """The seed's domain decomposition (`wcs.dd.solver.solve_dd`, loaded only for it). Where
-    it does not converge the solve falls back to 'monolithic' if the study allows; for the
-    adjoint its answer is polished by 'monolithic' (its factorization and active set)."""
-    anchored = False
-    units = True
-    assembles = True
-
-    def check(self, model) -> None:
-        from wcs.dd.partition import subdomains_fault
-        fault = subdomains_fault(model.options.dd.subdomains, model.smesh.mesh.t.shape[1])
-        if fault is not None:
-            raise StudyError(fault, path="solver.dd.subdomains")
-
-    def heat(self, model, c) -> np.ndarray | None:
-        from wcs.dd.solver import solve_heat_dd
-        T, _, status, _ = solve_heat_dd(model, c, model.options, comm=model.comm)
-        return T if status is DDOutcome.CONVERGED else None
-
-    def solve(self, model, c, Kr, rhs, u0, nominal, adjoint) -> Solved:
-        dd = model._solve_dd(c, Kr, rhs, u0)
-        if dd.status is DDOutcome.CONVERGED and not adjoint:
-            contact = model.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
-            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}")
-        warm = None
-        if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
-            warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
-            used = "dd, polished by monolithic for the adjoint"
-        elif model.options.fallback:
-            used = f"monolithic after dd {dd.message}"
-        else:
-            raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
-        return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
-
-
 METHODS: dict[str, ContactMethod | str] = {}
 
 
@@ -159,5 +123,5 @@ def method_of(name: str) -> ContactMethod:
 
 register("monolithic", Primal("monolithic", newton, anchored=True, units=True, assembles=False))
 register("qp", "wcs.contact.qp:QP")           # cvxpy: loaded only for the reference solver
-register("dd", Decomposition())
+register("dd", "wcs.dd.method:METHOD")            # the seed's domain decomposition, wcs/dd/
 register("iterative", "wcs.contact.iterative:METHOD")   # PETSc: loaded only for the iterative method
