@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wcs.contact.mortar3d import mortar_integrals3d
+from wcs.geometry.mortar3d import mortar_integrals3d
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
 from wcs.scene.mesher3d import build_mesh3d

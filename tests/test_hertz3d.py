@@ -17,7 +17,8 @@ import pytest
 import scipy.sparse as sp
 import yaml
 
-from wcs.contact.mortar3d import jump_rows, oriented_facets, triangle_normals
+from wcs.contact.mortar3d import jump_rows
+from wcs.geometry.mortar3d import oriented_facets, triangle_normals
 from wcs.contact.pairs import tangents
 from wcs.contact.solver import solve_contact
 from wcs.errors import StudyError

@@ -1,6 +1,9 @@
 """Dependencies point one way: the modules of wcs import each other without a cycle, counting
-the imports inside functions too (a function-level import that dodges a cycle is still one)."""
+the imports inside functions too (a function-level import that dodges a cycle is still one), and
+no module imports from a layer above its own (the layers as the `wcs/__init__.py` docstring
+lists them, bottom up); `search/` imports from the lowest layer alone, below the study."""
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -66,13 +69,37 @@ def cycle(g: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
+def layers() -> list[list[str]]:
+    """The layers the `wcs/__init__.py` docstring declares, bottom up: per layer its modules or
+    packages as dotted names (`wcs.geometry`); the package's own __init__ (`wcs`) is on top."""
+    doc = ast.get_docstring(ast.parse((PACKAGE / "__init__.py").read_text()))
+    found = re.findall(r"^\s+\d+\. ([\w, ]+?)(?: \(.*?\))?:", doc, flags=re.M)
+    out = [[f"wcs.{name.strip()}" for name in line.split(",")] for line in found]
+    out[-1].append("wcs")
+    return out
+
+
+def layer_of(module: str, order: list[list[str]]) -> int:
+    """The index of the layer that holds `module` (its longest declared prefix)."""
+    best = max(((len(p), i) for i, layer in enumerate(order) for p in layer
+                if module == p or module.startswith(p + ".")), default=None)
+    assert best is not None, f"{module} is in no layer of the wcs/__init__.py docstring"
+    return best[1]
+
+
+def upward(g: dict[str, set[str]], order: list[list[str]]) -> list[str]:
+    """Every import of a module from a layer above its own, as 'a (layer i) -> b (layer j)'."""
+    return [f"{a} (layer {layer_of(a, order) + 1}) -> {b} (layer {layer_of(b, order) + 1})"
+            for a in sorted(g) for b in sorted(g[a]) if layer_of(b, order) > layer_of(a, order)]
+
+
 def test_the_finder_sees_a_cycle_and_a_function_level_import():
     assert cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert cycle({"a": {"b"}, "b": set()}) is None
     g = graph()
-    assert "wcs.model.model" in g["wcs.model.evaluation"]           # module level
-    assert "wcs.model.evaluation" in g["wcs.study"]           # inside Study.evaluate
-    assert "wcs.dd.solver" in g["wcs.model.model"]            # inside Model._solve_dd
+    assert "wcs.model.model" in g["wcs.model.evaluation"]      # module level
+    assert "wcs.model.evaluation" in g["wcs.run.evaluable"]    # inside EvaluableStudy._evaluator
+    assert "wcs.dd.solver" in g["wcs.model.model"]             # inside Model._solve_dd
 
 
 def test_no_import_cycle():
@@ -80,7 +107,30 @@ def test_no_import_cycle():
     assert found is None, " -> ".join(found)
 
 
+def test_the_layers_are_read_and_an_upward_import_is_seen():
+    order = layers()
+    assert order[0][:2] == ["wcs.errors", "wcs.status"] and order[-1] == ["wcs.cli", "wcs"]
+    assert layer_of("wcs.contact.solver", order) < layer_of("wcs.dd.solver", order)
+    assert upward({"wcs.fem.gluing": {"wcs.contact.mortar"}}, order) == [
+        f"wcs.fem.gluing (layer {layer_of('wcs.fem', order) + 1}) -> wcs.contact.mortar "
+        f"(layer {layer_of('wcs.contact', order) + 1})"]
+
+
+def test_no_module_imports_from_a_layer_above():
+    found = upward(graph(), layers())
+    assert not found, "\n".join(found)
+
+
+def test_search_imports_only_from_the_lowest_layer():
+    """The strategies see a `Problem` and the `search` options (`wcs.options`), not the study."""
+    order, g = layers(), graph()
+    found = [f"{a} -> {b}" for a in sorted(g) if a.startswith("wcs.search")
+             for b in sorted(g[a]) if not b.startswith("wcs.search") and layer_of(b, order) > 0]
+    assert not found, "\n".join(found)
+    assert layer_of("wcs.search", order) < layer_of("wcs.study", order)
+
+
 @pytest.mark.parametrize("module", ["wcs.model.model", "wcs.dd.solver", "wcs.model.evaluation"])
 def test_the_solvers_do_not_import_the_study_loader(module):
     """The options live below the loader (`wcs.options`), so the solvers need no study file."""
-    assert "wcs.study" not in graph()[module]
+    assert not any(m.startswith("wcs.study") for m in graph()[module])

@@ -12,7 +12,8 @@ from scenes import typed_scene
 from wcs.errors import StudyError
 from wcs.scene import mesher2d as mesher
 from wcs.scene import selectors
-from wcs.scene.selectors import Selection, facet_lengths, facet_normals, nodal_normals
+from wcs.geometry.facets import facet_lengths, facet_normals, nodal_normals
+from wcs.scene.selectors import Selection
 from wcs.scene.spec import Boundary, RegionOfInterest
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,8 @@ from skfem.models.poisson import laplace, unit_load
 
 import wcs
 from wcs.cli import main
-from wcs.contact.mortar import mortar_integrals, sides_match
+from wcs.contact.mortar import sides_match
+from wcs.geometry.mortar import mortar_integrals
 from wcs.fem.gluing import build_glue, substitution
 from wcs.scene.mesher2d import build_mesh
 

@@ -8,7 +8,8 @@ that converges as O(h²) to the cap's. Matching sides reduce to node-to-node row
 import numpy as np
 import pytest
 
-from wcs.contact.mortar3d import jump_rows, mortar_integrals3d, mortar_sides3d, oriented_facets, triangle_normals
+from wcs.contact.mortar3d import jump_rows, mortar_sides3d
+from wcs.geometry.mortar3d import mortar_integrals3d, oriented_facets, triangle_normals
 from wcs.contact.pairs import tangents
 from wcs.errors import StudyError
 from wcs.scene.mesher3d import build_mesh3d

@@ -49,7 +49,7 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from ..geometry import tet
-from ..scene.selectors import facet_lengths, facet_normals, nodal_normals
+from ..geometry.facets import facet_lengths, facet_normals, nodal_normals
 
 SNAP = 1e-9             # |s| (facet parameter) below this -> the projection is the master node
 OUTSIDE = 1e-6          # projection parameter beyond an end of the master side by more -> dropped

@@ -2,8 +2,8 @@ r"""Glued interfaces between bodies meshed independently: dual mortar eliminatio
 
 A scene's ``glue: {NAME: {slave: BOUNDARY, master: BOUNDARY}}`` ties the two
 sides: the weak continuity ``∫ ψ_j [u] ds = 0`` for every dual multiplier ψ_j
-of the slave side ([33] with the dual basis of [101]; `wcs.contact.mortar` on
-the edges of a triangle mesh, `wcs.contact.mortar3d` on the faces of a
+of the slave side ([33] with the dual basis of [101]; `wcs.geometry.mortar` on
+the edges of a triangle mesh, `wcs.geometry.mortar3d` on the faces of a
 tetrahedral one: rows of the same form) reads, after division by D_jj,
 ``u_j = Σ_l (D⁻¹M)_jl u_l`` per component: the slave DOFs are functions of the
 master DOFs and are eliminated.
@@ -42,9 +42,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.mortar import MortarIntegrals, mortar_integrals
-from ..contact.mortar3d import MortarIntegrals3D, side_integrals3d
 from ..errors import StudyError
+from ..geometry.mortar import MortarIntegrals, mortar_integrals
+from ..geometry.mortar3d import MortarIntegrals3D, side_integrals3d
 from .constraints import Elimination
 
 SIDE_INTEGRALS = {2: mortar_integrals, 3: side_integrals3d}     # the dual mortar rows by dimension

@@ -28,8 +28,8 @@ from ..contact.zone import slave_segments
 from ..errors import StudyError
 from ..fem import stress
 from ..geometry import tet
-from ..scene.selectors import (Selection, boundary_facets, dist_segments, distance_function, facet_lengths,
-                              facet_normals, select_region)
+from ..geometry.facets import boundary_facets, facet_lengths, facet_normals
+from ..scene.selectors import Selection, dist_segments, distance_function, select_region
 
 CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
 REL_TOL = 1e-7       # "within reach" for the non-smoothness flags, relative

@@ -41,7 +41,7 @@ from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
 from ..scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
 from ..scene.meshdata import SceneMesh
-from ..scene.selectors import nodal_normals
+from ..geometry.facets import nodal_normals
 from ..status import Status
 from ..options import Solver
 

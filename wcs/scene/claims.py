@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import StudyError
 from ..geometry import tet
-from .selectors import facet_normals, nodal_normals
+from ..geometry.facets import facet_normals, nodal_normals
 
 RANK = 1e-8     # singular values below this x the largest: dependent rows (as wcs.fem.constraints)
 ALONG = 1e-6    # |a · n| above this: the held direction a moves a face along its normal n

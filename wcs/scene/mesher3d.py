@@ -65,7 +65,7 @@ from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
-from .mesher2d import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
+from .pieces import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
 from .session import Session
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
@@ -194,7 +194,7 @@ def _set_sizes(scene: Scene, size: float, body: str | None = None, entity_size=N
     """The element size ``min(size, min_r (size_r + grading · dist_r(x)))`` over the refine
     zones r of the scene (and of ``body``, meshed on its own), as in 2D (`wcs.scene.mesher2d`),
     and at most a region's own size in its volumes and on their faces, edges and corners
-    (``entity_size``: {(dim, tag): size}, `mesher.region_entity_sizes`); a uniform size is
+    (``entity_size``: {(dim, tag): size}, `pieces.region_entity_sizes`); a uniform size is
     gmsh's own bound ``Mesh.MeshSizeMax``. A zone with `body` sizes only that body's volumes and
     the entities bounding them (``owner``: volume tag -> (body index, region index), the volumes
     of the model; a body meshed on its own: the zones of the other bodies are left out)."""

@@ -48,6 +48,7 @@ import numpy as np
 import skfem
 
 from ..errors import StudyError
+from ..geometry.facets import boundary_facets
 from . import selectors
 from .meshdata import SceneMesh
 from .spec import MAX_NAME, GroupBoundary, _valid_name
@@ -523,7 +524,7 @@ def read_mesh_file(path, scene, keypath: str = "scene.mesh.file", dim: int = 2,
                    cell_body=cell_body, cell_region=cell_region, boundaries={})
 
     # -- boundaries: facet groups by their elements, others by selector
-    bf = selectors.boundary_facets(mesh)
+    bf = boundary_facets(mesh)
     fnodes = np.sort(orig[mesh.facets[:, bf]].T, axis=1)
     fbody = selectors.facet_body(sm, bf)
     bnd = {}
