@@ -13,7 +13,7 @@ import pytest
 
 import wcs
 from test_3d_adjoint import two_region_block
-from wcs.model import criteria
+from wcs.model import criteria, regions
 from wcs.errors import StudyError
 from wcs.geometry import tet
 from wcs.scene.mesher3d import build_mesh3d
@@ -117,14 +117,14 @@ def test_normal_from_a_point_on_the_face_and_refusals(block):
     scene = study.scene
     spec = SimpleNamespace(direction=None, point=[1.4, 0.5, 1.0])
     sel = Selection("cells", sm.roi_cells["knot"])
-    assert np.allclose(criteria._direction(sm, spec, sel, "criteria.2", "knot"), [0, 0, 1], atol=1e-14)
+    assert np.allclose(regions._direction(sm, spec, sel, "criteria.2", "knot"), [0, 0, 1], atol=1e-14)
     spec = SimpleNamespace(direction=None, point=[1.0, 0.5, 0.5])          # the centre of the block
     with pytest.raises(StudyError, match="not on the boundary .* nearest boundary face is 0.5 away") as e:
-        criteria._direction(sm, spec, sel, "criteria.2", "knot")
+        regions._direction(sm, spec, sel, "criteria.2", "knot")
     assert e.value.path == "criteria.2.point"
     spec = SimpleNamespace(direction=None, point=[2.0, 0.5, 1.0])           # the edge x = 2, z = 1
     with pytest.raises(StudyError, match="differ by more than 30°"):
-        criteria._direction(sm, spec, sel, "criteria.2", "knot")
+        regions._direction(sm, spec, sel, "criteria.2", "knot")
     assert scene.dimension == 3
     d = two_region_block()
     d["criteria"][2]["point"] = [1.4, 0.5]
@@ -184,7 +184,7 @@ def test_contact_pressure_is_the_exact_mean_of_the_p1_pressure(roi, centre, area
     zone = _zone(sm)
     sel = (Selection("facets", sm.boundaries["base_top"]) if "boundary" in roi
            else Selection("cells", sm.roi_cells["r"]))
-    ell, meas = criteria._pressure_functional(sm, scene, zone, "r", sel, "scene.regions_of_interest.r")
+    ell, meas = regions._pressure_functional(sm, scene, zone, "r", sel, "scene.regions_of_interest.r")
     assert meas == pytest.approx(area, rel=1e-12)
     p = 3.0e6 + 1.0e6 * zone.coords[:, 0] - 2.0e6 * zone.coords[:, 1]
     assert ell @ (p * zone.weight) == pytest.approx(3.0e6 + 1.0e6 * centre[0] - 2.0e6 * centre[1], rel=1e-12)
@@ -197,7 +197,7 @@ def test_contact_pressure_refuses_a_region_that_cuts_slave_triangles():
     other = load_scene({**scene.model_dump(exclude_none=True),
                         "regions_of_interest": {"r": {"ball": {"center": [0.5, 0.5, 1.0], "radius": 0.33}}}})
     with pytest.raises(StudyError, match="cuts .* slave triangles") as e:
-        criteria._pressure_functional(sm, other, _zone(sm), "r", Selection("cells", np.zeros(0, int)),
+        regions._pressure_functional(sm, other, _zone(sm), "r", Selection("cells", np.zeros(0, int)),
                                       "scene.regions_of_interest.r")
     assert e.value.path == "scene.regions_of_interest.r"
 
@@ -213,13 +213,13 @@ def test_contact_pressure_over_an_embedded_ball_or_cylinder(roi, exact):
     exactly) and a uniform pressure has that mean exactly."""
     scene, sm = _contact_mesh(roi)
     zone = _zone(sm)
-    ell, meas = criteria._pressure_functional(sm, scene, zone, "r", Selection("cells", sm.roi_cells["r"]),
+    ell, meas = regions._pressure_functional(sm, scene, zone, "r", Selection("cells", sm.roi_cells["r"]),
                                               "scene.regions_of_interest.r")
     assert 0.97 * exact < meas <= exact * (1 + 1e-12)
     assert ell @ (2.5e6 * zone.weight) == pytest.approx(2.5e6, rel=1e-12)
     inside = ell > 0
     c = zone.coords[inside]
-    level = criteria._region_level(scene.regions_of_interest["r"], c)
+    level = regions._region_level(scene.regions_of_interest["r"], c)
     assert level.max() <= 1e-9                         # every node carrying the mean is in G_r
 
 
@@ -228,7 +228,7 @@ def test_the_distance_to_facets_is_the_minimum_over_every_triangle():
     minimum, to the bit, as the distance to every triangle: random triangles of all sizes, points
     inside and around their cloud."""
     from types import SimpleNamespace
-    from wcs.model.criteria import _distance_to_facets, _triangle_distances
+    from wcs.model.regions import _distance_to_facets, _triangle_distances
     rng = np.random.default_rng(0)
     tri = rng.random((300, 3, 3)) * rng.choice([0.01, 0.1, 1.0], (300, 1, 1)) + rng.random((300, 1, 3))
     x = rng.random((200, 3)) * 3 - 1

@@ -216,7 +216,7 @@ def test_distance_to_graded_triangles_is_the_minimum_over_all_of_them():
     for all triangles made it an all-pairs search, 64 s of a 72 s solve)."""
     from types import SimpleNamespace
 
-    from wcs.model.criteria import _distance_to_facets, _triangle_distances
+    from wcs.model.regions import _distance_to_facets, _triangle_distances
     rng = np.random.default_rng(1)
     n = 1500
     c = rng.uniform(-1, 1, (n, 3))
