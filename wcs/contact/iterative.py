@@ -36,6 +36,9 @@ mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ
 ‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. A step
 with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
 Newton does).
+
+Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
+which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
 """
 from __future__ import annotations
 

@@ -10,6 +10,10 @@ tetrahedra (3D), dof = d·node + component either way. A solve returns a `Soluti
 owns its fields and the matrices its adjoint needs; the factor objects behind them are
 caches that keep their analysis and are refactored whenever a solution asks for a matrix
 they no longer hold.
+
+Over 500 lines for one job: `Model` is one class (the structure of a scene, the numbers of a data
+set, the solves), whose solve paths share the factor caches it holds; the functions below it are its
+own helpers.
 """
 from __future__ import annotations
 

@@ -1,4 +1,8 @@
-"""The report as one self-contained HTML page (inline CSS, images as data: URIs)."""
+"""The report as one self-contained HTML page (inline CSS, images as data: URIs).
+
+Over 500 lines for one page: `Report` renders the sections of one HTML page in their order, a method
+a section.
+"""
 from __future__ import annotations
 
 import base64

@@ -1,4 +1,8 @@
-"""The report's figures (matplotlib, Agg), each returned as PNG bytes."""
+"""The report's figures (matplotlib, Agg), each returned as PNG bytes.
+
+Over 500 lines: the report's 2D figures, one function a figure, over the units, scales and mesh
+geometry of its first sections.
+"""
 from __future__ import annotations
 
 import io

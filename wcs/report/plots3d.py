@@ -11,6 +11,9 @@ are never seen), each lit by Lambert's law. The geometry functions are pure func
 `plane_section` (the polygon where a plane cuts each tetrahedron), `selected_faces` (the outer
 faces of a boundary selector, as the solver selects them), `roi_cells` (a region of interest's
 cells, in its body); a contact surface is drawn in its plane's axes (`map_axes`).
+
+Over 500 lines: the report's 3D figures, one function a figure, over the surface, cuts and regions
+of interest of its first sections.
 """
 from __future__ import annotations
 

@@ -33,6 +33,9 @@ cells (zero area or volume: an error), clockwise triangles and negatively orient
 tetrahedra (reoriented, with a note in ``Study.notes``), overlapping cells (a cell centroid
 inside a cell of another region or body, or overlapping cells inside one region: an error),
 and a facet group that lies on no boundary facet (of its body).
+
+Over 500 lines for one job: a user's mesh read (gmsh or meshio), checked, and its physical groups
+turned into the scene's bodies, regions and boundaries, in 2D and in 3D.
 """
 from __future__ import annotations
 
