@@ -19,7 +19,7 @@ import xarray as xr
 import wcs
 from search_problems import vertex_ranges
 from wcs.cli import main
-from wcs.progress import limits_broken, summary_table
+from wcs.results.summary import limits_broken, summary_table
 from wcs.report import render_report
 from wcs.report.html import number
 from wcs.results.extremes import extremes

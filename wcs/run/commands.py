@@ -23,8 +23,9 @@ from ..errors import StudyError
 from ..model.evaluation import Evaluator
 from ..results.extremes import support_extremes
 from .parallel import rank, world
-from ..progress import INTERRUPTED, current, limits_broken, phase, summary_table
+from ..progress import INTERRUPTED, current, phase
 from ..results.dataset import widest, write_netcdf, write_solution
+from ..results.summary import limits_broken, summary_table
 from .runner import Runner
 from ..status import Status, describe
 from ..results.store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
