@@ -7,7 +7,8 @@ import pytest
 import scenes
 
 import wcs.contact.methods as methods
-from wcs.contact.methods import METHODS, Decomposition, Primal, method_of
+from wcs.contact.methods import METHODS, Primal, method_of
+from wcs.dd.method import Decomposition
 from wcs.model.evaluation import Evaluator
 
 
