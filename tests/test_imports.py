@@ -36,7 +36,8 @@ def imports(path: Path, modules: set[str]) -> set[str]:
         for target in targets:
             while target and target not in modules:
                 target = target.rpartition(".")[0]
-            if target and target != name and not name.startswith(target + "."):   # a package's own __init__
+            if target and target != name and (target == "wcs" or not name.startswith(target + ".")):
+                # a package's own __init__ is left out, but for the root's (the top layer)
                 out.add(target)
     return out
 
@@ -80,9 +81,10 @@ def layers() -> list[list[str]]:
 
 
 def layer_of(module: str, order: list[list[str]]) -> int:
-    """The index of the layer that holds `module` (its longest declared prefix)."""
+    """The index of the layer that holds `module` (its longest declared prefix; `wcs`, the
+    package's own __init__, holds itself alone)."""
     best = max(((len(p), i) for i, layer in enumerate(order) for p in layer
-                if module == p or module.startswith(p + ".")), default=None)
+                if module == p or (p != "wcs" and module.startswith(p + "."))), default=None)
     assert best is not None, f"{module} is in no layer of the wcs/__init__.py docstring"
     return best[1]
 
@@ -111,6 +113,8 @@ def test_the_layers_are_read_and_an_upward_import_is_seen():
     order = layers()
     assert order[0][:2] == ["wcs.errors", "wcs.status"] and order[-1] == ["wcs.cli", "wcs"]
     assert layer_of("wcs.contact.solver", order) < layer_of("wcs.dd.solver", order)
+    with pytest.raises(AssertionError, match="in no layer"):
+        layer_of("wcs.undeclared", order)
     assert upward({"wcs.fem.gluing": {"wcs.contact.mortar"}}, order) == [
         f"wcs.fem.gluing (layer {layer_of('wcs.fem', order) + 1}) -> wcs.contact.mortar "
         f"(layer {layer_of('wcs.contact', order) + 1})"]

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from .version import __version__
 from .errors import StudyError
 from .run.parallel import rank, world
 from .progress import INTERRUPTED, Progress, phase, reporting

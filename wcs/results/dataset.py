@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .. import __version__, linalg
+from .. import linalg
+from ..version import __version__
 from ..model import validity
 from ..status import Status, flag_attrs
 from ..study.fuzzy import alpha_cut
