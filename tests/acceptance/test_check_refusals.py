@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 import yaml
 
-from bad_studies import demo_doc, write_study
+from tests.support.bad_studies import demo_doc, write_study
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.scene import estimate, geometry, mesher
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
 
 

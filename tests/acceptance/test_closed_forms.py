@@ -10,7 +10,7 @@ import wcs
 from wcs.evaluation import Evaluator
 from wcs.materials import lame, thermal_beta
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 RTOL = 1e-8
 
 

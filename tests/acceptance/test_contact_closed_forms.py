@@ -11,7 +11,7 @@ import yaml
 import wcs
 from wcs.cli import main
 
-from scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
+from tests.support.scenes import VALIDATION, load, solve  # noqa: F401 - shared scene helpers
 
 
 
@@ -170,7 +170,7 @@ def test_knee_coulomb_needs_the_fallback_and_satisfies_kkt(monkeypatch):
     is unreliable here: stiffness contrast 600, it reports 'inaccurate' / 'unbounded')."""
     import functools
     import wcs.contact.solver as cs
-    knee = Path(__file__).resolve().parents[1] / "studies" / "knee-replacement.yaml"
+    knee = Path(__file__).resolve().parents[2] / "studies" / "knee-replacement.yaml"
     monkeypatch.setattr(cs, "_newton", functools.partial(cs._newton, fallback=False))
     bare = wcs.load_study(knee)
     assert bare.evaluate(bare.nominal()).status != 0

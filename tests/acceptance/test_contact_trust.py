@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-import scenes
+from tests.support import scenes
 import wcs
 import wcs.contact.solver as cs
 import wcs.contact.methods as methods
@@ -24,7 +24,7 @@ from wcs.coefficients import flatten
 from wcs.evaluation import Evaluator
 from wcs.model import Model
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def coarse(name, size, refine):

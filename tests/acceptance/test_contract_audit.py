@@ -22,13 +22,13 @@ import numpy as np
 import pytest
 import yaml
 
-from test_fuzz_check import mutate
+from tests.acceptance.test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import _read_yaml, load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # A soft block on a stiff one, written from the contract's §5 and §6 alone: three-component
 # vectors, a fuzzy traction component, a Lipschitz slip limit on a [2, 2] grid, senses max, min

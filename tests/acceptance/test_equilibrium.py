@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def balance(model, sol) -> tuple[float, np.ndarray]:

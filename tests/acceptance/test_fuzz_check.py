@@ -20,7 +20,7 @@ import yaml
 from wcs.cli import main
 from wcs.study import _Loader as study_loader
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
 # 3D studies whose `check` solves 3e4-1e5 unknowns (4-10 s each): fuzzed in the slow variant only;
 # the small 3D studies (patches, block on block) stay in the default run

@@ -23,11 +23,11 @@ from pathlib import Path
 
 import pytest
 
-import fuzz_mutants as fm
-from fuzz_runner import TIMEOUT
+from tests.support import fuzz_mutants as fm
+from tests.support.fuzz_runner import TIMEOUT
 
-ROOT = Path(__file__).resolve().parents[1]
-RUNNER = Path(__file__).resolve().parent / "fuzz_runner.py"
+ROOT = Path(__file__).resolve().parents[2]
+RUNNER = Path(__file__).resolve().parents[1] / "support" / "fuzz_runner.py"
 MEMORY_WORDS = ("MemoryError", "bad_alloc", "Cannot allocate memory", "out of memory")
 PEAK_GB = 3.0
 FAILURES = ("traceback", "crash", "hang", "blow-up", "accepted-bad", "unclear")

@@ -9,7 +9,6 @@ layer the maximum over ν is interior, ν* = 1 − sqrt(1 − α_T |ΔT| E / p) 
 and highest p (its study header)."""
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +16,8 @@ import pytest
 import yaml
 
 import wcs
-from search_problems import vertex_ranges
-from test_mpi import serial_and_two_ranks
+from tests.support.search_problems import vertex_ranges
+from tests.run.test_mpi import serial_and_two_ranks
 from wcs import runner
 from wcs.cli import main
 from wcs.report import render_report
@@ -27,7 +26,7 @@ from wcs.search import Worst
 from wcs.store import store_path
 from wcs.study import _read_yaml, alpha_cut
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PLATE = ROOT / "studies" / "heated-plate.yaml"
 COOLED = ROOT / "studies" / "validation" / "cooled-layer.yaml"
 DEMO = ROOT / "studies" / "two-blocks-demo.yaml"
@@ -301,8 +300,7 @@ def test_fuzzy_report_renders_in_chromium(tmp_path):
     """The membership figures are drawn on the page as Chromium shows it: the minima's line
     (green, #2ca02c) is only in them."""
     from PIL import Image
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_report import ensure_chromium, screenshot
+    from tests.report.test_report import ensure_chromium, screenshot
     from wcs.report import write_report
     doc = plate_doc()
     doc["limits"] = {"heave": {"lower": 3.0e-4, "upper": 8.5e-4}}

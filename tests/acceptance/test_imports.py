@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "wcs"
+PACKAGE = Path(__file__).resolve().parents[2] / "wcs"
 
 
 def module_name(path: Path) -> str:

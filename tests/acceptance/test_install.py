@@ -20,7 +20,7 @@ import yaml
 
 import wcs
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 BUDGET = 6
 
 

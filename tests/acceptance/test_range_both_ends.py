@@ -17,7 +17,7 @@ import pytest
 import xarray as xr
 
 import wcs
-from search_problems import vertex_ranges
+from tests.support.search_problems import vertex_ranges
 from wcs.cli import main
 from wcs.progress import limits_broken, summary_table
 from wcs.report import render_report
@@ -25,7 +25,7 @@ from wcs.report.html import number
 from wcs.extremes import extremes
 from wcs.study import _read_yaml
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COOLED = ROOT / "studies" / "validation" / "cooled-layer.yaml"
 PLATE = ROOT / "studies" / "heated-plate.yaml"
 STACKED = ROOT / "studies" / "validation" / "stacked-layers.yaml"

@@ -17,15 +17,15 @@ import numpy as np
 import pytest
 import yaml
 
-from bad_studies import demo_doc, write_study
-from scenes import load
-from test_3d_patch import DELTA, E_BLOCK, G, H, P, shear_patch
+from tests.support.bad_studies import demo_doc, write_study
+from tests.support.scenes import load
+from tests.contact.test_patch_3d import DELTA, E_BLOCK, G, H, P, shear_patch
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SSNV128 = ROOT / "tests" / "data" / "ssnv128.yaml"
 STIFF = [1e14, 1e15, 1e16, 1e17]
 

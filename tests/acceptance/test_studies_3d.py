@@ -20,7 +20,7 @@ import yaml
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def frictionless(doc: dict) -> dict:

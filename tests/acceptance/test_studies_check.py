@@ -13,7 +13,7 @@ from wcs.scene.mesher import build_mesh
 from wcs.scene.spec import Material
 from wcs.study import load_study
 
-ALL = sorted((Path(__file__).resolve().parent.parent / "studies").glob("*.yaml"))
+ALL = sorted((Path(__file__).resolve().parents[2] / "studies").glob("*.yaml"))
 STUDIES = [p for p in ALL if yaml.safe_load(p.read_text(encoding="utf-8"))["scene"].get("dimension", 2) == 2]
 
 

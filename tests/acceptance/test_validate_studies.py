@@ -19,7 +19,7 @@ import yaml
 
 from wcs.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
 BUDGET = 10
 
@@ -76,8 +76,7 @@ def run_study(tmp_path_factory):
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("path", STUDIES, ids=[_id(p) for p in STUDIES])
 def test_study_runs_and_reports(path, run_study, tmp_path):
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_report import check_page
+    from tests.report.test_report import check_page
 
     nc, doc = run_study(path)
     with xr.open_dataset(nc, engine="h5netcdf") as ds:
@@ -110,7 +109,7 @@ def test_study_runs_and_reports(path, run_study, tmp_path):
         verdict = page.limit_row(c)["verdict"]["text"]
         assert verdict.removesuffix(" (mesh share unknown)") in ("PASS", "FAIL", "no limit"), (c, verdict)
     if path.stem in ("tunnel-fault-3d", "knee-replacement-3d"):    # the assessor turns the model in Chromium
-        from test_report3d import drive_view
+        from tests.report.test_report_3d import drive_view
         drive_view(html, tmp_path)
 
 

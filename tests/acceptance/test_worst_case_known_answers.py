@@ -13,7 +13,7 @@ import yaml
 
 import wcs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
 
 

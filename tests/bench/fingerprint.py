@@ -18,10 +18,9 @@ import numpy as np
 import xarray as xr
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))        # the checkout this script lives in, not whichever wcs is installed
 
-from test_validate_studies import BUDGET, STUDIES, _id, small_copy  # noqa: E402
+from tests.acceptance.test_validate_studies import BUDGET, STUDIES, _id, small_copy  # noqa: E402
 
 from wcs.cli import main  # noqa: E402
 

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from test_fuzz_check import run_cases  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from tests.acceptance.test_fuzz_check import run_cases  # noqa: E402
 
 SECONDS = 10.0      # a mutated study is checked (or refused) within this wall time
 

@@ -1,7 +1,7 @@
 """The benchmark-derived choices of `auto` (wcs/choose.py) and their wiring."""
 from pathlib import Path
 
-from scenes import typed_scene
+from tests.support.scenes import typed_scene
 import wcs
 from wcs.choose import MeshFacts, SearchFacts, SolverFacts, mesh_size, search_method, solver_method
 
@@ -27,7 +27,7 @@ def test_search_and_mesh_rules():
 
 
 def test_auto_solver_is_resolved_and_reported():
-    study = wcs.load_study(Path(__file__).resolve().parents[1] / "studies" / "knee-replacement.yaml")
+    study = wcs.load_study(Path(__file__).resolve().parents[2] / "studies" / "knee-replacement.yaml")
     ev = study.evaluate(study.nominal())
     assert ev.status == 0
     model = ev.evaluator.model

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from bad_studies import CASES, broken, demo_doc, write_study
+from tests.support.bad_studies import CASES, broken, demo_doc, write_study
 from wcs.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
 
 

@@ -1,7 +1,5 @@
 """The 3D contact solve with W from the bordered matrix [[K⁺⁻¹, Cᵀ], [C, 0]] (Schur complement
 on the contact rows) gives the answers of the dense path W = C_S (K⁺)_SS C_Sᵀ, which 2D keeps."""
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,9 +8,7 @@ import scipy.sparse as sp
 from wcs import linalg
 from wcs.contact import solver as cs
 from wcs.status import Status
-
-sys.path.insert(0, str(Path(__file__).parent))
-from test_contact3d import args, pad_on_base  # noqa: E402
+from tests.contact.test_solver_3d import args, pad_on_base
 
 
 def C_of(P):

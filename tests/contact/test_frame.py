@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from test_3d_schema import STUDY, run, write
+from tests.study.test_study_3d import STUDY, run, write
 from wcs.contact.frame import grid_weights, surface_frame, surface_grid
 from wcs.study import load_study
 

@@ -20,7 +20,7 @@ from wcs.problem import build_problem
 from wcs.search.archive import Archive
 from wcs.sensitivity import contact_nonsmooth
 
-TUNNEL_3D = Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault-3d.yaml"
+TUNNEL_3D = Path(__file__).resolve().parents[2] / "studies" / "tunnel-fault-3d.yaml"
 
 
 def test_a_row_of_round_off_acts_on_nothing_and_ties_nothing():

@@ -16,10 +16,10 @@ import pytest
 import scipy.sparse as sp
 import yaml
 
-from test_contact_solver import args, two_blocks
-from test_3d_patch import floating
-from test_contact3d_robust import tunnel_fault_3d
-from test_glue3d import plane, stack
+from tests.contact.test_solver import args, two_blocks
+from tests.contact.test_patch_3d import floating
+from tests.contact.test_solver_3d_inclined_fault import tunnel_fault_3d
+from tests.fem.test_glue_3d import plane, stack
 from wcs.contact import solver as cs
 from wcs.contact.iterative import solve_contact_iterative
 from wcs.errors import StudyError
@@ -27,7 +27,7 @@ from wcs.evaluation import Evaluator
 from wcs.status import Status
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
 AGREE = 1e-7
 

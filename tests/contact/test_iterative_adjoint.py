@@ -6,7 +6,6 @@ LU of W) to AGREE = 1e-6 relative — both solve the same linear system on the s
 the iterative one to the Krylov tolerance 1e-12 of the right-hand side (measured agreement
 1e-9–1e-16); against central finite differences the rule of tests/test_gradients.py (1e-5
 relative plus the differences' noise floor)."""
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,11 +15,9 @@ import yaml
 import wcs
 from wcs import model as model_module
 from wcs import sensitivity
+from tests.model.test_gradients import TOL, check_against_fd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_gradients import TOL, check_against_fd  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
 AGREE = 1e-6
 

@@ -4,7 +4,7 @@ answer (λn = a + b·gw, a contraction of the fixed point for F b < 1) and by bo
 solvers on a small two-block problem (tests/test_contact_solver.py)."""
 import numpy as np
 import pytest
-from test_contact_solver import args, two_blocks
+from tests.contact.test_solver import args, two_blocks
 
 from wcs.contact import solver as cs
 from wcs.contact.laws import Coulomb, Tresca, frictionless, law_of

@@ -4,7 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scenes
+from tests.support import scenes
 
 import wcs.contact.methods as methods
 from wcs.contact.methods import METHODS, Decomposition, Primal, method_of

@@ -4,7 +4,6 @@ Patch tests (contact and glue) on nonmatching meshes, Hertz with a fine
 cylinder on a coarse block, the seed's mortar Poisson example ([33]) with its
 O(h) H¹ convergence, agreement with node-to-node on matching meshes, and the
 plumbing: per-body mesh sizes, criteria, adjoint gradients, the results file."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +19,7 @@ from wcs.contact.mortar import mortar_integrals, sides_match
 from wcs.fem.gluing import build_glue, substitution
 from wcs.scene.mesher import build_mesh
 
-from scenes import VALIDATION, load, solve, typed_scene  # noqa: F401 - shared scene helpers
+from tests.support.scenes import VALIDATION, load, solve, typed_scene  # noqa: F401 - shared scene helpers
 
 
 
@@ -299,9 +298,7 @@ def test_mortar_poisson_example_converges_as_h():
 
 
 def test_gradients_on_a_mortar_scene():
-    import sys
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from test_gradients import TOL, check_against_fd
+    from tests.model.test_gradients import TOL, check_against_fd
 
     def edit(doc):
         doc["solver"] = {"method": "monolithic", "tolerance": TOL}

@@ -24,7 +24,7 @@ from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
+VALIDATION = Path(__file__).resolve().parents[2] / "studies" / "validation"
 PATCH, HERTZ = VALIDATION / "mortar-patch-3d.yaml", VALIDATION / "hertz-3d.yaml"
 
 

@@ -82,7 +82,7 @@ def test_a_base_slid_far_under_a_tresca_pad_gives_the_short_slides_answer(tmp_pa
     after two steps: its force scale was the tangents' trial force c q ~ 5e13 N against normal
     forces of 7e5, and the certificate refused the answer (exit 1). The force a Tresca
     tangent can carry is its bound g w."""
-    import fuzz_mutants
+    from tests.support import fuzz_mutants
 
     def nominal(u_x):
         doc = fuzz_mutants.base("2d")

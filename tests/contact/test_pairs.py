@@ -11,12 +11,12 @@ import yaml
 from wcs.contact.pairs import (normal_jump_matrix, pair_contact, pair_sides,
                                tangent_jump_matrix)
 from wcs.errors import StudyError
-from scenes import typed_scene
+from tests.support.scenes import typed_scene
 from wcs.scene.mesher import build_mesh
 from wcs.scene.selectors import select_boundary
 from wcs.scene.spec import Boundary, Contact
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 R = 1.0
 
 

@@ -20,7 +20,7 @@ from wcs.contact.qp import solve_contact_qp
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"
 
 

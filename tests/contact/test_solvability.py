@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_contact_solver import two_blocks
+from tests.contact.test_solver import two_blocks
 
 from wcs.contact.solvability import unbalanced_rigid_motion
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("g", [0.0, 0.001, 0.0025])

@@ -22,7 +22,7 @@ from wcs.contact.solver import conditions_violated
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-from test_3d_adjoint import pad_on_base_study
+from tests.model.test_adjoint_3d import pad_on_base_study
 
 
 def _plane(point, normal):

@@ -12,7 +12,7 @@ import yaml
 import wcs
 from wcs.contact.zone import canonical_split, dependent_rows, held_rows, tied_rows
 
-TUNNEL = Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml"
+TUNNEL = Path(__file__).resolve().parents[2] / "studies" / "tunnel-fault.yaml"
 
 
 def tunnel(solver, edit=None):

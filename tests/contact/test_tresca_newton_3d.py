@@ -26,7 +26,7 @@ from wcs.evaluation import Evaluator
 from wcs.status import Status
 from wcs.study import load_study
 
-from test_contact3d_robust import solve_and_compare, tunnel_fault_3d
+from tests.contact.test_solver_3d_inclined_fault import solve_and_compare, tunnel_fault_3d
 
 
 def oblique(d: dict, strike_deg: float = 30.0) -> dict:
@@ -99,7 +99,7 @@ def test_a_period_three_disc_cycle_is_broken_by_the_step_length():
     assert list(res.active) == [STICK, SLIP, SLIP]
 
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 # A data set of the 3D tunnel's sample (E, ν, weight, two top pressures, the right side's push,
 # then the slip limit's 8 × 2 grid values) on which Newton's full steps cycled to max_iter, and

@@ -15,7 +15,7 @@ from wcs.contact.units import stiffness_units
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SHEAR = ROOT / "studies" / "validation" / "tresca-shear-patch-3d.yaml"
 G, DELTA, H = 3.0e5, 1.0e-3, 0.5                 # the shear patch's slip limit, top motion, height
 

@@ -10,7 +10,7 @@ import yaml
 
 import wcs
 
-ROOT = Path(__file__).resolve().parents[1] / "studies"
+ROOT = Path(__file__).resolve().parents[2] / "studies"
 VALIDATION = ROOT / "validation"
 STRICT = {"method": "dd", "tolerance": 1e-10, "fallback": False}
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import yaml
 
-STUDY = Path(__file__).resolve().parents[1] / "studies" / "validation" / "tresca-pad.yaml"
+STUDY = Path(__file__).resolve().parents[2] / "studies" / "validation" / "tresca-pad.yaml"
 BIN = Path(sys.executable).parent
-DD_BENCH = Path(__file__).resolve().parent / "bench" / "dd_bench.py"
+DD_BENCH = Path(__file__).resolve().parents[1] / "bench" / "dd_bench.py"
 
 
 def _pad(tmp_path):

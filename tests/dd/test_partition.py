@@ -23,7 +23,7 @@ from wcs.model import Model
 from wcs.options import DomainDecomposition
 from wcs.scene.mesher import build_mesh
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def model_of(name, tmp_path):

@@ -17,7 +17,7 @@ from wcs.dd.partition import rcb
 from wcs.model import Model
 from wcs.scene.mesher import build_mesh
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def build(name, tmp_path, edit=None):

@@ -15,7 +15,7 @@ import yaml
 import wcs
 from wcs.dd import solver as dds
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
 STRICT = {"method": "dd", "tolerance": 1e-10, "fallback": False}
 

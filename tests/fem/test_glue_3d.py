@@ -27,9 +27,9 @@ from wcs.scene.mesher3d import build_mesh3d
 from wcs.scene.session import Session
 from wcs.study import load_study
 
-from test_3d_model import solve
+from tests.model.test_model_3d import solve
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 P = 2.0e6                                   # the traction on the top [Pa]
 MATERIALS = {"stiff": {"E": 2.0e10, "nu": 0.3, "expansion": 1.0e-5, "conductivity": 3.0},
              "soft": {"E": 1.0e10, "nu": 0.15, "expansion": 1.0e-5, "conductivity": 1.0}}   # same ν/E

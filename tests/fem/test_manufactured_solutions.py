@@ -11,7 +11,7 @@ import scipy.sparse as sp
 from skfem import Basis, Functional, LinearForm, MeshTri, asm
 from skfem.helpers import dot
 
-from reference_forms import conduction, div_div, strain_strain
+from tests.support.reference_forms import conduction, div_div, strain_strain
 from wcs import linalg
 from wcs.fem import forms
 from wcs.fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices

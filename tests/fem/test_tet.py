@@ -9,7 +9,7 @@ import pytest
 from skfem import Basis, BilinearForm, ElementTetP1, ElementVector, FacetBasis, Functional, LinearForm, MeshTet, asm
 from skfem.helpers import dot
 
-from reference_forms import conduction, div_div, strain_strain
+from tests.support.reference_forms import conduction, div_div, strain_strain
 from wcs import linalg
 from wcs.dd.kernels import rigid_basis
 from wcs.fem import tet

@@ -127,7 +127,7 @@ def test_an_empty_schur_block_is_not_asked_of_pardiso():
         print("ok")
     """
     from pathlib import Path
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
     assert (run.returncode, run.stdout) == (0, "ok\n"), run.stderr[-2000:]
 

@@ -9,8 +9,6 @@ Tresca and Coulomb, held and floating), then through studies.
 Tolerance (the rule of test_gradients.py): 1e-5 relative, plus the finite differences' noise
 floor 10·tol·|Φ|/h (the solver stops at a relative residual `tol`; a difference quotient with
 step h cannot resolve derivatives below that)."""
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,11 +18,9 @@ import scipy.sparse as sp
 import wcs
 from wcs.contact import solver as cs
 from wcs.sensitivity import ContactAdjoint
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_3d_patch import E_BASE, E_BLOCK, G, H, shear_patch  # noqa: E402
-from test_contact3d import args, pad_on_base  # noqa: E402
-from test_gradients import check_against_fd  # noqa: E402
+from tests.contact.test_patch_3d import E_BASE, E_BLOCK, G, H, shear_patch
+from tests.contact.test_solver_3d import args, pad_on_base
+from tests.model.test_gradients import check_against_fd
 
 TOL = 1e-13
 REL = 1e-5

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from scenes import load
-from test_gradients import TOL, check_against_fd
+from tests.support.scenes import load
+from tests.model.test_gradients import TOL, check_against_fd
 from wcs.evaluation import Evaluator
 
 # regions of interest on the flat contact y = 1 (x ∈ [0, 2], slave edges 0.1 or 0.15 long) and

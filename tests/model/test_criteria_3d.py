@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import wcs
-from test_3d_adjoint import two_region_block
+from tests.model.test_adjoint_3d import two_region_block
 from wcs import criteria
 from wcs.errors import StudyError
 from wcs.fem import tet

@@ -10,12 +10,12 @@ import pytest
 import yaml
 
 import wcs
-from test_gradients import TOL, VALIDATION, check_against_fd
+from tests.model.test_gradients import TOL, VALIDATION, check_against_fd
 from wcs.criteria import KINDS, _principal_kink
 from wcs.errors import StudyError
 from wcs.report.data import KIND_LABEL, KIND_UNITS
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def all_kinds(criteria):

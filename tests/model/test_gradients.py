@@ -15,8 +15,8 @@ import yaml
 
 import wcs
 
-DATA = Path(__file__).resolve().parent / "data"
-VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
+DATA = Path(__file__).resolve().parents[1] / "data"
+VALIDATION = Path(__file__).resolve().parents[2] / "studies" / "validation"
 TOL = 1e-13
 
 
@@ -63,7 +63,7 @@ def test_coulomb_coefficient_and_floating_pad():
 
 
 def test_linear_scene_without_contact():
-    study = wcs.load_study(Path(__file__).resolve().parents[1] / "studies" / "glued-layers.yaml")
+    study = wcs.load_study(Path(__file__).resolve().parents[2] / "studies" / "glued-layers.yaml")
     assert check_against_fd(study) < 1e-5
 
 
@@ -81,6 +81,6 @@ def test_tunnel_with_redundant_contact_constraints():
     """The tunnel: fault ends held by supports on both sides (zero contact rows) and by rollers
     on both sides (tangent parallel to normal) make the active-set system singular; the
     multipliers are not unique there but the criteria's gradients are (least squares)."""
-    doc = yaml.safe_load((Path(__file__).resolve().parents[1] / "studies" / "tunnel-fault.yaml").read_text())
+    doc = yaml.safe_load((Path(__file__).resolve().parents[2] / "studies" / "tunnel-fault.yaml").read_text())
     doc["solver"] = {"method": "monolithic", "tolerance": TOL}
     assert check_against_fd(wcs.load_study(doc)) < 1e-5

@@ -224,7 +224,7 @@ def test_wcs_solve_of_a_3d_study_writes_the_3d_layout(tmp_path):
     study = tmp_path / "cube.yaml"
     study.write_text(yaml.safe_dump(d, sort_keys=False))
     out = tmp_path / "cube.nc"
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     run = subprocess.run([sys.executable, "-m", "wcs.cli", "solve", str(study), "-o", str(out)],
                          capture_output=True, text=True, cwd=tmp_path,
                          env={**os.environ, "PYTHONPATH": str(root)})

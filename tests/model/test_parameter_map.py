@@ -13,7 +13,7 @@ from wcs.coefficients import ParameterMap, flatten
 from wcs.model import Model
 from wcs.sensitivity import gradients
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 ALL_KINDS = DATA / "gradients-all-kinds.yaml"     # every parameter kind, thermal step, contact, a profile
 
 
@@ -103,7 +103,7 @@ def test_adjoint_of_a_solution_after_another_solve(evaluator):
 
 
 def test_adjoint_without_contact_after_another_solve():
-    study = wcs.load_study(Path(__file__).resolve().parents[1] / "studies" / "glued-layers.yaml")
+    study = wcs.load_study(Path(__file__).resolve().parents[2] / "studies" / "glued-layers.yaml")
     rng = np.random.default_rng(5)
     xa, xb = _inside(study, rng), _inside(study, rng)
     a = study.evaluate(xa, gradients=True)

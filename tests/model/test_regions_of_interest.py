@@ -14,7 +14,7 @@ from wcs.errors import StudyError
 from wcs.evaluation import Evaluator
 from wcs.study import load_study
 
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 E, NU, P = 2.0e9, 0.3, 1.0e7              # the confined block: Young's modulus, Poisson, top pressure
 BOX = [0.37, 0.21, 1.53, 0.62]             # interior box, cut by no mesh line of its own

@@ -10,7 +10,7 @@ import yaml
 from pydantic import BaseModel
 
 import wcs
-from search_problems import drive, interior
+from tests.support.search_problems import drive, interior
 from wcs import runner
 from wcs.cli import main
 from wcs.dd import solver as dds
@@ -18,7 +18,7 @@ from wcs.evaluation import Evaluator
 from wcs.search import Worst
 from wcs.study import Search, Solver
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAD = ROOT / "studies" / "validation" / "tresca-pad.yaml"
 
 

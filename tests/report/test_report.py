@@ -25,7 +25,7 @@ from wcs.status import flag_attrs
 from wcs.report import SECTION_IDS, render_report, write_report
 from wcs.results import provenance, write_netcdf
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MESH_VARS = ("coords", "cells", "cell_body", "cell_region")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -401,8 +401,8 @@ def test_the_mesh_check_table_keeps_within_the_page_in_chromium(tmp_path):
     """The mesh check's table with three meshes and a long note (the 3D tunnel's) fits the page
     Chromium draws at 1280 px: the page is no wider than the window and the table scrolls inside
     the page's column (before, it ran off the page)."""
-    from cdp import Browser
-    from test_verdict import _knee_like
+    from tests.support.cdp import Browser
+    from tests.results.test_verdict import _knee_like
     note = ("split once only (the mesh split 2 times would have 1.59e+06 cells, beyond mesh.max_cells = 1e+06): "
             "f(h/2) − f(h) = 1.231e+12; no order observed: the error assumes the linear elements' theoretical "
             "order 1 (stresses and contact tractions converge as h; displacements faster, so it overstates theirs)")

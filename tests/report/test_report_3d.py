@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_mesher3d import BLOCK, FAULT, build_mesh3d, fault_scene
+from tests.scene.test_mesher_3d import BLOCK, FAULT, build_mesh3d, fault_scene
 from wcs.contact.frame import surface_frame
 from wcs.report.plots3d import outer_faces, plane_section, plane_axes
 
@@ -309,8 +309,8 @@ def test_the_3d_view_turns_and_switches_fields_in_chromium(fault_sm, tmp_path):
     changes), the field list recolours it (von Mises per cell, then the contact pressure on the
     contact surface with the bodies see-through). Screenshots stay in tmp_path for a reviewer."""
     from PIL import Image
-    from cdp import Browser
-    from test_report import ensure_chromium
+    from tests.support.cdp import Browser
+    from tests.report.test_report import ensure_chromium
     out, res = report3d(fault_sm, tmp_path)
     d = view_json(out.read_text())
     keys = [f["key"] for f in d["fields"]]
@@ -407,8 +407,8 @@ def drive_view(html: Path, folder: Path) -> dict:
     screenshot (kept in `folder` for a reviewer) shows a picture, and each differs from the last.
     Returns the screenshots' paths."""
     from PIL import Image
-    from cdp import Browser
-    from test_report import ensure_chromium
+    from tests.support.cdp import Browser
+    from tests.report.test_report import ensure_chromium
     keys = [f["key"] for f in view_json(html.read_text())["fields"]]
     with Browser(ensure_chromium(), folder, width=1280, height=1000) as b:
         b.call("Network.enable", session=True)

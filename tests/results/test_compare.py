@@ -13,7 +13,7 @@ import xarray as xr
 
 from wcs.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDY = ROOT / "studies" / "validation" / "stacked-layers.yaml"
 BIN = Path(sys.executable).parent
 

@@ -13,7 +13,7 @@ from wcs.extremes import extremes
 from wcs.report import render_report
 from wcs.study import load_study
 
-SLAB = Path(__file__).resolve().parent / "data" / "heated-slab.yaml"
+SLAB = Path(__file__).resolve().parents[1] / "data" / "heated-slab.yaml"
 
 
 @pytest.fixture(scope="module")

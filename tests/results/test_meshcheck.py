@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from test_contact_pressure import hertz_mean
+from tests.model.test_contact_pressure import hertz_mean
 from wcs.cli import main
 from wcs.evaluation import Evaluator
 from wcs.meshcheck import Richardson, refined_nodes, richardson, verdict
@@ -16,7 +16,7 @@ from wcs.report import render_report
 from wcs.scene.mesher import build_mesh
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SLAB = ROOT / "tests" / "data" / "heated-slab.yaml"
 VALIDATION = ROOT / "studies" / "validation"
 

@@ -16,7 +16,7 @@ import xarray as xr
 import yaml
 from scipy.spatial import cKDTree
 
-from test_meshfile3d import FILE, write_block_msh
+from tests.scene.test_meshfile_3d import FILE, write_block_msh
 from wcs.cli import main
 from wcs.errors import StudyError
 from wcs.fem.tet import volumes
@@ -27,7 +27,7 @@ from wcs.scene.mesher import build_mesh
 from wcs.scene.mesher3d import build_mesh3d
 from wcs.study import load_scene, load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SLAB = ROOT / "tests" / "data" / "heated-slab.yaml"
 
 # A heated column, the heated slab (tests/data/heated-slab.yaml) one dimension up: a uniform

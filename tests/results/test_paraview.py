@@ -12,7 +12,7 @@ import xarray as xr
 
 from wcs.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
 TENSOR = ("XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ")       # VTK's 9-component tensor, row by row
 

@@ -10,7 +10,7 @@ from wcs.evaluation import Evaluator
 from wcs.results import parameter_units, run_dataset, status_attrs, worst_field_variables, write_netcdf
 from wcs.status import Status
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("path,units", [

@@ -20,7 +20,7 @@ from wcs.report import render_report
 from wcs.status import Status, flag_attrs
 from wcs.verdict import region, verdict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAD = ROOT / "studies" / "validation" / "tresca-pad.yaml"
 
 

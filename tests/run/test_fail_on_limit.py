@@ -14,7 +14,7 @@ import yaml
 
 from wcs.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PLATE = ROOT / "studies" / "heated-plate.yaml"
 
 
@@ -35,8 +35,7 @@ def _wcs(*args, cwd):
 
 
 def test_broken_limit_exits_3_and_the_report_says_fail(tmp_path):
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_report import Page
+    from tests.report.test_report import Page
 
     study, nc = _copy(tmp_path), tmp_path / "broken.nc"
     proc = _wcs("run", str(study), "-o", str(nc), "--fail-on-limit", cwd=tmp_path)
@@ -66,7 +65,6 @@ def test_limits_that_hold_exit_0(tmp_path, capsys):
     assert "limit broken" not in out.err
     html = tmp_path / "fine.html"
     assert main(["report", str(nc), "-o", str(html), "--quiet"]) == 0
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_report import Page
+    from tests.report.test_report import Page
     page = Page(html.read_text())
     assert page.limit_row("heave")["verdict"]["text"] == "PASS"

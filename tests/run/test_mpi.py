@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDY = ROOT / "studies" / "validation" / "stacked-layers.yaml"
 BIN = Path(sys.executable).parent
 

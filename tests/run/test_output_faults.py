@@ -34,14 +34,13 @@ from wcs.report.data import from_dataset, load
 from wcs.report.html import Report
 from wcs.store import store_path, writer
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def err_lines(err: str) -> list[str]:
     """What a run printed on stderr, less the study's warnings (printed before solving)."""
     return [line for line in err.splitlines() if not line.startswith("warning: ")]
 STUDIES = ROOT / "studies"
-HERE = Path(__file__).resolve().parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
 BITWISE = ("x", "phi", "status", "worst_value", "worst_x")
 
@@ -70,7 +69,7 @@ def pad(tmp_path, budget):
 
 @pytest.fixture(autouse=True)
 def tiny_strategy(monkeypatch):
-    from test_runner import tiny
+    from tests.run.test_runner import tiny
     monkeypatch.setattr(runner, "get_strategy", lambda name: tiny)
 
 
@@ -78,11 +77,11 @@ def tiny_strategy(monkeypatch):
 # SIGINT sent to itself inside the N-th call of a write function (WHERE: "store" or "netcdf")
 SCRIPT = """
 import os, signal, sys, time, functools
-sys.path.insert(0, {here!r})
+sys.path.insert(0, {root!r})
 import numpy as np
 import xarray as xr
 import wcs.evaluation, wcs.runner
-from test_runner import tiny
+from tests.run.test_runner import tiny
 wcs.runner.get_strategy = lambda name: tiny
 solve = wcs.evaluation.Evaluator.evaluate
 @functools.wraps(solve)
@@ -110,7 +109,7 @@ sys.exit(main(sys.argv[1:]))
 
 def wcs_process(tmp_path, *args, preexec=None, **env):
     script = tmp_path / "wcs_slow.py"
-    script.write_text(SCRIPT.format(here=str(HERE)))
+    script.write_text(SCRIPT.format(root=str(ROOT)))
     return subprocess.Popen([sys.executable, str(script), *map(str, args)], cwd=tmp_path,
                             env={**ENV, **{k: str(v) for k, v in env.items()}}, preexec_fn=preexec,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -26,9 +26,8 @@ from wcs.problem import build_problem
 from wcs.search import Batch, Worst
 from wcs.store import Store, store_path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
-HERE = Path(__file__).resolve().parent
 REAL_GET_STRATEGY = runner.get_strategy
 
 
@@ -177,12 +176,12 @@ def test_kill_9_then_resume(tresca, tmp_path):
     script = tmp_path / "run_tiny.py"
     script.write_text(textwrap.dedent(f"""
         import sys
-        sys.path.insert(0, {str(HERE)!r})
+        sys.path.insert(0, {str(ROOT)!r})
         import functools
         import time
         import wcs.evaluation
         import wcs.runner
-        from test_runner import tiny
+        from tests.run.test_runner import tiny
         wcs.runner.get_strategy = lambda name: tiny
         solve = wcs.evaluation.Evaluator.evaluate
         @functools.wraps(solve)           # keeps the signature: the runner asks for gradients by it

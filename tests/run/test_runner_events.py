@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 import wcs
-from test_runner import study_file, tiny
+from tests.run.test_runner import study_file, tiny
 from wcs.runner import Runner
 
 WCS = Path(wcs.__file__).resolve().parent

@@ -18,7 +18,7 @@ from wcs.results import provenance
 from wcs.scene.estimate import USABLE_SHARE, W_COPIES, EvaluationFacts, evaluation_cost
 from wcs.study import load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # the facts of the assembled model (reduced unknowns, nnz of the reduced K, contact rows) as
 # printed by Model: the shipped 3D tunnel, and its copy with the ring at 0.4 m and the fault at
 # 0.5 m, whose `check` died after 3 minutes on a 3.27 GiB W (MemoryError at 14.5 GB under a cap,

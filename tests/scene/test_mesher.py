@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yaml
 
-from scenes import typed_scene
+from tests.support.scenes import typed_scene
 from wcs.errors import StudyError
 from wcs.scene import mesher
 from wcs.scene import selectors
 from wcs.scene.selectors import Selection, facet_lengths, facet_normals, nodal_normals
 from wcs.scene.spec import Boundary, RegionOfInterest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def build_mesh(sc, *args, **kw):

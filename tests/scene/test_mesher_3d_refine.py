@@ -6,7 +6,7 @@ estimate the resource guard uses is an upper bound of the cells meshed."""
 import numpy as np
 import pytest
 
-from test_mesher3d import BLOCK, FAULT, build_mesh3d, fault_scene
+from tests.scene.test_mesher_3d import BLOCK, FAULT, build_mesh3d, fault_scene
 from wcs.errors import StudyError
 from wcs.scene.estimate import estimate_cells3d, plane_box_area
 from wcs.study import load_scene
@@ -96,7 +96,7 @@ def test_a_refine_cylinder_across_two_bodies_is_estimated_once():
     from pathlib import Path
 
     import yaml
-    doc = yaml.safe_load((Path(__file__).parents[1] / "studies" / "tunnel-fault-3d.yaml").read_text())
+    doc = yaml.safe_load((Path(__file__).parents[2] / "studies" / "tunnel-fault-3d.yaml").read_text())
     doc["scene"]["mesh"]["refine"][0]["size"] = 0.3
     scene = load_scene(doc["scene"])
     estimate, path = estimate_cells3d(scene, scene.mesh.size)

@@ -13,7 +13,7 @@ from wcs.scene.mesher import build_mesh
 from wcs.scene.spec import GroupBoundary
 from wcs.study import load_study
 
-STUDIES = Path(__file__).resolve().parent.parent / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 DEMO = STUDIES / "user-mesh-demo.yaml"
 
 

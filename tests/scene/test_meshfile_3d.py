@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
-from test_fuzz_check import mutate
+from tests.acceptance.test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.fem.tet import volumes
 from wcs.scene.mesher3d import ALGORITHM_3D, build_mesh3d

@@ -15,7 +15,7 @@ import pytest
 
 from scipy.optimize import minimize
 
-from search_problems import (PROBLEMS, X_STAR, AnalyticProblem, drive, flat, interior, interior_dense_grid,
+from tests.support.search_problems import (PROBLEMS, X_STAR, AnalyticProblem, drive, flat, interior, interior_dense_grid,
                              lipschitz, monotone, relative_error, two_bumps)
 from wcs.search import Outcome, Problem, STRATEGIES
 from wcs.search.compare import compare_with_lhs

@@ -14,7 +14,7 @@ from wcs.report.data import status_meanings
 from wcs.results import run_dataset, solve_dataset, write_netcdf
 from wcs.status import Status, describe
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # the public contract: the `status` integers and descriptions results files have always carried
 CONTRACT = {0: "solved", 1: "contact solver did not converge", 2: "Coulomb fixed point did not converge",

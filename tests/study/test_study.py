@@ -9,7 +9,7 @@ import pytest
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from bad_studies import CASES, DEMO, broken, demo_doc, write_study
+from tests.support.bad_studies import CASES, DEMO, broken, demo_doc, write_study
 from wcs.errors import StudyError
 from wcs.scene.spec import Material, Scene, Shape
 from wcs.study import LIBRARIES, DomainDecomposition, SampleDesign, Search, Uncertain, get_path, load_study

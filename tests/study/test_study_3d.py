@@ -13,7 +13,7 @@ from contextlib import redirect_stderr, redirect_stdout
 import pytest
 import yaml
 
-from test_fuzz_check import mutate
+from tests.acceptance.test_fuzz_check import mutate
 from wcs.cli import main
 from wcs.scene import spec3d
 from wcs.study import load_study

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-DEMO = Path(__file__).resolve().parent.parent / "studies" / "two-blocks-demo.yaml"
+DEMO = Path(__file__).resolve().parents[2] / "studies" / "two-blocks-demo.yaml"
 
 
 def demo_doc() -> dict:

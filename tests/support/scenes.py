@@ -6,7 +6,7 @@ import yaml
 import wcs
 from wcs.study import load_scene
 
-VALIDATION = Path(__file__).resolve().parents[1] / "studies" / "validation"
+VALIDATION = Path(__file__).resolve().parents[2] / "studies" / "validation"
 
 
 def load(name, edit=None):
