@@ -1,4 +1,4 @@
-"""`wcs check` refuses what will fail (issue 15, B8-B14): the nominal solve, facing contact
+"""`wcs check` refuses what will fail: the nominal solve, facing contact
 sides, physical ranges, the resource guard, P1-locking warnings, degenerate geometry, and
 every message naming the study file."""
 from pathlib import Path
@@ -30,7 +30,7 @@ def check(doc: dict, tmp_path, capsys, *extra):
     return code, out, err, path
 
 
-# ---------------------------------------------------------------- B8: the nominal solve
+# ---------------------------------------------------------------- the nominal solve
 
 
 def test_check_refuses_an_unsolvable_nominal_like_solve(tmp_path, capsys):
@@ -56,7 +56,7 @@ def test_check_reports_the_nominal_values(tmp_path, capsys):
     assert "pressure = 1e+06" in line
 
 
-# ---------------------------------------------------------------- B9: sides that do not face
+# ---------------------------------------------------------------- sides that do not face
 
 
 def test_contact_sides_facing_away_are_bad_input(tmp_path, capsys):
@@ -79,7 +79,7 @@ def test_facing_away_refused_by_either_discretization(tmp_path, capsys, discreti
     assert code == 2 and "do not face each other" in err
 
 
-# ---------------------------------------------------------------- B10: sensible ranges
+# ---------------------------------------------------------------- sensible ranges
 
 
 def test_empty_uncertain_runs_the_nominal_data():
@@ -123,7 +123,7 @@ def test_mesh_size_larger_than_a_quarter_of_the_scene():
     load_study(doc)
 
 
-# ---------------------------------------------------------------- B11: resource guard
+# ---------------------------------------------------------------- resource guard
 
 
 def test_guard_refuses_a_tiny_size_before_meshing(tmp_path, capsys):
@@ -203,7 +203,7 @@ def test_check_prints_estimate_and_count(tmp_path, capsys):
     assert "estimated 739 cells before meshing" in out and "774 meshed" in out
 
 
-# ---------------------------------------------------------------- B12: P1 locking
+# ---------------------------------------------------------------- P1 locking
 
 
 def test_locking_warning_on_nominal_and_box(tmp_path, capsys):
@@ -220,7 +220,7 @@ def test_locking_warning_on_nominal_and_box(tmp_path, capsys):
     assert len(warnings) == 1 and f"{9.0e7 / (2 * (9.0e7 + 3.4e6)):.4g}" in warnings[0]
 
 
-# ---------------------------------------------------------------- B13: degenerate geometry
+# ---------------------------------------------------------------- degenerate geometry
 
 
 POLY = ["scene", "bodies", "base", "regions", 0, "shape"]
@@ -255,7 +255,7 @@ def test_deeply_nested_yaml_is_bad_input(tmp_path, capsys):
     assert "nests deeper than" in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------- B14: the file in every message
+# ---------------------------------------------------------------- the file in every message
 
 
 def test_mesh_stage_errors_name_the_study_file(tmp_path, capsys):
@@ -294,7 +294,7 @@ def test_a_body_in_two_pieces_is_bad_input(tmp_path, capsys):
     assert f"{path}: scene.bodies.{body}: body '{body}' consists of 2 pieces" in err
 
 
-# ---------------------------------------------------------------- issue 26: inputs that change the physics
+# ---------------------------------------------------------------- inputs that change the physics
 
 
 def claims_of(doc: dict):
@@ -367,7 +367,7 @@ def test_a_support_on_a_contact_slave_side_is_refused():
 
 def test_a_held_master_side_is_a_rigid_obstacle_and_accepted():
     """The master side held (u = 0) is the rigid foundation engineers model so: the slave rows
-    act and carry the contact force (tests/test_stiff_bodies.py checks its pressure)."""
+    act and carry the contact force (tests/acceptance/test_stiff_bodies.py checks its pressure)."""
     claims_of(patch_with(supports={"base_top": {"u": [0.0, 0.0]}}))
 
 

@@ -1,11 +1,11 @@
-"""Trust in every contact number (issue 15, A1–A3 and the cold start of D20).
+"""Trust in every contact number.
 
-A1: the value of a data set does not depend on what was solved before it — not on a failed
-    solve, not on an exception in the middle of one: bitwise the value of a fresh evaluator.
-A2: the contact solve does not give up where a solution exists (data sets of granite-crack
-    on which the semismooth Newton used to end with status 1), checked against the cvxpy QP.
-A3: a floating body whose position the contact does not determine is a status, not a number.
-D20: the nominal data are solved once, and cvxpy is not imported by a Newton solve.
+- the value of a data set does not depend on what was solved before it — not on a failed
+  solve, not on an exception in the middle of one: bitwise the value of a fresh evaluator.
+- the contact solve does not give up where a solution exists (data sets of granite-crack
+  on which the semismooth Newton used to end with status 1), checked against the cvxpy QP.
+- a floating body whose position the contact does not determine is a status, not a number.
+- the cold start: the nominal data are solved once, and cvxpy is not imported by a Newton solve.
 """
 import copy
 import subprocess
@@ -89,7 +89,7 @@ def data_sequence(study, upper, rng, widen):
 
 def poisoned_pattern(stiffness, failed, solved):
     """Whether some data set follows, with no solve in between, a failure after a solve of
-    its own stiffness, the failure having the other stiffness (the sequence of A1)."""
+    its own stiffness, the failure having the other stiffness (the history that once changed a value)."""
     last = None
     for k in range(len(stiffness)):
         if last is not None and stiffness[k] == stiffness[last] and any(
@@ -148,7 +148,7 @@ def check_history_independence(key, n, seed, inject, tmp_path):
     rng = np.random.default_rng(seed)
     upper = list(rng.random(n) < 0.5)
     modes = [None if rng.random() < 0.6 else "stall" if rng.random() < 0.6 else "raise" for _ in range(n)]
-    upper[:3] = [upper[0], not upper[0], upper[0]]     # the sequence of A1 once for certain: a solve,
+    upper[:3] = [upper[0], not upper[0], upper[0]]     # that history once for certain: a solve,
     modes[:3] = [None, "stall", None]                  # a failure at the other stiffness, the first again
     xs = data_sequence(study, upper[:3], rng, {}) + data_sequence(study, upper[3:], rng, widen)
     for x, mode in zip(xs, modes):
@@ -221,7 +221,7 @@ def test_value_does_not_depend_on_history_long(key, inject, tmp_path):
 
 
 def test_failed_solve_leaves_no_stale_factor():
-    """The sequence of issue 15 A1: a solved data set, a failing one with another stiffness
+    """A history that once changed a value: a solved data set, a failing one with another stiffness
     (the shared factor refactored for it), then the first stiffness again with other loads."""
     study = coarse("granite-crack", 1.0, 0.3)
     ev = Evaluator(study)
@@ -240,7 +240,7 @@ def test_failed_solve_leaves_no_stale_factor():
     assert outcome(ev, x3) == outcome(fresh(ev), x3)
 
 
-# ---- A2: Newton does not give up where the QP solves --------------------------------------
+# ---- Newton does not give up where the QP solves ------------------------------------------
 
 # data sets of studies/granite-crack.yaml (default mesh) on which the Newton solver of 17a7caa
 # ended with status 1 "did not converge in 200 iterations"; two seeded random feasible
@@ -323,7 +323,7 @@ def test_redundant_contact_rows_do_not_blow_up_the_newton_step():
     np.testing.assert_allclose(lam[0] + kappa * lam[2], lam_true[0] + kappa * lam_true[2], rtol=1e-12)
 
 
-# ---- A3: a free rigid mode is not an answer ---------------------------------------------------
+# ---- a free rigid mode is not an answer -------------------------------------------------------
 
 def pad_on_base(tmp_path, shear, slip_limit):
     doc = yaml.safe_load((ROOT / "studies" / "validation" / "tresca-pad.yaml").read_text())
@@ -357,7 +357,7 @@ def test_sheared_pad_held_by_friction_is_solved(tmp_path):
     assert ev.phi["shift"] > 0                                  # pushed along +x, held by stick
 
 
-# ---- D20: the cold start ---------------------------------------------------------------------
+# ---- the cold start -------------------------------------------------------------------------
 
 def test_nominal_data_are_solved_once(monkeypatch):
     calls = []
@@ -383,7 +383,7 @@ def test_newton_solve_does_not_import_cvxpy():
     assert out.stdout.strip() == "False"
 
 
-# ---- issue 26: the warm evaluation's fixed costs ---------------------------------------------
+# ---- the warm evaluation's fixed costs ---------------------------------------------
 
 def test_warm_2d_contact_solve_reuses_the_models_pinned_dofs(monkeypatch):
     """A warm 2D evaluation of a floating body takes the pinned DOFs of the rigid modes the model

@@ -3,7 +3,7 @@
 Each mutation edits one node of a parsed study (delete a key, change a type, an extreme
 number, a swapped name, an empty list or mapping, a string in a number slot). The mutated
 file is written to a temporary folder (relative mesh files made absolute) and checked
-in-process by `wcs.cli.main`. Meshes stay small because the B11 resource guard refuses any
+in-process by `wcs.cli.main`. Meshes stay small because the resource guard refuses any
 mutation that would mesh beyond `mesh.max_cells` (default 1e6; see `wcs.scene.estimate`).
 """
 import copy

@@ -1,6 +1,6 @@
 """Structured fuzzing of `wcs check` (and `wcs sweep`): seeded mutants of small studies
-(tests/fuzz_mutants.py), each run in a forked child under a timeout and an address-space limit
-(tests/fuzz_runner.py), each classified:
+(tests/support/fuzz_mutants.py), each run in a forked child under a timeout and an address-space limit
+(tests/support/fuzz_runner.py), each classified:
 
 * fine: exit 0 or 2, an exit 2 with one `error:` line, no traceback; exit 0 only where the
   input may be right;

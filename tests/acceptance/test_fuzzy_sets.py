@@ -1,10 +1,10 @@
-"""Fuzzy admissible sets (issue 14, item 2): `{support: [a, b], core: [c, d]}` numbers and
+"""Fuzzy admissible sets: `{support: [a, b], core: [c, d]}` numbers and
 `fuzzy: {levels}`; the α-cut [a + α(c − a), b − α(b − d)] of each level searched from the core
 outwards, reusing every evaluation made so far.
 
 References: on the heated plate every criterion is monotone in every datum, so each level's
 extremes are vertex values of that level's α-cut (enumerated; the search evaluates the same
-data sets, so they agree to round-off: 1e-10 relative, the issue's acceptance); on the cooled
+data sets, so they agree to round-off: 1e-10 relative); on the cooled
 layer the maximum over ν is interior, ν* = 1 − sqrt(1 − α_T |ΔT| E / p) at the cut's lowest E
 and highest p (its study header)."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Both ends of the range (issue 14, item 1): `criteria[i].sense: max | min | both` and
+"""Both ends of the range: `criteria[i].sense: max | min | both` and
 `limits: {lower, upper}`.
 
 The minimum is searched as the maximum of −Φ by the same strategy, so its certificates are
@@ -6,7 +6,7 @@ the same kinds. References: the cooled layer's closed form (an interior maximum 
 vertex minimum: its header), the heated plate's and the stacked layers' exhaustive vertex
 values (every criterion is monotone in every datum there, so both ends are vertices). The
 values found are evaluations at the very data sets the references evaluate, so they agree to
-round-off; 1e-6 relative is the acceptance of the issue."""
+round-off; 1e-6 relative is asked of them."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Stiff bodies standing in for rigid obstacles (issue 26 item 4): a foundation of E = 1e14 to
+"""Stiff bodies standing in for rigid obstacles: a foundation of E = 1e14 to
 1e20 Pa is accepted, and its answers are those of a rigid obstacle to within the contrast.
 
 Why no digit is lost: bodies in contact share no stiffness entry, so K is block diagonal over
@@ -68,7 +68,7 @@ def test_a_tresca_pad_on_a_stiff_foundation_converges_to_the_rigid_obstacle():
 
 
 def test_the_3d_shear_patch_on_a_rigid_like_base_keeps_its_closed_form():
-    """The 3D Tresca shear patch (tests/test_3d_patch.py) with the base at 1e14 … 1e20 Pa (a
+    """The 3D Tresca shear patch (tests/contact/test_patch_3d.py) with the base at 1e14 … 1e20 Pa (a
     contrast of 2e10 with the block): slip δ − G H (1/μ_block + 1/μ_base), pressure P and shear
     G at every contact node, τ_zz = −P and τ_xz = G in both blocks (the stiff one too), to
     the closed form's 1e-6."""

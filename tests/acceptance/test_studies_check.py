@@ -1,5 +1,5 @@
 """Every 2D study in studies/ passes `wcs check`; its contact sides pair up. (The 3D studies,
-whose check solves ~1e5 unknowns, are checked in tests/test_3d_studies.py, slow.)"""
+whose check solves ~1e5 unknowns, are checked in tests/acceptance/test_studies_3d.py, slow.)"""
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""The worst-scenario engine on real studies (issue 4 acceptance).
+"""The worst-scenario engine on real studies reaches their known worst cases.
 
 Known answers: for monotone studies the maximum of the criterion over all 2^n
 vertices of the box (exhaustive enumeration); for the cooled layer the closed
@@ -98,9 +98,9 @@ def test_same_study_twice_is_bitwise_identical(tmp_path):
 
 @pytest.mark.slow
 def test_tunnel_thermal_shear_reaches_what_slsqp_from_one_flip_neighbours_finds(tmp_path, monkeypatch):
-    """Issue 15 A7 on the real study: without restarts the search stops on a local maximum
+    """On the real study: without restarts the search stops on a local maximum
     of `shear` (certified local-kkt); SLSQP on the adjoint gradients from each one-flip
-    neighbour of that point (the issue's attack, ~1000 solves) finds a higher one. With the
+    neighbour of that point (an attack of ~1000 solves) finds a higher one. With the
     restarts the search reaches it. The study's budget of 200 runs out on the way (the
     restarted ascents need ~40 steps each), so the study runs here with a budget of 400.
     Tolerance 1e-6: both points are KKT points to the search's relative tolerance."""

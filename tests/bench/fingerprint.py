@@ -4,7 +4,7 @@
     python tests/bench/fingerprint.py compare FILE.npz    # run again, list what differs (exit 4)
 
 Each study of studies/ and studies/validation/ is run with `wcs run` at the budget
-`make validate` uses (tests/test_validate_studies.py: BUDGET), from a copy of its file;
+`make validate` uses (tests/acceptance/test_validate_studies.py: BUDGET), from a copy of its file;
 the fingerprint is the results file's `x`, `phi`, `status`, `worst_value` and
 `worst_x`, compared to the last bit (NaN equal to NaN).
 """

@@ -1,5 +1,5 @@
 """`wcs check` on mutated study files stays quick: a timing goal, so a benchmark (a loaded machine
-must not fail the test suite). The mutations and the runner are tests/test_fuzz_check.py's."""
+must not fail the test suite). The mutations and the runner are tests/acceptance/test_fuzz_check.py's."""
 import sys
 from pathlib import Path
 

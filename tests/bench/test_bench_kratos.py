@@ -127,7 +127,7 @@ def check_patch(answer: dict) -> str:
 
 
 def check_hertz(answer: dict) -> str:
-    """Hertz's peak pressure p0 on the axis to 5 % (tests/test_hertz3d.py: wcs within 3 % at a/24)."""
+    """Hertz's peak pressure p0 on the axis to 5 % (tests/contact/test_mortar_hertz_3d.py: wcs within 3 % at a/24)."""
     ok = answer["p_centre"] == pytest.approx(HERTZ_P0, rel=5e-2)
     return "" if ok else f"axis pressure {answer['p_centre']:.6g} != p0 {HERTZ_P0:.4g} (5 %)"
 

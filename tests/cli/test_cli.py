@@ -136,7 +136,7 @@ def test_library_warnings_stay_off_stderr_unless_verbose(tmp_path, capsys, monke
     assert err.splitlines()[-1] == f"error: {path}: scene.x: the fault"
 
 
-# ---- the command-line traps (issue 27) ----------------------------------------------------------
+# ---- the command-line traps -------------------------------------------------------------------
 def tiny_study(folder: Path, name: str = "hp.yaml", budget: int = 3) -> Path:
     """The heated plate with a search of `budget` solves (no contact: a solve takes milliseconds)."""
     import yaml

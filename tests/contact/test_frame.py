@@ -73,7 +73,7 @@ def test_bad_3d_grid_points_are_exit_2_at_their_path(tmp_path, points, words):
 
 
 def test_the_surface_grid_is_the_face_however_its_nodes_crowd():
-    """Issue 26 item 8: nodes crowded into one corner of a 3 × 1.2 rectangle (a mesh refined
+    """Nodes crowded into one corner of a 3 × 1.2 rectangle (a mesh refined
     there) turned the principal directions off its sides and laid the grid on a 3.08 × 1.43
     rectangle; the smallest enclosing rectangle is the face itself."""
     uv, x, q = rotated_rectangle()

@@ -1,7 +1,7 @@
 """solver.method iterative (`wcs.contact.iterative`): the same discrete problem as the condensed
 semismooth Newton of `wcs.contact.solver`, solved by a primal active set with CG + GAMG.
 
-Tolerance 1e-7 relative (issue 25): both methods satisfy the same KKT system, the direct one to
+Tolerance 1e-7 relative: both methods satisfy the same KKT system, the direct one to
 round-off, the iterative one to the final CG residual 1e-12 of the right-hand side; measured
 agreement is 1e-11–1e-13, so 1e-7 leaves four orders of margin while a wrong active node
 moves the multipliers by ≥ 1e-3. Tractions are compared as the model reports them

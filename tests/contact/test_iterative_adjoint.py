@@ -4,7 +4,7 @@ GAMG solve per criterion on the iterative answer's final active set, no dense W.
 Tolerances: the gradients agree with the monolithic adjoint (`wcs.sensitivity.ContactAdjoint`,
 LU of W) to AGREE = 1e-6 relative — both solve the same linear system on the same active set,
 the iterative one to the Krylov tolerance 1e-12 of the right-hand side (measured agreement
-1e-9–1e-16); against central finite differences the rule of tests/test_gradients.py (1e-5
+1e-9–1e-16); against central finite differences the rule of tests/model/test_gradients.py (1e-5
 relative plus the differences' noise floor)."""
 from pathlib import Path
 

@@ -1,7 +1,7 @@
 """Friction laws (`wcs.contact.laws`): the bounds of the Tresca problems a method solves, and
 Coulomb's one fixed point over them, driven here by a stand-in Tresca solve with a known
 answer (λn = a + b·gw, a contraction of the fixed point for F b < 1) and by both contact
-solvers on a small two-block problem (tests/test_contact_solver.py)."""
+solvers on a small two-block problem (tests/contact/test_solver.py)."""
 import numpy as np
 import pytest
 from tests.contact.test_solver import args, two_blocks

@@ -1,4 +1,4 @@
-"""Nonmatching meshes: dual mortar contact and mortar gluing (issue 8).
+"""Nonmatching meshes: dual mortar contact and mortar gluing.
 
 Patch tests (contact and glue) on nonmatching meshes, Hertz with a fine
 cylinder on a coarse block, the seed's mortar Poisson example ([33]) with its

@@ -1,4 +1,4 @@
-"""The 3D segment-based dual mortar operator (issue 13, item 3): geometry alone, no solver.
+"""The 3D segment-based dual mortar operator: geometry alone, no solver.
 
 Flat nonmatching sides (structured and rotated, sizes 1:3 both ways, gmsh blocks with their own
 sizes, an inclined fault plane): partition of unity Σ_l M_jl = D_j, linear fields reproduced

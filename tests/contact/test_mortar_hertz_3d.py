@@ -1,4 +1,4 @@
-"""3D contact through the model with the dual mortar rows (issue 13, item 3): the nonmatching
+"""3D contact through the model with the dual mortar rows: the nonmatching
 block-on-block patch (studies/validation/mortar-patch-3d.yaml) and Hertz, a sphere on a block,
 frictionless (studies/validation/hertz-3d.yaml), each with the plain node-to-surface projection
 beside it on the same mesh and the model's own reduced system — built here only as the baseline

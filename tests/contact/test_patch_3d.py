@@ -139,7 +139,7 @@ def test_the_newton_agrees_with_the_cvxpy_socp_on_a_floating_block(friction):
     assert np.abs(a.lam_t - ref.lam_t).max() < 1e-6 * scale
     assert np.abs(a.u - ref.u).max() < 1e-6 * np.abs(ref.u).max()
     # the friction holds the block's in-plane load: Σ λt along x, y = the applied shear (Coulomb:
-    # to 10 × the fixed point's tolerance 1e-8, as tests/test_contact3d.py bounds its slip limits)
+    # to 10 × the fixed point's tolerance 1e-8, as tests/contact/test_solver_3d.py bounds its slip limits)
     st = res.state.contact
     tangential = np.einsum("ik,ikj->j", st.by_node(st.force_t), z.tangents)
     assert tangential[:2] == pytest.approx([2.0e5, -1.0e5], rel=1e-7 if "coefficient" in friction else 1e-10)
@@ -155,7 +155,7 @@ def test_wcs_run_and_report_of_the_3d_patch(tmp_path):
     study = tmp_path / "patch.yaml"
     study.write_text(yaml.safe_dump(d, sort_keys=False))
     nc, html = tmp_path / "patch.nc", tmp_path / "patch.html"
-    assert main(["run", str(study), "-o", str(nc), "--quiet", "--no-mesh-check"]) == 0   # tests/test_meshcheck3d.py
+    assert main(["run", str(study), "-o", str(nc), "--quiet", "--no-mesh-check"]) == 0   # tests/results/test_meshcheck_3d.py
     with xr.open_dataset(nc, engine="h5netcdf") as ds:
         assert np.all(ds["status"].values == 0)
         worst = dict(zip(map(str, ds["criterion"].values), ds["worst_value"].values))

@@ -8,7 +8,7 @@ budget (200 with the dual-QP restart) at a residual of ~2e-10 against the tolera
 Reference: the primal SOCP in cvxpy (Clarabel, gaps 1e-12, `wcs.contact.qp`). The multipliers are
 not unique there (rows acting on round-off, normal and tangent rows on one motion), so the
 displacements are compared, to 1e-6 relative (above both solvers' stopping tests, as in
-tests/test_3d_patch.py), and the contact forces f − K u to 1e-5 of the largest: on the tunnel the
+tests/contact/test_patch_3d.py), and the contact forces f − K u to 1e-5 of the largest: on the tunnel the
 two answers' energies agree to 1e-12 and their forces at one fault node differ by 1.5e-6 of the
 largest force (K amplifies the reference's interior-point error in u).
 """
@@ -103,7 +103,7 @@ def test_the_3d_tunnel_fault_converges_and_matches_the_socp():
 
 
 def test_a_heated_coulomb_pad_converges_and_matches_the_socp():
-    """The pad of tests/test_3d_adjoint.py with a heat source 100× its own (1e4 W/m³): the
+    """The pad of tests/model/test_adjoint_3d.py with a heat source 100× its own (1e4 W/m³): the
     expansion presses the pad's edges into slip in varying directions."""
     d = pad_on_base_study({"coefficient": 0.3})
     d["scene"]["thermal"]["sources"]["pad"] = 1.0e4

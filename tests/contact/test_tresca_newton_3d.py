@@ -1,6 +1,6 @@
 """3D Tresca semismooth Newton on faults held by rollers, its stopping scale, and its step length on discs.
 
-The tunnel slice of tests/test_contact3d_robust.py with its fault turned 30° about the vertical
+The tunnel slice of tests/contact/test_solver_3d_inclined_fault.py with its fault turned 30° about the vertical
 through the slice's centre (the oblique variant of studies/tunnel-fault-oblique-3d.yaml). Where
 the fault meets the x-roller on the left side, both of its sides have u_x = 0: the fault's normal
 row and its tangent along the dip act on one relative motion (a redundant pair), and the split

@@ -3,7 +3,7 @@ move independently share their factorizations, a Poisson ratio refactors its own
 and the answers are those of the data (the shear patch's closed form, a fresh evaluator's bits).
 
 Tolerances: the shear patch's exact solution is piecewise linear, which P1 reproduces to
-round-off; 1e-6 relative is its closed-form test's (tests/test_3d_patch.py), above the Newton
+round-off; 1e-6 relative is its closed-form test's (tests/contact/test_patch_3d.py), above the Newton
 tolerance 1e-10 and the 12-digit rounding of the moduli's directions (5e-13)."""
 from pathlib import Path
 

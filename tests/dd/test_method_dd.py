@@ -19,7 +19,7 @@ def assert_agree(a, b, rel=1e-6):
     """Displacements and the nodal contact forces λn, λt of two evaluations agree to `rel`
     relative (both stop at 1e-10; 1e-6 leaves the conditioning of the interface problem a
     factor 1e4) — at a node on a roller too, where only Bnᵀλn + Btᵀλt is unique and every
-    solver reports its canonical split (tests/test_tied_nodes.py). Node states are not
+    solver reports its canonical split (tests/contact/test_tied_nodes.py). Node states are not
     compared: a node at the stick–slip threshold (|λt| = g w to rounding) may be labelled
     either way."""
     assert b.status == 0, b.message
@@ -51,7 +51,7 @@ def test_dd_agrees_with_monolithic_through_the_model():
 
 def test_failing_outer_iteration_falls_back_and_says_so():
     # Tresca pad, the seed's plain step (ω = 1) asked for: ρ(S0⁻¹ dS_con) ≈ 25, its successive
-    # approximations' contraction estimate stays ≥ 1 (step auto takes Newton there: test_dd.py)
+    # approximations' contraction estimate stays ≥ 1 (step auto takes Newton there: tests/dd/test_solver.py)
     seed = {"subdomains": 6, "step": "seed", "relaxation": 1.0}
     dd = study("tresca-pad", {"method": "dd", "dd": seed}, small_pad)
     ev = dd.evaluate(dd.nominal())

@@ -196,7 +196,7 @@ def test_local_contact_solves_check_solvability_once_and_never_call_the_qp(tmp_p
     program) was checked in every local contact solve, one per successive approximation; it does
     not depend on the interface values, so now once per evaluation. The dual QP (cvxpy) is not a
     hidden fallback inside the loop: it runs only where a local Newton cycled, counted and said
-    in the message (the knee, test_dd_model.py); not on the pad."""
+    in the message (the knee, tests/dd/test_method_dd.py); not on the pad."""
     from wcs.contact import solver as cs
     lps = []
     lp = cs.unbalanced

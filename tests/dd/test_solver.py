@@ -525,7 +525,7 @@ def test_a_failed_local_contact_solve_stops_either_step_and_says_so(step, tmp_pa
 def test_no_function_of_the_decomposition_takes_a_long_parameter_list():
     """The outer iterations take one state (`wcs.dd.iterations.Iteration`: decomposition,
     operators, load, bounds, options, info, ranks, cache) instead of the 11–14 positional
-    parameters they passed around (issue 25), the units' pieces one `Field`: no function of
+    parameters they passed around, the units' pieces one `Field`: no function of
     wcs.dd but a constructor takes more than 8 parameters (`self` not counted)."""
     import ast
     from wcs import dd

@@ -31,7 +31,7 @@ def study(name, solver, size=None):
 def assert_agree(a, b, rel=1e-6):
     """Same status, displacements and nodal contact forces λn, λt ((d − 1) m, both tangents) to
     `rel` relative: both stop at 1e-10, 1e-6 leaves the interface problem's conditioning 1e4
-    (the 2D acceptance of tests/test_dd_model.py)."""
+    (the 2D acceptance of tests/dd/test_method_dd.py)."""
     assert a.status == b.status == 0, b.message
     ca, cb = a.state.contact, b.state.contact
     assert cb.force_t.shape == ca.force_t.shape == (2 * ca.force_n.size,)

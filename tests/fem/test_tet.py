@@ -2,7 +2,7 @@
 3×3 blocks, strains/stresses/invariants, rigid modes, and a manufactured solution in 3D.
 
 P1 theory on a cube under a smooth body force: L2 error O(h²), energy error O(h); the
-observed rates over the last halving are asserted within 0.15 (the issue's acceptance).
+observed rates over the last halving are asserted within 0.15 of them.
 """
 import numpy as np
 import pytest

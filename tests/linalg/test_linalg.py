@@ -135,7 +135,7 @@ def test_an_empty_schur_block_is_not_asked_of_pardiso():
 @pytest.mark.skipif(linalg.backend() != "pardiso", reason="PARDISO is the x86_64 backend")
 def test_pardiso_error_codes_are_translated(monkeypatch):
     """PARDISO's error −2 is "not enough memory", not a singular matrix: the message says so and
-    names the way out (the issue's 3D patch at a 0.01 contact face failed as 'singular')."""
+    names the way out (a 3D patch at a 0.01 contact face failed as 'singular')."""
     A = sp.identity(4, format="csr")
     F = linalg.PardisoFactor(A, spd=True)
 

@@ -3,10 +3,10 @@
 The contact adjoint on the final active set with two tangents per node: a node slipping on
 the disc |λt| ≤ gw has λt = gw s/|s|, linearized in the frame of its slip (νᵀδλt = δgw, and
 |s| ν⊥ᵀδλt = gw ν⊥ᵀδs). Checked first on the solver's own systems (the pad on a base of
-tests/test_contact3d.py: stuck and slipping nodes whose slip directions vary over the face,
+tests/contact/test_solver_3d.py: stuck and slipping nodes whose slip directions vary over the face,
 Tresca and Coulomb, held and floating), then through studies.
 
-Tolerance (the rule of test_gradients.py): 1e-5 relative, plus the finite differences' noise
+Tolerance (the rule of tests/model/test_gradients.py): 1e-5 relative, plus the finite differences' noise
 floor 10·tol·|Φ|/h (the solver stops at a relative residual `tol`; a difference quotient with
 step h cannot resolve derivatives below that)."""
 from types import SimpleNamespace
@@ -207,7 +207,7 @@ def test_every_criterion_kind_with_frictional_contact(friction):
 
 @pytest.mark.parametrize("delta, flagged", [(2.0e-3, False), (None, True)], ids=["slipping", "at the switch"])
 def test_a_node_at_the_disc_boundary_is_flagged_non_smooth(delta, flagged):
-    """The Tresca shear patch (every node under the shear g, tests/test_3d_patch.py): with the
+    """The Tresca shear patch (every node under the shear g, tests/contact/test_patch_3d.py): with the
     block's top moved by more than the elastic shift γH of both blocks, every node slips (s > 0,
     |λt| = gw): smooth. Moved by exactly that shift, the nodes are at the switch between stick
     and slip (s = 0 and |λt| = gw at once): the gradient is one-sided, flagged non-smooth."""

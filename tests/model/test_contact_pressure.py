@@ -102,7 +102,7 @@ def test_hertz_model_error_scales_as_a_over_r_squared():
 
 def test_gradient_on_clipped_edges_of_a_mortar_contact():
     """∂Φ6/∂λ_n (ℓ_r) through the adjoint against central finite differences (the rule of
-    test_gradients.py) on the non-matching mortar Hertz, the box cutting slave edges; the load
+    tests/model/test_gradients.py) on the non-matching mortar Hertz, the box cutting slave edges; the load
     and both moduli move the pressure under the box."""
     def coarse(doc):
         doc["scene"]["bodies"]["cylinder"]["mesh"]["refine"][0]["size"] = 0.008

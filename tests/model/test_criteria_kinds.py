@@ -1,6 +1,6 @@
 """The criterion kinds added through the registry alone (`wcs.criteria.KINDS`): the largest
 principal stress and the mean contact slip, each with adjoint gradients against central
-finite differences (the rule of test_gradients.py: 1e-5 relative plus the FD noise floor),
+finite differences (the rule of tests/model/test_gradients.py: 1e-5 relative plus the FD noise floor),
 and the schema, the adjoint and the report reading them from the one entry."""
 import dataclasses
 from pathlib import Path
@@ -146,7 +146,7 @@ def test_contact_pressure_peak_is_the_largest_nodal_pressure_in_the_region():
 
 def test_contact_pressure_peak_gradient_against_finite_differences():
     """The maximising node's pressure λ_k / w_k, differentiated by the adjoint as Φ6 is: central
-    differences agree (the rule of test_gradients.py) on the pad under its edge and overall."""
+    differences agree (the rule of tests/model/test_gradients.py) on the pad under its edge and overall."""
     study = tresca_pad([{"name": "peak_edge", "kind": "contact_pressure_peak", "regions": ["edge"]},
                         {"name": "peak_all", "kind": "contact_pressure_peak", "regions": ["interface"]}])
     assert check_against_fd(study) < 1e-5

@@ -1,5 +1,5 @@
-"""Regions of interest are integrated exactly and refused when they mean nothing (issue 15,
-A4–A6): a contact-pressure region on either side of an open contact, a boundary region that
+"""Regions of interest are integrated exactly and refused when they mean nothing: a
+contact-pressure region on either side of an open contact, a boundary region that
 is a 1D group of a mesh file, means over exactly G_r, and a point X_r off the boundary or at
 a corner."""
 from __future__ import annotations
@@ -116,7 +116,7 @@ def test_a_point_at_a_corner_or_off_the_body_is_refused(point, why):
     assert e.value.path == "criteria.0.point"
 
 
-# ---------------------------------------------------------------- A4: an initial gap
+# ---------------------------------------------------------------- an initial gap
 
 GAP, DOWN = 0.002, 0.003                     # initial gap; prescribed descent of the block top
 EB, NUB, ES, NUS = 1.0e9, 0.3, 1.0e10, 0.25  # block, base
@@ -157,7 +157,7 @@ def test_contact_pressure_on_either_side_of_a_closing_gap():
         assert value == pytest.approx(p, rel=1e-9), name
 
 
-# ---------------------------------------------------------------- A5: a 1D group as G_r
+# ---------------------------------------------------------------- a 1D group as G_r
 
 
 def test_boundary_region_of_a_mesh_file_group():

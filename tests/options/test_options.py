@@ -47,12 +47,12 @@ OTHER = {
 }
 
 # the values the code used before the options were typed (its `.get(name, default)` calls and
-# the schema's dump), and the changes of issue 12 since
+# the schema's dump), and the changes measured since
 BEFORE = {
     "subdomains": 8, "pair_size": 1.0, "relaxation": "aitken", "tolerance": 1e-8, "max_iterations": 200,
     "pcg_tolerance": 1e-8, "pcg_max_iterations": 500, "inner_tolerance": 1e-9, "contact_tolerance": 1e-10,
     "patience": 8, "forcing": 0.1, "anderson": 5, "anderson_restart": 0.0, "mixing": 1.0,
-    # pair_size 1.0 (issue 12, measured: against 0.5, tunnel PCG1 22 instead of 45 and one DD solve
+    # pair_size 1.0 (measured: against 0.5, tunnel PCG1 22 instead of 45 and one DD solve
     # 3.7× a warm monolithic evaluation instead of 11.5×, Hertz 11.9× instead of 15.1×);
     # the outer iteration's choice (interface Newton unless ρ(S0⁻¹ dS_con) < seed_rho), and
     # the Coulomb fixed point's budget it reads from the solver block

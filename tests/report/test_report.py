@@ -1,8 +1,8 @@
-"""`wcs report`: the HTML report of a results file (issue 6, items 4-5).
+"""`wcs report`: the HTML report of a results file, its sections and its figures.
 
 The results file of `wcs run` has the layout of wcs.results.run_dataset; `synthetic_run` builds one
 in that layout from real forward solves, so the report is tested independently of the
-search. Run `python tests/test_report.py STUDY.yaml OUT.nc [N]` to write such a file.
+search. Run `python -m tests.report.test_report STUDY.yaml OUT.nc [N]` to write such a file.
 """
 from __future__ import annotations
 

@@ -149,7 +149,7 @@ def test_the_report_of_a_3d_file_draws_the_surface_cuts_and_contact_maps(fault, 
     assert 'id="membership"' not in html and 'href="#membership"' not in html          # a crisp study
 
 
-# ---------------------------------------------------------------- issue 27: what the assessor sees in 3D
+# ---------------------------------------------------------------- what the assessor sees in 3D
 
 def report3d(fault_sm, tmp_path, full: bool = True):
     """The report of the synthetic 3D solve file (with its bodies), or only its interactive view's

@@ -111,7 +111,7 @@ def test_one_and_two_mpi_ranks_agree(runs):
 
 def test_round_off_in_gaps_is_no_difference_with_a_tolerance_and_a_real_one_is(runs, capsys):
     """Closed gaps are differences of positions: round-off of about 100 ulps of the model's extent
-    (the issue's 1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so even `--rtol 1e-3`
+    (1e-14 m on a 120 m tunnel) differ by ~100 % relatively, so even `--rtol 1e-3`
     exited 4; the default floor (1e-12 of the gaps' scale, the coordinates') takes them as
     equal under any `--rtol` (0 included), while a change of 1e-6 of the extent in one gap still counts;
     no option, or `--atol 0`, compares bitwise (contract §6) and says the differences are below them.

@@ -126,7 +126,7 @@ def test_one_sided_differences_pointing_out_of_the_box_make_a_corner_maximum(sla
 
 
 def test_drivers_below_the_round_off_of_the_criterion_are_no_effect(slab):
-    """Drivers of about 6e-10 of |Phi| everywhere (the issue's 6e-10 Pa against a 1e7 Pa mean
+    """Drivers of about 6e-10 of |Phi| everywhere (6e-10 Pa against a 1e7 Pa mean
     pressure, here against the slab's ~300 K): each is the largest, so relative to the largest
     every parameter used to "move" the criterion; relative to |Phi| they are the solves'
     round-off (IDLE = 1e-9), shown as "no effect", with no bars and no claim that every

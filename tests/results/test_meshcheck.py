@@ -167,8 +167,8 @@ def test_cooled_layer_mesh_share_is_nil(tmp_path):
 @pytest.mark.slow
 def test_hertz_mesh_check_estimates_the_known_error(tmp_path):
     """hertz-meshcheck.yaml (a/R = 0.026, h ≈ a/3, the mean pressure over x ∈ [0, 0.0125]):
-    the model error (−1.3e-4, test_contact_pressure.py::test_hertz_model_error_scales_as_a_over_
-    r_squared) is 1/65 of the mesh's share, so the closed form stands for the exact value. The
+    the model error (−1.3e-4, tests/model/test_contact_pressure.py::
+    test_hertz_model_error_scales_as_a_over_r_squared) is 1/65 of the mesh's share, so the closed form stands for the exact value. The
     values 1.380336e9, 1.388327e9, 1.390924e9 on h, h/2, h/4 (order 1.62) give an estimated
     error +1.184e7 against the true +1.211e7, and an extrapolated value 2.7e5 from the closed
     form against 1.5e6 for the finest (measured). Before, on hertz.yaml (a/R = 0.053, h ≈ a/13):
@@ -182,7 +182,7 @@ def test_hertz_mesh_check_estimates_the_known_error(tmp_path):
     assert f[0] == ds["worst_value"].values[0]
     true = exact - f[0]
     est = float(ds["mesh_check_error"].values[0, 0])
-    assert true > 0 and 0.8 < est / true < 1.25                    # the issue asks a factor 3
+    assert true > 0 and 0.8 < est / true < 1.25                    # a factor 3 is asked
     assert 1.2 < float(ds["mesh_check_order"].values[0, 0]) < 2.0
     extrap = float(ds["mesh_check_extrapolated"].values[0, 0])
     assert abs(extrap - exact) < abs(f[2] - exact) / 3

@@ -110,7 +110,7 @@ def test_solve_worst_writes_the_same_for_a_worst_case(run, tmp_path):
 
 @pytest.mark.slow
 def test_the_3d_tunnels_contact_pressure_is_on_its_contact_surface(tmp_path):
-    """The acceptance of issue 27 on the shipped 3D tunnel (about 10 s): its fault's pressure, gaps
+    """The shipped 3D tunnel (about 10 s): its fault's pressure, gaps
     (round-off of -1e-13 m where closed), slips and shear tractions on the slave facets, equal to
     the results file's."""
     out = tmp_path / "tunnel.nc"

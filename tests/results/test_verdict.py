@@ -1,4 +1,4 @@
-"""The verdict of a results file (`wcs/verdict.py`, issue 26 items 2, 3 and 6): no equilibrium
+"""The verdict of a results file (`wcs/verdict.py`): no equilibrium
 somewhere in U_ad is FAIL with the failed region named, never PASS; other failures leave it NOT
 ESTABLISHED; a margin within a few percent whose mesh share is not estimated says so; a solution
 outside small-strain theory is flagged (`wcs/validity.py`). The terminal, the exit status of

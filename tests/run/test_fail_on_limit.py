@@ -1,5 +1,5 @@
 """`wcs run --fail-on-limit`: exit 3 when a worst value breaks its limit, 0 when all hold;
-the report of the broken run says FAIL (issue 6, acceptance).
+the report of the broken run says FAIL.
 
 heated-plate's heave limit 1e-4 m is broken by every data set (the nominal heave is
 ~5.6e-4 m); a copy with the limit at 1 m holds. A budget of 6 solves keeps this fast.

@@ -1,4 +1,4 @@
-"""Faults around the output of `wcs run` (issue 15, C15-C18 and the output part of B10): each
+"""Faults around the output of `wcs run` and around the study file it reads: each
 ends in one clear line and a defined exit status, and loses nothing already stored.
 
 - a directory, an over-long name or an unwritable folder as the output: exit 2 before solving,
@@ -61,8 +61,8 @@ def plate(tmp_path, budget=15, **changes):
 
 def pad(tmp_path, budget):
     """The Tresca pad (contact) with the tiny strategy, whose resumed runs are bitwise the clean one
-    (test_runner.py). Not heated-plate: there an evaluation's last bits depend on the evaluations
-    solved before it in the process (shear 2e16 Pa^2 off by ~200), an issue-15 A1 fault."""
+    (tests/run/test_runner.py). Not heated-plate: there an evaluation's last bits depend on the evaluations
+    solved before it in the process (shear 2e16 Pa^2 off by ~200), a value that depended on history."""
     return study_file(tmp_path, "validation/tresca-pad.yaml",
                       search={"method": "auto", "sample": {"n": budget - 1, "seed": 5}, "budget": budget})
 
@@ -267,7 +267,7 @@ def test_ctrl_c_inside_a_write_ends_between_writes_and_resume_is_bitwise(tmp_pat
     proc = wcs_process(tmp_path, "run", path, "-o", out, "--quiet", WHERE=where, NTH=nth,
                        preexec=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))   # as in a terminal, not
     _, err = proc.communicate(timeout=120)                                            # as pytest run with `&`
-    lines = err_lines(err)                # exit 130 and the command that continues (issue 27)
+    lines = err_lines(err)                # exit 130 and the command that continues
     assert proc.returncode == 130 and len(lines) == 1 and lines[0].startswith("interrupted: the "), err
     assert lines[0].endswith(f"continue with `wcs run {path} -o {out} --resume`"), err
     assert_intact(tmp_path)
@@ -381,7 +381,7 @@ def test_run_prints_the_study_warnings(tmp_path, capsys):
     assert f"warning: {path}: " in err and "Poisson ratio up to 0.48" in err
 
 
-# ---------------------------------------------------------------- study files that never end (issue 26)
+# ---------------------------------------------------------------- study files that never end
 
 
 def test_a_device_a_fifo_or_an_oversized_study_file_is_refused_unread(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""Never a memory death (issue 25, item 4): one evaluation's peak memory and time estimated from
+"""Never a memory death: one evaluation's peak memory and time estimated from
 the assembled model (wcs.scene.estimate.evaluation_cost), printed by `wcs check`, refused (exit 2)
 where it exceeds the machine's memory, and `solver.method: auto` choosing the iterative method
 where the direct condensation would not fit or (3D) would be slower."""
@@ -38,7 +38,7 @@ def test_fine_tunnel_direct_estimate_is_what_killed_it():
     need, _ = evaluation_cost(FINE_TUNNEL, "monolithic")
     assert need > 24e9                                       # the kernel killed it at 24 GB
     assert need > (W_COPIES[3] + 1) * 8 * 20961**2              # the dense W: W_COPIES and the one unit's
-    assert evaluation_cost(FINE_TUNNEL, "iterative")[0] < 8e9     # the issue's bound for the iterative method
+    assert evaluation_cost(FINE_TUNNEL, "iterative")[0] < 8e9     # the bound set for the iterative method
     assert evaluation_cost(FINE_TUNNEL, "dd")[0] == need     # dd falls back to the monolithic solver
 
 

@@ -333,7 +333,7 @@ def test_a_face_group_off_the_boundary_is_exit_2(tmp_path):
 
 
 def test_mutated_file_studies_never_fail_inside(block_file):
-    """Seeded mutations (those of tests/test_fuzz_check.py) of the study on the file: every
+    """Seeded mutations (those of tests/acceptance/test_fuzz_check.py) of the study on the file: every
     check is exit 2 (a bad input, or a good 3D study that cannot be solved yet), never an
     internal failure."""
     rng = random.Random(13)

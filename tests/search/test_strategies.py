@@ -1,7 +1,7 @@
-"""Search strategies on analytic problems (tests/search_problems.py) with exact gradients.
+"""Search strategies on analytic problems (tests/support/search_problems.py) with exact gradients.
 
 Each strategy is driven by a plain serial runner that counts solves; the
-acceptance figures of issue 4 for `auto`: monotone worst case to 1e-4 within
+acceptance figures for `auto`: monotone worst case to 1e-4 within
 40 solves on 6 parameters (< 2^6 vertices), interior maxima to 1e-3 against a
 dense grid, a flat region to 1e-4 within 40 solves, Lipschitz profiles to the
 LP optimum, bitwise determinism, a hard budget, failures skipped.
@@ -137,7 +137,7 @@ def slsqp(tp, c, z0):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_auto_restarts_reach_what_an_attack_from_one_flip_neighbours_finds(seed):
-    """Issue 15 A7: the ascent from the gradient corner stops on a local maximum (the broad
+    """The ascent from the gradient corner stops on a local maximum (the broad
     bump); SLSQP from a one-flip neighbour of that point finds a higher one. The restarts
     from the best vertices' one-flip neighbours must reach at least the attack's value."""
     tp = two_bumps()
@@ -194,7 +194,7 @@ def assert_interior_maxima(tp, cuts, ext):
 
 
 def test_fuzzy_levels_carry_an_interior_maximum_out_for_two_solves_a_level():
-    """Issue 14 item 2: trade's maximum sits at r's upper bound and inside in θ, q at every level:
+    """Trade's maximum sits at r's upper bound and inside in θ, q at every level:
     each level outside the core tries the corner its gradient's signs point to (worse), then the
     inner maximum carried out to the cut's bound, which is the cut's maximum (KKT there, no ascent,
     no restarts); quad's lies inside every cut and keeps its certificate without a solve."""

@@ -33,7 +33,7 @@ def test_codes_and_descriptions_are_the_contract():
 
 def test_dd_outcomes_are_not_statuses():
     """The DD's "stagnated" is its own outcome, equal to no status code (it leaves the model as
-    DD_FAILED, tests/test_dd_model.py)."""
+    DD_FAILED, tests/dd/test_method_dd.py)."""
     assert all(not isinstance(o.value, int) for o in DDOutcome)
     assert DDOutcome.STAGNATED != Status.OTHER_FAILURE and DDOutcome.CONVERGED != Status.SOLVED
 

@@ -86,7 +86,7 @@ def test_check_prints_the_mesh_and_solves_the_nominal_data(tmp_path):
     code, out, err = run(["check", str(write(tmp_path, doc()))])
     assert code == 0, err
     assert "nominal solve: solved" in out and out.strip().endswith("ok")
-    assert "solved again on the mesh split once and twice" in out         # tests/test_meshcheck3d.py
+    assert "solved again on the mesh split once and twice" in out         # tests/results/test_meshcheck_3d.py
     cells = int(re.search(r"P1 tetrahedra, (\d+) nodes, (\d+) cells", out).group(2))
     estimate = float(re.search(r"estimated ([0-9.e+]+) cells before meshing", out).group(1))
     # the resource guard's estimate is an upper one (the ball of interest refines the base at its
@@ -102,7 +102,7 @@ def test_check_prints_the_mesh_and_solves_the_nominal_data(tmp_path):
     assert "loads.block_top.traction.2: [-1.5e+06, -5e+05]  nominal -1e+06" in out
 
 
-@pytest.mark.parametrize("command", [["solve"], ["run", "--no-mesh-check"], ["sweep"]])   # the check: test_meshcheck3d.py
+@pytest.mark.parametrize("command", [["solve"], ["run", "--no-mesh-check"], ["sweep"]])   # the check: tests/results/test_meshcheck_3d.py
 def test_commands_that_solve_run_a_3d_study(tmp_path, command):
     d = doc()
     d["sweep"] = {"grid": {"materials.soft.E": [0.9e9, 1.1e9]}}
@@ -167,7 +167,7 @@ BAD = [
      "more than mesh.max_cells"),
     (_put(["bodies", "block", "regions", 0, "shape", "box"], [0, 0, -0.2, 1, 1, 0.5]), "scene.bodies.block",
      "overlaps body 'base'"),
-    # issue 26: meshed as a piece of its own, it was blamed on the body ("consists of 2 pieces")
+    # meshed as a piece of its own, it was blamed on the body ("consists of 2 pieces")
     (_put(["regions_of_interest", "core"], {"box": [0.5, 0.5, -0.25, 0.50001, 0.50001, -0.24999], "body": "base"}),
      "scene.regions_of_interest.core", "the region of interest is meshed apart from body 'base'"),
 ]
@@ -198,7 +198,7 @@ def test_a_profile_grid_is_counted_in_exact_integers(tmp_path):
 
 
 def test_mutated_3d_studies_never_fail_inside(tmp_path):
-    """Seeded mutations (those of tests/test_fuzz_check.py) of the 3D study: every check is exit 0
+    """Seeded mutations (those of tests/acceptance/test_fuzz_check.py) of the 3D study: every check is exit 0
     (a study still good) or 2 (a bad input: a key path named), never an internal failure."""
     rng = random.Random(13)
     for i in range(25):

@@ -249,7 +249,7 @@ CASES = [
     ("sweep-empty-list", put(["sweep"], {"grid": {"loads.pad_top.pressure": []}}),
      "sweep.grid.loads.pad_top.pressure"),
     ("output-not-string", put(["output"], 42), "output"),
-    # issue 15 B10-B13: ranges that keep a run meaningful, the resource guard, degenerate geometry
+    # ranges that keep a run meaningful, the resource guard, degenerate geometry
     ("material-E-tiny", put(STEEL + ["E"], 1e-300), "scene.materials.steel.E"),
     ("material-E-huge", put(STEEL + ["E"], 1e300), "scene.materials.steel.E"),
     ("uncertain-E-huge", put(["uncertain", "materials.rubber.E"], [0.8e7, 1e300]), "uncertain.materials.rubber.E"),
@@ -274,7 +274,7 @@ CASES = [
      "scene.bodies.base.regions.0.shape.rectangle.2"),
     ("segment-coordinate-huge", put(SCENE + ["boundaries", "pad_top", "segment"], [[0.5, 1.5], [1e300, 1.5]]),
      "scene.boundaries.pad_top.segment.1.0"),
-    # issue 26: inputs that crashed, hung or blew up memory after passing `check`
+    # inputs that crashed, hung or blew up memory after passing `check`
     ("study-name-too-long", put(["study"], "s" * 100_000), "study: a name has at most 100 characters, got 100000"),
     ("study-name-lone-surrogate", put(["study"], "demo\ud800"), "study: a name may contain printable characters only"),
     ("region-name-nul", put(PAD_REGION + ["name"], "pa\x00d"), "scene.bodies.pad.regions.0.name: a name may contain "

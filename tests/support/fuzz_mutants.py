@@ -266,7 +266,7 @@ class Mutant:
     files: Callable[[Path], None] | None = None   # writes extra files (a mesh, a FIFO) into the folder
     study: Callable[[Path], str] | None = None    # the study path to give (default: the written study)
     command: str = "check"
-    known: str = ""                               # a known item another engineer fixes (issue 26)
+    known: str = ""                               # the known fault it reaches, named in its failure line
 
     @property
     def id(self) -> str:
@@ -810,7 +810,7 @@ def solver(rng):
 
 
 def contact(rng):
-    """Contacts and supports that contradict each other (issue 26's semantic checks)."""
+    """Contacts and supports that contradict each other (the semantic checks of `wcs check`)."""
     C, S = ["scene", "contacts"], ["scene", "supports"]
     c = rng.choice([
         ("the same pair twice", "bad", put(C + ["again"], {"slave": "pad_bottom", "master": "base_top"})),

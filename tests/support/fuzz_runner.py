@@ -1,7 +1,7 @@
 """Run `wcs` commands in forked children, each under a timeout and an address-space limit, and
 classify how each one ended.
 
-`python tests/fuzz_runner.py JOBS.json RESULTS.json`: JOBS is a list of {"id", "argv", "cwd"};
+`python tests/support/fuzz_runner.py JOBS.json RESULTS.json`: JOBS is a list of {"id", "argv", "cwd"};
 RESULTS gets, per job, {"id", "code", "signal", "stderr", "wall", "maxrss_gb"}. The server
 imports `wcs` once and forks one child per job (a fresh interpreter per job would spend 2.5 s of
 its imports on every mutant); the child lowers its RLIMIT_AS, runs `wcs.cli.main(argv)` and
