@@ -1,4 +1,4 @@
-"""wcs against Kratos Multiphysics 10.4.4 (issue 25, "Ahead of the peer"): the 3D block-on-block
+"""wcs against Kratos Multiphysics 10.4.4 (ahead of the peer or not): the 3D block-on-block
 patch (studies/validation/block-on-block-3d.yaml) read by both codes from ONE gmsh file
 (tests/bench/kratos_mesh.py: contact band meshed at `face`, the rest at 0.2), frictionless,
 one thread each (OMP/OPENBLAS/MKL_NUM_THREADS=1), whole processes run alternately
