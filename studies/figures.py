@@ -4,7 +4,7 @@
 
 writes `tunnel-slip.png` (slip and contact pressure along both fault parts) and
 `tunnel-stress.png` (von Mises stress near the tunnel on the deformed mesh) and prints
-what they show. `picture(ds)` returns the numbers (used by tests/test_validate_studies.py):
+what they show. `picture(ds)` returns the numbers (used by tests/acceptance/test_validate_studies.py):
 the fault slips, stresses concentrate at the tunnel wall.
 
 The tunnel centre is the origin, the fault the line through it along FAULT_DIR (see

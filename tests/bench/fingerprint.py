@@ -4,7 +4,7 @@
     python tests/bench/fingerprint.py compare FILE.npz    # run again, list what differs (exit 4)
 
 Each study of studies/ and studies/validation/ is run with `wcs run` at the budget
-`make validate` uses (tests/test_validate_studies.py: BUDGET), from a copy of its file;
+`make validate` uses (tests/acceptance/test_validate_studies.py: BUDGET), from a copy of its file;
 the fingerprint is the results file's `x`, `phi`, `status`, `worst_value` and
 `worst_x`, compared to the last bit (NaN equal to NaN).
 """
@@ -18,10 +18,9 @@ import numpy as np
 import xarray as xr
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))        # the checkout this script lives in, not whichever wcs is installed
 
-from test_validate_studies import BUDGET, STUDIES, _id, small_copy  # noqa: E402
+from tests.acceptance.test_validate_studies import BUDGET, STUDIES, _id, small_copy  # noqa: E402
 
 from wcs.cli import main  # noqa: E402
 

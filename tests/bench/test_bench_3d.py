@@ -1,4 +1,4 @@
-"""3D speed at ≈ 1e5 unknowns (issue 13), as ratios measured in one run:
+"""3D speed at ≈ 1e5 unknowns, as ratios measured in one run:
 
 - assembly: the parameter-affine stiffness K(c) of a data set (closed-form P1 tetra cell
   matrices combined with the data, `wcs.fem.affine`) against scikit-fem's assembly of the same
@@ -29,7 +29,7 @@
 - the whole 3D tunnel study at ≈ 1e5 unknowns (studies/tunnel-fault-3d.yaml with the rock ring
   r < 7 m at 0.3 m: 1.1e5 unknowns; 22 uncertain numbers, 2 criteria, 60 evaluations with
   gradients) by `mpiexec -n 2 wcs run`, one thread a rank. Goal: ≤ 5 minutes on 2 cores (an
-  absolute time, as the issue states it: the machine's own speed enters).
+  absolute time, as the goal states it: the machine's own speed enters).
 
 Tables: results/bench/bench_3d.csv, results/bench/bench_3d_warm.csv, results/bench/bench_3d_tunnel.csv,
 results/bench/bench_3d_study.csv.

@@ -1,4 +1,4 @@
-"""Cold start (issue 15 D20), as ratios measured in one run.
+"""Cold start (the nominal data solved once, no cvxpy import), as ratios measured in one run.
 
 A fresh process does what `wcs run` does first: imports, reading the study, meshing,
 assembly and the first evaluation at the nominal data. Its time, against one SuperLU

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from test_contact_solver import args, two_blocks  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+from tests.contact.test_solver import args, two_blocks  # noqa: E402
 
 from common import write_table  # noqa: E402
 

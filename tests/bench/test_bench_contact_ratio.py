@@ -1,4 +1,4 @@
-"""Issue 3 performance, as ratios measured in one run on ~1e5 unknowns with a
+"""Contact solve performance, as ratios measured in one run on ~1e5 unknowns with a
 short contact (≤ 200 nodes), against one SuperLU factorization-and-solve of the
 same reduced stiffness (tuned: diag_pivot_thresh=0, SymmetricMode):
 - the first Tresca solve, assembly included, at most 3x;

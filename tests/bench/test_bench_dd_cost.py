@@ -1,5 +1,5 @@
 """Serial cost of one DD solve against a warm monolithic evaluation of the same scene
-(issue 12, goal ≤ 3×), measured in one run: the tunnel (studies/tunnel-fault.yaml with its
+(goal ≤ 3×), measured in one run: the tunnel (studies/tunnel-fault.yaml with its
 mesh sizes × 0.33: ≈ 1.04e5 unknowns, 12 subdomains, tolerance 1e-6) and Hertz (studies/validation/hertz.yaml with its mesh sizes
 × 0.53: ≈ 1.05e5 unknowns, 12 subdomains, tolerance 1e-6), both with the default outer
 iteration (step auto: interface Newton on both).

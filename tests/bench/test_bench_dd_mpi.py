@@ -68,7 +68,7 @@ def _bench(*args, timeout=3600):
 @pytest.mark.bench
 def test_dd_solve_on_two_ranks(study, scale, data):
     """One DD solve (about 1e5 unknowns, 12 subdomains, tolerance 1e-6) on 2 ranks against 1, the
-    best of 4 repeats after the first (issue 12: ≥ 1.6×); `new`: new material data each time."""
+    best of 4 repeats after the first (goal ≥ 1.6×); `new`: new material data each time."""
     name = Path(study).stem
     out = _bench("speedup", study, "--mesh-scale", scale, "--repeat", "5", "--tolerance", "1e-6",
                  *(["--new-data"] if data == "new" else []), "--out", str(OUT / f"dd_mpi_solve_{name}_{data}.json"))
@@ -80,7 +80,7 @@ def test_dd_solve_on_two_ranks(study, scale, data):
 @pytest.mark.bench
 def test_dd_study_on_two_ranks():
     """A whole `dd` study at a size the DD is for (the tunnel with its mesh × 0.4: 7.4e4 unknowns,
-    12 subdomains, budget 40): each rank solves its share of every batch (issue 12: ≥ 1.6× on 2
+    12 subdomains, budget 40): each rank solves its share of every batch (goal ≥ 1.6× on 2
     ranks)."""
     out = _bench("study-speedup", "studies/tunnel-fault.yaml", "--method", "dd", "--budget", "40",
                  "--mesh-scale", "0.4", "--out", str(OUT / "dd_mpi_study.json"))

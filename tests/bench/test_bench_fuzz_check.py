@@ -1,12 +1,12 @@
 """`wcs check` on mutated study files stays quick: a timing goal, so a benchmark (a loaded machine
-must not fail the test suite). The mutations and the runner are tests/test_fuzz_check.py's."""
+must not fail the test suite). The mutations and the runner are tests/acceptance/test_fuzz_check.py's."""
 import sys
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from test_fuzz_check import run_cases  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from tests.acceptance.test_fuzz_check import run_cases  # noqa: E402
 
 SECONDS = 10.0      # a mutated study is checked (or refused) within this wall time
 

@@ -1,4 +1,4 @@
-"""solver.method iterative at scale (issue 25, step 2): the 3D block-on-block patch
+"""solver.method iterative at scale: the 3D block-on-block patch
 (studies/validation/block-on-block-3d.yaml) with its contact face refined, frictionless, one
 thread. Measured in one run, as ratios:
 

@@ -1,4 +1,4 @@
-"""wcs against Kratos Multiphysics 10.4.4 (issue 25, "Ahead of the peer"): the 3D block-on-block
+"""wcs against Kratos Multiphysics 10.4.4 (ahead of the peer or not): the 3D block-on-block
 patch (studies/validation/block-on-block-3d.yaml) read by both codes from ONE gmsh file
 (tests/bench/kratos_mesh.py: contact band meshed at `face`, the rest at 0.2), frictionless,
 one thread each (OMP/OPENBLAS/MKL_NUM_THREADS=1), whole processes run alternately
@@ -127,7 +127,7 @@ def check_patch(answer: dict) -> str:
 
 
 def check_hertz(answer: dict) -> str:
-    """Hertz's peak pressure p0 on the axis to 5 % (tests/test_hertz3d.py: wcs within 3 % at a/24)."""
+    """Hertz's peak pressure p0 on the axis to 5 % (tests/contact/test_mortar_hertz_3d.py: wcs within 3 % at a/24)."""
     ok = answer["p_centre"] == pytest.approx(HERTZ_P0, rel=5e-2)
     return "" if ok else f"axis pressure {answer['p_centre']:.6g} != p0 {HERTZ_P0:.4g} (5 %)"
 

@@ -2,7 +2,7 @@
 
 The first `evaluate` pays for meshing, assembly and the symbolic analysis;
 a second one with other material values only combines the affine pieces and
-refactors numerically, so it must be at least 5x faster (issue 2). A benchmark: the
+refactors numerically, so it must be at least 5x faster. A benchmark: the
 machine is shared, so only the ratio of two times taken in one run is asserted."""
 import time
 from pathlib import Path

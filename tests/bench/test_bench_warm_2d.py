@@ -1,4 +1,4 @@
-"""2D warm evaluation (issue 26 item 7), as ratios measured in one run.
+"""2D warm evaluation, as ratios measured in one run.
 
 An evaluator of the Tresca pad (studies/validation, the cold-start bench's mesh: ~8.6e4
 unknowns; ~9.6e3 reported beside it) has solved once, at the nominal data; it then

@@ -1,0 +1,249 @@
+"""solver.method iterative (`wcs.contact.iterative`): the same discrete problem as the condensed
+semismooth Newton of `wcs.contact.solver`, solved by a primal active set with CG + GAMG.
+
+Tolerance 1e-7 relative: both methods satisfy the same KKT system, the direct one to
+round-off, the iterative one to the final CG residual 1e-12 of the right-hand side; measured
+agreement is 1e-11–1e-13, so 1e-7 leaves four orders of margin while a wrong active node
+moves the multipliers by ≥ 1e-3. Tractions are compared as the model reports them
+(`Model.contact_state`, the canonical split of tied rows: a tangent parallel to its normal
+carries no force of its own, and the two methods split such a pair differently).
+"""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import yaml
+
+from tests.contact.test_solver import args, two_blocks
+from tests.contact.test_patch_3d import floating
+from tests.contact.test_solver_3d_inclined_fault import tunnel_fault_3d
+from tests.fem.test_glue_3d import plane, stack
+from wcs.contact import solver as cs
+from wcs.contact.iterative import solve_contact_iterative
+from wcs.errors import StudyError
+from wcs.model.evaluation import Evaluator
+from wcs.status import Status
+from wcs import load_study
+
+ROOT = Path(__file__).resolve().parents[2]
+VALIDATION = ROOT / "studies" / "validation"
+AGREE = 1e-7
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300)
+
+
+def study(path, method="monolithic", **mesh):
+    d = yaml.safe_load(yaml.safe_dump(path)) if isinstance(path, dict) else yaml.safe_load(Path(path).read_text())
+    d["scene"].setdefault("mesh", {}).update(mesh)
+    d["solver"] = {**d.get("solver", {}), "method": method}
+    return d
+
+
+def both(path, **mesh):
+    """The model of a study and its nominal contact problem solved by both methods."""
+    M = Evaluator(load_study(study(path, **mesh))).model
+    c = M.nominal
+    T = M._heat(c, False)[0] if M.thermal else None
+    _, Kr, rhs, u0 = M.reduced_system(c, T)
+    z = M.zone
+    P = dict(K=Kr, f=rhs, Bn=M.Bn_r, Bt=M.Bt_r, d=z.gap - z.Bn @ u0, w=z.weight, g=c.slip,
+             F=c.coulomb if c.coulomb.any() else None, R=M.R_r)
+    direct = cs.solve_contact(**P, tol=1e-10)
+    iterative = solve_contact_iterative(**P, tol=1e-10, near_nullspace=M.near_nullspace, rtol=1e-12)
+    return M, direct, iterative
+
+
+def assert_agree(M, direct, iterative):
+    assert direct.status == 0, direct.message
+    assert iterative.status == 0, iterative.message
+    assert rel(iterative.u, direct.u) <= AGREE
+    states = [M.contact_state(r.lam_n, r.lam_t, M.elim.T @ r.u, r.active) for r in (direct, iterative)]
+    assert rel(states[1].force_n, states[0].force_n) <= AGREE
+    assert rel(states[1].force_t, states[0].force_t) <= AGREE
+    assert iterative.iterations >= 1 and iterative.krylov_iterations >= iterative.iterations
+
+
+@pytest.mark.parametrize("g", [None, 0.004])
+def test_2d_blocks_frictionless_and_tresca_agree_with_the_direct_method(g):
+    P = two_blocks(20)
+    m = P["Bn"].shape[0]
+    gw = None if g is None else np.full(m, g)
+    direct = cs.solve_contact(*args(P), g=gw, tol=1e-10)
+    iterative = solve_contact_iterative(*args(P), g=gw, tol=1e-10, rtol=1e-12)
+    assert direct.status == 0 and iterative.status == 0, iterative.message
+    assert rel(iterative.u, direct.u) <= AGREE
+    assert rel(iterative.lam_n, direct.lam_n) <= AGREE
+    if g is not None:       # partial slip: 17 stuck, 4 slipping nodes
+        assert rel(iterative.lam_t, direct.lam_t) <= AGREE
+        assert np.array_equal(iterative.active, direct.active) and (direct.active == cs.SLIP).sum() >= 2
+
+
+def test_rows_with_no_unknown_of_their_own_are_refused_not_solved():
+    """Two contact nodes on the same pair of DOFs (a row repeated): neither has an unknown of
+    its own to eliminate; the iterative method says so (status OTHER_FAILURE, no answer)."""
+    P = two_blocks(10)
+    Bn, Bt = (sp.vstack([B, B[:1]]).tocsr() for B in (P["Bn"], P["Bt"]))
+    res = solve_contact_iterative(P["K"], P["f"], Bn, Bt, np.r_[P["d"], 0.0], np.r_[P["w"], P["w"][0]],
+                                  tol=1e-10, rtol=1e-12)
+    assert res.status == Status.OTHER_FAILURE and res.u is None
+    assert "no unknown of its own" in res.message
+
+
+def test_the_3d_block_patch_agrees_with_the_direct_method():
+    """Node-to-node, frictionless, the block floating along z and held by the contact."""
+    assert_agree(*both(VALIDATION / "block-on-block-3d.yaml"))
+
+
+def test_the_3d_tresca_shear_patch_agrees_with_the_direct_method():
+    """Every node slipping on its disc: the linearised disc projection (the springs across the slip)."""
+    M, direct, iterative = both(VALIDATION / "tresca-shear-patch-3d.yaml")
+    assert_agree(M, direct, iterative)
+    assert (iterative.active == cs.SLIP).all()
+
+
+@pytest.mark.slow
+def test_a_3d_dual_mortar_patch_agrees_with_the_direct_method():
+    assert_agree(*both(VALIDATION / "mortar-patch-3d.yaml"))
+
+
+@pytest.mark.slow
+def test_the_2d_tunnel_agrees_with_the_direct_method():
+    """Tresca with open, stuck and slipping fault nodes; fault nodes on rollers on both sides
+    (tied rows: a tangent dependent on its normal carries no multiplier of its own)."""
+    assert_agree(*both(ROOT / "studies" / "tunnel-fault.yaml"))
+
+
+def glued_contact() -> dict:
+    """A pad pressed on a block glued (nonmatching, mortar) on a base: glue eliminated in K, mortar contact."""
+    d = stack(0.25, 0.125)
+    sc = d["scene"]
+    sc["bodies"]["pad"] = {"regions": [{"material": "soft", "shape": {"box": [0, 0, 0.25, 1, 1, 0.5]}}],
+                           "mesh": {"size": 0.25}}
+    sc["boundaries"].update(top=plane([0, 0, 0.5], [0, 0, 1]), block_top=plane([0, 0, 0.25], [0, 0, 1], "block"),
+                            pad_bottom=plane([0, 0, 0.25], [0, 0, 1], "pad"))
+    sc["contacts"] = {"c": {"slave": "pad_bottom", "master": "block_top"}}
+    return d
+
+
+def test_a_glued_stack_under_a_mortar_contact_agrees_with_the_direct_method():
+    M, direct, iterative = both(glued_contact())
+    assert len(M.glue) == 1 and M.zone.discretization == ["mortar"]
+    assert_agree(M, direct, iterative)
+
+
+@pytest.mark.parametrize("friction", [{"slip_limit": 3.0e5}, {"coefficient": 0.3}], ids=["tresca", "coulomb"])
+def test_a_block_held_only_by_contact_and_friction_agrees_with_the_direct_method(friction):
+    """All six rigid motions of the block free (R given): the glued start holds them, and the
+    stuck nodes keep holding them; partial slip on discs; Coulomb: the fixed point over Tresca."""
+    M, direct, iterative = both(floating(friction))
+    assert [r.shape[1] for _, r in M.floating] == [6]
+    assert_agree(M, direct, iterative)
+    assert (iterative.active == cs.SLIP).any() and (iterative.active == cs.STICK).any()
+    if "coefficient" in friction:
+        assert iterative.fixed_point_iterations >= 2
+
+
+def test_a_3d_tunnel_slice_on_rollers_agrees_with_the_direct_method():
+    """Tresca on a fault whose nodes are on rollers front and back: one tangent of such a node is
+    held by the supports (a row of round-off), the other slips or sticks alone; a node's state
+    and its slip force are those of its acting tangent (the first tangent held: it cycled)."""
+    M, direct, iterative = both(tunnel_fault_3d())
+    assert_agree(M, direct, iterative)
+    assert np.array_equal(iterative.active, direct.active)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["hertz-3d.yaml", "hertz-mortar.yaml"])
+def test_hertz_3d_and_2d_mortar_agree_with_the_direct_method(name):
+    """3D Hertz (dual mortar, 274 rows, 18 Newton steps from the glued start) and 2D Hertz by mortar."""
+    assert_agree(*both(VALIDATION / name))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["tunnel-fault-3d.yaml", "tunnel-fault-oblique-3d.yaml"])
+def test_the_shipped_3d_tunnels_agree_with_the_direct_method(name):
+    """Tresca on the 3D fault (529 nodes: open, stuck, slipping on discs; rollers front and back)."""
+    assert_agree(*both(ROOT / "studies" / name))
+
+
+def test_the_study_runs_with_method_iterative_and_reports_the_monolithic_answer():
+    path = VALIDATION / "tresca-shear-patch-3d.yaml"
+    results = []
+    for method in ("monolithic", "iterative"):
+        ev = Evaluator(load_study(study(path, method)))
+        results.append(ev.evaluate(ev.study.nominal()))
+    assert results[1].status == 0, results[1].message
+    assert results[1].phi.keys() == results[0].phi.keys()
+    for name, value in results[0].phi.items():
+        np.testing.assert_allclose(results[1].phi[name], value, rtol=AGREE)
+    assert "iterative" in results[1].message and "CG iterations" in results[1].message
+
+
+def test_other_data_start_from_the_nominal_answer_and_gradients_are_those_of_the_direct_method():
+    """A data set other than the nominal one starts from the anchor (the nominal answer, solved
+    cold once) as the monolithic method does, and needs fewer CG iterations than from the glued
+    start (measured 28 against 180); the gradient solve is the iterative one too (its adjoint by
+    CG on the final active set, `IterativeAdjoint`: no polish by monolithic)."""
+    path = VALIDATION / "tresca-shear-patch-3d.yaml"
+    x = [3.2e5, 1.1e-3]
+    ref = Evaluator(load_study(study(path, "monolithic")))
+    ev = Evaluator(load_study(study(path, "iterative")))
+    warm, direct = ev.evaluate(x, gradients=False), ref.evaluate(x, gradients=True)
+    M, c = ev.model, ev.map.coefficients(x)
+    _, Kr, rhs, u0 = M.reduced_system(c, None)
+    cold = solve_contact_iterative(Kr, rhs, M.Bn_r, M.Bt_r, M.zone.gap - M.zone.Bn @ u0, M.zone.weight, g=c.slip,
+                                   R=M.R_r, tol=1e-8, rtol=1e-8, near_nullspace=M.near_nullspace)
+    assert M._cache.anchor is not None and cold.status == 0
+    assert warm.state.raw.krylov_iterations < cold.krylov_iterations / 2
+    for name, value in direct.phi.items():
+        assert warm.phi[name] == pytest.approx(value, rel=AGREE)
+    adjoint = ev.evaluate(x, gradients=True)
+    assert "iterative" in adjoint.message and "polished" not in adjoint.message, adjoint.message
+    for name, g in direct.grad.items():     # a zero derivative (pressure by the shear) is round-off of |Φ| / |x|
+        assert np.all(np.abs(adjoint.grad[name] - g) <= AGREE * (np.abs(g) + abs(direct.phi[name]) / np.abs(x)))
+
+
+def test_bddc_is_refused_until_it_exists():
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"]["iterative"] = {"preconditioner": "bddc"}
+    with pytest.raises(StudyError, match="BDDC"):
+        Evaluator(load_study(d))
+
+
+def test_without_petsc_the_study_is_refused_with_the_way_out(monkeypatch):
+    monkeypatch.setitem(sys.modules, "dolfinx_solver", None)       # import dolfinx_solver raises ImportError
+    with pytest.raises(StudyError, match="dolfinx-solver-real") as info:
+        Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
+    assert info.value.path == "solver.method"
+
+
+def test_a_warm_start_from_its_own_answer_ends_at_once_on_discs():
+    """Started from its own answer (the anchor of every other data set), the method takes it up,
+    displacement and multipliers: one Newton step. From u = 0 with the warm multipliers every
+    slipping node sat on the rim of its disc, where the linearised projection degenerates, and CG
+    failed (2000 iterations) on the shipped 3D tunnel's second solve."""
+    M, direct, cold = both(VALIDATION / "tresca-shear-patch-3d.yaml")
+    c = M.nominal
+    _, Kr, rhs, u0 = M.reduced_system(c, None)
+    z = M.zone
+    warm = solve_contact_iterative(Kr, rhs, M.Bn_r, M.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip, tol=1e-10,
+                                   near_nullspace=M.near_nullspace, rtol=1e-8, warm=cold)
+    assert warm.status == 0, warm.message
+    assert warm.iterations <= 1 and rel(warm.u, direct.u) <= AGREE
+
+
+def test_the_results_file_names_the_iterative_solver(tmp_path):
+    """The results file's `solver` says what solved the contact (PETSc's CG + GAMG), not only the
+    direct backend the heat step would use ("iterative (pardiso)" before)."""
+    import xarray as xr
+
+    from wcs.cli import main
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(study(VALIDATION / "tresca-shear-patch-3d.yaml", "iterative")), encoding="utf-8")
+    assert main(["solve", str(path), "-o", str(tmp_path / "out.nc"), "-q"]) == 0
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert ds.attrs["solver"].startswith("iterative (contact: PETSc CG + GAMG")

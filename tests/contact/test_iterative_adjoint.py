@@ -1,0 +1,121 @@
+"""The adjoint of `solver.method: iterative` (`wcs.contact.iterative.IterativeAdjoint`): one CG +
+GAMG solve per criterion on the iterative answer's final active set, no dense W.
+
+Tolerances: the gradients agree with the monolithic adjoint (`wcs.model.sensitivity.ContactAdjoint`,
+LU of W) to AGREE = 1e-6 relative — both solve the same linear system on the same active set,
+the iterative one to the Krylov tolerance 1e-12 of the right-hand side (measured agreement
+1e-9–1e-16); against central finite differences the rule of tests/model/test_gradients.py (1e-5
+relative plus the differences' noise floor)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import wcs
+from wcs.model import model as model_module
+from wcs.model import sensitivity
+from tests.model.test_gradients import TOL, check_against_fd
+
+ROOT = Path(__file__).resolve().parents[2]
+VALIDATION = ROOT / "studies" / "validation"
+AGREE = 1e-6
+
+
+def load(path, method, **mesh):
+    d = yaml.safe_load(Path(path).read_text())
+    d["scene"].setdefault("mesh", {}).update(mesh)
+    d["solver"] = {**d.get("solver", {}), "method": method, "tolerance": TOL}
+    if method == "iterative":
+        d["solver"]["iterative"] = {"tolerance": 1e-12}
+    return wcs.load_study(d)
+
+
+def gradients(path, method, **mesh):
+    study = load(path, method, **mesh)
+    ev = study.evaluate(study.nominal(), gradients=True)
+    assert ev.status == 0, ev.message
+    return ev
+
+
+def assert_agree(path, expect_refused=(), **mesh):
+    """Every criterion's iterative gradient equals the monolithic one (except those refused), per
+    parameter to AGREE relative or below the resolution floor 1e-9 |Φ| / (range of x_k): a
+    derivative that moves Φ by less than 1e-9 of itself over the whole range is round-off here
+    (10× below the noise floor of the finite-difference checks, 10 TOL |Φ| / (1e-4 range))."""
+    direct, iterative = gradients(path, "monolithic", **mesh), gradients(path, "iterative", **mesh)
+    assert "iterative" in iterative.message and "polished" not in iterative.message, iterative.message
+    study = load(path, "monolithic", **mesh)
+    span = study.parameters.upper - study.parameters.lower
+    resolved = 0
+    for name, g in direct.grad.items():
+        if name in expect_refused:
+            assert iterative.grad[name] is None and iterative.nonsmooth
+            continue
+        floor = 1e-9 * abs(direct.phi[name]) / span
+        assert np.all(np.abs(iterative.grad[name] - g) <= AGREE * np.maximum(np.abs(g), floor)), name
+        resolved += int(np.sum(np.abs(g) > floor))
+    assert resolved > 0
+
+
+def test_2d_floating_block_agrees_with_the_monolithic_adjoint():
+    """contact-patch: a block on a base held by contact alone (one rigid mode), all closed."""
+    assert_agree(VALIDATION / "contact-patch.yaml")
+
+
+def test_3d_tresca_shear_patch_agrees_with_the_monolithic_adjoint():
+    """Discs: every node slips along x (ν rows fixed, ν⊥ rows with compliance); the block floats
+    in z (three rigid modes), the adjoint of its mean pressure mostly a rigid motion."""
+    assert_agree(VALIDATION / "tresca-shear-patch-3d.yaml")
+
+
+def test_iterative_gradient_builds_no_dense_delassus_operator(monkeypatch):
+    """A gradient solve with iterative never factors the contact stiffness nor forms W."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("dense W / contact factor built")
+    monkeypatch.setattr(model_module.Model, "factored", refuse)
+    monkeypatch.setattr(model_module.Model, "contact_factor", refuse)
+    monkeypatch.setattr(sensitivity, "ContactAdjoint", refuse)
+    ev = gradients(VALIDATION / "contact-patch.yaml", "iterative")
+    assert all(g is not None for g in ev.grad.values())
+
+
+def test_iterative_gradients_against_finite_differences():
+    assert check_against_fd(load(VALIDATION / "contact-patch.yaml", "iterative")) < 1e-5
+
+
+def test_floating_pad_whose_pressure_adjoint_is_round_off_is_refused():
+    """The floating Tresca pad: the adjoint of the mean pressure over the whole face is a rigid
+    motion whose deformation (which sets μ) is 1e-14 of it, below round-off; its multipliers do not
+    balance the pad: None (and the point flagged), never noise; the shift's gradient agrees."""
+    assert_agree(VALIDATION / "tresca-pad.yaml", expect_refused=("pressure",))
+
+
+@pytest.mark.slow
+def test_2d_tunnel_agrees_with_the_monolithic_adjoint():
+    """The 2D tunnel: Tresca with stuck and slipping fault nodes, fault ends held by supports and
+    rollers on both sides (held and tied rows, μ = 0 there)."""
+    assert_agree(ROOT / "studies" / "tunnel-fault.yaml")
+
+
+@pytest.mark.slow
+def test_2d_tunnel_iterative_gradients_against_finite_differences():
+    assert check_against_fd(load(ROOT / "studies" / "tunnel-fault.yaml", "iterative")) < 1e-5
+
+
+def test_coulomb_slip_on_closed_nodes_is_refused_not_approximated():
+    """Coulomb: a slipping closed node's λt = σ(g w + F λn) couples its tangent to its normal and
+    the adjoint system is not symmetric: not built yet, so the gradient is None (and the point
+    flagged), never the Tresca gradient at frozen bounds."""
+    d = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
+    d["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.4}
+    d["uncertain"] = {"contacts.interface.friction.coefficient": [0.3, 0.5],
+                      "loads.pad_top.traction.0": [1.0e5, 3.0e5]}
+    d["solver"] = {"method": "iterative"}
+    study = wcs.load_study(d)
+    ev = study.evaluate(study.nominal(), gradients=True)
+    assert ev.status == 0 and "iterative" in ev.message, ev.message
+    raw = ev.state.raw
+    m = raw.lam_n.size
+    assert np.any(raw.free[:m] & ~raw.free[m:2 * m])           # closed and slipping nodes
+    assert all(g is None for g in ev.grad.values()) and ev.nonsmooth

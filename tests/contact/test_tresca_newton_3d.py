@@ -1,0 +1,128 @@
+"""3D Tresca semismooth Newton on faults held by rollers, its stopping scale, and its step length on discs.
+
+The tunnel slice of tests/contact/test_solver_3d_inclined_fault.py with its fault turned 30° about the vertical
+through the slice's centre (the oblique variant of studies/tunnel-fault-oblique-3d.yaml). Where
+the fault meets the x-roller on the left side, both of its sides have u_x = 0: the fault's normal
+row and its tangent along the dip act on one relative motion (a redundant pair), and the split
+of their force between the two is free. Split at the minimum norm, the tangent carried
+κλn/(1 + κ²) (0.12 λn on the oblique study at 8 m / 1 m), beyond the slip bound g w, so the
+node was predicted to slip, then to stick again: Newton cycled between the two (99 iterations
+with the dual-QP restart on this scene; on the oblique study at 8 m / 1 m, 400 iterations and
+status 1). With the tied tangent at λt = 0 it converges in 7.
+"""
+import functools
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import yaml
+
+import wcs.contact.solver as cs
+from wcs.contact.qp import solve_contact_qp
+from wcs.contact.solver import OPEN, SLIP, STICK, solve_contact
+from wcs.model.evaluation import Evaluator
+from wcs.status import Status
+from wcs import load_study
+
+from tests.contact.test_solver_3d_inclined_fault import solve_and_compare, tunnel_fault_3d
+
+
+def oblique(d: dict, strike_deg: float = 30.0) -> dict:
+    """The fault plane of `tunnel_fault_3d` turned by `strike_deg` about the vertical through
+    (0, length/2, 0): normal (−2 cos s, −2 sin s, 3)."""
+    s = np.radians(strike_deg)
+    normal = [float(-2 * np.cos(s)), float(-2 * np.sin(s)), 3.0]
+    length = d["scene"]["boundaries"]["back"]["plane"]["point"][1]
+    point = [0.0, length / 2, 0.0]
+    for body, sign in (("hanging", -1.0), ("footwall", 1.0)):
+        for r in d["scene"]["bodies"][body]["regions"]:
+            r["shape"]["intersect"] = [{"halfspace": {"point": point, "normal": [sign * x for x in normal]}}]
+    for b in ("fault_h", "fault_f"):
+        d["scene"]["boundaries"][b]["plane"] = {"point": point, "normal": normal}
+    return d
+
+
+def test_an_oblique_fault_on_a_roller_converges_without_cycling():
+    a = solve_and_compare(oblique(tunnel_fault_3d(size=20.0, fine=3.0)))
+    assert (a.active == 1).any() and (a.active == 2).any()           # stick and slip on the fault
+    assert a.iterations <= 12
+
+
+def test_the_stopping_scale_leaves_out_frictionless_tangents():
+    """Two contact nodes coupled along z (stiffness s [[2, −1], [−1, 2]]), pressed by P on node 0
+    and pulled by X on node 1, free along x and y under a tangential load T ≫ P, frictionless.
+    The glued first step gives λn = (P, −X); node 1 then opens: λn = (P − X/2, 0), u_z1 = −X/(2s).
+    A frictionless tangent's c q = T is no force of the answer: counted in the stopping scale
+    (tolerance × T = 10), Newton stopped before its first step, at λ = 0 (|Φ| = c q_n = 6.3),
+    and the penetration u_z0 = 6.3e-9 passed the certificate (1e-6 of max|u| = T/s): a wrong
+    answer reported as solved."""
+    s, P, X, T = 1.0e9, 10.0, 1.0, 1.0e9
+    K = sp.block_diag([s * np.eye(2), s * np.eye(2), s * np.array([[2.0, -1.0], [-1.0, 2.0]])], format="csr")
+    f = np.r_[T, T, 0.0, 0.0, P, -X]
+    Bn = sp.csr_matrix(np.eye(6)[4:])                       # u_z: closing the gap d = 0
+    Bt = sp.csr_matrix(np.eye(6)[:4])                       # u_x of nodes 0, 1, then u_y
+    res = solve_contact(K, f, Bn, Bt, np.zeros(2), np.ones(2), tol=1e-8)
+    assert res.status == Status.SOLVED, res.message
+    assert np.allclose(res.lam_n, [P - X / 2, 0.0], rtol=0, atol=1e-12 * P)
+    assert np.all(res.lam_t == 0.0)
+    assert np.allclose(res.u, [T / s, T / s, 0, 0, 0, -X / (2 * s)], rtol=1e-12, atol=1e-12 * X / s)
+    assert list(res.active) == [SLIP, OPEN]                 # closed and slipping freely; open
+
+
+def test_a_period_three_disc_cycle_is_broken_by_the_step_length():
+    """Three contact nodes pressed closed (normals uncoupled), each with a first tangent that acts
+    on nothing (a zero row of Bt, as the tangents along the axis of the 3D tunnel's nodes on the
+    rollers front and back) and second tangents coupled by the flexibility A (SPD, eigenvalues
+    0.011 … 0.23). With the disc's c = 2/A_ii (one c per disc, the null row in its mean) the full
+    Newton steps cycled with period 3 — node 0 slipping at λt = −g, then +g, then sticking at
+    −1.02 g; node 2 between slip and stick at 4.3 g — and never a pattern without a node slipping
+    on a disc, so no cycle was counted: 100 iterations, status 1. Armijo on ‖Φ‖² ends it in 4.
+    Reference: the primal SOCP (Clarabel at 1e-12): u and λ to 1e-8 of their largest."""
+    A = np.array([[0.147, 0.004, 0.097], [0.004, 0.024, -0.017], [0.097, -0.017, 0.112]])
+    qt, g = np.array([0.81, 0.3, 1.8]), np.array([15.96, 14.83, 7.49])
+    I3, Z3 = np.eye(3), np.zeros((3, 3))
+    K = sp.csr_matrix(np.block([[I3, Z3], [Z3, np.linalg.inv(A)]]))   # W = C K⁻¹ Cᵀ = diag(I, 0, A)
+    f = np.r_[np.ones(3), np.linalg.solve(A, qt)]                       # q = (1, 1, 1, 0, 0, 0, qt)
+    Bn, Bt = sp.csr_matrix(np.c_[I3, Z3]), sp.csr_matrix(np.r_[np.zeros((3, 6)), np.c_[Z3, I3]])
+    res = solve_contact(K, f, Bn, Bt, np.zeros(3), np.ones(3), g=g, qp=False, max_iter=100, tol=1e-12)
+    assert res.status == Status.SOLVED, res.message
+    assert res.iterations <= 8
+    with warnings.catch_warnings():       # Clarabel at 1e-12 may end OPTIMAL_INACCURATE: checked below
+        warnings.simplefilter("ignore")
+        ref = solve_contact_qp(K, f, Bn, Bt, np.zeros(3), np.ones(3), g=g, tol=1e-12)
+    assert ref.status == Status.SOLVED, ref.message
+    assert np.abs(res.u - ref.u).max() <= 1e-8 * np.abs(ref.u).max()
+    lam, lam_ref = np.r_[res.lam_n, res.lam_t], np.r_[ref.lam_n, ref.lam_t]
+    assert np.abs(lam - lam_ref).max() <= 1e-8 * np.abs(lam_ref).max()
+    assert list(res.active) == [STICK, SLIP, SLIP]
+
+
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
+
+# A data set of the 3D tunnel's sample (E, ν, weight, two top pressures, the right side's push,
+# then the slip limit's 8 × 2 grid values) on which Newton's full steps cycled to max_iter, and
+# the polish after the dual-QP restart ended at |λt| − g w = 37.7: status 1.
+CYCLED = [4.8866125148e+09, 1.6324667118e-01, 2.4261815764e+04, 4.7049122825e+06, 8.1818312073e+06,
+          -2.2413222907e-02, 9.2024912088e+05, 1.3770214047e+06, 1.3128199841e+06, 8.0244010990e+05,
+          5.2661826216e+05, 1.3563640672e+06, 7.9401282797e+05, 1.4116459132e+06, 9.1456919408e+05,
+          6.5648508515e+05, 8.0617704726e+05, 8.8882147141e+05, 1.0599324630e+06, 8.6921673891e+05,
+          1.4449984485e+06, 1.4549266063e+06]
+
+
+@pytest.mark.slow
+def test_the_finer_3d_tunnel_with_a_varying_slip_limit_converges_in_newton(monkeypatch):
+    """studies/tunnel-fault-3d.yaml at 0.55 m near the tunnel and 1.6 m along the fault (3.9e4
+    unknowns, 1060 fault nodes): from a fresh evaluator (the nominal solve first, then this data
+    set warm from it) Newton converges with no dual-QP restart (`qp` off: a cycle or the budget
+    would be status 1) in 10 iterations, against 200 and a refused answer before."""
+    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
+    refine = doc["scene"]["mesh"]["refine"]
+    refine[0]["size"], refine[1]["size"] = 0.55, 1.6
+    monkeypatch.chdir(STUDIES)                   # the material library is named relative to it
+    ev = Evaluator(load_study(doc))
+    monkeypatch.setattr(cs, "_newton", functools.partial(cs._newton, fallback=False))
+    res = ev.evaluate(np.array(CYCLED))
+    assert res.status == Status.SOLVED, res.message
+    assert res.iterations <= 20

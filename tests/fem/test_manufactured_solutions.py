@@ -1,0 +1,177 @@
+"""FEM layer against manufactured solutions on a two-region mesh.
+
+Coefficients jump across x = 1/2 by a factor s: with u = φ/s_j and φ = 0 on
+the interface, u is continuous and the flux/traction σ_0(φ)·n is too, so one
+body force f = −div σ_0(φ) (resp. source −Δφ) serves both regions. P1 theory:
+L2 error O(h²), energy error O(h); observed rates are asserted within 0.15.
+"""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from skfem import Basis, Functional, LinearForm, MeshTri, asm
+from skfem.helpers import dot
+
+from tests.support.reference_forms import conduction, div_div, strain_strain
+from wcs import linalg
+from wcs.fem import forms
+from wcs.fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
+from wcs.fem.constraints import Constraint, eliminate
+
+PI = np.pi
+LAM, MU = 2.0, 1.0
+SCALE = (1.0, 4.0)   # coefficient factor left / right of x = 1/2
+
+
+def two_region(n):
+    m = MeshTri.init_tensor(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    region = (m.p[0, m.t].mean(axis=0) > 0.5).astype(int)
+    return m, region
+
+
+def scale_of(x):
+    return np.where(x > 0.5, SCALE[1], SCALE[0])
+
+
+def elastic_exact(x, y):
+    a = np.sin(2 * PI * x) * np.sin(PI * y) / scale_of(x)
+    return np.array([a, a])
+
+
+def elastic_grad(x, y):
+    s = scale_of(x)
+    ax = 2 * PI * np.cos(2 * PI * x) * np.sin(PI * y) / s
+    ay = PI * np.sin(2 * PI * x) * np.cos(PI * y) / s
+    return np.array([[ax, ay], [ax, ay]])
+
+
+def elastic_force(x, y):
+    s2x, c2x, sy, cy = np.sin(2 * PI * x), np.cos(2 * PI * x), np.sin(PI * y), np.cos(PI * y)
+    grad_div = np.array([-4 * PI**2 * s2x * sy + 2 * PI**2 * c2x * cy,
+                         2 * PI**2 * c2x * cy - PI**2 * s2x * sy])
+    lap = -5 * PI**2 * s2x * sy
+    return -((LAM + MU) * grad_div + MU * np.array([lap, lap]))
+
+
+def solve_elastic(n):
+    m, region = two_region(n)
+    K = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)(
+        [[SCALE[0] * LAM, SCALE[0] * MU], [SCALE[1] * LAM, SCALE[1] * MU]])
+    b = Basis(m, forms.VECTOR, intorder=4)
+    f = asm(LinearForm(lambda v, w: dot(elastic_force(*w.x), v)), b)
+    nodes = m.boundary_nodes()
+    cons = [Constraint(nodes, np.tile([1.0, 0.0], (nodes.size, 1)), 0),
+            Constraint(nodes, np.tile([0.0, 1.0], (nodes.size, 1)), 0)]
+    el = eliminate(m.p.shape[1], 2, cons, 1)
+    w = linalg.solve(el.T.T @ K @ el.T, el.T.T @ f)
+    uh = b.interpolate(el.expand(w, np.zeros(1)))
+    l2 = np.sqrt(Functional(lambda w: dot(w["uh"] - elastic_exact(*w.x), w["uh"] - elastic_exact(*w.x))).assemble(b, uh=uh))
+    def energy_density(w):
+        e = w["uh"].grad - elastic_grad(*w.x)
+        s = scale_of(w.x[0])
+        es = 0.5 * (e + np.swapaxes(e, 0, 1))
+        tr = es[0, 0] + es[1, 1]
+        return s * (LAM * tr**2 + 2 * MU * (es * es).sum(axis=(0, 1)))
+    en = np.sqrt(Functional(energy_density).assemble(b, uh=uh))
+    return 1.0 / n, l2, en
+
+
+def heat_exact(x, y):
+    return np.sin(2 * PI * x) * np.sin(PI * y) / scale_of(x)
+
+
+def heat_grad(x, y):
+    s = scale_of(x)
+    return np.array([2 * PI * np.cos(2 * PI * x) * np.sin(PI * y), PI * np.sin(2 * PI * x) * np.cos(PI * y)]) / s
+
+
+def solve_heat(n):
+    m, region = two_region(n)
+    H = CellAffineOperator(m.t, m.nvertices, conduction_cell_matrices(m.p, m.t), region)(list(SCALE))
+    b = Basis(m, forms.SCALAR, intorder=4)
+    q = asm(LinearForm(lambda v, w: 5 * PI**2 * np.sin(2 * PI * w.x[0]) * np.sin(PI * w.x[1]) * v), b)
+    nodes = m.boundary_nodes()
+    el = eliminate(m.p.shape[1], 1, [Constraint(nodes, np.ones((nodes.size, 1)), 0)], 1)
+    Th = b.interpolate(el.expand(linalg.solve(el.T.T @ H @ el.T, el.T.T @ q), np.zeros(1)))
+    l2 = np.sqrt(Functional(lambda w: (w["Th"] - heat_exact(*w.x)) ** 2).assemble(b, Th=Th))
+    en = np.sqrt(Functional(lambda w: scale_of(w.x[0]) * dot(w["Th"].grad - heat_grad(*w.x),
+                                                               w["Th"].grad - heat_grad(*w.x))).assemble(b, Th=Th))
+    return 1.0 / n, l2, en
+
+
+def rates(results):
+    h, l2, en = np.array(results).T
+    return np.diff(np.log(l2)) / np.diff(np.log(h)), np.diff(np.log(en)) / np.diff(np.log(h))
+
+
+@pytest.mark.parametrize("solver", [solve_elastic, solve_heat], ids=["elasticity", "heat"])
+def test_manufactured_convergence_rates(solver):
+    r_l2, r_en = rates([solver(n) for n in (8, 16, 32, 64)])
+    # asymptotic rates over the last two halvings (4 refinements in all)
+    assert abs(r_l2[-1] - 2.0) < 0.15, r_l2
+    assert abs(r_en[-1] - 1.0) < 0.15, r_en
+    assert np.all(r_l2 > 1.7) and np.all(r_en > 0.85)
+
+
+def test_cell_matrices_match_scikit_fem_assembly():
+    """The closed-form P1 cell matrices against scikit-fem's quadrature of the weak forms,
+    region by region; one pattern for every data set (the analysis is reused)."""
+    m, region = two_region(6)
+    def piece(form, element, j):
+        return asm(form, Basis(m, element, elements=np.flatnonzero(region == j), intorder=1))
+    Kl0, Km0, Kl1, Km1 = (piece(f, forms.VECTOR, j) for j in (0, 1) for f in (div_div, strain_strain))
+    op = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)
+    direct = 1.5 * Kl0 + 0.7 * Km0 + 3.0 * Kl1 + 2.0 * Km1
+    assert abs(op([[1.5, 0.7], [3.0, 2.0]]) - direct).max() < 1e-12 * abs(direct).max()
+    assert op([[1.5, 0.7], [3.0, 2.0]]).nnz == op([[1, 1], [1, 1]]).nnz == op([[0, 1], [0, 1]]).nnz
+    H = CellAffineOperator(m.t, m.nvertices, conduction_cell_matrices(m.p, m.t), region)([[2.0], [5.0]])
+    Hd = 2.0 * piece(conduction, forms.SCALAR, 0) + 5.0 * piece(conduction, forms.SCALAR, 1)
+    assert abs(H - Hd).max() < 1e-12 * abs(Hd).max()
+
+
+def test_roller_elimination_on_inclined_direction():
+    # a node constrained by u·n = c keeps exactly its tangential freedom
+    n = np.array([[0.6, 0.8]])
+    el = eliminate(2, 2, [Constraint(np.array([0]), n, 0)], 1)
+    u = el.expand(np.array([2.0, 5.0, 7.0]), np.array([0.3]))
+    assert np.isclose(u[:2] @ n[0], 0.3)
+    assert el.T.shape == (4, 3)
+    assert np.allclose((el.T.T @ el.T).toarray(), np.eye(3))
+
+
+def test_reduction_keeps_one_pattern_whatever_the_data():
+    """Tᵀ K T by a sparse product drops entries that vanish for some data; the reduction
+    keeps the structural pattern, so the factorization's ordering never changes."""
+    from wcs.fem.constraints import Reduction
+    m, region = two_region(6)
+    op = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)
+    nodes = m.boundary_nodes()
+    n = np.tile([0.6, 0.8], (nodes.size, 1))
+    el = eliminate(m.p.shape[1], 2, [Constraint(nodes[:5], n[:5], 0)], 1)
+    red = Reduction(op([[1.0, 1.0], [1.0, 1.0]]), el.T)
+    for coeffs in ([[2.0, 1.0], [3.0, 0.5]], [[0.0, 1.0], [0.0, 1.0]]):
+        K = op(coeffs)
+        Kr = red(K)
+        direct = el.T.T @ K @ el.T
+        assert abs(Kr - direct).max() <= 1e-12 * abs(direct).max()
+        assert np.array_equal(Kr.indptr, red.pattern.indptr) and np.array_equal(Kr.indices, red.pattern.indices)
+
+
+def test_reduction_with_rows_of_several_entries():
+    """T rows tying a dof to several columns (mortar gluing) and zero data: M maps K's values to
+    Tᵀ K T's on the structural pattern (a product of the patterns), its rows in CSR order with
+    each row's terms by increasing entry of K (the order its product sums them in)."""
+    from wcs.fem.constraints import Reduction
+    rng = np.random.default_rng(3)
+    K = sp.random(60, 60, density=0.1, random_state=4, format="csr") + sp.eye(60, format="csr")
+    K = (K + K.T).tocsr()
+    T = sp.random(60, 45, density=0.05, random_state=5, format="csr") + sp.eye(60, 45, format="csr")
+    T = T.tocsr()
+    assert np.diff(T.indptr).max() > 2
+    red = Reduction(K, T)
+    K.data = rng.normal(size=K.nnz)
+    Kr = red(K)
+    direct = (T.T @ K @ T).toarray()
+    assert abs(Kr.toarray() - direct).max() <= 1e-13 * abs(direct).max()
+    ones = abs(T).T @ sp.csr_matrix((np.ones(K.nnz), K.indices, K.indptr), shape=K.shape) @ abs(T)
+    assert np.array_equal(red.pattern.indptr, ones.indptr) and red.pattern.nnz == ones.nnz
+    assert red.M.has_canonical_format
