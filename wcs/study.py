@@ -12,7 +12,10 @@ the dotted key path and the fault.
 A file a study names (scene, material library, mesh) is found relative to the
 folder of the file that names it; the study's own names relative to `base_dir`
 when given (the current directory for a mapping). A material library not found
-there is looked up among the libraries shipped in the package (`wcs/library/`).
+there is looked up among the libraries shipped in the package (`configs/`, `wcs/configs/`
+installed). A study's `include:` names preset files whose keys it takes unless it sets
+them itself (`wcs.includes`: looked up relative to the study's folder, then among the
+shipped configs).
 
 Dotted paths are relative to the scene (`materials.rubber.E`,
 `loads.pad_top.traction.1`, ...); `get_path` reads them (a key is a field's name as the
@@ -55,6 +58,7 @@ from pydantic import (
 from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .errors import StudyError
+from .includes import SHIPPED, resolve_includes
 from .options import CONFIG as _CONFIG
 from .options import MAX_SOLVES
 from .options import DomainDecomposition, LocalSearch, Options, SampleDesign, Search, Solver  # noqa: F401 - the schema's blocks
@@ -67,7 +71,7 @@ from .scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVI
                          POISSON, RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Coordinate, Frozen, GroupBoundary, Material,
                          Name, Point, Scene, lame_admissible)
 
-LIBRARIES = Path(__file__).resolve().parent / "library"     # shipped material libraries
+LIBRARIES = SHIPPED                                             # shipped material libraries: configs/
 MAPPING = Path("<mapping>")                                     # the file name of a study given as a mapping
 
 # ---------------------------------------------------------------- reading YAML
@@ -1151,6 +1155,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         folder = file.parent
         doc, text = _read_yaml(file)
     src = _Source(file, (), folder if base_dir is None else Path(base_dir))
+    doc, included = resolve_includes(doc, file, src.base, _read_yaml)   # `include:` presets (wcs/includes.py)
     if not isinstance(doc, dict):
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
@@ -1164,7 +1169,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     _check_sweep(sweep, scene, src)
     _check_lame_sweep(sweep, uncertain, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
-    text = _recorded_text(src.base, text, extra)
+    text = _recorded_text(src.base, text, included + extra)
     return Study(
         name=name, file=file, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(),
         scene=scene, uncertain=uncertain, criteria=criteria, limits=upper_limits,
