@@ -26,6 +26,8 @@ CPU, cores, load average, date) and names the benchmark that writes it, whose do
 what is measured and how. Times are medians of repeats taken in the same run on a shared
 machine: read them as ratios within a table. The charts (`*.png`) are beside the CSV files in
 `results/bench/`; [methods.md](methods.md) says which choices of `wcs/choose.py` rest on which table.
+A table the docs name but this page lacks was not run since the page was last written: `make bench`
+(or `pytest tests/bench -m bench -k NAME`) writes it.
 """
 
 
