@@ -27,7 +27,7 @@ what is measured and how. Times are medians of repeats taken in the same run on 
 machine: read them as ratios within a table. The charts (`*.png`) are beside the CSV files in
 `results/bench/`; [methods.md](methods.md) says which choices of `wcs/choose.py` rest on which table.
 A table the docs name but this page lacks was not run since the page was last written: `make bench`
-(or `pytest tests/bench -m bench -k NAME`) writes it.
+(or `pytest tests/bench/FILE -m bench`, FILE the benchmark that writes it) writes it.
 """
 
 
