@@ -25,7 +25,8 @@ from typing import Any
 
 from .errors import StudyError
 
-SHIPPED = Path(__file__).resolve().parent / "configs"     # the top-level configs/, shipped in the package
+PACKAGE = Path(__file__).resolve().parents[__name__.count(".") - 1]   # wcs/, wherever in it this module sits
+SHIPPED = PACKAGE / "configs"                # the top-level configs/, shipped in the package (a symlink in the clone)
 KEY = "include"
 
 Reader = Callable[[Path], tuple[Any, str]]                 # a file -> (parsed YAML, its text)
