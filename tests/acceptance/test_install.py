@@ -1,5 +1,6 @@
 """`pip install .` (not editable) into a fresh venv, then `wcs run` from outside the clone of
-a study that names a shipped material library: the library comes from the installed package.
+a study that names a shipped material library and includes a shipped preset
+(`include: configs/search-quick.yaml`): both come from the installed package (configs/).
 
 The fresh venv has no packages of its own but wcs: a .pth file lends it the test
 interpreter's site-packages for the dependencies and pip (pip still fetches the build
@@ -66,6 +67,7 @@ def test_installed_wcs_runs_a_study_with_a_shipped_library(tmp_path):
         assert ds.sizes["eval"] == BUDGET
         assert (ds["status"].values == 0).all()
         assert "aluminium:" in ds.attrs["study_yaml"]      # the library's text is recorded
+        assert "# shipped library search-quick.yaml\n" in ds.attrs["study_yaml"]   # and the preset's
         x = ds["x"].values[0]
         phi = dict(zip(ds["criterion"].values.tolist(), ds["phi"].values[0]))
     # the same study loaded here (the clone's wcs) gives the same numbers at the same data

@@ -258,18 +258,19 @@ def test_ctrl_c_exits_130_says_how_to_resume_and_the_resumed_run_is_the_uninterr
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
 
 
-def _readme_block(after: str, fence: str = "```yaml") -> str:
-    """The first fenced block of README.md after the line `after`."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+def _readme_block(after: str, fence: str = "```yaml", page: str = "README.md") -> str:
+    """The first fenced block of `page` (README.md) after the line `after`."""
+    text = (ROOT / page).read_text(encoding="utf-8")
     rest = text[text.index(after):]
     start = rest.index(fence) + len(fence)
     return rest[start:rest.index("```", start)]
 
 
-def test_the_readme_3d_example_is_a_study_that_checks(tmp_path, capsys):
-    """The README's 3D syntax (solids, face and region selectors, 3-vectors) is a study `check` takes."""
+def test_the_docs_3d_example_is_a_study_that_checks(tmp_path, capsys):
+    """The 3D syntax of docs/study-format.md (solids, face and region selectors, 3-vectors) is a
+    study `check` takes."""
     import yaml
-    doc = yaml.safe_load(_readme_block("## Three dimensions"))
+    doc = yaml.safe_load(_readme_block("### Three dimensions", page="docs/study-format.md"))
     assert doc["scene"]["dimension"] == 3
     shape = doc["scene"]["bodies"]["block"]["regions"][0]["shape"]
     assert {"box", "minus"} <= set(shape)

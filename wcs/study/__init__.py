@@ -13,7 +13,9 @@ the dotted key path and the fault.
 A file a study names (scene, material library, mesh) is found relative to the
 folder of the file that names it; the study's own names relative to `base_dir`
 when given (the current directory for a mapping). A material library not found
-there is looked up among the libraries shipped in the package (`wcs/library/`).
+there is looked up among the libraries shipped in the package (`configs/`, `wcs/configs/` installed).
+A study's `include:` names preset files whose keys it takes unless it sets them itself
+(`includes`: relative to the study's folder, then among the shipped configs).
 
 The modules, in the order the loader uses them: `source` (reading YAML, where a piece of
 input lives), `schema` (the typed models), `scene` (the scene resolved and its references

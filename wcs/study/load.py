@@ -14,6 +14,7 @@ from .fuzzy import _levels
 from .resources import NO_CRITERIA, _check_mesh, _locking_warnings
 from .scene import _check_contacts, _check_references, _check_regions, _check_thermal, _load_scene
 from .schema import _STUDY
+from .includes import resolve_includes
 from .source import LIBRARIES, MAPPING, _mapping_yaml, _read_yaml, _Source
 from .study import Study
 from .uncertain import _check_lame_sweep, _check_sweep, _parameters, _parse_uncertain
@@ -61,6 +62,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         folder = file.parent
         doc, text = _read_yaml(file)
     src = _Source(file, (), folder if base_dir is None else Path(base_dir))
+    doc, included = resolve_includes(doc, file, src.base, _read_yaml)   # `include:` presets (wcs/study/includes.py)
     if not isinstance(doc, dict):
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
@@ -74,7 +76,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     _check_sweep(sweep, scene, src)
     _check_lame_sweep(sweep, uncertain, scene, src)
     name = top.study or ("study" if file is MAPPING else file.stem)
-    text = _recorded_text(src.base, text, extra)
+    text = _recorded_text(src.base, text, included + extra)
     return Study(
         name=name, file=file, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(),
         scene=scene, uncertain=uncertain, criteria=criteria, limits=upper_limits,

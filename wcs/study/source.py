@@ -18,8 +18,9 @@ from pydantic import TypeAdapter, ValidationError
 
 from ..errors import StudyError
 from ..scene.spec import MAX_NAME
+from .includes import SHIPPED
 
-LIBRARIES = Path(__file__).resolve().parents[1] / "library"     # shipped material libraries
+LIBRARIES = SHIPPED                                             # shipped material libraries: configs/
 MAPPING = Path("<mapping>")                                       # the file name of a study given as a mapping
 MAX_NESTING = 50                                   # levels of a study file (shapes nest)
 MAX_NODES = 1_000_000                              # values of a study file, aliases expanded
