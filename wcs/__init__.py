@@ -9,7 +9,7 @@ problems; [68] quasi-coupled thermo-elasticity, DD and worst scenario; [101] dyn
 viscoelasticity, dual mortar, primal-dual active set.
 
 Layers, from the bottom up: a module imports only from its own layer and the layers below it
-(tests/test_imports.py holds the code to this list, and `search` to the first layer alone).
+(tests/acceptance/test_imports.py holds the code to this list, and `search` to the first layer alone).
 
     1. errors, status, linalg, options, progress, choose, version: low-level, one idea each, used everywhere
     2. geometry: mesh geometry shared by fem, scene and contact (tetrahedra, normals, mortar integrals)

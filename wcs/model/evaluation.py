@@ -50,7 +50,7 @@ class Evaluation:
 
 # Regions bonded in one stiffness (a body's regions, glued bodies) share one factorization,
 # whose round-off in their stresses grows like 1e-14 times the contrast of their moduli
-# (glued-layers.yaml: 4e-9 at a contrast of 4e5, 3e-5 at 4e9; tests/test_stiff_bodies.py).
+# (glued-layers.yaml: 4e-9 at a contrast of 4e5, 3e-5 at 4e9; tests/acceptance/test_stiff_bodies.py).
 # Beyond 1e10 the stresses would carry a round-off above 1e-4: refused, with what to do.
 BONDED_CONTRAST_MAX = 1e10
 

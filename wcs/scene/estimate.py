@@ -177,7 +177,7 @@ def estimate_cells(scene) -> tuple[float, str]:
 # its bounding box) whose halo grows by REGION_GRADING: gmsh carries the size of the region's
 # faces into the neighbouring volumes at about that rate (measured: the estimate is 1.2-2.5x
 # the meshed count with a box, slab, ball or cylinder region at s = h/2.5 to h/5, whatever
-# `mesh.grading`; tests/test_glue3d.py checks it).
+# `mesh.grading`; tests/fem/test_glue_3d.py checks it).
 CELLS_PER_H3 = 6.0 * math.sqrt(2.0)
 HALO_POINTS = 65
 REGION_GRADING = DEFAULT_GRADING

@@ -27,7 +27,7 @@ class Frozen(Strict):
 # Moduli reach far beyond diamond: a rigid foundation is modelled as a body of E = 1e14 to
 # 1e17 Pa (code_aster's SSNV128: 1.3e16 Pa), and a body in contact is factored on its own
 # (K is block diagonal over bodies, W = Σ_bodies C K_b⁻¹ Cᵀ), so its contrast with the
-# bodies it touches costs no digit (tests/test_stiff_bodies.py: to E = 1e20 Pa). Regions
+# bodies it touches costs no digit (tests/acceptance/test_stiff_bodies.py: to E = 1e20 Pa). Regions
 # bonded in one body (or glued) share one factorization, and their contrast has its own
 # bound (`wcs.model.evaluation.BONDED_CONTRAST_MAX`).
 MODULUS = {"ge": 1.0, "le": 1e20}                 # E, mu [Pa]
