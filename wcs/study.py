@@ -54,6 +54,8 @@ from pydantic import (
 
 from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
+from .dynamics.numbers import DYNAMIC_ADDRESSES
+from .dynamics.spec import Dynamics, check_dynamics, refuse_pending
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
 from .options import MAX_SOLVES
@@ -288,6 +290,8 @@ class Criterion(Frozen):
     sense: Literal["max", "min", "both"] = Field(
         "max", description="which end of the range the search finds: the maximum (the worst "
         "scenario), the minimum (the best), or both")
+    over_time: Optional[Literal["max", "min", "final", "mean"]] = Field(
+        None, description="a dynamic study's reduction of the criterion's history (default max)")
 
     @model_validator(mode="after")
     def _options_of_the_kind(self):
@@ -341,6 +345,7 @@ class StudyFile(_Strict):
     solver: Solver = Field(default_factory=Solver)
     sweep: Optional[Sweep] = None
     output: Optional[str] = None
+    dynamics: Optional[Dynamics] = None                  # a time-dependent study (wcs.dynamics)
 
     @field_validator("output")
     @classmethod
@@ -421,6 +426,7 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw = dict(raw)
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
+    refuse_pending(raw, src.error)
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     try:
         scene = src.validate(_SCENE3D if three else _SCENE, raw)
@@ -763,6 +769,7 @@ _ADDRESSES = {
     "materials.<m>.conductivity": CONDUCTIVITY,
     "materials.<m>.expansion": EXPANSION,
     "materials.<m>.density_weight": WEIGHT,
+    **DYNAMIC_ADDRESSES,
     "loads.<boundary>.pressure": STRESS,
     "loads.<boundary>.traction.<i>": STRESS,
     "body_forces.<body or region>.<i>": BODY_FORCE,
@@ -1075,6 +1082,7 @@ class Study:
     estimated_cells: float | None = None                # before meshing; None for a mesh file
     lower_limits: dict = field(default_factory=dict)    # criterion -> lower limit
     levels: tuple[float, ...] | None = None             # α-levels of a fuzzy study, ascending; None: crisp
+    dynamics: Dynamics | None = None                    # time stepping (`wcs.dynamics`); None: static
 
     @cached_property
     def _evaluator(self):
@@ -1163,6 +1171,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     sweep = top.sweep
     _check_sweep(sweep, scene, src)
     _check_lame_sweep(sweep, uncertain, scene, src)
+    check_dynamics(top.dynamics, scene, uncertain, criteria, top.solver, src.error)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, extra)
     return Study(
@@ -1171,7 +1180,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         search=top.search, solver=top.solver, sweep=sweep,
         output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
         warnings=_locking_warnings(scene, uncertain) + ([] if criteria else [NO_CRITERIA]), estimated_cells=cells,
-        lower_limits=lower_limits, levels=_levels(top, uncertain),
+        lower_limits=lower_limits, levels=_levels(top, uncertain), dynamics=top.dynamics,
     )
 
 
