@@ -278,6 +278,9 @@ def solve_nominal(args) -> int:
     study = load_study(args.study)
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
+    if study.dynamics is not None:
+        from .dynamics.command import solve_dynamic
+        return solve_dynamic(study, out, args)
     t0 = time.perf_counter()
     ev = Evaluator(study)
     with phase("solve"):

@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__, linalg, validity
+from .dynamics.numbers import DYNAMIC_UNITS
 from .status import Status, flag_attrs
 from .study import alpha_cut
 
@@ -126,6 +127,8 @@ def parameter_units(path: str) -> str:
         return "1"
     if pattern.startswith("body_forces"):
         return _BODY_FORCE_UNITS
+    if pattern in DYNAMIC_UNITS:
+        return DYNAMIC_UNITS[pattern]
     field = [k for k in pattern.split(".") if not k.startswith("<")][-1]
     return _PARAM_UNITS.get(field, "1")
 

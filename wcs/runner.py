@@ -59,6 +59,7 @@ from .search.ranges import ranges
 from .status import Status
 from .store import WriteError, key
 from .study import alpha_cut, load_study, parameter_vector
+from .dynamics.spec import refuse_search
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):
@@ -87,6 +88,7 @@ class Runner:
         """output: the results file (None: the study's `output`; False: in memory only).
         where: (file, key path) that named the output, for its errors (default: the study's
         `output` when `output` is None). on_event: told every `Event`."""
+        refuse_search(study)
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
         self.study = study

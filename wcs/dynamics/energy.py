@@ -29,3 +29,16 @@ def viscous(C, tau: float, v_mean) -> float:
 def friction(lam_t, slip_increment) -> float:
     """λtᵀ Bt Δ: the work the friction force takes from the bodies over the step."""
     return float(np.dot(lam_t, slip_increment)) if lam_t is not None else 0.0
+
+
+def body_velocities(model, M, velocity) -> np.ndarray:
+    """(nbodies, d) each body's mean velocity, its momentum over its mass: Σ (M v)_i / Σ (M 1)_i
+    over the body's DOFs of each component (M the full mass matrix, velocity on the full DOFs)."""
+    d = model.dim
+    Mv, M1 = M @ velocity, M @ np.ones(M.shape[0])
+    out = np.empty((len(model.smesh.bodies), d))
+    for b in range(len(model.smesh.bodies)):
+        nodes = np.flatnonzero(model.smesh.node_body == b)
+        for i in range(d):
+            out[b, i] = Mv[d * nodes + i].sum() / M1[d * nodes + i].sum()
+    return out

@@ -11,6 +11,13 @@ DYNAMIC_ADDRESSES = {
     "materials.<m>.viscosity.nu": POISSON,
 }
 
+DYNAMIC_UNITS = {
+    "materials.<m>.density": "kg m-3",
+    "materials.<m>.viscosity.ratio": "s",
+    "materials.<m>.viscosity.E": "Pa s",
+    "materials.<m>.viscosity.nu": "1",
+}
+
 
 def dynamic_numbers(name: str, material):
     """(dotted path, value) of a material's density and viscosity, where it gives them."""

@@ -10,6 +10,7 @@ from typing import Annotated, Literal, Optional, Union
 
 from pydantic import Field, model_validator
 
+from wcs.errors import StudyError
 from wcs.options import Strict
 from wcs.scene.spec import Name
 
@@ -95,3 +96,12 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
                 raise error(where, f"no body '{body}' in the scene (bodies: {', '.join(scene.bodies)})")
             if len(v) != scene.dimension:
                 raise error(where, f"a velocity has {scene.dimension} components in a {scene.dimension}D scene")
+
+
+def refuse_search(study) -> None:
+    """StudyError (exit 2) for `run` and `sweep` of a dynamic study: the search over criteria
+    reduced in time (`over_time`) is the next step of issue 29; `wcs solve` runs the levels."""
+    if getattr(study, "dynamics", None) is not None:
+        raise StudyError("a dynamic study is solved by `wcs solve` (its time levels at the nominal data); "
+                         "`run` and `sweep` over time-dependent criteria are not available yet",
+                         file=str(study.file), path="dynamics")
