@@ -133,3 +133,28 @@ def solve_dynamic(study, out: Path, args) -> int:
             print(f"  {crit.name} = {value:.6g}  ({what[crit.name]}, {REDUCED[crit.over_time or 'max']})")
         print(f"  wrote {path} and {pvd}")
     return 0
+
+
+def check_dynamic(study, ev, args, summary: str) -> int:
+    """`wcs check` of a dynamic study: the summary, the plan of the levels and, for `initial:
+    static`, the static solve that starts them (exit 2 where the scene has no static solution)."""
+    from wcs.errors import SolveError
+    from wcs.status import Status
+    from .stepping import initial_state
+    dyn = study.dynamics
+    for w in study.warnings:
+        print(f"warning: {study.file}: {w}", file=sys.stderr)
+    if not args.quiet:
+        start = dyn.initial if isinstance(dyn.initial, str) else f"rest with velocities {dyn.initial.velocity}"
+        print(summary)
+        print(f"  dynamics: {dyn.levels} levels of {dyn.time_step:g} s to {dyn.levels * dyn.time_step:g} s, scheme "
+              f"{dyn.scheme}, initial state {start}; fields every {dyn.output_every} levels, criteria at every level")
+    if dyn.initial == "static":
+        try:
+            initial_state(ev.model, ev.map.coefficients(study.nominal()), dyn)
+        except SolveError as e:
+            print(f"error: {study.file}: {e}", file=sys.stderr)
+            return 2 if Status(e.status).scene_fault else 1
+    if not args.quiet:
+        print("ok")
+    return 0

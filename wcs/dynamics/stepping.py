@@ -98,7 +98,11 @@ def initial_state(model, c, dyn: Dynamics) -> tuple[np.ndarray, np.ndarray, Cont
     given rigid velocities."""
     n = model.elim.T.shape[1]
     if dyn.initial == "static":
-        sol = model.solve(c)
+        try:
+            sol = model.solve(c)
+        except SolveError as e:
+            raise SolveError(f"the static initial state (dynamics.initial: static) cannot be solved: {e}; "
+                             "start from `rest` or given velocities", status=e.status) from None
         return np.asarray(sol.w, float), np.zeros(n), sol.raw
     v = rigid_velocity(model, dyn.initial) if isinstance(dyn.initial, InitialVelocity) else np.zeros(n)
     return np.zeros(n), v, None
