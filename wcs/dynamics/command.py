@@ -86,8 +86,9 @@ def write_series(ev, hist, c, out: Path) -> Path:
     from wcs.fields import fields_dataset
     from wcs.paraview import volume, vtu_text, _write
     entries = []
+    heat = ev.model.solve_heat(c) if ev.model.thermal else None
     for k, (n, u) in enumerate(zip(hist.output_levels, hist.displacement)):
-        ds = fields_dataset(ev.model, level_solution(ev.model, c, u, None))
+        ds = fields_dataset(ev.model, level_solution(ev.model, c, u, None, heat))
         file = out.with_name(f"{out.stem}-{k:05d}.vtu")
         _write(file, vtu_text(*volume(ds)))
         entries.append((hist.time[n], file.name))

@@ -19,6 +19,7 @@ before it are never passed off as the answer.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -167,15 +168,15 @@ class History:
         return e[0] + np.array(self.work) - np.array(self.viscous) - np.array(self.friction) - e
 
 
-def level_solution(model, c, u, res: ContactResult | None) -> Solution:
-    """A level as a `Solution` (what the criteria read)."""
+def level_solution(model, c, u, res: ContactResult | None, T=None) -> Solution:
+    """A level as a `Solution` (what the criteria read); T the temperature (thermal scenes)."""
     contact = None
     if model.zone is not None:
         m = model.zone.gap.size
         lam_n = res.lam_n if res is not None else np.zeros(m)
         lam_t = res.lam_t if res is not None else np.zeros(model.Bt_r.shape[0])
         contact = model.contact_state(lam_n, lam_t, u, res.active if res is not None else None)
-    return Solution(u=u, T=None, stress=model.cell_stress(u, None, c), coefficients=c, contact=contact)
+    return Solution(u=u, T=T, stress=model.cell_stress(u, T, c), coefficients=c, contact=contact)
 
 
 def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
@@ -188,9 +189,10 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
     T, zone = model.elim.T, model.zone
     u0 = model.elim.U0 @ c.support_values
     K_full = model.stiffness(c)
+    heat = model.solve_heat(c) if model.thermal else None     # a steady temperature: its load is constant
     k0 = model.Tt @ (K_full @ u0)                   # the supports' share of the elastic force
     if load is None:
-        constant = model.Tt @ model.mechanical_load(c, None)
+        constant = model.Tt @ model.mechanical_load(c, heat)
         load = lambda t: constant                   # noqa: E731 - the data set's load, at every time
     w, v, res = start if start is not None else initial_state(model, c, dyn)
     solver = LevelSolver(model)
@@ -215,7 +217,7 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
         for key, value in sums.items():
             getattr(hist, key).append(value)
         if criteria:
-            state = level_solution(model, c, u, res)
+            state = level_solution(model, c, u, res, heat)
             for crit in criteria:
                 hist.phi.setdefault(crit.name, []).append(crit.value(model, state))
         if n % dyn.output_every == 0 or n == N:
@@ -261,8 +263,9 @@ def _contact(solver: LevelSolver, key, A, rhs, model, w, u0, slip, F, warm, n, t
     displacement), solved; SolveError naming the level where it fails."""
     z = model.zone
     d = z.gap - z.Bn @ u0 - model.Bn_r @ w
-    problem = ContactProblem(A, rhs, model.Bn_r, model.Bt_r, d, z.weight, slip, F, None,
-                             warm if key == "step" else None)
+    start = None if key != "step" or warm is None else dataclasses.replace(warm, alpha=None)   # no rigid modes here
+    problem = ContactProblem(A, rhs, model.Bn_r, model.Bt_r, d, z.weight, slip, F, None, start,
+                             reference=float(np.abs(w).max(initial=0.0)))
     res = solver(key, problem)
     if res.status != Status.SOLVED:
         raise SolveError(f"time level {n} (t = {t:.6g} s), {key}: {res.message}", status=res.status)
