@@ -3,9 +3,9 @@ r"""The energies of a level and what a step adds to the balance
     kinetic + elastic = initial + work of the loads − viscous − friction − numerical,
 
 with kinetic ½ vᵀMv, elastic ½ uᵀKu (the full displacement, supports included), the work of
-the loads f̄ᵀΔ over a step, the viscous dissipation τ v̄ᵀ C v̄ and the friction dissipation
-λtᵀ Bt Δ (force times slip increment, ≥ 0); v̄ the step's velocity (seed: v_{n+1};
-stabilized: (v_n + v_{n+1})/2). The numerical dissipation is what remains: the scheme's own
+the loads f̄ᵀΔ over a step, the viscous dissipation τ ėᵀ C ė with ė = Δ/τ the step's rate
+(the one both schemes' viscous force takes) and the friction dissipation λtᵀ Bt Δ (force times
+slip increment, ≥ 0). The numerical dissipation is what remains: the scheme's own
 loss (backward Euler's damping, the stabilized rule's projection).
 """
 from __future__ import annotations
@@ -21,9 +21,9 @@ def elastic(K, u) -> float:
     return 0.5 * float(u @ (K @ u))
 
 
-def viscous(C, tau: float, v_mean) -> float:
-    """τ v̄ᵀ C v̄ (C None: 0)."""
-    return 0.0 if C is None else tau * float(v_mean @ (C @ v_mean))
+def viscous(C, tau: float, rate) -> float:
+    """τ ėᵀ C ė (C None: 0)."""
+    return 0.0 if C is None else tau * float(rate @ (C @ rate))
 
 
 def friction(lam_t, slip_increment) -> float:

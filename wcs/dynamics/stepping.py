@@ -235,7 +235,7 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 rhs_p = schemes.predictor_load(mats, tau, v)
                 predicted = (_contact(solver, "predictor", mats.M, rhs_p, model, w, u0, None, None, res, n, t_next).u
                              if zone is not None else tau * v)
-                rhs = schemes.stabilized_load(mats, tau, w, v, predicted, f_now, f_next)
+                rhs = schemes.stabilized_load(mats, tau, w, predicted, f_now, f_next)
             else:
                 rhs = schemes.seed_load(mats, tau, w, v, f_next)
             if zone is not None:
@@ -246,10 +246,9 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 step = solver.linear("step", A, rhs)
             v_new = (schemes.stabilized_velocity(tau, v, step, predicted) if stabilized
                      else schemes.seed_velocity(tau, v, step))
-            v_mean = (v + v_new) / 2 if stabilized else v_new
             f_mean = (load(t_now) + load(t_next)) / 2 if stabilized else load(t_next)
             sums["work"] += float(f_mean @ step)
-            sums["viscous"] += energy.viscous(mats.C, tau, v_mean)
+            sums["viscous"] += energy.viscous(mats.C, tau, step / tau)
             if zone is not None:
                 sums["friction"] += energy.friction(res.lam_t, model.Bt_r @ step)
             w, v = w + step, v_new
