@@ -41,9 +41,11 @@ def history_dataset(study, ev, hist) -> xr.Dataset:
     t = np.asarray(hist.time)
     crit = [c.name for c in study.criteria]
     units = {c.name: c.units for c in ev.criteria}
+    joule, newton = ("J m-1", "N m-1") if model.dim == 2 else ("J", "N")
+    nout = len(hist.output_levels)
     data = {
-        "kinetic_energy": (("time",), np.asarray(hist.kinetic), {"units": "J m-1" if model.dim == 2 else "J"}),
-        "elastic_energy": (("time",), np.asarray(hist.elastic), {"units": "J m-1" if model.dim == 2 else "J"}),
+        "kinetic_energy": (("time",), np.asarray(hist.kinetic), {"units": joule}),
+        "elastic_energy": (("time",), np.asarray(hist.elastic), {"units": joule}),
         "load_work": (("time",), np.asarray(hist.work), {"long_name": "work of the loads since t = 0"}),
         "viscous_dissipation": (("time",), np.asarray(hist.viscous), {"long_name": "since t = 0"}),
         "friction_dissipation": (("time",), np.asarray(hist.friction), {"long_name": "since t = 0"}),
@@ -51,15 +53,15 @@ def history_dataset(study, ev, hist) -> xr.Dataset:
                                   {"long_name": "initial + work - viscous - friction - (kinetic + elastic)"}),
         "contact_iterations": (("time",), np.asarray(hist.iterations, np.int64), {}),
         "coords": (("node", "dim"), model.smesh.mesh.p.T.copy(), {"units": "m"}),
-        "displacement": (("output_time", "node", "dim"), np.array(hist.displacement).reshape(len(hist.output_levels), -1, model.dim),
-                         {"units": "m"}),
-        "velocity": (("output_time", "node", "dim"), np.array(hist.velocity).reshape(len(hist.output_levels), -1, model.dim),
-                     {"units": "m s-1"}),
+        "displacement": (("output_time", "node", "dim"),
+                         np.array(hist.displacement).reshape(nout, -1, model.dim), {"units": "m"}),
+        "velocity": (("output_time", "node", "dim"),
+                     np.array(hist.velocity).reshape(nout, -1, model.dim), {"units": "m s-1"}),
     }
     if model.zone is not None:
-        data["contact_force"] = (("time",), hist.total_force, {"long_name": "resultant normal contact force",
-                                                               "units": "N m-1" if model.dim == 2 else "N"})
-        data["contact_normal_force"] = (("time", "contact_node"), np.array(hist.force_n), {"units": "N m-1" if model.dim == 2 else "N"})
+        data["contact_force"] = (("time",), hist.total_force,
+                                 {"long_name": "resultant normal contact force", "units": newton})
+        data["contact_normal_force"] = (("time", "contact_node"), np.array(hist.force_n), {"units": newton})
         data["contact_closed"] = (("time",), np.asarray(hist.closed, np.int64), {"long_name": "closed contact nodes"})
     if crit:
         data["phi_history"] = (("criterion", "time"), np.array([hist.phi[c] for c in crit]),
@@ -67,10 +69,11 @@ def history_dataset(study, ev, hist) -> xr.Dataset:
         data["phi"] = (("criterion",), np.array([reduced(study, hist)[c] for c in crit]),
                        {"over_time": ", ".join(f"{c.name}: {c.over_time or 'max'}" for c in study.criteria)})
     dyn = study.dynamics
+    initial = dyn.initial if isinstance(dyn.initial, str) else str(dyn.initial.model_dump())
     attrs = {**provenance(study, ev), "dynamics_scheme": dyn.scheme, "time_step": dyn.time_step,
-             "end_time": dyn.end_time, "initial": str(dyn.initial if isinstance(dyn.initial, str) else dyn.initial.model_dump())}
-    coords = {"time": ("time", t, {"units": "s"}), "output_time": ("output_time", t[hist.output_levels], {"units": "s"}),
-              "criterion": crit}
+             "end_time": dyn.end_time, "initial": initial}
+    coords = {"time": ("time", t, {"units": "s"}),
+              "output_time": ("output_time", t[hist.output_levels], {"units": "s"}), "criterion": crit}
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 

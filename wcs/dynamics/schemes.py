@@ -19,7 +19,7 @@ Numer. Meth. Engng 73 (2008) 1274–1290): the trapezoidal rule (Newmark β = 1/
 energy conserving without contact) whose predictor w_n + τ v_n is first projected in the
 M-norm onto the admissible set,
 
-    δ̃ = argmin { ½ (δ − τ v_n)ᵀ M (δ − τ v_n) : Bn δ ≤ d − Bn w_n }   (a frictionless contact problem),
+    δ̃ = argmin { ½ (δ − τ v_n)ᵀ M (δ − τ v_n) : Bn δ ≤ d − Bn w_n }   (frictionless contact),
 
 then A = 2M/τ² + C/τ + K/2, r = (f_n + f_{n+1})/2 − K w_n + 2M δ̃/τ², and
 v_{n+1} = v_n + 2(Δ − δ̃)/τ. Then M(v_{n+1} − v_n) = τ(f̄ − K w̄ − C Δ/τ − Bᵀλ), w̄ = w_n + Δ/2:

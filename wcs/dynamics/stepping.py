@@ -142,7 +142,7 @@ class History:
     nodes, the energies and the criteria; the fields at the output levels."""
     scheme: str
     time: list = field(default_factory=list)
-    force_n: list = field(default_factory=list)        # (m,) nodal normal forces λn of each level
+    force_n: list = field(default_factory=list)        # (m,) nodal normal forces λn (stabilized: the step's mean)
     force_t: list = field(default_factory=list)        # ((d−1) m,) tangential forces λt
     closed: list = field(default_factory=list)         # contact nodes closed (stick or slip)
     iterations: list = field(default_factory=list)
