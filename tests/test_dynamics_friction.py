@@ -49,3 +49,21 @@ def test_tresca_sliding_block_loses_momentum_at_the_friction_force(scheme):
     assert np.all(np.diff(hist.friction) > 0)
     drop = hist.kinetic[0] - (hist.kinetic[-1] + hist.elastic[-1])
     assert hist.friction[-1] + hist.numerical[-1] == pytest.approx(drop, rel=1e-9)
+
+
+@pytest.mark.parametrize("scheme", ["seed", "stabilized"])
+def test_coulomb_takes_its_slip_limit_from_the_previous_level(scheme):
+    """Coulomb friction F in slip rates with the limit F·p of the previous level ([101, §3]):
+    the block pressed by a pressure on its top, sliding, has |λt,i| = F λn,i of the level
+    before at every node it slides on, never more."""
+    F = 0.3
+    doc = sliding(scheme)
+    doc["dynamics"]["end_time"] = 0.004
+    doc["scene"]["boundaries"]["block_top"] = {"body": "block", "segment": [[0.0, 0.2], [1.0, 0.2]]}
+    doc["scene"]["loads"] = {"block_top": {"pressure": 1.0e5}}
+    doc["scene"]["contacts"]["slide"]["friction"] = {"coefficient": F}
+    hist = simulate(Evaluator(load_study(doc)))
+    lam_n, lam_t = np.array(hist.force_n), np.abs(np.array(hist.force_t))
+    assert lam_n[1:].sum() > 0
+    assert np.all(lam_t[1:] <= F * lam_n[:-1] * (1 + 1e-9) + 1e-9 * lam_n.max())
+    assert lam_t[1:].sum() == pytest.approx(F * lam_n[:-1].sum(), rel=1e-9)     # all slide: v0 − a t > 0
