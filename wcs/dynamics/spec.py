@@ -1,4 +1,4 @@
-"""The `dynamics:` block of a study (study-format.md §8) and the checks that tie it to the scene.
+"""The `dynamics:` block of a study and the checks that tie it to the scene.
 
 A study with this block is time dependent ([101]); without it nothing of this module acts. The
 block is read by pydantic like the rest of the study (`wcs.study` holds it as `Study.dynamics`);
@@ -29,12 +29,12 @@ class Dynamics(Strict):
     end_time: float = Field(**SECONDS, description="the last time level [s]")
     time_step: float = Field(**SECONDS, description="Δt [s]")
     scheme: Literal["seed", "stabilized"] = Field(
-        "seed", description="seed: [101, (10)], semi-implicit; stabilized: the contact-stabilized "
-        "Newmark rule of Deuflhard–Krause–Ertel")
+        "seed", description="seed: the seed's semi-implicit scheme (seed [101, (10)]); stabilized: the "
+        "contact-stabilized Newmark rule of Deuflhard–Krause–Ertel")
     output_every: int = Field(1, ge=1, description="fields are kept at every n-th level (and the last)")
     initial: Union[Literal["static", "rest"], InitialVelocity] = Field(
-        "static", description="static: the static contact solution of the scene at t = 0 ([101] requires "
-        "it); rest; or rest with rigid velocities of named bodies")
+        "static", description="static: the static contact solution of the scene at t = 0, as the seed "
+        "requires (seed [101, §2]); rest; or rest with rigid velocities of named bodies")
 
     @model_validator(mode="after")
     def _levels(self):
