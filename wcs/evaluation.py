@@ -13,6 +13,7 @@ import numpy as np
 from .coefficients import ParameterMap
 from .contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
+from .dynamics.spec import refuse_static_evaluation
 from .errors import SolveError, StudyError
 from .fem.gluing import glued_clusters
 from .model import Model, Solution
@@ -133,6 +134,7 @@ class Evaluator:
         """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
         with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
         t0 = time.perf_counter()
+        refuse_static_evaluation(self.study)
         x, others = self.study.data_set(values)
         c = self.map.coefficients(x, others)
         nan = {c.name: float("nan") for c in self.criteria}

@@ -105,3 +105,11 @@ def refuse_search(study) -> None:
         raise StudyError("a dynamic study is solved by `wcs solve` (its time levels at the nominal data); "
                          "`run` and `sweep` over time-dependent criteria are not available yet",
                          file=str(study.file), path="dynamics")
+
+
+def refuse_static_evaluation(study) -> None:
+    """StudyError for one static solve of a dynamic study (`Study.evaluate`): its answer is the
+    history of its levels (`wcs.dynamics.command.simulate`), never the static solution."""
+    if getattr(study, "dynamics", None) is not None:
+        raise StudyError("a dynamic study is evaluated over its time levels (wcs.dynamics.command.simulate, "
+                         "`wcs solve`), not by one static solve", file=str(study.file), path="dynamics")
