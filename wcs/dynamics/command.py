@@ -19,8 +19,8 @@ REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "
 
 def simulate(ev, x=(), others=None, load=None, damping=None):
     """The `History` of a study's levels at data vector x (`wcs.evaluation.Evaluator` ev):
-    load(t) the reduced load (None: the data set's own, constant), damping an extra damping
-    matrix on the full DOFs (absorbing boundaries)."""
+    load(t) the load vector on the full DOFs at time t (None: the data set's own, constant),
+    damping an extra damping matrix on the full DOFs (absorbing layers, dashpots)."""
     model = ev.model
     c = ev.map.coefficients(x, others)
     rho, visc = region_dynamics(model, ev.map, x, others)

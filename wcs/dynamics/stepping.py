@@ -182,9 +182,10 @@ def level_solution(model, c, u, res: ContactResult | None, T=None) -> Solution:
 def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 load: Callable[[float], np.ndarray] | None = None, criteria=(),
                 start: tuple | None = None) -> History:
-    """Run the levels of `dyn` on data set c. load(t): the reduced load Tᵀf(t) of time t (None:
-    the data set's own, constant in time); criteria: `wcs.criteria.Criterion`s measured at
-    every level; start: (w₀, v₀, contact at t = 0), else `initial_state`."""
+    """Run the levels of `dyn` on data set c. load(t): the load vector f(t) on the full DOFs at
+    time t (time functions, point sources; None: the data set's own loads, constant in time);
+    criteria: `wcs.criteria.Criterion`s measured at every level; start: (w₀, v₀, contact at
+    t = 0), else `initial_state`."""
     tau, N = dyn.time_step, dyn.levels
     T, zone = model.elim.T, model.zone
     u0 = model.elim.U0 @ c.support_values
@@ -192,8 +193,13 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
     heat = model.solve_heat(c) if model.thermal else None     # a steady temperature: its load is constant
     k0 = model.Tt @ (K_full @ u0)                   # the supports' share of the elastic force
     if load is None:
-        constant = model.Tt @ model.mechanical_load(c, heat)
+        constant = model.mechanical_load(c, heat)
         load = lambda t: constant                   # noqa: E731 - the data set's load, at every time
+
+    def f(t: float) -> np.ndarray:
+        """Tᵀ f(t): the load on the reduced unknowns."""
+        return model.Tt @ load(t)
+
     w, v, res = start if start is not None else initial_state(model, c, dyn)
     solver = LevelSolver(model)
     hist = History(dyn.scheme)
@@ -229,7 +235,7 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
     with phase("time levels", total=N) as progress:
         for n in range(1, N + 1):
             t_now, t_next = (n - 1) * tau, n * tau
-            f_now, f_next = load(t_now) - k0, load(t_next) - k0
+            f_now, f_next = f(t_now) - k0, f(t_next) - k0
             predicted = None
             if stabilized:
                 rhs_p = schemes.predictor_load(mats, tau, v)
@@ -246,7 +252,7 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 step = solver.linear("step", A, rhs)
             v_new = (schemes.stabilized_velocity(tau, v, step, predicted) if stabilized
                      else schemes.seed_velocity(tau, v, step))
-            f_mean = (load(t_now) + load(t_next)) / 2 if stabilized else load(t_next)
+            f_mean = (f(t_now) + f(t_next)) / 2 if stabilized else f(t_next)
             sums["work"] += float(f_mean @ step)
             sums["viscous"] += energy.viscous(mats.C, tau, step / tau)
             if zone is not None:
