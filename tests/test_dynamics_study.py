@@ -156,3 +156,17 @@ def test_a_dynamic_study_is_never_answered_by_a_static_solve():
     study = load_study(coarse())
     with pytest.raises(StudyError, match="dynamics: a dynamic study is evaluated over its time levels"):
         study.evaluate(study.nominal())
+
+
+def test_check_prints_the_levels_and_refuses_a_static_start_without_equilibrium(tmp_path, capsys):
+    """`wcs check` of a dynamic study solves no static state it does not start from; the two bars
+    have none (each is free along x), so `initial: static` is bad input (exit 2)."""
+    doc = coarse()
+    path = write_study(doc, tmp_path, "bars.yaml")
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "dynamics: 34 levels of 1e-05 s" in out and "scheme stabilized" in out and out.rstrip().endswith("ok")
+    doc["dynamics"]["initial"] = "static"
+    path = write_study(doc, tmp_path, "static.yaml")
+    assert main(["check", str(path)]) == 2
+    assert "the static initial state (dynamics.initial: static) cannot be solved" in capsys.readouterr().err
