@@ -19,11 +19,12 @@ Layers, from the bottom up: a module imports only from its own layer and the lay
     6. dd: the seed's domain decomposition, a contact method of its own
     7. search: the search strategies of the worst scenario (they see a `Problem`, not a study)
     8. model: the forward evaluation of one data set (`Evaluator`)
-    9. study: study files read and validated into a plain `Study`
-    10. results: the results file, its store, extremes, verdict, drivers, mesh check
-    11. report: the HTML report of a results file
-    12. run: running a study (the runner, the commands, the study paired with its evaluator)
-    13. cli (and this package's own __init__): the command line and the Python API
+    9. dynamics: time stepping of a dynamic study, each level a contact problem ([101])
+    10. study: study files read and validated into a plain `Study`
+    11. results: the results file, its store, extremes, verdict, drivers, mesh check
+    12. report: the HTML report of a results file
+    13. run: running a study (the runner, the commands, the study paired with its evaluator)
+    14. cli (and this package's own __init__): the command line and the Python API
 """
 from . import run   # the package wcs.run, callable: wcs.run(study) (wcs/run/__init__.py)
 from .errors import SolveError, StudyError

@@ -134,6 +134,10 @@ def cmd_check(args) -> int:
     study = load_study(args.study)
     check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
+    if study.dynamics is not None:
+        from .run.dynamics import check_dynamic
+        return check_dynamic(study, ev, args, summary3d(study, ev.smesh) if study.scene.dimension == 3
+                             else summary(study, ev))
     with phase("nominal solve"):
         res = ev.evaluate(study.nominal())
     for w in study.warnings:

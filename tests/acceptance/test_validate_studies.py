@@ -20,7 +20,9 @@ import yaml
 from wcs.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
+ALL_STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
+DYNAMIC = [p for p in ALL_STUDIES if "dynamics" in (yaml.safe_load(p.read_text()) or {})]   # `wcs solve` runs them
+STUDIES = [p for p in ALL_STUDIES if p not in DYNAMIC]
 BUDGET = 10
 
 RUN_VARS = ("param", "param_lower", "param_upper", "x", "phi", "status", "stage", "wall_time",
@@ -111,6 +113,20 @@ def test_study_runs_and_reports(path, run_study, tmp_path):
     if path.stem in ("tunnel-fault-3d", "knee-replacement-3d"):    # the assessor turns the model in Chromium
         from tests.report.test_report_3d import drive_view
         drive_view(html, tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("path", DYNAMIC, ids=[_id(p) for p in DYNAMIC])
+def test_dynamic_study_solves(path, tmp_path):
+    """A dynamic study runs its levels by `wcs solve`: the history of every criterion at every
+    level, finite, and the ParaView series."""
+    nc = tmp_path / f"{path.stem}.nc"
+    assert main(["solve", str(path), "-o", str(nc), "--quiet"]) == 0, path.name
+    with xr.open_dataset(nc, engine="h5netcdf") as ds:
+        assert ds["phi_history"].dims == ("criterion", "time")
+        assert np.isfinite(ds["phi_history"].values).all()
+    assert nc.with_suffix(".pvd").is_file()
 
 
 @pytest.mark.slow

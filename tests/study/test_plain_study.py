@@ -11,7 +11,7 @@ import wcs
 import wcs.run.runner
 from wcs.study import Study, load_study
 
-DEMO = Path(__file__).resolve().parents[1] / "studies" / "two-blocks-demo.yaml"
+DEMO = Path(__file__).resolve().parents[2] / "studies" / "two-blocks-demo.yaml"
 
 
 def test_the_study_a_file_loads_into_is_plain_data():

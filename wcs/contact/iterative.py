@@ -65,7 +65,7 @@ DEPENDENT = 1e-8     # relative singular value below which a node's active rows 
 
 def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                             warm: ContactResult | None = None, near_nullspace=None, rtol=1e-12,
-                            tol_fp=1e-8, max_fp_iter=50) -> ContactResult:
+                            tol_fp=1e-8, max_fp_iter=50, reference=0.0) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by the primal active set with CG + GAMG (module docstring).
 
     Arguments and result as `solve_contact` (no factor: `factor` is None). near_nullspace:
@@ -122,7 +122,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     iters, fp_iters, ok, fp_ok = driven.iterations, driven.fixed_point_iterations, driven.ok, driven.settled
     step.krylov_solver.close()
     status, message = Status.SOLVED, "converged"
-    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol, reference) if ok else ""
     if violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set stopped at an answer that violates {violation}: not reported")
@@ -539,7 +539,7 @@ def _solve_problem(model, p) -> ContactResult:
     near-nullspace and the study's tolerances (`solver.iterative.tolerance` for the Krylov solves)."""
     return solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
                                    near_nullspace=model.near_nullspace, rtol=model.options.iterative.tolerance,
-                                   **settings(model.options))
+                                   reference=p.reference, **settings(model.options))
 
 
 class IterativeAdjoint:

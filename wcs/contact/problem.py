@@ -22,7 +22,10 @@ class ContactProblem:
 
     K: the reduced stiffness — on each unit u of `wcs.contact.units` the data set's one is
     `scale[u]` · K (a scalar scale: all of K); g, F: slip limits and friction coefficients
-    per node (None: zero); warm: a previous result on the same mesh that starts the solve."""
+    per node (None: zero); warm: a previous result on the same mesh that starts the solve;
+    reference: the size of the displacement u is an increment of (a time level's last one,
+    `wcs.dynamics`), whose round-off d carries — the answer's penetration is measured against
+    it too (`wcs.contact.solver.conditions_violated`)."""
     K: sp.spmatrix | None
     f: np.ndarray
     Bn: sp.csr_matrix
@@ -34,6 +37,7 @@ class ContactProblem:
     R: np.ndarray | None = None
     warm: object = None             # a `wcs.contact.solver.ContactResult`
     scale: np.ndarray | float = 1.0
+    reference: float = 0.0
 
     def __post_init__(self):
         for name in ("f", "d", "w"):

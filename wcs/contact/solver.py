@@ -674,17 +674,18 @@ def _states(free, m, gw):
 CERTIFICATE = 1e-6     # relative size of a contact condition's violation that refuses an answer
 
 
-def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0) -> str:
+def conditions_violated(u, gap_error, lam_n, lam_t, gw, k=1, tol=0.0, reference=0.0) -> str:
     """What of the contact conditions an answer breaks ("" if none), checked on the answer
     itself rather than on Newton's scaled residual: penetration Bn u − d ≤ ε_u, pressure
     λn ≥ −ε_λ and friction |λt,i| ≤ g_i w_i + ε_λ, with ε_u = `CERTIFICATE` × the largest
     displacement or gap and ε_λ = `CERTIFICATE` × the largest multiplier or g w — or `tol`
     (the solve's tolerance) in place of `CERTIFICATE` where the user asked for less. (A
     convergence test relative to the largest scaled residual passes an answer whose rows are
-    badly scaled against each other, e.g. a near-null row with a huge c = 1/W_ii.)"""
+    badly scaled against each other, e.g. a near-null row with a huge c = 1/W_ii.) reference: the
+    size of the displacement u is an increment of (`ContactProblem.reference`), part of ε_u's scale."""
     m = lam_n.size
     eps = max(CERTIFICATE, tol)
-    eu = eps * max(np.abs(u).max(initial=0.0), np.abs(gap_error).max(initial=0.0), 1e-300)
+    eu = eps * max(np.abs(u).max(initial=0.0), np.abs(gap_error).max(initial=0.0), reference, 1e-300)
     finite_gw = gw[np.isfinite(gw)]
     el = eps * max(np.abs(lam_n).max(initial=0.0), np.abs(lam_t).max(initial=0.0),
                    finite_gw.max(initial=0.0), 1e-300)
@@ -826,7 +827,7 @@ def solve_condensed(problem: ContactProblem, *, tol=1e-10, max_iter=100, factor:
                              iters, fp_iters, alpha=beta, timings=timings)
     u = cf.factor.solve(f - C.T @ lam) + (R @ alpha if R is not None else 0.0)
     status, message = Status.SOLVED, "converged"
-    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol) if ok else ""
+    violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol, problem.reference) if ok else ""
     if violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"semismooth Newton stopped at an answer that violates {violation}: not reported")

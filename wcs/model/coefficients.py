@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.frame import grid_weights, hat_weights, surface_grid
+from .dynamic_numbers import dynamic_numbers
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
@@ -75,6 +76,7 @@ def scene_numbers(scene):
             value = getattr(mat, "lam" if key == "lambda" else key)
             if value is not None:
                 yield f"materials.{m}.{key}", value
+        yield from dynamic_numbers(m, mat)
     for b, load in scene.loads.items():
         if load.pressure is not None:
             yield f"loads.{b}.pressure", load.pressure

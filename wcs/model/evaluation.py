@@ -100,6 +100,13 @@ def bonded_materials(smesh, model) -> list[tuple[list[str], list[str]]]:
     return out
 
 
+def refuse_static_evaluation(study) -> None:
+    """StudyError for one static solve of a dynamic study (`Study.evaluate`): its answer is the
+    history of its levels (`wcs.run.dynamics.simulate`), never the static solution."""
+    if getattr(study, "dynamics", None) is not None:
+        raise StudyError("a dynamic study is evaluated over its time levels (wcs.run.dynamics.simulate, "
+                         "`wcs solve`), not by one static solve", file=str(study.file), path="dynamics")
+
 class Evaluator:
     """comm: the MPI communicator whose ranks share each DD solve (None: serial); splits: the
     study's mesh refined that many times, every triangle split into four, every tetrahedron into
@@ -133,6 +140,7 @@ class Evaluator:
         """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
         with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
         t0 = time.perf_counter()
+        refuse_static_evaluation(self.study)
         x, others = self.study.data_set(values)
         c = self.map.coefficients(x, others)
         nan = {c.name: float("nan") for c in self.criteria}

@@ -18,6 +18,7 @@ import xarray as xr
 from .. import linalg
 from ..version import __version__
 from ..model import validity
+from ..model.dynamic_numbers import DYNAMIC_UNITS
 from ..status import Status, flag_attrs
 from ..study.fuzzy import alpha_cut
 
@@ -128,6 +129,8 @@ def parameter_units(path: str) -> str:
         return "1"
     if pattern.startswith("body_forces"):
         return _BODY_FORCE_UNITS
+    if pattern in DYNAMIC_UNITS:
+        return DYNAMIC_UNITS[pattern]
     field = [k for k in pattern.split(".") if not k.startswith("<")][-1]
     return _PARAM_UNITS.get(field, "1")
 

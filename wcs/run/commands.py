@@ -33,6 +33,7 @@ from ..study.load import load_study
 from ..model.validity import warnings as validity_warnings
 from ..results.verdict import attributes as verdict_attributes
 from ..results.verdict import verdict
+from .dynamics import solve_dynamic
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
@@ -279,6 +280,8 @@ def solve_nominal(args) -> int:
     study = load_study(args.study)
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
+    if study.dynamics is not None:
+        return solve_dynamic(study, out, args)
     t0 = time.perf_counter()
     ev = Evaluator(study)
     with phase("solve"):

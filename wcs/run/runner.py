@@ -61,6 +61,7 @@ from ..results.store import WriteError, key
 from ..study.data import parameter_vector
 from ..study.fuzzy import alpha_cut
 from ..study.load import load_study
+from ..dynamics.spec import refuse_search
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):
@@ -89,6 +90,7 @@ class Runner:
         """output: the results file (None: the study's `output`; False: in memory only).
         where: (file, key path) that named the output, for its errors (default: the study's
         `output` when `output` is None). on_event: told every `Event`."""
+        refuse_search(study)
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
         self.study = study

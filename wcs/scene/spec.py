@@ -39,6 +39,9 @@ POISSON = {"gt": -1, "lt": 0.5}
 CONDUCTIVITY = {"ge": 1e-6, "le": 1e6}           # [W/(m K)]
 EXPANSION = {"ge": -1e-2, "le": 1e-2}            # [1/K]
 WEIGHT = {"ge": 0, "le": 1e7}                     # density_weight [N/m^3]
+DENSITY = {"gt": 0, "le": 1e6}                    # density [kg/m^3] (dynamics)
+VISCOSITY_RATIO = {"ge": 0, "le": 1e3}            # c1 = ratio * c0 [s] (dynamics)
+VISCOUS_MODULUS = {"ge": 0, "le": 1e20}           # E of c1 [Pa s] (dynamics)
 STRESS = {"ge": -1e12, "le": 1e12}               # pressure, traction [Pa]
 SLIP = {"ge": 0, "le": 1e12}                      # Tresca slip limit [Pa]
 COEFFICIENT = {"ge": 0, "le": 10}                 # Coulomb friction coefficient
@@ -156,6 +159,19 @@ def _exactly_one(model: BaseModel, keys: tuple[str, ...]) -> None:
         raise ValueError(f"give exactly one of {', '.join(keys)} ({found})")
 
 
+class Viscosity(Frozen):
+    """c⁽¹⁾ of the Kelvin–Voigt law [101, (1)]: `ratio` η (c⁽¹⁾ = η c⁽⁰⁾) or isotropic `E`, `nu` [Pa s]."""
+    ratio: Optional[float] = Field(None, **VISCOSITY_RATIO)
+    E: Optional[float] = Field(None, **VISCOUS_MODULUS)
+    nu: Optional[float] = Field(None, **POISSON)
+
+    @model_validator(mode="after")
+    def _ratio_or_moduli(self):
+        if (self.ratio is None) == (self.E is None and self.nu is None) or (self.E is None) != (self.nu is None):
+            raise ValueError("give the viscosity as `ratio` or as `E` and `nu` (exactly one)")
+        return self
+
+
 class Material(Frozen):
     E: Optional[float] = Field(None, ge=MODULUS["ge"])
     nu: Optional[float] = Field(None, **POISSON)
@@ -164,6 +180,8 @@ class Material(Frozen):
     conductivity: Optional[float] = Field(None, **CONDUCTIVITY)
     expansion: Optional[float] = Field(None, **EXPANSION)
     density_weight: Optional[float] = Field(None, **WEIGHT)
+    density: Optional[float] = Field(None, **DENSITY)         # [kg/m^3]: the mass of a dynamic study
+    viscosity: Optional[Viscosity] = None                     # Kelvin–Voigt c1 of a dynamic study
 
     @field_validator("E", "mu")
     def _not_beyond_rigid(cls, value):

@@ -8,6 +8,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
+from ..dynamics.spec import check_dynamics
 from ..scene.spec import Scene
 from .criteria import _check_criteria, _split_limits
 from .fuzzy import _levels
@@ -75,6 +76,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
     sweep = top.sweep
     _check_sweep(sweep, scene, src)
     _check_lame_sweep(sweep, uncertain, scene, src)
+    check_dynamics(top.dynamics, scene, uncertain, criteria, top.solver, src.error)
     name = top.study or ("study" if file is MAPPING else file.stem)
     text = _recorded_text(src.base, text, included + extra)
     return Study(
@@ -83,5 +85,5 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         search=top.search, solver=top.solver, sweep=sweep,
         output=top.output or f"results/{name}.nc", parameters=_parameters(uncertain), notes=notes,
         warnings=_locking_warnings(scene, uncertain) + ([] if criteria else [NO_CRITERIA]), estimated_cells=cells,
-        lower_limits=lower_limits, levels=_levels(top, uncertain),
+        lower_limits=lower_limits, levels=_levels(top, uncertain), dynamics=top.dynamics,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
+from ..model.dynamic_numbers import DYNAMIC_ADDRESSES
 from ..options import did_you_mean as _did_you_mean
 from ..scene.spec import (BODY_FORCE, COEFFICIENT, CONDUCTIVITY, EXPANSION, KELVIN, LAME, LENGTH, MODULUS, POISSON,
                           RIGID_HINT, SLIP, SOURCE, STRESS, WEIGHT, Scene)
@@ -48,6 +49,7 @@ _ADDRESSES = {
     "materials.<m>.conductivity": CONDUCTIVITY,
     "materials.<m>.expansion": EXPANSION,
     "materials.<m>.density_weight": WEIGHT,
+    **DYNAMIC_ADDRESSES,
     "loads.<boundary>.pressure": STRESS,
     "loads.<boundary>.traction.<i>": STRESS,
     "body_forces.<body or region>.<i>": BODY_FORCE,

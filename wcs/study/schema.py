@@ -11,6 +11,7 @@ from typing import Annotated, Any, Literal, Optional
 
 from pydantic import AfterValidator, Field, TypeAdapter, field_validator, model_validator
 
+from ..dynamics.spec import Dynamics
 from ..model.criteria import KINDS
 from ..options import CONFIG as _CONFIG
 from ..options import Options, Search, Solver
@@ -39,6 +40,8 @@ class Criterion(Frozen):
     sense: Literal["max", "min", "both"] = Field(
         "max", description="which end of the range the search finds: the maximum (the worst "
         "scenario), the minimum (the best), or both")
+    over_time: Optional[Literal["max", "min", "final", "mean"]] = Field(
+        None, description="a dynamic study's reduction of the criterion's history (default max)")
 
     @model_validator(mode="after")
     def _options_of_the_kind(self):
@@ -92,6 +95,7 @@ class StudyFile(_Strict):
     solver: Solver = Field(default_factory=Solver)
     sweep: Optional[Sweep] = None
     output: Optional[str] = None
+    dynamics: Optional[Dynamics] = None                  # a time-dependent study (wcs.dynamics)
 
     @field_validator("output")
     @classmethod

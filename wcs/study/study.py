@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..dynamics.spec import Dynamics
 from ..options import Search, Solver
 from ..scene.spec import Scene
 from .data import _split_mapping, parameter_vector
@@ -40,6 +41,7 @@ class Study:
     estimated_cells: float | None = None                # before meshing; None for a mesh file
     lower_limits: dict = field(default_factory=dict)    # criterion -> lower limit
     levels: tuple[float, ...] | None = None             # α-levels of a fuzzy study, ascending; None: crisp
+    dynamics: Dynamics | None = None                    # time stepping (`wcs.dynamics`); None: static
 
     def data_set(self, values) -> tuple[np.ndarray, dict[str, float]]:
         """A data set as (x, others): the parameter vector and any other addressed numbers.
