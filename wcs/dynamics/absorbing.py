@@ -1,4 +1,4 @@
-"""Absorbing boundaries (study-format §8: `scene.absorbing`): the seed's damping layer and
+"""Absorbing boundaries (a scene's `absorbing:` block): the seed's damping layer and
 Lysmer–Kuhlemeyer dashpots, as matrices C added to the damping of M ü + C u̇ + K u = f.
 
     absorbing:
@@ -7,7 +7,7 @@ Lysmer–Kuhlemeyer dashpots, as matrices C added to the damping of M ü + C u̇
 
 - The layer [101, §2]: "the damping α(x) > 0, defined by such a way that the waves propagated
   through the areas of a certain thickness D (in which α(x) > 0) near the boundary Γ_u are
-  completely absorbed" (seed line 5901), entering the equation as (α u̇, v) [101, (8)]. Here α
+  completely absorbed", entering the equation as (α u̇, v) [101, (8)]. Here α
   [1/s] is mass proportional: C = α ∫_layer ρ φ_a φ_b dx (the seed's α(x) is ρα), in the cells
   whose centroid lies within distance D of the named boundaries. A wave of angular frequency ω
   decays as exp(−α t / 2) in amplitude in the layer, and the layer's edge reflects

@@ -1,4 +1,4 @@
-"""Point sources of seismic waves (study-format §8: `scene.sources`), the seed's volume forces
+"""Point sources of seismic waves (a scene's `sources:` block), the seed's volume forces
 "simulated by nonzero volume forces" at a point [101, §2]: a force, or a moment tensor, at a point
 x₀, times a Ricker wavelet in time.
 

@@ -1,4 +1,4 @@
-"""Time functions of loads (study-format §8): `time: {ramp: t_r}` or `time: {table: [[t, factor], ...]}`,
+"""Time functions of loads (a load's `time:` key): `time: {ramp: t_r}` or `time: {table: [[t, factor], ...]}`,
 and a load's factor at time t. A load without `time` acts in full at every time (factor 1).
 
 - ramp t_r: the factor rises linearly from 0 at t = 0 to 1 at t = t_r and stays 1;
