@@ -1,6 +1,8 @@
 """Absorbing boundaries of a dynamic study (study-format §8, issue 29): Lysmer–Kuhlemeyer dashpots
 and the seed's damping layer [101, §2], as matrices; their physics checked by a plane P pulse in a
 2D column integrated here with the trapezoidal rule (M ü + C u̇ + K u = 0, no contact)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -164,3 +166,26 @@ def test_bad_absorbing_block_names_its_key(data, loc, words):
         Absorbing.model_validate(data)
     first = err.value.errors()[0]
     assert first["loc"] == loc and words in first["msg"]
+
+
+def test_tunnel_scene_boundaries_take_dashpots_and_a_layer():
+    """studies/tunnel-fault.yaml's cut sides (`left`, `right`, `bottom`, 120 m each, both bodies):
+    a uniform vertical velocity meets 120 m (2ρc_s + ρc_p) of dashpots (shear on the sides, normal
+    on the bottom); the 10 m layer's cells make the U-shaped band of 120² − 100 · 110 = 3400 m² (to
+    the mesh: the cells whose centroid is within 10 m, 3 m cells; 3412 m² measured)."""
+    from wcs.materials import lame
+    from wcs.scene.mesher import build_mesh
+    from wcs.study import load_study
+    study = load_study(Path(__file__).resolve().parent.parent / "studies" / "tunnel-fault.yaml")
+    sm = build_mesh(study.scene)
+    lam, mu = lame(study.scene.materials["rock"].model_dump(by_alias=True, exclude_none=True))
+    rho, sides = 2500.0, ["left", "right", "bottom"]
+    absorbing = Absorbing.model_validate({"layer": {"boundaries": sides, "thickness": 10.0, "damping": 50.0},
+                                          "dashpots": sides})
+    check_references(absorbing, study.scene.boundaries, "scene.absorbing")
+    zp, zs = impedances(rho, lam, mu)
+    uy = np.tile([0.0, 1.0], sm.mesh.p.shape[1])
+    force = (dashpots(sm, sides, rho, lam, mu, "scene.absorbing.dashpots") @ uy).reshape(-1, 2).sum(axis=0)
+    assert force == pytest.approx([0.0, 120.0 * (2 * zs + zp)], rel=1e-12, abs=1e-6 * zp)
+    band = uy @ layer_damping(sm, absorbing.layer, rho, "scene.absorbing.layer") @ uy / (50.0 * rho)
+    assert band == pytest.approx(3400.0, rel=0.05)
