@@ -122,6 +122,34 @@ def test_layer_cells_are_those_within_the_thickness(dim):
                               np.flatnonzero(depth <= D))
 
 
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_layer_cells_are_those_of_every_facet_that_near(dim):
+    """On a distorted mesh and two sides, the k-d tree's pruning keeps exactly the cells whose
+    centroid is within D of some facet (checked against every facet)."""
+    from wcs.dynamics.absorbing import _distance_to_simplex
+    x = np.linspace(0.0, 1.0, 7 if dim == 2 else 5)
+    m = skfem.MeshTri.init_tensor(x, x) if dim == 2 else skfem.MeshTet.init_tensor(x, x, x)
+    p = m.p.copy()
+    inner = np.all((p > 1e-9) & (p < 1 - 1e-9), axis=0)
+    p[:, inner] += 0.04 * np.sin(9.0 * p[:, inner])
+    m = type(m)(p, m.t)
+    sides = _boundary(m, lambda q: (q[0] < 1e-9) | (q[1] > 1 - 1e-9))
+    corners = m.p[:, m.facets[:, sides]].transpose(2, 1, 0)
+    centroid = m.p[:, m.t].mean(axis=1).T
+    nearest = np.array([_distance_to_simplex(np.repeat(c[None], len(sides), axis=0), corners).min() for c in centroid])
+    for D in (0.05, 0.13, 0.27):
+        assert np.array_equal(layer_cells(m, sides, D), np.flatnonzero(nearest <= D))
+
+
+def test_layer_cell_near_a_long_facet_whose_midpoint_is_far():
+    """A centroid (0.95, 0.2) is 0.200 from the long facet [0, 1] × {0} (midpoint 0.49 away) and
+    0.206 from the short one [1, 1.05] × {0} (midpoint 0.21 away): within D = 0.203 by the long one."""
+    p = np.array([[0.0, 1.0, 0.5, 1.05, 1.02, 0.9, 1.0, 0.95], [0.0, 0.0, -0.5, 0.0, -0.3, 0.1, 0.1, 0.4]])
+    m = skfem.MeshTri(p, np.array([[0, 1, 2], [1, 3, 4], [5, 6, 7]]).T)
+    bottom = _boundary(m, lambda q: np.abs(q[1]) < 1e-12)
+    assert layer_cells(m, bottom, 0.203).tolist() == [0, 1, 2] and layer_cells(m, bottom, 0.199).tolist() == [0, 1]
+
 def _scene():
     m = skfem.MeshTri.init_tensor(np.linspace(0, 1, 5), np.linspace(0, 1, 5))
     nc = m.t.shape[1]

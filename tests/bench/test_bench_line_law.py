@@ -6,8 +6,8 @@ half-width b.
 
 - Johnson's k1 = −1 is the cylinder between two opposite line loads (its axis to a contact): this
   bench reproduces it (the check of the method). A cylinder decelerated by its own inertia (the
-  pressure balanced by a uniform body force; its centre of mass to the contact) has k1 ≈ −1.74 at
-  ν = 0.3 (−1.70 at 0.2, −1.84 at 0.45).
+  pressure balanced by a uniform body force; its centre of mass to the contact) has k1 ≈ −1.75 at
+  ν = 0.3 (−1.70 at 0.2, −1.86 at 0.45).
 - A half-space to a point at depth d has k2 = −ν/(1−ν) (−0.43 at ν = 0.3); a block held at its
   base with free sides has k2 ≈ 0.00 (W = 2H), −0.07 (W = 4H), +0.49 (W = H) at ν = 0.3.
 Each unit of k moves the contact time by ~2.5 % for steel on steel (`cylinder_impact`).

@@ -114,14 +114,18 @@ def dashpot_matrix(mesh, facets, zp, zs) -> sp.csr_matrix:
 
 def weighted_mass(p, t, cells, weight) -> sp.csr_matrix:
     """∫ w φ_a φ_b I dx over the given cells, w constant per cell (a number or one per cell):
-    |T| w (1 + δ_ab) / ((d + 1)(d + 2)) on a P1 simplex (d nnodes square)."""
+    |T| w (1 + δ_ab) / ((d + 1)(d + 2)) on a P1 simplex, for each component (d nnodes square)."""
     cells = np.asarray(cells, dtype=np.int64)
     d = p.shape[0]
     _, vol = gradients(p, t[:, cells])
     w = np.broadcast_to(np.asarray(weight, dtype=float), vol.shape) * vol
-    ab = (1.0 + np.eye(d + 1)) / ((d + 1) * (d + 2))
-    blocks = w[:, None, None, None, None] * ab[None, :, :, None, None] * np.eye(d)
-    return _assemble(t[:, cells].T, blocks, d, p.shape[1])
+    values = w[:, None, None] * (1.0 + np.eye(d + 1)) / ((d + 1) * (d + 2))    # (ne, a, b)
+    nodes = t[:, cells].T
+    rows = np.broadcast_to(nodes[:, :, None], values.shape).ravel()
+    cols = np.broadcast_to(nodes[:, None, :], values.shape).ravel()
+    return sp.csr_matrix((np.tile(values.ravel(), d), (np.concatenate([d * rows + i for i in range(d)]),
+                                                       np.concatenate([d * cols + i for i in range(d)]))),
+                         shape=(d * p.shape[1], d * p.shape[1]))
 
 
 def _assemble(nodes, blocks, d, nnodes) -> sp.csr_matrix:
@@ -135,18 +139,28 @@ def _assemble(nodes, blocks, d, nnodes) -> sp.csr_matrix:
 
 def layer_cells(mesh, facets, thickness: float) -> np.ndarray:
     """Sorted cells whose centroid lies within `thickness` of the boundary facets (the exact
-    distance to the segments / triangles; a k-d tree keeps only the facets that can be that near)."""
+    distance to the segments / triangles). A k-d tree of the facets' midpoints settles most cells by
+    the facet of the nearest midpoint; a cell it leaves open (its nearest midpoint within
+    thickness + the facets' reach, that facet farther than thickness) tries every facet that near."""
     facets = np.asarray(facets, dtype=np.int64)
-    centroid = mesh.p[:, mesh.t].mean(axis=1).T                               # (nc, d)
+    d = mesh.p.shape[0]
+    centroid = sum(mesh.p[:, mesh.t[k]] for k in range(d + 1)).T / (d + 1)      # (nc, d)
     corners = mesh.p[:, mesh.facets[:, facets]].transpose(2, 1, 0)            # (nf, d, dim)
     middle = corners.mean(axis=1)
     reach = np.linalg.norm(corners - middle[:, None], axis=2).max()
-    pairs = cKDTree(centroid).sparse_distance_matrix(cKDTree(middle), thickness + reach, output_type="coo_matrix")
-    cell, facet = pairs.row, pairs.col
-    dist = _distance_to_simplex(centroid[cell], corners[facet])
-    nearest = np.full(len(centroid), np.inf)
-    np.minimum.at(nearest, cell, dist)
-    return np.flatnonzero(nearest <= thickness)
+    tree = cKDTree(middle)
+    nearest, facet = tree.query(centroid, distance_upper_bound=thickness + reach)
+    near = np.flatnonzero(np.isfinite(nearest))
+    inside = np.zeros(len(centroid), dtype=bool)
+    inside[near] = _distance_to_simplex(centroid[near], corners[facet[near]]) <= thickness
+    unsure = near[~inside[near]]
+    if unsure.size:
+        lists = tree.query_ball_point(centroid[unsure], thickness + reach)
+        cell = np.repeat(unsure, [len(f) for f in lists])
+        facet = np.concatenate([np.asarray(f, dtype=np.int64) for f in lists])
+        hit = cell[_distance_to_simplex(centroid[cell], corners[facet]) <= thickness]
+        inside[hit] = True
+    return np.flatnonzero(inside)
 
 
 def _distance_to_segment(x, a, b) -> np.ndarray:

@@ -100,11 +100,13 @@ def wavelet(source: Source, t) -> np.ndarray:
 def containing_cells(p: np.ndarray, t: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The cells (closed simplices, columns of t) holding the point x0, and the point's barycentric
     coordinates in each ((k, d+1): the P1 shape function values φ_a(x0) at the cell's nodes)."""
-    X = p[:, t]                                                   # (d, d+1, ncells)
-    lo, hi = X.min(axis=1), X.max(axis=1)
-    pad = INSIDE * (hi - lo).max(axis=0)
-    near = np.flatnonzero(np.all((lo - pad <= x0[:, None]) & (x0[:, None] <= hi + pad), axis=0))
-    Xn = X[:, :, near]
+    near = np.arange(t.shape[1])
+    for i in range(p.shape[0]):                                   # the cells whose box holds x0, by coordinate
+        x = p[i, t[:, near]]
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        pad = INSIDE * (hi - lo)
+        near = near[(lo - pad <= x0[i]) & (x0[i] <= hi + pad)]
+    Xn = p[:, t[:, near]]                                         # (d, d+1, k)
     J = np.moveaxis(Xn[:, 1:] - Xn[:, :1], -1, 0)                 # (k, d, d): columns x_a - x_0
     lam = np.linalg.solve(J, (x0[:, None] - Xn[:, 0]).T[..., None])[..., 0]
     bary = np.hstack([1.0 - lam.sum(axis=1, keepdims=True), lam])
