@@ -4,8 +4,10 @@ each closed form (or quadrature) is checked against the impact ODE m δ̈ = −F
 import numpy as np
 import pytest
 
-from reference_forms import (contact_modulus, cylinder_approach, cylinder_force, cylinder_impact, hertz_sphere_force,
-                             hertz_sphere_impact, impact_ode, line_law)
+from scipy.optimize import brentq
+
+from reference_forms import (boussinesq_compliance, contact_modulus, cylinder_approach, cylinder_force, cylinder_impact, hertz_sphere_force,
+                             hertz_sphere_impact, impact_ode, line_law, sphere_on_block_force)
 
 STEEL = (2.1e11, 0.3)
 RHO = 7850.0
@@ -30,6 +32,22 @@ def test_hertz_sphere_impact_closed_form_is_the_ode(R, v, block):
     assert 0.5 * m * v ** 2 == pytest.approx(8.0 / 15.0 * E_star * np.sqrt(R) * delta_max ** 2.5, rel=1e-13)
     ode = impact_ode(m, v, lambda d: hertz_sphere_force(d, R, E_star), delta_max)
     assert ode == pytest.approx((t_c, F_max, delta_max), rel=1e-6)
+
+
+def test_sphere_on_a_block_held_at_depth():
+    """Hertz in series with the block's Boussinesq compliance c: δ = a F^{2/3} + c F, so the energy
+    ½ m v² = (2/5) a F^{5/3} + c F²/2 at the peak; the ODE reproduces it, and the block's 10 cm
+    lengthens the steel sphere's contact (t_c +0.5 %, F_max −0.65 %: this reference's size term)."""
+    R, v = 0.05, 1.0
+    E_star = contact_modulus(*STEEL, *STEEL)
+    m = 4.0 / 3.0 * np.pi * R ** 3 * RHO
+    c = boussinesq_compliance(*STEEL, 0.1)
+    t_h, F_h, delta_h = hertz_sphere_impact(m, R, E_star, v)
+    t_c, F_max, _ = impact_ode(m, v, lambda d: sphere_on_block_force(d, R, E_star, c), delta_h)
+    a = (0.75 / (E_star * np.sqrt(R))) ** (2.0 / 3.0)
+    assert F_max == pytest.approx(brentq(lambda F: 0.4 * a * F ** (5 / 3) + 0.5 * c * F ** 2 - 0.5 * m * v ** 2,
+                                         0.0, F_h, xtol=1e-300, rtol=1e-15), rel=1e-6)
+    assert 0.003 < t_c / t_h - 1 < 0.007 and 0.004 < 1 - F_max / F_h < 0.009
 
 
 def test_line_law_is_johnsons_form():
