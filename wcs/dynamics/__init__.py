@@ -1,1 +1,1 @@
-"""Dynamic contact of viscoelastic bodies (the seed's paper [101]): loads in time, sources, absorbing boundaries, time stepping."""
+"""Dynamic contact of viscoelastic bodies, the seed's paper [101]: loads in time, sources, absorbing boundaries."""

@@ -29,7 +29,7 @@ from pydantic import Field, model_validator
 
 from ..errors import StudyError
 from ..fem.affine import gradients
-from ..scene.spec import Coordinate, Frozen, _exactly_one
+from ..scene.spec import LENGTH, Coordinate, Frozen, _exactly_one
 
 FORCE = {"ge": -1e22, "le": 1e22}       # [N] (2D: N per unit length); a great quake's forces are ~1e19
 MOMENT = {"ge": -1e24, "le": 1e24}      # [N m] (2D: N m per unit length); Mw 9.9 is ~1e24 N m
@@ -160,7 +160,7 @@ def source_vector(sm, source: Source, path: str) -> np.ndarray:
 
 # What of a source can be uncertain, with its physical range (the loader's address table).
 ADDRESSES = {
-    "sources.<s>.point.<i>": {"ge": -1e6, "le": 1e6},
+    "sources.<s>.point.<i>": LENGTH,
     "sources.<s>.force.<i>": FORCE,
     "sources.<s>.moment.<i>.<j>": MOMENT,
     "sources.<s>.wavelet.ricker.frequency": FREQUENCY,
