@@ -1,8 +1,9 @@
 """Dynamic contact of Kelvin–Voigt viscoelastic bodies (the seed's paper [101], issue 29).
 
-`spec` reads the `dynamics:` block; `numbers` makes a material's density and viscosity
-addressable data; `mass` assembles the mass and viscous matrices;
+`spec` reads the `dynamics:` block; `mass` assembles the mass and viscous matrices;
 `schemes` holds one time level of each scheme (operator, load, update) as pure functions;
 `stepping` runs the levels with one contact solve each; `energy` measures what the levels
-keep and lose; `command` is `wcs solve` on a dynamic study.
+keep and lose; `time_functions`, `sources` and `absorbing` are the loads in time, point
+sources and absorbing boundaries. A material's density and viscosity as addressable data are
+`wcs.model.dynamic_numbers`; `wcs solve` on a dynamic study is `wcs.run.dynamics`.
 """
