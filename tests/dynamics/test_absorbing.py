@@ -201,8 +201,8 @@ def test_tunnel_scene_boundaries_take_dashpots_and_a_layer():
     a uniform vertical velocity meets 120 m (2ρc_s + ρc_p) of dashpots (shear on the sides, normal
     on the bottom); the 10 m layer's cells make the U-shaped band of 120² − 100 · 110 = 3400 m² (to
     the mesh: the cells whose centroid is within 10 m, 3 m cells; 3412 m² measured)."""
-    from wcs.materials import lame
-    from wcs.scene.mesher import build_mesh
+    from wcs.model.materials import lame
+    from wcs.scene.mesher2d import build_mesh
     from wcs.study import load_study
     study = load_study(Path(__file__).resolve().parents[2] / "studies" / "tunnel-fault.yaml")
     sm = build_mesh(study.scene)

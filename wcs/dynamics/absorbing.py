@@ -30,9 +30,9 @@ from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
 from ..errors import StudyError
-from ..fem import tet
+from ..geometry import tet
 from ..fem.affine import gradients
-from ..scene.selectors import facet_lengths, facet_normals
+from ..geometry.facets import facet_lengths, facet_normals
 from ..scene.spec import FEATURE, Frozen, Name
 
 DAMPING = {"gt": 0.0, "le": 1e9}        # α [1/s]
