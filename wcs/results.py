@@ -273,6 +273,9 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))   # the worst cases' fields leave the model's validity
     if extremes:
         ds = ds.assign_coords(range_coords(study)).assign(range_variables(study, crit, extremes, unit_text))
+    if getattr(study, "dynamics", None) is not None:
+        from .dynamics.history import dynamic_results
+        ds = dynamic_results(ds, study, records)
     return ds
 
 
