@@ -1,0 +1,91 @@
+"""A dynamic study in the report: each criterion against time at its worst data, and the words
+that say how its history was reduced (`over_time`, study-format §8).
+
+A run of a dynamic study holds `phi_history` (eval, criterion, time) and `over_time`
+(criterion); a solve holds `phi_history` (criterion, time). `read` takes each criterion's
+history at its worst evaluation; `defining_level` is the level whose value the reduction
+returns (the peak for `max`), which the figure marks and whose nearest output time the
+worst-case fields are drawn at.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+PHRASE = {"max": "the peak over time of {}", "min": "the least over time of {}",
+          "final": "{} at the end time", "mean": "the mean over time of {}"}
+
+
+@dataclass
+class Histories:
+    time: np.ndarray               # (T,) s
+    values: np.ndarray             # (criterion, T) each criterion's history at its worst data (NaN: none)
+    over: list[str]                # per criterion: max | min | final | mean
+    output_time: np.ndarray | None  # times of the fields kept (None: none)
+
+
+def in_time(what: str, over: str) -> str:
+    """A criterion in words with its reduction over time ("the peak over time of …")."""
+    return PHRASE.get(over, "{}").format(what)
+
+
+def defining_level(h: np.ndarray, over: str) -> int | None:
+    """The level whose value the reduction returns: the largest (max), the least (min), the last
+    (final); None for the mean (no one level) or a history without a finite value."""
+    if not np.isfinite(h).any():
+        return None
+    return {"max": lambda: int(np.nanargmax(h)), "min": lambda: int(np.nanargmin(h)),
+            "final": lambda: len(h) - 1}.get(over, lambda: None)()
+
+
+def read(ds: xr.Dataset, worst_eval: list[int | None]) -> Histories | None:
+    """The histories of a results file at each criterion's worst evaluation (None: a static file)."""
+    if "phi_history" not in ds:
+        return None
+    v = ds["phi_history"]
+    k = v.sizes["criterion"]
+    over = ([str(o) for o in ds["over_time"].values] if "over_time" in ds else
+            [s.split(": ")[1] for s in str(ds["phi"].attrs.get("over_time", "")).split(", ")] if
+            "over_time" in ds["phi"].attrs else ["max"] * k)
+    if "eval" in v.dims:
+        values = np.full((k, v.sizes["time"]), np.nan)
+        data = v.transpose("eval", "criterion", "time").values
+        for j, e in enumerate(worst_eval):
+            if e is not None and 0 <= e < data.shape[0]:
+                values[j] = data[e, j]
+    else:
+        values = v.transpose("criterion", "time").values.astype(float)
+    out = ds["output_time"].values.astype(float) if "output_time" in ds.coords else None
+    return Histories(ds["time"].values.astype(float), values, over, out)
+
+
+def output_index(hist: Histories, j: int) -> int:
+    """The output time nearest the level that defines criterion j's value (the last output time
+    where no one level does)."""
+    n = defining_level(hist.values[j], hist.over[j])
+    t = hist.time[n] if n is not None else hist.time[-1]
+    return int(np.argmin(np.abs(hist.output_time - t)))
+
+
+def figure(hist: Histories, j: int, name: str, units: str, limit: float) -> bytes:
+    """Criterion j against time at its worst data, the defining level marked (the peak for max)
+    and the limit drawn where there is one."""
+    from .plots import plt, png, unit_label
+    fig, ax = plt.subplots(figsize=(6.4, 2.6))
+    h = hist.values[j]
+    ax.plot(hist.time, h, color="#1f3a5f", lw=1.4, label=name)
+    n = defining_level(h, hist.over[j])
+    if n is not None:
+        ax.plot([hist.time[n]], [h[n]], "o", color="#d1242f", ms=7, zorder=3,
+                label=f"{ {'max': 'peak', 'min': 'least', 'final': 'end'}[hist.over[j]]} {h[n]:.4g} at t = {hist.time[n]:.4g} s")
+    elif np.isfinite(h).any():
+        ax.axhline(np.nanmean(h), color="#d1242f", ls=":", label=f"mean {np.nanmean(h):.4g}")
+    if np.isfinite(limit):
+        ax.axhline(limit, color="#82071e", ls="--", lw=1, label=f"limit {limit:.4g}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{name} [{unit_label(units)}]")
+    ax.grid(alpha=.3)
+    ax.legend(loc="best")
+    return png(fig)
