@@ -1,0 +1,37 @@
+"""`wcs report` of a dynamic run: each criterion against time at its worst data with the level
+that gives its value marked, the limits table naming the reduction, the worst-case fields
+drawn at an output time."""
+import re
+
+import numpy as np
+import pytest
+
+from bad_studies import write_study
+from test_dynamics_run import tiny
+from wcs.cli import main
+from wcs.report.timeline import defining_level, in_time
+
+
+@pytest.mark.parametrize("over, level", [("max", 2), ("min", 0), ("final", 4), ("mean", None)])
+def test_the_defining_level_of_each_reduction(over, level):
+    assert defining_level(np.array([-1.0, 3.0, 5.0, 4.0, 2.0]), over) == level
+
+
+def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
+    doc = tiny(budget=2)
+    doc["limits"] = {"peak": 1.0e8}
+    path = write_study(doc, tmp_path, "study.yaml")
+    nc, html = tmp_path / "run.nc", tmp_path / "run.html"
+    assert main(["run", str(path), "-o", str(nc), "--quiet", "--no-mesh-check"]) == 0
+    assert main(["report", str(nc), "-o", str(html)]) == 0
+    assert "could not be drawn" not in capsys.readouterr().err
+    page = html.read_text()
+    section = page[page.index('id="histories"'):page.index('id="scene"')]
+    assert section.count("<img") == 4
+    for name, words in (("peak", "the peak over time of"), ("travel", "at the end time"),
+                        ("least", "the least over time of"), ("average", "the mean over time of")):
+        row = re.search(rf'<tr data-criterion="{name}">.*?</tr>', page, re.S).group(0)
+        assert words in row, name
+        assert words in re.search(rf'class="history-what" data-criterion="{name}">[^<]*', section).group(0)
+    fields = page[page.index('id="worst-fields"'):page.index('id="contact"')]
+    assert "<img" in fields

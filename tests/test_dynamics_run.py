@@ -1,0 +1,145 @@
+"""`wcs run` / `wcs sweep` on a dynamic study (issue 29, item 3): one evaluation is one
+simulation, each criterion's history reduced by its `over_time`; the results file holds
+`phi_history` (eval, criterion, time) and the worst cases' fields at the output times; resume
+and two MPI ranks give the serial run's bits; no adjoint through time, and the file says so."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from bad_studies import write_study
+from test_dynamics_bars import DURATION, bars
+from wcs.cli import main
+from wcs.dynamics.command import simulate
+from wcs.evaluation import Evaluator
+from wcs.study import load_study
+from wcs.store import store_path
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+REDUCE = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
+
+
+def tiny(budget=4):
+    """The two bars, coarse, to just past the impact, with an uncertain modulus and density and
+    one criterion per reduction."""
+    doc = bars(0.05, 1e-5, "stabilized", width=0.05, end=DURATION / 2)
+    doc["dynamics"]["output_every"] = 5
+    doc["scene"]["boundaries"]["t_end"] = {"body": "target", "segment": [[2.0, 0.0], [2.0, 0.05]]}
+    doc["scene"]["regions_of_interest"]["end"] = {"boundary": "t_end"}
+    doc["uncertain"] = {"materials.steel.E": [1.9e11, 2.3e11], "materials.steel.density": [7700.0, 8000.0]}
+    doc["criteria"] = [
+        {"name": "peak", "kind": "contact_pressure", "regions": ["face"], "over_time": "max"},
+        {"name": "travel", "kind": "mean_normal_displacement", "regions": ["end"], "direction": [1.0, 0.0],
+         "over_time": "final"},
+        {"name": "least", "kind": "contact_pressure", "regions": ["face"], "over_time": "min"},
+        {"name": "average", "kind": "contact_pressure", "regions": ["face"], "over_time": "mean"}]
+    doc["search"] = {"method": "sample", "sample": {"design": "lhs", "n": budget, "seed": 3}, "budget": budget}
+    return doc
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dyn-run")
+    path = write_study(tiny(), folder, "study.yaml")
+    out = folder / "serial.nc"
+    assert main(["run", str(path), "-o", str(out), "--quiet", "--no-mesh-check"]) == 0
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        return path, out, ds.load()
+
+
+def test_each_evaluation_is_a_simulation_reduced_over_time(serial):
+    path, _, ds = serial
+    study = load_study(path)
+    levels = study.dynamics.levels
+    assert ds["phi_history"].dims == ("eval", "criterion", "time") and ds.sizes["time"] == levels + 1
+    assert ds["time"].values == pytest.approx(np.arange(levels + 1) * 1e-5)
+    assert (ds["status"].values == 0).all() and ds.sizes["eval"] == 4
+    over = dict(zip(map(str, ds["criterion"].values), map(str, ds["over_time"].values)))
+    assert over == {"peak": "max", "travel": "final", "least": "min", "average": "mean"}
+    for c, how in over.items():       # phi is each history reduced, bit for bit
+        h = ds["phi_history"].sel(criterion=c).values
+        assert np.array_equal(ds["phi"].sel(criterion=c).values, [REDUCE[how](row) for row in h]), c
+    # one evaluation is the simulation `wcs solve` runs at that data set
+    x = ds["x"].values[2]
+    hist = simulate(Evaluator(study), x)
+    assert np.array_equal(ds["phi_history"].values[2, 0], hist.phi["peak"])
+    # the peak contact stress grows with sqrt(E rho) (d'Alembert: rho c v0 / 2): the worst is the stiffest,
+    # densest sample
+    peak = ds["phi"].sel(criterion="peak").values
+    assert int(ds["worst_eval"].sel(criterion="peak")) == int(np.argmax(peak))
+    assert np.argmax(peak) == np.argmax(ds["x"].values[:, 0] * ds["x"].values[:, 1])
+
+
+def test_the_worst_fields_are_kept_at_the_output_times(serial):
+    path, _, ds = serial
+    dyn = load_study(path).dynamics
+    out = [n for n in range(dyn.levels + 1) if n % 5 == 0 or n == dyn.levels]
+    assert ds["output_time"].values == pytest.approx(np.array(out) * 1e-5)
+    u = ds["worst_displacement"]
+    assert u.dims == ("criterion", "output_time", "node", "dim")
+    assert ds["worst_contact_pressure"].dims[:2] == ("criterion", "output_time")
+    # the target's far end at the end time is the `final` criterion of the worst case
+    j = list(map(str, ds["criterion"].values)).index("travel")
+    end = np.isclose(ds["coords"].values[:, 0], 2.0)
+    assert u.values[j, -1, end, 0].mean() == pytest.approx(float(ds["worst_value"].sel(criterion="travel")),
+                                                            rel=1e-12)
+    assert np.all(np.isfinite(ds["worst_small_strain_gradient"].values))
+
+
+def test_the_results_say_no_adjoint_gradient_was_used(serial):
+    _, _, ds = serial
+    assert ds.attrs["gradients"].startswith("none: no adjoint through time")
+    assert all("no adjoint gradient through time was used" in str(n) for n in ds["certificate_note"].values)
+    assert np.isnan(ds["grad"].values).all()
+
+
+def test_resume_answers_from_the_store_with_the_same_bits(serial, tmp_path):
+    path, out, ds = serial
+    folder = tmp_path / "resumed"
+    shutil.copytree(out.parent, folder)
+    again = folder / "serial.nc"
+    stored = sorted(store_path(again).glob("*.npz"))
+    assert len(stored) == 4
+    for f in stored[::2]:              # the run was cut short: half its evaluations are lost
+        f.unlink()
+    assert main(["run", str(folder / "study.yaml"), "-o", str(again), "--resume", "--quiet", "--no-mesh-check"]) == 0
+    with xr.open_dataset(again, engine="h5netcdf") as r:
+        assert r.attrs["answered_from_store"] == 2 and r.attrs["solves_this_session"] == 2
+        for v in ("x", "phi", "phi_history", "status", "worst_value", "worst_x", "worst_displacement",
+                  "worst_contact_pressure"):
+            assert np.array_equal(r[v].values, ds[v].values, equal_nan=True), v
+
+
+def test_sweep_over_a_dynamic_study(tmp_path):
+    doc = tiny()
+    doc["sweep"] = {"grid": {"materials.steel.E": [1.9e11, 2.3e11]}}
+    path = write_study(doc, tmp_path, "study.yaml")
+    out = tmp_path / "sweep.nc"
+    assert main(["sweep", str(path), "-o", str(out), "--quiet"]) == 0
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        peak = ds["phi"].sel(criterion="peak").values
+        assert ds["phi_history"].shape[:2] == (2, 4) and peak[1] > peak[0]
+
+
+@pytest.mark.slow
+def test_two_ranks_give_the_serial_dynamic_run_bitwise(serial, tmp_path):
+    mpiexec = BIN / "mpiexec"
+    if not mpiexec.exists():
+        pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
+    path, _, ds = serial
+    shutil.copy(path, tmp_path / "study.yaml")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+    run = subprocess.run([str(mpiexec), "-n", "2", str(BIN / "wcs"), "run", "study.yaml", "-o", "mpi.nc",
+                          "--quiet", "--no-mesh-check"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr + run.stdout
+    with xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf") as m:
+        for v in ("x", "phi", "phi_history", "status", "worst_value", "worst_x", "worst_displacement"):
+            assert np.array_equal(m[v].values, ds[v].values, equal_nan=True), v
