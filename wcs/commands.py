@@ -72,9 +72,14 @@ def _finish_command(args, study, ds, out: Path) -> int:
 
 
 def criteria_in_words(study) -> str:
-    """What each criterion is: its reduction over its regions and its units."""
-    return "\n".join(f"  {c.name}: {in_words(c.kind, list(c.regions))} [{KINDS[c.kind].units}]"
-                     for c in study.criteria)
+    """What each criterion is: its reduction over its regions (in a dynamic study also over time,
+    "the peak over time of ...") and its units."""
+    from .report.timeline import in_time
+
+    def what(c):
+        words = in_words(c.kind, list(c.regions))
+        return words if study.dynamics is None else in_time(words, c.over_time or "max")
+    return "\n".join(f"  {c.name}: {what(c)} [{KINDS[c.kind].units}]" for c in study.criteria)
 
 
 def resume_command(args, how: str = "--resume") -> str:
