@@ -143,3 +143,14 @@ def test_two_ranks_give_the_serial_dynamic_run_bitwise(serial, tmp_path):
     with xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf") as m:
         for v in ("x", "phi", "phi_history", "status", "worst_value", "worst_x", "worst_displacement"):
             assert np.array_equal(m[v].values, ds[v].values, equal_nan=True), v
+
+
+def test_solve_worst_runs_the_levels_at_the_worst_data(serial, tmp_path):
+    path, out, ds = serial
+    one = tmp_path / "worst.nc"
+    assert main(["solve", str(path), "--worst", str(out), "peak", "-o", str(one), "--quiet"]) == 0
+    row = int(ds["worst_eval"].sel(criterion="peak"))
+    with xr.open_dataset(one, engine="h5netcdf") as w:
+        assert np.array_equal(w["phi_history"].values, ds["phi_history"].values[row])
+        assert float(w["phi"].sel(criterion="peak")) == float(ds["worst_value"].sel(criterion="peak"))
+    assert one.with_suffix(".pvd").is_file()

@@ -262,12 +262,15 @@ def solve_worst(args) -> int:
         print(f"note: {run_file} was written for a different version of {args.study}", file=sys.stderr)
     out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
-    t0 = time.perf_counter()
-    ev = Evaluator(study)
     point = x
     if extra:
         point = dict(zip(study.parameters.names, map(float, x)))
         point.update(extra)
+    if study.dynamics is not None:              # the levels at the worst data, as `wcs solve` writes them
+        from .dynamics.command import solve_dynamic
+        return solve_dynamic(study, out, args, point)
+    t0 = time.perf_counter()
+    ev = Evaluator(study)
     with phase("solve"):
         res = ev.evaluate(point)
     if res.status != 0:

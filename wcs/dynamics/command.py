@@ -100,9 +100,10 @@ def write_series(ev, hist, c, out: Path) -> Path:
     return pvd
 
 
-def solve_dynamic(study, out: Path, args) -> int:
+def solve_dynamic(study, out: Path, args, point=None) -> int:
     """`wcs solve STUDY` of a dynamic study: run the levels, print the reduced criteria, write
-    OUT.nc and the ParaView series."""
+    OUT.nc and the ParaView series; `point` a data set (a vector or {dotted path: value}; `solve
+    --worst`), else the nominal data."""
     from wcs.criteria import in_words
     from wcs.errors import SolveError
     from wcs.evaluation import Evaluator
@@ -111,15 +112,16 @@ def solve_dynamic(study, out: Path, args) -> int:
     from wcs.store import WriteError
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    x = study.nominal()
+    x, others = study.data_set(study.nominal() if point is None else point)
     try:
-        hist = simulate(ev, x)
+        hist = simulate(ev, x, others)
     except SolveError as e:
-        print(f"error: {args.study}: the nominal data set cannot be solved: {e}", file=sys.stderr)
+        which = "nominal" if point is None else "given"
+        print(f"error: {args.study}: the {which} data set cannot be solved: {e}", file=sys.stderr)
         return 2 if Status(e.status).scene_fault else 1
     try:
         path = write_netcdf(history_dataset(study, ev, hist), out)
-        pvd = write_series(ev, hist, ev.map.coefficients(x), out)
+        pvd = write_series(ev, hist, ev.map.coefficients(x, others), out)
     except WriteError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
