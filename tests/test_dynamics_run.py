@@ -154,3 +154,13 @@ def test_solve_worst_runs_the_levels_at_the_worst_data(serial, tmp_path):
         assert np.array_equal(w["phi_history"].values, ds["phi_history"].values[row])
         assert float(w["phi"].sel(criterion="peak")) == float(ds["worst_value"].sel(criterion="peak"))
     assert one.with_suffix(".pvd").is_file()
+
+
+def test_check_says_what_an_evaluation_is_and_names_the_reductions(serial, capsys):
+    path, _, _ = serial
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "peak: the peak over time of mean contact pressure" in out and "the least over time of" in out
+    assert "one evaluation is one simulation (17 levels of two contact solves" in out
+    assert "no adjoint gradient through time" in out

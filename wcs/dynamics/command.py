@@ -155,6 +155,12 @@ def check_dynamic(study, ev, args, summary: str) -> int:
         print(summary)
         print(f"  dynamics: {dyn.levels} levels of {dyn.time_step:g} s to {dyn.levels * dyn.time_step:g} s, scheme "
               f"{dyn.scheme}, initial state {start}; fields every {dyn.output_every} levels, criteria at every level")
+        if study.parameters.names:
+            solves = ("one linear solve" if not study.scene.contacts else "two contact solves (predictor and step)"
+                      if dyn.scheme == "stabilized" else "one contact solve")
+            print(f"  search over time: one evaluation is one simulation ({dyn.levels} levels of {solves} each, "
+                  f"not the one solve estimated above); no adjoint gradient through time: finite differences of "
+                  f"the reduced criteria where the search asks for gradients")
     if dyn.initial == "static":
         try:
             initial_state(ev.model, ev.map.coefficients(study.nominal()), dyn)
