@@ -9,12 +9,23 @@ import pytest
 from bad_studies import write_study
 from test_dynamics_run import tiny
 from wcs.cli import main
-from wcs.report.timeline import defining_level, in_time
+from wcs.report.timeline import Histories, defining_level, when
 
 
 @pytest.mark.parametrize("over, level", [("max", 2), ("min", 0), ("final", 4), ("mean", None)])
 def test_the_defining_level_of_each_reduction(over, level):
     assert defining_level(np.array([-1.0, 3.0, 5.0, 4.0, 2.0]), over) == level
+
+
+def test_the_fields_are_drawn_at_the_defining_level_or_say_how_far_from_it():
+    t = np.arange(11.0)
+    h = Histories(t, np.array([np.sin(t / 3), t, t]), ["max", "final", "mean"], np.array([0.0, 5.0, 10.0]))
+    assert when(h, 0) == "at t = 5 s, the level of its peak"          # sin(t/3) peaks at level 5, an output level
+    assert when(h, 1) == "at t = 10 s, the level of its end"
+    assert when(h, 2).startswith("at t = 10 s (the mean over time has no one level")
+    h.values[0] = -(t - 2.0) ** 2           # the peak at t = 2: drawn at t = 0, and said
+    assert when(h, 0) == ("at t = 0 s, the output time nearest its peak at t = 2 s "
+                          "(fields are kept every `output_every` levels)")
 
 
 def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
@@ -37,3 +48,4 @@ def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
         assert words in re.search(rf'class="history-what" data-criterion="{name}">[^<]*', section).group(0)
     fields = page[page.index('id="worst-fields"'):page.index('id="contact"')]
     assert "<img" in fields
+    assert "the worst case of travel at t = 0.00017 s, the level of its end" in fields

@@ -404,7 +404,8 @@ class Report:
             if f is None:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No fields (no successful evaluation).</p>')
                 continue
-            key = "solve" if r.kind == "solve" else tuple(np.round(c.worst_x, 14))
+            at = timeline.when(r.histories, j) if r.histories is not None and r.histories.output_time is not None else ""
+            key = ("solve" if r.kind == "solve" else tuple(np.round(c.worst_x, 14)), at)
             if key in done:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">Same data set as the worst case of '
                            f'{esc(done[key])}: see above.</p>')
@@ -413,6 +414,7 @@ class Report:
             data, mag = (plots3d.surface_figure if r.mesh.dim == 3 else plots.worst_case_figure)(r, j)
             cut = plots3d.cut_figure(r, j) if r.mesh.dim == 3 else None
             label = "the nominal data" if r.kind == "solve" else f"the worst case of {esc(c.name)}"
+            label += f" {esc(at)}" if at else ""
             extra = []
             if f.von_mises is not None:
                 extra.append(f"max von Mises {number(float(np.nanmax(f.von_mises)), 'Pa')}")

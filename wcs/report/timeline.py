@@ -69,6 +69,20 @@ def output_index(hist: Histories, j: int) -> int:
     return int(np.argmin(np.abs(hist.output_time - t)))
 
 
+def when(hist: Histories, j: int) -> str:
+    """The time criterion j's worst-case fields are drawn at, in words: the defining level's own
+    time where it is an output level, else the nearest output time and the level's."""
+    t = hist.output_time[output_index(hist, j)]
+    n = defining_level(hist.values[j], hist.over[j])
+    what = {"max": "peak", "min": "least value", "final": "end"}.get(hist.over[j])
+    if n is None:
+        return f"at t = {t:.4g} s (the mean over time has no one level: the last output time)"
+    if np.isclose(t, hist.time[n], rtol=0, atol=1e-9 * hist.time[-1]):
+        return f"at t = {t:.4g} s, the level of its {what}"
+    return (f"at t = {t:.4g} s, the output time nearest its {what} at t = {hist.time[n]:.4g} s "
+            "(fields are kept every `output_every` levels)")
+
+
 def figure(hist: Histories, j: int, name: str, units: str, limit: float) -> bytes:
     """Criterion j against time at its worst data, the defining level marked (the peak for max)
     and the limit drawn where there is one."""
