@@ -274,7 +274,7 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     if extremes:
         ds = ds.assign_coords(range_coords(study)).assign(range_variables(study, crit, extremes, unit_text))
     if getattr(study, "dynamics", None) is not None:
-        from .dynamics.history import dynamic_results
+        from .dynamics.results import dynamic_results
         ds = dynamic_results(ds, study, records)
     return ds
 

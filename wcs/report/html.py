@@ -304,7 +304,7 @@ class Report:
                 continue
             out.append(f'<h3>{esc(c.name)}</h3><p class="history-what" data-criterion="{esc(c.name)}">'
                        f'{esc(self.what(j, c))}: {number(c.worst, c.units)}</p>'
-                       + img(timeline.figure(h, j, c.name, c.units, c.limit), f"{c.name} against time"))
+                       + img(plots.history_figure(h, j, c.name, c.units, c.limit), f"{c.name} against time"))
         return "".join(out)
 
     def membership(self) -> str:

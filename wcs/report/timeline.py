@@ -1,11 +1,11 @@
 """A dynamic study in the report: each criterion against time at its worst data, and the words
-that say how its history was reduced (`over_time`, study-format §8).
+that say how its history was reduced (`over_time`).
 
 A run of a dynamic study holds `phi_history` (eval, criterion, time) and `over_time`
 (criterion); a solve holds `phi_history` (criterion, time). `read` takes each criterion's
 history at its worst evaluation; `defining_level` is the level whose value the reduction
-returns (the peak for `max`), which the figure marks and whose nearest output time the
-worst-case fields are drawn at.
+returns (the peak for `max`), which the figure (`wcs.report.plots.history_figure`) marks and
+whose nearest output time the worst-case fields are drawn at.
 """
 from __future__ import annotations
 
@@ -81,25 +81,3 @@ def when(hist: Histories, j: int) -> str:
         return f"at t = {t:.4g} s, the level of its {what}"
     return (f"at t = {t:.4g} s, the output time nearest its {what} at t = {hist.time[n]:.4g} s "
             "(fields are kept every `output_every` levels)")
-
-
-def figure(hist: Histories, j: int, name: str, units: str, limit: float) -> bytes:
-    """Criterion j against time at its worst data, the defining level marked (the peak for max)
-    and the limit drawn where there is one."""
-    from .plots import plt, png, unit_label
-    fig, ax = plt.subplots(figsize=(6.4, 2.6))
-    h = hist.values[j]
-    ax.plot(hist.time, h, color="#1f3a5f", lw=1.4, label=name)
-    n = defining_level(h, hist.over[j])
-    if n is not None:
-        ax.plot([hist.time[n]], [h[n]], "o", color="#d1242f", ms=7, zorder=3,
-                label=f"{ {'max': 'peak', 'min': 'least', 'final': 'end'}[hist.over[j]]} {h[n]:.4g} at t = {hist.time[n]:.4g} s")
-    elif np.isfinite(h).any():
-        ax.axhline(np.nanmean(h), color="#d1242f", ls=":", label=f"mean {np.nanmean(h):.4g}")
-    if np.isfinite(limit):
-        ax.axhline(limit, color="#82071e", ls="--", lw=1, label=f"limit {limit:.4g}")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"{name} [{unit_label(units)}]")
-    ax.grid(alpha=.3)
-    ax.legend(loc="best")
-    return png(fig)
