@@ -164,3 +164,27 @@ def test_check_says_what_an_evaluation_is_and_names_the_reductions(serial, capsy
     assert "peak: the peak over time of mean contact pressure" in out and "the least over time of" in out
     assert "one evaluation is one simulation (17 levels of two contact solves" in out
     assert "no adjoint gradient through time" in out
+
+
+def test_a_failed_simulation_is_a_record_with_its_status_and_no_history(monkeypatch):
+    """A level that fails fails its evaluation (status and message, NaN criteria and history);
+    the run goes on."""
+    import wcs
+    import wcs.dynamics.history as history
+    from wcs.errors import SolveError
+    from wcs.status import Status
+    study = load_study(tiny(budget=3))
+    real = history.simulate
+
+    def fails_when_soft(ev, x, others=None):
+        if x[0] < 2.1e11:
+            raise SolveError("time level 3 (t = 3e-05 s), step: no convergence", status=Status.CONTACT_NOT_CONVERGED)
+        return real(ev, x, others)
+    monkeypatch.setattr(history, "simulate", fails_when_soft)
+    ds = wcs.run(study, output=False)
+    bad = ds["x"].values[:, 0] < 2.1e11
+    assert bad.any() and (~bad).any()
+    assert (ds["status"].values[bad] == int(Status.CONTACT_NOT_CONVERGED)).all() and (ds["status"].values[~bad] == 0).all()
+    assert "time level 3" in str(ds["message"].values[bad][0])
+    assert np.isnan(ds["phi_history"].values[bad]).all() and np.isfinite(ds["phi_history"].values[~bad]).all()
+    assert "sum over the time levels" in ds["iterations"].attrs["long_name"]

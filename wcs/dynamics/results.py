@@ -42,6 +42,7 @@ def dynamic_results(ds: xr.Dataset, study, records: list[dict]) -> xr.Dataset:
     notes = [f"{n}; {NO_ADJOINT}" if n else NO_ADJOINT for n in map(str, ds["certificate_note"].values)]
     ds["certificate_note"] = ("criterion", np.array(notes, dtype=object), ds["certificate_note"].attrs)
     ds.attrs["gradients"] = "none: no adjoint through time (finite differences where the search asked for gradients)"
+    ds["iterations"].attrs["long_name"] += "; a dynamic study: their sum over the time levels of the evaluation"
     dyn = study.dynamics
     ds.attrs.update({"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time})
     return ds
