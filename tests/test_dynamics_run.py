@@ -188,3 +188,15 @@ def test_a_failed_simulation_is_a_record_with_its_status_and_no_history(monkeypa
     assert "time level 3" in str(ds["message"].values[bad][0])
     assert np.isnan(ds["phi_history"].values[bad]).all() and np.isfinite(ds["phi_history"].values[~bad]).all()
     assert "sum over the time levels" in ds["iterations"].attrs["long_name"]
+
+
+def test_compare_looks_at_the_histories(serial, tmp_path, capsys):
+    _, out, ds = serial
+    changed = ds.copy(deep=True)
+    changed["phi_history"].values[1, 0, 3] *= 1 + 1e-9         # one level of one evaluation, phi unchanged
+    changed.to_netcdf(tmp_path / "changed.nc", engine="h5netcdf")
+    capsys.readouterr()
+    assert main(["compare", str(out), str(out)]) == 0
+    assert "phi_history" in capsys.readouterr().out
+    assert main(["compare", str(out), str(tmp_path / "changed.nc")]) == 4
+    assert "phi_history" in capsys.readouterr().out
