@@ -9,7 +9,7 @@ import pytest
 from bad_studies import write_study
 from test_dynamics_run import tiny
 from wcs.cli import main
-from wcs.report.timeline import Histories, defining_level, when
+from wcs.report.timeline import Histories, defining_level, in_time, when
 
 
 @pytest.mark.parametrize("over, level", [("max", 2), ("min", 0), ("final", 4), ("mean", None)])
@@ -28,8 +28,15 @@ def test_the_fields_are_drawn_at_the_defining_level_or_say_how_far_from_it():
                           "(fields are kept every `output_every` levels)")
 
 
+@pytest.mark.parametrize("over, words", [("max", "the peak over time of Φ"), ("min", "the least over time of Φ"),
+                                         ("final", "Φ at the end time"), ("mean", "the mean over time of Φ")])
+def test_each_reduction_in_words(over, words):
+    assert in_time("Φ", over) == words
+
+
 def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
     doc = tiny(budget=2)
+    doc["criteria"] = doc["criteria"][:2]                   # the peak (max) and the end (final)
     doc["limits"] = {"peak": 1.0e8}
     path = write_study(doc, tmp_path, "study.yaml")
     nc, html = tmp_path / "run.nc", tmp_path / "run.html"
@@ -40,9 +47,8 @@ def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
     assert "could not be drawn" not in capsys.readouterr().err
     page = html.read_text()
     section = page[page.index('id="histories"'):page.index('id="scene"')]
-    assert section.count("<img") == 4
-    for name, words in (("peak", "the peak over time of"), ("travel", "at the end time"),
-                        ("least", "the least over time of"), ("average", "the mean over time of")):
+    assert section.count("<img") == 2
+    for name, words in (("peak", "the peak over time of"), ("travel", "at the end time")):
         row = re.search(rf'<tr data-criterion="{name}">.*?</tr>', page, re.S).group(0)
         assert words in row, name
         assert words in re.search(rf'class="history-what" data-criterion="{name}">[^<]*', section).group(0)

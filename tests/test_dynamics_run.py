@@ -196,7 +196,5 @@ def test_compare_looks_at_the_histories(serial, tmp_path, capsys):
     changed["phi_history"].values[1, 0, 3] *= 1 + 1e-9         # one level of one evaluation, phi unchanged
     changed.to_netcdf(tmp_path / "changed.nc", engine="h5netcdf")
     capsys.readouterr()
-    assert main(["compare", str(out), str(out)]) == 0
-    assert "phi_history" in capsys.readouterr().out
     assert main(["compare", str(out), str(tmp_path / "changed.nc")]) == 4
     assert "phi_history" in capsys.readouterr().out
