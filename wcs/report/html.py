@@ -270,7 +270,9 @@ class Report:
         body = ('<table id="limits-table"><tr><th>criterion</th><th>what it is</th><th>units</th>' + head +
                 '<th>worst value</th><th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
                 '<th>certificate</th></tr>' + "".join(rows) + "</table>"
-                '<p class="note">Every criterion is a maximum over its regions of interest; a limit is broken '
+                '<p class="note">Every criterion is a maximum over its regions of interest' + (
+                    ' (in this dynamic study, its history reduced over time as "what it is" says)'
+                    if r.histories is not None else '') + '; a limit is broken '
                 'when the worst value exceeds it (negative margin)' + (
                     ', a lower limit when the best value (the minimum over the box) falls below it' if ends else '') +
                 '. Certificate: <b>corner-kkt</b> — the '
