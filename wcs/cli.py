@@ -93,6 +93,7 @@ def plan(study, ev) -> list[str]:
     with their boxes and nominal values, the fuzzy levels, the criteria with their units, senses
     and limits, the search, the solver and the output."""
     from .model.criteria import in_words
+    from .report.timeline import in_time
     scene, lines = study.scene, []
     p = study.parameters
     lines.append(f"  parameters ({len(p.names)}):")
@@ -106,9 +107,11 @@ def plan(study, ev) -> list[str]:
                      f"(α = 1) outwards; the boxes above are the supports; cores: {cores}")
     lines.append("  criteria:")
     senses = {c.name: c.sense for c in study.criteria}
+    over = {c.name: c.over_time or "max" for c in study.criteria} if study.dynamics is not None else {}
     for c in ev.criteria:
         lim, low = study.limits.get(c.name), study.lower_limits.get(c.name)
-        lines.append(f"    {c.name}: {in_words(c.kind, c.rois)} ({c.kind}) [{c.units}]"
+        what = in_words(c.kind, c.rois) if c.name not in over else in_time(in_words(c.kind, c.rois), over[c.name])
+        lines.append(f"    {c.name}: {what} ({c.kind}) [{c.units}]"
                      + (f", sense {senses[c.name]}" if senses[c.name] != "max" else "")
                      + (f", lower limit {_fmt(low)}" if low is not None else "")
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))

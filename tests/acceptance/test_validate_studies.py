@@ -22,7 +22,7 @@ from wcs.cli import main
 ROOT = Path(__file__).resolve().parents[2]
 ALL_STUDIES = sorted((ROOT / "studies").glob("*.yaml")) + sorted((ROOT / "studies" / "validation").glob("*.yaml"))
 DYNAMIC = [p for p in ALL_STUDIES if "dynamics" in (yaml.safe_load(p.read_text()) or {})]   # `wcs solve` runs them
-STUDIES = [p for p in ALL_STUDIES if p not in DYNAMIC]
+STUDIES = [p for p in ALL_STUDIES if p not in DYNAMIC or "uncertain" in yaml.safe_load(p.read_text())]   # `wcs run`
 BUDGET = 10
 
 RUN_VARS = ("param", "param_lower", "param_upper", "x", "phi", "status", "stage", "wall_time",

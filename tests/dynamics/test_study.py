@@ -148,8 +148,6 @@ def test_solve_writes_the_history_and_a_paraview_series(tmp_path, capsys):
         assert float(ds["contact_force"].min()) >= 0.0
     pvd = (tmp_path / "bars.pvd").read_text()
     assert pvd.count("<DataSet") == len(list(tmp_path.glob("bars-*.vtu")))
-    assert main(["run", str(path), "-o", str(tmp_path / "run.nc")]) == 2
-    assert "dynamics: a dynamic study is solved by `wcs solve`" in capsys.readouterr().err
 
 
 def test_a_dynamic_study_is_never_answered_by_a_static_solve():

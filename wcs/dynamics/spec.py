@@ -98,10 +98,3 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
                 raise error(where, f"a velocity has {scene.dimension} components in a {scene.dimension}D scene")
 
 
-def refuse_search(study) -> None:
-    """StudyError (exit 2) for `run` and `sweep` of a dynamic study: the search over criteria
-    reduced in time (`over_time`) is the next step of issue 29; `wcs solve` runs the levels."""
-    if getattr(study, "dynamics", None) is not None:
-        raise StudyError("a dynamic study is solved by `wcs solve` (its time levels at the nominal data); "
-                         "`run` and `sweep` over time-dependent criteria are not available yet",
-                         file=str(study.file), path="dynamics")

@@ -16,7 +16,8 @@ from ..errors import StudyError
 __all__ = ["cmd_report", "render_report", "write_report", "SECTION_IDS"]
 
 
-# the sections of every report; besides them "membership" (a fuzzy study) and "view3d" (a 3D mesh)
+# the sections of every report; besides them "membership" (a fuzzy study), "view3d" (a 3D mesh) and
+# "histories" (a dynamic study)
 SECTION_IDS = ["summary", "limits", "scene", "mesh-check", "worst-data", "drivers", "worst-fields", "contact",
                "criteria-vs-parameters", "best-so-far", "failures", "provenance"]
 

@@ -20,6 +20,8 @@ from ..results.dataset import widest
 from ..status import Status
 from ..model.validity import warnings as validity_warnings
 from ..results.verdict import Verdict, failures, verdict
+from . import timeline
+from .timeline import Histories
 
 KIND_UNITS = {k: v.units for k, v in KINDS.items()}
 KIND_LABEL = {k: v.label for k, v in KINDS.items()}
@@ -131,6 +133,7 @@ class Results:
     small_strain: tuple[float, float] | None = None   # max |u| / body size, max |∇u| of the solved fields
     validity: list[str] = field(default_factory=list)  # where they leave the model's validity (`wcs.model.validity`)
     failed_where: list[str] = field(default_factory=list)   # each kind of failure, where in U_ad (`wcs.results.verdict`)
+    histories: Histories | None = None      # a dynamic study's criteria against time (`wcs.report.timeline`)
 
     @property
     def n_eval(self) -> int:
@@ -360,9 +363,11 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                     ds["cell_region"].values.astype(int) if "cell_region" in ds else None,
                     bodies, regions)
 
+    histories = timeline.read(ds, [c.worst_eval for c in criteria])
     worst_fields: list[Fields | None] = []
     for j, name in enumerate(names):
-        worst_fields.append(_fields(ds, j, name, prefixed=is_run))
+        at = timeline.output_index(histories, j) if histories is not None and "output_time" in ds.dims else None
+        worst_fields.append(_fields(ds, j, name, prefixed=is_run, at=at))
 
     return Results(kind=kind, study=_text(attrs.get("study", doc.get("study", "unnamed study"))),
                    attrs=attrs, study_yaml=study_yaml, study_doc=doc, scene=scene, params=params,
@@ -377,7 +382,7 @@ def from_dataset(ds: xr.Dataset, where: str = "results") -> Results:
                    if _text(attrs.get("complete", "yes")) == "no" else "",
                    warnings=[w for w in _text(attrs.get("warnings", "")).splitlines() if w.strip()],
                    source=where, levels=levels, after_search=after_search(ds), small_strain=_small_strain(ds),
-                   validity=validity_warnings(ds), failed_where=failures(ds),
+                   validity=validity_warnings(ds), failed_where=failures(ds), histories=histories,
                    verdict=verdict(ds if "limit" in ds or not ncrit else ds.assign(limit=("criterion", limit))))
 
 
@@ -412,17 +417,21 @@ def after_search(ds: xr.Dataset) -> xr.Dataset | None:
     return out
 
 
-def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool) -> Fields | None:
+def _fields(ds: xr.Dataset, j: int, name: str, prefixed: bool, at: int | None = None) -> Fields | None:
     """The fields at the worst case of criterion j: `worst_<f>` (criterion, ...) in a run
-    file, the unprefixed fields of a solve file (the same case for every criterion)."""
+    file, the unprefixed fields of a solve file (the same case for every criterion); a dynamic
+    study's at its output time `at` (`output_time`)."""
+    def when(v):
+        return v.isel(output_time=at) if at is not None and "output_time" in v.dims else v
+
     def pick(f):
         v = _get(ds, f"worst_{f}")
         if v is not None:
-            return (v.isel(criterion=j) if "criterion" in v.dims else v).values
+            return when(v.isel(criterion=j) if "criterion" in v.dims else v).values
         if prefixed and f not in ("contact_coords", "contact_pair", "contact_tangents"):
             return None       # a run file without worst-case fields
         v = _get(ds, f)       # a solve file; or contact geometry stored once
-        return None if v is None or "eval" in v.dims else v.values
+        return None if v is None or "eval" in v.dims else when(v).values
     out = Fields()
     found = False
     for f in ("displacement", "stress", "von_mises", "principal_stress", "shear_stress_intensity", "temperature"):

@@ -21,12 +21,13 @@ from ..results.extremes import pairs
 from ..progress import phase
 from ..model.validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..results.verdict import CLOSE
-from . import plots, plots3d, view3d
+from . import plots, plots3d, timeline, view3d
 from .data import KIND_LABEL, Results
 
 SECTIONS = [
     ("summary", "Summary"),
     ("limits", "Limits"),
+    ("histories", "Each criterion against time at its worst data"),
     ("membership", "Membership function of each criterion (fuzzy data)"),
     ("scene", "The scene and mesh"),
     ("view3d", "The model in 3D (interactive)"),
@@ -245,7 +246,7 @@ class Report:
         r = self.res
         ends = any(c.searched_min for c in r.criteria)
         rows = []
-        for c, v in zip(r.criteria, self.mesh_verdicts()):
+        for j, (c, v) in enumerate(zip(r.criteria, self.mesh_verdicts())):
             margin = c.limit - c.worst if math.isfinite(c.limit) and math.isfinite(c.worst) else float("nan")
             pct = 100 * margin / abs(c.limit) if math.isfinite(margin) and c.limit != 0 else float("nan")
             label = {"pass": "PASS", "fail": "FAIL", "marginal": "MARGINAL", "none": "no limit", "unknown": "unknown"}[v]
@@ -261,7 +262,7 @@ class Report:
             cert = esc(c.certificate) + (f" (max); {esc(c.best_certificate)} (min)" if c.searched_min else "")
             rows.append(
                 f'<tr data-criterion="{esc(c.name)}"><td>{esc(c.name)}</td>'
-                f'<td class="criterion-what">{esc(_what(c))}</td>'
+                f'<td class="criterion-what">{esc(self.what(j, c))}</td>'
                 f'<td>{esc(plots.unit_label(c.units))}</td>{low}'
                 f'<td class="num">{number(c.worst, c.units) if c.searched_max else "not searched"}</td>'
                 f'<td class="num">{number(c.limit, c.units) if math.isfinite(c.limit) else "—"}</td>'
@@ -273,7 +274,9 @@ class Report:
         body = ('<table id="limits-table"><tr><th>criterion</th><th>what it is</th><th>units</th>' + head +
                 '<th>worst value</th><th>limit</th><th>margin (limit − worst)</th><th>margin [%]</th><th>verdict</th>'
                 '<th>certificate</th></tr>' + "".join(rows) + "</table>"
-                '<p class="note">Every criterion is a maximum over its regions of interest; a limit is broken '
+                '<p class="note">Every criterion is a maximum over its regions of interest' + (
+                    ' (in this dynamic study, its history reduced over time as "what it is" says)'
+                    if r.histories is not None else '') + '; a limit is broken '
                 'when the worst value exceeds it (negative margin)' + (
                     ', a lower limit when the best value (the minimum over the box) falls below it' if ends else '') +
                 '. Certificate: <b>corner-kkt</b> — the '
@@ -288,6 +291,27 @@ class Report:
                          f"{esc(c.name)} ∈ [{number(c.best, c.units)}, {number(c.worst, c.units)}]"
                          for c in r.criteria if c.searched_min and c.searched_max) + "</p>")
         return body
+
+    def what(self, j: int, c) -> str:
+        """Criterion c (the j-th) in words, with its reduction over time in a dynamic study."""
+        h = self.res.histories
+        return _what(c) if h is None else timeline.in_time(_what(c), h.over[j])
+
+    def histories(self) -> str:
+        """A dynamic study: each criterion's history at its worst data, its defining level marked."""
+        r, h = self.res, self.res.histories
+        out = [f'<p>Each evaluation is a simulation of {h.time.size - 1} time levels to t = {h.time[-1]:.4g} s; '
+               'a criterion\'s value is its history reduced over time (its <code>over_time</code>). Below, '
+               'each criterion against time at the data set of its worst value, the level that gives it marked; '
+               'the worst-case fields are drawn at the output time nearest that level.</p>']
+        for j, c in enumerate(r.criteria):
+            if not np.isfinite(h.values[j]).any():
+                out.append(f'<h3>{esc(c.name)}</h3><p class="note">No history (no successful evaluation).</p>')
+                continue
+            out.append(f'<h3>{esc(c.name)}</h3><p class="history-what" data-criterion="{esc(c.name)}">'
+                       f'{esc(self.what(j, c))}: {number(c.worst, c.units)}</p>'
+                       + img(plots.history_figure(h, j, c.name, c.units, c.limit), f"{c.name} against time"))
+        return "".join(out)
 
     def membership(self) -> str:
         r, lv = self.res, self.res.levels
@@ -337,6 +361,8 @@ class Report:
             return fuzzy(self.res)
         if sid == "view3d":
             return self.res.mesh is not None and self.res.mesh.dim == 3
+        if sid == "histories":
+            return self.res.histories is not None
         return True
 
     def worst_data(self) -> str:
@@ -384,7 +410,8 @@ class Report:
             if f is None:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No fields (no successful evaluation).</p>')
                 continue
-            key = "solve" if r.kind == "solve" else tuple(np.round(c.worst_x, 14))
+            at = timeline.when(r.histories, j) if r.histories is not None and r.histories.output_time is not None else ""
+            key = ("solve" if r.kind == "solve" else tuple(np.round(c.worst_x, 14)), at)
             if key in done:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">Same data set as the worst case of '
                            f'{esc(done[key])}: see above.</p>')
@@ -393,6 +420,7 @@ class Report:
             data, mag = (plots3d.surface_figure if r.mesh.dim == 3 else plots.worst_case_figure)(r, j)
             cut = plots3d.cut_figure(r, j) if r.mesh.dim == 3 else None
             label = "the nominal data" if r.kind == "solve" else f"the worst case of {esc(c.name)}"
+            label += f" {esc(at)}" if at else ""
             extra = []
             if f.von_mises is not None:
                 extra.append(f"max von Mises {number(float(np.nanmax(f.von_mises)), 'Pa')}")
@@ -608,7 +636,8 @@ class Report:
     # ------------------------------------------------------------ page
     def render(self) -> str:
         r = self.res
-        builders = {"summary": self.summary, "limits": self.limits, "membership": self.membership,
+        builders = {"summary": self.summary, "limits": self.limits, "histories": self.histories,
+                    "membership": self.membership,
                     "scene": self.scene, "view3d": self.view3d,
                     "worst-data": self.worst_data, "worst-fields": self.worst_fields, "contact": self.contact,
                     "mesh-check": self.mesh_check, "drivers": self.drivers,

@@ -20,6 +20,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
 from .data import Contact, Mesh, Results, order_along  # noqa: E402
+from .timeline import Histories, defining_level  # noqa: E402
 
 DPI = 100
 plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9,
@@ -630,4 +631,25 @@ def drivers_figure(params: list[str], drivers: np.ndarray, signs: np.ndarray, un
     ax.legend(handles=[Patch(color="#d62728", label="grows with xᵢ"), Patch(color="#1f77b4", label="falls with xᵢ")],
               fontsize=7, loc="lower right")
     fig.tight_layout()
+    return png(fig)
+
+
+def history_figure(hist: Histories, j: int, name: str, units: str, limit: float) -> bytes:
+    """Criterion j against time at its worst data, the defining level marked (the peak for max)
+    and the limit drawn where there is one."""
+    fig, ax = plt.subplots(figsize=(6.4, 2.6))
+    h = hist.values[j]
+    ax.plot(hist.time, h, color="#1f3a5f", lw=1.4, label=name)
+    n = defining_level(h, hist.over[j])
+    if n is not None:
+        ax.plot([hist.time[n]], [h[n]], "o", color="#d1242f", ms=7, zorder=3,
+                label=f"{ {'max': 'peak', 'min': 'least', 'final': 'end'}[hist.over[j]]} {h[n]:.4g} at t = {hist.time[n]:.4g} s")
+    elif np.isfinite(h).any():
+        ax.axhline(np.nanmean(h), color="#d1242f", ls=":", label=f"mean {np.nanmean(h):.4g}")
+    if np.isfinite(limit):
+        ax.axhline(limit, color="#82071e", ls="--", lw=1, label=f"limit {limit:.4g}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{name} [{unit_label(units)}]")
+    ax.grid(alpha=.3)
+    ax.legend(loc="best")
     return png(fig)

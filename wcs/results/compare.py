@@ -46,8 +46,10 @@ def _open(path: str) -> xr.Dataset:
 
 
 def compared(ds: xr.Dataset) -> list[str]:
-    """The variables `compare` looks at in a results file, in this order."""
-    return [*CORE, *sorted(v for v in ds.data_vars if str(v).startswith(("worst_", "best_")))]
+    """The variables `compare` looks at in a results file, in this order (a dynamic study's
+    criteria at every time level, `phi_history`, after `phi`)."""
+    history = ["phi_history"] if "phi_history" in ds else []
+    return [*CORE, *history, *sorted(v for v in ds.data_vars if str(v).startswith(("worst_", "best_")))]
 
 
 def _label(var: xr.DataArray, index: tuple) -> str:

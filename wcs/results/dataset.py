@@ -21,6 +21,7 @@ from ..model import validity
 from ..model.dynamic_numbers import DYNAMIC_UNITS
 from ..status import Status, flag_attrs
 from ..study.fuzzy import alpha_cut
+from .dynamics import dynamic_results
 
 
 def git_commit() -> str:
@@ -275,6 +276,8 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))   # the worst cases' fields leave the model's validity
     if extremes:
         ds = ds.assign_coords(range_coords(study)).assign(range_variables(study, crit, extremes, unit_text))
+    if getattr(study, "dynamics", None) is not None:
+        ds = dynamic_results(ds, study, records)
     return ds
 
 

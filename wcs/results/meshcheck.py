@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import StudyError
-from ..model.evaluation import Evaluator
+from ..dynamics.history import evaluator_for
 from .extremes import Extreme, kinds, pairs
 from ..progress import phase
 from ..scene.estimate import BYTES_PER_CELL, DEFAULT_MAX_CELLS, machine_memory
@@ -297,7 +297,7 @@ def mesh_check(study, ds: xr.Dataset, found: list[Extreme]) -> xr.Dataset:
             for j, s in enumerate(splits, start=1):
                 t0 = time.perf_counter()
                 try:
-                    ev = Evaluator(study, splits=s)
+                    ev = evaluator_for(study, splits=s)
                 except StudyError as err:
                     status = f"not available: {err.fault}"
                     break

@@ -32,6 +32,7 @@ from ..results.store import WriteError, check_output, incomplete_run, store_path
 from ..study.load import load_study
 from ..model.validity import warnings as validity_warnings
 from ..results.verdict import attributes as verdict_attributes
+from ..report.timeline import in_time
 from ..results.verdict import verdict
 from .dynamics import solve_dynamic
 
@@ -74,9 +75,13 @@ def _finish_command(args, study, ds, out: Path) -> int:
 
 
 def criteria_in_words(study) -> str:
-    """What each criterion is: its reduction over its regions and its units."""
-    return "\n".join(f"  {c.name}: {in_words(c.kind, list(c.regions))} [{KINDS[c.kind].units}]"
-                     for c in study.criteria)
+    """What each criterion is: its reduction over its regions (in a dynamic study also over time,
+    "the peak over time of ...") and its units."""
+
+    def what(c):
+        words = in_words(c.kind, list(c.regions))
+        return words if study.dynamics is None else in_time(words, c.over_time or "max")
+    return "\n".join(f"  {c.name}: {what(c)} [{KINDS[c.kind].units}]" for c in study.criteria)
 
 
 def resume_command(args, how: str = "--resume") -> str:
@@ -259,12 +264,14 @@ def solve_worst(args) -> int:
         print(f"note: {run_file} was written for a different version of {args.study}", file=sys.stderr)
     out = Path(args.output or Path(study.output).with_name(f"{Path(study.output).stem}-worst-{criterion}.nc"))
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
-    t0 = time.perf_counter()
-    ev = Evaluator(study)
     point = x
     if extra:
         point = dict(zip(study.parameters.names, map(float, x)))
         point.update(extra)
+    if study.dynamics is not None:              # the levels at the worst data, as `wcs solve` writes them
+        return solve_dynamic(study, out, args, point)
+    t0 = time.perf_counter()
+    ev = Evaluator(study)
     with phase("solve"):
         res = ev.evaluate(point)
     if res.status != 0:

@@ -10,29 +10,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from wcs.dynamics.stepping import dynamic_matrices, level_solution, region_dynamics, step_levels
-
-REDUCTIONS = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
-REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "at the end time",
-           "mean": "the mean over the levels"}
-
-
-def simulate(ev, x=(), others=None, load=None, damping=None):
-    """The `History` of a study's levels at data vector x (`wcs.evaluation.Evaluator` ev):
-    load(t) the load vector on the full DOFs at time t (None: the data set's own, constant),
-    damping an extra damping matrix on the full DOFs (absorbing layers, dashpots)."""
-    model = ev.model
-    c = ev.map.coefficients(x, others)
-    rho, visc = region_dynamics(model, ev.map, x, others)
-    mats = dynamic_matrices(model, c, rho, visc, damping)
-    return step_levels(model, c, mats, ev.study.dynamics, load, ev.criteria)
-
-
-def reduced(study, history) -> dict[str, float]:
-    """Each criterion's history reduced by its `over_time` (default max, the peak)."""
-    return {crit.name: float(REDUCTIONS[crit.over_time or "max"](np.asarray(history.phi[crit.name], float)))
-            for crit in study.criteria}
-
+from wcs.dynamics.history import REDUCED, reduced, simulate
+from wcs.dynamics.stepping import level_solution
 
 def history_dataset(study, ev, hist) -> xr.Dataset:
     """The results file of a dynamic solve."""
@@ -100,9 +79,10 @@ def write_series(ev, hist, c, out: Path) -> Path:
     return pvd
 
 
-def solve_dynamic(study, out: Path, args) -> int:
+def solve_dynamic(study, out: Path, args, point=None) -> int:
     """`wcs solve STUDY` of a dynamic study: run the levels, print the reduced criteria, write
-    OUT.nc and the ParaView series."""
+    OUT.nc and the ParaView series; `point` a data set (a vector or {dotted path: value}; `solve
+    --worst`), else the nominal data."""
     from wcs.model.criteria import in_words
     from wcs.errors import SolveError
     from wcs.model.evaluation import Evaluator
@@ -111,15 +91,16 @@ def solve_dynamic(study, out: Path, args) -> int:
     from wcs.results.store import WriteError
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    x = study.nominal()
+    x, others = study.data_set(study.nominal() if point is None else point)
     try:
-        hist = simulate(ev, x)
+        hist = simulate(ev, x, others)
     except SolveError as e:
-        print(f"error: {args.study}: the nominal data set cannot be solved: {e}", file=sys.stderr)
+        which = "nominal" if point is None else "given"
+        print(f"error: {args.study}: the {which} data set cannot be solved: {e}", file=sys.stderr)
         return 2 if Status(e.status).scene_fault else 1
     try:
         path = write_netcdf(history_dataset(study, ev, hist), out)
-        pvd = write_series(ev, hist, ev.map.coefficients(x), out)
+        pvd = write_series(ev, hist, ev.map.coefficients(x, others), out)
     except WriteError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
@@ -153,6 +134,12 @@ def check_dynamic(study, ev, args, summary: str) -> int:
         print(summary)
         print(f"  dynamics: {dyn.levels} levels of {dyn.time_step:g} s to {dyn.levels * dyn.time_step:g} s, scheme "
               f"{dyn.scheme}, initial state {start}; fields every {dyn.output_every} levels, criteria at every level")
+        if study.parameters.names:
+            solves = ("one linear solve" if not study.scene.contacts else "two contact solves (predictor and step)"
+                      if dyn.scheme == "stabilized" else "one contact solve")
+            print(f"  search over time: one evaluation is one simulation ({dyn.levels} levels of {solves} each, "
+                  f"not the one solve estimated above); no adjoint gradient through time: finite differences of "
+                  f"the reduced criteria where the search asks for gradients")
     if dyn.initial == "static":
         try:
             initial_state(ev.model, ev.map.coefficients(study.nominal()), dyn)

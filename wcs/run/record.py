@@ -37,6 +37,7 @@ class Record(TypedDict):
     nonsmooth: int                     # 1: the active set (or the max over regions) changes within reach
     stage: str                         # the search stage that asked for it
     sweep: NotRequired[np.ndarray]     # a sweep's values of the swept paths
+    phi_history: NotRequired[np.ndarray]   # (k, levels + 1) a dynamic study's criteria at every time level
     from_store: NotRequired[bool]      # answered from the store, not solved in this session
 
 
@@ -55,6 +56,8 @@ def from_evaluation(ev, criteria: list[str], n: int, stage: str, gradients: bool
            "nonsmooth": int(bool(getattr(ev, "nonsmooth", False))), "stage": stage}
     if sweep is not None:
         rec["sweep"] = np.asarray(sweep, float)
+    if ok and getattr(ev, "history", None) is not None:
+        rec["phi_history"] = np.asarray(ev.history, float)
     return rec
 
 
@@ -77,6 +80,8 @@ def from_store(stored: dict, stage: str) -> Record:
            "nonsmooth": int(stored["nonsmooth"]), "stage": stage, "from_store": True}
     if "sweep" in stored:
         rec["sweep"] = stored["sweep"].astype(float)
+    if "phi_history" in stored:
+        rec["phi_history"] = stored["phi_history"].astype(float)
     return rec
 
 

@@ -49,7 +49,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import StudyError
-from ..model.evaluation import Evaluation, Evaluator
+from ..model.evaluation import Evaluation
 from .parallel import rank, world
 from .problem import build_problem
 from ..progress import phase, reporting
@@ -61,7 +61,7 @@ from ..results.store import WriteError, key
 from ..study.data import parameter_vector
 from ..study.fuzzy import alpha_cut
 from ..study.load import load_study
-from ..dynamics.spec import refuse_search
+from ..dynamics.history import evaluator_for
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 def get_strategy(name: str):
@@ -90,7 +90,6 @@ class Runner:
         """output: the results file (None: the study's `output`; False: in memory only).
         where: (file, key path) that named the output, for its errors (default: the study's
         `output` when `output` is None). on_event: told every `Event`."""
-        refuse_search(study)
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
         self.study = study
@@ -113,7 +112,7 @@ class Runner:
         t0 = time.perf_counter()
         # MPI: each rank solves its share of a batch, with the DD solver too (its model is serial:
         # a whole `dd` study on 2 ranks measured faster so than with each DD solve spread over them)
-        self.evaluator = evaluator or Evaluator(study)
+        self.evaluator = evaluator or evaluator_for(study)
         self.criteria = [c.name for c in self.evaluator.criteria]
         self.names = list(study.parameters.names)
         self.sweep_paths = list(study.sweep.grid if study.sweep else {}) if kind == "sweep" else None

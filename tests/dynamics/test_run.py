@@ -1,0 +1,200 @@
+"""`wcs run` / `wcs sweep` on a dynamic study (issue 29, item 3): one evaluation is one
+simulation, each criterion's history reduced by its `over_time`; the results file holds
+`phi_history` (eval, criterion, time) and the worst cases' fields at the output times; resume
+and two MPI ranks give the serial run's bits; no adjoint through time, and the file says so."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from tests.support.bad_studies import write_study
+from tests.dynamics.test_bars import DURATION, bars
+from wcs.cli import main
+from wcs.run.dynamics import simulate
+from wcs.model.evaluation import Evaluator
+from wcs.study import load_study
+from wcs.results.store import store_path
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+REDUCE = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
+
+
+def tiny(budget=4):
+    """The two bars, coarse, to just past the impact, with an uncertain modulus and density and
+    one criterion per reduction."""
+    doc = bars(0.05, 1e-5, "stabilized", width=0.05, end=DURATION / 2)
+    doc["dynamics"]["output_every"] = 5
+    doc["scene"]["boundaries"]["t_end"] = {"body": "target", "segment": [[2.0, 0.0], [2.0, 0.05]]}
+    doc["scene"]["regions_of_interest"]["end"] = {"boundary": "t_end"}
+    doc["uncertain"] = {"materials.steel.E": [1.9e11, 2.3e11], "materials.steel.density": [7700.0, 8000.0]}
+    doc["criteria"] = [
+        {"name": "peak", "kind": "contact_pressure", "regions": ["face"], "over_time": "max"},
+        {"name": "travel", "kind": "mean_normal_displacement", "regions": ["end"], "direction": [1.0, 0.0],
+         "over_time": "final"},
+        {"name": "least", "kind": "contact_pressure", "regions": ["face"], "over_time": "min"},
+        {"name": "average", "kind": "contact_pressure", "regions": ["face"], "over_time": "mean"}]
+    doc["search"] = {"method": "sample", "sample": {"design": "lhs", "n": budget, "seed": 3}, "budget": budget}
+    return doc
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dyn-run")
+    path = write_study(tiny(), folder, "study.yaml")
+    out = folder / "serial.nc"
+    assert main(["run", str(path), "-o", str(out), "--quiet", "--no-mesh-check"]) == 0
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        return path, out, ds.load()
+
+
+def test_each_evaluation_is_a_simulation_reduced_over_time(serial):
+    path, _, ds = serial
+    study = load_study(path)
+    levels = study.dynamics.levels
+    assert ds["phi_history"].dims == ("eval", "criterion", "time") and ds.sizes["time"] == levels + 1
+    assert ds["time"].values == pytest.approx(np.arange(levels + 1) * 1e-5)
+    assert (ds["status"].values == 0).all() and ds.sizes["eval"] == 4
+    over = dict(zip(map(str, ds["criterion"].values), map(str, ds["over_time"].values)))
+    assert over == {"peak": "max", "travel": "final", "least": "min", "average": "mean"}
+    for c, how in over.items():       # phi is each history reduced, bit for bit
+        h = ds["phi_history"].sel(criterion=c).values
+        assert np.array_equal(ds["phi"].sel(criterion=c).values, [REDUCE[how](row) for row in h]), c
+    # one evaluation is the simulation `wcs solve` runs at that data set
+    x = ds["x"].values[2]
+    hist = simulate(Evaluator(study), x)
+    assert np.array_equal(ds["phi_history"].values[2, 0], hist.phi["peak"])
+    # the peak contact stress grows with sqrt(E rho) (d'Alembert: rho c v0 / 2): the worst is the stiffest,
+    # densest sample
+    peak = ds["phi"].sel(criterion="peak").values
+    assert int(ds["worst_eval"].sel(criterion="peak")) == int(np.argmax(peak))
+    assert np.argmax(peak) == np.argmax(ds["x"].values[:, 0] * ds["x"].values[:, 1])
+
+
+def test_the_worst_fields_are_kept_at_the_output_times(serial):
+    path, _, ds = serial
+    dyn = load_study(path).dynamics
+    out = [n for n in range(dyn.levels + 1) if n % 5 == 0 or n == dyn.levels]
+    assert ds["output_time"].values == pytest.approx(np.array(out) * 1e-5)
+    u = ds["worst_displacement"]
+    assert u.dims == ("criterion", "output_time", "node", "dim")
+    assert ds["worst_contact_pressure"].dims[:2] == ("criterion", "output_time")
+    # the target's far end at the end time is the `final` criterion of the worst case
+    j = list(map(str, ds["criterion"].values)).index("travel")
+    end = np.isclose(ds["coords"].values[:, 0], 2.0)
+    assert u.values[j, -1, end, 0].mean() == pytest.approx(float(ds["worst_value"].sel(criterion="travel")),
+                                                            rel=1e-12)
+    assert np.all(np.isfinite(ds["worst_small_strain_gradient"].values))
+
+
+def test_the_results_say_no_adjoint_gradient_was_used(serial):
+    _, _, ds = serial
+    assert ds.attrs["gradients"].startswith("none: no adjoint through time")
+    assert all("no adjoint gradient through time was used" in str(n) for n in ds["certificate_note"].values)
+    assert np.isnan(ds["grad"].values).all()
+
+
+def test_resume_answers_from_the_store_with_the_same_bits(serial, tmp_path):
+    path, out, ds = serial
+    folder = tmp_path / "resumed"
+    shutil.copytree(out.parent, folder)
+    again = folder / "serial.nc"
+    stored = sorted(store_path(again).glob("*.npz"))
+    assert len(stored) == 4
+    for f in stored[::2]:              # the run was cut short: half its evaluations are lost
+        f.unlink()
+    assert main(["run", str(folder / "study.yaml"), "-o", str(again), "--resume", "--quiet", "--no-mesh-check"]) == 0
+    with xr.open_dataset(again, engine="h5netcdf") as r:
+        assert r.attrs["answered_from_store"] == 2 and r.attrs["solves_this_session"] == 2
+        for v in ("x", "phi", "phi_history", "status", "worst_value", "worst_x", "worst_displacement",
+                  "worst_contact_pressure"):
+            assert np.array_equal(r[v].values, ds[v].values, equal_nan=True), v
+
+
+def test_sweep_over_a_dynamic_study(tmp_path):
+    doc = tiny()
+    doc["sweep"] = {"grid": {"materials.steel.E": [1.9e11, 2.3e11]}}
+    path = write_study(doc, tmp_path, "study.yaml")
+    out = tmp_path / "sweep.nc"
+    assert main(["sweep", str(path), "-o", str(out), "--quiet"]) == 0
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        peak = ds["phi"].sel(criterion="peak").values
+        assert ds["phi_history"].shape[:2] == (2, 4) and peak[1] > peak[0]
+
+
+@pytest.mark.slow
+def test_two_ranks_give_the_serial_dynamic_run_bitwise(serial, tmp_path):
+    mpiexec = BIN / "mpiexec"
+    if not mpiexec.exists():
+        pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
+    path, _, ds = serial
+    shutil.copy(path, tmp_path / "study.yaml")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+    run = subprocess.run([str(mpiexec), "-n", "2", str(BIN / "wcs"), "run", "study.yaml", "-o", "mpi.nc",
+                          "--quiet", "--no-mesh-check"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr + run.stdout
+    with xr.open_dataset(tmp_path / "mpi.nc", engine="h5netcdf") as m:
+        for v in ("x", "phi", "phi_history", "status", "worst_value", "worst_x", "worst_displacement"):
+            assert np.array_equal(m[v].values, ds[v].values, equal_nan=True), v
+
+
+def test_solve_worst_runs_the_levels_at_the_worst_data(serial, tmp_path):
+    path, out, ds = serial
+    one = tmp_path / "worst.nc"
+    assert main(["solve", str(path), "--worst", str(out), "peak", "-o", str(one), "--quiet"]) == 0
+    row = int(ds["worst_eval"].sel(criterion="peak"))
+    with xr.open_dataset(one, engine="h5netcdf") as w:
+        assert np.array_equal(w["phi_history"].values, ds["phi_history"].values[row])
+        assert float(w["phi"].sel(criterion="peak")) == float(ds["worst_value"].sel(criterion="peak"))
+    assert one.with_suffix(".pvd").is_file()
+
+
+def test_check_says_what_an_evaluation_is_and_names_the_reductions(serial, capsys):
+    path, _, _ = serial
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "peak: the peak over time of mean contact pressure" in out and "the least over time of" in out
+    assert "one evaluation is one simulation (17 levels of two contact solves" in out
+    assert "no adjoint gradient through time" in out
+
+
+def test_a_failed_simulation_is_a_record_with_its_status_and_no_history(monkeypatch):
+    """A level that fails fails its evaluation (status and message, NaN criteria and history);
+    the run goes on."""
+    import wcs
+    import wcs.dynamics.history as history
+    from wcs.errors import SolveError
+    from wcs.status import Status
+    study = load_study(tiny(budget=3))
+    real = history.simulate
+
+    def fails_when_soft(ev, x, others=None):
+        if x[0] < 2.1e11:
+            raise SolveError("time level 3 (t = 3e-05 s), step: no convergence", status=Status.CONTACT_NOT_CONVERGED)
+        return real(ev, x, others)
+    monkeypatch.setattr(history, "simulate", fails_when_soft)
+    ds = wcs.run(study, output=False)
+    bad = ds["x"].values[:, 0] < 2.1e11
+    assert bad.any() and (~bad).any()
+    assert (ds["status"].values[bad] == int(Status.CONTACT_NOT_CONVERGED)).all() and (ds["status"].values[~bad] == 0).all()
+    assert "time level 3" in str(ds["message"].values[bad][0])
+    assert np.isnan(ds["phi_history"].values[bad]).all() and np.isfinite(ds["phi_history"].values[~bad]).all()
+    assert "sum over the time levels" in ds["iterations"].attrs["long_name"]
+
+
+def test_compare_looks_at_the_histories(serial, tmp_path, capsys):
+    _, out, ds = serial
+    changed = ds.copy(deep=True)
+    changed["phi_history"].values[1, 0, 3] *= 1 + 1e-9         # one level of one evaluation, phi unchanged
+    changed.to_netcdf(tmp_path / "changed.nc", engine="h5netcdf")
+    capsys.readouterr()
+    assert main(["compare", str(out), str(tmp_path / "changed.nc")]) == 4
+    assert "phi_history" in capsys.readouterr().out

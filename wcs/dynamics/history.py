@@ -1,0 +1,114 @@
+"""The worst-scenario search over a dynamic study (issue 29, item 3): the evaluation of one data
+set is one simulation of its time levels, and each criterion's value is its history reduced by
+`over_time` (max, the peak, by default; `reduced`).
+
+`DynamicEvaluator` is the `Evaluator` of such a study: `evaluate(x)` runs the levels and returns
+an `Evaluation` whose `phi` are the reduced values, `history` the criteria at every level and
+`fields` the solution fields at the output levels (an `output_time` dimension). It has no
+`gradients` argument: there is no adjoint through time yet, so the search gets no adjoint
+gradient — the strategies that want one take finite differences of the reduced criterion
+(`wcs.search.ascent`), and the results file says so (`wcs.results.dynamics`).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from wcs.errors import SolveError
+from wcs.model.evaluation import Evaluation, Evaluator
+from wcs.status import Status
+
+from .stepping import dynamic_matrices, level_solution, region_dynamics, step_levels
+
+REDUCTIONS = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
+REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "at the end time",
+           "mean": "the mean over the levels"}
+
+
+def simulate(ev, x=(), others=None, load=None, damping=None):
+    """The `History` of a study's levels at data vector x (`wcs.model.evaluation.Evaluator` ev):
+    load(t) the load vector on the full DOFs at time t (None: the data set's own, constant),
+    damping an extra damping matrix on the full DOFs (absorbing layers, dashpots)."""
+    model = ev.model
+    c = ev.map.coefficients(x, others)
+    rho, visc = region_dynamics(model, ev.map, x, others)
+    mats = dynamic_matrices(model, c, rho, visc, damping)
+    return step_levels(model, c, mats, ev.study.dynamics, load, ev.criteria)
+
+
+def reduced(study, history) -> dict[str, float]:
+    """Each criterion's history reduced by its `over_time` (default max, the peak)."""
+    return {crit.name: float(REDUCTIONS[crit.over_time or "max"](np.asarray(history.phi[crit.name], float)))
+            for crit in study.criteria}
+
+
+
+def evaluator_for(study, **kw) -> Evaluator:
+    """The evaluator of a study: its levels for a dynamic study, one static solve otherwise."""
+    return (DynamicEvaluator if getattr(study, "dynamics", None) is not None else Evaluator)(study, **kw)
+
+
+@dataclass
+class DynamicEvaluation(Evaluation):
+    history: np.ndarray | None = None       # (criterion, time): every criterion at every level
+    levels: object = field(default=None, repr=False)    # (coefficients, History) of the simulation
+
+    @property
+    def fields(self):
+        """xarray.Dataset of the fields at the output levels (`output_time` first); the
+        small-strain measures are their largest over those times (built on first access)."""
+        if self._fields is None and self.levels is not None:
+            self._fields = output_fields(self.evaluator.model, *self.levels)
+        return self._fields
+
+
+def output_fields(model, c, hist) -> xr.Dataset:
+    """The fields (`wcs.fields.fields_dataset`) of each output level of a `History`, stacked along
+    `output_time`; the mesh once; `small_strain_*` the largest over the output times."""
+    from wcs.contact.solver import ContactResult
+    from wcs.model.fields import fields_dataset
+    heat = model.solve_heat(c) if model.thermal else None
+    parts = []
+    for n, u in zip(hist.output_levels, hist.displacement):
+        res = None
+        if model.zone is not None:
+            res = ContactResult(None, hist.force_n[n], hist.force_t[n], Status.SOLVED, "")
+        parts.append(fields_dataset(model, level_solution(model, c, u, res, heat)))
+    first = parts[0]
+    fixed = ("coords", "cells", "cell_body", "cell_region", "contact_coords", "contact_pair")
+    moving = [v for v in first.data_vars if v not in fixed]
+    out = xr.concat([p[moving] for p in parts], dim="output_time", data_vars="all")
+    for v in moving:
+        if "small_strain" in v:
+            out[v] = out[v].max("output_time").assign_attrs(
+                {**first[v].attrs, "long_name": f"{first[v].attrs.get('long_name', v)}, the largest over the output times"})
+    out = out.assign({v: first[v] for v in fixed if v in first})
+    t = np.asarray(hist.time)[hist.output_levels]
+    return out.assign_coords(output_time=("output_time", t, {"units": "s", "long_name": "time of the output level"}))
+
+
+class DynamicEvaluator(Evaluator):
+    """The `Evaluator` of a dynamic study: one evaluation is one simulation of the levels."""
+
+    def evaluate(self, values) -> DynamicEvaluation:
+        """The levels at a parameter vector or a mapping {dotted path: value} (others nominal):
+        phi the criteria reduced over time, history every level's values. A level that fails
+        makes the evaluation fail with its status and message (NaN criteria)."""
+        t0 = time.perf_counter()
+        study = self.study
+        x, others = study.data_set(values)
+        names = [c.name for c in self.criteria]
+        try:
+            hist = simulate(self, x, others)
+        except SolveError as e:
+            nan = {n: float("nan") for n in names}
+            return DynamicEvaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
+        phi = reduced(study, hist)
+        history = np.array([hist.phi[n] for n in names], float).reshape(len(names), -1)
+        c = self.map.coefficients(x, others)
+        return DynamicEvaluation(x, phi, Status.SOLVED, f"solved ({len(hist.time) - 1} time levels)",
+                                 int(np.sum(hist.iterations)), time.perf_counter() - t0, evaluator=self,
+                                 history=history, levels=(c, hist))
