@@ -4,5 +4,6 @@
 addressable data; `mass` assembles the mass and viscous matrices;
 `schemes` holds one time level of each scheme (operator, load, update) as pure functions;
 `stepping` runs the levels with one contact solve each; `energy` measures what the levels
-keep and lose; `command` is `wcs solve` on a dynamic study.
+keep and lose; `command` is `wcs solve` on a dynamic study; `time_functions`, `sources` and
+`absorbing` are the loads in time, the point sources and the absorbing boundaries.
 """
