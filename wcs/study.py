@@ -55,7 +55,7 @@ from pydantic import (
 from .choose import MeshFacts, mesh_size
 from .criteria import KINDS
 from .dynamics.numbers import DYNAMIC_ADDRESSES
-from .dynamics.spec import Dynamics, check_dynamics, refuse_pending
+from .dynamics.spec import Dynamics, check_dynamics
 from .errors import StudyError
 from .options import CONFIG as _CONFIG
 from .options import MAX_SOLVES
@@ -426,7 +426,6 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw = dict(raw)
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
-    refuse_pending(raw, src.error)
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     try:
         scene = src.validate(_SCENE3D if three else _SCENE, raw)

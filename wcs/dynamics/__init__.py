@@ -7,3 +7,5 @@ addressable data; `mass` assembles the mass and viscous matrices;
 keep and lose; `command` is `wcs solve` on a dynamic study; `time_functions`, `sources` and
 `absorbing` are the loads in time, the point sources and the absorbing boundaries.
 """
+
+from ..scene import spec as _scene  # noqa: E402,F401 - the scene's models hold the loads below: the scene loads first

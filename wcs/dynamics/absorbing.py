@@ -31,9 +31,9 @@ from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from ..fem import tet
-from ..fem.affine import gradients
 from ..scene.selectors import facet_lengths, facet_normals
 from ..scene.spec import FEATURE, Frozen, Name
+from .mass import mass_cell_matrices
 
 DAMPING = {"gt": 0.0, "le": 1e9}        # α [1/s]
 
@@ -113,19 +113,12 @@ def dashpot_matrix(mesh, facets, zp, zs) -> sp.csr_matrix:
 
 
 def weighted_mass(p, t, cells, weight) -> sp.csr_matrix:
-    """∫ w φ_a φ_b I dx over the given cells, w constant per cell (a number or one per cell):
-    |T| w (1 + δ_ab) / ((d + 1)(d + 2)) on a P1 simplex, for each component (d nnodes square)."""
+    """∫ w φ_a φ_b I dx over the given cells, w constant per cell (a number or one per cell): the
+    consistent P1 mass of `wcs.dynamics.mass` times w (d nnodes square)."""
     cells = np.asarray(cells, dtype=np.int64)
-    d = p.shape[0]
-    _, vol = gradients(p, t[:, cells])
-    w = np.broadcast_to(np.asarray(weight, dtype=float), vol.shape) * vol
-    values = w[:, None, None] * (1.0 + np.eye(d + 1)) / ((d + 1) * (d + 2))    # (ne, a, b)
-    nodes = t[:, cells].T
-    rows = np.broadcast_to(nodes[:, :, None], values.shape).ravel()
-    cols = np.broadcast_to(nodes[:, None, :], values.shape).ravel()
-    return sp.csr_matrix((np.tile(values.ravel(), d), (np.concatenate([d * rows + i for i in range(d)]),
-                                                       np.concatenate([d * cols + i for i in range(d)]))),
-                         shape=(d * p.shape[1], d * p.shape[1]))
+    local = mass_cell_matrices(p, t[:, cells])[0]                              # (ne, a, b, i, j), unit density
+    w = np.broadcast_to(np.asarray(weight, dtype=float), (cells.size,))
+    return _assemble(t[:, cells].T, w[:, None, None, None, None] * local, p.shape[0], p.shape[1])
 
 
 def _assemble(nodes, blocks, d, nnodes) -> sp.csr_matrix:

@@ -297,6 +297,7 @@ class Support(Frozen):
 class Load(Frozen):
     pressure: Optional[float] = Field(None, **STRESS)
     traction: Optional[Annotated[list[Annotated[float, Field(**STRESS)]], Field(min_length=2, max_length=2)]] = None
+    time: Optional[TimeFunction] = None            # a dynamic study's factor in time (`wcs.dynamics.time_functions`)
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -390,6 +391,8 @@ class Scene(Frozen):
     glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
     regions_of_interest: dict[Name, RegionOfInterest] = {}
+    sources: dict[Name, Source] = {}               # a dynamic study's point sources (`wcs.dynamics.sources`)
+    absorbing: Optional[Absorbing] = None          # its absorbing boundaries (`wcs.dynamics.absorbing`)
 
     @field_validator("dimension")
     @classmethod
@@ -398,3 +401,12 @@ class Scene(Frozen):
             raise ValueError("the dimension is 2 (plane) or 3")
         return dimension
 
+
+
+# The dynamic loads' models are built on the classes above (the cycle is closed here, at the end).
+from ..dynamics.absorbing import Absorbing  # noqa: E402
+from ..dynamics.sources import Source  # noqa: E402
+from ..dynamics.time_functions import TimeFunction  # noqa: E402
+
+Load.model_rebuild()
+Scene.model_rebuild()

@@ -11,6 +11,10 @@ from typing import Annotated, Literal, Optional
 import numpy as np
 from pydantic import AfterValidator, Field, model_validator
 
+from ..dynamics.absorbing import Absorbing
+from ..dynamics.sources import Source
+from ..dynamics.time_functions import TimeFunction
+
 from .spec import (BODY_FORCE, FEATURE, FEATURE_MIN, LENGTH, STRESS, Contact, Coordinate, Frozen, Glue,
                    Material, Name, RegionMesh, Shape, Thermal, _exactly_one)
 
@@ -180,6 +184,7 @@ class Support(Frozen):
 class Load(Frozen):
     pressure: Optional[float] = Field(None, **STRESS)
     traction: Optional[Annotated[list[Annotated[float, Field(**STRESS)]], Field(min_length=3, max_length=3)]] = None
+    time: Optional[TimeFunction] = None            # a dynamic study's factor in time
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -216,6 +221,8 @@ class Scene(Frozen):
     glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
     regions_of_interest: dict[Name, RegionOfInterest] = {}
+    sources: dict[Name, Source] = {}               # a dynamic study's point sources
+    absorbing: Optional[Absorbing] = None          # its absorbing boundaries
 
 
 Solid.model_rebuild()
