@@ -1,0 +1,107 @@
+"""A steel cylinder dropped on a steel block (plane strain, half model) against Hertz's impact
+theory (`reference_forms.cylinder_impact`, the line law with the constants measured for these
+bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder decelerated by its
+inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
+mesh is studies/validation/cylinder-impact.yaml.
+
+Measured (seed scheme [101, (10)], `python tests/test_dynamics_impact.py`): contact time within
+1 % of the theory on every mesh; the peak force 3.6–4.2 % below it, closing with Δt (the scheme's
+first-order numerical damping: −5.8 % at Δt = 2 µs, −4.1 % at 1 µs, −3.6 % at 0.5 µs on the
+coarse mesh) and not with h (−3.6 %, −4.1 %, −4.1 % at h = 0.4, 0.2, 0.1 mm): what remains is
+the theory's quasi-static assumption (the block's waves return from its base in 34 µs, a quarter
+of the contact time) — the issue's 3 % on the peak force is not reached.
+"""
+import numpy as np
+import pytest
+
+from reference_forms import cylinder_impact, line_law
+from wcs.dynamics.command import simulate
+from wcs.evaluation import Evaluator
+from wcs.study import load_study
+
+E, NU, RHO = 2.0e11, 0.3, 7850.0
+R, H, V = 0.05, 0.1, 1.0          # cylinder radius, block height (width 2H), impact speed [m, m, m/s]
+K1, K2 = -1.75, 0.0               # the line law's constants measured for these bodies
+
+
+def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 1.6e-4) -> dict:
+    """The half model (x >= 0) of the cylinder striking the block at V, mesh size h at the contact."""
+    seg = lambda body, a, z: {"body": body, "segment": [a, z]}     # noqa: E731
+    return {
+        "study": "cylinder-impact",
+        "dynamics": {"end_time": end, "time_step": dt, "scheme": scheme, "output_every": 100000,
+                     "initial": {"velocity": {"cylinder": [0.0, -V]}}},
+        "scene": {
+            "plane": "strain",
+            "mesh": {"size": R / 5, "grading": 0.3,
+                     "refine": [{"box": [0.0, -0.002, 0.002, 0.002], "size": h},
+                                {"box": [0.0, -0.008, 0.008, 0.008], "size": 4 * h}]},
+            "materials": {"steel": {"E": E, "nu": NU, "density": RHO}},
+            "bodies": {"cylinder": {"regions": [{"material": "steel", "shape": {
+                           "disc": {"center": [0.0, R], "radius": R}, "intersect": [{"rectangle": [0.0, 0.0, R, 2 * R]}]}}]},
+                       "block": {"regions": [{"material": "steel", "shape": {"rectangle": [0.0, -H, H, 0.0]}}]}},
+            "boundaries": {"cyl_sym": seg("cylinder", [0.0, 0.0], [0.0, 2 * R]),
+                           "cyl_arc": {"body": "cylinder", "circle": {"center": [0.0, R], "radius": R}},
+                           "block_sym": seg("block", [0.0, -H], [0.0, 0.0]),
+                           "block_bottom": seg("block", [0.0, -H], [H, -H]),
+                           "block_top": seg("block", [0.0, 0.0], [H, 0.0])},
+            "supports": {"cyl_sym": {"u": [0.0, None]}, "block_sym": {"u": [0.0, None]},
+                         "block_bottom": {"u": [0.0, 0.0]}},
+            "contacts": {"impact": {"slave": "cyl_arc", "master": "block_top"}},
+        },
+    }
+
+
+def hertz() -> tuple[float, float]:
+    """(t_c [s], q_max [N/m]) of the theory for the whole cylinder (mass ρπR² per unit length)."""
+    c, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
+    tc, q, _ = cylinder_impact(RHO * np.pi * R ** 2, V, c, s)
+    return tc, q
+
+
+def impact(h: float, dt: float, scheme: str = "seed"):
+    """(t_c, q_max, the energy kept at the end / initial, the history) of the FE impact: t_c counts
+    the levels that carry a contact force (each Δt long), q the whole cylinder's (twice the half's)."""
+    study = load_study(cylinder(h, dt, scheme))
+    hist = simulate(Evaluator(study), study.nominal())
+    q = 2.0 * hist.total_force
+    energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
+    return np.count_nonzero(q > 0) * dt, q.max(), energy[-1] / energy[0], hist
+
+
+def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
+    """Coarse mesh (h = 0.4 mm, b_max = 0.93 mm): t_c within 1 % (measured −0.9 %, −0.1 %); the
+    peak force's deficit shrinks as Δt halves (−5.8 % → −4.1 %: the seed scheme's damping)."""
+    tc_ref, q_ref = hertz()
+    errors = []
+    for dt in (2e-6, 1e-6):
+        tc, q, kept, _ = impact(4e-4, dt)
+        assert tc == pytest.approx(tc_ref, rel=0.01)
+        assert q == pytest.approx(q_ref, rel=0.07)
+        assert kept < 1.0                              # backward Euler in the velocity: it only loses
+        errors.append(q / q_ref - 1.0)
+    assert errors[0] < errors[1] < 0.0
+
+
+@pytest.mark.slow
+def test_cylinder_impact_over_three_meshes():
+    """h = 0.4, 0.2, 0.1 mm at Δt = 0.5 µs: t_c within 1 %, the peak force within 5 % of Hertz
+    (measured −3.6, −4.1, −4.1 %), the changes between meshes shrinking (observed order
+    log2(|q₁ − q₂| / |q₂ − q₃|), printed)."""
+    tc_ref, q_ref = hertz()
+    q = []
+    for h in (4e-4, 2e-4, 1e-4):
+        tc, qmax, _, _ = impact(h, 5e-7)
+        assert tc == pytest.approx(tc_ref, rel=0.01)
+        assert qmax == pytest.approx(q_ref, rel=0.05)
+        q.append(qmax)
+    order = np.log2(abs(q[0] - q[1]) / abs(q[1] - q[2]))
+    print(f"peak force {[f'{x / q_ref - 1:+.2%}' for x in q]}, observed order {order:.2f}")
+    assert abs(q[1] - q[2]) < abs(q[0] - q[1])
+
+
+if __name__ == "__main__":
+    tc_ref, q_ref = hertz()
+    for h, dt in ((4e-4, 2e-6), (4e-4, 1e-6), (4e-4, 5e-7), (2e-4, 5e-7), (1e-4, 5e-7), (1e-4, 2.5e-7)):
+        tc, q, kept, _ = impact(h, dt)
+        print(f"h {h:g} dt {dt:g}: t_c {tc / tc_ref - 1:+.2%}, q_max {q / q_ref - 1:+.2%}, energy kept {kept:.4f}")
