@@ -127,7 +127,7 @@ def test_a_held_fault_node_leaves_the_point_smooth_and_its_pressure_gradient_exa
 FAST = ("tunnel-fault",)
 SHIPPED = [pytest.param(p, id=p.stem, marks=() if p.stem in FAST else pytest.mark.slow)
            for p in sorted([*STUDIES.glob("*.yaml"), *(STUDIES / "validation").glob("*.yaml")])
-           if "\ndynamics:" not in p.read_text()]    # a dynamic study's static start: test_dynamics_equilibrium.py
+           if "\ndynamics:" not in p.read_text()]          # a dynamic study has no one static answer
 
 
 @pytest.mark.parametrize("path", SHIPPED)

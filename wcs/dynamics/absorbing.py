@@ -22,45 +22,16 @@ mesher, 2D and 3D alike). dof = d·node + component.
 """
 from __future__ import annotations
 
-from typing import Annotated, Optional
-
 import numpy as np
 import scipy.sparse as sp
-from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
 from ..errors import StudyError
 from ..geometry import tet
-from ..fem.affine import gradients
 from ..geometry.facets import facet_lengths, facet_normals
-from ..scene.spec import FEATURE, Frozen, Name
-
-DAMPING = {"gt": 0.0, "le": 1e9}        # α [1/s]
-
-
-class Layer(Frozen):
-    """The seed's damping layer: mass-proportional damping `damping` [1/s] in the cells within
-    `thickness` [m] of the named `boundaries`."""
-    boundaries: Annotated[list[Name], Field(min_length=1)]
-    thickness: float = Field(**FEATURE)
-    damping: float = Field(**DAMPING)
-
-
-class Absorbing(Frozen):
-    """A damping `layer`, Lysmer–Kuhlemeyer `dashpots` on named boundaries, or both."""
-    layer: Optional[Layer] = None
-    dashpots: list[Name] = []
-
-    @model_validator(mode="after")
-    def _something(self):
-        if self.layer is None and not self.dashpots:
-            raise ValueError("give a `layer`, `dashpots` or both")
-        for key, names in (("dashpots", self.dashpots), ("layer.boundaries", self.layer.boundaries if self.layer else [])):
-            twice = sorted({n for n in names if names.count(n) > 1})
-            if twice:
-                raise ValueError(f"{key} names boundary '{twice[0]}' twice")
-        return self
-
+from ..scene.spec import ABSORBING_ADDRESSES as ADDRESSES  # noqa: F401 - what can be uncertain
+from ..scene.spec import Absorbing, Layer
+from .mass import mass_cell_matrices
 
 def check_references(absorbing: Absorbing, boundaries, path: str) -> None:
     """StudyError at the key (e.g. `scene.absorbing.dashpots.1`) of a boundary name the scene does not have."""
@@ -113,19 +84,12 @@ def dashpot_matrix(mesh, facets, zp, zs) -> sp.csr_matrix:
 
 
 def weighted_mass(p, t, cells, weight) -> sp.csr_matrix:
-    """∫ w φ_a φ_b I dx over the given cells, w constant per cell (a number or one per cell):
-    |T| w (1 + δ_ab) / ((d + 1)(d + 2)) on a P1 simplex, for each component (d nnodes square)."""
+    """∫ w φ_a φ_b I dx over the given cells, w constant per cell (a number or one per cell): the
+    consistent P1 mass of `wcs.dynamics.mass` times w (d nnodes square)."""
     cells = np.asarray(cells, dtype=np.int64)
-    d = p.shape[0]
-    _, vol = gradients(p, t[:, cells])
-    w = np.broadcast_to(np.asarray(weight, dtype=float), vol.shape) * vol
-    values = w[:, None, None] * (1.0 + np.eye(d + 1)) / ((d + 1) * (d + 2))    # (ne, a, b)
-    nodes = t[:, cells].T
-    rows = np.broadcast_to(nodes[:, :, None], values.shape).ravel()
-    cols = np.broadcast_to(nodes[:, None, :], values.shape).ravel()
-    return sp.csr_matrix((np.tile(values.ravel(), d), (np.concatenate([d * rows + i for i in range(d)]),
-                                                       np.concatenate([d * cols + i for i in range(d)]))),
-                         shape=(d * p.shape[1], d * p.shape[1]))
+    local = mass_cell_matrices(p, t[:, cells])[0]                              # (ne, a, b, i, j), unit density
+    w = np.broadcast_to(np.asarray(weight, dtype=float), (cells.size,))
+    return _assemble(t[:, cells].T, w[:, None, None, None, None] * local, p.shape[0], p.shape[1])
 
 
 def _assemble(nodes, blocks, d, nnodes) -> sp.csr_matrix:
@@ -205,4 +169,3 @@ def dashpots(sm, names, rho_cell, lam_cell, mu_cell, path: str) -> sp.csr_matrix
 
 
 # What of the absorbing boundaries can be uncertain, with its physical range (the loader's address table).
-ADDRESSES = {"absorbing.layer.thickness": FEATURE, "absorbing.layer.damping": DAMPING}

@@ -21,7 +21,11 @@ from wcs.errors import SolveError
 from wcs.model.evaluation import Evaluation, Evaluator
 from wcs.status import Status
 
-from .stepping import dynamic_matrices, level_solution, region_dynamics, step_levels
+from .loading import at_time_zero, damping_matrix, load_function
+from .release import carried_over, reactions, released_dofs, released_model, released_names
+from .spec import InitialVelocity
+from .stepping import (dynamic_matrices, initial_state, level_solution, region_dynamics, rigid_velocity,
+                       step_levels)
 
 REDUCTIONS = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
 REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "at the end time",
@@ -30,13 +34,39 @@ REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "
 
 def simulate(ev, x=(), others=None, load=None, damping=None):
     """The `History` of a study's levels at data vector x (`wcs.model.evaluation.Evaluator` ev):
-    load(t) the load vector on the full DOFs at time t (None: the data set's own, constant),
-    damping an extra damping matrix on the full DOFs (absorbing layers, dashpots)."""
-    model = ev.model
-    c = ev.map.coefficients(x, others)
-    rho, visc = region_dynamics(model, ev.map, x, others)
+    load(t) the load vector on the full DOFs at time t, damping an extra damping matrix on the
+    full DOFs; None: the scene's own at x (`wcs.dynamics.loading`: time functions and point
+    sources; absorbing layer and dashpots). The initial state is taken at the loads of t = 0;
+    boundaries held by supports that take dashpots are released after it, loaded by their
+    static reactions (`wcs.dynamics.release`)."""
+    model, pmap, scene, dyn = ev.model, ev.map, ev.study.scene, ev.study.dynamics
+    c = pmap.coefficients(x, others)
+    heat = model.solve_heat(c) if model.thermal else None
+    c0 = at_time_zero(c, scene, pmap.slots(x, others), pmap.index)
+    w, v, res = initial_state(model, c0, dyn)
+    names, held = released_names(scene), 0.0
+    if names:
+        u = model.elim.T @ w + model.elim.U0 @ c.support_values
+        if dyn.initial == "static":
+            held = reactions(model, c0, u, res, heat) * released_dofs(model, names)
+        model, pmap = released_model(ev)
+        c = pmap.coefficients(x, others)
+        w, res = carried_over(model, c, u, res)
+        v = rigid_velocity(model, dyn.initial) if isinstance(dyn.initial, InitialVelocity) \
+            else np.zeros(model.elim.T.shape[1])
+    rho, visc = region_dynamics(model, pmap, x, others)
+    s = pmap.slots(x, others)
+    if load is None:
+        load = load_function(model, scene, c, s, pmap.index, heat)
+    if load is None and names:
+        constant = model.mechanical_load(c, heat) + held
+        load = lambda t: constant                       # noqa: E731 - constant in time
+    elif names:
+        load = lambda t, own=load: own(t) + held        # noqa: E731 - the released supports' reactions
+    if damping is None:
+        damping = damping_matrix(model, scene, c, rho, s, pmap.index)
     mats = dynamic_matrices(model, c, rho, visc, damping)
-    return step_levels(model, c, mats, ev.study.dynamics, load, ev.criteria)
+    return step_levels(model, c, mats, dyn, load, ev.criteria, start=(w, v, res))
 
 
 def reduced(study, history) -> dict[str, float]:

@@ -22,73 +22,14 @@ distinct: whose is the force?), is a StudyError naming the source.
 """
 from __future__ import annotations
 
-from typing import Annotated, Optional
-
 import numpy as np
-from pydantic import Field, model_validator
 
 from ..errors import StudyError
 from ..fem.affine import gradients
-from ..scene.spec import LENGTH, Coordinate, Frozen, _exactly_one
+from ..scene.spec import SOURCE_ADDRESSES as ADDRESSES  # noqa: F401 - what can be uncertain
+from ..scene.spec import Source, check_ricker, ricker  # noqa: F401 - check_ricker: the loader's box check
 
-FORCE = {"ge": -1e22, "le": 1e22}       # [N] (2D: N per unit length); a great quake's forces are ~1e19
-MOMENT = {"ge": -1e24, "le": 1e24}      # [N m] (2D: N m per unit length); Mw 9.9 is ~1e24 N m
-FREQUENCY = {"gt": 0.0, "le": 1e9}      # [Hz]
-DELAY = {"ge": 0.0, "le": 1e6}          # [s]
-RICKER_ONSET = 1.0                      # delay * frequency at least: |r(0)| < 1e-3 (the wavelet starts from rest)
 INSIDE = 1e-10                          # a barycentric coordinate >= -INSIDE: the point is in the (closed) cell
-
-Vector = Annotated[list[Annotated[float, Field(**FORCE)]], Field(min_length=2, max_length=3)]
-Row = Annotated[list[Annotated[float, Field(**MOMENT)]], Field(min_length=2, max_length=3)]
-
-
-class Ricker(Frozen):
-    """The Ricker wavelet of peak frequency `frequency` [Hz] peaking (at 1) at `delay` [s]."""
-    frequency: float = Field(**FREQUENCY)
-    delay: float = Field(**DELAY)
-
-    @model_validator(mode="after")
-    def _starts_from_rest(self):
-        check_ricker(self.frequency, self.delay)
-        return self
-
-
-class Wavelet(Frozen):
-    ricker: Ricker
-
-
-class Source(Frozen):
-    """A point source: `point`, exactly one of `force` or `moment` (d×d), and its `wavelet`."""
-    point: Annotated[list[Coordinate], Field(min_length=2, max_length=3)]
-    force: Optional[Vector] = None
-    moment: Optional[Annotated[list[Row], Field(min_length=2, max_length=3)]] = None
-    wavelet: Wavelet
-
-    @model_validator(mode="after")
-    def _force_or_moment(self):
-        _exactly_one(self, ("force", "moment"))
-        d = len(self.point)
-        if self.force is not None and len(self.force) != d:
-            raise ValueError(f"the force has {len(self.force)} components, the point {d}")
-        if self.moment is not None and (len(self.moment) != d or any(len(r) != d for r in self.moment)):
-            raise ValueError(f"the moment tensor must be {d}×{d} (the point has {d} coordinates)")
-        return self
-
-
-def check_ricker(frequency: float, delay: float) -> None:
-    """ValueError unless delay * frequency >= RICKER_ONSET: an earlier peak cuts the wavelet at
-    t = 0, a jump of |r(0)| of the peak (2 % at delay * frequency = 0.7)."""
-    if delay * frequency < RICKER_ONSET:
-        raise ValueError(f"the delay {delay:g} s is less than {RICKER_ONSET:g}/frequency = {RICKER_ONSET / frequency:g} s: "
-                         f"the wavelet would start with a jump of {abs(ricker(0.0, frequency, delay)):.2g} of its "
-                         "peak instead of from rest")
-
-
-def ricker(t, frequency: float, delay: float) -> np.ndarray:
-    """r(t) = (1 − 2τ²) exp(−τ²), τ = π f (t − t₀): peak 1 at t = t₀ (so `force` / `moment` is the
-    peak value), zero mean; its amplitude spectrum (2/√π)(ν²/f³) exp(−ν²/f²) peaks at ν = f."""
-    tau2 = (np.pi * frequency * (np.asarray(t, dtype=float) - delay)) ** 2
-    return (1.0 - 2.0 * tau2) * np.exp(-tau2)
 
 
 def wavelet(source: Source, t) -> np.ndarray:
@@ -156,13 +97,3 @@ def source_vector(sm, source: Source, path: str) -> np.ndarray:
     if source.force is not None:
         return point_force_vector(p, t, cells, bary, np.asarray(source.force, dtype=float))
     return moment_tensor_vector(p, t, cells, source.moment)
-
-
-# What of a source can be uncertain, with its physical range (the loader's address table).
-ADDRESSES = {
-    "sources.<s>.point.<i>": LENGTH,
-    "sources.<s>.force.<i>": FORCE,
-    "sources.<s>.moment.<i>.<j>": MOMENT,
-    "sources.<s>.wavelet.ricker.frequency": FREQUENCY,
-    "sources.<s>.wavelet.ricker.delay": DELAY,
-}

@@ -14,6 +14,8 @@ from wcs.errors import StudyError
 from wcs.options import Strict
 from wcs.scene.spec import Name
 
+from .sources import check_ricker
+
 MAX_LEVELS = 10_000_000          # time levels of one solve: end_time / time_step
 SECONDS = {"gt": 0, "le": 1e12}
 
@@ -52,29 +54,17 @@ class Dynamics(Strict):
         return int(-(-round(self.end_time / self.time_step, 9) // 1))
 
 
-PENDING = ("absorbing", "sources")
-
-
-def refuse_pending(raw, error) -> None:
-    """Refuse the §8 keys whose models are not in this version yet (absorbing layers and dashpots,
-    point sources, time functions of loads): `error(path, message)` makes the StudyError."""
-    if not isinstance(raw, dict):
-        return
-    later = "is not available in this version yet (dynamic loads and absorbing boundaries are being added); remove it"
-    for key in PENDING:
-        if key in raw:
-            raise error((key,), f"`{key}` {later}")
-    loads = raw.get("loads")
-    for name, load in (loads.items() if isinstance(loads, dict) else ()):
-        if isinstance(load, dict) and "time" in load:
-            raise error(("loads", name, "time"), f"a load's time function {later}")
-
-
 def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver, error) -> None:
     """The dynamic study against its scene: every material has a density, the bodies given
     velocities exist with the scene's dimension, the solver can step in time; a static study
     does not vary dynamic numbers nor reduce criteria over time. `error(path, message)`."""
     if dynamics is None:
+        for key in ("sources", "absorbing"):
+            if getattr(scene, key):
+                raise error(("scene", key), "acts only in a dynamic study (a `dynamics:` block)")
+        for name, load in scene.loads.items():
+            if load.time is not None:
+                raise error(("scene", "loads", name, "time"), "acts only in a dynamic study (a `dynamics:` block)")
         for entry in uncertain:
             if entry.path.split(".")[-1] == "density" or ".viscosity." in entry.path:
                 raise error(("uncertain", entry.path), "acts only in a dynamic study (a `dynamics:` block)")
@@ -89,6 +79,7 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
     if solver.method in ("dd", "qp"):
         raise error(("solver", "method"), f"'{solver.method}' does not step in time yet; use monolithic, "
                                           "iterative or auto")
+    check_loads(scene, uncertain, error)
     if isinstance(dynamics.initial, InitialVelocity):
         for body, v in dynamics.initial.velocity.items():
             where = ("dynamics", "initial", "velocity", body)
@@ -98,3 +89,38 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
                 raise error(where, f"a velocity has {scene.dimension} components in a {scene.dimension}D scene")
 
 
+def check_loads(scene, uncertain, error) -> None:
+    """The dynamic loads against the scene and the uncertain box: a source's point has the
+    scene's dimension; its Ricker wavelet starts from rest (delay · frequency >= 1,
+    `wcs.dynamics.sources.check_ricker`) at every corner of the box, the least corner being the
+    lower bounds; every absorbing boundary exists; a support on a boundary with dashpots holds
+    it in the static initial state only (`wcs.dynamics.release`), so its value is not uncertain."""
+    box = {e.path: (e.lower, e.upper) for e in uncertain}
+    for name, src in scene.sources.items():
+        if len(src.point) != scene.dimension:
+            raise error(("scene", "sources", name, "point"),
+                        f"has {len(src.point)} coordinates in a {scene.dimension}D scene")
+        keys = {k: f"sources.{name}.wavelet.ricker.{k}" for k in ("frequency", "delay")}
+        low = {k: box.get(path, (getattr(src.wavelet.ricker, k),))[0] for k, path in keys.items()}
+        try:
+            check_ricker(low["frequency"], low["delay"])
+        except ValueError as e:
+            varied = [path for path in keys.values() if path in box]
+            where = ("uncertain", varied[0]) if varied else ("scene", "sources", name, "wavelet", "ricker")
+            raise error(where, f"at the corner frequency {low['frequency']:g} Hz, delay {low['delay']:g} s of the "
+                               f"box: {e}") from None
+    absorbing = scene.absorbing
+    if absorbing is None:
+        return
+    named = [(("scene", "absorbing", "dashpots", i), n) for i, n in enumerate(absorbing.dashpots)]
+    if absorbing.layer is not None:
+        named += [(("scene", "absorbing", "layer", "boundaries", i), n) for i, n in enumerate(absorbing.layer.boundaries)]
+    for where, name in named:
+        if name not in scene.boundaries:
+            raise error(where, f"unknown boundary '{name}' (boundaries: {', '.join(scene.boundaries) or 'none'})")
+    for entry in uncertain:
+        keys = entry.path.split(".")
+        if keys[0] == "supports" and keys[1] in absorbing.dashpots:
+            raise error(("uncertain", entry.path), f"boundary '{keys[1]}' takes dashpots: its support holds it in the "
+                                                  "static initial state only (the levels replace it by its "
+                                                  "reaction), so its value cannot vary")

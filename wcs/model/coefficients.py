@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.frame import grid_weights, hat_weights, surface_grid
-from .dynamic_numbers import dynamic_numbers
+from .dynamic_numbers import dynamic_numbers, load_numbers
 from .materials import lame, plane_lame, thermal_beta
 
 FIELDS = ("lam", "mu", "beta", "kappa", "source", "body_force", "pressure", "traction",
@@ -105,6 +105,7 @@ def scene_numbers(scene):
             yield f"thermal.temperature.{b}", v
         for t, v in thermal.sources.items():
             yield f"thermal.sources.{t}", v
+    yield from load_numbers(scene)
 
 
 class ParameterMap:

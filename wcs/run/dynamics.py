@@ -121,12 +121,16 @@ def solve_dynamic(study, out: Path, args, point=None) -> int:
 
 
 def check_dynamic(study, ev, args, summary: str) -> int:
-    """`wcs check` of a dynamic study: the summary, the plan of the levels and, for `initial:
-    static`, the static solve that starts them (exit 2 where the scene has no static solution)."""
+    """`wcs check` of a dynamic study: the summary, the plan of the levels, the sources located
+    in the mesh at the nominal data and at the corners of their uncertain points (StudyError,
+    exit 2) and, for `initial: static`, the static solve that starts them (exit 2 where the
+    scene has no static solution)."""
     from wcs.errors import SolveError
     from wcs.status import Status
+    from wcs.dynamics.loading import at_time_zero, check_sources
     from wcs.dynamics.stepping import initial_state
     dyn = study.dynamics
+    check_sources(ev, study.nominal())
     for w in study.warnings:
         print(f"warning: {study.file}: {w}", file=sys.stderr)
     if not args.quiet:
@@ -142,7 +146,9 @@ def check_dynamic(study, ev, args, summary: str) -> int:
                   f"the reduced criteria where the search asks for gradients")
     if dyn.initial == "static":
         try:
-            initial_state(ev.model, ev.map.coefficients(study.nominal()), dyn)
+            x = study.nominal()
+            c0 = at_time_zero(ev.map.coefficients(x), study.scene, ev.map.slots(x), ev.map.index)
+            initial_state(ev.model, c0, dyn)
         except SolveError as e:
             print(f"error: {study.file}: {e}", file=sys.stderr)
             return 2 if Status(e.status).scene_fault else 1

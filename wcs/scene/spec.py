@@ -297,6 +297,7 @@ class Support(Frozen):
 class Load(Frozen):
     pressure: Optional[float] = Field(None, **STRESS)
     traction: Optional[Annotated[list[Annotated[float, Field(**STRESS)]], Field(min_length=2, max_length=2)]] = None
+    time: Optional[TimeFunction] = None            # a dynamic study's factor in time (`wcs.dynamics.time_functions`)
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -390,6 +391,8 @@ class Scene(Frozen):
     glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
     regions_of_interest: dict[Name, RegionOfInterest] = {}
+    sources: dict[Name, Source] = {}               # a dynamic study's point sources (`wcs.dynamics.sources`)
+    absorbing: Optional[Absorbing] = None          # its absorbing boundaries (`wcs.dynamics.absorbing`)
 
     @field_validator("dimension")
     @classmethod
@@ -398,3 +401,146 @@ class Scene(Frozen):
             raise ValueError("the dimension is 2 (plane) or 3")
         return dimension
 
+
+
+# ---------------------------------------------------------------- a dynamic study's loads (`wcs.dynamics`)
+# Their models are scene keys: a load's time function, point sources with a Ricker wavelet, absorbing
+# boundaries; the levels' numbers from them are `wcs.dynamics.time_functions`, `.sources`, `.absorbing`.
+
+TIME = {"ge": 0.0, "le": 1e6}          # a time of a study [s]: from 0 to ~12 days
+FACTOR = {"ge": -1e6, "le": 1e6}       # a load factor (keeps factor * load far inside double precision)
+MAX_ROWS = 100_000
+
+TimeRow = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class TimeFunction(Frozen):
+    """A load's time function: exactly one of `ramp` (its duration t_r [s]) or `table` (rows [t, factor])."""
+    ramp: Optional[float] = Field(None, gt=0, le=TIME["le"])
+    table: Optional[Annotated[list[TimeRow], Field(min_length=1, max_length=MAX_ROWS),
+                              AfterValidator(lambda rows: check_table(rows))]] = None
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        _exactly_one(self, ("ramp", "table"))
+        return self
+
+
+def check_table(rows: list[list[float]]) -> list[list[float]]:
+    """The rows, or a ValueError naming the row when a time is outside TIME or the times do not
+    strictly increase, or a factor is outside FACTOR (non-finite numbers are refused by the schema)."""
+    for i, (t, f) in enumerate(rows):
+        if not TIME["ge"] <= t <= TIME["le"]:
+            raise ValueError(f"row {i}: the time {t:g} s must be in [{TIME['ge']:g}, {TIME['le']:g}]")
+        if not FACTOR["ge"] <= f <= FACTOR["le"]:
+            raise ValueError(f"row {i}: the factor {f:g} must be in [{FACTOR['ge']:g}, {FACTOR['le']:g}]")
+        if i and t <= rows[i - 1][0]:
+            raise ValueError(f"row {i}: the times must increase, but {t:g} s follows {rows[i - 1][0]:g} s")
+    return rows
+
+
+# What of a time function can be uncertain, with its physical range (the loader's address table).
+TIME_ADDRESSES = {"loads.<boundary>.time.ramp": {"gt": 0.0, "le": TIME["le"]}}
+
+
+FORCE = {"ge": -1e22, "le": 1e22}       # [N] (2D: N per unit length); a great quake's forces are ~1e19
+MOMENT = {"ge": -1e24, "le": 1e24}      # [N m] (2D: N m per unit length); Mw 9.9 is ~1e24 N m
+FREQUENCY = {"gt": 0.0, "le": 1e9}      # [Hz]
+DELAY = {"ge": 0.0, "le": 1e6}          # [s]
+RICKER_ONSET = 1.0                      # delay * frequency at least: |r(0)| < 1e-3 (the wavelet starts from rest)
+
+ForceVector = Annotated[list[Annotated[float, Field(**FORCE)]], Field(min_length=2, max_length=3)]
+MomentRow = Annotated[list[Annotated[float, Field(**MOMENT)]], Field(min_length=2, max_length=3)]
+
+
+class Ricker(Frozen):
+    """The Ricker wavelet of peak frequency `frequency` [Hz] peaking (at 1) at `delay` [s]."""
+    frequency: float = Field(**FREQUENCY)
+    delay: float = Field(**DELAY)
+
+    @model_validator(mode="after")
+    def _starts_from_rest(self):
+        check_ricker(self.frequency, self.delay)
+        return self
+
+
+class Wavelet(Frozen):
+    ricker: Ricker
+
+
+class Source(Frozen):
+    """A point source: `point`, exactly one of `force` or `moment` (d×d), and its `wavelet`."""
+    point: Annotated[list[Coordinate], Field(min_length=2, max_length=3)]
+    force: Optional[ForceVector] = None
+    moment: Optional[Annotated[list[MomentRow], Field(min_length=2, max_length=3)]] = None
+    wavelet: Wavelet
+
+    @model_validator(mode="after")
+    def _force_or_moment(self):
+        _exactly_one(self, ("force", "moment"))
+        d = len(self.point)
+        if self.force is not None and len(self.force) != d:
+            raise ValueError(f"the force has {len(self.force)} components, the point {d}")
+        if self.moment is not None and (len(self.moment) != d or any(len(r) != d for r in self.moment)):
+            raise ValueError(f"the moment tensor must be {d}×{d} (the point has {d} coordinates)")
+        return self
+
+
+def check_ricker(frequency: float, delay: float) -> None:
+    """ValueError unless delay * frequency >= RICKER_ONSET: an earlier peak cuts the wavelet at
+    t = 0, a jump of |r(0)| of the peak (2 % at delay * frequency = 0.7)."""
+    if delay * frequency < RICKER_ONSET:
+        raise ValueError(f"the delay {delay:g} s is less than {RICKER_ONSET:g}/frequency = {RICKER_ONSET / frequency:g} s: "
+                         f"the wavelet would start with a jump of {abs(ricker(0.0, frequency, delay)):.2g} of its "
+                         "peak instead of from rest")
+
+
+def ricker(t, frequency: float, delay: float) -> np.ndarray:
+    """r(t) = (1 − 2τ²) exp(−τ²), τ = π f (t − t₀): peak 1 at t = t₀ (so `force` / `moment` is the
+    peak value), zero mean; its amplitude spectrum (2/√π)(ν²/f³) exp(−ν²/f²) peaks at ν = f."""
+    tau2 = (np.pi * frequency * (np.asarray(t, dtype=float) - delay)) ** 2
+    return (1.0 - 2.0 * tau2) * np.exp(-tau2)
+
+
+# What of a source can be uncertain, with its physical range (the loader's address table).
+SOURCE_ADDRESSES = {
+    "sources.<s>.point.<i>": LENGTH,
+    "sources.<s>.force.<i>": FORCE,
+    "sources.<s>.moment.<i>.<j>": MOMENT,
+    "sources.<s>.wavelet.ricker.frequency": FREQUENCY,
+    "sources.<s>.wavelet.ricker.delay": DELAY,
+}
+
+
+DAMPING = {"gt": 0.0, "le": 1e9}        # α [1/s]
+
+
+class Layer(Frozen):
+    """The seed's damping layer: mass-proportional damping `damping` [1/s] in the cells within
+    `thickness` [m] of the named `boundaries`."""
+    boundaries: Annotated[list[Name], Field(min_length=1)]
+    thickness: float = Field(**FEATURE)
+    damping: float = Field(**DAMPING)
+
+
+class Absorbing(Frozen):
+    """A damping `layer`, Lysmer–Kuhlemeyer `dashpots` on named boundaries, or both."""
+    layer: Optional[Layer] = None
+    dashpots: list[Name] = []
+
+    @model_validator(mode="after")
+    def _something(self):
+        if self.layer is None and not self.dashpots:
+            raise ValueError("give a `layer`, `dashpots` or both")
+        for key, names in (("dashpots", self.dashpots), ("layer.boundaries", self.layer.boundaries if self.layer else [])):
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if twice:
+                raise ValueError(f"{key} names boundary '{twice[0]}' twice")
+        return self
+
+
+ABSORBING_ADDRESSES = {"absorbing.layer.thickness": FEATURE, "absorbing.layer.damping": DAMPING}
+
+
+Load.model_rebuild()
+Scene.model_rebuild()

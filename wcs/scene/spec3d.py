@@ -11,8 +11,9 @@ from typing import Annotated, Literal, Optional
 import numpy as np
 from pydantic import AfterValidator, Field, model_validator
 
+
 from .spec import (BODY_FORCE, FEATURE, FEATURE_MIN, LENGTH, STRESS, Contact, Coordinate, Frozen, Glue,
-                   Material, Name, RegionMesh, Shape, Thermal, _exactly_one)
+                   Absorbing, Material, Name, RegionMesh, Shape, Source, Thermal, TimeFunction, _exactly_one)
 
 XYZ = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 Six = Annotated[list[Coordinate], Field(min_length=6, max_length=6)]
@@ -180,6 +181,7 @@ class Support(Frozen):
 class Load(Frozen):
     pressure: Optional[float] = Field(None, **STRESS)
     traction: Optional[Annotated[list[Annotated[float, Field(**STRESS)]], Field(min_length=3, max_length=3)]] = None
+    time: Optional[TimeFunction] = None            # a dynamic study's factor in time
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -216,6 +218,8 @@ class Scene(Frozen):
     glue: dict[Name, Glue] = {}
     thermal: Optional[Thermal] = None
     regions_of_interest: dict[Name, RegionOfInterest] = {}
+    sources: dict[Name, Source] = {}               # a dynamic study's point sources
+    absorbing: Optional[Absorbing] = None          # its absorbing boundaries
 
 
 Solid.model_rebuild()

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from ..dynamics.spec import refuse_pending
 from ..errors import StudyError
 from ..options import did_you_mean as _did_you_mean
 from ..scene.spec import GroupBoundary, Material, Scene
@@ -29,7 +28,6 @@ def _load_scene(raw, study_src: _Source) -> tuple[Scene, _Source, list[tuple[Pat
         raw = dict(raw)
         raw["materials"], library = _load_materials(raw["materials"], src)   # validated Material models
         extra.append(library)
-    refuse_pending(raw, src.error)
     three = isinstance(raw, dict) and raw.get("dimension") == 3
     try:
         scene = src.validate(_SCENE3D if three else _SCENE, raw)

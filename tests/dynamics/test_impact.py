@@ -1,0 +1,162 @@
+"""A steel sphere and a steel cylinder dropped on a steel block (plane strain, half model) against Hertz's impact
+theory (`reference_forms.cylinder_impact`, the line law with the constants measured for these
+bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder decelerated by its
+inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
+mesh is studies/validation/cylinder-impact.yaml.
+
+Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv): the seed scheme
+[101, (10)] keeps the contact time within 1 % of the theory on every mesh and step; its peak
+force is 6.0 %, 4.3 %, 3.6 % low at Δt = 2, 1, 0.5 µs (h = 0.4 mm) — the scheme's first-order
+numerical damping (it loses 15 %, 8.4 %, 4.6 % of the energy) — and does not move with h (−4.08 %,
+−4.06 % at h = 0.2, 0.1 mm, Δt = 0.5 µs; −3.70 % at 0.25 µs). The energy-conserving stabilized
+scheme gives −3.06 % at h = 0.4 mm, Δt = 2 µs (energy −5e-5) but its predictor (the M-projection)
+fails at the first levels on the finer meshes and steps (the bench's rows). The issue's 3 % on
+the peak force is not reached; the contact time is.
+"""
+import numpy as np
+import pytest
+
+from tests.support.reference_forms import (boussinesq_compliance, contact_modulus, cylinder_impact, impact_ode, line_law,
+                             sphere_on_block_force)
+from wcs.run.dynamics import simulate
+from wcs.model.evaluation import Evaluator
+from wcs.study import load_study
+
+E, NU, RHO = 2.0e11, 0.3, 7850.0
+R, H, V = 0.05, 0.1, 1.0          # cylinder radius, block height (width 2H), impact speed [m, m, m/s]
+K1, K2 = -1.75, 0.0               # the line law's constants measured for these bodies
+
+
+def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 1.6e-4) -> dict:
+    """The half model (x >= 0) of the cylinder striking the block at V, mesh size h at the contact."""
+    seg = lambda body, a, z: {"body": body, "segment": [a, z]}     # noqa: E731
+    return {
+        "study": "cylinder-impact",
+        "dynamics": {"end_time": end, "time_step": dt, "scheme": scheme, "output_every": 100000,
+                     "initial": {"velocity": {"cylinder": [0.0, -V]}}},
+        "scene": {
+            "plane": "strain",
+            "mesh": {"size": R / 5, "grading": 0.3,
+                     "refine": [{"box": [0.0, -0.002, 0.002, 0.002], "size": h},
+                                {"box": [0.0, -0.008, 0.008, 0.008], "size": 4 * h}]},
+            "materials": {"steel": {"E": E, "nu": NU, "density": RHO}},
+            "bodies": {"cylinder": {"regions": [{"material": "steel", "shape": {
+                           "disc": {"center": [0.0, R], "radius": R}, "intersect": [{"rectangle": [0.0, 0.0, R, 2 * R]}]}}]},
+                       "block": {"regions": [{"material": "steel", "shape": {"rectangle": [0.0, -H, H, 0.0]}}]}},
+            "boundaries": {"cyl_sym": seg("cylinder", [0.0, 0.0], [0.0, 2 * R]),
+                           "cyl_arc": {"body": "cylinder", "circle": {"center": [0.0, R], "radius": R}},
+                           "block_sym": seg("block", [0.0, -H], [0.0, 0.0]),
+                           "block_bottom": seg("block", [0.0, -H], [H, -H]),
+                           "block_top": seg("block", [0.0, 0.0], [H, 0.0])},
+            "supports": {"cyl_sym": {"u": [0.0, None]}, "block_sym": {"u": [0.0, None]},
+                         "block_bottom": {"u": [0.0, 0.0]}},
+            "contacts": {"impact": {"slave": "cyl_arc", "master": "block_top"}},
+        },
+    }
+
+
+def hertz() -> tuple[float, float]:
+    """(t_c [s], q_max [N/m]) of the theory for the whole cylinder (mass ρπR² per unit length)."""
+    c, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
+    tc, q, _ = cylinder_impact(RHO * np.pi * R ** 2, V, c, s)
+    return tc, q
+
+
+def impact(h: float, dt: float, scheme: str = "seed"):
+    """(t_c, q_max, the energy kept at the end / initial, the history) of the FE impact: t_c counts
+    the levels that carry a contact force (each Δt long), q the whole cylinder's (twice the half's)."""
+    study = load_study(cylinder(h, dt, scheme))
+    hist = simulate(Evaluator(study), study.nominal())
+    q = 2.0 * hist.total_force
+    energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
+    return np.count_nonzero(q > 0) * dt, q.max(), energy[-1] / energy[0], hist
+
+
+def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
+    """Coarse mesh (h = 0.4 mm, b_max = 0.93 mm): t_c within 1 % (measured −0.9 %, −0.1 %); the
+    peak force's deficit shrinks as Δt halves (−6.0 % → −4.3 %: the seed scheme's damping)."""
+    tc_ref, q_ref = hertz()
+    errors = []
+    for dt in (2e-6, 1e-6):
+        tc, q, kept, _ = impact(4e-4, dt)
+        assert tc == pytest.approx(tc_ref, rel=0.01)
+        assert q == pytest.approx(q_ref, rel=0.07)
+        assert kept < 1.0                              # backward Euler in the velocity: it only loses
+        errors.append(q / q_ref - 1.0)
+    assert errors[0] < errors[1] < 0.0
+
+
+@pytest.mark.slow
+def test_cylinder_impact_over_three_meshes():
+    """h = 0.4, 0.2, 0.1 mm at Δt = 0.5 µs: t_c within 1 %, the peak force within 5 % of Hertz
+    (measured −3.6, −4.1, −4.1 %), the changes between meshes shrinking (observed order
+    log2(|q₁ − q₂| / |q₂ − q₃|) = 4.3: the mesh has converged, the step's damping remains)."""
+    tc_ref, q_ref = hertz()
+    q = []
+    for h in (4e-4, 2e-4, 1e-4):
+        tc, qmax, _, _ = impact(h, 5e-7)
+        assert tc == pytest.approx(tc_ref, rel=0.01)
+        assert qmax == pytest.approx(q_ref, rel=0.05)
+        q.append(qmax)
+    order = np.log2(abs(q[0] - q[1]) / abs(q[1] - q[2]))
+    print(f"peak force {[f'{x / q_ref - 1:+.2%}' for x in q]}, observed order {order:.2f}")
+    assert abs(q[1] - q[2]) < abs(q[0] - q[1])
+
+
+def sphere(h: float, dt: float, scheme: str = "seed", end: float = 4e-4) -> dict:
+    """The quarter model (x, y >= 0) of a sphere of radius R striking the block (H deep, 2H wide,
+    held at its base) at V, mesh size h within 4 mm of the contact."""
+    refine = [{"ball": {"center": [0, 0, 0], "radius": 0.004}, "size": h}]
+    plane = lambda z, n: {"plane": {"point": z, "normal": n}}       # noqa: E731
+    return {
+        "study": "sphere-impact",
+        "dynamics": {"end_time": end, "time_step": dt, "scheme": scheme, "output_every": 100000,
+                     "initial": {"velocity": {"sphere": [0.0, 0.0, -V]}}},
+        "scene": {
+            "dimension": 3, "mesh": {"size": R / 3, "grading": 0.3},
+            "materials": {"steel": {"E": E, "nu": NU, "density": RHO}},
+            "bodies": {"sphere": {"mesh": {"size": R / 3, "refine": refine}, "regions": [{"material": "steel", "shape": {
+                           "sphere": {"center": [0, 0, R], "radius": R}, "intersect": [{"box": [0, 0, 0, R, R, 2 * R]}]}}]},
+                       "block": {"mesh": {"size": R / 3, "refine": refine},
+                                 "regions": [{"material": "steel", "shape": {"box": [0, 0, -H, H, H, 0]}}]}},
+            "boundaries": {"sphere_surface": {"body": "sphere", "sphere": {"center": [0, 0, R], "radius": R}},
+                           "block_top": {"body": "block", **plane([0, 0, 0], [0, 0, 1])},
+                           "block_bottom": {"body": "block", **plane([0, 0, -H], [0, 0, 1])},
+                           "x0": plane([0, 0, 0], [1, 0, 0]), "y0": plane([0, 0, 0], [0, 1, 0])},
+            "supports": {"block_bottom": {"u": [0.0, 0.0, 0.0]}, "x0": {"u": [0.0, None, None]},
+                         "y0": {"u": [None, 0.0, None]}},
+            "contacts": {"impact": {"slave": "sphere_surface", "master": "block_top"}},
+        },
+    }
+
+
+def hertz_sphere() -> tuple[float, float]:
+    """(t_c, F_max) of Hertz's sphere on the block held at depth H (Boussinesq's compliance in series)."""
+    law = lambda d: sphere_on_block_force(d, R, contact_modulus(E, NU, E, NU), boussinesq_compliance(E, NU, H))  # noqa: E731
+    tc, F, _ = impact_ode(RHO * 4.0 / 3.0 * np.pi * R ** 3, V, law, 1.2e-4)
+    return tc, F
+
+
+@pytest.mark.slow
+def test_sphere_impact_over_two_meshes():
+    """h = 1, 0.5 mm at the contact (a_max = 2.45 mm), Δt = 4, 2 µs (t_c = 354 µs, 1123 and 2144
+    nodes, 41 s and 125 s): the peak force within 3 % (measured −1.8 %, +0.7 %); the contact time
+    counts the levels whose force exceeds 1e-3 of the peak (measured −5.1 %, −4.6 %: the
+    contact opens early; at h = 0.5 mm one contact node keeps 9e-5 of the peak force after the
+    rebound, which a count of every closed level would take for contact), within 6 %."""
+    tc_ref, F_ref = hertz_sphere()
+    for h, dt in ((1e-3, 4e-6), (5e-4, 2e-6)):
+        study = load_study(sphere(h, dt))
+        hist = simulate(Evaluator(study), study.nominal())
+        F = 4.0 * hist.total_force
+        tc = np.count_nonzero(F > 1e-3 * F.max()) * dt
+        print(f"h {h:g}: t_c {tc / tc_ref - 1:+.2%}, F_max {F.max() / F_ref - 1:+.2%}")
+        assert F.max() == pytest.approx(F_ref, rel=0.03)
+        assert tc == pytest.approx(tc_ref, rel=0.06)
+
+
+if __name__ == "__main__":
+    tc_ref, q_ref = hertz()
+    for h, dt in ((4e-4, 2e-6), (4e-4, 1e-6), (4e-4, 5e-7), (2e-4, 5e-7), (1e-4, 5e-7), (1e-4, 2.5e-7)):
+        tc, q, kept, _ = impact(h, dt)
+        print(f"h {h:g} dt {dt:g}: t_c {tc / tc_ref - 1:+.2%}, q_max {q / q_ref - 1:+.2%}, energy kept {kept:.4f}")
