@@ -32,7 +32,7 @@ from .contact.units import UnitFactors, stiffness_units
 from .contact.zone import ContactState, build_zone, canonical_split, dependent_rows, held_rows, tied_rows
 from .errors import SolveError, StudyError
 from .fem import forms, tet
-from .fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
+from .fem.affine import CellAffineOperator, conduction_cells, elastic_cells
 from .fem.constraints import Constraint, Elimination, Reduction, eliminate
 from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from .fem.rigid import rigid_modes
@@ -97,7 +97,7 @@ class Model:
         self.targets = self._name_targets()
 
         # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j over regions j
-        self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cell_matrices(mesh.p, mesh.t), smesh.cell_region)
+        self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cells(mesh.p, mesh.t), smesh.cell_region)
         self.support_keys, constraints = self._support_constraints(scene)
         # glued interfaces (mortar): slave DOFs eliminated on top of the nodal constraints
         supported = np.unique(np.concatenate([c.nodes for c in constraints])) if constraints else ()
@@ -290,7 +290,7 @@ class Model:
                                shape=(self.nnodes, nheat))
         Pt = self.P.T.tocsr()
         t_heat = heat_of_node[mesh.t]
-        self.H = CellAffineOperator(t_heat, nheat, conduction_cell_matrices(mesh.p, mesh.t), self.smesh.cell_region)
+        self.H = CellAffineOperator(t_heat, nheat, conduction_cells(mesh.p, mesh.t), self.smesh.cell_region)
         self.temperature_keys = list(scene.thermal.temperature)
         constraints = []
         for k, name in enumerate(self.temperature_keys):
