@@ -47,16 +47,17 @@ def strain_operator(p: np.ndarray, t: np.ndarray) -> sp.csr_matrix:
     order = np.argsort(t.T, axis=1)                           # (ncells, 4) the nodes by number
     dof = 3 * np.take_along_axis(t.T, order, axis=1)          # x-dof of each node, increasing
     g = np.take_along_axis(g, order[:, :, None], axis=1)
-    cols, vals = [], []
-    for i in range(3):                                        # e_ii = ∂_i u_i
-        cols.append((dof + i).ravel()); vals.append(g[:, :, i].ravel())
-    for i, j in SHEAR_PAIRS:                                  # γ_ij = ∂_j u_i + ∂_i u_j
-        cols.append(np.stack([dof + i, dof + j], axis=2).ravel())
-        vals.append(np.stack([g[:, :, j], g[:, :, i]], axis=2).ravel())
-    indptr = np.concatenate([np.arange(3 * nc) * 4, 12 * nc + np.arange(3 * nc + 1) * 8])
-    index = np.int32 if 3 * p.shape[1] < 2**31 and indptr[-1] < 2**31 else np.int64
-    return sp.csr_matrix((np.concatenate(vals), np.concatenate(cols).astype(index), indptr.astype(index)),
-                         shape=(6 * nc, 3 * p.shape[1]))
+    index = np.int32 if 36 * nc < 2**31 else np.int64
+    cols, vals = np.empty(36 * nc, dtype=index), np.empty(36 * nc)    # filled block by block: no copies
+    for i in range(3):                                        # e_ii = ∂_i u_i: 4 a row
+        cols[4 * i * nc:4 * (i + 1) * nc] = (dof + i).ravel()
+        vals[4 * i * nc:4 * (i + 1) * nc] = g[:, :, i].ravel()
+    for k, (i, j) in enumerate(SHEAR_PAIRS):                  # γ_ij = ∂_j u_i + ∂_i u_j: 8 a row
+        at = slice((12 + 8 * k) * nc, (20 + 8 * k) * nc)
+        cols[at] = np.stack([dof + i, dof + j], axis=2).ravel()
+        vals[at] = np.stack([g[:, :, j], g[:, :, i]], axis=2).ravel()
+    indptr = np.concatenate([np.arange(3 * nc) * 4, 12 * nc + np.arange(3 * nc + 1) * 8]).astype(index)
+    return sp.csr_matrix((vals, cols, indptr), shape=(6 * nc, 3 * p.shape[1]))
 
 
 def stresses(strain: np.ndarray, lam: np.ndarray, mu: np.ndarray, beta: np.ndarray,
