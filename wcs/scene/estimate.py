@@ -12,6 +12,7 @@ half the cells, and a P1 vector field has two unknowns per node.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 from dataclasses import dataclass
@@ -29,6 +30,11 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+# The same with the iterative method on a 3D contact scene (no dense W, no direct factor): the peak of
+# tests/bench/test_bench_iterative.py (meshing, assembly, criteria, the cold and the warm contact solve)
+# at 1e6 unknowns, 1.8e6 tetrahedra; 2D is not measured: the direct figure bounds it (the iterative
+# method holds O(nnz), below the direct factor's fill)
+ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.5e3}
 # Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
 # modules): 7.0 and 7.6 kB on the 3D tunnel at 2.2e5 and 7.0e4 tetrahedra, 3.4 kB on the two-blocks demo at
 # 2.3e5 triangles (thermal): what the cells made must fit before assembly; the solve's own memory, which
@@ -60,6 +66,20 @@ def machine_ranks() -> int:
         if os.environ.get(name, "").isdigit():
             return max(1, int(os.environ[name]))
     return 1
+
+
+def bytes_per_cell(scene, method: str) -> float:
+    """Peak memory a cell of one evaluation of `scene` with `solver.method` `method`, before meshing:
+    ITERATIVE_BYTES_PER_CELL for the iterative method on a scene with contact, and for `auto` there
+    where PETSc is installed (auto picks it where the direct method would not fit, `wcs.choose`);
+    BYTES_PER_CELL otherwise (without contact every method is one direct factor)."""
+    iterative = scene.contacts and (method == "iterative" or method == "auto" and iterative_installed())
+    return (ITERATIVE_BYTES_PER_CELL if iterative else BYTES_PER_CELL)[scene.dimension]
+
+
+def iterative_installed() -> bool:
+    """Whether the iterative method's PETSc (the wheel dolfinx-solver-real, petsc4py) is importable."""
+    return all(importlib.util.find_spec(m) is not None for m in ("dolfinx_solver", "petsc4py"))
 
 
 def memory_fault(cells: int, dimension: int) -> str | None:
