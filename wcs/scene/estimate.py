@@ -391,8 +391,10 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # of W on the one-unit tunnels, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
 # its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
 BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
-MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
-#                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
+MODEL_BYTES_PER_NNZ = 90.0      # the assembled model (K's pattern and its reduction, B, T, the stress operator; the
+#                                 cell matrices made on demand, not held): VmRSS after `Evaluator` above BASE_BYTES, 55 bytes
+#                                 a stiffness entry on block-on-block-3d at 0.05, 87 on the patch at 6e5 unknowns (250-300
+#                                 while the cell matrices were held)
 FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
 W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse
