@@ -128,6 +128,8 @@ class CellAffineOperator:
         nodes.sum_duplicates()                                 # sorted node-pair pattern
         number = sp.csr_array((np.arange(nodes.nnz), nodes.indices, nodes.indptr), shape=nodes.shape)
         self.position = number[rows, cols]                     # each pair's place in it (a per-row lookup)
+        if nodes.nnz < 2**31:                                  # 64 bytes a tetrahedron instead of 128
+            self.position = self.position.astype(np.int32)
         self.indptr, self.indices = nodes.indptr, nodes.indices
         self.nblocks = nodes.nnz
         self.shape = (self.block * nnodes,) * 2
