@@ -171,11 +171,11 @@ def test_estimate_within_a_factor_two_of_the_measured_peak(study, size, method, 
 
 
 def test_cells_are_held_to_the_assembly_not_to_the_direct_solve(monkeypatch):
-    """After meshing, the cells are held to the memory of assembling them (7.6 kB a tetrahedron);
+    """After meshing, the cells are held to the memory of assembling them (3.5 kB a tetrahedron);
     the solve's memory is the method's, estimated after assembly: 1.8e6 tetrahedra (1e6 unknowns,
     the iterative method's scale) are no longer refused on 25.3 GB for the direct method's 16 kB a
-    cell (28.8 GB); 4e6 are (30 GB to assemble)."""
+    cell (28.8 GB); 8e6 are (28 GB to assemble)."""
     monkeypatch.setattr(estimate, "machine_memory", lambda: 25.3e9)
     assert estimate.memory_fault(1_800_000, 3) is None
-    assert estimate.memory_fault(4_000_000, 3).startswith(
-        "the mesh has 4000000 cells, which need about 30.4 GB to assemble (7600 bytes a cell, measured)")
+    assert estimate.memory_fault(8_000_000, 3).startswith(
+        "the mesh has 8000000 cells, which need about 28 GB to assemble (3500 bytes a cell, measured)")

@@ -36,10 +36,12 @@ BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
 # method holds O(nnz), below the direct factor's fill)
 ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.5e3}
 # Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
-# modules): 7.0 and 7.6 kB on the 3D tunnel at 2.2e5 and 7.0e4 tetrahedra, 3.4 kB on the two-blocks demo at
-# 2.3e5 triangles (thermal): what the cells made must fit before assembly; the solve's own memory, which
-# depends on the method, is estimated after assembly (`evaluation_cost`)
-MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 7.6e3}
+# modules): 3D, 1.5 kB on the shipped 3D tunnel (2.5e4 tetrahedra), 3.0 kB on the 3D patch at 1.1e6 (6e5
+# unknowns, its reduction's peak; 4.0 and 6.3 kB while the cell matrices were held, 7.0-7.6 kB on the 3D
+# tunnel at 7e4-2.2e5 before that); 2D, 3.4 kB on the two-blocks demo at 2.3e5 triangles (thermal): what
+# the cells made must fit before assembly; the solve's own memory, which depends on the method, is
+# estimated after assembly (`evaluation_cost`)
+MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 3.5e3}
 # How far beyond the machine's memory an estimate may go before meshing: the cells made are held
 # to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
 # estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
