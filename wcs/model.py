@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -38,7 +37,8 @@ from .fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters,
 from .fem.rigid import rigid_modes
 from .fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from .scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
+from .scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
+                             iterative_installed)
 from .scene.meshdata import SceneMesh
 from .scene.selectors import nodal_normals
 from .status import Status
@@ -175,7 +175,7 @@ class Model:
                                 contact_rows=rows, units=units, thermal=self.thermal)
         memory = evaluation_memory()
         method = self.options.method
-        installed = all(importlib.util.find_spec(m) for m in ("dolfinx_solver", "petsc4py"))   # the iterative method's PETSc
+        installed = iterative_installed()                     # the iterative method's PETSc
         if method == "auto":
             method, why = solver_method(self._solver_facts(scene, facts, memory, installed))
         else:
