@@ -31,10 +31,10 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
 # The same with the iterative method on a 3D contact scene (no dense W, no direct factor): the peak of
-# tests/bench/test_bench_iterative.py (meshing, assembly, criteria, the cold and the warm contact solve)
-# at 1e6 unknowns, 1.8e6 tetrahedra; 2D is not measured: the direct figure bounds it (the iterative
-# method holds O(nnz), below the direct factor's fill)
-ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.5e3}
+# tests/bench/test_bench_iterative.py (meshing, assembly, criteria, the cold and the warm contact solve),
+# 9.33 GB at 1.02e6 unknowns, ≈ 1.8e6 tetrahedra: 5.2 kB a cell; 2D is not measured: the direct figure
+# bounds it (the iterative method holds O(nnz), below the direct factor's fill)
+ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 5.5e3}
 # Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
 # modules): 3D, 1.5 kB on the shipped 3D tunnel (2.5e4 tetrahedra), 3.0 kB on the 3D patch at 1.1e6 (6e5
 # unknowns, its reduction's peak; 4.0 and 6.3 kB while the cell matrices were held, 7.0-7.6 kB on the 3D
