@@ -167,7 +167,8 @@ def test_a_raised_max_cells_is_held_to_the_machine_memory(monkeypatch, tmp_path,
         load_study(doc)
     assert info.value.path == "scene.mesh.size" and info.value.fault.startswith(
         f"the mesh would have about {cells:.3g} cells ({cells:.3g} unknowns), which needs about "
-        f"{cells * 5200 / 1e9:.3g} GB (5200 bytes a cell), more than this machine's 4 GB of memory")
+        f"{cells * 5200 / 1e9:.3g} GB (5200 bytes a cell with solver.method auto), more than this machine's 4 GB "
+        "of memory")
     # the cells made: a coarse demo (size 0.05, ~2e3 cells, ~1e7 bytes) on a machine of 1 MB
     monkeypatch.setattr(estimate, "machine_memory", lambda: 1e6)
     path = tmp_path / "demo.yaml"

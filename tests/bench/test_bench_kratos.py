@@ -33,13 +33,27 @@ Measured 2026-12-06 (2 shared cores, load 3-4; medians of 3 alternating rounds; 
 wcs iterative at 0.02 (cProfile, 10.5 s): PETSc GAMG set-up 1.8 s + CG 1.9 s (2 Newton steps);
 the rest is fixed cost: imports ≈ 2-4 s (cvxpy alone 1.9 s, imported for the floating block's
 solvability check), the .msh overlap check 2.2 s, the NetCDF/VTU written ≈ 1 s.
+After the fixed costs went (issue 25, session 26: cvxpy no longer imported for the solvability SOCP,
+scipy.optimize no longer by the command layer, the model built without its cell matrices), wcs
+iterative from this branch against main's and Kratos, alternating as above (compare() of this
+file; 2 cores shared with 7 other sessions' jobs, load 11-13: every wall time ≈ 2-3x the table
+above's, so the ratios are what to read; medians of 3 rounds, peak RSS):
+  face  branch            main              Kratos
+  0.04  6.9 s 0.32 GB     8.9 s 0.39 GB     4.0 s 0.15 GB
+  0.02  20.7 s 0.51 GB    24.2 s 0.67 GB    24.6 s 0.28 GB
+wcs is faster than Kratos at 0.02 but not at 0.04, and leaner at neither: its imports alone hold
+0.2 GB (numpy, scipy, PETSc, skfem, gmsh, xarray/pandas) and take 1.3-3.5 s under this load.
 3D Hertz at a/24 (94,593 unknowns, 1 round): wcs iterative 144 s, monolithic 108 s, both
 8.9 GB; Kratos diverged (Newton residual 1e107, "Zero pivot in ILU"; at a/8 it stopped
 unconverged after 30 Newton steps). wcs' time and memory there go to building the contact
 pressure criterion (cProfile of monolithic: 64 of 72 s "assembly" in
 criteria._distance_to_facets): its KD-tree prune uses ONE reach, the largest
 vertex-centroid distance over all facets of block_top (0.157 m on the graded face, median
-0.0024 m), so each query point gathers ≈ 2,200 of the 2,438 facets: all pairs.
+0.0024 m), so each query point gathers ≈ 2,200 of the 2,438 facets: all pairs. Since searched
+by classes of reach (criteria._distance_to_facets), it is gone: at a/16 (34,371 unknowns, session
+26, load 12) `wcs solve` iterative reports assembly 9.4 s, of which 7.5 s are the dual mortar's
+segment integrals (contact.mortar3d.mortar_integrals3d, a Python loop over 7,565 segments), and
+0.58 GB peak.
 """
 from __future__ import annotations
 

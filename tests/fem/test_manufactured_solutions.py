@@ -175,3 +175,29 @@ def test_reduction_with_rows_of_several_entries():
     ones = abs(T).T @ sp.csr_matrix((np.ones(K.nnz), K.indices, K.indptr), shape=K.shape) @ abs(T)
     assert np.array_equal(red.pattern.indptr, ones.indptr) and red.pattern.nnz == ones.nnz
     assert red.M.has_canonical_format
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_matrices_made_chunk_by_chunk_give_the_held_ones_bits(dim, monkeypatch):
+    """The model's operators make their cell matrices chunk by chunk from the cells' gradients
+    (`elastic_cells`, `conduction_cells`: 104 bytes a tetrahedron held, not 2.3 kB): K(c), K(c) x
+    and the sensitivities are bitwise those of the held matrices, with chunks of 7 cells (the
+    terms of an entry summed in the same cell order across chunks)."""
+    from skfem import MeshTet
+    from wcs.fem import affine
+    monkeypatch.setattr(affine, "CHUNK", 7)
+    rng = np.random.default_rng(3)
+    m = MeshTet().refined(2) if dim == 3 else MeshTri().refined(3)
+    p = m.p + 0.02 * rng.standard_normal(m.p.shape)
+    region = rng.integers(0, 3, m.t.shape[1])
+    for held, made in ((elastic_cell_matrices, affine.elastic_cells), (conduction_cell_matrices, affine.conduction_cells)):
+        A = CellAffineOperator(m.t, p.shape[1], held(p, m.t), region)
+        B = CellAffineOperator(m.t, p.shape[1], made(p, m.t), region)
+        c = rng.uniform(1.0, 3.0e9, (3, A.npieces))
+        KA, KB = A(c), B(c)
+        assert np.array_equal(KA.indptr, KB.indptr) and np.array_equal(KA.indices, KB.indices)
+        assert np.array_equal(KA.data, KB.data)
+        x, y = rng.standard_normal((2, A.shape[0]))
+        x[rng.random(x.size) < 0.7] = 0.0
+        assert np.array_equal(A.apply(c, x), B.apply(c, x))
+        assert np.array_equal(A.sensitivities(x, y), B.sensitivities(x, y))

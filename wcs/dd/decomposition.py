@@ -10,7 +10,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from wcs.fem.affine import CellAffineOperator
+from wcs.fem.affine import CellAffineOperator, CellMatrices
 from wcs.options import DomainDecomposition
 
 from .kernels import _orth, admissible, rigid_basis
@@ -42,7 +42,7 @@ class Field(NamedTuple):
     T: sp.spmatrix
     node_of_dof: np.ndarray
     node_dofs: sp.csr_matrix
-    local: np.ndarray
+    local: CellMatrices
     region: np.ndarray
     p: np.ndarray
 
@@ -61,7 +61,7 @@ def _local_pieces(f: Field, cells: np.ndarray, components: list):
     rows = (ncomp * nodes[:, None] + np.arange(ncomp)).ravel()
     Tloc = sp.csr_matrix(f.T[rows][:, dofs])
     lt = np.searchsorted(nodes, f.t_nodes[:, cells])
-    op = CellAffineOperator(lt, nodes.size, f.local[:, cells], f.region[cells])
+    op = CellAffineOperator(lt, nodes.size, f.local.of(cells), f.region[cells])
     modes, traces = [], []
     for comp in components:
         cn = np.unique(f.t_nodes[:, comp])

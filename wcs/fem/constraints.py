@@ -87,21 +87,39 @@ def _order_columns_by_dof(T: sp.csr_matrix) -> sp.csr_matrix:
     return sp.csr_matrix(Tc[:, np.argsort(first, kind="stable")])
 
 
+PRODUCTS_CHUNK = 1 << 20       # entries of K whose terms are made at once (`_products`)
+
+
 def _products(K: sp.csr_matrix, T: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The terms T_ki K_kl T_lj of Tᵀ K T, grouped by the entry e = (k, l) of K (K, T sorted CSR):
-    for each, the key i·n + j of the entry of Tᵀ K T it adds to, its weight T_ki T_lj and e.
-    Only the three results outlive the call (at 1.2e6 entries of K a temporary is 10 MB)."""
-    k = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
-    l = K.indices
-    start, count = T.indptr[:-1], np.diff(T.indptr)
-    nl = count[l]
-    rep = count[k] * nl                                   # nnz(T_k) · nnz(T_l) terms per entry
-    e = np.repeat(np.arange(K.nnz), rep)
-    ptr = np.zeros(K.nnz + 1, dtype=np.int64)
-    np.cumsum(rep, out=ptr[1:])
-    r, c = np.divmod(np.arange(e.size) - ptr[e], nl[e])
-    a, b = start[k][e] + r, start[l][e] + c
-    return T.indices[a].astype(np.int64) * T.shape[1] + T.indices[b], T.data[a] * T.data[b], e
+    for each, the key i·n + j of the entry of Tᵀ K T it adds to, its weight T_ki T_lj and e
+    (int32 where K's entries allow). Made PRODUCTS_CHUNK entries of K at a time into the three
+    results, so that only those outlive a chunk (made at once, the temporaries took 60 bytes an
+    entry of K: 2.5 GB at 1e6 unknowns, the peak of the model's build)."""
+    count = np.diff(T.indptr)
+    start = T.indptr[:-1]
+    rows = np.repeat(np.arange(K.shape[0], dtype=np.int32 if K.shape[0] < 2**31 else np.int64), np.diff(K.indptr))
+    chunks = [slice(lo, min(lo + PRODUCTS_CHUNK, K.nnz)) for lo in range(0, K.nnz, PRODUCTS_CHUNK)]
+    sizes = [int((count[rows[c]] * count[K.indices[c]]).sum()) for c in chunks]
+    total = sum(sizes)
+    keys = np.empty(total, dtype=np.int64)
+    weights = np.empty(total)
+    e_all = np.empty(total, dtype=np.int32 if K.nnz < 2**31 else np.int64)
+    at = 0
+    for c, size in zip(chunks, sizes):
+        k, l = rows[c], K.indices[c]
+        nl = count[l]
+        rep = count[k] * nl                               # nnz(T_k) · nnz(T_l) terms per entry
+        e = np.repeat(np.arange(c.stop - c.start), rep)
+        ptr = np.zeros(c.stop - c.start + 1, dtype=np.int64)
+        np.cumsum(rep, out=ptr[1:])
+        r, q = np.divmod(np.arange(e.size) - ptr[e], nl[e])
+        a, b = start[k][e] + r, start[l][e] + q
+        keys[at:at + size] = T.indices[a].astype(np.int64) * T.shape[1] + T.indices[b]
+        weights[at:at + size] = T.data[a] * T.data[b]
+        e_all[at:at + size] = c.start + e
+        at += size
+    return keys, weights, e_all
 
 
 class Reduction:
@@ -127,6 +145,8 @@ class Reduction:
         # of T keep K's row order, the columns being numbered by first dof): merge sort, ~linear
         order = np.argsort(keys, kind="stable")
         keys = keys[order]
+        weights, e = weights[order], e[order]
+        del order
         first = np.empty(keys.size, dtype=bool)
         first[:1] = True
         np.not_equal(keys[1:], keys[:-1], out=first[1:])
@@ -134,8 +154,7 @@ class Reduction:
         indptr = np.searchsorted(uniq, np.arange(n + 1, dtype=np.int64) * n)   # sorted keys: rows in order
         self.pattern = sp.csr_matrix((np.zeros(uniq.size), uniq % n, indptr), shape=(n, n))
         self.pattern.sort_indices()
-        self.M = sp.csr_matrix((weights[order], e[order], np.r_[np.flatnonzero(first), keys.size]),
-                               shape=(uniq.size, K.nnz))
+        self.M = sp.csr_matrix((weights, e, np.r_[np.flatnonzero(first), keys.size]), shape=(uniq.size, K.nnz))
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
         K = sp.csr_matrix(K)

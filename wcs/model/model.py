@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -37,13 +36,14 @@ from ..contact.zone import ContactState, build_zone, canonical_split, dependent_
 from ..errors import SolveError, StudyError
 from ..fem import forms
 from ..geometry import tet
-from ..fem.affine import CellAffineOperator, conduction_cell_matrices, elastic_cell_matrices
+from ..fem.affine import CellAffineOperator, conduction_cells, elastic_cells
 from ..fem.constraints import Constraint, Elimination, Reduction, eliminate
 from ..fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from ..fem.rigid import rigid_modes
 from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
 from .materials import lame
-from ..scene.estimate import EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory
+from ..scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
+                              iterative_installed)
 from ..scene.meshdata import SceneMesh
 from ..geometry.facets import nodal_normals
 from ..status import Status
@@ -102,7 +102,7 @@ class Model:
         self.targets = self._name_targets()
 
         # elasticity: K(c) = Σ_j λ_j Kλ_j + μ_j Kμ_j over regions j
-        self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cell_matrices(mesh.p, mesh.t), smesh.cell_region)
+        self.K = CellAffineOperator(mesh.t, self.nnodes, elastic_cells(mesh.p, mesh.t), smesh.cell_region)
         self.support_keys, constraints = self._support_constraints(scene)
         # glued interfaces (mortar): slave DOFs eliminated on top of the nodal constraints
         supported = np.unique(np.concatenate([c.nodes for c in constraints])) if constraints else ()
@@ -180,7 +180,7 @@ class Model:
                                 contact_rows=rows, units=units, thermal=self.thermal)
         memory = evaluation_memory()
         method = self.options.method
-        installed = all(importlib.util.find_spec(m) for m in ("dolfinx_solver", "petsc4py"))   # the iterative method's PETSc
+        installed = iterative_installed()                     # the iterative method's PETSc
         if method == "auto":
             method, why = solver_method(self._solver_facts(scene, facts, memory, installed))
         else:
@@ -295,7 +295,7 @@ class Model:
                                shape=(self.nnodes, nheat))
         Pt = self.P.T.tocsr()
         t_heat = heat_of_node[mesh.t]
-        self.H = CellAffineOperator(t_heat, nheat, conduction_cell_matrices(mesh.p, mesh.t), self.smesh.cell_region)
+        self.H = CellAffineOperator(t_heat, nheat, conduction_cells(mesh.p, mesh.t), self.smesh.cell_region)
         self.temperature_keys = list(scene.thermal.temperature)
         constraints = []
         for k, name in enumerate(self.temperature_keys):

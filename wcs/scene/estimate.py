@@ -12,6 +12,7 @@ half the cells, and a P1 vector field has two unknowns per node.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 from dataclasses import dataclass
@@ -29,11 +30,18 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # triangles (the two-blocks demo at size 0.0033: thermal step, contact, monolithic), 1.1 GB at
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
+# The same with the iterative method on a 3D contact scene (no dense W, no direct factor): the peak of
+# tests/bench/test_bench_iterative.py (meshing, assembly, criteria, the cold and the warm contact solve),
+# 9.33 GB at 1.02e6 unknowns, ≈ 1.8e6 tetrahedra: 5.2 kB a cell; 2D is not measured: the direct figure
+# bounds it (the iterative method holds O(nnz), below the direct factor's fill)
+ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 5.5e3}
 # Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
-# modules): 7.0 and 7.6 kB on the 3D tunnel at 2.2e5 and 7.0e4 tetrahedra, 3.4 kB on the two-blocks demo at
-# 2.3e5 triangles (thermal): what the cells made must fit before assembly; the solve's own memory, which
-# depends on the method, is estimated after assembly (`evaluation_cost`)
-MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 7.6e3}
+# modules): 3D, 1.5 kB on the shipped 3D tunnel (2.5e4 tetrahedra), 3.0 kB on the 3D patch at 1.1e6 (6e5
+# unknowns, its reduction's peak; 4.0 and 6.3 kB while the cell matrices were held, 7.0-7.6 kB on the 3D
+# tunnel at 7e4-2.2e5 before that); 2D, 3.4 kB on the two-blocks demo at 2.3e5 triangles (thermal): what
+# the cells made must fit before assembly; the solve's own memory, which depends on the method, is
+# estimated after assembly (`evaluation_cost`)
+MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 3.5e3}
 # How far beyond the machine's memory an estimate may go before meshing: the cells made are held
 # to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
 # estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
@@ -60,6 +68,20 @@ def machine_ranks() -> int:
         if os.environ.get(name, "").isdigit():
             return max(1, int(os.environ[name]))
     return 1
+
+
+def bytes_per_cell(scene, method: str) -> float:
+    """Peak memory a cell of one evaluation of `scene` with `solver.method` `method`, before meshing:
+    ITERATIVE_BYTES_PER_CELL for the iterative method on a scene with contact, and for `auto` there
+    where PETSc is installed (auto picks it where the direct method would not fit, `wcs.choose`);
+    BYTES_PER_CELL otherwise (without contact every method is one direct factor)."""
+    iterative = scene.contacts and (method == "iterative" or method == "auto" and iterative_installed())
+    return (ITERATIVE_BYTES_PER_CELL if iterative else BYTES_PER_CELL)[scene.dimension]
+
+
+def iterative_installed() -> bool:
+    """Whether the iterative method's PETSc (the wheel dolfinx-solver-real, petsc4py) is importable."""
+    return all(importlib.util.find_spec(m) is not None for m in ("dolfinx_solver", "petsc4py"))
 
 
 def memory_fault(cells: int, dimension: int) -> str | None:
@@ -371,8 +393,10 @@ def _region_zone(solid, size: float) -> spec3d.Refinement:
 # of W on the one-unit tunnels, and the fine tunnel of issue 25, m = 20961, died at > 14.5 GB after
 # its third 3.5 GB array and was killed at 24 GB: 6 or more copies).
 BASE_BYTES = 0.2e9              # the loaded modules (numpy, scipy, gmsh, PARDISO, pydantic)
-MODEL_BYTES_PER_NNZ = 280.0     # the assembled model: 250-300 bytes a stiffness entry (cell matrices of K(c),
-#                                 K's pattern and its reduction, B, T, the stress operator), measured after `Evaluator`
+MODEL_BYTES_PER_NNZ = 90.0      # the assembled model (K's pattern and its reduction, B, T, the stress operator; the
+#                                 cell matrices made on demand, not held): VmRSS after `Evaluator` above BASE_BYTES, 55 bytes
+#                                 a stiffness entry on block-on-block-3d at 0.05, 87 on the patch at 6e5 unknowns (250-300
+#                                 while the cell matrices were held)
 FACTOR_BYTES = 0.08e9           # PARDISO's own workspace
 FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D: fill grows like n^(1/3))
 W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse

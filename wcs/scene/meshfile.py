@@ -42,6 +42,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
+import itertools
 import math
 import os
 from dataclasses import dataclass
@@ -338,10 +339,10 @@ def _check_overlap3d(raw: RawMesh) -> None:
     from scipy.spatial import cKDTree     # scipy.spatial (~0.1 s) loads only for 3D mesh files
     tree = cKDTree(cent)
     for lo in range(0, len(tet), CHUNK):
-        near = tree.query_ball_point(cent[lo:lo + CHUNK], reach[lo:lo + CHUNK])
+        near = tree.query_ball_point(cent[lo:lo + CHUNK], reach[lo:lo + CHUNK], return_sorted=False)
         counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
         outer = np.repeat(np.arange(lo, lo + len(near)), counts)
-        inner = np.fromiter((i for n in near for i in n), dtype=np.int64, count=int(counts.sum()))
+        inner = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=int(counts.sum()))
         other = inner != outer
         outer, inner = outer[other], inner[other]
         lam = np.einsum("kij,kj->ki", inverse[outer], cent[inner] - corners[outer, 0])

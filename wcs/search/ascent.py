@@ -32,7 +32,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .scaling import FD_STEP
 
@@ -198,6 +197,7 @@ def _step(space, z, g, B, delta):
     if space.A is not None:
         cons = [{"type": "ineq", "fun": lambda u: space.b - space.A @ (z + r * u),
                  "jac": lambda u: -r * space.A}]
+    from scipy.optimize import minimize   # scipy.optimize (0.4 s) loads where a search needs it
     res = minimize(lambda u: -gh @ u + 0.5 * u @ Bh @ u, u0, jac=lambda u: -gh + Bh @ u,
                    method="SLSQP", bounds=list(zip(lo / r, hi / r)), constraints=cons,
                    options={"ftol": 1e-15, "maxiter": 200})

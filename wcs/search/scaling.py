@@ -27,7 +27,6 @@ Geometry used by the strategies:
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linprog, minimize
 
 TOL = 1e-9          # feasibility / activity tolerance in scaled coordinates
 FD_STEP = 1e-6      # finite-difference step in z (of each interval): a quotient errs by O(h) from the
@@ -91,6 +90,7 @@ class Space:
                 b = np.concatenate([self.b, np.zeros(n), np.ones(n)])
                 c = np.zeros(n + 1)
                 c[-1] = -1.0
+                from scipy.optimize import linprog   # scipy.optimize (0.4 s) loads where a search needs it
                 res = linprog(c, A_ub=A, b_ub=b, bounds=[(0, 1)] * n + [(0, None)], method="highs-ds")
                 if res.status != 0:
                     raise ValueError("linear constraints A x ≤ b are infeasible on the box")
@@ -105,6 +105,7 @@ class Space:
         z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
         if self.A is None or self.feasible(z, 0.0):
             return z
+        from scipy.optimize import minimize
         res = minimize(lambda y: 0.5 * np.dot(y - z, y - z), self.interior().copy(),
                        jac=lambda y: y - z, method="SLSQP", bounds=[(0.0, 1.0)] * self.n,
                        constraints=[{"type": "ineq", "fun": lambda y: self.b - self.A @ y,
@@ -135,6 +136,7 @@ class Space:
             return np.where(g > tiny, 1.0, np.where(g < -tiny, 0.0, (ref > 0.5).astype(float)))
         scale = np.max(np.abs(g), initial=0.0)           # HiGHS fails on |g| ~ 1e13 (Pa² criteria)
         gs = g / scale if scale > 0 else g
+        from scipy.optimize import linprog
         res = linprog(-gs, A_ub=self.A, b_ub=self.b, bounds=[(0.0, 1.0)] * self.n, method="highs-ds")
         if res.status != 0:
             raise RuntimeError(f"LP for the gradient vertex failed: {res.message}")

@@ -31,7 +31,7 @@ def _recorded_text(base: Path, text: str, extra: list[tuple[Path, str]]) -> str:
     return text
 
 
-def _checked_scene(raw, src: _Source) -> tuple[Scene, list[tuple[Path, str]], list[str], float | None]:
+def _checked_scene(raw, src: _Source, method: str = "auto") -> tuple[Scene, list[tuple[Path, str]], list[str], float | None]:
     """The scene of a study (inline, or a file name relative to `src`), resolved and checked;
     the files it came from, the notes on it and its estimated cell count."""
     scene, scene_src, extra, notes = _load_scene(raw, src)
@@ -39,7 +39,7 @@ def _checked_scene(raw, src: _Source) -> tuple[Scene, list[tuple[Path, str]], li
     _check_references(scene, scene_src)
     _check_contacts(scene, scene_src)
     notes = notes + _check_thermal(scene, scene_src)
-    return scene, extra, notes, _check_mesh(scene, scene_src)
+    return scene, extra, notes, _check_mesh(scene, scene_src, method)
 
 
 def load_scene(mapping: Mapping, base_dir=None) -> Scene:
@@ -68,7 +68,7 @@ def load_study(path_or_mapping, base_dir=None) -> Study:
         got = "an empty file" if doc is None else type(doc).__name__
         raise src.error((), f"a study file is a mapping of keys (got {got})")
     top = src.validate(_STUDY, doc)
-    scene, extra, notes, cells = _checked_scene(top.scene, src)
+    scene, extra, notes, cells = _checked_scene(top.scene, src, top.solver.method)
     uncertain = _parse_uncertain(top.uncertain, scene, src)
     criteria = top.criteria
     _check_criteria(criteria, scene, src)

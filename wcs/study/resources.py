@@ -7,7 +7,7 @@ import numpy as np
 
 from ..choose import MeshFacts, mesh_size
 from ..scene import spec3d
-from ..scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, ESTIMATE_EXCESS, estimate_cells, estimate_cells3d, machine_memory,
+from ..scene.estimate import (bytes_per_cell, DEFAULT_MAX_CELLS, ESTIMATE_EXCESS, estimate_cells, estimate_cells3d, machine_memory,
                               shape_box, solid_box)
 from ..scene.spec import Scene
 from .scene import _used_materials
@@ -18,7 +18,7 @@ from .uncertain import Uncertain
 MIN_CELLS_ALONG = 4     # a mesh size gives at least this many cells along the longest side
 
 
-def _check_mesh(scene: Scene, src: _Source) -> float | None:
+def _check_mesh(scene: Scene, src: _Source, method: str = "auto") -> float | None:
     """The estimated cell count (wcs.scene.estimate) of a scene meshed from shapes; StudyError
     when it exceeds `mesh.max_cells`, or when a mesh size leaves fewer than MIN_CELLS_ALONG
     cells along the longest side of the scene (or of a body with its own size)."""
@@ -26,7 +26,7 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
         return None
     _refuse_many_shapes(scene, src)
     if scene.dimension == 3:
-        return _check_mesh3d(scene, src)
+        return _check_mesh3d(scene, src, method)
     boxes = {b: [shape_box(r.shape) for r in spec.regions] for b, spec in scene.bodies.items()}
     sizes = [(("mesh", "size"), scene.mesh.size, "the scene", sum(boxes.values(), []))]
     sizes += [(("bodies", b, "mesh", "size"), spec.mesh.size, f"body '{b}'", boxes[b])
@@ -35,7 +35,7 @@ def _check_mesh(scene: Scene, src: _Source) -> float | None:
                                          max(b[3] for b in bx) - min(b[1] for b in bx)))
                     for where, h, what, bx in sizes], src)
     cells, path = estimate_cells(scene)
-    _refuse_many(scene, cells, path, f"{cells:.3g} cells ({cells:.3g} unknowns)", src)
+    _refuse_many(scene, cells, path, f"{cells:.3g} cells ({cells:.3g} unknowns)", src, method)
     return cells
 
 
@@ -70,7 +70,7 @@ def _refuse_coarse(sizes, src: _Source) -> None:
                                    f"side of {what} ({longest:.3g}): P1 cells that coarse do not resolve the fields")
 
 
-def _refuse_many(scene, cells: float, path: str, about: str, src: _Source) -> None:
+def _refuse_many(scene, cells: float, path: str, about: str, src: _Source, method: str = "auto") -> None:
     """StudyError at the size contributing most (`path`) when the estimated `cells` exceed
     `mesh.max_cells`; `about` says what they are."""
     limit = DEFAULT_MAX_CELLS if scene.mesh.max_cells is None else scene.mesh.max_cells
@@ -78,17 +78,18 @@ def _refuse_many(scene, cells: float, path: str, about: str, src: _Source) -> No
         raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, more than "
                         f"mesh.max_cells = {limit:g} (this size contributes most); coarsen the mesh or raise "
                         "`mesh.max_cells`")
-    need, memory = cells * BYTES_PER_CELL[scene.dimension], machine_memory()
+    per_cell, memory = bytes_per_cell(scene, method), machine_memory()
+    need = cells * per_cell
     excess = ESTIMATE_EXCESS[scene.dimension]
     if need > excess * memory:                      # a raised max_cells: meshing and solving would swap
         raise src.error(tuple(path.split(".")), f"the mesh would have about {about}, which needs about "
-                        f"{need / 1e9:.3g} GB ({BYTES_PER_CELL[scene.dimension]:g} bytes a cell), more than "
+                        f"{need / 1e9:.3g} GB ({per_cell:g} bytes a cell with solver.method {method}), more than "
                         + (f"{excess:g} times " if excess != 1 else "")
                         + f"this machine's {memory / 1e9:.3g} GB of memory (this size contributes most); coarsen "
                         "the mesh")
 
 
-def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
+def _check_mesh3d(scene: spec3d.Scene, src: _Source, method: str = "auto") -> float:
     """`_check_mesh` of a 3D scene: a region shape that is a halfspace alone is refused (it is
     unbounded), sizes leave MIN_CELLS_ALONG cells along the longest side, and the estimated
     tetrahedra (wcs.scene.estimate.estimate_cells3d) stay within `mesh.max_cells`."""
@@ -110,7 +111,7 @@ def _check_mesh3d(scene: spec3d.Scene, src: _Source) -> float:
               for b, spec in scene.bodies.items() if spec.mesh is not None]
     _refuse_coarse([(where, h, what, float(np.max(hi(bx) - lo(bx)))) for where, h, what, bx in sizes], src)
     cells, path = estimate_cells3d(scene, size)
-    _refuse_many(scene, cells, path, f"{cells:.3g} tetrahedra", src)
+    _refuse_many(scene, cells, path, f"{cells:.3g} tetrahedra", src, method)
     return cells
 
 
