@@ -10,6 +10,7 @@ name and loaded when a study names it.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from dataclasses import dataclass
 from typing import Callable, Protocol
@@ -28,7 +29,8 @@ class Solved:
     """A data set's contact solution as a method reports it (what `Model.solve` puts in its
     `Solution`): the displacement, the contact state, the iterations and what solved it; from
     a solve of the `ContactProblem`, its reduced unknowns w, the raw result and the stiffness
-    K with the scales of its units."""
+    K with the scales of its units. krylov_steps: the Krylov iterations of each outer step
+    (() where no Krylov method solved it, None where the method does not count them)."""
     u: np.ndarray
     contact: object
     iterations: int
@@ -37,6 +39,7 @@ class Solved:
     raw: ContactResult | None = None
     stiffness: object = None
     scale: np.ndarray | float = 1.0
+    krylov_steps: tuple | None = ()
 
 
 class ContactMethod(Protocol):
@@ -100,7 +103,7 @@ class Primal:
             return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm,
                                                f"{self.name}, polished by monolithic for the adjoint")
         u, contact, iterations, res = model._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, self)
-        return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale)
+        return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale, res.krylov_steps)
 
 
 @dataclass(frozen=True)
@@ -127,7 +130,7 @@ class Decomposition:
         dd = model._solve_dd(c, Kr, rhs, u0)
         if dd.status is DDOutcome.CONVERGED and not adjoint:
             contact = model.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
-            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}")
+            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}", krylov_steps=None)
         warm = None
         if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
             warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
@@ -136,7 +139,8 @@ class Decomposition:
             used = f"monolithic after dd {dd.message}"
         else:
             raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
-        return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        out = method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        return dataclasses.replace(out, krylov_steps=None)     # the dd's PCG iterations are not counted here
 
 
 METHODS: dict[str, ContactMethod | str] = {}
