@@ -13,6 +13,7 @@ from wcs.cli import main
 from wcs.evaluation import Evaluation, Evaluator
 from wcs.record import from_evaluation
 from wcs.status import Status
+from wcs.study import load_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
@@ -101,3 +102,16 @@ def test_a_failed_evaluation_has_its_krylov_iterations_not_counted():
     ev = Evaluation(np.zeros(1), {"a": np.nan}, Status.CONTACT_NOT_CONVERGED, "no", 0, 0.1)
     rec = from_evaluation(ev, ["a"], 1, "sample", False)
     assert rec["krylov_iterations"] == rec["krylov_step_max"] == -1
+
+
+def test_the_dd_and_its_monolithic_polish_leave_the_krylov_iterations_not_counted():
+    """The DD's PCG iterations are in its message, not counted as the file's Krylov iterations;
+    polished by monolithic for the adjoint the solve ran the DD's PCG all the same."""
+    doc = yaml.safe_load((STUDIES / "validation" / "contact-patch.yaml").read_text())
+    doc["solver"] = {"method": "dd", "dd": {"subdomains": 4}}
+    ev = Evaluator(load_study(doc))
+    for gradients in (False, True):
+        res = ev.evaluate(ev.study.nominal(), gradients=gradients)
+        assert res.status == 0 and res.message.startswith("solved (dd")
+        rec = from_evaluation(res, [c.name for c in ev.criteria], len(res.x), "sample", gradients)
+        assert (rec["krylov_iterations"], rec["krylov_step_max"]) == (-1, -1)
