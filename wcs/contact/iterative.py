@@ -71,7 +71,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     Arguments and result as `solve_contact` (no factor: `factor` is None). near_nullspace:
     (n, r) rigid-body modes of K's unknowns for GAMG (6 in 3D, 3 in 2D); rtol: relative
     residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
-    their CG iterations in total. Floating bodies (R): the load's balance is checked as in
+    their CG iterations in total and `krylov_steps` those of each step (one per Newton step). Floating bodies (R): the load's balance is checked as in
     `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
     rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet), as
     does an active row with no unknown of its own (module docstring).
@@ -138,7 +138,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     timings.update(**step.timings, **step.krylov_solver.timings, total=time.perf_counter() - t0)
     return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
                          _states(free, m, gw), None, None, timings, free=free, gw=gw,
-                         krylov_iterations=step.krylov)
+                         krylov_iterations=step.krylov, krylov_steps=tuple(step.krylov_steps))
 
 
 def _scales(K, C, m, k):
@@ -321,6 +321,7 @@ class _Stepper:
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
         self.krylov = 0
+        self.krylov_steps = []      # CG iterations of each step (a rebuilt preconditioner's solve included)
 
     def solve(self, free, z, gw, c, k, eta):
         """(u, λ) of the step with the free set `free` (the slip data from z)."""
@@ -343,6 +344,7 @@ class _Stepper:
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
         self.krylov += its
+        self.krylov_steps.append(its)
         if not ok:
             raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
         u = Z @ v + ub

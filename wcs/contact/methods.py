@@ -28,7 +28,8 @@ class Solved:
     """A data set's contact solution as a method reports it (what `Model.solve` puts in its
     `Solution`): the displacement, the contact state, the iterations and what solved it; from
     a solve of the `ContactProblem`, its reduced unknowns w, the raw result and the stiffness
-    K with the scales of its units."""
+    K with the scales of its units. krylov_steps: the Krylov iterations of each outer step
+    (() where no Krylov method solved it, None where the method does not count them)."""
     u: np.ndarray
     contact: object
     iterations: int
@@ -37,6 +38,15 @@ class Solved:
     raw: ContactResult | None = None
     stiffness: object = None
     scale: np.ndarray | float = 1.0
+    krylov_steps: tuple | None = ()
+
+
+def krylov_counts(steps) -> tuple[int, int]:
+    """(all, most in one step) of the Krylov iterations per outer step `steps`: (0, 0) for a
+    solve without a Krylov method (steps ()), (-1, -1) where they were not counted (None)."""
+    if steps is None:
+        return -1, -1
+    return int(sum(steps)), int(max(steps, default=0))
 
 
 class ContactMethod(Protocol):
@@ -100,7 +110,7 @@ class Primal:
             return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm,
                                                f"{self.name}, polished by monolithic for the adjoint")
         u, contact, iterations, res = model._solve_contact(c, Ks, rhs, u0, nominal, warm, scale, self)
-        return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale)
+        return Solved(u, contact, iterations, used or self.name, res.u, res, Ks, scale, res.krylov_steps)
 
 
 METHODS: dict[str, ContactMethod | str] = {}

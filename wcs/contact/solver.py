@@ -98,6 +98,7 @@ class ContactResult:
     free: np.ndarray | None = None   # (d·m,) final Newton free set: closed normals, stuck tangents
     gw: np.ndarray | None = None     # (m,) final slip bounds g·w (+ F·λn for Coulomb)
     krylov_iterations: int = 0       # iterative method: Krylov iterations over all its Newton steps
+    krylov_steps: tuple = ()         # iterative method: the Krylov iterations of each Newton step, in order
 
 
 @dataclass

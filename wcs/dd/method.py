@@ -2,6 +2,7 @@
 module's name in `wcs.contact.methods` and loaded when a study names it."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +37,7 @@ class Decomposition:
         dd = model._solve_dd(c, Kr, rhs, u0)
         if dd.status is DDOutcome.CONVERGED and not adjoint:
             contact = model.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
-            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}")
+            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}", krylov_steps=None)
         warm = None
         if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
             warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
@@ -45,7 +46,8 @@ class Decomposition:
             used = f"monolithic after dd {dd.message}"
         else:
             raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
-        return method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        out = method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
+        return dataclasses.replace(out, krylov_steps=None)     # the dd's PCG iterations are not counted here
 
 
 METHOD = Decomposition()

@@ -36,6 +36,7 @@ class Evaluation:
     state: Solution | None = None
     grad: dict | None = None          # criterion -> dΦ/dx (physical units), when asked for
     nonsmooth: bool = False           # an active-set change or a switch of the max within reach
+    krylov_steps: tuple | None = None  # Krylov iterations per outer step (() none, None not counted or failed)
     evaluator: "Evaluator | None" = field(default=None, repr=False)
     _fields: object = field(default=None, repr=False)
 
@@ -154,5 +155,5 @@ class Evaluator:
             grad, nonsmooth = adjoint_gradients(self, state, x, others)
         message = "solved" if state.solver in ("direct", *METHODS) else f"solved ({state.solver})"
         return Evaluation(x, phi, Status.SOLVED, message, state.iterations, time.perf_counter() - t0,
-                          state=state, grad=grad, nonsmooth=nonsmooth, evaluator=self)
+                          state=state, grad=grad, nonsmooth=nonsmooth, krylov_steps=state.krylov_steps, evaluator=self)
 

@@ -58,6 +58,7 @@ class Solution:
     stress: np.ndarray         # (4, ncells) xx, yy, zz, xy in 2D; (6, ncells) xx, yy, zz, yz, xz, xy in 3D
     coefficients: Coefficients
     iterations: int = 1
+    krylov_steps: tuple | None = ()        # Krylov iterations per outer step (`wcs.contact.methods.Solved`)
     solver: str = "direct"                 # what actually solved it (e.g. "dd", "monolithic after dd stagnated")
     contact: object | None = None
     timings: dict = field(default_factory=dict)
@@ -393,7 +394,7 @@ class Model:
             return Solution(u=u, T=T, stress=self.cell_stress(u, T, c), w=w, stiffness=Kr, **own)
         out = self.method.solve(self, c, Kr, rhs, u0, nominal, adjoint)
         return Solution(u=out.u, T=T, stress=self.cell_stress(out.u, T, c), solver=out.solver,
-                        iterations=out.iterations, contact=out.contact, w=out.w, raw=out.raw,
+                        iterations=out.iterations, krylov_steps=out.krylov_steps, contact=out.contact, w=out.w, raw=out.raw,
                         stiffness=out.stiffness, scale=out.scale, **own)
 
     def _contact_stiffness(self, c: Coefficients, Kr) -> tuple[sp.csr_matrix, np.ndarray | float]:

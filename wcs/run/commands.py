@@ -23,6 +23,7 @@ from ..errors import StudyError
 from ..model.evaluation import Evaluator
 from ..results.extremes import support_extremes
 from .parallel import rank, world
+from ..contact.methods import krylov_counts
 from ..progress import INTERRUPTED, current, phase
 from ..results.dataset import widest, write_netcdf, write_solution
 from ..results.summary import limits_broken, summary_table
@@ -303,6 +304,17 @@ def solve_nominal(args) -> int:
         f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s"])
 
 
+def solver_counts(res) -> str:
+    """What the solve took: its outer steps and Krylov iterations (as the results file's
+    `iterations`, `krylov_iterations`, `krylov_step_max`)."""
+    total, most = krylov_counts(res.krylov_steps)
+    krylov = ("no Krylov iterations (direct factorization)" if total == 0 else
+              "Krylov iterations not counted by this method" if total < 0 else
+              f"{total} Krylov iterations ({most} at most in one step, "
+              f"{total / max(res.iterations, 1):.1f} per step on average)")
+    return f"  solver: {res.iterations} outer steps, {krylov}"
+
+
 def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
     """Write one solved scenario (results file + .vtu) and say what it gave."""
     try:
@@ -313,7 +325,7 @@ def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
     for w in validity_warnings(res.fields):
         print(f"warning: {w}", file=sys.stderr)
     if not getattr(args, "quiet", False):
-        print("\n".join(header))
+        print("\n".join(header + [solver_counts(res)]))
         what = {c.name: in_words(c.kind, list(c.regions)) for c in study.criteria}
         for name, v in res.phi.items():
             print(f"  {name} = {v:.6g}  ({what[name]})")

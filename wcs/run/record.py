@@ -19,6 +19,7 @@ from typing import NotRequired, TypedDict
 
 import numpy as np
 
+from ..contact.methods import krylov_counts
 from ..errors import StudyError
 from .parallel import agree, rank
 from ..search import Outcome
@@ -32,6 +33,8 @@ class Record(TypedDict):
     status: int                        # a wcs.status.Status code (0 solved)
     message: str                       # the solver's message
     iterations: int                    # solver iterations
+    krylov_iterations: NotRequired[int]  # Krylov iterations in all (-1: not counted), `krylov_counts`
+    krylov_step_max: NotRequired[int]  # the most Krylov iterations of one outer step (-1: not counted)
     wall_time: float                   # seconds of the evaluation
     grad: np.ndarray | None            # (k, n) dPhi/dx where asked for and solved, else None
     nonsmooth: int                     # 1: the active set (or the max over regions) changes within reach
@@ -54,6 +57,7 @@ def from_evaluation(ev, criteria: list[str], n: int, stage: str, gradients: bool
            "message": str(ev.message), "iterations": int(ev.iterations or 0),
            "wall_time": float(ev.wall_time), "grad": grad,
            "nonsmooth": int(bool(getattr(ev, "nonsmooth", False))), "stage": stage}
+    rec["krylov_iterations"], rec["krylov_step_max"] = krylov_counts(getattr(ev, "krylov_steps", None))
     if sweep is not None:
         rec["sweep"] = np.asarray(sweep, float)
     if ok and getattr(ev, "history", None) is not None:
@@ -78,6 +82,8 @@ def from_store(stored: dict, stage: str) -> Record:
            "iterations": int(stored["iterations"]), "wall_time": float(stored["wall_time"]),
            "grad": stored["grad"].astype(float) if "grad" in stored else None,
            "nonsmooth": int(stored["nonsmooth"]), "stage": stage, "from_store": True}
+    for key in ("krylov_iterations", "krylov_step_max"):     # -1: stored before they were counted
+        rec[key] = int(stored[key]) if key in stored else -1
     if "sweep" in stored:
         rec["sweep"] = stored["sweep"].astype(float)
     if "phi_history" in stored:
