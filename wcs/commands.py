@@ -22,7 +22,7 @@ from .drivers import drivers
 from .errors import StudyError
 from .evaluation import Evaluator
 from .extremes import support_extremes
-from .parallel import rank, world
+from .parallel import rank, spanning, world
 from .progress import INTERRUPTED, current, limits_broken, phase, summary_table
 from .results import widest, write_netcdf, write_solution
 from .runner import Runner
@@ -157,8 +157,12 @@ class CheckedRunner(Runner):
 
     def finish(self, result) -> xr.Dataset:
         ds = super().finish(result)
-        if self.kind != "run" or not self.root:
+        if self.kind != "run" or not self.lead:
             return ds
+        with spanning(self.group):      # rank 0's group solves them, as the worst cases' fields
+            return self._checked(ds)
+
+    def _checked(self, ds) -> xr.Dataset:
         found = support_extremes(ds)
         with phase("drivers") as progress:              # solves: as many as the extremes need
             def solve(x, gradients=True):

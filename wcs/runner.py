@@ -50,7 +50,7 @@ import xarray as xr
 
 from .errors import StudyError
 from .evaluation import Evaluation, Evaluator
-from .parallel import rank, world
+from .parallel import groups, rank, spanning, world
 from .problem import build_problem
 from .progress import phase, reporting
 from .record import Ledger, from_evaluation, open_store
@@ -89,6 +89,10 @@ class Runner:
         `output` when `output` is None). on_event: told every `Event`."""
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
+        # groups of ranks_per_evaluation ranks answer the batches, each solve spanning its group
+        self.group, self.group_index, self.groups = groups(self.comm, study.solver.ranks_per_evaluation,
+                                                           str(study.file))
+        self.lead = self.root or self.group is not None and self.group_index == 0   # solves the closing evaluations
         self.study = study
         self.kind = kind
         self.on_event = on_event
@@ -208,13 +212,14 @@ class Runner:
                 for i, (_, p, _) in enumerate(batch):
                     done(i, self.evaluate(p, gradients, stage))
                 return
-            # MPI: rank r solves points r, r+N, ...; all ranks then append every record in batch order
-            size, me = self.comm.size, self.comm.rank
-            mine = [(i, from_evaluation(self.evaluate(batch[i][1], gradients, stage), self.criteria,
-                                        len(self.names), stage, gradients, batch[i][2]))
-                    for i in range(me, len(batch), size)]
+            # MPI: group g solves points g, g+G, ... (G groups; each rank its own group where
+            # ranks_per_evaluation is 1); all ranks then append every record (its group's rank 0's) in batch order
+            with spanning(self.group):
+                mine = [(i, from_evaluation(self.evaluate(batch[i][1], gradients, stage), self.criteria,
+                                            len(self.names), stage, gradients, batch[i][2]))
+                        for i in range(self.group_index, len(batch), self.groups)]
             t = time.perf_counter()
-            parts = self.comm.allgather(mine)
+            parts = self.comm.allgather(mine if self.group is None or self.group.rank == 0 else [])
             self._report(Event("gather", time.perf_counter() - t, stage))
             for i, rec in sorted((r for part in parts for r in part), key=lambda t: t[0]):
                 done(i, None, rec)
@@ -331,7 +336,8 @@ class Runner:
         of each criterion's worst case re-solved."""
         extremes = extremes_of(self.study, self.ledger.records, self.criteria, self.kind, result or [])
         worst, certificate, notes = widest_maxima(extremes, self.criteria)
-        fields = self._worst_fields(worst) if self.root else {c: None for c in self.criteria}
+        with spanning(self.group):            # rank 0's group solves them; rank 0 keeps them
+            fields = self._worst_fields(worst) if self.lead else {c: None for c in self.criteria}
         self.final = Final(worst, certificate, notes, fields, extremes)
         return self._write()
 

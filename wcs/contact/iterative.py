@@ -435,25 +435,34 @@ class Krylov:
     to its tolerance, the preconditioner changes its cost); it is rebuilt when a solve took
     more than `REBUILD` times the iterations per digit of residual reduction of the solve it
     was built for (plus 10).
-    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
+    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate.
+    comm: the group whose ranks share each solve (`wcs.contact.distributed`; default: the one
+    `wcs.parallel.spanning` set, None: this process alone)."""
 
     REBUILD = 2.0
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
-    def __init__(self, near_nullspace=None):
+    def __init__(self, near_nullspace=None, comm=False):
+        from wcs.parallel import evaluation_comm
         self.N = near_nullspace
-        self.ksp = self.P = None
+        self.comm = evaluation_comm() if comm is False else comm
+        self.ksp = self.P = self.layout = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
-        self.timings = {"gamg_setup": 0.0, "cg": 0.0}    # seconds
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}    # seconds (matrix: to PETSc's form)
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
         import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
         from petsc4py import PETSc
+        from wcs.contact.distributed import Layout
         n = A.shape[0]
         if n == 0:
             return np.zeros(0), 0, True
-        M = _petsc_matrix(A, PETSc)
+        t = time.perf_counter()
+        if self.layout is None or self.layout.n != n:
+            self.layout = Layout(self.comm, n, PETSc)
+        M = self.layout.matrix(A, PETSc)
+        self.timings["matrix"] += time.perf_counter() - t
         fresh = self.ksp is None
         t = time.perf_counter()
         if fresh:
@@ -463,11 +472,11 @@ class Krylov:
         self.ksp.setOperators(M, self.P)
         self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
         x, rhs = M.createVecs()
-        rhs.setArray(b)
+        rhs.setArray(b[self.layout.lo:self.layout.hi])
         self.ksp.solve(rhs, x)
         ok = self.ksp.getConvergedReason() > 0
         its = self.ksp.getIterationNumber()
-        out = x.getArray().copy()
+        out = self.layout.gather(x.getArray())
         for o in (x, rhs):
             o.destroy()
         self.timings["cg"] += time.perf_counter() - t
@@ -484,10 +493,9 @@ class Krylov:
         if self.N is not None and self.N.shape[1]:
             Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
             rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
-            vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF)
-                    for j in range(rank)]
-            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+            vecs = [self.layout.vector(Q[:, j], PETSc) for j in range(rank)]
+            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.layout.petsc))
+        ksp = PETSc.KSP().create(self.layout.petsc)
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.getPC().setType("gamg")
@@ -501,16 +509,6 @@ class Krylov:
             self.ksp.destroy()
             self.P.destroy()
         self.ksp = self.P = None
-
-
-def _petsc_matrix(A: sp.csr_matrix, PETSc):
-    A = A.tocsr()
-    A.sort_indices()
-    n = A.shape[0]
-    M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
-                                                 A.data), comm=PETSc.COMM_SELF)
-    M.setOption(PETSc.Mat.Option.SPD, True)
-    return M
 
 
 def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
