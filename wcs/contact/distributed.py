@@ -21,6 +21,14 @@ def rows(n: int, size: int, rank: int) -> tuple[int, int]:
     return lo, lo + base + (rank < extra)
 
 
+class RowBlocks:
+    """An n × n matrix given by the function `rows(lo, hi)` of its rows lo:hi (scipy CSR), so
+    that each rank builds only its share."""
+
+    def __init__(self, n: int, rows):
+        self.shape, self.rows = (n, n), rows
+
+
 class Layout:
     """The row split of n unknowns over `comm` (an mpi4py communicator; None: one process)."""
 
@@ -32,8 +40,8 @@ class Layout:
         self.lo, self.hi = rows(n, size, rank)
 
     def matrix(self, A, PETSc):
-        """The SPD A (scipy CSR, replicated) as a PETSc AIJ matrix holding this rank's rows."""
-        A = A[self.lo:self.hi].tocsr()
+        """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows."""
+        A = A.rows(self.lo, self.hi) if isinstance(A, RowBlocks) else A[self.lo:self.hi].tocsr()
         A.sort_indices()
         m = self.hi - self.lo
         M = PETSc.Mat().createAIJ(size=((m, self.n), (m, self.n)),

@@ -46,6 +46,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from wcs.contact.distributed import RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
@@ -335,7 +336,7 @@ class _Stepper:
                               "(its rigid modes are not projected out by the iterative method yet)")
         Z, ub = _basis(C, rows, P, Binv, self.b[rows])
         rhs0 = self.f - C.T @ lam0
-        A = _eliminated(Z, Kt, K, P)
+        A = RowBlocks(n, lambda lo, hi: _eliminated(Z, Kt, K, P, lo, hi))     # each rank builds its rows
         b = Z.T @ (rhs0 - Kt @ ub)
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
@@ -408,10 +409,16 @@ def _basis(C, rows, P, Binv, b_rows):
     return Z, ub
 
 
-def _eliminated(Z, Kt, K, P):
-    """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0)."""
+def _eliminated(Z, Kt, K, P, lo=0, hi=None):
+    """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0);
+    its rows lo:hi only where given (a rank's share, `wcs.contact.distributed`)."""
     n = K.shape[0]
-    return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    hi = n if hi is None else hi
+    if (lo, hi) == (0, n):
+        return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    Pr = P[(P >= lo) & (P < hi)]
+    return (sp.csr_matrix(Z.T)[lo:hi] @ Kt @ Z + sp.csr_matrix((K.diagonal()[Pr], (Pr - lo, Pr)),
+                                                                shape=(hi - lo, n))).tocsr()
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:

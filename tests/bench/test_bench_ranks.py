@@ -1,0 +1,60 @@
+"""`solver.ranks_per_evaluation` (issue 25, "Distributed"): one 3D contact evaluation by the
+iterative method on 1 rank and on 2 ranks (one group of 2), in one run — the 3D block-on-block
+patch of test_bench_iterative.py, each evaluation whole (the data set's K(c), the contact
+solve, the criteria), cold (the nominal data set) and warm (the upper corner, from the nominal
+answer). Goal: 2 ranks ≥ 1.6× faster than 1. Written: the ratios, where the time goes at each
+rank count (model build; per evaluation: solvability LP, rows, elimination, PETSc matrix,
+GAMG set-up, CG, the rest = K(c) and criteria), the iterations, the peak memory of each rank
+and the machine's load (2 cores shared with other jobs).
+
+WCS_BENCH_RANKS="size face" sets the mesh (default "0.04 0.02"). Run it under the big-memory
+lock: `flock /tmp/wcs-bigmem.lock prlimit --as=... pytest -m bench tests/bench/test_bench_ranks.py`.
+Table: results/bench/bench_ranks.csv.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common import ROOT, write_table
+
+BIN = Path(sys.executable).parent
+PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")
+
+
+def run(ranks: int, size: float, face: float, out: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+    done = subprocess.run([str(BIN / "mpiexec"), "-n", str(ranks), sys.executable, str(Path(__file__).with_name(
+        "ranks_bench.py")), str(size), str(face), str(out)], env=env, capture_output=True, text=True, timeout=3600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return {**json.loads(out.read_text()), "load": os.getloadavg()[0]}
+
+
+def row(r: dict, case: str, one: dict) -> list:
+    e = r[case]
+    parts = [round(e["contact"].get(p, 0.0), 2) for p in PARTS]
+    rest = round(e["seconds"] - e["contact"]["total"], 2)
+    return [r["ranks"], case, r["unknowns"], r["contact_nodes"], round(r["model_s"], 1), round(e["seconds"], 2),
+            round(one[case]["seconds"] / e["seconds"], 2), *parts, rest, e["newton"], e["krylov"],
+            "/".join(f"{p:.2f}" for p in r["peak_gb_ranks"]), round(r["load"], 1)]
+
+
+@pytest.mark.bench
+def test_bench_one_and_two_ranks_per_evaluation(tmp_path):
+    size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.04 0.02").split())
+    one = run(1, size, face, tmp_path / "one.json")
+    two = run(2, size, face, tmp_path / "two.json")
+    for case in ("cold", "warm"):           # the same answer to the solver's tolerance
+        for c, v in one[case]["phi"].items():
+            assert two[case]["phi"][c] == pytest.approx(v, rel=1e-6), (case, c)
+    rows = [row(r, case, one) for r in (one, two) for case in ("cold", "warm")]
+    path = write_table("bench_ranks", ["ranks", "case", "unknowns", "contact_nodes", "model_s", "evaluation_s",
+                                       "speedup_over_1_rank", *(f"{p}_s" for p in PARTS), "rest_s", "newton",
+                                       "krylov", "peak_gb_per_rank", "load"], rows)
+    print(path.read_text())
