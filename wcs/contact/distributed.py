@@ -36,7 +36,7 @@ class Layout:
         self.comm, self.n = comm, n
         self.petsc = PETSc.COMM_SELF if comm is None else PETSc.Comm(comm)
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
-        self.counts = np.array([np.subtract(*rows(n, size, r)[::-1]) for r in range(size)])
+        self.counts = np.diff([rows(n, size, r)[0] for r in range(size)] + [n])     # rows of each rank
         self.lo, self.hi = rows(n, size, rank)
 
     def matrix(self, A, PETSc):
