@@ -24,7 +24,7 @@ import pytest
 from common import ROOT, write_table
 
 BIN = Path(sys.executable).parent
-PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")
+PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")     # matrix: Zᵀ Kt Z (this rank's rows) into PETSc
 
 
 def run(ranks: int, size: float, face: float, out: Path) -> dict:

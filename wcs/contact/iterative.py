@@ -314,7 +314,7 @@ class _Stepper:
     def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
         self.failure, self.unsupported = "", False
-        self.timings = {"eliminate": 0.0}       # seconds: pivots, Z and Zᵀ K Z of the steps
+        self.timings = {"eliminate": 0.0}       # seconds: pivots and Z of the steps (Zᵀ Kt Z: Krylov's "matrix")
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
@@ -455,7 +455,7 @@ class Krylov:
         self.comm = evaluation_comm() if comm is False else comm
         self.ksp = self.P = self.layout = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
-        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}    # seconds (matrix: to PETSc's form)
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}    # seconds (matrix: this rank's rows of A built and put in PETSc's form)
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
