@@ -27,10 +27,11 @@ depend on what was solved before it (the contact solver always starts from the n
 data's state, see `Model.solve`), so a resumed run gives the same bits as an uninterrupted
 one, and so does a run spread over MPI ranks: with the DD solver every evaluation is spread
 over all ranks (its subdomains), otherwise rank r solves points r, r + N, ... of each batch
-and every rank records every outcome in batch order; with `solver.ranks_per_evaluation: k`
+and every rank records every outcome in batch order. With `solver.ranks_per_evaluation: k`
 group g of k ranks solves points g, g + N/k, ..., each solve spanning the group, and rank 0's
-group solves the worst cases' fields (`wcs.parallel.groups`): the same bits for the same N and k. Fields of the worst case of each
-criterion are re-solved at the end.
+group the closing solves (`wcs.parallel.groups`): the same bits for the same N and k, the
+serial run's to the solver's tolerance. Fields of the worst case of each criterion are
+re-solved at the end.
 
 Timing: `on_event(Event)` is told what the run spends its time on — building the model
 ("prepare"), each evaluation ("evaluate", with its stage), each batch answered ("batch",

@@ -24,7 +24,8 @@ import pytest
 from common import ROOT, write_table
 
 BIN = Path(sys.executable).parent
-PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")     # matrix: Zᵀ Kt Z (this rank's rows) into PETSc
+# the contact solve's timings; matrix: Zᵀ Kt Z (this rank's rows) into PETSc's form
+PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")
 
 
 def run(ranks: int, size: float, face: float, out: Path) -> dict:

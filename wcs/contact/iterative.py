@@ -336,7 +336,7 @@ class _Stepper:
                               "(its rigid modes are not projected out by the iterative method yet)")
         Z, ub = _basis(C, rows, P, Binv, self.b[rows])
         rhs0 = self.f - C.T @ lam0
-        A = RowBlocks(n, lambda lo, hi: _eliminated(Z, Kt, K, P, lo, hi))     # each rank builds its rows
+        A = RowBlocks(n, lambda lo, hi: _eliminated(Z, Kt, K, P, lo, hi))    # each rank builds its rows
         b = Z.T @ (rhs0 - Kt @ ub)
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
@@ -455,7 +455,8 @@ class Krylov:
         self.comm = evaluation_comm() if comm is False else comm
         self.ksp = self.P = self.layout = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
-        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}    # seconds (matrix: this rank's rows of A built and put in PETSc's form)
+        # seconds (matrix: this rank's rows of A built and put in PETSc's form)
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
