@@ -129,7 +129,8 @@ class Runner:
         except (TypeError, ValueError):
             self.has_gradients = False
         self.writer = Writer(study, self.evaluator, self.output, kind, self.sweep_paths, self.root,
-                             self.has_gradients)
+                             self.has_gradients, (1 if self.comm is None else self.comm.size,
+                                                  1 if self.group is None else self.group.size))
         if self.output is not None and self.root and not resume:       # a new run: no earlier results beside it
             try:
                 self.output.unlink(missing_ok=True)
