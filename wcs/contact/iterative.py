@@ -443,16 +443,16 @@ class Krylov:
     more than `REBUILD` times the iterations per digit of residual reduction of the solve it
     was built for (plus 10).
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate.
-    comm: the group whose ranks share each solve (`wcs.contact.distributed`; default: the one
-    `wcs.parallel.spanning` set, None: this process alone)."""
+    The solves span the group of ranks `wcs.parallel.spanning` set when the solver was made
+    (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
     REBUILD = 2.0
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
-    def __init__(self, near_nullspace=None, comm=False):
+    def __init__(self, near_nullspace=None):
         from wcs.parallel import evaluation_comm
         self.N = near_nullspace
-        self.comm = evaluation_comm() if comm is False else comm
+        self.comm = evaluation_comm()
         self.ksp = self.P = self.layout = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
         # seconds (matrix: this rank's rows of A built and put in PETSc's form)
