@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+import cvxpy  # noqa: F401  (the floating block's solvability check imports it on first use: 3 s once a process)
 import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
 from petsc4py import PETSc  # noqa: F401
 
