@@ -1,6 +1,7 @@
 """One 3D contact evaluation by `solver.method: iterative` on the ranks of `mpiexec -n k` (k = 1:
 the sequential solve; k > 1: one group, `solver.ranks_per_evaluation: k`), for
-test_bench_ranks.py: `mpiexec -n k python ranks_bench.py SIZE FACE OUT.json`.
+test_bench_ranks.py: `mpiexec -n k python ranks_bench.py SIZE FACE OUT.json`; with
+`laplace SIDE OUT.json` instead, the PETSc-only control (`laplace`).
 
 The 3D block-on-block patch of test_bench_iterative.py (its contact face refined to FACE, the
 rest meshed at SIZE), built on every rank (the model is replicated). Timed: the nominal data
@@ -68,5 +69,42 @@ def main(size: float, face: float, out: str) -> None:
             json.dump(row, fh)
 
 
+def laplace(side: int, out: str) -> None:
+    """The control: CG + GAMG to 1e-8 on the 7-point Laplacian of a side³ grid, distributed as
+    the contact solves are (`wcs.contact.distributed.Layout`): what this machine gives PETSc
+    itself on this many ranks now (set-up, solve)."""
+    import scipy.sparse as sp
+    from wcs.contact.distributed import Layout
+    comm = world()
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(side, side))
+    I = sp.identity(side)
+    A = (sp.kron(sp.kron(T, I), I) + sp.kron(sp.kron(I, T), I) + sp.kron(sp.kron(I, I), T)).tocsr()
+    layout = Layout(comm, A.shape[0], PETSc)
+    barrier = comm.Barrier if comm is not None else (lambda: None)
+    barrier()
+    t = time.perf_counter()
+    M = layout.matrix(A, PETSc)
+    ksp = PETSc.KSP().create(layout.petsc)
+    ksp.setType("cg")
+    ksp.getPC().setType("gamg")
+    ksp.setOperators(M, M)
+    ksp.setTolerances(rtol=1e-8)
+    ksp.setUp()
+    barrier()
+    t1 = time.perf_counter()
+    x, b = M.createVecs()
+    b.set(1.0)
+    ksp.solve(b, x)
+    barrier()
+    t2 = time.perf_counter()
+    if comm is None or comm.rank == 0:
+        with open(out, "w") as fh:
+            json.dump({"unknowns": A.shape[0], "setup": t1 - t, "solve": t2 - t1,
+                       "iterations": ksp.getIterationNumber()}, fh)
+
+
 if __name__ == "__main__":
-    main(float(sys.argv[1]), float(sys.argv[2]), sys.argv[3])
+    if sys.argv[1] == "laplace":
+        laplace(int(sys.argv[2]), sys.argv[3])
+    else:
+        main(float(sys.argv[1]), float(sys.argv[2]), sys.argv[3])

@@ -5,7 +5,9 @@ solve, the criteria), cold (the nominal data set) and warm (the upper corner, fr
 answer). Goal: 2 ranks ≥ 1.6× faster than 1. Written: the ratios, where the time goes at each
 rank count (model build; per evaluation: solvability LP, rows, elimination, PETSc matrix,
 GAMG set-up, CG, the rest = K(c) and criteria), the iterations, the peak memory of each rank
-and the machine's load (2 cores shared with other jobs).
+and the machine's load (2 cores shared with other jobs). The control rows `laplace`: CG +
+GAMG on a 3D Laplacian of as many unknowns, distributed the same way, on 1 and 2 ranks right
+after — what the machine gives PETSc itself at that load (its gamg_setup_s and cg_s columns).
 
 WCS_BENCH_RANKS="size face" sets the mesh (default "0.04 0.02"). Run it under the big-memory
 lock: `flock /tmp/wcs-bigmem.lock prlimit --as=... pytest -m bench tests/bench/test_bench_ranks.py`.
@@ -28,11 +30,12 @@ BIN = Path(sys.executable).parent
 PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")
 
 
-def run(ranks: int, size: float, face: float, out: Path) -> dict:
+def run(ranks: int, out: Path, *args) -> dict:
+    """ranks_bench.py ARGS OUT on `ranks` ranks: its JSON, with the machine's load after it."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
     env["PYTHONPATH"] = str(ROOT)
     done = subprocess.run([str(BIN / "mpiexec"), "-n", str(ranks), sys.executable, str(Path(__file__).with_name(
-        "ranks_bench.py")), str(size), str(face), str(out)], env=env, capture_output=True, text=True, timeout=3600)
+        "ranks_bench.py")), *map(str, args), str(out)], env=env, capture_output=True, text=True, timeout=3600)
     assert done.returncode == 0, done.stderr[-3000:]
     return {**json.loads(out.read_text()), "load": os.getloadavg()[0]}
 
@@ -49,12 +52,18 @@ def row(r: dict, case: str, one: dict) -> list:
 @pytest.mark.bench
 def test_bench_one_and_two_ranks_per_evaluation(tmp_path):
     size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.04 0.02").split())
-    one = run(1, size, face, tmp_path / "one.json")
-    two = run(2, size, face, tmp_path / "two.json")
+    one = run(1, tmp_path / "one.json", size, face)
+    two = run(2, tmp_path / "two.json", size, face)
+    side = round(one["unknowns"] ** (1 / 3))           # the control: PETSc alone, as many unknowns, now
+    lap = [run(k, tmp_path / f"laplace{k}.json", "laplace", side) for k in (1, 2)]
     for case in ("cold", "warm"):           # the same answer to the solver's tolerance
         for c, v in one[case]["phi"].items():
             assert two[case]["phi"][c] == pytest.approx(v, rel=1e-6), (case, c)
     rows = [row(r, case, one) for r in (one, two) for case in ("cold", "warm")]
+    rows += [[k, "laplace", r["unknowns"], 0, 0.0, round(r["setup"] + r["solve"], 2),
+              round((lap[0]["setup"] + lap[0]["solve"]) / (r["setup"] + r["solve"]), 2), 0.0, 0.0, 0.0, 0.0,
+              round(r["setup"], 2), round(r["solve"], 2), 0.0, 0, r["iterations"], "", round(r["load"], 1)]
+             for k, r in zip((1, 2), lap)]
     path = write_table("bench_ranks", ["ranks", "case", "unknowns", "contact_nodes", "model_s", "evaluation_s",
                                        "speedup_over_1_rank", *(f"{p}_s" for p in PARTS), "rest_s", "newton",
                                        "krylov", "peak_gb_per_rank", "load"], rows)
