@@ -46,19 +46,24 @@ def run_layouts(out: str) -> None:
         np.savez(out, **saved)
 
 
-@pytest.fixture(scope="module")
-def layouts(tmp_path_factory) -> dict:
+def layouts_on(ranks: int, folder: Path) -> dict:
+    """`run_layouts` under mpiexec -n `ranks`: what rank 0 saved."""
     mpiexec = BIN / "mpiexec"
     if not mpiexec.exists():
         pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
-    out = tmp_path_factory.mktemp("layouts") / "layouts.npz"
+    out = folder / "layouts.npz"
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
     env["PYTHONPATH"] = str(ROOT)
-    done = subprocess.run([str(mpiexec), "-n", "2", sys.executable, __file__, str(out)], env=env, cwd=ROOT,
+    done = subprocess.run([str(mpiexec), "-n", str(ranks), sys.executable, __file__, str(out)], env=env, cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr + done.stdout
     with np.load(out, allow_pickle=True) as f:
         return dict(f)
+
+
+@pytest.fixture(scope="module")
+def layouts(tmp_path_factory) -> dict:
+    return layouts_on(2, tmp_path_factory.mktemp("layouts"))
 
 
 def test_the_same_layout_gives_the_same_bits(layouts):
@@ -86,6 +91,17 @@ def test_one_and_two_ranks_per_evaluation_agree_to_the_solver_tolerance(layouts)
         scale = np.nanmax(np.abs(b))
         assert np.nanmax(np.abs(a - b)) <= 1e-8 * scale, (v, np.nanmax(np.abs(a - b)) / scale)
         assert not np.array_equal(a, b) or v in ("x", "worst_x"), v   # two layouts, two roundings: a real comparison
+
+
+@pytest.mark.slow
+def test_the_bits_depend_on_the_ranks_per_evaluation_only(layouts, tmp_path):
+    """On 4 ranks (two groups of 2, or four of 1) every evaluation is bitwise the one on 2 ranks
+    with the same k: an evaluation does not depend on which group solves it or on what it solved before."""
+    four = layouts_on(4, tmp_path)
+    assert int(four["a_ranks"]) == 4 and int(four["a_ranks_per_evaluation"]) == 2
+    for v in COMPARED:
+        for name in ("a", "one"):
+            assert np.array_equal(four[f"{name}_{v}"], layouts[f"{name}_{v}"], equal_nan=True), (name, v)
 
 
 @pytest.mark.parametrize("method", ["monolithic", "qp", "dd", "auto"])
