@@ -29,8 +29,8 @@ one, and so does a run spread over MPI ranks: with the DD solver every evaluatio
 over all ranks (its subdomains), otherwise rank r solves points r, r + N, ... of each batch
 and every rank records every outcome in batch order. With `solver.ranks_per_evaluation: k`
 group g of k ranks solves points g, g + N/k, ..., each solve spanning the group, and rank 0's
-group the closing solves (`wcs.parallel.groups`): the same bits for the same N and k, the
-serial run's to the solver's tolerance. Fields of the worst case of each criterion are
+group the closing solves (`wcs.parallel.groups`): the same bits for the same k (on any N),
+the serial run's to the solver's tolerance. Fields of the worst case of each criterion are
 re-solved at the end.
 
 Timing: `on_event(Event)` is told what the run spends its time on — building the model

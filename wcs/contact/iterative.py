@@ -46,13 +46,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from wcs.contact.distributed import RowBlocks
+from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
                                 project)
 from wcs.errors import StudyError
+from wcs.parallel import evaluation_comm
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -450,7 +451,6 @@ class Krylov:
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
     def __init__(self, near_nullspace=None):
-        from wcs.parallel import evaluation_comm
         self.N = near_nullspace
         self.comm = evaluation_comm()
         self.ksp = self.P = self.layout = None
@@ -462,7 +462,6 @@ class Krylov:
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
         import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
         from petsc4py import PETSc
-        from wcs.contact.distributed import Layout
         n = A.shape[0]
         if n == 0:
             return np.zeros(0), 0, True
