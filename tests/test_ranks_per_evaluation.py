@@ -138,5 +138,14 @@ def test_a_serial_run_of_a_two_rank_layout_is_exit_2(tmp_path, capsys):
     assert not (tmp_path / "out.nc").exists()
 
 
+
+def test_check_says_how_to_launch_a_layout(tmp_path, capsys):
+    from wcs.cli import main
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(patch_doc(2)))
+    assert main(["check", str(path)]) == 0
+    assert "; each solve on 2 ranks: run it under mpiexec -n with a multiple of 2\n" in capsys.readouterr().out
+
+
 if __name__ == "__main__":
     run_layouts(sys.argv[1])
