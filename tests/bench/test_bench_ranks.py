@@ -17,7 +17,11 @@ Measured (2 cores shared with 7 other engineers' jobs: load 7–14 throughout th
               measured here. Replicated share at 1 rank: 17 % cold, 11 % warm — with PETSc's own 2-rank
               efficiency on an idle machine (issue 25: set-up 1.75×, solve 1.8×) that predicts
               ≈ 1.55× cold and ≈ 1.6× warm.
-  (the ≥ 2e5-unknown row needs the big-memory lock: WCS_BENCH_RANKS="0.03 0.02")
+  0.03/0.02   1.52e5 unknowns, 3016 contact nodes, load 10–12 (big-memory lock held): 1 rank cold
+              47.8 s (GAMG set-up 15.1, CG 23.6, matrix 4.1, elimination 1.9, K(c) and criteria 2.7),
+              warm 40.2 s; 2 ranks cold 34.7 s (1.38×: set-up 10.9, CG 15.3, matrix 2.7, elimination
+              2.0, rest 3.5), warm 23.7 s (1.70×: set-up 10.1, CG 7.5); 2.06 / 2.11 GB a rank (the
+              model is replicated); the control 0.93× at that moment.
 
 WCS_BENCH_RANKS="size face" sets the mesh (default "0.04 0.02"). Run it under the big-memory
 lock: `flock /tmp/wcs-bigmem.lock prlimit --as=... pytest -m bench tests/bench/test_bench_ranks.py`.
