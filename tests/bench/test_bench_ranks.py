@@ -23,7 +23,7 @@ Measured (2 cores shared with 7 other engineers' jobs: load 7–14 throughout th
               2.0, rest 3.5), warm 23.7 s (1.70×: set-up 10.1, CG 7.5); 2.06 / 2.11 GB a rank (the
               model is replicated); the control 0.93× at that moment.
 
-WCS_BENCH_RANKS="size face" sets the mesh (default "0.04 0.02"). Run it under the big-memory
+WCS_BENCH_RANKS="size face" sets the mesh (default "0.025 0.02": ≥ 2e5 unknowns). Run it under the big-memory
 lock: `flock /tmp/wcs-bigmem.lock prlimit --as=... pytest -m bench tests/bench/test_bench_ranks.py`.
 Table: results/bench/bench_ranks.csv.
 """
@@ -65,7 +65,7 @@ def row(r: dict, case: str, one: dict) -> list:
 
 @pytest.mark.bench
 def test_bench_one_and_two_ranks_per_evaluation(tmp_path):
-    size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.04 0.02").split())
+    size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.025 0.02").split())
     one = run(1, tmp_path / "one.json", size, face)
     two = run(2, tmp_path / "two.json", size, face)
     side = round(one["unknowns"] ** (1 / 3))           # the control: PETSc alone, as many unknowns, now
