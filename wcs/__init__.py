@@ -11,7 +11,7 @@ viscoelasticity, dual mortar, primal-dual active set.
 Layers, from the bottom up: a module imports only from its own layer and the layers below it
 (tests/acceptance/test_imports.py holds the code to this list, and `search` to the first layer alone).
 
-    1. errors, status, linalg, options, progress, choose, version: low-level, one idea each, used everywhere
+    1. errors, status, linalg, options, progress, choose, version, group: low-level, one idea each, used everywhere
     2. geometry: mesh geometry shared by fem, scene and contact (tetrahedra, normals, mortar integrals)
     3. fem: finite elements with scikit-fem (affine pieces, constraints, stresses, glued interfaces)
     4. scene: shapes, meshers (gmsh) and mesh files -> a mesh with named bodies, regions, boundaries

@@ -119,8 +119,10 @@ def plan(study, ev) -> list[str]:
     method = study.solver.method
     solver = (f"{method} ({ev.model.solver_reason})" if method != "auto"
               else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})")
+    k = study.solver.ranks_per_evaluation
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
-                 + ("" if scene.contacts else " (no contact: one direct solve per data set)"))
+                 + ("" if scene.contacts else " (no contact: one direct solve per data set)")
+                 + (f"; each solve on {k} ranks: run it under mpiexec -n with a multiple of {k}" if k > 1 else ""))
     lines.append(f"  output: {study.output}")
     return lines
 

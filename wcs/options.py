@@ -140,6 +140,13 @@ class Iterative(Options):
     tolerance: Tolerance = Field(1e-8, gt=0, le=1e-2, description="relative residual each Krylov solve is driven to")
 
 
+# why each method that is not distributed solves an evaluation on one rank (solver.ranks_per_evaluation)
+SERIAL = {"auto": "auto may choose a method that solves on one rank",
+          "monolithic": "monolithic factors K and the dense Delassus operator on one rank",
+          "qp": "qp is the cvxpy reference, solved on one rank",
+          "dd": "dd solves each evaluation's subdomains on one rank under a run"}
+
+
 class Solver(Options):
     method: Literal["auto", "monolithic", "dd", "qp", "iterative"] = Field(
         "auto", description="contact solver (qp: the cvxpy reference; iterative: active set with CG + "
@@ -153,3 +160,14 @@ class Solver(Options):
     dd: DomainDecomposition = Field(default_factory=DomainDecomposition, description="the domain decomposition")
     fallback: bool = Field(True, description="a failed dd solve falls back to the monolithic solver (visibly)")
     iterative: Iterative = Field(default_factory=Iterative, description="the iterative method's Krylov solves")
+    ranks_per_evaluation: int = Field(1, ge=1, le=4096, description="MPI ranks each evaluation's solve spans "
+                                      "under mpiexec -n N (N/k groups evaluate different data sets; iterative only)")
+
+    @field_validator("ranks_per_evaluation")
+    @classmethod
+    def _distributed(cls, k, info):
+        method = info.data.get("method")
+        if k > 1 and method in SERIAL:
+            raise ValueError(f"{k} ranks per evaluation need a distributed method, solver.method iterative "
+                             f"(the only one): {SERIAL[method]}")
+        return k

@@ -49,12 +49,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
                                 project)
 from wcs.errors import StudyError
+from wcs.group import evaluation_comm
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -316,7 +318,7 @@ class _Stepper:
     def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
         self.failure, self.unsupported = "", False
-        self.timings = {"eliminate": 0.0}       # seconds: pivots, Z and Zᵀ K Z of the steps
+        self.timings = {"eliminate": 0.0}       # seconds: pivots and Z of the steps (Zᵀ Kt Z: Krylov's "matrix")
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
         self.krylov_solver = Krylov(N)
@@ -339,7 +341,7 @@ class _Stepper:
                               "(its rigid modes are not projected out by the iterative method yet)")
         Z, ub = _basis(C, rows, P, Binv, self.b[rows])
         rhs0 = self.f - C.T @ lam0
-        A = _eliminated(Z, Kt, K, P)
+        A = RowBlocks(n, lambda lo, hi: _eliminated(Z, Kt, K, P, lo, hi))    # each rank builds its rows
         b = Z.T @ (rhs0 - Kt @ ub)
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
@@ -413,10 +415,16 @@ def _basis(C, rows, P, Binv, b_rows):
     return Z, ub
 
 
-def _eliminated(Z, Kt, K, P):
-    """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0)."""
+def _eliminated(Z, Kt, K, P, lo=0, hi=None):
+    """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0);
+    its rows lo:hi only where given (a rank's share, `wcs.contact.distributed`)."""
     n = K.shape[0]
-    return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    hi = n if hi is None else hi
+    if (lo, hi) == (0, n):
+        return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    Pr = P[(P >= lo) & (P < hi)]
+    return (sp.csr_matrix(Z.T)[lo:hi] @ Kt @ Z + sp.csr_matrix((K.diagonal()[Pr], (Pr - lo, Pr)),
+                                                                shape=(hi - lo, n))).tocsr()
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:
@@ -440,16 +448,20 @@ class Krylov:
     to its tolerance, the preconditioner changes its cost); it is rebuilt when a solve took
     more than `REBUILD` times the iterations per digit of residual reduction of the solve it
     was built for (plus 10).
-    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate."""
+    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate.
+    The solves span the group of ranks `wcs.group.spanning` set when the solver was made
+    (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
     REBUILD = 2.0
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
     def __init__(self, near_nullspace=None):
         self.N = near_nullspace
-        self.ksp = self.P = None
+        self.comm = evaluation_comm()
+        self.ksp = self.P = self.layout = None
         self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
-        self.timings = {"gamg_setup": 0.0, "cg": 0.0}    # seconds
+        # seconds (matrix: this rank's rows of A built and put in PETSc's form)
+        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
@@ -458,7 +470,11 @@ class Krylov:
         n = A.shape[0]
         if n == 0:
             return np.zeros(0), 0, True
-        M = _petsc_matrix(A, PETSc)
+        t = time.perf_counter()
+        if self.layout is None or self.layout.n != n:
+            self.layout = Layout(self.comm, n, PETSc)
+        M = self.layout.matrix(A, PETSc)
+        self.timings["matrix"] += time.perf_counter() - t
         fresh = self.ksp is None
         t = time.perf_counter()
         if fresh:
@@ -468,11 +484,11 @@ class Krylov:
         self.ksp.setOperators(M, self.P)
         self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
         x, rhs = M.createVecs()
-        rhs.setArray(b)
+        rhs.setArray(b[self.layout.lo:self.layout.hi])
         self.ksp.solve(rhs, x)
         ok = self.ksp.getConvergedReason() > 0
         its = self.ksp.getIterationNumber()
-        out = x.getArray().copy()
+        out = self.layout.gather(x.getArray())
         for o in (x, rhs):
             o.destroy()
         self.timings["cg"] += time.perf_counter() - t
@@ -489,10 +505,9 @@ class Krylov:
         if self.N is not None and self.N.shape[1]:
             Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
             rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
-            vecs = [PETSc.Vec().createWithArray(np.ascontiguousarray(Q[:, j]), comm=PETSc.COMM_SELF)
-                    for j in range(rank)]
-            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+            vecs = [self.layout.vector(Q[:, j], PETSc) for j in range(rank)]
+            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.layout.petsc))
+        ksp = PETSc.KSP().create(self.layout.petsc)
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.getPC().setType("gamg")
@@ -506,16 +521,6 @@ class Krylov:
             self.ksp.destroy()
             self.P.destroy()
         self.ksp = self.P = None
-
-
-def _petsc_matrix(A: sp.csr_matrix, PETSc):
-    A = A.tocsr()
-    A.sort_indices()
-    n = A.shape[0]
-    M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
-                                                 A.data), comm=PETSc.COMM_SELF)
-    M.setOption(PETSc.Mat.Option.SPD, True)
-    return M
 
 
 def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):

@@ -34,7 +34,9 @@ def git_commit() -> str:
         return "unknown"
 
 
-def provenance(study, evaluator) -> dict:
+def provenance(study, evaluator, layout: tuple[int, int] = (1, 1)) -> dict:
+    """The results file's attributes of the study, the code and the machine; layout: (MPI ranks,
+    ranks each solve spanned) of the run (a solve: each rank alone)."""
     mesh = evaluator.smesh.mesh
     return {
         "Conventions": "CF-1.10",
@@ -49,6 +51,8 @@ def provenance(study, evaluator) -> dict:
         "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.backend()})"
                    if evaluator.model.solver_method == "iterative" else f"{study.solver.method} ({linalg.backend()})"),
         "solver_choice": f"{evaluator.model.solver_method}: {evaluator.model.solver_reason}",   # auto's reason, the estimate
+        "ranks": layout[0],                     # MPI ranks of the run
+        "ranks_per_evaluation": layout[1],      # ranks each solve spanned (the ranks: that many groups)
         **({"dimension": 3} if study.scene.dimension == 3 else {"plane": study.scene.plane}),
         "mesh_nodes": int(mesh.p.shape[1]),
         "mesh_cells": int(mesh.t.shape[1]),

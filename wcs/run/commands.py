@@ -22,6 +22,7 @@ from ..results.drivers import drivers
 from ..errors import StudyError
 from ..model.evaluation import Evaluator
 from ..results.extremes import support_extremes
+from ..group import spanning
 from .parallel import rank, world
 from ..contact.methods import krylov_counts
 from ..progress import INTERRUPTED, current, phase
@@ -165,8 +166,12 @@ class CheckedRunner(Runner):
 
     def finish(self, result) -> xr.Dataset:
         ds = super().finish(result)
-        if self.kind != "run" or not self.root:
+        if self.kind != "run" or not self.lead:
             return ds
+        with spanning(self.group):      # rank 0's group solves them, as the worst cases' fields
+            return self._checked(ds)
+
+    def _checked(self, ds) -> xr.Dataset:
         found = support_extremes(ds)
         with phase("drivers") as progress:              # solves: as many as the extremes need
             def solve(x, gradients=True):

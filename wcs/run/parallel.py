@@ -7,6 +7,12 @@ of each batch — with the DD solver too, serially on each rank (a whole `dd` st
 on the tunnel: 1.5× on 2 ranks, against 0.5× with each DD solve spread over them);
 the outcomes are gathered to all ranks in batch order, so every rank sees exactly
 what a serial run sees (bitwise), and rank 0 alone writes.
+
+`solver.ranks_per_evaluation: k` splits the N ranks into N/k groups of k consecutive ranks
+(`groups`): group g solves points g, g + N/k, ... of each batch, every rank of the group the
+same points, each solve spanning the group (`wcs.group.spanning`: the iterative method's Krylov solves,
+`wcs.contact.distributed`); the group's rank 0 gives the outcome to the gather. k = 1 is the
+above.
 """
 from __future__ import annotations
 
@@ -40,3 +46,19 @@ def agree(comm, error: Exception | None) -> None:
             error = StudyError(fault, file=file, path=path) if study_error else RuntimeError(fault)
     if error is not None:
         raise error
+
+
+def groups(comm, k: int, file=None):
+    """(group communicator, group index, number of groups) of `solver.ranks_per_evaluation: k`
+    on the world `comm` (None: one process); the group None where k = 1. StudyError (exit 2)
+    where the N ranks are not N/k groups of k."""
+    from ..errors import StudyError
+    n = 1 if comm is None else comm.size
+    if k > n or n % k:
+        launch = "a serial run" if comm is None else f"mpiexec -n {n}"
+        raise StudyError(f"{k} ranks per evaluation do not divide the {n} rank{'s' * (n > 1)} of {launch} "
+                         f"into groups: run it under mpiexec -n with a multiple of {k}", file=file,
+                         path="solver.ranks_per_evaluation")
+    if k == 1:
+        return None, rank(comm), n
+    return comm.Split(comm.rank // k, comm.rank), comm.rank // k, n // k

@@ -27,8 +27,11 @@ depend on what was solved before it (the contact solver always starts from the n
 data's state, see `Model.solve`), so a resumed run gives the same bits as an uninterrupted
 one, and so does a run spread over MPI ranks: with the DD solver every evaluation is spread
 over all ranks (its subdomains), otherwise rank r solves points r, r + N, ... of each batch
-and every rank records every outcome in batch order. Fields of the worst case of each
-criterion are re-solved at the end.
+and every rank records every outcome in batch order. With `solver.ranks_per_evaluation: k`
+group g of k ranks solves points g, g + N/k, ..., each solve spanning the group, and rank 0's
+group the closing solves (`wcs.run.parallel.groups`): the same bits for the same k (on any N),
+the serial run's to the solver's tolerance. Fields of the worst case of each criterion are
+re-solved at the end.
 
 Timing: `on_event(Event)` is told what the run spends its time on — building the model
 ("prepare"), each evaluation ("evaluate", with its stage), each batch answered ("batch",
@@ -50,7 +53,8 @@ import xarray as xr
 
 from ..errors import StudyError
 from ..model.evaluation import Evaluation
-from .parallel import rank, world
+from ..group import spanning
+from .parallel import groups, rank, world
 from .problem import build_problem
 from ..progress import phase, reporting
 from .record import Ledger, from_evaluation, open_store
@@ -92,6 +96,10 @@ class Runner:
         `output` when `output` is None). on_event: told every `Event`."""
         self.comm = world()
         self.root = rank(self.comm) == 0          # only rank 0 writes files and shows progress
+        # groups of ranks_per_evaluation ranks answer the batches, each solve spanning its group
+        self.group, self.group_index, self.groups = groups(self.comm, study.solver.ranks_per_evaluation,
+                                                           str(study.file))
+        self.lead = self.root or self.group is not None and self.group_index == 0   # solves the closing evaluations
         self.study = study
         self.kind = kind
         self.on_event = on_event
@@ -125,7 +133,8 @@ class Runner:
         except (TypeError, ValueError):
             self.has_gradients = False
         self.writer = Writer(study, self.evaluator, self.output, kind, self.sweep_paths, self.root,
-                             self.has_gradients)
+                             self.has_gradients, (1 if self.comm is None else self.comm.size,
+                                                  1 if self.group is None else self.group.size))
         if self.output is not None and self.root and not resume:       # a new run: no earlier results beside it
             try:
                 self.output.unlink(missing_ok=True)
@@ -211,13 +220,14 @@ class Runner:
                 for i, (_, p, _) in enumerate(batch):
                     done(i, self.evaluate(p, gradients, stage))
                 return
-            # MPI: rank r solves points r, r+N, ...; all ranks then append every record in batch order
-            size, me = self.comm.size, self.comm.rank
-            mine = [(i, from_evaluation(self.evaluate(batch[i][1], gradients, stage), self.criteria,
-                                        len(self.names), stage, gradients, batch[i][2]))
-                    for i in range(me, len(batch), size)]
+            # MPI: group g solves points g, g+G, ... (G groups; each rank its own group where
+            # ranks_per_evaluation is 1); all ranks then append every record (its group's rank 0's) in batch order
+            with spanning(self.group):
+                mine = [(i, from_evaluation(self.evaluate(batch[i][1], gradients, stage), self.criteria,
+                                            len(self.names), stage, gradients, batch[i][2]))
+                        for i in range(self.group_index, len(batch), self.groups)]
             t = time.perf_counter()
-            parts = self.comm.allgather(mine)
+            parts = self.comm.allgather(mine if self.group is None or self.group.rank == 0 else [])
             self._report(Event("gather", time.perf_counter() - t, stage))
             for i, rec in sorted((r for part in parts for r in part), key=lambda t: t[0]):
                 done(i, None, rec)
@@ -334,7 +344,8 @@ class Runner:
         of each criterion's worst case re-solved."""
         extremes = extremes_of(self.study, self.ledger.records, self.criteria, self.kind, result or [])
         worst, certificate, notes = widest_maxima(extremes, self.criteria)
-        fields = self._worst_fields(worst) if self.root else {c: None for c in self.criteria}
+        with spanning(self.group):            # rank 0's group solves them; rank 0 keeps them
+            fields = self._worst_fields(worst) if self.lead else {c: None for c in self.criteria}
         self.final = Final(worst, certificate, notes, fields, extremes)
         return self._write()
 

@@ -143,14 +143,15 @@ class Writer:
     memory only); `due()` says when a rewrite during the run keeps within WRITE_OVERHEAD."""
 
     def __init__(self, study, evaluator, output: Path | None, kind: str, sweep_paths: list[str] | None,
-                 writes: bool, gradients: bool):
+                 writes: bool, gradients: bool, layout: tuple[int, int] = (1, 1)):
         """sweep_paths: the swept paths of a sweep (None: a run); writes: whether this process
-        writes the file (rank 0); gradients: whether the evaluator gives adjoint gradients."""
+        writes the file (rank 0); gradients: whether the evaluator gives adjoint gradients;
+        layout: (MPI ranks, ranks per evaluation) of the run."""
         self.study, self.evaluator = study, evaluator
         self.output, self.kind, self.sweep_paths, self.writes = output, kind, sweep_paths, writes
         self.gradients = gradients
         self.created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-        self.provenance = provenance(study, evaluator)
+        self.provenance = provenance(study, evaluator, layout)
         self.last_end = 0.0
         self.last_cost = 0.0             # seconds of the last write (building the dataset included)
 

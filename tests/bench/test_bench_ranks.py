@@ -1,0 +1,90 @@
+"""`solver.ranks_per_evaluation` (issue 25, "Distributed"): one 3D contact evaluation by the
+iterative method on 1 rank and on 2 ranks (one group of 2), in one run — the 3D block-on-block
+patch of test_bench_iterative.py, each evaluation whole (the data set's K(c), the contact
+solve, the criteria), cold (the nominal data set) and warm (the upper corner, from the nominal
+answer). Goal: 2 ranks ≥ 1.6× faster than 1. Written: the ratios, where the time goes at each
+rank count (model build; per evaluation: solvability LP, rows, elimination, PETSc matrix,
+GAMG set-up, CG, the rest = K(c) and criteria), the iterations, the peak memory of each rank
+and the machine's load (2 cores shared with other jobs). The control rows `laplace`: CG +
+GAMG on a 3D Laplacian of as many unknowns, distributed the same way, on 1 and 2 ranks right
+after — what the machine gives PETSc itself at that load (its gamg_setup_s and cg_s columns).
+
+Measured (2 cores shared with 7 other engineers' jobs: load 7–14 throughout this session):
+  0.05/0.025  5.7e4 unknowns, 1933 contact nodes, load 7.2: 1 rank cold 6.2 s (GAMG set-up 2.2,
+              CG 2.5, replicated: elimination 0.4, K(c) and criteria 0.6, solvability 0.07), warm
+              5.1 s; 2 ranks cold 8.3 s (0.75×), warm 9.3 s (0.54×); the PETSc-only control 0.44×
+              (set-up 0.34 → 0.75 s): the machine gave no second core, so the 1.6× goal could not be
+              measured here. Replicated share at 1 rank: 17 % cold, 11 % warm — with PETSc's own 2-rank
+              efficiency on an idle machine (issue 25: set-up 1.75×, solve 1.8×) that predicts
+              ≈ 1.55× cold and ≈ 1.6× warm.
+  0.03/0.02   1.52e5 unknowns, 3016 contact nodes, load 10–12 (big-memory lock held): 1 rank cold
+              47.8 s (GAMG set-up 15.1, CG 23.6, matrix 4.1, elimination 1.9, K(c) and criteria 2.7),
+              warm 40.2 s; 2 ranks cold 34.7 s (1.38×: set-up 10.9, CG 15.3, matrix 2.7, elimination
+              2.0, rest 3.5), warm 23.7 s (1.70×: set-up 10.1, CG 7.5); 2.06 / 2.11 GB a rank (the
+              model is replicated); the control 0.93× at that moment.
+  0.025/0.02  2.00e5 unknowns, 3022 contact nodes, load 3.3–4.8 (lock held): 1 rank cold 35.0 s
+              (GAMG set-up 11.2, CG 18.6, matrix 2.4, elimination 1.2, rest 1.5), warm 26.8 s; 2 ranks
+              cold 23.5 s (1.49×: set-up 7.1 = 1.57×, CG 10.2 = 1.83×, matrix 1.2 = 1.95×, elimination
+              1.5 and rest 3.2 replicated), warm 18.1 s (1.48×); 2.65 / 2.71 GB a rank; the control 0.95×.
+              The goal 1.6× is not reached here; the replicated part (elimination's pivots and Z, K(c),
+              criteria: 8 % at 1 rank) bounds it at ≈ 1.85× with perfect scaling of the rest.
+
+WCS_BENCH_RANKS="size face" sets the mesh (default "0.025 0.02": ≥ 2e5 unknowns). Run it under the big-memory
+lock: `flock /tmp/wcs-bigmem.lock prlimit --as=... pytest -m bench tests/bench/test_bench_ranks.py`.
+Table: results/bench/bench_ranks.csv.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common import ROOT, write_table
+
+BIN = Path(sys.executable).parent
+# the contact solve's timings; matrix: Zᵀ Kt Z (this rank's rows) into PETSc's form
+PARTS = ("solvability", "rows", "eliminate", "matrix", "gamg_setup", "cg")
+
+
+def run(ranks: int, out: Path, *args) -> dict:
+    """ranks_bench.py ARGS OUT on `ranks` ranks: its JSON, with the machine's load after it."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+    done = subprocess.run([str(BIN / "mpiexec"), "-n", str(ranks), sys.executable, str(Path(__file__).with_name(
+        "ranks_bench.py")), *map(str, args), str(out)], env=env, capture_output=True, text=True, timeout=3600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return {**json.loads(out.read_text()), "load": os.getloadavg()[0]}
+
+
+def row(r: dict, case: str, one: dict) -> list:
+    e = r[case]
+    parts = [round(e["contact"].get(p, 0.0), 2) for p in PARTS]
+    rest = round(e["seconds"] - e["contact"]["total"], 2)
+    return [r["ranks"], case, r["unknowns"], r["contact_nodes"], round(r["model_s"], 1), round(e["seconds"], 2),
+            round(one[case]["seconds"] / e["seconds"], 2), *parts, rest, e["newton"], e["krylov"],
+            "/".join(f"{p:.2f}" for p in r["peak_gb_ranks"]), round(r["load"], 1)]
+
+
+@pytest.mark.bench
+def test_bench_one_and_two_ranks_per_evaluation(tmp_path):
+    size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.025 0.02").split())
+    one = run(1, tmp_path / "one.json", size, face)
+    two = run(2, tmp_path / "two.json", size, face)
+    side = round(one["unknowns"] ** (1 / 3))           # the control: PETSc alone, as many unknowns, now
+    lap = [run(k, tmp_path / f"laplace{k}.json", "laplace", side) for k in (1, 2)]
+    for case in ("cold", "warm"):           # the same answer to the solver's tolerance
+        for c, v in one[case]["phi"].items():
+            assert two[case]["phi"][c] == pytest.approx(v, rel=1e-6), (case, c)
+    rows = [row(r, case, one) for r in (one, two) for case in ("cold", "warm")]
+    rows += [[k, "laplace", r["unknowns"], 0, 0.0, round(r["setup"] + r["solve"], 2),
+              round((lap[0]["setup"] + lap[0]["solve"]) / (r["setup"] + r["solve"]), 2), 0.0, 0.0, 0.0, 0.0,
+              round(r["setup"], 2), round(r["solve"], 2), 0.0, 0, r["iterations"], "", round(r["load"], 1)]
+             for k, r in zip((1, 2), lap)]
+    path = write_table("bench_ranks", ["ranks", "case", "unknowns", "contact_nodes", "model_s", "evaluation_s",
+                                       "speedup_over_1_rank", *(f"{p}_s" for p in PARTS), "rest_s", "newton",
+                                       "krylov", "peak_gb_per_rank", "load"], rows)
+    print(path.read_text())
