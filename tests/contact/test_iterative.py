@@ -247,3 +247,33 @@ def test_the_results_file_names_the_iterative_solver(tmp_path):
     assert main(["solve", str(path), "-o", str(tmp_path / "out.nc"), "-q"]) == 0
     with xr.open_dataset(tmp_path / "out.nc") as ds:
         assert ds.attrs["solver"].startswith("iterative (contact: PETSc CG + GAMG")
+
+
+def test_a_step_that_leaves_a_floating_pad_free_is_taken_in_the_complement_of_its_free_motions():
+    """The floating Tresca pad started from a warm active set with every node open (its tangents
+    stuck): the first step's rows hold only the pad's slide, its lift and tilt are free. The step is
+    taken in the complement of the free rigid motions (the unbalanced load projected out, the free
+    amplitude kept) and Newton goes on to the direct answer (refused as a singular step before)."""
+    M, direct, _ = both(VALIDATION / "tresca-pad.yaml")
+    c, z = M.nominal, M.zone
+    _, Kr, rhs, u0 = M.reduced_system(c, None)
+    m = z.weight.size
+    warm = cs.ContactResult(None, np.zeros(m), np.zeros(m), Status.SOLVED, "", active=np.full(m, cs.OPEN))
+    res = solve_contact_iterative(Kr, rhs, M.Bn_r, M.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip, R=M.R_r, tol=1e-10,
+                                  near_nullspace=M.near_nullspace, rtol=1e-12, warm=warm)
+    assert res.status == 0, res.message
+    assert rel(res.u, direct.u) <= AGREE
+    assert rel(res.lam_n, direct.lam_n) <= AGREE and rel(res.lam_t, direct.lam_t) <= AGREE
+
+
+def test_an_answer_that_leaves_a_floating_pad_free_is_not_unique_as_by_the_direct_method():
+    """A frictionless pad pressed straight down: its slide moves no closed node. Every Newton step
+    leaves it free (taken in its complement); the answer is NOT_UNIQUE with the free motion, as
+    the direct method says (the iterative method refused the first step before)."""
+    d = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
+    del d["scene"]["contacts"]["interface"]["friction"]
+    d["scene"]["loads"]["pad_top"]["traction"][0] = 0.0
+    d["uncertain"] = {"loads.pad_top.traction.1": [-2e6, -0.5e6]}
+    _, direct, iterative = both(d)
+    assert direct.status == iterative.status == Status.NOT_UNIQUE, iterative.message
+    assert iterative.u is None and np.allclose(iterative.alpha, direct.alpha)

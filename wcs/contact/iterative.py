@@ -30,6 +30,18 @@ act on nothing (supports on both sides) are never active (λ = 0). An active row
 own unknown that is not such a combination cannot be eliminated here: status OTHER_FAILURE,
 never a wrong number.
 
+Floating bodies (rigid modes R, K R = 0). Where the closed and stuck rows and the disc springs
+leave rigid motions N = Rβ free (C_A N = 0, `_free_modes`), Zᵀ K Z is singular with the null
+space N_O, and the step is taken in its complement: the right-hand side's part along N (the
+load on the free motions that the step's slip forces do not balance; zero at an answer, where
+`solvability.unbalanced` has found the load balanced) is projected out, the least-squares
+step, as the condensed Newton's singular systems are solved; the projected system is solved
+with springs A_jj on r unknowns j where N is regular (pivoted QR), an exact generalized
+inverse for a consistent right-hand side (the argument of `wcs.contact.solver`'s K⁺: the
+springs carry Nᵀb = 0); and the free motions keep the amplitude of the iterate the step
+starts from (the step vanishes on those unknowns). An answer whose rows leave a motion free is
+not unique (NOT_UNIQUE, `free_rigid_motion`).
+
 Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
 0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
 mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
@@ -53,8 +65,8 @@ from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
-from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _first_free_set, _states, conditions_violated,
-                                project)
+from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _first_free_set, _states,
+                                conditions_violated, free_rigid_motion, pinned_dofs, project)
 from wcs.errors import StudyError
 from wcs.group import evaluation_comm
 from wcs.status import Status
@@ -74,9 +86,11 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     (n, r) rigid-body modes of K's unknowns for GAMG (6 in 3D, 3 in 2D); rtol: relative
     residual of the final Krylov solves. `iterations` counts Newton steps, `krylov_iterations`
     their CG iterations in total and `krylov_steps` those of each step (one per Newton step). Floating bodies (R): the load's balance is checked as in
-    `solve_contact` (UNSOLVABLE); a Newton step whose closed and stuck rows do not hold every
-    rigid mode ends the solve with status OTHER_FAILURE (the modes are not projected yet), as
-    does an active row with no unknown of its own (module docstring).
+    `solve_contact` (UNSOLVABLE; Coulomb: where the fixed point fails, at the last pressures);
+    a Newton step whose closed and stuck rows leave rigid modes free is taken in their
+    complement (module docstring), and an answer that leaves one free is NOT_UNIQUE, as in
+    `solve_contact`. An active row with no unknown of its own ends the solve with status
+    OTHER_FAILURE (module docstring).
     Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
     (all-stick) solution or the warm pressures."""
     t0 = time.perf_counter()
@@ -125,7 +139,18 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     step.krylov_solver.close()
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol, reference) if ok else ""
-    if violation:
+    beta = _left_free(C, R, C @ u - step.b, lam, free, m, k, tol) if ok and R is not None else None
+    found = unbalanced(f, Bn, Bt, np.where(np.isfinite(gw), gw, 0.0), R) if not ok and coulomb and R is not None \
+        else None
+    if found is not None:       # friction F p may be too weak to hold a floating body (as `solve_contact`)
+        status, message = Status.UNSOLVABLE, (
+            f"unbalanced load on a floating body held by Coulomb friction: fᵀv − j(v) = {found[0]:.3e} > 0 at the "
+            f"last pressures, α = {np.array2string(found[1], precision=4)}")
+    elif beta is not None:
+        status, message = Status.NOT_UNIQUE, (
+            f"the solution is not unique: the rigid motion v = Rβ, β = {np.array2string(beta, precision=4)}, moves "
+            "no closed or stuck contact node")
+    elif violation:
         status, message = Status.CONTACT_NOT_CONVERGED, (
             f"iterative active set stopped at an answer that violates {violation}: not reported")
     elif step.unsupported:
@@ -139,8 +164,19 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
         status, message = Status.FIXED_POINT_NOT_CONVERGED, f"Coulomb fixed point did not converge in {max_fp_iter} iterations"
     timings.update(**step.timings, **step.krylov_solver.timings, total=time.perf_counter() - t0)
     return ContactResult(u if status == Status.SOLVED else None, lam[:m], lam[m:], status, message, iters, fp_iters,
-                         _states(free, m, gw), None, None, timings, free=free, gw=gw,
-                         krylov_iterations=step.krylov, krylov_steps=tuple(step.krylov_steps))
+                         _states(free, m, gw), None, beta if beta is not None else found[1] if found else None,
+                         timings, free=free, gw=gw, krylov_iterations=step.krylov,
+                         krylov_steps=tuple(step.krylov_steps))
+
+
+def _left_free(C, R, r, lam, free, m, k, tol):
+    """The rigid motion β that an answer leaves free (`wcs.contact.solver.free_rigid_motion`: the
+    closed, touching and stuck rows and, on discs, the rows across the slip hold none of it), or
+    None; r = C u − [d; 0]."""
+    G = (C @ R).T
+    touching = np.abs(r[:m]) <= tol * max(np.abs(r).max(initial=0.0), 1e-300)
+    held = free | np.r_[touching, np.zeros(k * m, bool)]
+    return free_rigid_motion(np.c_[G, _across_slip(G, lam[m:], free, k)], np.r_[held, np.ones(m * (k > 1), bool)])
 
 
 def _scales(K, C, m, k):
@@ -193,7 +229,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         if eta <= rtol:
             tight.add(key)
         try:
-            u1, lam1 = step.solve(free, z, gw, c, k, eta)
+            u1, lam1 = step.solve(free, z, gw, c, k, eta, u)
         except _KrylovFailure as exc:
             step.failure = str(exc)
             break
@@ -248,8 +284,7 @@ class _KrylovFailure(Exception):
 
 class _Unsupported(Exception):
     """A step this method cannot take (yet): an active row with no unknown of its own to
-    eliminate, or closed and stuck rows (and disc springs) that leave a rigid mode of a
-    floating body free (a singular system: the rigid modes are not projected out yet)."""
+    eliminate."""
 
 
 class _Rows:
@@ -325,30 +360,37 @@ class _Stepper:
         self.krylov = 0
         self.krylov_steps = []      # CG iterations of each step (a rebuilt preconditioner's solve included)
 
-    def solve(self, free, z, gw, c, k, eta):
-        """(u, λ) of the step with the free set `free` (the slip data from z)."""
+    def solve(self, free, z, gw, c, k, eta, u_old):
+        """(u, λ) of the step with the free set `free` (the slip data from z), from the iterate u_old
+        (`_free_modes`: where the step leaves a floating body's rigid motion free, it keeps
+        u_old's)."""
         t0 = time.perf_counter()
         n = self.n
         C, K = self.C, self.K
         rows, P, Binv = _pivots(self.rows, free, k)
         lam0, Kt = self._slip(free, z, gw, c, k)
-        if self.R is not None:      # the rigid modes held by the closed and stuck rows and the disc springs
+        N = None
+        if self.R is not None:      # the rigid modes the closed and stuck rows and the disc springs leave free
             held = C[rows] if self._springs is None else sp.vstack([C[rows], self._springs[3]])
-            G = held @ self.R
-            sv = np.linalg.svd(G / np.maximum(np.linalg.norm(G, axis=0), 1e-300), compute_uv=False) if G.shape[0] else []
-            if len(sv) < self.R.shape[1] or sv[-1] <= 1e-8 * sv[0]:
-                raise _Unsupported("the closed and stuck contact rows of a Newton step leave a floating body free "
-                              "(its rigid modes are not projected out by the iterative method yet)")
+            N = self.R @ _free_modes(held @ self.R)
+            N[P] = 0.0              # on the unknowns O (C_A N = 0: Z N_O = N)
         Z, ub = _basis(C, rows, P, Binv, self.b[rows])
         rhs0 = self.f - C.T @ lam0
         A = RowBlocks(n, lambda lo, hi: _eliminated(Z, Kt, K, P, lo, hi))    # each rank builds its rows
         b = Z.T @ (rhs0 - Kt @ ub)
+        pin = np.zeros(0, dtype=int)
+        if N is not None and N.shape[1]:       # A N = 0: the step in the complement of the free modes
+            b = b - N @ np.linalg.lstsq(N, b, rcond=None)[0]
+            pin = pinned_dofs(N)
+            A = RowBlocks(n, _pinned(A.rows, pin))
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
         self.krylov += its
         self.krylov_steps.append(its)
         if not ok:
             raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
+        if len(pin):                # the free modes' amplitude kept: u − u_old vanishes on the pinned unknowns
+            v = v + N @ np.linalg.solve(N[pin], u_old[pin] - v[pin])
         u = Z @ v + ub
         lam = lam0 + self._spring_force(u)
         res = rhs0 - Kt @ u
@@ -388,6 +430,32 @@ class _Stepper:
         out[m + nodes] = a * tau[0]
         out[2 * m + nodes] = a * tau[1]
         return out
+
+
+def _free_modes(G: np.ndarray) -> np.ndarray:
+    """β (r, q) spanning the rigid motions Rβ that the rows H of G = C_H R leave free: G's null
+    space, columns scaled to unit norm, singular values below 1e-8 of the largest counted as
+    zero (`wcs.contact.solver.free_rigid_motion`'s rule)."""
+    r = G.shape[1]
+    scale = np.maximum(np.linalg.norm(G, axis=0), 1e-300)
+    if not G.shape[0]:
+        return np.eye(r)
+    _, sv, vt = np.linalg.svd(G / scale, full_matrices=G.shape[0] < r)
+    rank = int(np.sum(sv > 1e-8 * sv[0])) if sv.size and sv[0] > 0 else 0
+    return (vt[rank:] / scale).T
+
+
+def _pinned(rows, pin):
+    """The rows lo:hi of A + diag(A_pp) on the pinned unknowns p (springs as stiff as A there,
+    `wcs.contact.solver.pinned_dofs`), from `rows` of A."""
+    def pinned(lo, hi):
+        block = rows(lo, hi).tocsr()
+        local = pin[(pin >= lo) & (pin < hi)]
+        if not len(local):
+            return block
+        diag = np.asarray(block[local - lo, local]).ravel()
+        return (block + sp.csr_matrix((diag, (local - lo, local)), shape=block.shape)).tocsr()
+    return pinned
 
 
 def _pivots(rows: _Rows, free, k):
