@@ -23,19 +23,25 @@ Layers, from the bottom up: a module imports only from its own layer and the lay
     10. study: study files read and validated into a plain `Study`
     11. results: the results file, its store, extremes, verdict, drivers, mesh check
     12. report: the HTML report of a results file
-    13. run: running a study (the runner, the commands, the study paired with its evaluator)
+    13. app: running a study (the runner, the commands, the study paired with its evaluator)
     14. cli (and this package's own __init__): the command line and the Python API
 """
-from . import run   # the package wcs.run, callable: wcs.run(study) (wcs/run/__init__.py)
 from .errors import SolveError, StudyError
 from .version import __version__
+
+
+def run(study, output=None, resume=False, progress=None, **kwargs):
+    """The whole worst-scenario study -> xarray.Dataset (the results file's content):
+    `wcs.app.runner.run`."""
+    from .app.runner import run as _run
+    return _run(study, output=output, resume=resume, progress=progress, **kwargs)
 
 
 def load_study(path_or_mapping, base_dir=None):
     """Load and validate a study file or mapping (raises StudyError on bad input): the plain
     `wcs.study.Study` paired with its evaluator, built on the first `study.evaluate(x)`
-    (`wcs.run.evaluable`)."""
-    from .run.evaluable import load_study as _load
+    (`wcs.app.evaluable`)."""
+    from .app.evaluable import load_study as _load
     return _load(path_or_mapping, base_dir)
 
 

@@ -3,7 +3,7 @@ verdict NOT ESTABLISHED), 2 bad input, 3 verdict FAIL with --fail-on-limit (a li
 data set without equilibrium; `wcs/results/verdict.py`), 4 `compare`: the files differ, 130 interrupted
 (Ctrl-C; `run` and `sweep` say how to resume).
 
-Each command imports what it needs when it runs (`wcs/run/commands.py` for run, sweep and
+Each command imports what it needs when it runs (`wcs/app/commands.py` for run, sweep and
 solve --worst, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
 solvers."""
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 from .version import __version__
 from .errors import StudyError
-from .run.parallel import rank, world
+from .app.parallel import rank, world
 from .progress import INTERRUPTED, Progress, phase, reporting
 
 
@@ -140,7 +140,7 @@ def cmd_check(args) -> int:
     check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
     if study.dynamics is not None:
-        from .run.dynamics import check_dynamic
+        from .app.dynamics import check_dynamic
         return check_dynamic(study, ev, args, summary3d(study, ev.smesh) if study.scene.dimension == 3
                              else summary(study, ev))
     with phase("nominal solve"):
@@ -185,17 +185,17 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
 
 
 def cmd_solve(args) -> int:
-    from .run.commands import solve_nominal, solve_worst
+    from .app.commands import solve_nominal, solve_worst
     return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 
 def cmd_run(args) -> int:
-    from .run.commands import cmd_run as run
+    from .app.commands import cmd_run as run
     return run(args)
 
 
 def cmd_sweep(args) -> int:
-    from .run.commands import cmd_sweep as sweep
+    from .app.commands import cmd_sweep as sweep
     return sweep(args)
 
 

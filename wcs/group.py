@@ -1,5 +1,5 @@
 """The ranks the solves of the current evaluation span: `solver.ranks_per_evaluation: k` makes
-groups of k MPI ranks (`wcs.run.parallel.groups`), and a solve made inside `spanning(group)`
+groups of k MPI ranks (`wcs.app.parallel.groups`), and a solve made inside `spanning(group)`
 distributes its Krylov solves over that group (`wcs.contact.distributed`); elsewhere each rank
 solves alone. Every rank of a group must solve the same data sets in the same order."""
 from __future__ import annotations

@@ -86,7 +86,7 @@ def test_facing_away_refused_by_either_discretization(tmp_path, capsys, discreti
 def test_empty_uncertain_runs_the_nominal_data():
     """`uncertain: {}` is U_ad = {nominal}: a run is one evaluation, the nominal one."""
     from wcs.model.evaluation import Evaluator
-    from wcs.run.runner import run
+    from wcs.app.runner import run
     doc = doc_of("contact-patch.yaml")
     doc["uncertain"] = {}
     study = load_study(doc)

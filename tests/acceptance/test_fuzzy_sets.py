@@ -17,8 +17,8 @@ import yaml
 
 import wcs
 from tests.support.search_problems import vertex_ranges
-from tests.run.test_mpi import serial_and_two_ranks
-from wcs.run import runner
+from tests.app.test_mpi import serial_and_two_ranks
+from wcs.app import runner
 from wcs.cli import main
 from wcs.report import render_report
 from wcs.report.html import limit_membership
@@ -44,7 +44,7 @@ def plate_doc(fuzzy: bool = True, sense: str = "both") -> dict:
     for c in doc["criteria"]:
         c["sense"] = sense
     doc.pop("limits")
-    doc["search"]["budget"] = 200
+    doc.setdefault("search", {})["budget"] = 200       # over the included preset's search
     for path, spec in FUZZY_PLATE.items():
         doc["uncertain"][path] = spec if fuzzy else spec["support"]
     return doc
@@ -144,7 +144,7 @@ def test_cooled_layer_each_level_finds_its_interior_maximum_at_a_fraction_of_the
     level after the core carries the inner level's maximum out to its own bounds and ascends in ν
     from there, without the restarts (the active bounds are kept)."""
     doc = _read_yaml(COOLED)[0]
-    doc["search"]["budget"] = 200
+    doc.setdefault("search", {})["budget"] = 200       # over the included preset's search
     crisp = wcs.run(load(doc, COOLED), output=False)
     doc["uncertain"] = {path: dict(spec) for path, spec in COOLED_FUZZY.items()}
     study = load(doc, COOLED)

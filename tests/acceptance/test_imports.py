@@ -100,7 +100,7 @@ def test_the_finder_sees_a_cycle_and_a_function_level_import():
     assert cycle({"a": {"b"}, "b": set()}) is None
     g = graph()
     assert "wcs.model.model" in g["wcs.model.evaluation"]      # module level
-    assert "wcs.model.evaluation" in g["wcs.run.evaluable"]    # inside EvaluableStudy._evaluator
+    assert "wcs.model.evaluation" in g["wcs.app.evaluable"]    # inside EvaluableStudy._evaluator
     assert "wcs.dd.solver" in g["wcs.model.model"]             # inside Model._solve_dd
 
 

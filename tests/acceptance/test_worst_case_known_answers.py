@@ -107,7 +107,7 @@ def test_tunnel_thermal_shear_reaches_what_slsqp_from_one_flip_neighbours_finds(
     from scipy.optimize import minimize
 
     from wcs.model.evaluation import Evaluator
-    from wcs.run.problem import build_problem
+    from wcs.app.problem import build_problem
     from wcs.search import auto
     from wcs.search.scaling import Space
 

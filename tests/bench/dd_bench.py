@@ -18,7 +18,7 @@ factorizations), Dirichlet solves, Neumann solves, coarse, contact solves, comm
 lam_t and the iteration history (rank 0) for comparisons.
 
 `study`: `wcs run` of the study with per-rank timings from the runner's timing events
-(`wcs.run.runner.Event`): building the model, the evaluations, waiting in the batch gathers.
+(`wcs.app.runner.Event`): building the model, the evaluations, waiting in the batch gathers.
 
 `--mesh-scale s` multiplies every mesh size of the study (global and refinements) by s:
 s = 0.4 takes the tunnel (1.5e4 unknowns) to about 1e5.
@@ -51,8 +51,8 @@ import wcs  # noqa: E402
 from wcs.dd import solver as dds  # noqa: E402
 from wcs.linalg import configure_threads  # noqa: E402
 from wcs.model.model import Model  # noqa: E402
-from wcs.run.parallel import world  # noqa: E402
-from wcs.run.runner import Runner  # noqa: E402
+from wcs.app.parallel import world  # noqa: E402
+from wcs.app.runner import Runner  # noqa: E402
 from wcs.scene.mesher2d import build_mesh  # noqa: E402
 
 PARTS = ("assemble", "dirichlet", "neumann", "coarse", "contact", "comm", "wait")

@@ -25,7 +25,7 @@ from petsc4py import PETSc  # noqa: F401
 from test_bench_iterative import patch, peak_gb
 from wcs.model.evaluation import Evaluator
 from wcs.group import spanning
-from wcs.run.parallel import groups, world
+from wcs.app.parallel import groups, world
 from wcs.scene import estimate
 from wcs.study import load_study
 

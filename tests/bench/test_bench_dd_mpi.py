@@ -15,7 +15,7 @@ speed-ups are lower bounds): same data 0.83× (work 1.50) → 1.06–1.68× (wor
 the same-data assignment; 1.35 by the first evaluation's costs), new data 0.82× (work 1.45) →
 1.04–1.12× (work 1.76–1.83). What is serial in the outer loop: the pair's local contact solves
 (one pair: ≈ 0.1 s on its rank while the other waits), the replicated coarse projections and
-PCG vector operations; a `dd` study spreads its evaluations (`wcs.run.runner`), not a solve.
+PCG vector operations; a `dd` study spreads its evaluations (`wcs.app.runner`), not a solve.
 Then (a quiet machine, after the packed PCG products and the pair's half blocks; best of 11
 repeats, ranges over 3–5 runs at load 1.2–1.7): one solve, Hertz same / new data 1.28–1.47 /
 1.47–1.57×, the tunnel at ×0.33 (1.04e5) 1.48–1.64 / 1.60–1.83× — Hertz's single pair (4 local

@@ -1,5 +1,5 @@
 """Speed against accuracy of the time-stepping schemes (issue 29's chart): the cylinder impact of
-`tests/test_dynamics_impact.py` over the mesh size h and the time step Δt, per scheme — the
+`tests/dynamics/test_impact.py` over the mesh size h and the time step Δt, per scheme — the
 errors of the contact time and the peak force against Hertz's impact theory, the energy kept at
 the end, and the wall time; a level that fails is a row with its message (where each scheme
 stops: the stability chart). Writes results/bench/impact_schemes.csv and impact_schemes.png.
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from common import save_figure, write_table
-from test_dynamics_impact import hertz, impact
+from tests.dynamics.test_impact import hertz, impact
 from wcs.errors import SolveError
 
 pytestmark = pytest.mark.bench

@@ -79,7 +79,7 @@ from dd_common import build, run  # noqa: E402
 
 from wcs.contact.iterative import _Rows, _Stepper  # noqa: E402
 from wcs.model.evaluation import Evaluator  # noqa: E402
-from wcs.run.record import krylov_counts  # noqa: E402
+from wcs.app.record import krylov_counts  # noqa: E402
 from wcs.scene import estimate  # noqa: E402
 from wcs.study import load_study  # noqa: E402
 

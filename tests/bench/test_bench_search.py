@@ -32,7 +32,7 @@ import yaml
 
 import wcs
 from wcs.model.evaluation import Evaluator
-from wcs.run.runner import Runner
+from wcs.app.runner import Runner
 from wcs.options import Search
 
 from common import STUDIES, save_figure, write_table
@@ -60,7 +60,7 @@ def tunnel_coarse(tmp_path, factor=2.0):
 
 class NaNGradients:
     """An Evaluator whose evaluations carry NaN rows instead of None for a criterion whose
-    adjoint gradient is unavailable. The runner (wcs/run/record.py, `from_evaluation`)
+    adjoint gradient is unavailable. The runner (wcs/app/record.py, `from_evaluation`)
     stacks `np.asarray(None, float)` there and the results dataset then fails to broadcast
     (seen on the tunnel before the adjoint handled redundant contact constraints); NaN rows
     are what it means (the archive treats non-finite gradients as absent)."""

@@ -92,7 +92,7 @@ def test_a_slip_limit_at_its_lipschitz_bound_has_exactly_the_studys_slope():
     it (its true sides), and the grid values rising by exactly those steps give every contact
     node g0 + C (x + y): the Lipschitz constant across the face is the study's C, no more."""
     from wcs.model.evaluation import Evaluator
-    from wcs.run.problem import lipschitz_constraints
+    from wcs.app.problem import lipschitz_constraints
     d = yaml.safe_load(STUDY)
     scene, C, g0 = d["scene"], 1e5, 5e4
     scene["mesh"]["refine"] = [{"box": [0, 0, -0.2, 0.5, 0.4, 0.2], "size": 0.06}]

@@ -16,7 +16,7 @@ import yaml
 
 import wcs
 from wcs.contact.zone import canonical_split, held_rows, tied_rows
-from wcs.run.problem import build_problem
+from wcs.app.problem import build_problem
 from wcs.search.archive import Archive
 from wcs.model.sensitivity import contact_nonsmooth
 

@@ -11,7 +11,7 @@ import yaml
 import wcs.contact.iterative as iterative
 from wcs.cli import main
 from wcs.model.evaluation import Evaluation, Evaluator
-from wcs.run.record import from_evaluation
+from wcs.app.record import from_evaluation
 from wcs.status import Status
 from wcs import load_study
 

@@ -87,7 +87,7 @@ def test_the_command_layer_loads_neither_scipy_optimize_nor_cvxpy():
     """What `wcs solve` loads before its first evaluation (the CLI and its commands) does not load
     scipy.optimize (0.44 s: the search's LPs import it where they run) nor cvxpy (1.9 s): fixed
     costs that kept `wcs solve` of the 3D patch at face 0.04 behind Kratos."""
-    code = ("import sys, wcs.cli, wcs.run.commands; "
+    code = ("import sys, wcs.cli, wcs.app.commands; "
             "print(' '.join(m for m in ('scipy.optimize', 'cvxpy') if m in sys.modules))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env=dict(os.environ, PYTHONPATH=str(ROOT)))

@@ -9,7 +9,7 @@ import pytest
 
 from wcs.cli import main
 from wcs.dynamics.absorbing import weighted_mass
-from wcs.run.dynamics import simulate
+from wcs.app.dynamics import simulate
 from wcs.dynamics.mass import mass_operator
 from wcs.dynamics.sources import ricker
 from wcs.errors import StudyError

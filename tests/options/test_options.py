@@ -11,7 +11,7 @@ from pydantic import BaseModel
 
 import wcs
 from tests.support.search_problems import drive, interior
-from wcs.run import runner
+from wcs.app import runner
 from wcs.cli import main
 from wcs.dd import solver as dds
 from wcs.model.evaluation import Evaluator

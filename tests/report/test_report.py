@@ -224,7 +224,7 @@ def test_sweep_without_fields_or_certificates(tmp_path):
 
 def test_report_of_a_real_run_file(tmp_path, capsys):
     """The file `wcs run` writes (when the runner is there) reads as the synthetic one."""
-    pytest.importorskip("wcs.run.runner")
+    pytest.importorskip("wcs.app.runner")
     nc = tmp_path / "run.nc"
     assert main(["run", str(ROOT / "studies/heated-plate.yaml"), "-o", str(nc), "--quiet"]) == 0
     out = tmp_path / "run.html"

@@ -15,7 +15,7 @@ import yaml
 
 from wcs.model import validity
 from wcs.cli import main
-from wcs.run.commands import _finish_command
+from wcs.app.commands import _finish_command
 from wcs.report import render_report
 from wcs.status import Status, flag_attrs
 from wcs.results.verdict import region, verdict

@@ -1,14 +1,13 @@
 """A study is plain data; whoever runs it builds the evaluator. `wcs.study.load_study` returns the
 plain `Study` (nothing to solve with), `wcs.load_study` the same study paired with an evaluator
-built on the first `evaluate` (study-format.md §3), and `wcs.run` is both the package that runs
-studies and the call `wcs.run(study)`."""
+built on the first `evaluate`, and `wcs.run(study)` runs it (the package `wcs.app`)."""
 import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 import wcs
-import wcs.run.runner
+import wcs.app.runner
 from wcs.study import Study, load_study
 
 DEMO = Path(__file__).resolve().parents[2] / "studies" / "two-blocks-demo.yaml"
@@ -32,8 +31,8 @@ def test_wcs_load_study_pairs_the_same_study_with_an_evaluator_built_on_first_us
     assert "_evaluator" not in vars(paired)          # nothing meshed or assembled before the first solve
 
 
-def test_wcs_run_is_the_package_of_running_and_the_call_that_runs_a_study(monkeypatch):
+def test_wcs_run_is_the_call_that_runs_a_study(monkeypatch):
     calls = []
-    monkeypatch.setattr(wcs.run.runner, "run", lambda study, **kw: calls.append((study, kw)) or "dataset")
+    monkeypatch.setattr(wcs.app.runner, "run", lambda study, **kw: calls.append((study, kw)) or "dataset")
     assert wcs.run("a study", output="out.nc") == "dataset"
     assert calls == [("a study", {"output": "out.nc", "resume": False, "progress": None})]

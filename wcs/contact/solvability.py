@@ -32,9 +32,14 @@ def rigid_load(R, f) -> np.ndarray:
 
 def unbalanced(f, Bn, Bt, gw, R):
     """(value, α) of `unbalanced_rigid_motion` when the load is unbalanced beyond round-off
-    (value > 1e-9 of the load's work on the rigid modes, `rigid_load`), else None."""
+    (value > 1e-9 of the load's work on the rigid modes, `rigid_load`), else None. A load that
+    does no work on the rigid modes is balanced: the maximum is max −j(Rα) = 0 exactly, and
+    what a solver returns beyond it is its round-off."""
+    work = np.abs(rigid_load(R, f)).sum()
+    if work == 0.0:
+        return None
     value, alpha = unbalanced_rigid_motion(f, Bn, Bt, gw, R)
-    return (value, alpha) if value > 1e-9 * max(np.abs(rigid_load(R, f)).sum(), 1e-300) else None
+    return (value, alpha) if value > 1e-9 * work else None
 
 
 def unbalanced_rigid_motion(f, Bn, Bt, gw, R):

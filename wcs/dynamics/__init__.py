@@ -7,5 +7,5 @@ keep and lose; `time_functions`, `sources` and `absorbing` are the loads in time
 sources and the absorbing boundaries as the levels need them (their study keys are models of
 `wcs.scene.spec`), `loading` builds a data set's load in time and damping, `release` frees the
 supports of boundaries that take dashpots. A material's density and viscosity as addressable
-data are `wcs.model.dynamic_numbers`; `wcs solve` on a dynamic study is `wcs.run.dynamics`.
+data are `wcs.model.dynamic_numbers`; `wcs solve` on a dynamic study is `wcs.app.dynamics`.
 """

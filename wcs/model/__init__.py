@@ -5,4 +5,4 @@ coefficients (`coefficients`, `materials`), the criteria Φ (`criteria`), their 
 
 It knows no study file: `Evaluator(study)` reads what it needs of a study's plain data (the
 scene, the uncertain entries, the criteria, the solver options) and is built by whoever runs
-the study (`wcs.run`)."""
+the study (`wcs.app`)."""

@@ -103,9 +103,9 @@ def bonded_materials(smesh, model) -> list[tuple[list[str], list[str]]]:
 
 def refuse_static_evaluation(study) -> None:
     """StudyError for one static solve of a dynamic study (`Study.evaluate`): its answer is the
-    history of its levels (`wcs.run.dynamics.simulate`), never the static solution."""
+    history of its levels (`wcs.app.dynamics.simulate`), never the static solution."""
     if getattr(study, "dynamics", None) is not None:
-        raise StudyError("a dynamic study is evaluated over its time levels (wcs.run.dynamics.simulate, "
+        raise StudyError("a dynamic study is evaluated over its time levels (wcs.app.dynamics.simulate, "
                          "`wcs solve`), not by one static solve", file=str(study.file), path="dynamics")
 
 class Evaluator:

@@ -6,7 +6,7 @@ returns a frozen `Study` whose `scene` is the frozen `wcs.scene.spec.Scene`, res
 scene and material files inlined, region names and defaults filled in. The criteria,
 the sweep and the uncertain entries are frozen objects too: nothing downstream of
 loading reads a dict. The `Study` is plain data: it builds and solves nothing (the
-evaluator is built by whoever runs the study, `wcs.run`).
+evaluator is built by whoever runs the study, `wcs.app`).
 Every bad input raises `StudyError` naming the file (`<mapping>` for a mapping),
 the dotted key path and the fault.
 

@@ -1,6 +1,6 @@
 """The `Study`: a validated study file as plain frozen data. It builds nothing: whoever runs
 the study builds the evaluator (`wcs.model.evaluation.Evaluator(study)`; `wcs.load_study`
-returns the study paired with one, `wcs.run.evaluable`)."""
+returns the study paired with one, `wcs.app.evaluable`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping

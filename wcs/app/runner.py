@@ -2,15 +2,15 @@
 
     ds = wcs.run(study, output=None, resume=False, progress=None)
 
-The runner builds the search `Problem` from the study (`wcs/run/problem.py`), creates the
+The runner builds the search `Problem` from the study (`wcs/app/problem.py`), creates the
 strategy registered under `search.method` with `numpy.random.default_rng(seed)`, drives it
 through `wcs.search.ranges` (the ends of each criterion's range its `sense` asks for, and the
-α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/run/record.py`), failures
+α-levels of a fuzzy study, core first) and answers its batches. Every evaluation becomes one `Record` (`wcs/app/record.py`), failures
 included (status code, NaN criteria); the budget is a hard cap on records.
 
 Incremental writing: each finished evaluation goes at once to the evaluation store (one
 atomically renamed file per evaluation), and the results file is rewritten while the run
-goes (`wcs/run/writer.py`). A kill -9 loses the evaluation in flight only; the NetCDF file on
+goes (`wcs/app/writer.py`). A kill -9 loses the evaluation in flight only; the NetCDF file on
 disk is always a complete, readable file of the evaluations up to its last rewrite
 (`complete: no` until the run ends; `wcs report` and `wcs solve --worst` say so).
 
@@ -29,7 +29,7 @@ one, and so does a run spread over MPI ranks: with the DD solver every evaluatio
 over all ranks (its subdomains), otherwise rank r solves points r, r + N, ... of each batch
 and every rank records every outcome in batch order. With `solver.ranks_per_evaluation: k`
 group g of k ranks solves points g, g + N/k, ..., each solve spanning the group, and rank 0's
-group the closing solves (`wcs.run.parallel.groups`): the same bits for the same k (on any N),
+group the closing solves (`wcs.app.parallel.groups`): the same bits for the same k (on any N),
 the serial run's to the solver's tolerance. Fields of the worst case of each criterion are
 re-solved at the end.
 

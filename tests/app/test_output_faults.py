@@ -28,7 +28,7 @@ import xarray as xr
 import yaml
 
 import wcs
-import wcs.run.runner as runner
+import wcs.app.runner as runner
 from wcs.cli import main
 from wcs.report.data import from_dataset, load
 from wcs.report.html import Report
@@ -61,7 +61,7 @@ def plate(tmp_path, budget=15, **changes):
 
 def pad(tmp_path, budget):
     """The Tresca pad (contact) with the tiny strategy, whose resumed runs are bitwise the clean one
-    (tests/run/test_runner.py). Not heated-plate: there an evaluation's last bits depend on the evaluations
+    (tests/app/test_runner.py). Not heated-plate: there an evaluation's last bits depend on the evaluations
     solved before it in the process (shear 2e16 Pa^2 off by ~200), a value that depended on history."""
     return study_file(tmp_path, "validation/tresca-pad.yaml",
                       search={"method": "auto", "sample": {"n": budget - 1, "seed": 5}, "budget": budget})
@@ -69,7 +69,7 @@ def pad(tmp_path, budget):
 
 @pytest.fixture(autouse=True)
 def tiny_strategy(monkeypatch):
-    from tests.run.test_runner import tiny
+    from tests.app.test_runner import tiny
     monkeypatch.setattr(runner, "get_strategy", lambda name: tiny)
 
 
@@ -80,9 +80,9 @@ import os, signal, sys, time, functools
 sys.path.insert(0, {root!r})
 import numpy as np
 import xarray as xr
-import wcs.model.evaluation, wcs.run.runner
-from tests.run.test_runner import tiny
-wcs.run.runner.get_strategy = lambda name: tiny
+import wcs.model.evaluation, wcs.app.runner
+from tests.app.test_runner import tiny
+wcs.app.runner.get_strategy = lambda name: tiny
 solve = wcs.model.evaluation.Evaluator.evaluate
 @functools.wraps(solve)
 def slow(self, *a, **k):

@@ -1,6 +1,5 @@
 """The study that `wcs.load_study` returns: the plain `Study` paired with its `Evaluator`, which
-is built on the first `evaluate` (the mesh and the assembled model, then reused: study-format.md
-§3). It is a `Study` (every field, `parameters`, `nominal()`, `data_set()`), so whatever takes a
+is built on the first `evaluate` (the mesh and the assembled model, then reused by every later call). It is a `Study` (every field, `parameters`, `nominal()`, `data_set()`), so whatever takes a
 study takes it; `wcs.study.load_study` returns the plain one, which builds nothing."""
 from __future__ import annotations
 

@@ -7,15 +7,15 @@ from pathlib import Path
 import numpy as np
 
 import wcs
-from tests.run.test_runner import study_file, tiny
-from wcs.run.runner import Runner
+from tests.app.test_runner import study_file, tiny
+from wcs.app.runner import Runner
 
-WCS = Path(wcs.__file__).resolve().parent / "run"
+WCS = Path(wcs.__file__).resolve().parent / "app"
 LAYERS = ("problem", "record", "writer", "runner", "commands")     # each imports only those before it
 
 
 def _imports(module: str):
-    """(modules of wcs imported at the top, imports inside functions) of wcs/run/<module>.py."""
+    """(modules of wcs imported at the top, imports inside functions) of wcs/app/<module>.py."""
     tree = ast.parse((WCS / f"{module}.py").read_text())
     top = {n.module.split(".")[0] for n in tree.body if isinstance(n, ast.ImportFrom) and n.level == 1 and n.module}
     inner = [n.lineno for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
@@ -26,9 +26,9 @@ def _imports(module: str):
 def test_run_modules_import_one_way():
     for i, module in enumerate(LAYERS):
         top, inner = _imports(module)
-        assert inner == [], f"wcs/run/{module}.py imports inside functions (lines {inner})"
+        assert inner == [], f"wcs/app/{module}.py imports inside functions (lines {inner})"
         later = top & set(LAYERS[i:])
-        assert not later, f"wcs/run/{module}.py imports {sorted(later)}"
+        assert not later, f"wcs/app/{module}.py imports {sorted(later)}"
     assert importlib.util.find_spec("wcs.dd.bench") is None          # benchmarks live in tests/bench
 
 

@@ -34,8 +34,8 @@ def run_layouts(out: str) -> None:
     """Under mpiexec -n 2: the patch's study run with k = 2 twice and with k = 1 (two groups of
     one rank), the compared variables and the layout attributes saved by rank 0 to `out`."""
     import wcs
-    from wcs.run.runner import Runner
-    from wcs.run.parallel import world
+    from wcs.app.runner import Runner
+    from wcs.app.parallel import world
     saved = {}
     for name, k in (("a", 2), ("b", 2), ("one", 1)):
         study = wcs.load_study(patch_doc(k), base_dir=STUDY.parent)
@@ -119,7 +119,7 @@ def test_a_method_that_is_not_distributed_is_refused_by_name(tmp_path, capsys, m
 @pytest.mark.parametrize("size, k", [(None, 2), (3, 2), (2, 4)])
 def test_a_layout_that_does_not_divide_the_ranks_is_refused(size, k):
     from wcs.errors import StudyError
-    from wcs.run.parallel import groups
+    from wcs.app.parallel import groups
     comm = None if size is None else SimpleNamespace(size=size, rank=0)
     with pytest.raises(StudyError) as e:
         groups(comm, k, "study.yaml")

@@ -19,10 +19,10 @@ import xarray as xr
 import yaml
 
 import wcs
-import wcs.run.runner as runner
+import wcs.app.runner as runner
 from wcs.cli import main
-from wcs.run.commands import solve_worst
-from wcs.run.problem import build_problem
+from wcs.app.commands import solve_worst
+from wcs.app.problem import build_problem
 from wcs.search import Batch, Worst
 from wcs.results.store import Store, store_path
 
@@ -180,9 +180,9 @@ def test_kill_9_then_resume(tresca, tmp_path):
         import functools
         import time
         import wcs.model.evaluation
-        import wcs.run.runner
-        from tests.run.test_runner import tiny
-        wcs.run.runner.get_strategy = lambda name: tiny
+        import wcs.app.runner
+        from tests.app.test_runner import tiny
+        wcs.app.runner.get_strategy = lambda name: tiny
         solve = wcs.model.evaluation.Evaluator.evaluate
         @functools.wraps(solve)           # keeps the signature: the runner asks for gradients by it
         def slow(self, *a, **k):          # 0.2 s per evaluation: the kill lands mid-run, not after it
