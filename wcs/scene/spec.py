@@ -2,7 +2,10 @@
 bodies and their regions, boundaries, supports, loads, contacts, glue, thermal data, regions
 of interest, the mesh), the physical range of every number, and the geometric checks of a
 shape. The loader (`wcs.study`) validates a scene into a `Scene`; everything below it (mesher,
-model, parameter map, criteria) reads the same frozen objects by attribute."""
+model, parameter map, criteria) reads the same frozen objects by attribute. A dynamic study's
+keys (a load's time function, point sources, absorbing boundaries) are here too, so that the
+scene's schema is one module (over 500 lines for that reason: its models refer to each other,
+and the numbers they give the time levels are `wcs.dynamics`)."""
 from __future__ import annotations
 
 import re
