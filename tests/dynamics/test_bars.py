@@ -10,7 +10,7 @@ striker is at rest and the target moves at v0 (the velocities exchanged), all en
 import numpy as np
 import pytest
 
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.dynamics.energy import body_velocities
 from wcs.dynamics.mass import mass_operator
 from wcs.model.evaluation import Evaluator

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from tests.support.bad_studies import demo_doc
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 

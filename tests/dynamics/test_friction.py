@@ -5,7 +5,7 @@ block to −τ Σ λt, internal forces cancelling, and Σ |λt| = g Σ w = g ℓ
 import numpy as np
 import pytest
 
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.dynamics.energy import body_velocities
 from wcs.dynamics.mass import mass_operator
 from wcs.model.evaluation import Evaluator

@@ -18,7 +18,7 @@ import pytest
 
 from tests.support.reference_forms import (boussinesq_compliance, contact_modulus, cylinder_impact, impact_ode, line_law,
                              sphere_on_block_force)
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 

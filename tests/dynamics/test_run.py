@@ -15,7 +15,7 @@ import xarray as xr
 from tests.support.bad_studies import write_study
 from tests.dynamics.test_bars import DURATION, bars
 from wcs.cli import main
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 from wcs.results.store import store_path

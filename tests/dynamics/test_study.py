@@ -9,7 +9,7 @@ import xarray as xr
 from tests.support.bad_studies import demo_doc, write_study
 from tests.dynamics.test_bars import DURATION, bars
 from wcs.cli import main
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.dynamics.mass import mass_cell_matrices, mass_operator
 from wcs.dynamics.stepping import dynamic_matrices, region_dynamics
 from wcs.errors import StudyError

@@ -7,9 +7,10 @@ import copy
 import numpy as np
 import pytest
 
+from tests.support.bad_studies import drop, put
 from wcs.cli import main
 from wcs.dynamics.absorbing import weighted_mass
-from wcs.app.dynamics import simulate
+from wcs.dynamics.history import simulate
 from wcs.dynamics.mass import mass_operator
 from wcs.dynamics.sources import ricker
 from wcs.errors import StudyError
@@ -78,13 +79,7 @@ def test_bad_dynamic_loads_name_the_key(change, fragment):
     doc = quake_block()
     for path, value in change.items():
         keys = path.split(".")
-        node = doc
-        for k in keys[:-1]:
-            node = node[k]
-        if value is None:
-            del node[keys[-1]]
-        else:
-            node[keys[-1]] = value
+        (drop(keys) if value is None else put(keys, value))(doc)
     with pytest.raises(StudyError) as info:
         load_study(doc)
     assert fragment in str(info.value)

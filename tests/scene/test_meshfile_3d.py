@@ -21,6 +21,7 @@ import pytest
 import yaml
 
 from tests.acceptance.test_fuzz_check import mutate
+from tests.support.bad_studies import drop, put
 from wcs.cli import main
 from wcs.geometry.tet import volumes
 from wcs.scene.mesher3d import ALGORITHM_3D, build_mesh3d
@@ -230,15 +231,8 @@ def _doc() -> dict:
 
 
 def _put(keys, value):
-    def change(d):
-        node = d["scene"]
-        for k in keys[:-1]:
-            node = node[k]
-        if value is None:
-            del node[keys[-1]]
-        else:
-            node[keys[-1]] = value
-    return change
+    """Set (None: remove) the scene's key at `keys`."""
+    return drop(["scene", *keys]) if value is None else put(["scene", *keys], value)
 
 
 CUBE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1), (0.2, 0.2, 0.2), (0.3, 0.2, 0.2),
