@@ -11,11 +11,20 @@ import numpy as np
 import xarray as xr
 
 from wcs.dynamics.history import REDUCED, reduced, simulate
-from wcs.dynamics.stepping import level_solution
+from wcs.dynamics.loading import at_time_zero, check_sources
+from wcs.dynamics.stepping import initial_state, level_solution
+from wcs.errors import SolveError
+from wcs.model.criteria import in_words
+from wcs.model.evaluation import Evaluator
+from wcs.model.fields import fields_dataset
+from wcs.results.dataset import provenance, write_netcdf
+from wcs.results.paraview import volume, vtu_text, _write
+from wcs.results.store import WriteError
+from wcs.status import Status
+
 
 def history_dataset(study, ev, hist) -> xr.Dataset:
     """The results file of a dynamic solve."""
-    from wcs.results.dataset import provenance
     model = ev.model
     t = np.asarray(hist.time)
     crit = [c.name for c in study.criteria]
@@ -65,8 +74,6 @@ def pvd_text(entries: list[tuple[float, str]]) -> str:
 
 def write_series(ev, hist, c, out: Path) -> Path:
     """OUT.pvd over OUT-k.vtu (the volume at output level k, `wcs.paraview`)."""
-    from wcs.model.fields import fields_dataset
-    from wcs.results.paraview import volume, vtu_text, _write
     entries = []
     heat = ev.model.solve_heat(c) if ev.model.thermal else None
     for k, (n, u) in enumerate(zip(hist.output_levels, hist.displacement)):
@@ -83,12 +90,6 @@ def solve_dynamic(study, out: Path, args, point=None) -> int:
     """`wcs solve STUDY` of a dynamic study: run the levels, print the reduced criteria, write
     OUT.nc and the ParaView series; `point` a data set (a vector or {dotted path: value}; `solve
     --worst`), else the nominal data."""
-    from wcs.model.criteria import in_words
-    from wcs.errors import SolveError
-    from wcs.model.evaluation import Evaluator
-    from wcs.results.dataset import write_netcdf
-    from wcs.status import Status
-    from wcs.results.store import WriteError
     t0 = time.perf_counter()
     ev = Evaluator(study)
     x, others = study.data_set(study.nominal() if point is None else point)
@@ -125,10 +126,6 @@ def check_dynamic(study, ev, args, summary: str) -> int:
     in the mesh at the nominal data and at the corners of their uncertain points (StudyError,
     exit 2) and, for `initial: static`, the static solve that starts them (exit 2 where the
     scene has no static solution)."""
-    from wcs.errors import SolveError
-    from wcs.status import Status
-    from wcs.dynamics.loading import at_time_zero, check_sources
-    from wcs.dynamics.stepping import initial_state
     dyn = study.dynamics
     check_sources(ev, study.nominal())
     for w in study.warnings:

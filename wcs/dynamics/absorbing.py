@@ -29,7 +29,6 @@ from scipy.spatial import cKDTree
 from ..errors import StudyError
 from ..geometry import tet
 from ..geometry.facets import facet_lengths, facet_normals
-from ..scene.spec import ABSORBING_ADDRESSES as ADDRESSES  # noqa: F401 - what can be uncertain
 from ..scene.spec import Absorbing, Layer
 from .mass import mass_cell_matrices
 

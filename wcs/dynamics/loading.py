@@ -75,7 +75,7 @@ def load_function(model, scene, c, s, index, heat=None) -> Callable[[float], np.
 def at_time_zero(c, scene, s, index):
     """The coefficients c with each timed boundary load at its factor at t = 0 (a ramp: 0), the
     loads the static initial state balances; c itself when no load has a time function. (A
-    source's wavelet at t = 0 is below 1e-3 of its peak, `wcs.dynamics.sources.check_ricker`;
+    source's wavelet at t = 0 is below 1e-3 of its peak, `wcs.scene.spec.check_ricker`;
     the static state leaves it out.)"""
     timed = {b: load.time for b, load in scene.loads.items() if load.time is not None}
     if not timed:

@@ -26,8 +26,7 @@ import numpy as np
 
 from ..errors import StudyError
 from ..fem.affine import gradients
-from ..scene.spec import SOURCE_ADDRESSES as ADDRESSES  # noqa: F401 - what can be uncertain
-from ..scene.spec import Source, check_ricker, ricker  # noqa: F401 - check_ricker: the loader's box check
+from ..scene.spec import Source, ricker
 
 INSIDE = 1e-10                          # a barycentric coordinate >= -INSIDE: the point is in the (closed) cell
 

@@ -12,9 +12,7 @@ from pydantic import Field, model_validator
 
 from wcs.errors import StudyError
 from wcs.options import Strict
-from wcs.scene.spec import Name
-
-from .sources import check_ricker
+from wcs.scene.spec import Name, check_ricker
 
 MAX_LEVELS = 10_000_000          # time levels of one solve: end_time / time_step
 SECONDS = {"gt": 0, "le": 1e12}
@@ -92,7 +90,7 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
 def check_loads(scene, uncertain, error) -> None:
     """The dynamic loads against the scene and the uncertain box: a source's point has the
     scene's dimension; its Ricker wavelet starts from rest (delay · frequency >= 1,
-    `wcs.dynamics.sources.check_ricker`) at every corner of the box, the least corner being the
+    `wcs.scene.spec.check_ricker`) at every corner of the box, the least corner being the
     lower bounds; every absorbing boundary exists; a support on a boundary with dashpots holds
     it in the static initial state only (`wcs.dynamics.release`), so its value is not uncertain."""
     box = {e.path: (e.lower, e.upper) for e in uncertain}

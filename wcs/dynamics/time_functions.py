@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.spec import TIME_ADDRESSES as ADDRESSES  # noqa: F401 - what can be uncertain
 from ..scene.spec import TimeFunction
 
 def factor(fn: TimeFunction | None, t) -> np.ndarray:
