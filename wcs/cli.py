@@ -115,6 +115,11 @@ def plan(study, ev) -> list[str]:
                      + (f", sense {senses[c.name]}" if senses[c.name] != "max" else "")
                      + (f", lower limit {_fmt(low)}" if low is not None else "")
                      + (f", limit {_fmt(lim)}" if lim is not None else ""))
+    if study.dynamics is not None:
+        from .app.dynamics import plan_line
+        lines += plan_line(study, ev)
+        lines.append(f"  output: {study.output}")
+        return lines
     s = study.search
     method = study.solver.method
     solver = (f"{method} ({ev.model.solver_reason})" if method != "auto"

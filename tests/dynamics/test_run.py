@@ -3,6 +3,7 @@ simulation, each criterion's history reduced by its `over_time`; the results fil
 `phi_history` (eval, criterion, time) and the worst cases' fields at the output times; resume
 and two MPI ranks give the serial run's bits; no adjoint through time, and the file says so."""
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -157,13 +158,26 @@ def test_solve_worst_runs_the_levels_at_the_worst_data(serial, tmp_path):
 
 
 def test_check_says_what_an_evaluation_is_and_names_the_reductions(serial, capsys):
-    path, _, _ = serial
+    """`wcs check` of a dynamic study: the search line is the dynamic one (an evaluation is a
+    simulation; the gradients as the results file records them), the solver line says the levels'
+    scheme, step and method, and one evaluation's time and memory are its levels' (no static
+    solve's estimate)."""
+    path, _, ds = serial
     capsys.readouterr()
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
     assert "peak: the peak over time of mean contact pressure" in out and "the least over time of" in out
     assert "one evaluation is one simulation (17 levels of two contact solves" in out
-    assert "no adjoint gradient through time" in out
+    assert f"gradients: {ds.attrs['gradients']}" in out
+    assert "solver: each level (stabilized scheme, Δt = 1e-05 s) by monolithic (auto): the condensed Newton" in out
+    assert "A = 2M/Δt² + C/Δt + K/2" in out and "solves; solver:" not in out and "adjoint gradients, which" not in out
+    line = next(row for row in out.splitlines() if "one evaluation estimated at" in row)
+    words = re.search(r"about ([\d.e+-]+) GB peak and ([\d.e+-]+) s: the static state and the first level "
+                      r"([\d.e+-]+) s \+ 16 levels × ([\d.e+-]+) s \(timed on 16 levels", line)
+    assert words, line
+    peak, total, first, level = map(float, words.groups())
+    assert total == pytest.approx(first + 16 * level, rel=0.06)     # the printed figures' 2 digits
+    assert 0.05 < peak < 64
 
 
 def test_a_failed_simulation_is_a_record_with_its_status_and_no_history(monkeypatch):

@@ -3,6 +3,7 @@ results file (a `time` coordinate: `phi_history` (criterion, time), contact forc
 the fields at the output times) and a ParaView time series, OUT.pvd over OUT-k.vtu."""
 from __future__ import annotations
 
+import resource
 import sys
 import time
 from pathlib import Path
@@ -11,6 +12,7 @@ import numpy as np
 import xarray as xr
 
 from wcs.dynamics.history import REDUCED, reduced, simulate
+from wcs.dynamics.stepping import History
 from wcs.dynamics.loading import at_time_zero, check_sources
 from wcs.dynamics.stepping import initial_state, level_solution
 from wcs.errors import SolveError
@@ -18,6 +20,7 @@ from wcs.model.criteria import in_words
 from wcs.model.evaluation import Evaluator
 from wcs.model.fields import fields_dataset
 from wcs.results.dataset import provenance, write_netcdf
+from wcs.results.dynamics import GRADIENTS
 from wcs.results.paraview import volume, vtu_text, _write
 from wcs.results.store import WriteError
 from wcs.status import Status
@@ -121,11 +124,82 @@ def solve_dynamic(study, out: Path, args, point=None) -> int:
     return 0
 
 
+OPERATOR = {"seed": "A = M/Δt² + C/Δt + K", "stabilized": "A = 2M/Δt² + C/Δt + K/2"}   # wcs.dynamics.schemes
+LEVEL_METHOD = {"monolithic": "the condensed Newton on a factor of the level's operator {A}, factored once and "
+                              "kept across the levels",
+                "iterative": "active set with CG + algebraic multigrid on the level's operator {A}"}
+TIMED = 20          # `wcs check` times this many levels after the first (the first factors A)
+
+
+def level_solves(study) -> str:
+    """What one time level solves, in words."""
+    if not study.scene.contacts:
+        return "one linear solve"
+    return "two contact solves (predictor and step)" if study.dynamics.scheme == "stabilized" else "one contact solve"
+
+
+def plan_line(study, ev) -> list[str]:
+    """The search and solver lines of `wcs check` for a dynamic study (in place of the static
+    ones): an evaluation is one simulation; each level's contact problem by the model's method
+    (`wcs.dynamics.stepping.LevelSolver`), warm-started from the last level; the gradients as the
+    results file records them (`wcs.results.dynamics.GRADIENTS`)."""
+    s, dyn, method = study.search, study.dynamics, ev.model.solver_method
+    chosen = f"{method} (auto)" if study.solver.method == "auto" else method
+    how = (LEVEL_METHOD[method] if study.scene.contacts else "one sparse factor of {A}, kept across the levels"
+           ).format(A=OPERATOR[dyn.scheme])
+    return [f"  search: {s.method}, budget {s.budget} evaluations; one evaluation is one simulation "
+            f"({dyn.levels} levels of {level_solves(study)} each); gradients: {GRADIENTS}",
+            f"  solver: each level ({dyn.scheme} scheme, Δt = {dyn.time_step:g} s) by {chosen}: {how}; "
+            "warm-started from the last level's contact forces"]
+
+
+def history_bytes(hist: History) -> tuple[float, float]:
+    """(bytes a level adds to a `History`, bytes an output level adds): its arrays counted."""
+    def size(v) -> int:
+        return np.asarray(v).nbytes
+    levels = len(hist.time)
+    per_level = sum(size(getattr(hist, k)) for k in ("time", "force_n", "force_t", "closed", "iterations", "kinetic",
+                                                     "elastic", "work", "viscous", "friction"))
+    per_level += sum(size(v) for v in hist.phi.values())
+    out = size(hist.displacement) + size(hist.velocity)
+    return per_level / levels, out / max(len(hist.output_levels), 1)
+
+
+def evaluation_estimate(ev, x) -> str:
+    """One evaluation's time and memory, measured on the first levels at data x: after one level
+    run to build what every evaluation reuses (the released model, the caches), the set-up (the
+    static state, the matrices) with the first level (which factors A) is timed alone, then with
+    TIMED levels more; the evaluation is the first plus (levels − 1) × a later level's time. The
+    memory is this process's peak over those levels (the model, both factors) plus what the
+    remaining levels add to the history (`history_bytes`)."""
+    dyn = ev.study.dynamics
+    k = min(TIMED, dyn.levels - 1)
+
+    def timed(levels: int) -> tuple[float, History]:
+        t0 = time.perf_counter()
+        hist = simulate(ev, x, dyn=dyn.model_copy(update={"end_time": levels * dyn.time_step}))
+        return time.perf_counter() - t0, hist
+    timed(1)
+    first, _ = timed(1)
+    more, hist = timed(k + 1)
+    level = max(more - first, 0.0) / k if k else 0.0
+    per_level, per_output = history_bytes(hist)
+    outputs = dyn.levels // dyn.output_every + 1
+    rest = per_level * (dyn.levels - k) + per_output * (outputs - len(hist.output_levels))
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0 + rest
+    seconds = first + (dyn.levels - 1) * level
+    return (f"  one evaluation estimated at about {peak / 1e9:.3g} GB peak and {seconds:.2g} s: the static state "
+            f"and the first level {first:.2g} s + {dyn.levels - 1} levels × {level:.2g} s (timed on {k} levels at "
+            f"the nominal data); memory: this process's peak over them and the history of the other levels "
+            f"({rest / 1e6:.3g} MB)")
+
+
 def check_dynamic(study, ev, args, summary: str) -> int:
     """`wcs check` of a dynamic study: the summary, the plan of the levels, the sources located
     in the mesh at the nominal data and at the corners of their uncertain points (StudyError,
     exit 2) and, for `initial: static`, the static solve that starts them (exit 2 where the
-    scene has no static solution)."""
+    scene has no static solution); then one evaluation's time and memory, from its first levels
+    (`evaluation_estimate`)."""
     dyn = study.dynamics
     check_sources(ev, study.nominal())
     for w in study.warnings:
@@ -135,12 +209,6 @@ def check_dynamic(study, ev, args, summary: str) -> int:
         print(summary)
         print(f"  dynamics: {dyn.levels} levels of {dyn.time_step:g} s to {dyn.levels * dyn.time_step:g} s, scheme "
               f"{dyn.scheme}, initial state {start}; fields every {dyn.output_every} levels, criteria at every level")
-        if study.parameters.names:
-            solves = ("one linear solve" if not study.scene.contacts else "two contact solves (predictor and step)"
-                      if dyn.scheme == "stabilized" else "one contact solve")
-            print(f"  search over time: one evaluation is one simulation ({dyn.levels} levels of {solves} each, "
-                  f"not the one solve estimated above); no adjoint gradient through time: finite differences of "
-                  f"the reduced criteria where the search asks for gradients")
     if dyn.initial == "static":
         try:
             x = study.nominal()
@@ -150,5 +218,10 @@ def check_dynamic(study, ev, args, summary: str) -> int:
             print(f"error: {study.file}: {e}", file=sys.stderr)
             return 2 if Status(e.status).scene_fault else 1
     if not args.quiet:
+        try:
+            print(evaluation_estimate(ev, study.nominal()))
+        except SolveError as e:
+            print(f"error: {study.file}: the nominal data set's first levels cannot be solved: {e}", file=sys.stderr)
+            return 2 if Status(e.status).scene_fault else 1
         print("ok")
     return 0

@@ -32,14 +32,16 @@ REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "
            "mean": "the mean over the levels"}
 
 
-def simulate(ev, x=(), others=None, load=None, damping=None):
+def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None):
     """The `History` of a study's levels at data vector x (`wcs.model.evaluation.Evaluator` ev):
     load(t) the load vector on the full DOFs at time t, damping an extra damping matrix on the
     full DOFs; None: the scene's own at x (`wcs.dynamics.loading`: time functions and point
     sources; absorbing layer and dashpots). The initial state is taken at the loads of t = 0;
     boundaries held by supports that take dashpots are released after it, loaded by their
-    static reactions (`wcs.dynamics.release`)."""
-    model, pmap, scene, dyn = ev.model, ev.map, ev.study.scene, ev.study.dynamics
+    static reactions (`wcs.dynamics.release`). dyn: the levels to run (None: the study's
+    `dynamics:` block; `wcs check` times the first few levels with a shorter one)."""
+    model, pmap, scene = ev.model, ev.map, ev.study.scene
+    dyn = ev.study.dynamics if dyn is None else dyn
     c = pmap.coefficients(x, others)
     heat = model.solve_heat(c) if model.thermal else None
     c0 = at_time_zero(c, scene, pmap.slots(x, others), pmap.index)

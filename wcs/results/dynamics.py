@@ -9,6 +9,7 @@ import xarray as xr
 NO_ADJOINT = ("no adjoint gradient through time was used (dynamic study): the search is derivative-free "
               "where it sampled and takes finite differences of the reduced criterion where it asked for "
               "gradients (stages `fd`, `gradient`)")
+GRADIENTS = "none: no adjoint through time (finite differences where the search asked for gradients)"
 
 
 def level_times(dyn) -> np.ndarray:
@@ -41,7 +42,7 @@ def dynamic_results(ds: xr.Dataset, study, records: list[dict]) -> xr.Dataset:
                        {"long_name": "reduction of each criterion's history: max | min | final | mean"})
     notes = [f"{n}; {NO_ADJOINT}" if n else NO_ADJOINT for n in map(str, ds["certificate_note"].values)]
     ds["certificate_note"] = ("criterion", np.array(notes, dtype=object), ds["certificate_note"].attrs)
-    ds.attrs["gradients"] = "none: no adjoint through time (finite differences where the search asked for gradients)"
+    ds.attrs["gradients"] = GRADIENTS
     ds["iterations"].attrs["long_name"] += "; a dynamic study: their sum over the time levels of the evaluation"
     dyn = study.dynamics
     ds.attrs.update({"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time})
