@@ -49,7 +49,7 @@ def _set(doc, path, value):
     ("scene.sources", {"q": {"point": [0.1, 0.01, 0.0], "force": [1.0, 0.0, 0.0],
                              "wavelet": {"ricker": {"frequency": 1e4, "delay": 1e-3}}}}, "scene.sources.q.point"),
     ("scene.loads", {"s_top": {"pressure": 1.0, "time": {"ramp": 0.0}}}, "scene.loads.s_top.time.ramp"),
-    ("solver", {"method": "dd"}, "solver.method: 'dd' does not step in time"),
+    ("solver", {"method": "qp"}, "solver.method: 'qp' does not step in time"),
     ("uncertain", {"materials.steel.density": [7000.0, 7000.0]}, "lies outside the box"),
 ])
 def test_bad_dynamic_input_names_the_key(path, value, fragment):

@@ -74,11 +74,14 @@ def _local_pieces(f: Field, cells: np.ndarray, components: list):
     return dofs, Tloc, op, modes, np.hstack(traces) if traces else np.zeros((dofs.size, 0))
 
 
-def _linear_unit(f: Field, index: int, part: Partition, s: int, f2t: np.ndarray) -> tuple[Unit, np.ndarray]:
+def _linear_unit(f: Field, index: int, part: Partition, s: int, f2t: np.ndarray,
+                 kernels: bool = True) -> tuple[Unit, np.ndarray]:
     """The linear unit of subdomain s, its kernel the admissible rigid motions of its
-    facet-connected components, and their traces."""
+    facet-connected components (none where `kernels` is False: a matrix with mass), and their
+    traces."""
     cells = part.cells(s)
     dofs, Tloc, op, modes, trace = _local_pieces(f, cells, facet_components(cells, f2t))
+    modes = modes if kernels else []
     Z = _orth(np.hstack(modes)) if modes else np.zeros((dofs.size, 0))
     return Unit(index, (s,), dofs, op, Tloc, Z), trace
 
@@ -157,15 +160,19 @@ def model_partition(model, dd: DomainDecomposition):
                      dd.subdomains, dd.pair_size, node_unknowns(model.elim.T, smesh.mesh.p.shape[0]))
 
 
-def build_decomposition(model, dd) -> Decomposition:
+def build_decomposition(model, dd, local=None) -> Decomposition:
     """Partition the model's mesh and build the units of the elastic problem (`dd`: the
-    `DomainDecomposition` options, or a mapping of them)."""
+    `DomainDecomposition` options, or a mapping of them). `local`: the cells' matrices as affine
+    pieces (`wcs.fem.affine.CellMatrices`' protocol) whose sum is positive definite on every unit
+    — a time level's mass with the stiffness (`wcs.dynamics.stepping`) — so the units have no
+    kernel; None: the stiffness's, the units' kernels their admissible rigid motions."""
     dd = DomainDecomposition.of(dd)
     t0 = time.perf_counter()
     smesh, mesh = model.smesh, model.smesh.mesh
     dim = mesh.p.shape[0]
     part = model_partition(model, dd)
-    f = _field(mesh.t, dim, model.elim.T, model.K.local, smesh.cell_region, mesh.p)
+    kernels = local is None
+    f = _field(mesh.t, dim, model.elim.T, model.K.local if kernels else local, smesh.cell_region, mesh.p)
     Bn, Bt = model.Bn_r, model.Bt_r
     contact_of_row = model.zone.contact_of_node
     units, traces = [], []
@@ -177,11 +184,11 @@ def build_decomposition(model, dd) -> Decomposition:
         outside = np.setdiff1d(np.unique(Bn[rows].indices), dofs)
         if outside.size:
             raise SetupError("contact rows reach outside their pair (partition bug)")
-        units.append(PairUnit(len(units), subs, dofs, op, Tloc, modes, rows,
+        units.append(PairUnit(len(units), subs, dofs, op, Tloc, modes if kernels else [], rows,
                               Bn[rows][:, dofs], Bt[tangent_rows(rows, Bn.shape[0], dim - 1)][:, dofs]))
         traces.append(trace)
     for s in part.linear:
-        unit, trace = _linear_unit(f, len(units), part, s, mesh.f2t)
+        unit, trace = _linear_unit(f, len(units), part, s, mesh.f2t, kernels)
         units.append(unit)
         traces.append(trace)
     return _joined(f, part, units, traces, {"setup": time.perf_counter() - t0})

@@ -12,7 +12,7 @@ from ..contact.solver import ContactResult
 from ..errors import SolveError, StudyError
 from ..status import DDOutcome, Status
 from .partition import subdomains_fault
-from .solver import solve_heat_dd
+from .solver import Level, solve_decomposed, solve_heat_dd
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,21 @@ class Decomposition:
             raise SolveError(f"domain decomposition: {dd.message}", status=Status.DD_FAILED)
         out = method_of("monolithic").solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
         return dataclasses.replace(out, krylov_steps=None)     # the dd's PCG iterations are not counted here
+
+    def solve_level(self, model, name: str, problem, local, coefficients: np.ndarray, c) -> ContactResult:
+        """A time level's contact problem (`wcs.dynamics.stepping`: operator `name`'s A, load, gaps
+        and slip bounds of `problem`) by the decomposition, its units' matrices the cells' pieces
+        `local` (mass and stiffness) at `coefficients` per region (`Level`); c the data set's
+        coefficients (the interface weights). Each level is solved from the glued start, as a
+        static solve (the decomposition keeps no answer between solves); a failure is the
+        level's (status DD_FAILED): no fallback inside a simulation."""
+        m = problem.m
+        level = Level(name, local, coefficients, problem.d, problem.g if problem.g is not None else np.zeros(m))
+        dd = solve_decomposed(model, c, problem.f, np.zeros(model.elim.T.shape[0]), model.options, model.comm, level)
+        if dd.status is not DDOutcome.CONVERGED:
+            return ContactResult(None, None, None, Status.DD_FAILED, f"domain decomposition: {dd.message}")
+        return ContactResult(dd.info["w"], dd.lam_n, dd.lam_t, Status.SOLVED, f"dd: {dd.message}",
+                             iterations=int(dd.info.get("successive", 0)), active=dd.info.get("active"))
 
 
 METHOD = Decomposition()

@@ -88,6 +88,19 @@ class DDResult(NamedTuple):
     message: str
 
 
+class Level(NamedTuple):
+    """A time level's contact problem for `solve_decomposed` (`wcs.dynamics.stepping`): the units'
+    matrices made of the cells' pieces `local` (mass and stiffness: positive definite, no
+    kernel) at `coefficients` (per region, one row a region), the level's gaps `d` (zone rows)
+    and slip bounds `slip` (Tresca; Coulomb's taken from the last level's pressures); `name`: the
+    operator's (a scheme's 'step' and 'predictor' keep a decomposition each, factored once)."""
+    name: str
+    local: object
+    coefficients: np.ndarray
+    d: np.ndarray
+    slip: np.ndarray
+
+
 # ---- the elastic contact solve ------------------------------------------------------------------
 _CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -118,15 +131,17 @@ def _start_tolerance(options, o: dict) -> float:
     return o["pcg_tolerance"]
 
 
-def decomposition(model, options, heat: bool = False) -> Decomposition:
-    """The model's decomposition for these `solver` options, of the elastic problem or (`heat`)
-    of the thermal step (built once, cached on the model)."""
+def decomposition(model, options, heat: bool = False, level: Level | None = None) -> Decomposition:
+    """The model's decomposition for these `solver` options, of the elastic problem, of a time
+    level's operator (`Level`: the cells' pieces, one decomposition by operator name) or
+    (`heat`) of the thermal step (built once, cached on the model)."""
     dd = Solver.of(options).dd
-    key = ("heat",) * heat + (dd.subdomains, dd.pair_size)
+    key = ("heat",) * heat + (() if level is None else ("level", level.name)) + (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
         with phase("DD set-up (heat)" if heat else "DD set-up"):
-            per_model[key] = (build_heat_decomposition if heat else build_decomposition)(model, dd)
+            per_model[key] = (build_heat_decomposition(model, dd) if heat else
+                              build_decomposition(model, dd, None if level is None else level.local))
     return per_model[key]
 
 
@@ -152,22 +167,30 @@ def solve_dd(model, scene, Kr, rhs: np.ndarray, u0: np.ndarray, options=None,
     every rank returns the same result, bitwise equal to the serial one (comm=None).
     info["ranks"]: per-rank timings (assemble, dirichlet, neumann, coarse, contact, comm).
     """
+    c = coefficients if coefficients is not None else model.coefficients(scene)
+    return solve_decomposed(model, c, rhs, u0, options, comm)
+
+
+def solve_decomposed(model, c, rhs: np.ndarray, u0: np.ndarray, options=None, comm=None,
+                     level: Level | None = None) -> DDResult:
+    """`solve_dd` at the data set's coefficients c; level: a time level's problem (`Level`) in
+    place of the static one — its units' matrices, gaps and slip bounds, rhs the level's load
+    and u0 zero (the answer is the increment, info["w"])."""
     o = _dd_options(options)
     t0 = time.perf_counter()
     info: dict = {"method": "dd", "options": o}
     try:
-        dec = decomposition(model, options)
+        dec = decomposition(model, options, level=level)
     except (SetupError, CoarseSingular) as exc:
         return _fail(info, DDOutcome.SETUP_FAILED, f"domain decomposition set-up failed: {exc}")
-    c = coefficients if coefficients is not None else model.coefficients(scene)
-    kc = model.stiffness_coefficients(c)
+    kc = model.stiffness_coefficients(c) if level is None else level.coefficients
     team = Team(comm, dec.units, model.smesh.mesh.p.shape[0], dec.measured,
                 refactor=not np.array_equal(dec.kept.get("data"), kc))
     tm = team.timings
     info["nranks"] = team.size
     z = model.zone
-    g, F = c.slip, c.coulomb
-    d = z.gap - z.Bn @ u0
+    g, F = (c.slip, c.coulomb) if level is None else (level.slip, np.zeros_like(c.coulomb))
+    d = z.gap - z.Bn @ u0 if level is None else level.d
     rho_region = stiffness_measure(c.lam, c.mu)
     info.update(sizes(dec))
     t = time.perf_counter()

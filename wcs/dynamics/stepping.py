@@ -12,7 +12,9 @@ seed does: "the frictional term is approximated by its value in the previous tim
 `solve_problem`; 'monolithic' by the condensed Newton (`solve_condensed`) on a factor of A
 held per operator — its registered `solve_problem` factors the model's static stiffness by
 units with springs on the pinned DOFs of the floating bodies (exact for K R = 0 only, wrong
-for A). The domain decomposition (which solves the model itself) is refused at load.
+for A); 'dd', which assembles each subdomain's matrix itself, by its `solve_level` with A's
+per-region coefficients over the cells' stiffness and mass pieces (`level_coefficients`; the
+absorbing layer and dashpots are not split over the subdomains: refused at load).
 
 A level that fails stops the run with a SolveError naming the level and the time: the levels
 before it are never passed off as the answer.
@@ -37,7 +39,7 @@ from wcs.progress import phase
 from wcs.status import Status
 
 from . import energy, schemes
-from .mass import mass_operator, viscous_lame
+from .mass import mass_cell_matrices, mass_operator, viscous_lame
 from .spec import Dynamics, InitialVelocity
 
 
@@ -62,7 +64,16 @@ def region_dynamics(model, pmap, x=(), others=None) -> tuple[np.ndarray, np.ndar
     return rho, visc
 
 
-def dynamic_matrices(model, c, rho, visc, damping: sp.spmatrix | None = None) -> schemes.Matrices:
+@dataclass(frozen=True)
+class Assembled(schemes.Matrices):
+    """The reduced matrices with the per-region data they are made of: density ρ, viscous Lamé
+    constants (λ₁, μ₁), and whether C holds an extra damping matrix (a layer, dashpots)."""
+    rho: np.ndarray | None = None
+    visc: np.ndarray | None = None
+    damped: bool = False
+
+
+def dynamic_matrices(model, c, rho, visc, damping: sp.spmatrix | None = None) -> Assembled:
     """The reduced M (density ρ per region), C (viscous a⁽¹⁾ plus `damping`, an extra damping
     matrix on the full DOFs such as an absorbing layer's α or dashpots) and K of data set c."""
     M = model.reduce(mass_operator(model)(rho))
@@ -70,7 +81,33 @@ def dynamic_matrices(model, c, rho, visc, damping: sp.spmatrix | None = None) ->
     if damping is not None:
         extra = sp.csr_matrix(model.Tt @ damping @ model.elim.T)
         C = extra if C is None else sp.csr_matrix(C + extra)
-    return schemes.Matrices(sp.csr_matrix(M), C, sp.csr_matrix(model.reduce(model.stiffness(c))))
+    return Assembled(sp.csr_matrix(M), C, sp.csr_matrix(model.reduce(model.stiffness(c))),
+                     np.asarray(rho, float), np.asarray(visc, float), damping is not None)
+
+
+class LevelCells:
+    """The cells' matrices of a level operator as affine pieces (`wcs.fem.affine.CellMatrices`'
+    protocol): the stiffness's (λ, μ) and the consistent mass of unit density, per cell."""
+
+    def __init__(self, model):
+        self.stiffness, self.p, self.t = model.K.local, model.smesh.mesh.p, model.smesh.mesh.t
+        self.npieces, self.block = self.stiffness.npieces + 1, self.stiffness.block
+
+    def of(self, cells) -> np.ndarray:
+        return np.concatenate([self.stiffness.of(cells), mass_cell_matrices(self.p, self.t[:, cells])])
+
+
+def level_coefficients(model, c, mats: Assembled, dyn: Dynamics, key: str) -> np.ndarray:
+    """Per region, the coefficients of `LevelCells` whose sum is the level operator A of
+    `wcs.dynamics.schemes`: seed A = M/τ² + C/τ + K, stabilized A = 2M/τ² + C/τ + K/2 (C the
+    viscous a⁽¹⁾, the stiffness at (λ₁, μ₁)), the stabilized predictor's A = M."""
+    tau, kc = dyn.time_step, model.stiffness_coefficients(c)
+    rho = mats.rho[:, None]
+    if key == "predictor":
+        return np.hstack([np.zeros_like(kc), rho])
+    if dyn.scheme == "stabilized":
+        return np.hstack([kc / 2 + mats.visc / tau, 2 * rho / tau**2])
+    return np.hstack([kc + mats.visc / tau, rho / tau**2])
 
 
 def rigid_velocity(model, initial: InitialVelocity) -> np.ndarray:
@@ -113,16 +150,19 @@ class LevelSolver:
     """One contact problem per call through the model's contact method (see the module
     docstring), with a factor held per operator name ('step', 'predictor')."""
 
-    def __init__(self, model):
+    def __init__(self, model, level=None):
         self.model = model
         self.factors = {}
         self.elastic = {}
+        self.level = level          # key -> (LevelCells, coefficients, c): the decomposition's A
         method = model.method
-        if not hasattr(method, "solve_problem"):
+        if not hasattr(method, "solve_problem") and not (hasattr(method, "solve_level") and level is not None):
             raise StudyError(f"'{model.solver_method}' does not step in time yet; use monolithic or iterative",
                              path="solver.method")
 
     def __call__(self, key: str, problem: ContactProblem) -> ContactResult:
+        if self.level is not None:
+            return self.model.method.solve_level(self.model, key, problem, *self.level(key))
         if self.model.solver_method == "monolithic":
             res = solve_condensed(problem, factor=self.factors.get(key), **settings(self.model.options))
             if res.factor is not None:
@@ -201,7 +241,7 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
         return model.Tt @ load(t)
 
     w, v, res = start if start is not None else initial_state(model, c, dyn)
-    solver = LevelSolver(model)
+    solver = LevelSolver(model, _decomposed(model, c, mats, dyn))
     hist = History(dyn.scheme)
     g = c.slip if zone is not None else None
     F = c.coulomb if zone is not None and c.coulomb.any() else None
@@ -275,3 +315,16 @@ def _contact(solver: LevelSolver, key, A, rhs, model, w, u0, slip, F, warm, n, t
     if res.status != Status.SOLVED:
         raise SolveError(f"time level {n} (t = {t:.6g} s), {key}: {res.message}", status=res.status)
     return res
+
+
+def _decomposed(model, c, mats, dyn: Dynamics):
+    """For a model that assembles each subdomain itself (`dd`): key -> (LevelCells, A's
+    coefficients, c), else None."""
+    if not hasattr(model.method, "solve_level"):
+        return None
+    if not isinstance(mats, Assembled) or mats.damped:
+        raise StudyError(f"'{model.solver_method}' steps in time without absorbing boundaries only (their "
+                         "damping is not split over the subdomains); use monolithic or iterative",
+                         path="solver.method")
+    cells = LevelCells(model)
+    return lambda key: (cells, level_coefficients(model, c, mats, dyn, key), c)
