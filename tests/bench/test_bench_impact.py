@@ -1,8 +1,13 @@
-"""Speed against accuracy of the time-stepping schemes (issue 29's chart): the cylinder impact of
-`tests/dynamics/test_impact.py` over the mesh size h and the time step Δt, per scheme — the
-errors of the contact time and the peak force against Hertz's impact theory, the energy kept at
-the end, and the wall time; a level that fails is a row with its message (where each scheme
-stops: the stability chart). Writes results/bench/impact_schemes.csv and impact_schemes.png.
+"""Speed against accuracy of the time-stepping schemes, and where each fails (issue 29's charts):
+the cylinder impact of `tests/dynamics/test_impact.py` over the mesh size h at the contact and the
+time step Δt, per scheme — the errors of the contact time and the peak force against Hertz's
+impact theory, the energy kept at the end (after the rebound), against the CPU and wall time of
+the run; a level that fails is a row with its message. Writes results/bench/impact_schemes.csv
+and impact_schemes.png: error against CPU time (contact time, peak force, energy) and the
+stability chart (h against Δt per scheme, each run marked solved or failed).
+
+The peak force's floor (about −3 % at every h and Δt of the energy-conserving scheme) is
+Hertz's quasi-static assumption, not the discretisation: `tests/dynamics/test_impact.py`.
 """
 import time
 
@@ -15,49 +20,75 @@ from wcs.errors import SolveError
 
 pytestmark = pytest.mark.bench
 
-MESHES = (4e-4, 2e-4, 1e-4)          # h at the contact [m] (b_max = 0.93 mm)
-STEPS = (2e-6, 1e-6, 5e-7)           # Δt [s] (t_c = 133 µs)
+MESHES = (4e-4, 2e-4, 1e-4)                 # h at the contact [m] (b_max = 0.93 mm)
+STEPS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)      # Δt [s] (t_c = 133 µs: 17 to 266 steps in contact)
+SCHEMES = ("seed", "stabilized")
+HEADER = ["scheme", "h", "dt", "t_c error", "peak force error", "energy change", "status", "cpu seconds",
+          "wall seconds"]
+
+
+def run(scheme: str, h: float, dt: float) -> list:
+    """One row of the table: the errors against Hertz, or the failure's message."""
+    tc_ref, q_ref = hertz()
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        tc, q, kept, _ = impact(h, dt, scheme)
+        row = [scheme, h, dt, round(tc / tc_ref - 1, 6), round(q / q_ref - 1, 6), float(f"{kept - 1:.3e}"), "solved"]
+    except SolveError as e:
+        row = [scheme, h, dt, "", "", "", f"failed: {e}"]
+    return row + [round(time.process_time() - c0, 2), round(time.perf_counter() - t0, 2)]
 
 
 def test_impact_schemes_speed_against_accuracy():
-    tc_ref, q_ref = hertz()
     rows = []
-    for scheme in ("seed", "stabilized"):
+    for scheme in SCHEMES:
         for h in MESHES:
             for dt in STEPS:
-                t0 = time.perf_counter()
-                try:
-                    tc, q, kept, _ = impact(h, dt, scheme)
-                    row = [scheme, h, dt, tc / tc_ref - 1, q / q_ref - 1, kept - 1, "solved"]
-                except SolveError as e:
-                    row = [scheme, h, dt, "", "", "", f"failed: {e}"]
-                rows.append(row + [round(time.perf_counter() - t0, 2)])
+                rows.append(run(scheme, h, dt))
                 print(rows[-1], flush=True)
-    path = write_table("impact_schemes", ["scheme", "h", "dt", "t_c error", "peak force error",
-                                          "energy change", "status", "seconds"], rows)
+    path = write_table("impact_schemes", HEADER, rows)
     print(path.read_text())
     _plot(rows)
-    seed = [r for r in rows if r[0] == "seed"]
-    assert all(r[6] == "solved" and abs(r[3]) < 0.01 for r in seed), seed
+    solved = [r for r in rows if r[6] == "solved"]
+    assert len(solved) == len(rows), [r for r in rows if r[6] != "solved"]
+    fine = [r for r in solved if r[2] <= 2e-6]
+    assert all(abs(r[3]) < 0.02 for r in fine), fine      # t_c to the step's ±Δt/t_c (1.5 % at 2 µs)
 
 
 def _plot(rows):
     import matplotlib
+    import matplotlib.ticker
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for scheme, marker in (("seed", "o"), ("stabilized", "s")):
-        for h, colour in zip(MESHES, ("tab:blue", "tab:orange", "tab:green")):
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    colours = dict(zip(MESHES, ("tab:blue", "tab:orange", "tab:green")))
+    for scheme, marker, style in (("seed", "o", "-"), ("stabilized", "s", "--")):
+        for h in MESHES:
             ok = [r for r in rows if r[0] == scheme and r[1] == h and r[6] == "solved"]
-            failed = [r for r in rows if r[0] == scheme and r[1] == h and r[6] != "solved"]
-            for ax, k in zip(axes, (3, 4)):
-                ax.loglog([r[7] for r in ok], [max(abs(r[k]), 1e-5) for r in ok], marker=marker, color=colour,
-                          label=f"{scheme}, h = {h * 1e3:g} mm")
-                ax.plot([r[7] for r in failed], np.full(len(failed), 1.0), "x", color=colour)
-    for ax, what in zip(axes, ("|contact time error|", "|peak force error|")):
-        ax.set_xlabel("wall time [s]")
+            for ax, k in zip((axes[0, 0], axes[0, 1], axes[1, 0]), (3, 4, 5)):
+                ax.loglog([r[7] for r in ok], [max(abs(r[k]), 1e-6) for r in ok], style, marker=marker,
+                          color=colours[h], label=f"{scheme}, h = {h * 1e3:g} mm")
+    for ax, what in zip((axes[0, 0], axes[0, 1], axes[1, 0]),
+                        ("|contact time error|", "|peak force error|", "|energy change| after the rebound")):
+        ax.set_xlabel("CPU time [s] (along a line: Δt halves)")
         ax.set_ylabel(what)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle("Cylinder impact against Hertz: error against cost over h and Δt (x at 1: a level failed)")
+    axes[0, 0].legend(fontsize=7)
+    ax = axes[1, 1]
+    for scheme, shift, marker in (("seed", 0.93, "o"), ("stabilized", 1.07, "s")):
+        for ok, face in ((True, "tab:green"), (False, "tab:red")):
+            pts = [r for r in rows if r[0] == scheme and (r[6] == "solved") == ok]
+            ax.scatter([r[1] * 1e3 * shift for r in pts], [r[2] * 1e6 for r in pts], marker=marker, color=face,
+                       label=f"{scheme}: {'solved' if ok else 'failed'} ({len(pts)})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xlabel("h at the contact [mm]")
+    ax.set_ylabel("Δt [µs]")
+    ax.set_title("stability: where each scheme fails", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle("Cylinder impact against Hertz: error against cost over h and Δt")
+    fig.tight_layout()
     save_figure(fig, "impact_schemes")

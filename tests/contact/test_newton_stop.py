@@ -100,3 +100,19 @@ def test_a_base_slid_far_under_a_tresca_pad_gives_the_short_slides_answer(tmp_pa
         assert far.phi[name] == pytest.approx(near.phi[name], rel=1e-5), name
     pn_far, pn_near = far.state.contact.force_n, near.state.contact.force_n
     assert np.abs(pn_far - pn_near).max() <= 1e-5 * np.abs(pn_near).max()
+
+
+def test_an_open_gap_does_not_set_the_force_scale():
+    """Two uncoupled normal rows: a fine node pushed 1 µm into the obstacle (W = 7e4, c q =
+    1.4e-11) and a coarse one 2.2 cm open (W = 12.6, c q = −1.8e-3) — the first level of the
+    stabilized Newmark predictor at h = 0.2 mm. The open gap carries no force; as a force scale
+    it let Newton stop at λ = 0 (residual 1.4e-11 < 1e-8 × 1.8e-3), the node left in the block.
+    The answer is λ₀ = q₀/W₀ (the node brought back to the surface), λ₁ = 0."""
+    W = np.diag([7.2e4, 12.6, 1.0, 1.0])                       # two nodes: normals, then frictionless tangents
+    q = np.array([1.0e-6, -2.2e-2, 0.0, 0.0])
+    lo, hi = np.zeros(4), np.r_[np.inf, np.inf, 0.0, 0.0]
+    lam, _, _, _, ok = cs._newton(W, q, np.zeros((0, 4)), np.zeros(0), lo, hi, np.zeros(4), np.zeros(0),
+                                  1e-8, 100, np.ones(4, bool), fallback=False)
+    assert ok
+    assert lam[0] == pytest.approx(q[0] / W[0, 0], rel=1e-12, abs=0.0)
+    assert lam[1] == 0.0

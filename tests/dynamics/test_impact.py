@@ -4,14 +4,18 @@ bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder dece
 inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
 mesh is studies/validation/cylinder-impact.yaml.
 
-Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv): the seed scheme
-[101, (10)] keeps the contact time within 1 % of the theory on every mesh and step; its peak
-force is 6.0 %, 4.3 %, 3.6 % low at Δt = 2, 1, 0.5 µs (h = 0.4 mm) — the scheme's first-order
-numerical damping (it loses 15 %, 8.4 %, 4.6 % of the energy) — and does not move with h (−4.08 %,
-−4.06 % at h = 0.2, 0.1 mm, Δt = 0.5 µs; −3.70 % at 0.25 µs). The energy-conserving stabilized
-scheme gives −3.06 % at h = 0.4 mm, Δt = 2 µs (energy −5e-5) but its predictor (the M-projection)
-fails at the first levels on the finer meshes and steps (the bench's rows). The issue's 3 % on
-the peak force is not reached; the contact time is.
+Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv, h = 0.4, 0.2,
+0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep the contact time within 0.7 % from
+Δt = 2 µs (the count of levels is Δt-quantised). The seed scheme [101, (10)] is first order: its
+peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs (h = 0.1 mm; observed order 1.2, Richardson
+limit −3.4 %), its energy −15, −8.4, −4.5 %. The energy-conserving stabilized scheme gives
+−2.8, −3.2, −3.2 % at Δt = 0.5 µs on the three meshes (converged in h; energy −4e-5), and its
+predictor steps on every mesh (on main it stopped at the first level from h = 0.2 mm:
+`test_stabilized_predictor_steps_on_a_finer_mesh`). The −3 % that remains is Hertz's
+quasi-static assumption, not the discretisation (`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`):
+the dynamic impact's peak is 3.3 % below Hertz's impact on the mesh's own static law, which is
+within 0.3 % of Hertz's peak (0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 %; the
+contact time meets it.
 """
 import numpy as np
 import pytest
@@ -19,6 +23,7 @@ import pytest
 from tests.support.reference_forms import (boussinesq_compliance, contact_modulus, cylinder_impact, impact_ode, line_law,
                              sphere_on_block_force)
 from wcs.dynamics.history import simulate
+from wcs.dynamics.mass import mass_operator
 from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
@@ -65,11 +70,17 @@ def hertz() -> tuple[float, float]:
 def impact(h: float, dt: float, scheme: str = "seed"):
     """(t_c, q_max, the energy kept at the end / initial, the history) of the FE impact: t_c counts
     the levels that carry a contact force (each Δt long), q the whole cylinder's (twice the half's)."""
-    study = load_study(cylinder(h, dt, scheme))
-    hist = simulate(Evaluator(study), study.nominal())
+    hist = simulated(h, dt, scheme)[1]
     q = 2.0 * hist.total_force
     energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
     return np.count_nonzero(q > 0) * dt, q.max(), energy[-1] / energy[0], hist
+
+
+def simulated(h: float, dt: float, scheme: str = "seed"):
+    """(the model, the history) of the FE impact."""
+    study = load_study(cylinder(h, dt, scheme))
+    ev = Evaluator(study)
+    return ev.model, simulate(ev, study.nominal())
 
 
 def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
@@ -86,6 +97,85 @@ def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
     assert errors[0] < errors[1] < 0.0
 
 
+def test_stabilized_predictor_steps_on_a_finer_mesh():
+    """h = 0.2 mm, Δt = 1 µs: the predictor's M-projection of the first level was refused on
+    main ("violates non-penetration (Bn u − d up to 1.000e-06)": the node at the axis left
+    τV = 1 µm in the block), because Newton's stopping scale was an open node's gap 2.2 cm up the
+    arc. Now two levels step: the force rises, and the energy lost is what the first projection
+    takes (measured 8.2e-5 of the initial energy; the trapezoidal step itself conserves it)."""
+    study = load_study(cylinder(2e-4, 1e-6, "stabilized", end=2e-6))
+    hist = simulate(Evaluator(study), study.nominal())
+    q = 2.0 * hist.total_force
+    energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
+    assert 0.0 < q[1] < q[2]
+    assert abs(energy[2] / energy[0] - 1.0) < 2e-4
+    assert energy[2] == pytest.approx(energy[1], rel=1e-6)
+
+
+def vertical_mean(model, u) -> tuple[float, float]:
+    """(the half cylinder's mass m/2, the mass-weighted mean of the cylinder's u_y): its centre of
+    mass's displacement, the approach δ of the line law (the block's base is held)."""
+    M = mass_operator(model)(np.full(len(model.region_material), RHO))
+    ey = np.zeros(2 * model.nnodes)
+    ey[2 * np.flatnonzero(model.smesh.node_body == model.smesh.bodies.index("cylinder")) + 1] = 1.0
+    mass = ey @ M @ ey
+    return mass, (ey @ M @ u) / mass
+
+
+def quasi_static(h: float) -> tuple[float, float, float]:
+    """(t_c, q_max, m) of Hertz's impact (`cylinder_impact`) on the static force-approach law of
+    the same mesh instead of the line law: the cylinder pressed into the block by a uniform body
+    force (the inertia that decelerates it) at q = q_Hertz/2 and q_Hertz, the constant c of
+    δ = q (c − s ln q) fitted to δ (centre of mass to the block's base) against the contact force
+    q, and m the mesh's mass of the cylinder. It is Hertz's theory on this finite geometry: what
+    the dynamic FE impact differs from it by is dynamics alone (waves, vibration)."""
+    _, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
+    doc = cylinder(h, 1e-6)
+    doc.pop("dynamics")
+    cs = []
+    for share in (0.5, 1.0):
+        doc["scene"]["body_forces"] = {"cylinder": [0.0, -share * hertz()[1] / (np.pi * R ** 2)]}
+        study = load_study(doc)
+        ev = Evaluator(study)
+        state = ev.evaluate(study.nominal()).state
+        mass, uy = vertical_mean(ev.model, state.u)
+        q = 2.0 * state.contact.force_n.sum()
+        cs.append(-uy / q + s * np.log(q))
+    tc, q, _ = cylinder_impact(2.0 * mass, V, float(np.mean(cs)), s)
+    return tc, q, 2.0 * mass
+
+
+@pytest.mark.slow
+def test_the_peak_force_deficit_is_hertz_quasi_static_assumption():
+    """Where the cylinder's peak force deficit (−3 % against Hertz on every mesh and step of the
+    energy-conserving scheme) comes from, h = 0.4 mm, Δt = 2 µs (measured):
+    - the geometry: the mesh's body is 0.53 % lighter than ρπR² (its arc is chords of R/5) and
+      its static law is stiffer than the line law (δ 1.8 % less at q_max; 0.9 % at h = 0.1 mm):
+      Hertz's impact on the mesh's own law and mass gives q_max +0.27 %, t_c −0.76 %;
+    - the dynamics: the FE impact's peak force is 3.3 % below that quasi-static impact of the
+      same mesh. The bodies are not quasi-static: in 2D the approach is the whole bodies'
+      deformation (the line law's logarithms), set up by waves that cross them in 17–34 µs
+      against t_c = 133 µs. The cylinder leaves at 0.988 of its speed, vibrating with 2.3 % of
+      the energy (the theory: 1 and 0), and its force peaks 6 µs after its approach (the theory:
+      at once). Δt (−2.98 % at 1 µs), h (−3.2 % at 0.1 mm) and a bulk mesh of R/20 (−3.02 %) do
+      not move it: it is the reference's quasi-static assumption, not the discretisation."""
+    tc_ref, q_ref = hertz()
+    tc_qs, q_qs, mass = quasi_static(4e-4)
+    assert mass / (RHO * np.pi * R ** 2) == pytest.approx(1.0 - 0.0053, abs=0.001)
+    assert q_qs == pytest.approx(q_ref, rel=0.01) and tc_qs == pytest.approx(tc_ref, rel=0.01)
+    model, hist = simulated(4e-4, 2e-6, "stabilized")
+    q = 2.0 * hist.total_force
+    energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
+    _, vy = vertical_mean(model, hist.velocity[-1])
+    _, uy = vertical_mean(model, hist.displacement[-1])
+    print(f"mass {mass / (RHO * np.pi * R ** 2) - 1:+.4f}, quasi-static q {q_qs / q_ref - 1:+.4f} t_c "
+          f"{tc_qs / tc_ref - 1:+.4f}; dynamic q {q.max() / q_ref - 1:+.4f}, {q.max() / q_qs - 1:+.4f} of the quasi-static; "
+          f"rebound {vy / V:.4f}, energy {energy[-1] / energy[0] - 1:+.2e}")
+    assert abs(energy[-1] / energy[0] - 1.0) < 1e-4             # the scheme conserves the energy
+    assert -0.04 < q.max() / q_qs - 1.0 < -0.025
+    assert 0.98 < vy / V < 0.995                                # rebound (upwards) below the impact speed
+
+
 @pytest.mark.slow
 def test_cylinder_impact_over_three_meshes():
     """h = 0.4, 0.2, 0.1 mm at Δt = 0.5 µs: t_c within 1 %, the peak force within 5 % of Hertz
@@ -100,6 +190,23 @@ def test_cylinder_impact_over_three_meshes():
         q.append(qmax)
     order = np.log2(abs(q[0] - q[1]) / abs(q[1] - q[2]))
     print(f"peak force {[f'{x / q_ref - 1:+.2%}' for x in q]}, observed order {order:.2f}")
+    assert abs(q[1] - q[2]) < abs(q[0] - q[1])
+
+
+@pytest.mark.slow
+def test_stabilized_cylinder_impact_over_three_meshes():
+    """The stabilized scheme at Δt = 0.5 µs, h = 0.4, 0.2, 0.1 mm (on main its predictor stopped
+    at the first level from 0.2 mm): t_c within 1 %, the peak force within 3.5 % of Hertz
+    (measured −2.83, −3.23, −3.22 %: the quasi-static assumption's −3.3 %), the energy within
+    1e-4, the changes between meshes shrinking (measured 0.40 % then 0.01 %)."""
+    tc_ref, q_ref = hertz()
+    q = []
+    for h in (4e-4, 2e-4, 1e-4):
+        tc, qmax, kept, _ = impact(h, 5e-7, "stabilized")
+        assert tc == pytest.approx(tc_ref, rel=0.01)
+        assert qmax == pytest.approx(q_ref, rel=0.035)
+        assert abs(kept - 1.0) < 1e-4
+        q.append(qmax)
     assert abs(q[1] - q[2]) < abs(q[0] - q[1])
 
 
