@@ -21,6 +21,7 @@ from wcs.errors import SolveError
 from wcs.model.evaluation import Evaluation, Evaluator
 from wcs.status import Status
 
+from . import adjoint
 from .loading import at_time_zero, damping_matrix, load_function
 from .release import carried_over, reactions, released_dofs, released_model, released_names
 from .spec import InitialVelocity
@@ -32,14 +33,16 @@ REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "
            "mean": "the mean over the levels"}
 
 
-def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None):
+def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None, record: dict | None = None):
     """The `History` of a study's levels at data vector x (`wcs.model.evaluation.Evaluator` ev):
     load(t) the load vector on the full DOFs at time t, damping an extra damping matrix on the
     full DOFs; None: the scene's own at x (`wcs.dynamics.loading`: time functions and point
     sources; absorbing layer and dashpots). The initial state is taken at the loads of t = 0;
     boundaries held by supports that take dashpots are released after it, loaded by their
     static reactions (`wcs.dynamics.release`). dyn: the levels to run (None: the study's
-    `dynamics:` block; `wcs check` times the first few levels with a shorter one)."""
+    `dynamics:` block; `wcs check` times the first few levels with a shorter one). record: a dict
+    that receives what the adjoint through time needs (`wcs.dynamics.adjoint`): the levels' model,
+    map and data, the start, the held reactions and every level's state."""
     model, pmap, scene = ev.model, ev.map, ev.study.scene
     dyn = ev.study.dynamics if dyn is None else dyn
     c = pmap.coefficients(x, others)
@@ -68,7 +71,11 @@ def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None):
     if damping is None:
         damping = damping_matrix(model, scene, c, rho, s, pmap.index)
     mats = dynamic_matrices(model, c, rho, visc, damping)
-    return step_levels(model, c, mats, dyn, load, ev.criteria, start=(w, v, res))
+    states = None
+    if record is not None:
+        states = []
+        record.update(model=model, map=pmap, c=c, mats=mats, start=(w, v, res), held=held, states=states)
+    return step_levels(model, c, mats, dyn, load, ev.criteria, start=(w, v, res), states=states)
 
 
 def reduced(study, history) -> dict[str, float]:
@@ -125,22 +132,32 @@ def output_fields(model, c, hist) -> xr.Dataset:
 class DynamicEvaluator(Evaluator):
     """The `Evaluator` of a dynamic study: one evaluation is one simulation of the levels."""
 
-    def evaluate(self, values) -> DynamicEvaluation:
+    def evaluate(self, values, gradients: bool = False) -> DynamicEvaluation:
         """The levels at a parameter vector or a mapping {dotted path: value} (others nominal):
-        phi the criteria reduced over time, history every level's values. A level that fails
-        makes the evaluation fail with its status and message (NaN criteria)."""
+        phi the criteria reduced over time, history every level's values; with `gradients`, also
+        dΦ/dx of every criterion by the adjoint through time (`wcs.dynamics.adjoint`), None where
+        the reduced history is not differentiable (the message says why; the search then takes
+        finite differences). A level that fails makes the evaluation fail with its status and
+        message (NaN criteria)."""
         t0 = time.perf_counter()
         study = self.study
         x, others = study.data_set(values)
         names = [c.name for c in self.criteria]
+        record = {} if gradients else None
         try:
-            hist = simulate(self, x, others)
+            hist = simulate(self, x, others, record=record)
         except SolveError as e:
             nan = {n: float("nan") for n in names}
             return DynamicEvaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
         phi = reduced(study, hist)
         history = np.array([hist.phi[n] for n in names], float).reshape(len(names), -1)
         c = self.map.coefficients(x, others)
-        return DynamicEvaluation(x, phi, Status.SOLVED, f"solved ({len(hist.time) - 1} time levels)",
-                                 int(np.sum(hist.iterations)), time.perf_counter() - t0, evaluator=self,
+        message = f"solved ({len(hist.time) - 1} time levels)"
+        grad = None
+        if gradients:
+            out = adjoint.gradients(self, x, others, hist, record)
+            grad = out.grad
+            message += "".join(f"; {n}: finite-difference gradient, {why}" for n, why in out.why.items() if why)
+        return DynamicEvaluation(x, phi, Status.SOLVED, message, int(np.sum(hist.iterations)),
+                                 time.perf_counter() - t0, evaluator=self, grad=grad,
                                  history=history, levels=(c, hist))

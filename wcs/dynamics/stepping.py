@@ -221,11 +221,12 @@ def level_solution(model, c, u, res: ContactResult | None, T=None) -> Solution:
 
 def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 load: Callable[[float], np.ndarray] | None = None, criteria=(),
-                start: tuple | None = None) -> History:
+                start: tuple | None = None, states: list | None = None) -> History:
     """Run the levels of `dyn` on data set c. load(t): the load vector f(t) on the full DOFs at
     time t (time functions, point sources; None: the data set's own loads, constant in time);
     criteria: `wcs.criteria.Criterion`s measured at every level; start: (w₀, v₀, contact at
-    t = 0), else `initial_state`."""
+    t = 0), else `initial_state`; states: a list that receives each level's (Δ, contact result)
+    (what the adjoint through time sweeps back over, `wcs.dynamics.adjoint`)."""
     tau, N = dyn.time_step, dyn.levels
     T, zone = model.elim.T, model.zone
     u0 = model.elim.U0 @ c.support_values
@@ -298,6 +299,8 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
             if zone is not None:
                 sums["friction"] += energy.friction(res.lam_t, model.Bt_r @ step)
             w, v = w + step, v_new
+            if states is not None:
+                states.append((step, res if zone is not None else None))
             keep(n, t_next, w, v, res)
             progress.step()
     return hist
