@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from wcs.contact.mortar3d import jump_rows, mortar_sides3d
-from wcs.geometry.mortar3d import mortar_integrals3d, oriented_facets, triangle_normals
+from wcs.geometry.facets import _clip
+from wcs.geometry.mortar3d import _clip_many, _pairs, mortar_integrals3d, oriented_facets, triangle_normals
 from wcs.contact.pairs import tangents
 from wcs.errors import StudyError
 from wcs.scene.mesher3d import build_mesh3d
@@ -171,3 +172,56 @@ def test_gmsh_blocks_nonmatching(normal):
     v[pr.slave] = pr.tangent[:, 0]
     assert np.abs(Bt @ v.ravel() - np.r_[np.ones(m), np.zeros(m)]).max() < 1e-12
     assert np.abs(Bn @ v.ravel()).max() < 1e-12
+
+
+def ccw(t):
+    """The triangles t (k, 3, 2) ordered counter-clockwise."""
+    a, b = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    d = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0
+    t[d, 1], t[d, 2] = t[d, 2], t[d, 1].copy()
+    return t
+
+
+def test_clip_many_is_clip_of_each_pair():
+    """All pairs clipped at once give, pair by pair, the very polygons (vertex for vertex, bitwise)
+    of the one-pair clip: inside, outside, across edges, sharing vertices and edges (a grid's
+    triangles against each other), emptied."""
+    rng = np.random.default_rng(7)
+    poly = ccw(rng.uniform(-1, 2, (400, 3, 2)))
+    tri = ccw(rng.uniform(0, 1, (400, 3, 2)))
+    x, t = grid(3)
+    g = ccw(x[t][:, :, :2].copy())
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(len(g)), np.arange(len(g))))
+    poly, tri = np.concatenate([poly, g[i], tri[:50] * 0.3]), np.concatenate([tri, g[j], tri[:50]])
+    clipped, count = _clip_many(poly, np.full(len(poly), 3), tri)
+    expect = [_clip(p, q) for p, q in zip(poly, tri)]
+    assert {0, 3, 4, 5, 6} <= set(count.tolist())
+    assert count.tolist() == [len(e) for e in expect]
+    assert all(np.array_equal(c[:n], e) for c, n, e in zip(clipped, count, expect))
+
+
+def test_pairs_hold_every_laterally_near_facing_pair():
+    """The candidate pairs (slave, master) of the curved, rotated pair hold every pair that the
+    per-triangle test takes (the master faces the slave, centroids within the sum of the bounding
+    radii along the slave's plane), sorted by slave then master; the margin adds only pairs whose
+    clipped polygon is empty."""
+    x, ts, tm = join(cap(6, outward=-1), cap(5, angle=0.4))
+    x = x + [0.0, 0.0, -0.2]
+    sn, _ = triangle_normals(x, ts)
+    mnu, _ = triangle_normals(x, tm)
+    mc = x[tm].mean(axis=1)
+    mrad = np.linalg.norm(x[tm] - mc[:, None], axis=2).max(axis=1)
+    e, f = _pairs(x, ts, sn, mnu, mc, mrad)
+    assert np.all(np.diff(e * len(tm) + f) > 0)
+    expect = set()
+    for k, t in enumerate(ts):
+        sc = x[t].mean(axis=0)
+        srad = np.linalg.norm(x[t] - sc, axis=1).max()
+        d = mc - sc
+        lateral = np.linalg.norm(d - (d @ sn[k])[:, None] * sn[k], axis=1)
+        expect |= {(k, m) for m in np.flatnonzero((mnu @ sn[k] < -1e-3) & (lateral <= srad + mrad))}
+    found = set(zip(e.tolist(), f.tolist()))
+    assert expect <= found and len(expect) > len(ts)
+    for k, m in found - expect:                 # extra: the projected triangles do not overlap
+        mi = mortar_integrals3d(x, ts[[k]], tm[[m]])
+        assert mi.covered[0] == 0.0

@@ -60,7 +60,6 @@ import scipy.sparse as sp
 
 from ..errors import StudyError
 from . import tet
-from .facets import _clip
 
 FACING = 1e-3               # a master triangle faces a slave one when ν_m · n_T < −FACING
 MIN_COVER = 1e-6            # a covered fraction of a slave triangle / tributary area below this is ignored
@@ -89,17 +88,156 @@ def triangle_normals(x: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.nda
     return c / a[:, None], 0.5 * a
 
 
-def _area2(poly: np.ndarray) -> float:
-    """Signed area of a 2D polygon (counter-clockwise positive)."""
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+def _clip_many(poly: np.ndarray, count: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each counter-clockwise polygon ``poly[p, :count[p]]`` (P, K, 2) clipped by its
+    counter-clockwise triangle ``tri[p]`` (P, 3, 2): `facets._clip` of all pairs at once, the same
+    operations in the same order (Sutherland–Hodgman; an emptied polygon has count 0). Returns the
+    clipped polygons (P, K', 2) and their vertex counts (P,)."""
+    for i in range(3):
+        a, b = tri[:, i], tri[:, (i + 1) % 3]
+        e = b - a
+        side = (e[:, None, 0] * (poly[:, :, 1] - a[:, None, 1])
+                - e[:, None, 1] * (poly[:, :, 0] - a[:, None, 0]))                # >= 0: inside
+        j = np.arange(poly.shape[1])
+        prev = (j[None, :] - 1) % np.maximum(count, 1)[:, None]                  # p = poly[j − 1]
+        p, sp_ = np.take_along_axis(poly, prev[:, :, None], axis=1), np.take_along_axis(side, prev, axis=1)
+        real = j[None, :] < count[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cut = p + (poly - p) * (sp_ / (sp_ - side))[:, :, None]
+        out = np.stack([cut, poly], axis=2).reshape(poly.shape[0], -1, 2)       # cut_j, q_j, ...
+        keep = (np.stack([(sp_ >= 0) != (side >= 0), side >= 0], axis=2) & real[:, :, None]).reshape(poly.shape[0], -1)
+        count = keep.sum(axis=1)
+        slot = np.cumsum(keep, axis=1) - 1
+        poly = np.zeros((poly.shape[0], max(int(count.max(initial=0)), 1), 2))
+        r, c = np.nonzero(keep)
+        poly[r, slot[r, c]] = out[r, c]
+    return poly, count
 
 
-def _barycentric(tri: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """(3, g) barycentric coordinates of points y (g, 2) in the 2D triangle tri (3, 2)."""
-    T = np.stack([tri[1] - tri[0], tri[2] - tri[0]], axis=1)          # (2, 2)
-    l12 = np.linalg.solve(T, (y - tri[0]).T)                          # (2, g)
-    return np.vstack([1.0 - l12.sum(axis=0), l12])
+def _pairs(x: np.ndarray, slave_tri: np.ndarray, sn: np.ndarray, mnu: np.ndarray, mc: np.ndarray,
+           mrad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(slave, master) triangle index pairs, sorted by slave then master: the master faces the
+    slave (ν_m · n_T < −FACING) and their bounding circles may overlap laterally (in the slave's
+    plane): lateral² = |d|² − (d·n_T)² ≤ (1 + 1e-6)(r_s + r_m)², d the centroids' difference
+    (about the points' mean). The margin only adds pairs whose circles are disjoint: their clipped
+    polygon is empty, so it changes nothing."""
+    o = x.mean(axis=0)
+    xs = x[slave_tri] - o
+    sc, mc = xs.mean(axis=1), mc - o
+    srad = np.linalg.norm(xs - sc[:, None, :], axis=2).max(axis=1)
+    s2, m2 = np.einsum("sd,sd->s", sc, sc), np.einsum("md,md->m", mc, mc)
+    chunk = max(1, 2 ** 22 // mc.shape[0])                    # (chunk × masters) floats at a time
+    es, fs = [], []
+    for lo in range(0, slave_tri.shape[0], chunk):
+        hi = min(lo + chunk, slave_tri.shape[0])
+        n0, c0 = sn[lo:hi], sc[lo:hi]
+        dn = n0 @ mc.T - np.einsum("sd,sd->s", n0, c0)[:, None]
+        lateral2 = (s2[lo:hi, None] + m2[None, :] - 2.0 * (c0 @ mc.T)) - dn ** 2
+        reach = srad[lo:hi, None] + mrad[None, :]
+        e, f = np.nonzero((n0 @ mnu.T < -FACING) & (lateral2 <= (1.0 + 1e-6) * reach ** 2))
+        es.append(e + lo)
+        fs.append(f)
+    return np.concatenate(es), np.concatenate(fs)
+
+
+def _segments(x, slave_tri, master_tri, sn, mnu):
+    """The clipped polygons of all facing pairs cut into triangles from their vertex centroid, and
+    each triangle's 3-point rule. Returns the in-plane frames ``(E, ys)`` of the slave triangles
+    ((S, 2, 3) axes, (S, 3, 2) vertices, counter-clockwise), the covered area of each slave
+    triangle, and per Gauss point (in the order: slave, master, fan triangle, point): slave
+    triangle, master triangle, projected point (G, 2), weight, and per pair its projected master
+    vertices (order [0, 2, 1]: counter-clockwise) and pair index of each point."""
+    xs = x[slave_tri]
+    d1 = xs[:, 1] - xs[:, 0]
+    e1 = d1 / np.sqrt(np.vecdot(d1, d1))[:, None]                       # |d1| as np.linalg.norm of one
+    E = np.stack([e1, np.cross(sn, e1)], axis=1)                          # (S, 2, 3) in-plane axes
+    ys = np.matmul(xs - xs[:, :1], E.transpose(0, 2, 1))                  # (S, 3, 2) counter-clockwise
+    mc = x[master_tri].mean(axis=1)
+    mrad = np.linalg.norm(x[master_tri] - mc[:, None, :], axis=2).max(axis=1)
+    e, f = _pairs(x, slave_tri, sn, mnu, mc, mrad)
+    Y = np.einsum("kvd,ked->kve", x[master_tri[f]][:, [0, 2, 1]] - xs[e, :1], E[e])   # reversed: ccw
+    lo, hi = ys[e].min(axis=1), ys[e].max(axis=1)
+    area2 = 0.5 * ((Y[:, :, 0] * np.roll(Y[:, :, 1], -1, axis=1)).sum(axis=1)
+                   - (np.roll(Y[:, :, 0], -1, axis=1) * Y[:, :, 1]).sum(axis=1))
+    use = (Y.min(axis=1) < hi).all(axis=1) & (Y.max(axis=1) > lo).all(axis=1) & (area2 > 0.0)
+    e, f, Y = e[use], f[use], Y[use]
+    poly, n = _clip_many(Y, np.full(e.size, 3), ys[e])
+    j = np.arange(poly.shape[1])
+    real = j[None, :] < n[:, None]
+    c = np.zeros((e.size, 2))
+    for k in range(poly.shape[1]):                                        # the vertex mean, in order
+        c = c + np.where(real[:, k, None], poly[:, k], 0.0)
+    c = c / np.maximum(n, 1)[:, None]
+    a = poly - c[:, None, :]
+    b = np.take_along_axis(poly, ((j[None, :] + 1) % np.maximum(n, 1)[:, None])[:, :, None], axis=1) - c[:, None, :]
+    sub = 0.5 * (a[:, :, 0] * b[:, :, 1] - a[:, :, 1] * b[:, :, 0])       # fan from the centroid
+    good = real & (sub > 0.0) & (n >= 3)[:, None]
+    cover = np.zeros(e.size)
+    for k in range(poly.shape[1]):
+        cover = cover + np.where(good[:, k], sub[:, k], 0.0)
+    covered = np.zeros(slave_tri.shape[0])
+    np.add.at(covered, e, cover)
+    pair, k = np.nonzero(good)
+    cc = c[pair][:, None, :]
+    yg = (_QB[None, :, 0, None] * cc + _QB[None, :, 1, None] * (a[pair, k][:, None] + cc)
+          + _QB[None, :, 2, None] * (b[pair, k][:, None] + cc)).reshape(-1, 2)     # Gauss points
+    w = np.repeat(sub[pair, k], 3) * np.tile(_QW, pair.size)
+    return E, ys, covered, np.repeat(pair, 3), yg, w, e, f, Y
+
+
+def _barycentric_many(tri: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(B, 3, g) barycentric coordinates of points y (B, g, 2) in the 2D triangles tri (B, 3, 2):
+    `_barycentric` of each (the same LAPACK solve per triangle, g right-hand sides)."""
+    T = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=2)          # (B, 2, 2)
+    l12 = np.linalg.solve(T, (y - tri[:, :1]).transpose(0, 2, 1))                  # (B, 2, g)
+    return np.concatenate([1.0 - l12.sum(axis=1, keepdims=True), l12], axis=1)
+
+
+def _grouped(key: np.ndarray, index: np.ndarray):
+    """(value, index[key == value]) for each distinct value of ``key``."""
+    for v in np.unique(key):
+        yield int(v), index[key == v]
+
+
+def _master_shapes(Y: np.ndarray, y: np.ndarray, gpair: np.ndarray) -> np.ndarray:
+    """(G, 3) master shape functions φ^m at the points ``y`` (G, 2): barycentric in the
+    projected master triangle ``Y[gpair]`` (order [0, 2, 1]), each pair's points solved together."""
+    Nm = np.empty((y.shape[0], 3))
+    count = np.bincount(gpair, minlength=Y.shape[0])
+    start = np.searchsorted(gpair, np.arange(Y.shape[0]))
+    for g, pairs in _grouped(count[count > 0], np.flatnonzero(count)):
+        at = start[pairs][:, None] + np.arange(g)
+        Nm[at] = _barycentric_many(Y[pairs], y[at]).transpose(0, 2, 1)
+    return Nm
+
+
+def _triangle_terms(ys, y, w, Nm, nu, ge, kept, ex):
+    """The 3 × 3 algebra of each kept slave triangle T (its points ``ge == T`` contiguous), batched
+    by the number of points: D_T = diag(M_T 1) (S, 3), ∫φ_a ν_m (S, 3, 3), the dual basis
+    ψ = D_T M_T⁻¹ φ (shared from the excluded vertices ``ex`` (S, 3) as ψ̃ = Q ψ) and the M
+    values ψ̃_i w φ^m_k at each point (G, 3, 3), and S_ia = ∫ψ̃_i φ_a of the excluded a (S, 3, 3)."""
+    S = ys.shape[0]
+    De, Ne, Sx = np.zeros((S, 3)), np.zeros((S, 3, 3)), np.zeros((S, 3, 3))
+    Mp = np.zeros((y.shape[0], 3, 3))
+    count = np.bincount(ge, minlength=S)
+    start = np.searchsorted(ge, np.arange(S))
+    for g, tris in _grouped(count[kept], np.flatnonzero(kept)):
+        at = start[tris][:, None] + np.arange(g)               # (B, g) point indices
+        wg = w[at]
+        Ns = _barycentric_many(ys[tris], y[at])                # (B, 3, g)
+        Me = np.matmul(Ns * wg[:, None, :], Ns.transpose(0, 2, 1))
+        De[tris] = Me.sum(axis=2)
+        psi = np.matmul(De[tris][:, :, None] * np.linalg.inv(Me), Ns)
+        Ne[tris] = np.matmul(Ns, wg[:, :, None] * nu[at])
+        part = ex[tris].any(axis=1)
+        if part.any():                                         # ψ̃ = Q ψ: the excluded ψ shared
+            k = ex[tris[part]]
+            Q = (np.eye(3) * ~k[:, None, :]
+                 + (~k[:, :, None] & k[:, None, :]) / np.count_nonzero(~k, axis=1)[:, None, None])
+            psi[part] = np.matmul(Q, psi[part])
+            Sx[tris[part]] = Q * k[:, None, :] * De[tris[part]][:, None, :]
+        Mp[at] = np.einsum("big,bg,bkg->bigk", psi, wg, Nm[at].transpose(0, 2, 1)).transpose(0, 2, 1, 3)
+    return De, Ne, Mp, Sx
 
 
 @dataclass(frozen=True)
@@ -121,7 +259,9 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
     """Segment-based dual mortar integrals (see the module doc) of the slave triangles
     ``slave_tri`` (S, 3) and master triangles ``master_tri`` (M, 3), node ids into the points
     ``x`` (n, 3), each ordered counter-clockwise about its outward normal; the slave nodes
-    ``exclude`` get no row (their dual functions merged into their neighbours')."""
+    ``exclude`` get no row (their dual functions merged into their neighbours'). All facing
+    pairs are clipped and integrated at once (`_segments`), the 3 × 3 algebra of the slave
+    triangles is batched by their number of Gauss points."""
     slave_tri = np.asarray(slave_tri, dtype=np.int64).reshape(-1, 3)
     master_tri = np.asarray(master_tri, dtype=np.int64).reshape(-1, 3)
     if slave_tri.shape[0] == 0 or master_tri.shape[0] == 0:
@@ -134,99 +274,45 @@ def mortar_integrals3d(x: np.ndarray, slave_tri: np.ndarray, master_tri: np.ndar
     sn, sarea = triangle_normals(x, slave_tri)
     mnu, _ = triangle_normals(x, master_tri)
     excluded = np.isin(snodes, np.asarray(exclude, dtype=np.int64))
-    mc = x[master_tri].mean(axis=1)
-    mrad = np.linalg.norm(x[master_tri] - mc[:, None, :], axis=2).max(axis=1)
-
+    E, ys, covered, gpair, y, w, pe, pf, Y = _segments(x, slave_tri, master_tri, sn, mnu)
+    over = np.flatnonzero(covered > (1.0 + OVERLAP) * sarea)
+    if over.size:
+        e = over[0]
+        raise StudyError(f"the master side overlaps itself seen from a slave triangle (covered area "
+                         f"{covered[e]:.6g} > the triangle's {sarea[e]:.6g}): two layers of the master "
+                         "side face the slave side", path=path)
+    Nm = _master_shapes(Y, y, gpair)
+    ge = pe[gpair]                                             # slave triangle of each point
+    kept = (covered >= MIN_COVER * sarea) & ~excluded[sloc].all(axis=1)
+    De, Ne, Mp, Sx = _triangle_terms(ys, y, w, Nm, mnu[pf[gpair]], ge, kept, excluded[sloc])
     ns = snodes.size
     Drow = np.zeros(ns)
-    Nrow = np.zeros((ns, 3))                     # ∫ φ_j ν_master ds
-    covered = np.zeros(slave_tri.shape[0])
-    rows, cols, vals = [], [], []                # slave-local row, master node, M value
-    merged = []                                  # (slave-local rows, excluded nodes, S values)
-    for e, tri in enumerate(slave_tri):
-        xs, n0 = x[tri], sn[e]
-        e1 = (xs[1] - xs[0]) / np.linalg.norm(xs[1] - xs[0])
-        E = np.stack([e1, np.cross(n0, e1)])                        # (2, 3) in-plane axes
-        ys = (xs - xs[0]) @ E.T                                     # counter-clockwise
-        sc = xs.mean(axis=0)
-        srad = float(np.linalg.norm(xs - sc, axis=1).max())
-        d = mc - sc
-        lateral = np.linalg.norm(d - (d @ n0)[:, None] * n0, axis=1)
-        cand = np.flatnonzero((mnu @ n0 < -FACING) & (lateral <= srad + mrad))
-        Y = np.einsum("kvd,ed->kve", x[master_tri[cand]][:, [0, 2, 1]] - xs[0], E)   # reversed: ccw
-        lo, hi = ys.min(axis=0), ys.max(axis=0)
-        overlap = (Y.min(axis=1) < hi).all(axis=1) & (Y.max(axis=1) > lo).all(axis=1)
-        pts, wts, phim, mcols, nus = [], [], [], [], []
-        for f, ym in zip(cand[overlap], Y[overlap]):
-            if _area2(ym) <= 0.0:
-                continue
-            poly = _clip(ym, ys)
-            if len(poly) < 3:
-                continue
-            c = poly.mean(axis=0)
-            a, b = poly - c, np.roll(poly, -1, axis=0) - c
-            sub = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])        # fan from the centroid
-            good = sub > 0.0
-            if not good.any():
-                continue
-            covered[e] += sub[good].sum()
-            yg = (_QB[None, :, 0, None] * c + _QB[None, :, 1, None] * (a[good, None] + c)
-                  + _QB[None, :, 2, None] * (b[good, None] + c)).reshape(-1, 2)   # Gauss points
-            pts.append(yg)
-            wts.append(np.repeat(sub[good], 3) * np.tile(_QW, good.sum()))
-            phim.append(_barycentric(ym, yg))                       # in the order [0, 2, 1]
-            mcols.append(np.broadcast_to(master_tri[f][[0, 2, 1]], (yg.shape[0], 3)))
-            nus.append(np.broadcast_to(mnu[f], (yg.shape[0], 3)))
-        if covered[e] > (1.0 + OVERLAP) * sarea[e]:
-            raise StudyError(f"the master side overlaps itself seen from a slave triangle (covered area "
-                             f"{covered[e]:.6g} > the triangle's {sarea[e]:.6g}): two layers of the master "
-                             "side face the slave side", path=path)
-        if covered[e] < MIN_COVER * sarea[e]:
-            continue
-        y = np.concatenate(pts)                                     # (G, 2)
-        w = np.concatenate(wts)                                     # (G,)
-        Nm = np.concatenate(phim, axis=1)                           # (3, G)
-        Mc = np.concatenate(mcols)                                  # (G, 3) master node ids
-        Ns = _barycentric(ys, y)                                    # (3, G)
-        Me = (Ns * w) @ Ns.T
-        De = Me.sum(axis=1)
-        psi = (De[:, None] * np.linalg.inv(Me)) @ Ns                # ψ = D_T M_T⁻¹ φ
-        loc = sloc[e]
-        ex = excluded[loc]
-        if ex.all():
-            continue
-        Drow[loc] += De
-        Nrow[loc] += Ns @ (w[:, None] * np.concatenate(nus))
-        if ex.any():                                                # ψ̃ = Q ψ: the excluded ψ shared
-            Q = np.diag((~ex).astype(float))
-            Q[np.ix_(~ex, ex)] = 1.0 / np.count_nonzero(~ex)
-            psi = Q @ psi
-            S = Q[:, ex] * De[ex]                                   # S_ia = ∫ψ̃_i φ_a, a excluded
-            merged.append((np.repeat(loc, ex.sum()), np.tile(snodes[loc[ex]], 3), S.ravel()))
-        Mval = np.einsum("ig,g,kg->igk", psi, w, Nm)                # (3 slave, G, 3 master)
-        rows.append(np.broadcast_to(loc[:, None, None], Mval.shape).ravel())
-        cols.append(np.broadcast_to(Mc[None, :, :], Mval.shape).ravel())
-        vals.append(Mval.ravel())
-
+    Nrow = np.zeros((ns, 3))                                   # ∫ φ_j ν_master ds
+    np.add.at(Drow, sloc[kept], De[kept])
+    np.add.at(Nrow, sloc[kept].ravel(), Ne[kept].reshape(-1, 3))
     trib = np.bincount(sloc.ravel(), np.repeat(sarea / 3.0, 3), ns)
     keep = (Drow > MIN_COVER * trib) & ~excluded
     m = int(keep.sum())
     newrow = np.full(ns, -1)
     newrow[keep] = np.arange(m)
     nn = x.shape[0]
-    if rows:
-        r, c, v = (np.concatenate(a) for a in (rows, cols, vals))
-        sel = keep[r]
-        M = sp.csr_matrix((v[sel], (newrow[r[sel]], c[sel])), shape=(m, nn))
-    else:
-        M = sp.csr_matrix((m, nn))
+    point, i = np.divmod(np.flatnonzero(np.repeat(kept[ge], 3)), 3)   # (point, slave vertex) entries
+    o = np.lexsort((point, i, ge[point]))                      # in the order slave triangle, vertex, point
+    point, i = point[o], i[o]
+    r = np.repeat(sloc[ge[point], i], 3)
+    c = master_tri[pf[gpair[point]]][:, [0, 2, 1]].ravel()
+    v = Mp[point, i].ravel()
+    sel = keep[r]
+    M = sp.csr_matrix((v[sel], (newrow[r[sel]], c[sel])), shape=(m, nn))
     M.sum_duplicates()
     Dk = Drow[keep]
     C = sp.csr_matrix((np.ones(m), (np.arange(m), snodes[keep])), shape=(m, nn)) - sp.diags(1.0 / Dk) @ M
-    if merged:
-        r, c, v = (np.concatenate(a) for a in zip(*merged))
+    mask = kept[:, None, None] & np.broadcast_to(excluded[sloc][:, None, :], Sx.shape)
+    if mask.any():                                             # S_ia of the excluded vertices a
+        r = np.broadcast_to(sloc[:, :, None], Sx.shape)[mask]
+        c = np.broadcast_to(snodes[sloc][:, None, :], Sx.shape)[mask]
         sel = keep[r]
-        C = C + sp.diags(1.0 / Dk) @ sp.csr_matrix((v[sel], (newrow[r[sel]], c[sel])), shape=(m, nn))
+        C = C + sp.diags(1.0 / Dk) @ sp.csr_matrix((Sx[mask][sel], (newrow[r[sel]], c[sel])), shape=(m, nn))
     C = C.tocsr()
     C.data[np.abs(C.data) < 1e-14] = 0.0
     C.eliminate_zeros()

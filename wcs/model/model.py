@@ -41,6 +41,7 @@ from ..fem.constraints import Constraint, Elimination, Reduction, eliminate
 from ..fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from ..fem.rigid import rigid_modes
 from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
+from .heat import heat_by_krylov
 from .materials import lame
 from ..scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
                               iterative_installed)
@@ -350,14 +351,18 @@ class Model:
         """The nodal temperature of data set c."""
         return self.P @ self._heat_theta(c)[0]
 
-    def _heat_theta(self, c: Coefficients) -> tuple[np.ndarray, sp.csr_matrix]:
-        """The temperature on the heat nodes (θ of `wcs.model.sensitivity`) by the direct solve, and
-        the reduced conduction matrix it factored."""
+    def heat_system(self, c: Coefficients) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
+        """The reduced conduction system of data set c: (Kr, rhs, Th0), θ = T_elim Kr⁻¹ rhs + Th0."""
         Kh = self.H(c.kappa)
         Kr = self.reduce_heat(Kh)
         Th0 = self.heat_elim.U0 @ c.temperature_values
         q = self.source_vectors.T @ c.source
-        rhs = self.heat_Tt @ (q - Kh @ Th0)
+        return Kr, self.heat_Tt @ (q - Kh @ Th0), Th0
+
+    def _heat_theta(self, c: Coefficients) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The temperature on the heat nodes (θ of `wcs.model.sensitivity`) by the direct solve, and
+        the reduced conduction matrix it factored."""
+        Kr, rhs, Th0 = self.heat_system(c)
         return self.heat_elim.T @ _factor(self._cache.heat, Kr).solve(rhs) + Th0, Kr
 
     def solve(self, c: Coefficients, adjoint: bool = False) -> Solution:
@@ -479,9 +484,10 @@ class Model:
 
     def _heat(self, c: Coefficients, adjoint: bool):
         """The thermal step (T, θ, reduced conduction matrix): by the method's own solve where it
-        has one (the decomposition; θ and the matrix None: the adjoint needs the direct
-        factorization), else directly."""
-        T = None if adjoint else self.method.heat(self, c)
+        has one (the decomposition; the iterative method: CG + GAMG, `wcs.model.heat`; θ and the
+        matrix None: the adjoint needs the direct factorization), else directly."""
+        T = None if adjoint else (heat_by_krylov(self, c) if self.solver_method == "iterative"
+                                  else self.method.heat(self, c))
         if T is not None:
             return T, None, None
         theta, Kh = self._heat_theta(c)
