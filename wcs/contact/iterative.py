@@ -133,10 +133,12 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
         state["free0"], state["eta"] = None, ETA_MAX
         return state["lam"][:m], ok, n
 
-    driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
+    try:
+        driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
+    finally:                # on every rank of a group alike, failed or not (PETSc's destroy is collective)
+        step.krylov_solver.close()
     u, lam, free, gw = state["u"], state["lam"], state["free"], driven.gw
     iters, fp_iters, ok, fp_ok = driven.iterations, driven.fixed_point_iterations, driven.ok, driven.settled
-    step.krylov_solver.close()
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol, reference) if ok else ""
     beta = _left_free(C, R, C @ u - step.b, lam, free, m, k, tol) if ok and R is not None else None
