@@ -14,6 +14,19 @@ class GroupFailure(RuntimeError):
     """Another rank of the evaluation's group failed (its message); raised on every other rank."""
 
 
+def rows(n: int, size: int, rank: int) -> tuple[int, int]:
+    """[lo, hi) of the rows rank `rank` of `size` owns: contiguous, sizes n // size or one more
+    (the first n % size ranks), PETSc's own split."""
+    base, extra = divmod(n, size)
+    lo = rank * base + min(rank, extra)
+    return lo, lo + base + (rank < extra)
+
+
+def share(n: int) -> tuple[int, int]:
+    """[lo, hi) of n items (rows, nodes) this rank owns in the evaluation's group (`rows`; (0, n) alone)."""
+    return (0, n) if _evaluation is None else rows(n, _evaluation.size, _evaluation.rank)
+
+
 def evaluation_comm():
     """The communicator the current evaluation's solves span (None: this process alone)."""
     return _evaluation

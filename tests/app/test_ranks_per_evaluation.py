@@ -78,7 +78,13 @@ def failing_rank(out: str) -> None:
         if failing:
             setattr(owner, name, before)
         seen.append((int(ev.status), ev.message, [float(v) for v in ev.phi.values()]))
-    everyone = comm.gather(seen)
+    model = runner.evaluator.model        # K(c) of the group (each rank its node rows, gathered) and alone
+    coefficients = model.stiffness_coefficients(runner.evaluator.map.coefficients(*study.data_set(study.nominal())))
+    with spanning(runner.group):
+        spread = model.K(coefficients)
+    alone = model.K(coefficients)
+    same = all(np.array_equal(getattr(spread, a), getattr(alone, a)) for a in ("data", "indices", "indptr"))
+    everyone = comm.gather({"seen": seen, "same_k": same})
     if comm.rank == 0:
         Path(out).write_text(json.dumps(everyone))
 
@@ -189,21 +195,33 @@ def test_check_says_how_to_launch_a_layout(tmp_path, capsys):
     assert "; each solve on 2 ranks: run it under mpiexec -n with a multiple of 2\n" in capsys.readouterr().out
 
 
-def test_a_rank_that_fails_alone_fails_its_group_and_not_the_next_evaluation(tmp_path):
+@pytest.fixture(scope="module")
+def failing(tmp_path_factory) -> list:
+    """`failing_rank` under mpiexec -n 2: each rank's outcomes."""
+    out = tmp_path_factory.mktemp("failing") / "seen.json"
+    done = mpiexec(2, sys.executable, __file__, "failing", out, timeout=240)
+    assert done.returncode == 0, done.stderr + done.stdout
+    return json.loads(out.read_text())
+
+
+def test_a_rank_that_fails_alone_fails_its_group_and_not_the_next_evaluation(failing):
     """A failure of one rank reaches the other (no rank left waiting in a collective step, so
     no hang: the launch has a deadline), wherever it happens: each rank records the evaluation
     failed, rank 0 (whose record the run keeps) with rank 1's message; the group then solves
     the next evaluation together, as it would have without the failures."""
-    out = tmp_path / "seen.json"
-    done = mpiexec(2, sys.executable, __file__, "failing", out, timeout=300)
-    assert done.returncode == 0, done.stderr + done.stdout
-    zero, one = json.loads(out.read_text())
+    zero, one = (rank["seen"] for rank in failing)
     for status, message, _ in zero[:3]:
         assert status == Status.OTHER_FAILURE, message
         assert message == ("GroupFailure: rank 1 of the evaluation's 2 ranks failed: MemoryError: injected on rank 1")
     assert [(s, m) for s, m, _ in one[:3]] == [(Status.OTHER_FAILURE, "MemoryError: injected on rank 1")] * 3
     assert zero[3][0] == one[3][0] == Status.SOLVED and zero[3][2] == one[3][2]
     assert np.all(np.isfinite(zero[3][2]))
+
+
+def test_the_stiffness_of_a_group_is_the_stiffness_alone_to_the_bit(failing):
+    """K(c) spanning the group (each rank the entries of its node rows, gathered) has the bits of
+    K(c) assembled by one rank, on both ranks."""
+    assert [rank["same_k"] for rank in failing] == [True, True]
 
 
 def test_solve_spans_the_ranks_of_its_launch(tmp_path, capsys):

@@ -14,15 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wcs.group import together
-
-
-def rows(n: int, size: int, rank: int) -> tuple[int, int]:
-    """[lo, hi) of the rows rank `rank` of `size` owns: contiguous, sizes n // size or one more
-    (the first n % size ranks), PETSc's own split."""
-    base, extra = divmod(n, size)
-    lo = rank * base + min(rank, extra)
-    return lo, lo + base + (rank < extra)
+from wcs.group import rows, together
 
 
 class RowBlocks:
