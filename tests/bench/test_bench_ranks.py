@@ -43,6 +43,7 @@ from pathlib import Path
 
 import pytest
 
+import scaling_model
 from common import ROOT, write_table
 
 BIN = Path(sys.executable).parent
@@ -69,22 +70,55 @@ def row(r: dict, case: str, one: dict) -> list:
             "/".join(f"{p:.2f}" for p in r["peak_gb_ranks"]), round(r["load"], 1)]
 
 
+def control(folder: Path, side: int, tag: str) -> list[dict]:
+    """The PETSc-only control on 1 and 2 ranks, now: what the machine gives PETSc itself."""
+    return [run(k, folder / f"laplace{k}-{tag}.json", "laplace", side) for k in (1, 2)]
+
+
+def control_rows(lap: list[dict], after: str) -> list[list]:
+    """The control's rows (set-up and solve in the gamg_setup_s and cg_s columns)."""
+    one = lap[0]["setup"] + lap[0]["solve"]
+    return [[k, f"laplace after {after}", r["unknowns"], 0, 0.0, round(r["setup"] + r["solve"], 2),
+             round(one / (r["setup"] + r["solve"]), 2), 0.0, 0.0, 0.0, 0.0, round(r["setup"], 2), round(r["solve"], 2),
+             0.0, 0, r["iterations"], "", round(r["load"], 1)] for k, r in zip((1, 2), lap)]
+
+
+def model_rows(one: dict) -> list[list]:
+    """The scaling model (scaling_model.py, docs/scaling.md) from this run's cold evaluation on
+    one rank: each phase at the measured size, and for 1e8 unknowns on 512 ranks with the
+    iterations flat (C = 0) and growing by 1 + ln(N/N1)/4."""
+    cold = one["cold"]
+    seconds = {**{p: cold["contact"].get(p, 0.0) for p in PARTS},
+               "rest": cold["seconds"] - cold["contact"]["total"]}
+    cases = [("measured", one["unknowns"], 1, 0.0), ("predicted C=0", 1e8, 512, 0.0),
+             ("predicted C=1/4", 1e8, 512, 0.25)]
+    out = []
+    for name, n, p, c in cases:
+        t = scaling_model.predict(seconds, one["unknowns"], cold["krylov"], n, p, c)
+        out.append([name, f"{n:.3g}", p, round(n / p), *(round(t[k], 2) for k in MODEL_PHASES), round(sum(t.values()), 1)])
+    return out
+
+
+MODEL_PHASES = ("solvability", "rows", "eliminate", "matrix", "rest", "gamg_setup", "cg", "communication")
+
+
 @pytest.mark.bench
 def test_bench_one_and_two_ranks_per_evaluation(tmp_path):
     size, face = (float(v) for v in os.environ.get("WCS_BENCH_RANKS", "0.025 0.02").split())
     one = run(1, tmp_path / "one.json", size, face)
-    two = run(2, tmp_path / "two.json", size, face)
     side = round(one["unknowns"] ** (1 / 3))           # the control: PETSc alone, as many unknowns, now
-    lap = [run(k, tmp_path / f"laplace{k}.json", "laplace", side) for k in (1, 2)]
+    lap1 = control(tmp_path, side, "one")
+    two = run(2, tmp_path / "two.json", size, face)
+    lap2 = control(tmp_path, side, "two")
     for case in ("cold", "warm"):           # the same answer to the solver's tolerance
         for c, v in one[case]["phi"].items():
             assert two[case]["phi"][c] == pytest.approx(v, rel=1e-6), (case, c)
     rows = [row(r, case, one) for r in (one, two) for case in ("cold", "warm")]
-    rows += [[k, "laplace", r["unknowns"], 0, 0.0, round(r["setup"] + r["solve"], 2),
-              round((lap[0]["setup"] + lap[0]["solve"]) / (r["setup"] + r["solve"]), 2), 0.0, 0.0, 0.0, 0.0,
-              round(r["setup"], 2), round(r["solve"], 2), 0.0, 0, r["iterations"], "", round(r["load"], 1)]
-             for k, r in zip((1, 2), lap)]
+    rows += control_rows(lap1, "1 rank") + control_rows(lap2, "2 ranks")
     path = write_table("bench_ranks", ["ranks", "case", "unknowns", "contact_nodes", "model_s", "evaluation_s",
                                        "speedup_over_1_rank", *(f"{p}_s" for p in PARTS), "rest_s", "newton",
                                        "krylov", "peak_gb_per_rank", "load"], rows)
+    print(path.read_text())
+    path = write_table("bench_ranks_model", ["case", "unknowns", "ranks", "unknowns_per_rank",
+                                             *(f"{p}_s" for p in MODEL_PHASES), "evaluation_s"], model_rows(one))
     print(path.read_text())

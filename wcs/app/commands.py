@@ -23,7 +23,7 @@ from ..errors import StudyError
 from ..model.evaluation import Evaluator
 from ..results.extremes import support_extremes
 from ..group import spanning
-from .parallel import rank, world
+from .parallel import groups, rank, world
 from ..contact.methods import krylov_counts
 from ..progress import INTERRUPTED, current, phase
 from ..results.dataset import widest, write_netcdf, write_solution
@@ -274,18 +274,22 @@ def solve_worst(args) -> int:
     if extra:
         point = dict(zip(study.parameters.names, map(float, x)))
         point.update(extra)
+    group = solve_group(study)
     if study.dynamics is not None:              # the levels at the worst data, as `wcs solve` writes them
         return solve_dynamic(study, out, args, point)
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    with phase("solve"):
+    with phase("solve"), spanning(group):
         res = ev.evaluate(point)
     if res.status != 0:
-        print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
+        if rank(group) == 0:
+            print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
+    if rank(group) != 0:                        # the group's other ranks helped solve; rank 0 writes
+        return 0
     return _write_scenario(study, ev, res, out, args, [
         f"{study.name}: worst case of {criterion} from {run_file}, solved in {time.perf_counter() - t0:.2f} s"],
-        worst_of=f"{run_file}: criterion {criterion}")
+        worst_of=f"{run_file}: criterion {criterion}", layout=(group_size(group),) * 2)
 
 
 def solve_nominal(args) -> int:
@@ -293,20 +297,47 @@ def solve_nominal(args) -> int:
     study = load_study(args.study)
     out = Path(args.output or Path(study.output).with_name(Path(study.output).stem + "-nominal.nc"))
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
+    group = solve_group(study)
     if study.dynamics is not None:
         return solve_dynamic(study, out, args)
     t0 = time.perf_counter()
     ev = Evaluator(study)
-    with phase("solve"):
+    with phase("solve"), spanning(group):
         res = ev.evaluate(study.nominal())
     if res.status != 0:
-        print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
+        if rank(group) == 0:
+            print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if Status(res.status).scene_fault else 1
+    if rank(group) != 0:                        # the group's other ranks helped solve; rank 0 writes
+        return 0
     m = ev.smesh.mesh
     return _write_scenario(study, ev, res, out, args, [
         f"{study.name}: {m.p.shape[1]} nodes, {m.t.shape[1]} cells, {m.p.shape[0] * m.p.shape[1]} unknowns",
         f"  mesh {ev.timings['mesh']:.2f} s, assembly {ev.timings['assembly']:.2f} s, "
-        f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s"])
+        f"solve {res.wall_time:.2f} s, total {time.perf_counter() - t0:.2f} s"], layout=(group_size(group),) * 2)
+
+
+def solve_group(study):
+    """The ranks `wcs solve` spans: its one data set on `solver.ranks_per_evaluation: k` ranks,
+    all the ranks of the launch (the group; None: a serial run of k = 1). StudyError (exit 2)
+    where the launch has another number of ranks (the rest would idle or write the same file),
+    or a dynamic study is launched on more than one."""
+    comm = world()
+    n, k = (1 if comm is None else comm.size), study.solver.ranks_per_evaluation
+    launch = "a serial run" if comm is None else f"mpiexec -n {n}"
+    if n != k:
+        raise StudyError(f"wcs solve solves one data set on {k} rank{'s' * (k > 1)} per evaluation, not on the "
+                         f"{n} of {launch}: run it " + ("without mpiexec" if k == 1 else f"under mpiexec -n {k}"),
+                         file=str(study.file), path="solver.ranks_per_evaluation")
+    if comm is not None and study.dynamics is not None:
+        raise StudyError(f"wcs solve of a dynamic study runs on one rank, not on the {n} of {launch}: run it "
+                         "without mpiexec and with solver.ranks_per_evaluation 1", file=str(study.file),
+                         path="solver.ranks_per_evaluation")
+    return groups(comm, k, str(study.file))[0]
+
+
+def group_size(group) -> int:
+    return 1 if group is None else group.size
 
 
 def solver_counts(res) -> str:

@@ -6,19 +6,15 @@ operator A and right-hand side b); rank r owns the contiguous rows `rows(n, size
 of the vectors and of the near-nullspace, as PETSc's MatMPIAIJ / VecMPI on the group's
 communicator, so CG and GAMG run on the group. The answer is gathered to every rank
 (`gather`): the active-set logic then acts on identical bits on every rank of the group and
-takes the same decisions. With one rank (`comm` None) these are the sequential objects.
+takes the same decisions. With one rank (`comm` None) these are the sequential objects. A
+rank that fails building its rows raises on every rank of the group (`wcs.group.together`)
+before PETSc's collective assembly.
 """
 from __future__ import annotations
 
 import numpy as np
 
-
-def rows(n: int, size: int, rank: int) -> tuple[int, int]:
-    """[lo, hi) of the rows rank `rank` of `size` owns: contiguous, sizes n // size or one more
-    (the first n % size ranks), PETSc's own split."""
-    base, extra = divmod(n, size)
-    lo = rank * base + min(rank, extra)
-    return lo, lo + base + (rank < extra)
+from wcs.group import rows, together
 
 
 class RowBlocks:
@@ -41,7 +37,7 @@ class Layout:
 
     def matrix(self, A, PETSc):
         """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows."""
-        A = A.rows(self.lo, self.hi) if isinstance(A, RowBlocks) else A[self.lo:self.hi].tocsr()
+        A = together(A.rows, self.lo, self.hi) if isinstance(A, RowBlocks) else A[self.lo:self.hi].tocsr()
         A.sort_indices()
         m = self.hi - self.lo
         M = PETSc.Mat().createAIJ(size=((m, self.n), (m, self.n)),

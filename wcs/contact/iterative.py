@@ -68,7 +68,7 @@ from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _first_free_set, _states,
                                 conditions_violated, free_rigid_motion, pinned_dofs, project)
 from wcs.errors import StudyError
-from wcs.group import evaluation_comm
+from wcs.group import evaluation_comm, share, together
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
@@ -133,10 +133,12 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
         state["free0"], state["eta"] = None, ETA_MAX
         return state["lam"][:m], ok, n
 
-    driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
+    try:
+        driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
+    finally:                # on every rank of a group alike, failed or not (PETSc's destroy is collective)
+        step.krylov_solver.close()
     u, lam, free, gw = state["u"], state["lam"], state["free"], driven.gw
     iters, fp_iters, ok, fp_ok = driven.iterations, driven.fixed_point_iterations, driven.ok, driven.settled
-    step.krylov_solver.close()
     status, message = Status.SOLVED, "converged"
     violation = conditions_violated(u, Bn @ u - d, lam[:m], lam[m:], gw, k, tol, reference) if ok else ""
     beta = _left_free(C, R, C @ u - step.b, lam, free, m, k, tol) if ok and R is not None else None
@@ -336,6 +338,36 @@ class _Rows:
             self._pivots[key] = (rows[keep], cols, np.linalg.inv(block))
         return self._pivots[key]
 
+    def share_out(self, nodes, free):
+        """Spanning a group of ranks (`wcs.group`): the pivots of the `nodes` not met before, each
+        rank computing its share and the group gathering them (each node's alone: the same bits
+        on every layout); a node with an unsupported row raises as the loop over the nodes in
+        order (`_pivots`) would meet it first. Alone: nothing (`pivots` computes them on demand)."""
+        comm = evaluation_comm()
+        if comm is None:
+            return
+        asked = ((i, free[self.node_rows(i)]) for i in nodes)
+        new = [(i, active) for i, active in asked if (i, active.tobytes()) not in self._pivots]
+        lo, hi = share(len(new))
+
+        def mine():
+            out = []
+            for i, active in new[lo:hi]:
+                try:
+                    out.append((i, active.tobytes(), self.pivots(i, active), ""))
+                except _Unsupported as exc:
+                    out.append((i, active.tobytes(), None, str(exc)))
+            return out
+        failed = []
+        for part in comm.allgather(together(mine)):
+            for i, key, value, error in part:
+                if error:
+                    failed.append((i, error))
+                else:
+                    self._pivots[(i, key)] = value
+        if failed:
+            raise _Unsupported(min(failed)[1])
+
     def _check_dependent(self, rows, row, i):
         """row is a combination of rows on all unknowns (not only on the node's own), else _Unsupported."""
         A = self.C[rows].toarray().T
@@ -459,10 +491,13 @@ def _pinned(rows, pin):
 
 
 def _pivots(rows: _Rows, free, k):
-    """(rows, pivots P, C_AP⁻¹) of the free rows (`_Rows.pivots`, node by node)."""
+    """(rows, pivots P, C_AP⁻¹) of the free rows (`_Rows.pivots`, node by node; spanning a group
+    of ranks, shared out over them first: `_Rows.share_out`)."""
     m = rows.m
     out, piv, blocks = [], [], []
-    for i in np.flatnonzero(free.reshape(1 + k, m).any(axis=0)):
+    nodes = np.flatnonzero(free.reshape(1 + k, m).any(axis=0))
+    rows.share_out(nodes, free)
+    for i in nodes:
         r, p, inv = rows.pivots(i, free[rows.node_rows(i)])
         out.append(r)
         piv.append(p)

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..geometry import tet
+from ..group import evaluation_comm, rows, share, together
 from .stress import gradient_operator
 
 
@@ -149,20 +150,42 @@ class CellAffineOperator:
     def __call__(self, coefficients) -> sp.csr_matrix:
         """`coefficients`: (ngroups, npieces) — e.g. per region (λ, μ). The cells' terms are
         summed into each entry in cell order, chunk after chunk (`np.add.at` adds in order, as
-        one `np.bincount` over all cells would)."""
+        one `np.bincount` over all cells would). Spanning a group of ranks (`wcs.group`), each
+        rank sums the entries of its share of the node rows only, from the cells that touch them,
+        and the group gathers them: every entry the same sum in the same order, so K(c) has the
+        same bits on every layout."""
         c = np.asarray(coefficients, dtype=float).reshape(-1, self.npieces)[self.group]   # (nc, npieces)
+        lo, hi = (int(self.indptr[i]) for i in share(len(self.indptr) - 1))    # this rank's node pairs
+        data = together(self._entries, c, lo, hi)
+        comm = evaluation_comm()
+        if comm is not None:
+            counts = np.diff([self.indptr[rows(len(self.indptr) - 1, comm.size, r)[0]] for r in range(comm.size)]
+                             + [self.nblocks]) * self.block ** 2
+            whole = np.empty((self.nblocks, self.block, self.block))
+            comm.Allgatherv(data, [whole, counts])
+            data = whole
+        K = sp.bsr_matrix((data, self.indices, self.indptr), shape=self.shape).tocsr()
+        K.sort_indices()
+        return K
+
+    def _entries(self, c: np.ndarray, lo: int, hi: int) -> np.ndarray:
+        """(hi − lo, b, b): the node-pair blocks lo:hi of K(c), the cells' coefficients c (nc, npieces)."""
         b, n = self.block, self._t.shape[0]
-        data = np.zeros((b, b, self.nblocks))
+        data = np.zeros((b, b, hi - lo))
         for cells in chunks(self.ncells):
-            cell = np.einsum("ek,keabij->eabij", c[cells], self.local.of(cells)).reshape(-1, b, b)
             position = self.position[cells.start * n * n:cells.stop * n * n]
+            if (lo, hi) == (0, self.nblocks):
+                cell = np.einsum("ek,keabij->eabij", c[cells], self.local.of(cells)).reshape(-1, b, b)
+            else:                   # the chunk's cells with a term in the blocks lo:hi, and those terms
+                mine = ((position >= lo) & (position < hi)).reshape(-1, n * n)
+                which = cells.start + np.flatnonzero(mine.any(axis=1))
+                keep = mine[which - cells.start].ravel()
+                cell = np.einsum("ek,keabij->eabij", c[which], self.local.of(which)).reshape(-1, b, b)[keep]
+                position = position.reshape(-1, n * n)[which - cells.start].ravel()[keep] - lo
             for i in range(b):
                 for j in range(b):
                     np.add.at(data[i, j], position, cell[:, i, j])
-        K = sp.bsr_matrix((np.ascontiguousarray(data.transpose(2, 0, 1)), self.indices, self.indptr),
-                          shape=self.shape).tocsr()
-        K.sort_indices()
-        return K
+        return np.ascontiguousarray(data.transpose(2, 0, 1))
 
     def apply(self, coefficients, x: np.ndarray) -> np.ndarray:
         """K(c) x without assembling K(c): summed over the cells on which x is not zero only

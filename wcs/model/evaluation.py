@@ -15,6 +15,7 @@ from ..contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
 from ..errors import SolveError, StudyError
 from ..fem.gluing import glued_clusters
+from ..group import together
 from .model import Model, Solution
 from ..progress import phase
 from ..scene.claims import check_claims
@@ -139,7 +140,11 @@ class Evaluator:
 
     def evaluate(self, values, gradients: bool = False) -> Evaluation:
         """Solve at a parameter vector or a mapping {dotted path: value} (others nominal);
-        with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each)."""
+        with `gradients`, also dΦ/dx of every criterion by the adjoint (one extra solve each).
+        Spanning a group of ranks (`wcs.group`), a failure of one rank raises on all (`together`)."""
+        return together(self._evaluate, values, gradients)
+
+    def _evaluate(self, values, gradients: bool) -> Evaluation:
         t0 = time.perf_counter()
         refuse_static_evaluation(self.study)
         x, others = self.study.data_set(values)

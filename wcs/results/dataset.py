@@ -82,7 +82,7 @@ KRYLOV_STEP_MAX = ("the most Krylov iterations of one outer step (iterative: one
                    "their mean is krylov_iterations / iterations); 0 and -1 as krylov_iterations")
 
 
-def solve_dataset(study, evaluator, ev) -> xr.Dataset:
+def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> xr.Dataset:
     """The file of `wcs solve`: the fields of one evaluation, its data set and criteria."""
     ds = ev.fields.copy()
     pvars, pcoords = parameter_variables(study)
@@ -111,7 +111,7 @@ def solve_dataset(study, evaluator, ev) -> xr.Dataset:
         ds["limit_lower"] = xr.Variable(("criterion",), np.array([float(study.lower_limits.get(n, np.nan))
                                                                   for n in names]),
                                         {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
-    ds.attrs.update(provenance(study, evaluator))
+    ds.attrs.update(provenance(study, evaluator, layout))
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
     return ds
 
@@ -382,12 +382,14 @@ def widest(ds: xr.Dataset) -> xr.Dataset:
     return ds.isel(level=int(np.argmin(ds["level"].values))) if "level" in ds.dims else ds
 
 
-def write_solution(study, evaluator, evaluation, out: str | Path, **attrs) -> tuple[Path, Path]:
+def write_solution(study, evaluator, evaluation, out: str | Path, layout: tuple[int, int] = (1, 1),
+                   **attrs) -> tuple[Path, Path]:
     """The files of one solved scenario: OUT.nc (fields, data set, criteria) and the ParaView
-    multiblock OUT.vtm (the volume OUT.vtu, the contact surface OUT-contact.vtu: `wcs.results.paraview`)."""
+    multiblock OUT.vtm (the volume OUT.vtu, the contact surface OUT-contact.vtu: `wcs.results.paraview`);
+    layout: (MPI ranks, ranks the solve spanned), as `provenance`."""
     from ..contact.zone import slave_segments
     from .paraview import write_paraview
-    ds = solve_dataset(study, evaluator, evaluation)
+    ds = solve_dataset(study, evaluator, evaluation, layout)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})
     out = write_netcdf(ds, out)
     zone = evaluator.model.zone
