@@ -4,18 +4,20 @@ bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder dece
 inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
 mesh is studies/validation/cylinder-impact.yaml.
 
-Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv, h = 0.4, 0.2,
-0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep the contact time within 0.7 % from
-Δt = 2 µs (the count of levels is Δt-quantised). The seed scheme [101, (10)] is first order: its
-peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs (h = 0.1 mm; observed order 1.2, Richardson
-limit −3.4 %), its energy −15, −8.4, −4.5 %. The energy-conserving stabilized scheme gives
-−2.8, −3.2, −3.2 % at Δt = 0.5 µs on the three meshes (converged in h; energy −4e-5), and its
-predictor steps on every mesh (on main it stopped at the first level from h = 0.2 mm:
+Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv and
+impact_orders.csv, h = 0.4, 0.2, 0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep
+the contact time within 0.7 % from Δt = 2 µs (the count of levels is Δt-quantised). The seed
+scheme [101, (10)] is first order: its peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs
+(h = 0.1 mm; observed order 1.24, Richardson limit −3.55 %), its energy −15, −8.4, −4.5 % (order
+0.85). The energy-conserving stabilized scheme gives −2.8, −3.2, −3.2 % at Δt = 0.5 µs on the
+three meshes (h and Δt move it by 0.3 % at most; energy −4e-5), and its predictor steps on every
+mesh and step (on main 10 of these 15 runs stopped at a predictor:
 `test_stabilized_predictor_steps_on_a_finer_mesh`). The −3 % that remains is Hertz's
-quasi-static assumption, not the discretisation (`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`):
-the dynamic impact's peak is 3.3 % below Hertz's impact on the mesh's own static law, which is
-within 0.3 % of Hertz's peak (0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 %; the
-contact time meets it.
+quasi-static assumption, not the discretisation
+(`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`): the dynamic impact's peak is
+3.3 % below Hertz's impact on the mesh's own static law, which is within 0.3 % of Hertz's peak
+(0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 % at the finest
+mesh; the contact time meets it.
 """
 import numpy as np
 import pytest
