@@ -4,7 +4,8 @@ time step Δt, per scheme — the errors of the contact time and the peak force 
 impact theory, the energy kept at the end (after the rebound), against the CPU and wall time of
 the run; a level that fails is a row with its message. Writes results/bench/impact_schemes.csv
 and impact_schemes.png: error against CPU time (contact time, peak force, energy) and the
-stability chart (h against Δt per scheme, each run marked solved or failed).
+stability chart (h against Δt per scheme, each run marked solved or failed); and
+results/bench/impact_orders.csv: the observed orders in Δt and h with their Richardson limits.
 
 The peak force's floor (about −3 % at every h and Δt of the energy-conserving scheme) is
 Hertz's quasi-static assumption, not the discretisation: `tests/dynamics/test_impact.py`.
@@ -48,11 +49,42 @@ def test_impact_schemes_speed_against_accuracy():
                 print(rows[-1], flush=True)
     path = write_table("impact_schemes", HEADER, rows)
     print(path.read_text())
+    print(write_table("impact_orders", ["scheme", "refined", "at", "quantity", "last three", "observed order",
+                                        "Richardson limit"], orders(rows)).read_text())
     _plot(rows)
     solved = [r for r in rows if r[6] == "solved"]
     assert len(solved) == len(rows), [r for r in rows if r[6] != "solved"]
     fine = [r for r in solved if r[2] <= 2e-6]
     assert all(abs(r[3]) < 0.02 for r in fine), fine      # t_c to the step's ±Δt/t_c (1.5 % at 2 µs)
+
+
+def observed(e1: float, e2: float, e3: float) -> tuple:
+    """(p, the limit) of three errors as the step halves: p = log2(|e1 − e2| / |e2 − e3|), the
+    limit e3 + (e3 − e2)/(2^p − 1) (Richardson); ("", "") where the changes alternate in sign or
+    do not shrink (no asymptotic range: the error does not converge monotonically there)."""
+    d1, d2 = e1 - e2, e2 - e3
+    if d1 * d2 <= 0 or abs(d2) >= abs(d1):
+        return "", ""
+    p = float(np.log2(d1 / d2))
+    return round(p, 2), float(f"{e3 + (e3 - e2) / (2.0 ** p - 1.0):.4g}")
+
+
+def orders(rows) -> list:
+    """The observed orders of the peak force and energy errors: in Δt (the three smallest steps)
+    on each mesh, and in h (the three meshes) at the smallest step."""
+    solved = {(r[0], r[1], r[2]): r for r in rows if r[6] == "solved"}
+    out = []
+    for scheme in SCHEMES:
+        lines = [("dt", f"h = {h:g}", [(scheme, h, dt) for dt in STEPS[-3:]]) for h in MESHES]
+        lines.append(("h", f"dt = {STEPS[-1]:g}", [(scheme, h, STEPS[-1]) for h in MESHES]))
+        for refined, at, keys in lines:
+            if not all(k in solved for k in keys):
+                continue
+            for k, quantity in ((4, "peak force error"), (5, "energy change")):
+                e = [solved[key][k] for key in keys]
+                p, limit = observed(*e)
+                out.append([scheme, refined, at, quantity, " ".join(f"{x:.4g}" for x in e), p, limit])
+    return out
 
 
 def _plot(rows):

@@ -4,18 +4,20 @@ bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder dece
 inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
 mesh is studies/validation/cylinder-impact.yaml.
 
-Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv, h = 0.4, 0.2,
-0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep the contact time within 0.7 % from
-Δt = 2 µs (the count of levels is Δt-quantised). The seed scheme [101, (10)] is first order: its
-peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs (h = 0.1 mm; observed order 1.2, Richardson
-limit −3.4 %), its energy −15, −8.4, −4.5 %. The energy-conserving stabilized scheme gives
-−2.8, −3.2, −3.2 % at Δt = 0.5 µs on the three meshes (converged in h; energy −4e-5), and its
-predictor steps on every mesh (on main it stopped at the first level from h = 0.2 mm:
+Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv and
+impact_orders.csv, h = 0.4, 0.2, 0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep
+the contact time within 0.7 % from Δt = 2 µs (the count of levels is Δt-quantised). The seed
+scheme [101, (10)] is first order: its peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs
+(h = 0.1 mm; observed order 1.24, Richardson limit −3.55 %), its energy −15, −8.4, −4.5 % (order
+0.85). The energy-conserving stabilized scheme gives −2.8, −3.2, −3.2 % at Δt = 0.5 µs on the
+three meshes (h and Δt move it by 0.3 % at most; energy −4e-5), and its predictor steps on every
+mesh and step (on main 10 of these 15 runs stopped at a predictor:
 `test_stabilized_predictor_steps_on_a_finer_mesh`). The −3 % that remains is Hertz's
-quasi-static assumption, not the discretisation (`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`):
-the dynamic impact's peak is 3.3 % below Hertz's impact on the mesh's own static law, which is
-within 0.3 % of Hertz's peak (0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 %; the
-contact time meets it.
+quasi-static assumption, not the discretisation
+(`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`): the dynamic impact's peak is
+3.3 % below Hertz's impact on the mesh's own static law, which is within 0.3 % of Hertz's peak
+(0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 % at the finest
+mesh; the contact time meets it.
 """
 import numpy as np
 import pytest
@@ -97,29 +99,33 @@ def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
     assert errors[0] < errors[1] < 0.0
 
 
-def test_stabilized_predictor_steps_on_a_finer_mesh():
-    """h = 0.2 mm, Δt = 1 µs: the predictor's M-projection of the first level was refused on
-    main ("violates non-penetration (Bn u − d up to 1.000e-06)": the node at the axis left
-    τV = 1 µm in the block), because Newton's stopping scale was an open node's gap 2.2 cm up the
-    arc. Now two levels step: the force rises, and the energy lost is what the first projection
-    takes (measured 8.2e-5 of the initial energy; the trapezoidal step itself conserves it)."""
-    study = load_study(cylinder(2e-4, 1e-6, "stabilized", end=2e-6))
+@pytest.mark.parametrize("method, h, levels", [("monolithic", 2e-4, 2), ("iterative", 4e-4, 5)])
+def test_stabilized_predictor_steps_on_a_finer_mesh(method, h, levels):
+    """Δt = 1 µs: the predictor's M-projection was refused on main ("violates non-penetration
+    (Bn u − d up to 1.000e-06)" at level 1 for h = 0.2 mm, monolithic: the node at the axis left
+    τV = 1 µm in the block; 7.2e-8 at level 4 for h = 0.4 mm, iterative), because Newton's
+    stopping scale was an open node's gap, 2.2 cm up the arc. Now the levels step: the force
+    rises, and the energy lost is what the projections take (measured 8.2e-5, 1.8e-5 of the
+    initial energy; the trapezoidal step itself conserves it)."""
+    doc = cylinder(h, 1e-6, "stabilized", end=levels * 1e-6)
+    doc["solver"] = {"method": method}
+    study = load_study(doc)
     hist = simulate(Evaluator(study), study.nominal())
     q = 2.0 * hist.total_force
     energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
-    assert 0.0 < q[1] < q[2]
-    assert abs(energy[2] / energy[0] - 1.0) < 2e-4
-    assert energy[2] == pytest.approx(energy[1], rel=1e-6)
+    assert np.all(np.diff(q) > 0.0)
+    assert abs(energy[-1] / energy[0] - 1.0) < 2e-4
 
 
-def vertical_mean(model, u) -> tuple[float, float]:
-    """(the half cylinder's mass m/2, the mass-weighted mean of the cylinder's u_y): its centre of
-    mass's displacement, the approach δ of the line law (the block's base is held)."""
+def vertical_mean(model, u, body: str = "cylinder") -> tuple[float, float]:
+    """(the modelled part's mass, the mass-weighted mean of the body's vertical displacement): its
+    centre of mass's displacement, the approach δ of the impact laws (the block's base is held)."""
     M = mass_operator(model)(np.full(len(model.region_material), RHO))
-    ey = np.zeros(2 * model.nnodes)
-    ey[2 * np.flatnonzero(model.smesh.node_body == model.smesh.bodies.index("cylinder")) + 1] = 1.0
-    mass = ey @ M @ ey
-    return mass, (ey @ M @ u) / mass
+    d = model.dim
+    ez = np.zeros(d * model.nnodes)
+    ez[d * np.flatnonzero(model.smesh.node_body == model.smesh.bodies.index(body)) + d - 1] = 1.0
+    mass = ez @ M @ ez
+    return mass, (ez @ M @ u) / mass
 
 
 def quasi_static(h: float) -> tuple[float, float, float]:
@@ -132,12 +138,11 @@ def quasi_static(h: float) -> tuple[float, float, float]:
     _, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
     doc = cylinder(h, 1e-6)
     doc.pop("dynamics")
+    doc["scene"]["body_forces"] = {"cylinder": [0.0, -1.0]}
+    ev = Evaluator(load_study(doc))
     cs = []
     for share in (0.5, 1.0):
-        doc["scene"]["body_forces"] = {"cylinder": [0.0, -share * hertz()[1] / (np.pi * R ** 2)]}
-        study = load_study(doc)
-        ev = Evaluator(study)
-        state = ev.evaluate(study.nominal()).state
+        state = ev.evaluate({"body_forces.cylinder.1": -share * hertz()[1] / (np.pi * R ** 2)}).state
         mass, uy = vertical_mean(ev.model, state.u)
         q = 2.0 * state.contact.force_n.sum()
         cs.append(-uy / q + s * np.log(q))
@@ -167,7 +172,6 @@ def test_the_peak_force_deficit_is_hertz_quasi_static_assumption():
     q = 2.0 * hist.total_force
     energy = np.asarray(hist.kinetic) + np.asarray(hist.elastic)
     _, vy = vertical_mean(model, hist.velocity[-1])
-    _, uy = vertical_mean(model, hist.displacement[-1])
     print(f"mass {mass / (RHO * np.pi * R ** 2) - 1:+.4f}, quasi-static q {q_qs / q_ref - 1:+.4f} t_c "
           f"{tc_qs / tc_ref - 1:+.4f}; dynamic q {q.max() / q_ref - 1:+.4f}, {q.max() / q_qs - 1:+.4f} of the quasi-static; "
           f"rebound {vy / V:.4f}, energy {energy[-1] / energy[0] - 1:+.2e}")
@@ -244,22 +248,60 @@ def hertz_sphere() -> tuple[float, float]:
     return tc, F
 
 
+def sphere_quasi_static(h: float) -> tuple[float, float, float]:
+    """(t_c, F_max, m) of the impact ODE m δ̈ = −F(δ) (`impact_ode`) on the static force-approach
+    law of the same mesh: the sphere pressed into the block by a uniform body force at 1 %, 10 %,
+    30 %, 60 %, 100 % and 130 % of Hertz's F_max, F(δ) interpolated in log-log between them (as
+    δ^{3/2} below the first), m the mesh's mass of the sphere: Hertz's theory on the mesh's own law."""
+    doc = sphere(h, 1e-6)
+    doc.pop("dynamics")
+    doc["scene"]["body_forces"] = {"sphere": [0.0, 0.0, -1.0]}
+    ev = Evaluator(load_study(doc))
+    F, delta = [], []
+    for share in (0.01, 0.1, 0.3, 0.6, 1.0, 1.3):
+        state = ev.evaluate({"body_forces.sphere.2": -share * hertz_sphere()[1] / (4.0 / 3.0 * np.pi * R ** 3)}).state
+        mass, uz = vertical_mean(ev.model, state.u, "sphere")
+        F.append(4.0 * state.contact.force_n.sum())
+        delta.append(-uz)
+
+    def law(d):
+        if d <= 0:
+            return 0.0
+        if d < delta[0]:
+            return F[0] * (d / delta[0]) ** 1.5
+        return float(np.exp(np.interp(np.log(d), np.log(delta), np.log(F))))
+    tc, Fmax, _ = impact_ode(4.0 * mass, V, law, 1.2e-4)
+    return tc, Fmax, 4.0 * mass
+
+
 @pytest.mark.slow
 def test_sphere_impact_over_two_meshes():
     """h = 1, 0.5 mm at the contact (a_max = 2.45 mm), Δt = 4, 2 µs (t_c = 354 µs, 1123 and 2144
-    nodes, 41 s and 125 s): the peak force within 3 % (measured −1.8 %, +0.7 %); the contact time
-    counts the levels whose force exceeds 1e-3 of the peak (measured −5.1 %, −4.6 %: the
-    contact opens early; at h = 0.5 mm one contact node keeps 9e-5 of the peak force after the
-    rebound, which a count of every closed level would take for contact), within 6 %."""
+    nodes, 80 s and 380 s under load), the seed scheme: the peak force within 3 % (measured −1.8 %,
+    +0.7 %), the contact time (the levels that carry a force) −5.1 %, −4.0 %. The contact time's
+    deficit is the mesh, not the dynamics nor the scheme: Hertz's impact on the same mesh's static
+    law (`sphere_quasi_static`) gives −5.3 %, −4.3 % — the mesh's sphere is 1.9 %, 2.0 % lighter
+    than 4πR³ρ/3 (its surface is facets of R/3) and its law stiffer (δ 7 %, 6 % below Hertz's at
+    F_max; a bulk of R/6 leaves that as it is: the contact mesh sets it). At h = 0.25 mm the mesh's
+    quasi-static t_c is −3.7 % (`sphere_quasi_static(2.5e-4)`, 93 s): order 0.56, Richardson limit
+    −2.3 %, of which the facets' 2 % lighter sphere is −0.8 % — the 3 % needs h ≤ 0.25 mm at the
+    contact and a finer sphere surface, not yet run dynamically. The force that was seen
+    "after the rebound" (9e-5 of the peak on one node at h = 0.5 mm) is the last level of the
+    contact, its last node leaving: no level after it carries any force."""
     tc_ref, F_ref = hertz_sphere()
     for h, dt in ((1e-3, 4e-6), (5e-4, 2e-6)):
         study = load_study(sphere(h, dt))
         hist = simulate(Evaluator(study), study.nominal())
         F = 4.0 * hist.total_force
-        tc = np.count_nonzero(F > 1e-3 * F.max()) * dt
-        print(f"h {h:g}: t_c {tc / tc_ref - 1:+.2%}, F_max {F.max() / F_ref - 1:+.2%}")
+        carrying = np.flatnonzero(F > 0)
+        tc = carrying.size * dt
+        tc_qs, _, _ = sphere_quasi_static(h)
+        print(f"h {h:g}: t_c {tc / tc_ref - 1:+.2%} (the mesh's quasi-static {tc_qs / tc_ref - 1:+.2%}), "
+              f"F_max {F.max() / F_ref - 1:+.2%}")
+        assert carrying.size == carrying[-1] - carrying[0] + 1          # one contact, no force after it
         assert F.max() == pytest.approx(F_ref, rel=0.03)
         assert tc == pytest.approx(tc_ref, rel=0.06)
+        assert tc == pytest.approx(tc_qs, rel=0.01)
 
 
 if __name__ == "__main__":

@@ -198,7 +198,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
     answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
     solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
-    pattern met again at full accuracy is a cycle (not converged)."""
+    pattern met again at full accuracy is a cycle (not converged). The force scale is max |Π_B(z)|:
+    an open gap (z_n < 0) carries none (as `wcs.contact.solver._newton`)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
     carried = hi > lo
@@ -212,7 +213,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         phi = lam - project(z, lo, hi, k)
         size = np.abs(phi).max(initial=0.0)
         if it > 0 or free0 is None:
-            scale = max(np.abs(lam).max(initial=0.0), np.minimum(np.abs(z), hi)[carried].max(initial=0.0), 1e-300)
+            scale = max(np.abs(lam).max(initial=0.0), np.abs(np.clip(z, lo, hi))[carried].max(initial=0.0), 1e-300)
             in_b = np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
             if it > 0 and eta <= rtol and size <= tol * scale and in_b:
                 return u, lam, _by_node(_free(z, lo, hi, k, step.rows), m, k), it, True
