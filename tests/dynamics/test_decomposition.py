@@ -7,6 +7,8 @@ import pytest
 
 from tests.dynamics.test_bars import DURATION, bars
 from tests.dynamics.test_friction import sliding
+from tests.support.bad_studies import write_study
+from wcs.cli import main
 from wcs.dynamics.history import simulate
 from wcs.errors import StudyError
 from wcs.model.evaluation import Evaluator
@@ -57,3 +59,13 @@ def test_dd_with_absorbing_boundaries_is_refused_at_load():
     doc["solver"] = {"method": "dd"}
     with pytest.raises(StudyError, match=r"solver.method: 'dd' steps in time without absorbing boundaries only"):
         load_study(doc)
+
+
+def test_check_says_each_level_is_solved_by_the_decomposition(tmp_path, capsys):
+    doc = bars(0.05, 1e-5, "seed", width=0.05, end=DURATION / 4)
+    doc["solver"] = {"method": "dd", "dd": {"subdomains": 4}}
+    assert main(["check", str(write_study(doc, tmp_path, "bars.yaml"))]) == 0
+    out = capsys.readouterr().out
+    assert ("solver: each level (seed scheme, Δt = 1e-05 s) by dd: the domain decomposition, its subdomains' "
+            "matrices those of the level's operator A = M/Δt² + C/Δt + K; each level from the decomposition's "
+            "glued start") in out

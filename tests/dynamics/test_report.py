@@ -55,3 +55,22 @@ def test_report_plots_each_history_and_names_the_reduction(tmp_path, capsys):
     fields = page[page.index('id="worst-fields"'):page.index('id="contact"')]
     assert "<img" in fields
     assert "the worst case of travel at t = 0.00017 s, the level of its end" in fields
+
+
+def test_criteria_worst_at_the_same_data_but_other_times_are_drawn_apart(tmp_path):
+    """The contact plots draw each worst case's fields: two criteria worst at the same data set
+    (one evaluation) but at different times — the peak's level and the end — are two cases, each
+    labelled with the time of its fields, not one labelled with both names."""
+    from wcs.report.data import load
+    from wcs.report.plots import distinct_cases
+    from wcs.report.timeline import output_index
+    doc = tiny(budget=1)
+    doc["criteria"] = doc["criteria"][:2]                   # the peak (max) and the end (final)
+    doc["search"] = {"method": "sample", "sample": {"design": "lhs", "n": 1, "seed": 3}, "budget": 1}
+    path = write_study(doc, tmp_path, "study.yaml")
+    nc = tmp_path / "run.nc"
+    assert main(["run", str(path), "-o", str(nc), "--quiet", "--no-mesh-check"]) == 0
+    res = load(nc)
+    at = [float(res.histories.output_time[output_index(res.histories, j)]) for j in range(2)]
+    assert at[0] < at[1] == pytest.approx(float(res.histories.time[-1]))
+    assert distinct_cases(res) == [(0, f"worst peak at t = {at[0]:.4g} s"), (1, f"worst travel at t = {at[1]:.4g} s")]

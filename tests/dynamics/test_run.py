@@ -93,6 +93,16 @@ def test_the_worst_fields_are_kept_at_the_output_times(serial):
     assert np.all(np.isfinite(ds["worst_small_strain_gradient"].values))
 
 
+def test_the_worst_fields_name_the_bodies_and_regions(serial, capsys):
+    """The worst cases' fields at the output times carry the names of the bodies and regions their
+    `cell_body` and `cell_region` number (the report's scene section and ParaView read them)."""
+    from wcs.report.data import load
+    _, out, ds = serial
+    assert list(map(str, ds["body"].values)) == ["striker", "target"]
+    assert ds.sizes["region"] == 2 and int(ds["cell_region"].max()) == 1
+    assert load(out).mesh.bodies == ["striker", "target"]
+
+
 def test_the_results_say_no_adjoint_gradient_was_used(serial):
     _, _, ds = serial
     assert ds.attrs["gradients"].startswith("none: no adjoint through time")

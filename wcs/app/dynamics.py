@@ -12,9 +12,8 @@ import numpy as np
 import xarray as xr
 
 from wcs.dynamics.history import REDUCED, reduced, simulate
-from wcs.dynamics.stepping import History
 from wcs.dynamics.loading import at_time_zero, check_sources
-from wcs.dynamics.stepping import initial_state, level_solution
+from wcs.dynamics.stepping import History, initial_state, level_solution
 from wcs.errors import SolveError
 from wcs.model.criteria import in_words
 from wcs.model.evaluation import Evaluator
@@ -127,7 +126,9 @@ def solve_dynamic(study, out: Path, args, point=None) -> int:
 OPERATOR = {"seed": "A = M/Δt² + C/Δt + K", "stabilized": "A = 2M/Δt² + C/Δt + K/2"}   # wcs.dynamics.schemes
 LEVEL_METHOD = {"monolithic": "the condensed Newton on a factor of the level's operator {A}, factored once and "
                               "kept across the levels",
-                "iterative": "active set with CG + algebraic multigrid on the level's operator {A}"}
+                "iterative": "active set with CG + algebraic multigrid on the level's operator {A}",
+                "dd": "the domain decomposition, its subdomains' matrices those of the level's operator {A}"}
+WARM = {"dd": "each level from the decomposition's glued start"}     # the others: from the last level
 TIMED = 20          # `wcs check` times this many levels after the first (the first factors A)
 
 
@@ -141,8 +142,9 @@ def level_solves(study) -> str:
 def plan_line(study, ev) -> list[str]:
     """The search and solver lines of `wcs check` for a dynamic study (in place of the static
     ones): an evaluation is one simulation; each level's contact problem by the model's method
-    (`wcs.dynamics.stepping.LevelSolver`), warm-started from the last level; the gradients as the
-    results file records them (`wcs.results.dynamics.GRADIENTS`)."""
+    (`wcs.dynamics.stepping.LevelSolver`), warm-started from the last level (the decomposition:
+    from its glued start); the gradients as the results file records them
+    (`wcs.results.dynamics.GRADIENTS`)."""
     s, dyn, method = study.search, study.dynamics, ev.model.solver_method
     chosen = f"{method} (auto)" if study.solver.method == "auto" else method
     how = (LEVEL_METHOD[method] if study.scene.contacts else "one sparse factor of {A}, kept across the levels"
@@ -150,7 +152,7 @@ def plan_line(study, ev) -> list[str]:
     return [f"  search: {s.method}, budget {s.budget} evaluations; one evaluation is one simulation "
             f"({dyn.levels} levels of {level_solves(study)} each); gradients: {GRADIENTS}",
             f"  solver: each level ({dyn.scheme} scheme, Δt = {dyn.time_step:g} s) by {chosen}: {how}; "
-            "warm-started from the last level's contact forces"]
+            + WARM.get(method, "warm-started from the last level's contact forces")]
 
 
 def history_bytes(hist: History) -> tuple[float, float]:

@@ -106,7 +106,8 @@ class DynamicEvaluation(Evaluation):
 
 def output_fields(model, c, hist) -> xr.Dataset:
     """The fields (`wcs.fields.fields_dataset`) of each output level of a `History`, stacked along
-    `output_time`; the mesh once; `small_strain_*` the largest over the output times."""
+    `output_time`; the mesh (with its bodies' and regions' names) once; `small_strain_*` the
+    largest over the output times."""
     from wcs.contact.solver import ContactResult
     from wcs.model.fields import fields_dataset
     heat = model.solve_heat(c) if model.thermal else None
@@ -124,7 +125,7 @@ def output_fields(model, c, hist) -> xr.Dataset:
         if "small_strain" in v:
             out[v] = out[v].max("output_time").assign_attrs(
                 {**first[v].attrs, "long_name": f"{first[v].attrs.get('long_name', v)}, the largest over the output times"})
-    out = out.assign({v: first[v] for v in fixed if v in first})
+    out = out.assign({v: first[v] for v in fixed if v in first}).assign_coords(body=first["body"], region=first["region"])
     t = np.asarray(hist.time)[hist.output_levels]
     return out.assign_coords(output_time=("output_time", t, {"units": "s", "long_name": "time of the output level"}))
 

@@ -20,7 +20,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
 from .data import Contact, Mesh, Results, order_along  # noqa: E402
-from .timeline import Histories, defining_level  # noqa: E402
+from .timeline import Histories, defining_level, output_index  # noqa: E402
 
 DPI = 100
 plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9,
@@ -387,7 +387,9 @@ def contact_figure(res: Results) -> bytes | None:
 
 
 def distinct_cases(res: Results) -> list[tuple[int, str]]:
-    """(criterion index, label) of the worst cases with fields, one per distinct data set."""
+    """(criterion index, label) of the worst cases with fields, one per distinct data set — in a
+    dynamic study per data set and output time, the fields' time in the label (two criteria
+    worst at the same data but at different times are two cases)."""
     out, seen = [], []
     for j, c in enumerate(res.criteria):
         f = res.worst_fields[j]
@@ -395,13 +397,23 @@ def distinct_cases(res: Results) -> list[tuple[int, str]]:
             continue
         if res.kind == "solve":
             return [(j, "nominal data")]
-        dup = next((k for k, x in seen if np.array_equal(x, c.worst_x, equal_nan=True)), None)
+        at = _output_time(res, j)
+        dup = next((k for k, x, t in seen if np.array_equal(x, c.worst_x, equal_nan=True) and t == at), None)
         if dup is not None:
-            out[dup] = (out[dup][0], out[dup][1] + f", {c.name}")
+            out[dup] = (out[dup][0], out[dup][1] + [c.name])
             continue
-        seen.append((len(out), c.worst_x))
-        out.append((j, f"worst {c.name}"))
-    return out
+        seen.append((len(out), c.worst_x, at))
+        out.append((j, [c.name]))
+    return [(j, f"worst {', '.join(names)}" + ("" if seen[k][2] is None else f" at t = {seen[k][2]:.4g} s"))
+            for k, (j, names) in enumerate(out)]
+
+
+def _output_time(res: Results, j: int) -> float | None:
+    """The output time criterion j's worst-case fields are at (None: a static study's)."""
+    h = res.histories
+    if h is None or h.output_time is None:
+        return None
+    return float(h.output_time[output_index(h, j)])
 
 
 # ---------------------------------------------------------------- evaluations
