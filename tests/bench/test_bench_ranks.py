@@ -108,7 +108,8 @@ def model_rows(one: dict) -> list[list]:
     out = []
     for name, n, p, c in cases:
         t = scaling_model.predict(seconds, one["unknowns"], cold["krylov"], n, p, c)
-        out.append([name, f"{n:.3g}", p, round(n / p), *(round(t[k], 2) for k in MODEL_PHASES), round(sum(t.values()), 1)])
+        out.append([name, f"{n:.3g}", p, round(n / p), *(round(t[k], 2) for k in MODEL_PHASES),
+                    round(sum(t.values()), 1)])
     return out
 
 
