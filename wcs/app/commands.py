@@ -325,14 +325,14 @@ def solve_group(study):
     comm = world()
     n, k = (1 if comm is None else comm.size), study.solver.ranks_per_evaluation
     launch = "a serial run" if comm is None else f"mpiexec -n {n}"
+    if study.dynamics is not None and n * k > 1:
+        raise StudyError(f"wcs solve of a dynamic study runs on one rank, not on {k} per evaluation in {launch}: "
+                         "run it without mpiexec and with solver.ranks_per_evaluation 1", file=str(study.file),
+                         path="solver.ranks_per_evaluation")
     if n != k:
         raise StudyError(f"wcs solve solves one data set on {k} rank{'s' * (k > 1)} per evaluation, not on the "
                          f"{n} of {launch}: run it " + ("without mpiexec" if k == 1 else f"under mpiexec -n {k}"),
                          file=str(study.file), path="solver.ranks_per_evaluation")
-    if comm is not None and study.dynamics is not None:
-        raise StudyError(f"wcs solve of a dynamic study runs on one rank, not on the {n} of {launch}: run it "
-                         "without mpiexec and with solver.ranks_per_evaluation 1", file=str(study.file),
-                         path="solver.ranks_per_evaluation")
     return groups(comm, k, str(study.file))[0]
 
 

@@ -55,6 +55,7 @@ which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import numpy as np
@@ -723,7 +724,8 @@ class IterativeAdjoint:
         self.Kt = (K + self.S).tocsr()
         self.compliance = compliance[self.D]
         self.Z0 = _basis(C, self.rows, self.P, self.Binv, np.zeros(len(self.rows)))[0]
-        self.A = _eliminated(self.Z0, self.Kt, K, self.P)
+        Z0, Kt, P = self.Z0, self.Kt, self.P      # each rank of a group builds its rows, once for all criteria
+        self.A = RowBlocks(K.shape[0], functools.lru_cache(maxsize=1)(lambda lo, hi: _eliminated(Z0, Kt, K, P, lo, hi)))
         self.rtol = model.options.iterative.tolerance
         self.krylov = Krylov(model.near_nullspace)
 
