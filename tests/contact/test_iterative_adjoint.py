@@ -142,3 +142,37 @@ def test_coulomb_slip_on_closed_nodes_agrees_with_the_monolithic_adjoint():
 @pytest.mark.slow
 def test_coulomb_iterative_gradients_against_finite_differences():
     assert check_against_fd(coulomb_pad("iterative")) < 1e-5
+
+
+def coulomb_shear_patch(method):
+    """The 3D shear patch with Coulomb friction F = 0.3 (gw = F P, the Tresca patch's limit): every
+    node closed and slipping on its disc. Tolerance 1e-11: the fixed point over Tresca bounds cannot
+    settle below the Krylov answers' own accuracy (at 1e-13 it stalled at ‖Δp‖ ~ 1e-11 ‖p‖)."""
+    d = yaml.safe_load((VALIDATION / "tresca-shear-patch-3d.yaml").read_text())
+    d["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.3}
+    d["uncertain"] = {"contacts.interface.friction.coefficient": [0.25, 0.35],
+                      "supports.block_top.u.0": [0.8e-3, 1.2e-3]}
+    d["solver"] = {"method": method, "tolerance": 1e-11}
+    if method == "iterative":
+        d["solver"]["iterative"] = {"tolerance": 1e-12}
+    return wcs.load_study(d)
+
+
+def test_3d_coulomb_slip_on_discs_agrees_with_the_monolithic_adjoint():
+    """Discs: the ν row of a closed slipping node carries λν = g w + F λn (coupled to its normal),
+    the ν⊥ row its compliance; per parameter to AGREE or below the resolution floor (`assert_agree`):
+    the mean pressure is P whatever the data, its gradient round-off."""
+    grads = {}
+    for method in ("iterative", "monolithic"):
+        study = coulomb_shear_patch(method)
+        grads[method] = study.evaluate(study.nominal(), gradients=True)
+        assert grads[method].status == 0, grads[method].message
+    raw = grads["iterative"].state.raw
+    m = raw.lam_n.size
+    assert np.all(raw.free[:m] & ~raw.free[m:2 * m])            # every node closed and slipping
+    span = study.parameters.upper - study.parameters.lower
+    for name, g in grads["monolithic"].grad.items():
+        floor = 1e-9 * abs(grads["monolithic"].phi[name]) / span
+        assert grads["iterative"].grad[name] is not None, name
+        assert np.all(np.abs(grads["iterative"].grad[name] - g) <= AGREE * np.maximum(np.abs(g), floor)), name
+    assert np.abs(grads["monolithic"].grad["slip"]).max() > 1e-3
