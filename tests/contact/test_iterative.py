@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import yaml
 
 from tests.contact.test_solver import args, two_blocks
-from tests.contact.test_patch_3d import floating
+from tests.contact.test_patch_3d import floating, shear_patch
 from tests.contact.test_solver_3d_inclined_fault import tunnel_fault_3d
 from tests.fem.test_glue_3d import plane, stack
 from wcs.contact import solver as cs
@@ -43,8 +43,9 @@ def study(path, method="monolithic", **mesh):
     return d
 
 
-def both(path, **mesh):
-    """The model of a study and its nominal contact problem solved by both methods."""
+def both(path, tol=1e-10, rtol=1e-12, tol_fp=1e-8, **mesh):
+    """The model of a study and its nominal contact problem solved by both methods (the contact,
+    Krylov and fixed-point tolerances)."""
     M = Evaluator(load_study(study(path, **mesh))).model
     c = M.nominal
     T = M._heat(c, False)[0] if M.thermal else None
@@ -52,8 +53,8 @@ def both(path, **mesh):
     z = M.zone
     P = dict(K=Kr, f=rhs, Bn=M.Bn_r, Bt=M.Bt_r, d=z.gap - z.Bn @ u0, w=z.weight, g=c.slip,
              F=c.coulomb if c.coulomb.any() else None, R=M.R_r)
-    direct = cs.solve_contact(**P, tol=1e-10)
-    iterative = solve_contact_iterative(**P, tol=1e-10, near_nullspace=M.near_nullspace, rtol=1e-12)
+    direct = cs.solve_contact(**P, tol=tol, tol_fp=tol_fp)
+    iterative = solve_contact_iterative(**P, tol=tol, tol_fp=tol_fp, near_nullspace=M.near_nullspace, rtol=rtol)
     return M, direct, iterative
 
 
@@ -103,6 +104,22 @@ def test_the_3d_tresca_shear_patch_agrees_with_the_direct_method():
     M, direct, iterative = both(VALIDATION / "tresca-shear-patch-3d.yaml")
     assert_agree(M, direct, iterative)
     assert (iterative.active == cs.SLIP).all()
+
+
+def test_the_coulomb_fixed_point_settles_at_the_default_tolerances():
+    """The 3D shear patch with Coulomb friction, every node slipping on its disc, at the study
+    defaults (contact, fixed point and Krylov tolerances 1e-8). Steps solved for u itself carried
+    an error of 1e-8 ‖u‖ however small the change, and the fixed point stalled at ‖Δp‖ ~ 5e-8 ‖p‖
+    (FIXED_POINT_NOT_CONVERGED); solved for the correction, it settles. Agreement to
+    1e-6: both answers are the fixed point's to 1e-8, whose contraction (Δp falls 25× a step)
+    leaves them within a few 1e-8 of it."""
+    d = shear_patch(coefficient=0.3)
+    d["uncertain"] = {"contacts.interface.friction.coefficient": [0.25, 0.35]}
+    M, direct, iterative = both(d, tol=1e-8, rtol=1e-8, tol_fp=1e-8)
+    assert direct.status == 0 and iterative.status == 0, iterative.message
+    assert (iterative.active == cs.SLIP).all() and iterative.fixed_point_iterations >= 5
+    assert rel(iterative.u, direct.u) <= 1e-6
+    assert rel(iterative.lam_n, direct.lam_n) <= 1e-6 and rel(iterative.lam_t, direct.lam_t) <= 1e-6
 
 
 @pytest.mark.slow

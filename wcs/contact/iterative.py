@@ -42,10 +42,15 @@ springs carry Nᵀb = 0); and the free motions keep the amplitude of the iterate
 starts from (the step vanishes on those unknowns). An answer whose rows leave a motion free is
 not unique (NOT_UNIQUE, `free_rigid_motion`).
 
-Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
-0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
-mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
-‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. A step
+Inexact Newton: each step solves for the correction from the iterate, Zᵀ K Z δ = r with
+r = Zᵀ(f − K u_b) − Zᵀ K Z u_O (u_O the iterate's own unknowns), by CG to the Eisenstat–Walker
+forcing term η_k = 0.9 (φ_k / φ_{k−1})² relative to ‖r‖ (choice 2, safeguarded to
+[rtol, 1e-4]; at 1e-2 a loose step mispredicted the stick/slip split of a Tresca pad and the
+active set cycled; never below `MIN_TOLERANCE` of the whole right-hand side, rounding noise),
+φ the complementarity residual ‖λ − Π_B(z)‖; an answer is accepted only from a step solved to
+the final `rtol`. Solved for u itself, a step's error was rtol of ‖u‖ however small the
+change: the Coulomb fixed point over Tresca answers stalled at that noise (‖Δp‖ = 4e-8 to 1e-7 of ‖p‖
+on a 3D Coulomb shear patch at the default tolerances 1e-8, never reaching its own 1e-8). A step
 with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
 Newton does).
 
@@ -70,12 +75,15 @@ from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _
                                 conditions_violated, free_rigid_motion, pinned_dofs, project)
 from wcs.errors import StudyError
 from wcs.group import evaluation_comm, share, together
+from wcs.options import MIN_TOLERANCE
 from wcs.status import Status
 
 ETA_MAX = 1e-4       # loosest forcing term of the inexact Newton
 NULL = 1e-10         # a contact row with ‖C_i‖ ≤ NULL max‖C_j‖ acts on round-off only
 BALANCE = 1e-6       # relative residual of a floating body's equilibrium above which an adjoint is refused
 DEPENDENT = 1e-8     # relative singular value below which a node's active rows are dependent
+COUPLED = 10.0       # GMRES over Coulomb-coupled adjoint rows to this times the CG tolerance: its products are
+                     # CG solves, exact to that tolerance only (measured floor 1.5e-12 at CG's 1e-12, a Coulomb pad)
 
 
 def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
@@ -417,12 +425,19 @@ class _Stepper:
             b = b - N @ np.linalg.lstsq(N, b, rcond=None)[0]
             pin = pinned_dofs(N)
             A = RowBlocks(n, _pinned(A.rows, pin))
+        v = np.array(u_old, dtype=float)   # the correction from u_old's own unknowns (u_O = v_O), module docstring
+        v[P] = 0.0
+        v[pin] = 0.0
+        r = b - Z.T @ (Kt @ (Z @ v))        # A v: Zᵀ Kt Z v (v vanishes where A adds diagonals)
+        size = np.linalg.norm(r)
+        tol = max(eta, MIN_TOLERANCE * np.linalg.norm(b) / size) if size > 0 else 1.0
         self.timings["eliminate"] += time.perf_counter() - t0
-        v, its, ok = self.krylov_solver.solve(A, b, eta)
+        dv, its, ok = self.krylov_solver.solve(A, r, tol) if tol < 1.0 else (0.0, 0, True)
+        v = v + dv
         self.krylov += its
         self.krylov_steps.append(its)
         if not ok:
-            raise _KrylovFailure(f"CG did not reach the relative residual {eta:.1e} in {its} iterations")
+            raise _KrylovFailure(f"CG did not reach the relative residual {tol:.1e} in {its} iterations")
         if len(pin):                # the free modes' amplitude kept: u − u_old vanishes on the pinned unknowns
             v = v + N @ np.linalg.solve(N[pin], u_old[pin] - v[pin])
         u = Z @ v + ub
@@ -683,10 +698,13 @@ class IterativeAdjoint:
     of the floating Tresca pad) even that leaves μ as noise; μ must balance the rigid modes,
     Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (N's last rows): measured ≤ 1e-9 of its terms where the gradient
     agrees with ContactAdjoint's, 1e-1 on that pad, so above `BALANCE` the solve is refused.
-    Refused (`solve` gives None, `refusal` or `failure` says why): that imbalance, Coulomb
-    coupling of a slipping tangent to its closed node's normal (the transpose is not symmetric:
-    not built yet; on an open node, λn = 0 fixed, it only adds σ F μt to the node's μn), a row
-    without an own unknown, CG not converged."""
+    Coulomb (λ_t = σ(g w + F λn) on a slipping tangent, `ContactAdjoint`'s N): on an open node
+    (λn = 0 fixed) the coupling only adds σ F μt to the node's μn; on a closed node Nᵀ's normal
+    row becomes C_n z − σ F μ_t = φ_n with μ_t = φ_t − C_t z, a constraint C_n + σ F C_t that is
+    not C_n (the transpose is not symmetric), so the symmetric Tresca adjoint is kept and the
+    coupled μ_t = y solved for by GMRES over those rows (`_coulomb`, one CG solve a product).
+    Refused (`solve` gives None, `refusal` or `failure` says why): that imbalance, a row
+    without an own unknown, CG or GMRES not converged."""
 
     def __init__(self, model, state):
         from wcs.contact.slipframe import _slip_frame
@@ -709,11 +727,9 @@ class IterativeAdjoint:
         F = np.asarray(state.coefficients.coulomb, float)
         tang = self.fixed[self.fixed >= m]
         tang = tang[(self.sigma[tang - m] != 0) & (F[(tang - m) % m] > 0)]     # λ_t = σ(g w + F λn)
-        if np.any(free[(tang - m) % m]):
-            self.refusal = ("the iterative adjoint does not support Coulomb friction on closed slipping nodes yet "
-                            "(use solver.method monolithic for gradients)")
-            return
-        self.coupled, self.F = tang, F  # on open nodes (λn = 0 fixed) the coupling only adds to μn
+        closed = free[(tang - m) % m]
+        self.coupled, self.closed = tang[~closed], tang[closed]     # slipping tangents of open / closed nodes
+        self.F = F
         try:
             self.rows, self.P, self.Binv = _pivots(rows, self.E, k)
         except _Unsupported as exc:
@@ -731,7 +747,7 @@ class IterativeAdjoint:
 
     def solve(self, phi_w: np.ndarray, phi_lam_n: np.ndarray | None, phi_lam_t: np.ndarray | None = None):
         """(z, μ, σ) as `ContactAdjoint.solve` (μ in the slip frame), or None where refused (`refusal`)
-        or CG failed (`failure`)."""
+        or a Krylov solve failed (`failure`)."""
         if self.refusal:
             return None
         m, n, C = self.m, self.n, self.C
@@ -741,6 +757,61 @@ class IterativeAdjoint:
         if phi_lam_t is not None:
             t = np.r_[np.zeros(m), phi_lam_t]
             phi += t if self.Q is None else self.Q @ t
+        if self.closed.size:        # Coulomb on closed slipping nodes (class docstring)
+            y = self._coulomb(phi_w, phi)
+            if y is None:
+                return None
+            phi = phi + self._normal_shift(y)
+        out = self._tresca(phi_w, phi, check=True)
+        if out is None:
+            return None
+        z, mu = out
+        mu[self.fixed] = phi[self.fixed] - C[self.fixed] @ z
+        node = (self.coupled - m) % m       # Nᵀ's open normal row: μn − Σ σ F μt = φn − Bn z
+        np.add.at(mu, node, self.sigma[self.coupled - m] * self.F[node] * mu[self.coupled])
+        return z, mu, self.sigma
+
+    def _normal_shift(self, y):
+        """Γᵀ y: the slipping tangents' σ F y added to their closed nodes' normal rows."""
+        node = (self.closed - self.m) % self.m
+        out = np.zeros(self.n)
+        np.add.at(out, node, self.sigma[self.closed - self.m] * self.F[node] * y)
+        return out
+
+    def _coulomb(self, phi_w, phi):
+        """μ_t = y on the slipping tangent rows of closed Coulomb nodes: the equality rows there are
+        C_n z = φ_n + σ F μ_t with μ_t = φ_t − C_t z (Nᵀ's rows, as `ContactAdjoint`'s N couples
+        λ_t = σ(g w + F λn)), so with z(y) the Tresca adjoint of φ + Γᵀy (linear in y),
+        (I + C_t z(0, Γᵀ ·)) y = φ_t − C_t z(φ_w, φ): GMRES on the coupled rows (at most 200
+        products, one CG solve each; 7 on the Coulomb pad of the tests, ‖C_t z(0, Γᵀ ·)‖ ~ F);
+        None where a solve fails (`failure`)."""
+        from scipy.sparse.linalg import LinearOperator, gmres
+        Cc = self.C[self.closed]
+        zero = np.zeros_like(phi_w)
+
+        def response(phi_w, phi):
+            out = self._tresca(phi_w, phi, check=False)
+            if out is None:
+                raise _KrylovFailure(self.failure)
+            return Cc @ out[0]
+        p = len(self.closed)
+        try:
+            b = phi[self.closed] - response(phi_w, phi)
+            op = LinearOperator((p, p), matvec=lambda y: y + response(zero, self._normal_shift(y)), dtype=float)
+            y, info = gmres(op, b, rtol=COUPLED * self.rtol, atol=0.0, restart=min(p, 50), maxiter=4)
+        except _KrylovFailure:
+            return None
+        if info != 0:
+            self.failure = (f"iterative adjoint: GMRES on the {p} Coulomb-coupled rows did not reach the relative "
+                            f"residual {COUPLED * self.rtol:.1e}")
+            return None
+        return y
+
+    def _tresca(self, phi_w, phi, check):
+        """(z, μ on the equality and spring rows) of the Tresca adjoint system (class docstring) for
+        the partials φ_w, φ (the fixed rows left to `solve`); None where CG fails or, with `check`,
+        the multipliers leave a floating body unbalanced (`failure` says so)."""
+        C = self.C
         rhs = phi_w + C[self.D].T @ (phi[self.D] / self.compliance)
         e, Ra = phi[self.rows], 0.0
         if self.R is not None:      # the best-fitting rigid part first (class docstring)
@@ -749,14 +820,13 @@ class IterativeAdjoint:
             e = e - C[self.rows] @ Ra
             rhs = rhs - self.S @ Ra
         z, mu_E = self._equalities(rhs, e)
-        if z is not None:
-            z = z + Ra
         if z is None:
             return None
-        mu = np.zeros(n)
+        z = z + Ra
+        mu = np.zeros(self.n)
         mu[self.rows] = mu_E
         mu[self.D] = (C[self.D] @ z - phi[self.D]) / self.compliance
-        if self.R is not None:      # the rigid modes' equilibrium Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (class docstring)
+        if check and self.R is not None:      # the rigid modes' equilibrium Rᵀ(φ_w − C_Aᵀ μ_A) = 0 (class docstring)
             load = C[np.r_[self.rows, self.D]].T @ mu[np.r_[self.rows, self.D]]
             off = np.max(np.abs(self.R.T @ (phi_w - load)) / np.maximum(
                 np.abs(self.R).T @ (np.abs(phi_w) + np.abs(load)), 1e-300))
@@ -765,10 +835,7 @@ class IterativeAdjoint:
                                 f"{off:.1e} > {BALANCE:.0e}: its rigid motion's round-off; use solver.method "
                                 "monolithic for gradients)")
                 return None
-        mu[self.fixed] = phi[self.fixed] - C[self.fixed] @ z
-        node = (self.coupled - m) % m       # Nᵀ's open normal row: μn − Σ σ F μt = φn − Bn z
-        np.add.at(mu, node, self.sigma[self.coupled - m] * np.asarray(self.F)[node] * mu[self.coupled])
-        return z, mu, self.sigma
+        return z, mu
 
     def _equalities(self, rhs, e):
         """(y, μ_E) of Kt y + C_Eᵀ μ_E = rhs, C_E y = e by CG on the eliminated operator; (None,
