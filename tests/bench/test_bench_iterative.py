@@ -96,15 +96,17 @@ def measure(size: float, face: float) -> list:
     t = time.perf_counter()          # the glued system of the first Newton step, solved once, fresh
     C = model.contact_rows
     step = _Stepper(P["K"], P["f"], C, np.r_[P["d"], np.zeros(2 * m)], _Rows(C, m, 2), N)
-    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8)
+    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8, np.zeros(n))
     t_linear, linear_its = time.perf_counter() - t, step.krylov
     step.krylov_solver.close()
+    del step
 
     t = time.perf_counter()
     cold = solve_contact_iterative(**P, tol=1e-8, rtol=1e-8, near_nullspace=N)
     t_cold = time.perf_counter() - t
     assert cold.status == 0, cold.message
 
+    del P                            # an evaluation holds its own data set's matrices only
     upper = np.concatenate([[e.upper] * e.points for e in ev.study.uncertain])   # new load and block modulus
     P2 = problem(model, ev.map.coefficients(upper))
     t = time.perf_counter()

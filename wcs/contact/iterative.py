@@ -412,6 +412,8 @@ class _Stepper:
             return lam0, self.K
         gamma = np.divide(gw, norm, out=np.zeros_like(norm), where=slip)
         nodes = np.flatnonzero(slip & (gamma < 1))
+        if not nodes.size:          # no spring: K itself (K + 0 was a copy of K beside it, each step)
+            return lam0, self.K
         tau = np.stack([-nu[1, nodes], nu[0, nodes]])
         s = c[m + nodes] * gamma[nodes] / (1 - gamma[nodes])
         # ττᵀ r_t = τ (τ · Bt u): one row per slipping node, Q = Σ_j τ_j Bt_j
