@@ -17,7 +17,6 @@ import numpy as np
 import yaml
 
 from wcs.contact import iterative
-from wcs.geometry.tet import StrainOperator
 from wcs.model.evaluation import Evaluator
 from wcs.fem.affine import CellMatrices
 from wcs.study import load_study
@@ -51,6 +50,7 @@ def test_the_strain_operator_is_applied_from_the_gradients_the_stiffness_holds()
     """No matrix of the 3D strain operator (432 bytes a cell, 0.78 GB at 1e6 unknowns): G u and
     Gᵀ e are made from elasticity's gradients, the same array (bitwise the matrix's products:
     tests/geometry/test_tet.py)."""
+    from wcs.geometry.tet import StrainOperator
     model = Evaluator(patch()).model
     assert isinstance(model.G, StrainOperator) and model.G.g is model.K.local.g
 

@@ -42,7 +42,10 @@ class Layout:
     def matrix(self, A, PETSc):
         """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows
         (on one process PETSc's matrix is these rows' own arrays, kept alive by it: no second copy)."""
-        A = A.rows(self.lo, self.hi) if isinstance(A, RowBlocks) else A[self.lo:self.hi].tocsr()
+        if isinstance(A, RowBlocks):
+            A = A.rows(self.lo, self.hi)
+        elif (self.lo, self.hi) != (0, self.n):
+            A = A[self.lo:self.hi].tocsr()
         A.sort_indices()
         m = self.hi - self.lo
         M = PETSc.Mat().createAIJWithArrays(size=((m, self.n), (m, self.n)),

@@ -686,7 +686,7 @@ class IterativeAdjoint:
             return
         Cd = C[self.D]
         self.S = (Cd.T @ sp.diags(1.0 / compliance[self.D]) @ Cd).tocsr()
-        self.Kt = (K + self.S).tocsr()
+        self.Kt = (K + self.S).tocsr() if len(self.D) else K     # no spring: K itself, not a copy
         self.compliance = compliance[self.D]
         self.Z0 = _basis(C, self.rows, self.P, self.Binv, np.zeros(len(self.rows)))[0]
         self.A = _eliminated(self.Z0, self.Kt, K, self.P)

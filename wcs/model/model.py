@@ -40,7 +40,7 @@ from ..fem.affine import CellAffineOperator, conduction_cells, elastic_cells
 from ..fem.constraints import Constraint, Elimination, Reduction, eliminate
 from ..fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from ..fem.rigid import rigid_modes
-from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
+from ..fem.stress import cell_mean, strain_operator, stresses
 from .materials import lame
 from ..scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
                               iterative_installed)
@@ -146,7 +146,7 @@ class Model:
 
         # 3D: the strain operator applied from the gradients K holds (its matrix was 0.78 GB at 1e6 unknowns)
         self.G = tet.StrainOperator(mesh.t, self.K.local.g, self.nnodes) if d == 3 else strain_operator(mesh.p, mesh.t)
-        _, self.cell_area = (tet.gradient_operator if d == 3 else gradient_operator)(mesh.p, mesh.t)   # areas or volumes
+        self.cell_area = self.K.local.measure        # areas or volumes (elasticity's own: not made again)
         self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
         # caches: they change the speed of a solve, never its answer (see `solve`)
         self._cache = SimpleNamespace(
