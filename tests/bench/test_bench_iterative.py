@@ -9,7 +9,9 @@ thread. Measured in one run, as ratios:
 - `warm`: the same contact solve after new loads and a new Young's modulus of the block,
   started from the cold answer; goal ≤ 3× linear;
 - peak memory of the process (resident set); goal ≤ 8 GB. Beside it the peak and the resident
-  set once the model is built (mesh, assembly, criteria: not the contact method's).
+  set once the model is built (mesh, assembly, criteria: not the contact method's), the cells,
+  the entries of the reduced K and the guard's estimate of one evaluation's peak
+  (`wcs.scene.estimate.evaluation_cost`).
 
 Measured (2 cores shared with other jobs, load 3–8, one thread; ratios in one run):
   0.2/0.1     2.7e3 unknowns,   144 contact nodes: linear 15 CG its; cold 2 Newton, 43 CG its
@@ -53,6 +55,7 @@ import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
 from petsc4py import PETSc  # noqa: F401
 
 from wcs.contact.iterative import _Rows, _Stepper, solve_contact_iterative
+from wcs.scene.estimate import EvaluationFacts, evaluation_cost
 from wcs.model.evaluation import Evaluator
 from wcs import load_study
 
@@ -92,19 +95,24 @@ def measure(size: float, face: float) -> list:
     n, m = P["K"].shape[0], P["Bn"].shape[0]
     N = model.near_nullspace
     model_peak, model_rss = peak_gb(), rss_gb()
+    nnz = model.reduce.pattern.nnz
+    estimate = evaluation_cost(EvaluationFacts(dimension=3, unknowns=n, stiffness_nnz=nnz, contact_rows=3 * m),
+                               "iterative")[0] / 1e9
 
     t = time.perf_counter()          # the glued system of the first Newton step, solved once, fresh
     C = model.contact_rows
     step = _Stepper(P["K"], P["f"], C, np.r_[P["d"], np.zeros(2 * m)], _Rows(C, m, 2), N)
-    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8)
+    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8, np.zeros(n))
     t_linear, linear_its = time.perf_counter() - t, step.krylov
     step.krylov_solver.close()
+    del step
 
     t = time.perf_counter()
     cold = solve_contact_iterative(**P, tol=1e-8, rtol=1e-8, near_nullspace=N)
     t_cold = time.perf_counter() - t
     assert cold.status == 0, cold.message
 
+    del P                            # an evaluation holds its own data set's matrices only
     upper = np.concatenate([[e.upper] * e.points for e in ev.study.uncertain])   # new load and block modulus
     P2 = problem(model, ev.map.coefficients(upper))
     t = time.perf_counter()
@@ -114,7 +122,8 @@ def measure(size: float, face: float) -> list:
     return [size, face, n, m, round(t_model, 1), round(t_linear, 2), linear_its, round(t_cold, 2), cold.iterations,
             cold.krylov_iterations, round(t_warm, 2), warm.iterations, warm.krylov_iterations,
             round(t_cold / t_linear, 2), round(t_warm / t_linear, 2), round(model_peak, 2), round(model_rss, 2),
-            round(peak_gb(), 2), {k: round(v, 1) for k, v in cold.timings.items()}]
+            round(peak_gb(), 2), ev.smesh.mesh.t.shape[1], nnz, round(estimate, 2),
+            {k: round(v, 1) for k, v in cold.timings.items()}]
 
 
 @pytest.mark.bench
@@ -124,5 +133,6 @@ def test_bench_iterative_contact_at_scale():
     path = write_table("bench_iterative", ["size", "face", "unknowns", "contact_nodes", "model_s", "linear_s",
                                            "linear_its", "cold_s", "newton", "krylov", "warm_s", "warm_newton",
                                            "warm_krylov", "cold_over_linear", "warm_over_linear", "model_peak_gb",
-                                           "model_rss_gb", "peak_gb", "cold_timings_s"], [row])
+                                           "model_rss_gb", "peak_gb", "cells", "nnz", "estimate_gb",
+                                           "cold_timings_s"], [row])
     print(path.read_text())

@@ -294,3 +294,36 @@ def test_an_answer_that_leaves_a_floating_pad_free_is_not_unique_as_by_the_direc
     _, direct, iterative = both(d)
     assert direct.status == iterative.status == Status.NOT_UNIQUE, iterative.message
     assert iterative.u is None and np.allclose(iterative.alpha, direct.alpha)
+
+
+def test_a_newton_step_without_disc_springs_works_on_k_itself_not_a_copy(monkeypatch):
+    """Frictionless 3D: no tangent slips on a disc, so every step's matrix K + Σ springs is K
+    itself (the stepper built K + 0, a second copy of K — 1 GB at 1e6 unknowns — each step)."""
+    from wcs.contact import iterative
+    seen, made = [], iterative._eliminated
+    monkeypatch.setattr(iterative, "_eliminated", lambda Z, Kt, K, P, *a: seen.append(Kt is K) or made(Z, Kt, K, P, *a))
+    M = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml"))).model
+    c = M.nominal
+    _, Kr, rhs, u0 = M.reduced_system(c, None)
+    z = M.zone
+    res = solve_contact_iterative(Kr, rhs, M.Bn_r, M.Bt_r, z.gap - z.Bn @ u0, z.weight, g=c.slip, R=M.R_r,
+                                  tol=1e-10, near_nullspace=M.near_nullspace, rtol=1e-12)
+    assert res.status == 0, res.message
+    assert len(seen) == res.iterations >= 1 and all(seen)
+
+
+def test_petsc_holds_a_steps_matrix_in_its_own_arrays_not_a_copy():
+    """On one process the PETSc matrix of a step is the rows' CSR arrays themselves (a copy beside
+    them doubled the largest matrix of the solve): a change to them is seen by PETSc."""
+    import dolfinx_solver  # noqa: F401
+    from petsc4py import PETSc
+    from wcs.contact.distributed import Layout, RowBlocks
+    A = (sp.random(40, 40, density=0.1, random_state=1, format="csr") + 4 * sp.eye(40)).tocsr()
+    A = (A + A.T).tocsr()
+    A.sort_indices()
+    M = Layout(None, 40, PETSc).matrix(RowBlocks(40, lambda lo, hi: A), PETSc)     # one rank: all rows
+    i, j = 3, A.indices[A.indptr[3]]
+    assert M.getValue(i, j) == A[i, j]
+    A.data[A.indptr[3]] = 123.0
+    assert M.getValue(i, j) == 123.0
+    M.destroy()

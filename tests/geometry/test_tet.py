@@ -208,3 +208,21 @@ def test_manufactured_convergence_rates_3d():
     r_en = np.diff(np.log(en)) / np.diff(np.log(h))
     assert abs(r_l2[-1] - 2.0) < 0.15, r_l2
     assert abs(r_en[-1] - 1.0) < 0.15, r_en
+
+
+def test_the_strain_operator_from_the_gradients_gives_the_matrix_products_bits():
+    """G u and Gᵀ e applied from the cells' gradients (what the model keeps instead of G's matrix,
+    432 bytes a cell) are bitwise the CSR products: node numbers shuffled and each cell's nodes in
+    random order, so that the sorted order of a row's dofs is not the cell's."""
+    rng = np.random.default_rng(5)
+    m = distorted_cube(4)
+    new = rng.permutation(m.nvertices)
+    p = np.empty_like(m.p)
+    p[:, new] = m.p
+    t = rng.permuted(new[m.t], axis=0)
+    G = tet.strain_operator(p, t)
+    S = tet.StrainOperator(t, tet.gradient_operator(p, t)[0], p.shape[1])
+    assert S.shape == G.shape and S.T.shape == G.T.shape
+    u, e = rng.standard_normal(G.shape[1]), rng.standard_normal(G.shape[0])
+    assert np.array_equal(S @ u, G @ u)
+    assert np.array_equal(S.T @ e, G.T @ e)

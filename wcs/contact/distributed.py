@@ -36,13 +36,18 @@ class Layout:
         self.lo, self.hi = rows(n, size, rank)
 
     def matrix(self, A, PETSc):
-        """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows."""
-        A = together(A.rows, self.lo, self.hi) if isinstance(A, RowBlocks) else A[self.lo:self.hi].tocsr()
+        """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows
+        (on one process PETSc's matrix is these rows' own arrays, kept alive by it: no second copy)."""
+        if isinstance(A, RowBlocks):
+            A = together(A.rows, self.lo, self.hi)
+        elif (self.lo, self.hi) != (0, self.n):
+            A = A[self.lo:self.hi].tocsr()
         A.sort_indices()
         m = self.hi - self.lo
-        M = PETSc.Mat().createAIJ(size=((m, self.n), (m, self.n)),
-                                  csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
-                                  comm=self.petsc)
+        M = PETSc.Mat().createAIJWithArrays(size=((m, self.n), (m, self.n)),
+                                            csr=(A.indptr.astype(PETSc.IntType, copy=False),
+                                                 A.indices.astype(PETSc.IntType, copy=False), A.data),
+                                            comm=self.petsc)
         M.setOption(PETSc.Mat.Option.SPD, True)
         return M
 

@@ -461,6 +461,8 @@ class _Stepper:
             return lam0, self.K
         gamma = np.divide(gw, norm, out=np.zeros_like(norm), where=slip)
         nodes = np.flatnonzero(slip & (gamma < 1))
+        if not nodes.size:          # no spring: K itself (K + 0 was a copy of K beside it, each step)
+            return lam0, self.K
         tau = np.stack([-nu[1, nodes], nu[0, nodes]])
         s = c[m + nodes] * gamma[nodes] / (1 - gamma[nodes])
         # ττᵀ r_t = τ (τ · Bt u): one row per slipping node, Q = Σ_j τ_j Bt_j
@@ -737,7 +739,7 @@ class IterativeAdjoint:
             return
         Cd = C[self.D]
         self.S = (Cd.T @ sp.diags(1.0 / compliance[self.D]) @ Cd).tocsr()
-        self.Kt = (K + self.S).tocsr()
+        self.Kt = (K + self.S).tocsr() if len(self.D) else K     # no spring: K itself, not a copy
         self.compliance = compliance[self.D]
         self.Z0 = _basis(C, self.rows, self.P, self.Binv, np.zeros(len(self.rows)))[0]
         Z0, Kt, P = self.Z0, self.Kt, self.P      # each rank of a group builds its rows, once for all criteria

@@ -130,7 +130,8 @@ class Reduction:
     pattern is built once from the structure of K and T, and Kr.data = M @ K.data
     (each entry K_kl contributes T_ki T_lj to Kr_ij: M has nnz(T_k) · nnz(T_l)
     entries per entry of K — up to four for supports, more where mortar gluing ties a
-    slave dof to several master dofs)."""
+    slave dof to several master dofs). Every Kr shares the pattern's index arrays (read-only:
+    one copy of the structure however many Kr are alive)."""
 
     def __init__(self, K: sp.csr_matrix, T: sp.csr_matrix):
         K = sp.csr_matrix(K)
@@ -154,6 +155,7 @@ class Reduction:
         indptr = np.searchsorted(uniq, np.arange(n + 1, dtype=np.int64) * n)   # sorted keys: rows in order
         self.pattern = sp.csr_matrix((np.zeros(uniq.size), uniq % n, indptr), shape=(n, n))
         self.pattern.sort_indices()
+        self.pattern.indices.flags.writeable = self.pattern.indptr.flags.writeable = False
         self.M = sp.csr_matrix((weights, e, np.r_[np.flatnonzero(first), keys.size]), shape=(uniq.size, K.nnz))
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
@@ -161,6 +163,5 @@ class Reduction:
         K.sort_indices()
         if not (np.array_equal(K.indptr, self.K_indptr) and np.array_equal(K.indices, self.K_indices)):
             raise ValueError("K does not have the structural pattern the reduction was built for")
-        Kr = self.pattern.copy()
-        Kr.data = self.M @ K.data
-        return Kr
+        P = self.pattern
+        return sp.csr_matrix((self.M @ K.data, P.indices, P.indptr), shape=P.shape)

@@ -40,7 +40,7 @@ from ..fem.affine import CellAffineOperator, conduction_cells, elastic_cells
 from ..fem.constraints import Constraint, Elimination, Reduction, eliminate
 from ..fem.gluing import build_glue, glue_elimination, glue_heat, glued_clusters, heat_glue_elimination
 from ..fem.rigid import rigid_modes
-from ..fem.stress import cell_mean, gradient_operator, strain_operator, stresses
+from ..fem.stress import cell_mean, strain_operator, stresses
 from .heat import heat_by_krylov
 from .materials import lame
 from ..scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
@@ -145,8 +145,9 @@ class Model:
         self.pinned = (pinned_dofs(self.R_r) if self.zone is not None and self.R_r is not None
                        else np.zeros(0, dtype=int))
 
-        self.G = (tet.strain_operator if d == 3 else strain_operator)(mesh.p, mesh.t)
-        _, self.cell_area = (tet.gradient_operator if d == 3 else gradient_operator)(mesh.p, mesh.t)   # areas or volumes
+        # 3D: the strain operator applied from the gradients K holds (its matrix was 0.78 GB at 1e6 unknowns)
+        self.G = tet.StrainOperator(mesh.t, self.K.local.g, self.nnodes) if d == 3 else strain_operator(mesh.p, mesh.t)
+        self.cell_area = self.K.local.measure        # areas or volumes (elasticity's own: not made again)
         self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
         # caches: they change the speed of a solve, never its answer (see `solve`)
         self._cache = SimpleNamespace(
@@ -155,7 +156,8 @@ class Model:
             contact=None,                            # the contact factorization (`UnitFactors`; method qp: a `ContactFactor`), refactored in place
             anchor=None,                             # contact state at the nominal data: other solves start from it
             anchor_tried=False,
-            stiffness=None,                          # (coefficients, K) of the last K(c) assembled
+            stiffness=None,                          # (coefficients, K) of the last K(c) `stiffness` assembled
+            support=None,                            # (coefficients, K U0) of the last reduced system
             direction=None)                          # (c*, K*, its units' blocks) of the last contact stiffness
         for name, value in vars(self).items():
             if name != "_cache":
@@ -391,7 +393,7 @@ class Model:
         if self.units is not None and not self.method.assembles:   # K(c) itself unused
             Kr, rhs, u0 = None, *self._reduced_load(c, T)
         else:
-            K, Kr, rhs, u0 = self.reduced_system(c, T)
+            Kr, rhs, u0 = self.reduced_system(c, T)[1:]     # K(c) not held through the solve
         own = dict(coefficients=c, theta=theta, conduction=Kh, factors=cache)
         if self.zone is None:
             w = _factor(cache.elastic, Kr).solve(rhs)
@@ -465,10 +467,25 @@ class Model:
 
     def reduced_system(self, c: Coefficients, T: np.ndarray | None):
         """(K, Kr, rhs, u0): the stiffness, Kr = Tᵀ K T on its fixed pattern, the reduced load
-        rhs = Tᵀ(f − K u0) and the displacement u0 the supports impose (u = T w + u0)."""
-        K = self.stiffness(c)
+        rhs = Tᵀ(f − K u0) and the displacement u0 the supports impose (u = T w + u0). K is the
+        one `stiffness` holds for these data, else assembled and not held: a solve needs Kr only
+        (K held beside it took 0.5 GB at 1e6 unknowns); what the adjoint takes from K, K U0, is
+        kept instead (`support_stiffness`)."""
+        key = self.stiffness_coefficients(c).tobytes()
+        held = self._cache.stiffness
+        K = held[1] if held is not None and held[0] == key else self.K(self.stiffness_coefficients(c))
+        _read_only(K)
+        self._cache.support = (key, (K @ self.elim.U0.tocsc()).tocsc())
         u0 = self.elim.U0 @ c.support_values
         return K, self.reduce(K), self.Tt @ (self.mechanical_load(c, T) - K @ u0), u0
+
+    def support_stiffness(self, c: Coefficients) -> sp.csc_matrix:
+        """K(c) U0 (the elastic forces of the supports' unit displacements, for the adjoint): the
+        one the data set's `reduced_system` kept, else from `stiffness`."""
+        held = self._cache.support
+        if held is not None and held[0] == self.stiffness_coefficients(c).tobytes():
+            return held[1]
+        return (self.stiffness(c) @ self.elim.U0.tocsc()).tocsc()
 
     def _reduced_load(self, c: Coefficients, T: np.ndarray | None):
         """(rhs, u0) of `reduced_system` with K(c) u0 summed over the cells the supports move

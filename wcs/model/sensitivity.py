@@ -225,9 +225,8 @@ def coefficient_gradients(model, state, partials: list[Partials]) -> list[np.nda
     active-set system is singular. What the criteria share — the stiffness, K U0, the contact
     adjoint system and its LU — is built once."""
     c = state.coefficients
-    K = model.stiffness(c)
     U0 = model.elim.U0.tocsc()
-    KU0 = (K @ U0).tocsc()
+    KU0 = model.support_stiffness(c)
     own = getattr(model.method, "adjoint", None)      # a method with its own adjoint (the iterative one)
     contact = None if state.raw is None else own(model, state) if own is not None else ContactAdjoint(model, state)
     Kh = model.H(c.kappa) if model.thermal else None

@@ -31,10 +31,11 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 # 6.7e4 tetrahedra (block-on-block-3d at size 0.04, its dense contact condensation included)
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
 # The same with the iterative method on a 3D contact scene (no dense W, no direct factor): the peak of
-# tests/bench/test_bench_iterative.py (meshing, assembly, criteria, the cold and the warm contact solve),
-# 9.33 GB at 1.02e6 unknowns, ≈ 1.8e6 tetrahedra: 5.2 kB a cell; 2D is not measured: the direct figure
-# bounds it (the iterative method holds O(nnz), below the direct factor's fill)
-ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 5.5e3}
+# tests/bench/test_bench_iterative.py's measure (meshing, assembly, the cold and the warm contact solve),
+# 1.80 GB at 2.9e5 unknowns (0.045/0.01, ≈ 4.8e5 tetrahedra: 3.8 kB a cell; 5.2 kB before the solve held
+# one copy of K: 9.33 GB at 1.02e6 unknowns); 2D is not measured: the direct figure bounds it (the
+# iterative method holds O(nnz), below the direct factor's fill)
+ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.0e3}
 # Peak memory of meshing and assembling a cell (VmHWM after `Evaluator`, above the ~0.2 GB of the loaded
 # modules): 3D, 1.5 kB on the shipped 3D tunnel (2.5e4 tetrahedra), 3.0 kB on the 3D patch at 1.1e6 (6e5
 # unknowns, its reduction's peak; 4.0 and 6.3 kB while the cell matrices were held, 7.0-7.6 kB on the 3D
@@ -408,8 +409,10 @@ SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
 DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of the active rows (2D: on the ~2m DOFs
                  3: 1.58e-10}   # of (K⁺)_SS, 40 s at m = 2692 cold, wcs/results/meshcheck.py CONDENSATION)
 ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
-ITERATIVE_BYTES_PER_NNZ = 100.0   # K's PETSc copy, its GAMG hierarchy, Krylov vectors: 90-170 bytes an entry
-#                                   measured (block-on-block-3d at 0.05, the shipped tunnel)
+ITERATIVE_BYTES_PER_NNZ = 60.0    # a Newton step's eliminated operator (PETSc's matrix on its arrays), GAMG's
+#                                   hierarchy and its set-up, Krylov vectors: the peak of tests/bench/test_bench_iterative.py's
+#                                   measure is 0.25 GB + 129-133 bytes an entry of K in all (0.59 GB at 2.6e6 entries,
+#                                   0.07/0.02; 1.80 GB at ≈ 1.2e7, 0.045/0.01), MODEL_BYTES_PER_NNZ's share included
 ITERATIVE_SECONDS = 1.2         # the iterative method's fixed part (PETSc set-up): fit of the three below
 ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
 #                                   0.7e-6 frictionless (block-on-block-3d at 0.1 and 0.05: 2 steps, 1.4 and 2.5 s;
