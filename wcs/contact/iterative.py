@@ -389,7 +389,7 @@ class _Stepper:
             A = RowBlocks(n, _pinned(A.rows, pin))
         self.timings["eliminate"] += time.perf_counter() - t0
         v, its, ok = self.krylov_solver.solve(A, b, eta)
-        if np.array_equal(free, self.rows.acting):      # glued: its hierarchy's aggregates span the contact
+        if k == 1 and np.array_equal(free, self.rows.acting):    # glued 2D step: not kept (`Krylov`)
             self.krylov_solver.expire()
         self.krylov += its
         self.krylov_steps.append(its)
@@ -514,33 +514,41 @@ def _block_diagonal(blocks) -> sp.csr_matrix:
 
 
 class Krylov:
-    """CG preconditioned by GAMG, the hierarchy kept while the operator is, up to a scalar, the one
-    it was built for in all but a few rows.
+    """CG preconditioned by GAMG, the hierarchy kept while it costs less than building a new one.
 
     The Newton steps' matrices are K's size (`_Stepper.solve`) and differ only on the rows of
-    the contact nodes whose state changed. A symmetric change ΔA confined to r rows has rank
-    ≤ r, so it moves at most r eigenvalues of the preconditioned operator and costs CG at most
-    about r more iterations (interlacing); a hierarchy is rebuilt when more than `REBUILD_ROWS`
-    rows changed since it was built, about the cost of a GAMG set-up in CG iterations (2D
-    tunnel, 1.5e4 unknowns: set-up 0.06 s, a CG iteration 1.5 ms). A hierarchy built for the
-    glued first step (every contact row closed and stuck) has aggregates across the contact
-    surface: kept for the later steps it cost 130 of a step's 166 iterations on the 2D tunnel.
-    A uniform scaling is no change: GAMG of s·A is s⁻¹ times GAMG of A applied (aggregation by
-    relative strength, smoothing and Chebyshev bounds scale-free, coarse operators PᵀAP scale
-    by s), and CG's iterates are the same for a preconditioner times a constant; so a data set
-    whose moduli all scale by s (K = s·K*) keeps the hierarchy (`kept`). The rows that changed
-    are found by one product with a fixed probe vector w: row i changed where
-    |(A w)_i − s (A* w)_i| > PROBE ‖A w‖∞, s the median of (A w)_i / (A* w)_i (most rows do not
-    change; on a group of ranks the mean of their medians). CG needs only an SPD
-    preconditioner: the answer is the solve's to its tolerance, the hierarchy changes its
-    cost; a kept hierarchy whose solve fails is rebuilt and the solve repeated.
+    the contact nodes whose state changed, so a hierarchy built for an earlier step still
+    preconditions a later one (CG needs only an SPD preconditioner: the answer is the solve's
+    to its tolerance, the hierarchy changes its cost). It is kept by the ski-rental rule: each
+    solve with a kept hierarchy adds the iterations it took beyond the fresh hierarchy's rate
+    (iterations per digit of its first solve) to the hierarchy's excess, and the next solve
+    builds a fresh one once the excess is above `REBUILD_ITERATIONS`, about the cost of a
+    GAMG set-up in CG iterations (measured 40 on the 2D tunnel at 1.5e4 unknowns, 120 on 3D
+    Hertz at 7e3, 70 on the 3D patch at 1e6), so the iterations lost to an aged hierarchy never
+    exceed what rebuilding costs by more than one step's. A converged solve is kept, never
+    repeated; a kept hierarchy whose solve fails is rebuilt and the solve repeated. `expire`
+    drops the hierarchy for the next solve: the glued first step of a 2D cold start (every
+    contact row closed and stuck) has aggregates across the contact surface, which cost the
+    next step 130 of the 2D tunnel's 166 iterations and 337 against 32 on the Tresca pad; in
+    3D (the block patch at 8e4 unknowns) it served the next step as well as a fresh one.
+    A hierarchy inherited from another solver (`kept`: the nominal data's, for a data set
+    started from its answer, `_solve_problem`) is used where the operator is, up to a scalar,
+    the one it was built for in all but `REBUILD_ROWS` rows: GAMG of s·A is GAMG of A over s
+    (aggregation by relative strength, smoothing and Chebyshev bounds scale-free, coarse
+    operators PᵀAP scale by s), and CG's iterates are the same for a preconditioner times a
+    constant, so data whose moduli all scale by one factor (K = s·K*) keep it, and a new E
+    of one material gets a fresh one. The rows that changed are found by one product with a
+    fixed probe vector w: row i changed where |(A w)_i − s (A* w)_i| > PROBE ‖A w‖∞, s the
+    median of (A w)_i / (A* w)_i (most rows do not change; on a group of ranks the mean of
+    their medians). Every decision is on iteration counts and matrices, never on timings: the
+    same data give the same bits.
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate;
     kept: a solver whose hierarchy to start from (not freed by this one: `close`).
     The solves span the group of ranks `wcs.group.spanning` set when the solver was made
     (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
-    REBUILD_ROWS = 40
-    REBUILD_ITERATIONS = 50
+    REBUILD_ROWS = 40           # rows an inherited hierarchy's operator may differ in (≤ that many more iterations)
+    REBUILD_ITERATIONS = 50     # excess iterations that buy a new hierarchy (class docstring)
     PROBE = 1e-10
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
