@@ -62,6 +62,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+import weakref
 
 import numpy as np
 import scipy.linalg as sla
@@ -74,6 +75,7 @@ from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _first_free_set, _states,
                                 conditions_violated, free_rigid_motion, pinned_dofs, project)
 from wcs.errors import StudyError
+from wcs.fem.rigid import rigid_modes
 from wcs.group import evaluation_comm, share, together
 from wcs.options import MIN_TOLERANCE
 from wcs.status import Status
@@ -88,7 +90,7 @@ COUPLED = 10.0       # GMRES over Coulomb-coupled adjoint rows to this times the
 
 def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                             warm: ContactResult | None = None, near_nullspace=None, rtol=1e-12,
-                            tol_fp=1e-8, max_fp_iter=50, reference=0.0) -> ContactResult:
+                            tol_fp=1e-8, max_fp_iter=50, reference=0.0, krylov: "Krylov | None" = None) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by the primal active set with CG + GAMG (module docstring).
 
     Arguments and result as `solve_contact` (no factor: `factor` is None). near_nullspace:
@@ -99,7 +101,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     a Newton step whose closed and stuck rows leave rigid modes free is taken in their
     complement (module docstring), and an answer that leaves one free is NOT_UNIQUE, as in
     `solve_contact`. An active row with no unknown of its own ends the solve with status
-    OTHER_FAILURE (module docstring).
+    OTHER_FAILURE (module docstring). krylov: the `Krylov` to solve the steps with (the caller
+    frees it; None: one of this solve's own).
     Coulomb: the fixed point over Tresca bounds g w + F λn of `solve_contact`, from the glued
     (all-stick) solution or the warm pressures."""
     t0 = time.perf_counter()
@@ -126,7 +129,7 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     t = time.perf_counter()
     rows = _Rows(C, m, k)
     timings["rows"] = time.perf_counter() - t
-    step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R)
+    step = _Stepper(K, f, C, np.r_[d, np.zeros(k * m)], rows, near_nullspace, R, krylov)
     c = _scales(K, C, m, k)
     lam = np.zeros((1 + k) * m) if warm is None or warm.lam_n is None else np.r_[warm.lam_n, warm.lam_t]
     # a warm start takes the warm answer's displacement with its multipliers: from u = 0, z = λ + c (C u − b)
@@ -145,7 +148,8 @@ def solve_contact_iterative(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1
     try:
         driven = law.drive(tresca, gw, tol_fp, max_fp_iter)
     finally:                # on every rank of a group alike, failed or not (PETSc's destroy is collective)
-        step.krylov_solver.close()
+        if krylov is None:  # a caller's `Krylov` is the caller's to free
+            step.krylov_solver.close()
     u, lam, free, gw = state["u"], state["lam"], state["free"], driven.gw
     iters, fp_iters, ok, fp_ok = driven.iterations, driven.fixed_point_iterations, driven.ok, driven.settled
     status, message = Status.SOLVED, "converged"
@@ -392,13 +396,13 @@ class _Rows:
 class _Stepper:
     """One Newton step: eliminate the free (closed, stuck) rows, CG + GAMG on the rest."""
 
-    def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None):
+    def __init__(self, K, f, C, b, rows: _Rows, near_nullspace, R=None, krylov=None):
         self.K, self.f, self.C, self.b, self.rows, self.R = K, f, C, b, rows, R
         self.failure, self.unsupported = "", False
         self.timings = {"eliminate": 0.0}       # seconds: pivots and Z of the steps (Zᵀ Kt Z: Krylov's "matrix")
         self.n = K.shape[0]
         N = None if near_nullspace is None else np.asarray(near_nullspace, dtype=float).reshape(self.n, -1)
-        self.krylov_solver = Krylov(N)
+        self.krylov_solver = Krylov(N) if krylov is None else krylov
         self.krylov = 0
         self.krylov_steps = []      # CG iterations of each step (a rebuilt preconditioner's solve included)
 
@@ -434,6 +438,8 @@ class _Stepper:
         self.timings["eliminate"] += time.perf_counter() - t0
         dv, its, ok = self.krylov_solver.solve(A, r, tol) if tol < 1.0 else (0.0, 0, True)
         v = v + dv
+        if k == 1 and np.array_equal(free, self.rows.acting):    # glued 2D step: not kept (`Krylov`)
+            self.krylov_solver.expire()
         self.krylov += its
         self.krylov_steps.append(its)
         if not ok:
@@ -562,26 +568,55 @@ def _block_diagonal(blocks) -> sp.csr_matrix:
 
 
 class Krylov:
-    """CG preconditioned by GAMG, the preconditioner kept from one Newton step to the next.
+    """CG preconditioned by GAMG, the hierarchy kept while it costs less than building a new one.
 
-    The steps' matrices are K's size (`_Stepper.solve`) and differ only on the rows of the
-    contact nodes whose state changed, so a GAMG hierarchy built for an earlier step still
+    The Newton steps' matrices are K's size (`_Stepper.solve`) and differ only on the rows of
+    the contact nodes whose state changed, so a hierarchy built for an earlier step still
     preconditions a later one (CG needs only an SPD preconditioner: the answer is the solve's
-    to its tolerance, the preconditioner changes its cost); it is rebuilt when a solve took
-    more than `REBUILD` times the iterations per digit of residual reduction of the solve it
-    was built for (plus 10).
-    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate.
+    to its tolerance, the hierarchy changes its cost). It is kept by the ski-rental rule: each
+    solve with a kept hierarchy adds the iterations it took beyond the fresh hierarchy's rate
+    (iterations per digit of its first solve) to the hierarchy's excess, and the next solve
+    builds a fresh one once the excess is above `REBUILD_ITERATIONS`, about the cost of a
+    GAMG set-up in CG iterations (measured 40 on the 2D tunnel at 1.5e4 unknowns, 120 on 3D
+    Hertz at 7e3, 70 on the 3D patch at 1e6), so the iterations lost to an aged hierarchy never
+    exceed what rebuilding costs by more than one step's. A converged solve is kept, never
+    repeated; a kept hierarchy whose solve fails is rebuilt and the solve repeated. `expire`
+    drops the hierarchy for the next solve: the glued first step of a 2D cold start (every
+    contact row closed and stuck) has aggregates across the contact surface, which cost the
+    next step 130 of the 2D tunnel's 166 iterations and 337 against 32 on the Tresca pad; in
+    3D (the block patch at 8e4 unknowns) it served the next step as well as a fresh one.
+    A hierarchy inherited from another solver (`kept`: the nominal data's, for a data set
+    started from its answer, `_solve_problem`) is used where the operator is, up to a scalar,
+    the one it was built for in all but `REBUILD_ROWS` rows: GAMG of s·A is GAMG of A over s
+    (aggregation by relative strength, smoothing and Chebyshev bounds scale-free, coarse
+    operators PᵀAP scale by s), and CG's iterates are the same for a preconditioner times a
+    constant, so data whose moduli all scale by one factor (K = s·K*) keep it, and a new E
+    of one material gets a fresh one. The rows that changed are found by one product with a
+    fixed probe vector w: row i changed where |(A w)_i − s (A* w)_i| > PROBE ‖A w‖∞, s the
+    median of (A w)_i / (A* w)_i (most rows do not change; on a group of ranks the mean of
+    their medians). Every decision is on iteration counts and matrices, never on timings: the
+    same data give the same bits.
+    near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate;
+    kept: a solver whose hierarchy to start from (not freed by this one: `close`).
     The solves span the group of ranks `wcs.group.spanning` set when the solver was made
     (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
-    REBUILD = 2.0
+    REBUILD_ROWS = 40           # rows an inherited hierarchy's operator may differ in (≤ that many more iterations)
+    REBUILD_ITERATIONS = 50     # excess iterations that buy a new hierarchy (class docstring)
+    PROBE = 1e-10
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
-    def __init__(self, near_nullspace=None):
+    def __init__(self, near_nullspace=None, kept: "Krylov | None" = None):
         self.N = near_nullspace
         self.comm = evaluation_comm()
-        self.ksp = self.P = self.layout = None
-        self.rate = 0.0             # iterations per digit of the solve the preconditioner was built for
+        self.ksp = self.P = self.layout = self.built = None    # built: A w of the operator the hierarchy was built for
+        self.own = True             # this solver built the hierarchy it holds (and frees it)
+        self.builds = 0             # hierarchies built
+        self.rate = self.excess = 0.0
+        if kept is not None and kept.ksp is not None:
+            self.ksp, self.P, self.layout, self.built, self.rate = kept.ksp, kept.P, kept.layout, kept.built, kept.rate
+            self.own = False
+        self.inherited = not self.own           # a hierarchy from another solver, not yet compared
         # seconds (matrix: this rank's rows of A built and put in PETSc's form)
         self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}
 
@@ -594,14 +629,33 @@ class Krylov:
             return np.zeros(0), 0, True
         t = time.perf_counter()
         if self.layout is None or self.layout.n != n:
+            self.close()
             self.layout = Layout(self.comm, n, PETSc)
         M = self.layout.matrix(A, PETSc)
         self.timings["matrix"] += time.perf_counter() - t
-        fresh = self.ksp is None
-        t = time.perf_counter()
-        if fresh:
+        if self.ksp is None:
+            kept = False
+        elif self.inherited:        # a hierarchy from another solve: is this its operator, up to a scalar?
+            kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
+        else:
+            kept = self.excess <= self.REBUILD_ITERATIONS
+        if not kept:
             self._build(M, PETSc)
-        self.timings["gamg_setup"] += time.perf_counter() - t
+        x, its, ok = self._cg(M, b, rtol)
+        if not ok and kept:         # the kept hierarchy failed: rebuild and solve again
+            self._build(M, PETSc)
+            x, more, ok = self._cg(M, b, rtol)
+            its += more
+            kept = False
+        self.inherited = False
+        digits = -np.log10(rtol)
+        if kept:
+            self.excess += max(its - self.rate * digits, 0.0)
+        else:
+            self.rate = its / digits
+        return x, its, ok
+
+    def _cg(self, M, b, rtol):
         t = time.perf_counter()
         self.ksp.setOperators(M, self.P)
         self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
@@ -614,16 +668,41 @@ class Krylov:
         for o in (x, rhs):
             o.destroy()
         self.timings["cg"] += time.perf_counter() - t
-        digits = -np.log10(rtol)
-        if fresh:
-            self.rate = its / digits
-        elif not ok or its > self.REBUILD * self.rate * digits + 10:     # the hierarchy has aged: rebuild and solve again
-            self.close()
-            x, more, ok = self.solve(A, b, rtol)
-            return x, its + more, ok
         return out, its, ok
 
+    def expire(self):
+        """The next solve builds a fresh hierarchy."""
+        self.excess = np.inf
+
+    def _product(self, M, PETSc) -> np.ndarray:
+        """This rank's rows of M w, w the fixed probe (uniform in [1, 2], the same on every layout)."""
+        w = np.random.default_rng(0).uniform(1.0, 2.0, self.layout.n)
+        wv, out = self.layout.vector(w, PETSc), M.createVecLeft()
+        M.mult(wv, out)
+        Mw = out.getArray().copy()
+        wv.destroy()
+        out.destroy()
+        return Mw
+
+    def _changed(self, Mw: np.ndarray) -> int:
+        """The rows of the operator (product Mw with the probe) that differ from a multiple of
+        the one the hierarchy was built for (class docstring), over the group."""
+        old = self.built
+        ratio = np.divide(Mw, old, out=np.zeros_like(Mw), where=old != 0)
+        s = self._reduce(float(np.median(ratio))) / (1 if self.comm is None else self.comm.size)
+        scale = self._reduce(float(np.abs(Mw).max(initial=0.0)), "max")
+        return int(self._reduce(int(np.sum(np.abs(Mw - s * old) > self.PROBE * scale))))
+
+    def _reduce(self, value, op="sum"):
+        """value summed (or its max) over the group."""
+        if self.comm is None:
+            return value
+        from mpi4py import MPI
+        return self.comm.allreduce(value, op=MPI.MAX if op == "max" else MPI.SUM)
+
     def _build(self, M, PETSc):
+        t = time.perf_counter()
+        self.close()
         if self.N is not None and self.N.shape[1]:
             Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
             rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
@@ -636,13 +715,17 @@ class Krylov:
         ksp.setOperators(M, M)
         ksp.setUp()
         ksp.getPC().setReusePreconditioner(True)
-        self.ksp, self.P = ksp, M
+        self.ksp, self.P, self.own, self.excess = ksp, M, True, 0.0
+        self.built = self._product(M, PETSc)
+        self.builds += 1
+        self.timings["gamg_setup"] += time.perf_counter() - t
 
     def close(self):
-        if self.ksp is not None:
+        """Free the hierarchy this solver built (a kept one stays its owner's)."""
+        if self.ksp is not None and self.own:
             self.ksp.destroy()
             self.P.destroy()
-        self.ksp = self.P = None
+        self.ksp = self.P = self.built = None
 
 
 def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
@@ -665,10 +748,47 @@ def reduced_modes(T: sp.spmatrix, R: np.ndarray) -> np.ndarray:
 
 def _solve_problem(model, p) -> ContactResult:
     """The model's contact problem by `solve_contact_iterative`, with its rigid modes as GAMG's
-    near-nullspace and the study's tolerances (`solver.iterative.tolerance` for the Krylov solves)."""
-    return solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
-                                   near_nullspace=model.near_nullspace, rtol=model.options.iterative.tolerance,
-                                   reference=p.reference, **settings(model.options))
+    near-nullspace and the study's tolerances (`solver.iterative.tolerance` for the Krylov solves).
+    The model's first cold solve (its anchor, the nominal data: `Model.solve`) keeps its last
+    GAMG hierarchy for the solves started from its answer (`Krylov`: reused where their operator
+    is the anchor's up to a scalar); so a solve's preconditioner depends on its data and the
+    anchor's only, never on the order of the data sets."""
+    kept = _ANCHOR.get(model)
+    from_anchor = kept is not None and p.warm is not None and p.warm.lam_n is kept[0]
+    krylov = Krylov(contact_modes(model), kept[1] if from_anchor else None)
+    res = solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
+                                  near_nullspace=contact_modes(model), rtol=model.options.iterative.tolerance,
+                                  reference=p.reference, krylov=krylov, **settings(model.options))
+    if kept is None and p.warm is None and res.status == Status.SOLVED:
+        _ANCHOR[model] = (res.lam_n, krylov)
+    else:
+        krylov.close()
+    return res
+
+
+_ANCHOR = weakref.WeakKeyDictionary()   # model → (its anchor's λn, the anchor solve's Krylov): `_solve_problem`
+_MODES = weakref.WeakKeyDictionary()    # model → `contact_modes`
+
+
+def contact_modes(model) -> np.ndarray:
+    """GAMG's near-nullspace for the contact steps, on the reduced unknowns: in 2D the rigid
+    motions of each body on its own (3 columns a body, zero off it), in 3D the model's rigid
+    motions of the whole mesh (`Model.near_nullspace`). A step eliminates only the closed and
+    stuck rows, so where the fault opens or slips the bodies move against each other, which one
+    set of modes for all bodies leaves out of every aggregate straddling the fault: on the 2D
+    tunnel the CG iterations of a Newton step grew 29 → 41 → 53 over two refinements (h⁻⁰·⁴),
+    with the bodies' own modes 11 → 15 → 15 (`tests/bench/test_bench_krylov_counts.py`). In 3D
+    the bodies' 12 columns doubled the coarse grids and the CPU time of a contact solve (3D
+    tunnel at 2.5e4 unknowns: 16.3 s against 8.0 s for 34 against 49 iterations)."""
+    if model not in _MODES:
+        if model.dim == 3:
+            _MODES[model] = model.near_nullspace
+        else:
+            sm = model.smesh
+            R = np.hstack([rigid_modes(sm.mesh.p, np.flatnonzero(sm.node_body == b), model.nnodes)
+                           for b in range(len(sm.bodies))])
+            _MODES[model] = reduced_modes(model.elim.T, R)
+    return _MODES[model]
 
 
 class IterativeAdjoint:
@@ -745,7 +865,7 @@ class IterativeAdjoint:
         Z0, Kt, P = self.Z0, self.Kt, self.P      # each rank of a group builds its rows, once for all criteria
         self.A = RowBlocks(K.shape[0], functools.lru_cache(maxsize=1)(lambda lo, hi: _eliminated(Z0, Kt, K, P, lo, hi)))
         self.rtol = model.options.iterative.tolerance
-        self.krylov = Krylov(model.near_nullspace)
+        self.krylov = Krylov(contact_modes(model))
 
     def solve(self, phi_w: np.ndarray, phi_lam_n: np.ndarray | None, phi_lam_t: np.ndarray | None = None):
         """(z, μ, σ) as `ContactAdjoint.solve` (μ in the slip frame), or None where refused (`refusal`)
