@@ -27,7 +27,7 @@ lets the count grow by ½ (2D) or ¾ (3D) of its level-0 value per unit of ln(H/
 
 Measured (2 cores shared with other jobs, one thread; `krylov_steps` the CG iterations of each
 Newton step):
-  (wcs 0f07ac0 | AMD EPYC | 2 cores | load 8.6 | 2026-12-06 11:19)
+  (wcs d0fd088 | AMD EPYC | 2 cores | load 14.3 | 2026-12-06 14:02, WCS_BENCH_KRYLOV="2d:2 3d:1")
   case                            lvl unknowns contact newton    CG CG/step  max linear  CG per Newton step / DD
   seed [21] dd, tunnel                   10428      89                                   12 subdomains, tol 1e-4: PCG1 21, outer 15, PCG in all 39
   2d tunnel, wcs dd seed ω=1.0      0    14707     148                                   12 subdomains, tol 0.0001: PCG1 22, outer 9, PCG in all 99 (diverged)
@@ -35,25 +35,26 @@ Newton step):
   2d tunnel, wcs dd auto            0    14707     148                                   12 subdomains, tol 0.0001: PCG1 8, outer 3, PCG in all 37 (converged)
   3d tunnel (sizes ×3)              0     3746     171      1    36    36.0   36     27  36
   3d tunnel (sizes ×3)              1    25190     606      1    49    49.0   49     34  49
-  2d tunnel                         0    14707     148      8   435    54.4  167     12  7 167 44 73 28 29 39 48
-  2d tunnel                         1    58006     294      9   699    77.7  252     14  7 252 100 47 50 51 52 52 88
-  2d tunnel                         2   230374     586      9  1057   117.4  398     16  8 398 141 69 73 75 74 77 142
-
-  Run as WCS_BENCH_KRYLOV="3d:1 2d:3" under a 3 GiB address-space cap (the big-memory lock was
-  held by other benchmarks all the while): the 3D level 2 (≈ 1.9e5 unknowns) and the 2D level 3
-  (9.2e5 unknowns) ran out of it while the model was built, so 2D has two refinements (16×
-  the unknowns) and 3D one (6.7×); levels 3 are open.
-  Growth, level 0 → the finest measured (its ≤ its₀ (1 + C ln(n/n₀))):
-    2D linear GAMG solve 12 → 16 (bound 20.2): holds; CG per Newton step 54.4 → 117.4 (bound 91.8):
-      FAILS — it grows like n^0.28 (≈ h^-0.56), ×1.43 and ×1.51 per refinement;
-    3D linear 27 → 34 (bound 39.9) and CG per Newton step 36 → 49 (bound 53.2): hold (one Newton step).
-  Why the 2D Newton steps grow (level 0, traced by wrapping `Krylov.solve`): of step 2's 166
-  iterations 130 are the kept GAMG hierarchy's (built for step 1's system), then the rebuilt one's
-  36 — `Krylov` rebuilds only after a solve has finished beyond REBUILD × its rate; and even a
-  fresh hierarchy needs 36 on a contact step where the glued system takes 12 (1e-8). So the
-  Newton steps cost what an aged preconditioner costs, not GAMG's h-dependence.
-  Our DD on the 2D tunnel: the seed's step diverges (ω = 1) or stagnates (Aitken); step auto
-  (interface Newton) converges in 3 steps with 37 PCG iterations, beside the seed's 15 / 39.
+  2d tunnel                         0    14707     148      7   125    17.9   34     12  6 15 33 34 8 10 19
+  2d tunnel                         1    58006     294      9   188    20.9   50     14  7 16 50 48 8 10 12 14 23
+  2d tunnel                         2   230374     586      9   218    24.2   68     16  9 17 68 10 20 24 26 27 17
+  Growth, level 0 → the finest measured (its ≤ its₀ (1 + C ln(n/n₀))): 2D linear 12 → 16 (bound 20.3)
+  and CG per Newton step 17.9 → 24.2 (bound 30.2); 3D linear 27 → 34 (bound 39.9) and CG per Newton
+  step 36 → 49 (bound 53.2): all hold. 2D has two refinements (16× the unknowns), 3D one (6.7×):
+  the 3D level 2 (≈ 1.9e5 unknowns) and the 2D level 3 (9.2e5) need the big-memory lock; open.
+  Before (wcs 0f07ac0, the same levels): 2D CG per Newton step 54.4 → 77.7 → 117.4 (bound 91.8: FAILED,
+  ≈ n^0.28), steps 7 167 44 73 28 29 39 48 at level 0. Two causes (`wcs.contact.iterative`):
+  - the hierarchy kept across steps (`Krylov`): built for the glued first step, its aggregates span
+    the fault; kept for step 2 it took 130 iterations, then the converged answer was thrown away
+    and the step solved again with a fresh one (36). Now a converged solve is kept, a hierarchy is
+    rebuilt once its excess iterations pass a set-up's cost, and the glued 2D step's is not kept.
+    With one set of rigid modes for all bodies the count still grew ≈ h^-0.4 even with a fresh
+    hierarchy every step (26.9 → 35.8 → 47.3; 29.1 → 41.1 → 53.3 rebuilt past 40 changed rows): FAILS;
+  - the near-nullspace: one set of rigid modes for both bodies leaves the fault's opening and
+    slipping (the bodies moving against each other) out of every aggregate that straddles it;
+    each body's own modes in 2D (`contact_modes`) give the table's 17.9 → 20.9 → 24.2 (CPU of the
+    level-1 evaluation 5.4 s against 6.8 s before; in 3D the bodies' 12 columns doubled the CPU time,
+    so 3D keeps one set).
 
 WCS_BENCH_KRYLOV="2d:3 3d:2" sets the finest level of each case (the default; both above 3 GB:
 run under the big-memory lock; the 3D level 3, ≈ 1.5e6 unknowns, would need ≈ 20 GB at the

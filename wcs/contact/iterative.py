@@ -721,10 +721,13 @@ class Krylov:
         self.timings["gamg_setup"] += time.perf_counter() - t
 
     def close(self):
-        """Free the hierarchy this solver built (a kept one stays its owner's)."""
+        """Free the hierarchy this solver built (a kept one stays its owner's, without this
+        solver's last operator)."""
         if self.ksp is not None and self.own:
             self.ksp.destroy()
             self.P.destroy()
+        elif self.ksp is not None:
+            self.ksp.setOperators(self.P, self.P)
         self.ksp = self.P = self.built = None
 
 
