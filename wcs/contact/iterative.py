@@ -42,15 +42,18 @@ springs carry Nᵀb = 0); and the free motions keep the amplitude of the iterate
 starts from (the step vanishes on those unknowns). An answer whose rows leave a motion free is
 not unique (NOT_UNIQUE, `free_rigid_motion`).
 
-Inexact Newton: each step solves for the correction from the iterate, Zᵀ K Z δ = r with
-r = Zᵀ(f − K u_b) − Zᵀ K Z u_O (u_O the iterate's own unknowns), by CG to the Eisenstat–Walker
-forcing term η_k = 0.9 (φ_k / φ_{k−1})² relative to ‖r‖ (choice 2, safeguarded to
-[rtol, 1e-4]; at 1e-2 a loose step mispredicted the stick/slip split of a Tresca pad and the
-active set cycled; never below `MIN_TOLERANCE` of the whole right-hand side, rounding noise),
-φ the complementarity residual ‖λ − Π_B(z)‖; an answer is accepted only from a step solved to
-the final `rtol`. Solved for u itself, a step's error was rtol of ‖u‖ however small the
-change: the Coulomb fixed point over Tresca answers stalled at that noise (‖Δp‖ = 4e-8 to 1e-7 of ‖p‖
-on a 3D Coulomb shear patch at the default tolerances 1e-8, never reaching its own 1e-8). A step
+Inexact Newton: each step's CG is driven to the Eisenstat–Walker forcing term η_k =
+0.9 (φ_k / φ_{k−1})² (choice 2, safeguarded to [rtol, 1e-4]; at 1e-2 a loose step
+mispredicted the stick/slip split of a Tresca pad and the active set cycled), φ the complementarity residual
+‖λ − Π_B(z)‖; an answer is accepted only from a step solved to the final `rtol`. Such a step
+solves for its correction from the iterate, Zᵀ K Z δ = r, r = Zᵀ(f − K u_b) − Zᵀ K Z u_O (u_O
+the iterate's own unknowns), to rtol of ‖r‖ (never below `MIN_TOLERANCE` of the whole
+right-hand side: rounding noise); solved for u itself its error was rtol·‖u‖ however small the
+change, and the Coulomb fixed point over Tresca answers stalled at that noise (‖Δp‖ = 4e-8 to
+1e-7 of ‖p‖ on a 3D Coulomb shear patch at the default tolerances 1e-8, never reaching its
+own 1e-8). Loose steps, and steps that leave rigid motions free, are solved whole (from the
+iterate, the floating Tresca pad started all open took another path and ended at an answer
+with no stuck node, NOT_UNIQUE). A step
 with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
 Newton does).
 
@@ -245,7 +248,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         if eta <= rtol:
             tight.add(key)
         try:
-            u1, lam1 = step.solve(free, z, gw, c, k, eta, u)
+            u1, lam1 = step.solve(free, z, gw, c, k, eta, u, rtol)
         except _KrylovFailure as exc:
             step.failure = str(exc)
             break
@@ -406,7 +409,7 @@ class _Stepper:
         self.krylov = 0
         self.krylov_steps = []      # CG iterations of each step (a rebuilt preconditioner's solve included)
 
-    def solve(self, free, z, gw, c, k, eta, u_old):
+    def solve(self, free, z, gw, c, k, eta, u_old, rtol):
         """(u, λ) of the step with the free set `free` (the slip data from z), from the iterate u_old
         (`_free_modes`: where the step leaves a floating body's rigid motion free, it keeps
         u_old's)."""
@@ -429,9 +432,10 @@ class _Stepper:
             b = b - N @ np.linalg.lstsq(N, b, rcond=None)[0]
             pin = pinned_dofs(N)
             A = RowBlocks(n, _pinned(A.rows, pin))
-        v = np.array(u_old, dtype=float)   # the correction from u_old's own unknowns (u_O = v_O), module docstring
+        # a step to the final tolerance solves for its correction from u_old's own unknowns (u_O = v_O, module
+        # docstring); a loose one, or one that leaves rigid motions free, is solved whole (from v = 0)
+        v = np.array(u_old, dtype=float) if eta <= rtol and not len(pin) else np.zeros(n)
         v[P] = 0.0
-        v[pin] = 0.0
         r = b - Z.T @ (Kt @ (Z @ v))        # A v: Zᵀ Kt Z v (v vanishes where A adds diagonals)
         size = np.linalg.norm(r)
         tol = max(eta, MIN_TOLERANCE * np.linalg.norm(b) / size) if size > 0 else 1.0
