@@ -57,9 +57,7 @@ by classes of reach (criteria._distance_to_facets), it is gone: at a/16 (34,371 
 segment integrals (contact.mortar3d.mortar_integrals3d, a Python loop over 7,565 segments), and
 0.58 GB peak.
 Session 27 (issue 25): the segment integrals are computed for all facet pairs at once (bitwise the
-loop's): on the Hertz .msh at a/16, mortar_integrals3d 18.9 s -> 1.7 s and `wcs solve` iterative's
-"assembly" 25.1 s -> 10.1 s (one run each, load ≈ 17). Kratos' Hertz load is ramped over 5 load
-steps (kratos_patch.py). The tables of this session (alternating, medians of 3, peak RSS; loads
+loop's). Kratos' Hertz load is ramped over 5 load steps (kratos_patch.py). The tables of this session (alternating, medians of 3, peak RSS; loads
 9.7-17, far above the 3-4 of the first table: read the ratios; at face 0.02 the spread is large,
 wall min-max 40-110 s for wcs iterative, 16-112 s for Kratos, and its first two rounds ran wcs
 with PARDISO loaded lazily, a change reverted before the third):
@@ -68,13 +66,12 @@ with PARDISO loaded lazily, a change reverted before the third):
   patch 0.02         37,329  89.7 s 0.49 GB    435 s 5.33 GB        38.4 s 0.28 GB
   Hertz a/8           8,025  24.3 s 0.30 GB    16.5 s 0.29 GB       64.5 s 0.19 GB (5 load steps)
 wcs is ahead on the Hertz only (4x faster by its monolithic method, the axis pressure 3.4 % below
-p0 against Kratos' 1.3 %), behind on the patch, and heavier everywhere: its imports alone hold
-≈ 0.2 GB (pandas + xarray + h5netcdf 53 MB, PETSc 34 MB, gmsh 21 MB, scipy ≈ 40 MB). `auto`
-takes the monolithic method at both patch faces (the block is held by the contact alone, which
-keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own estimate
-(5.35 GB and 160 s, the iterative 0.52 GB and 29 s). At a/16 the bench (3 rounds) ran out of its
-30 minutes: one Kratos run took ≈ 14 min (a load step stuck at a displacement increment of 1e-8
-after 24 Newton steps).
+p0 against Kratos' 1.3 %), behind on the patch, and heavier everywhere: its imports alone (pandas, xarray and
+h5netcdf for the results file, PETSc, gmsh, scipy) hold more than Kratos' whole run at 0.04.
+`auto` takes the monolithic method at both patch faces (the block is held by the contact alone,
+which keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own
+estimate, which rates the iterative method ten times leaner and faster. At a/16 the bench
+(3 rounds) ran out of its 30 minutes: Kratos' Newton stalls in a load step there.
 """
 from __future__ import annotations
 
