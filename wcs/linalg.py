@@ -59,16 +59,11 @@ def _mkl_rt_hint() -> None:
                 return
 
 
-@functools.cache
-def _pardiso():
-    """pypardiso, loaded at the first direct factor (or `backend()`), not at import: loading MKL
-    takes 1-2 s that an iterative solve, a check or a report never use; None where it does not load."""
-    try:  # pragma: no cover - depends on the platform
-        _mkl_rt_hint()
-        import pypardiso
-    except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
-        return None
-    return pypardiso
+try:  # pragma: no cover - depends on the platform
+    _mkl_rt_hint()
+    import pypardiso as _pardiso
+except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
+    _pardiso = None
 
 
 class FactorizationError(RuntimeError):
@@ -104,18 +99,9 @@ def configure_threads() -> int:
 
 
 def backend() -> str:
-    if os.environ.get("WCS_SOLVER", "").lower() == "superlu" or _pardiso() is None:
+    if os.environ.get("WCS_SOLVER", "").lower() == "superlu" or _pardiso is None:
         return "superlu"
     return "pardiso"
-
-
-_MADE: set[str] = set()           # the backends of the factors this process made
-
-
-def direct_backend_used() -> str:
-    """The backends of the direct factors this process made, or "none": an iterative solve may
-    make no direct factor, and then loads no direct solver."""
-    return ", ".join(sorted(_MADE)) or "none"
 
 
 def _csr(A) -> sp.csr_matrix:
@@ -195,7 +181,7 @@ PARDISO_ERRORS = {
 @functools.cache
 def _mkl_pardiso():
     """The `pardiso` entry point of the mkl_rt library that pypardiso locates."""
-    return _pardiso().PyPardisoSolver()._mkl_pardiso
+    return _pardiso.PyPardisoSolver()._mkl_pardiso
 
 
 class PardisoFactor:
@@ -344,7 +330,6 @@ def factorize(A: sp.spmatrix, kind: str | None = None, *, spd: bool = False, blo
     border: a sparse C (k × n) for which `.delassus()` returns the dense C A⁻¹ Cᵀ (spd only).
     """
     kind = kind or backend()
-    _MADE.add(kind)
     if kind == "pardiso":
         return PardisoFactor(A, spd=spd, block=block, border=border)
     return SuperLUFactor(A, spd=spd, block=block, border=border)

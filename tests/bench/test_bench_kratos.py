@@ -56,6 +56,22 @@ by classes of reach (criteria._distance_to_facets), it is gone: at a/16 (34,371 
 26, load 12) `wcs solve` iterative reports assembly 9.4 s, of which 7.5 s are the dual mortar's
 segment integrals (contact.mortar3d.mortar_integrals3d, a Python loop over 7,565 segments), and
 0.58 GB peak.
+Session 27 (issue 25): the segment integrals are computed for all facet pairs at once (bitwise the
+loop's). Kratos' Hertz load is ramped over 5 load steps (kratos_patch.py). The tables of this session (alternating, medians of 3, peak RSS; loads
+9.7-17, far above the 3-4 of the first table: read the ratios; at face 0.02 the spread is large,
+wall min-max 40-110 s for wcs iterative, 16-112 s for Kratos, and its first two rounds ran wcs
+with PARDISO loaded lazily, a change reverted before the third):
+  case             unknowns  wcs iterative     wcs monolithic       Kratos (ALM, AMGCL)
+  patch 0.04         10,515  25.3 s 0.30 GB    35.2 s 0.61 GB       13.2 s 0.19 GB
+  patch 0.02         37,329  89.7 s 0.49 GB    435 s 5.33 GB        38.4 s 0.28 GB
+  Hertz a/8           8,025  24.3 s 0.30 GB    16.5 s 0.29 GB       64.5 s 0.19 GB (5 load steps)
+wcs is ahead on the Hertz only (4x faster by its monolithic method, the axis pressure 3.4 % below
+p0 against Kratos' 1.3 %), behind on the patch, and heavier everywhere: its imports alone (pandas, xarray and
+h5netcdf for the results file, PETSc, gmsh, scipy) hold more than Kratos' whole run at 0.04.
+`auto` takes the monolithic method at both patch faces (the block is held by the contact alone,
+which keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own
+estimate, which rates the iterative method ten times leaner and faster. At a/16 the bench
+(3 rounds) ran out of its 30 minutes: Kratos' Newton stalls in a load step there.
 """
 from __future__ import annotations
 
@@ -232,7 +248,8 @@ def test_bench_kratos_patch(tmp_path):
 def test_bench_kratos_hertz(tmp_path):
     """The 3D Hertz quarter model (studies/validation/hertz-3d.yaml) from a .msh meshed at
     WCS_BENCH_KRATOS_HERTZ (default a/24 = 0.00417 within 0.13 of the contact point: ≈ 9.5e4
-    unknowns); wcs takes the dual mortar (nonmatching faces), Kratos its mortar ALM.
+    unknowns; a/8 = 0.0125 runs in minutes); wcs takes the dual mortar (nonmatching faces),
+    Kratos its mortar ALM in 5 load steps.
     Table: results/bench/bench_kratos_hertz.csv."""
     h = float(os.environ.get("WCS_BENCH_KRATOS_HERTZ", "0.00417"))
     kratos = kratos_python()
