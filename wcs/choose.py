@@ -49,7 +49,7 @@ class SolverFacts:
     costs: dict | None = None           # method -> (peak bytes, seconds) of one evaluation (wcs.scene.estimate)
     memory: float = float("inf")        # bytes one evaluation may take (USABLE_SHARE of `machine_memory`)
     iterative_installed: bool = True    # PETSc (petsc4py and the wheel dolfinx-solver-real) importable
-    floating: bool = False              # a body held by contact alone (rigid modes the iterative method does not project yet)
+    floating: bool = False              # a body held by contact alone (its Newton steps are taken in the complement of its rigid modes)
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
@@ -77,9 +77,9 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
              f"{_cost(*iterative)} by the iterative one")
     if direct[0] > f.memory and iterative[0] <= f.memory:
         return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
-    # for speed only where the iterative method solves every case the scene can give: a body held by
-    # contact alone can leave it a step it refuses (its rigid modes are not projected yet: the 3D
-    # mesh-file pad, the 2D knee's femur)
+    # for speed only where the iterative method is shown to solve every case the scene can give: on a
+    # body held by contact alone its active set can cycle where the monolithic method's falls back to
+    # the dual QP (the 2D knee's femur under Coulomb friction; the iterative method has no such fallback)
     if (f.dimension == 3 and not f.floating and ITERATIVE_MARGIN * iterative[1] < direct[1]
             and iterative[0] <= f.memory):
         return "iterative", f"{words}: the monolithic method would be more than {ITERATIVE_MARGIN:g}x slower"
