@@ -136,7 +136,7 @@ def decomposition(model, options, heat: bool = False, level: Level | None = None
     level's operator (`Level`: the cells' pieces, one decomposition by operator name) or
     (`heat`) of the thermal step (built once, cached on the model)."""
     dd = Solver.of(options).dd
-    key = ("heat",) * heat + (() if level is None else ("level", level.name)) + (dd.subdomains, dd.pair_size)
+    key = ("heat",) * heat + (() if level is None else ("level", level.name, getattr(level.local, "key", b""))) + (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
         with phase("DD set-up (heat)" if heat else "DD set-up"):
