@@ -1,9 +1,12 @@
 """The domain decomposition steps in time (`solver.method: dd`): each level's contact problem is
 solved by the decomposition, its subdomains' matrices the level operator's (mass with
 stiffness, `wcs.dynamics.stepping.level_coefficients`), and agrees with the monolithic solve of
-the same level to the decomposition's tolerance; absorbing boundaries are refused at load."""
+the same level to the decomposition's tolerance, with absorbing boundaries too."""
+from pathlib import Path
+
 import numpy as np
 import pytest
+import yaml
 
 from tests.dynamics.test_bars import DURATION, bars
 from tests.dynamics.test_friction import sliding
@@ -66,6 +69,43 @@ def test_dd_steps_with_absorbing_boundaries_as_the_monolithic_method(scheme):
     assert ev.model.solver_method == "dd"
     lam = np.array(mono.force_n)
     assert lam.sum() > 0 and len(dd.time) == len(mono.time)
+    assert np.abs(np.array(dd.force_n) - lam).max() <= 100 * TOLERANCE * lam.max()
+    u = np.array(mono.displacement)
+    assert np.abs(np.array(dd.displacement) - u).max() <= 100 * TOLERANCE * np.abs(u).max()
+
+
+def test_dd_steps_the_seismic_tunnel_as_the_monolithic_method():
+    """studies/tunnel-fault-seismic.yaml coarsened (mesh 8 m, 1 m at the tunnel) with a damping
+    layer on two of its dashpot sides, 3 levels: the static start by dd, the supports released,
+    the Tresca fault's forces and the displacements as the monolithic solve's to 100 × the
+    tolerance."""
+    doc = yaml.safe_load((Path(__file__).parents[2] / "studies" / "tunnel-fault-seismic.yaml").read_text())
+    doc["scene"]["mesh"] = {"size": 8.0, "refine": [{"disc": {"center": [0.0, 0.0], "radius": 6.0}, "size": 1.0}]}
+    doc["scene"]["absorbing"]["layer"] = {"boundaries": ["left", "bottom"], "thickness": 10.0, "damping": 20.0}
+    doc["dynamics"]["end_time"] = 3 * doc["dynamics"]["time_step"]
+    mono, _ = _levels(doc, "monolithic")
+    dd, _ = _levels(doc, "dd")
+    lam = np.array(mono.force_n)
+    assert lam.sum() > 0 and len(dd.time) == len(mono.time) == 4
+    assert np.abs(np.array(dd.force_n) - lam).max() <= 100 * TOLERANCE * lam.max()
+    assert np.abs(np.array(dd.force_t) - np.array(mono.force_t)).max() <= 100 * TOLERANCE * lam.max()
+    u = np.array(mono.displacement)
+    assert np.abs(np.array(dd.displacement) - u).max() <= 100 * TOLERANCE * np.abs(u).max()
+
+
+def test_dd_starts_from_its_static_solution():
+    """`initial: static` solved by dd (the block pressed on its base, held sideways at its left
+    side): the levels start from its reduced unknowns and contact forces — the level 0 force is
+    the static one, as the monolithic solve's — and every level agrees with the monolithic's."""
+    doc = _coulomb_block()
+    doc["dynamics"]["initial"] = "static"
+    doc["dynamics"]["end_time"] = 0.002
+    doc["scene"]["boundaries"]["block_left"] = {"body": "block", "segment": [[0.0, 0.0], [0.0, 0.2]]}
+    doc["scene"]["supports"]["block_left"] = {"normal": 0.0}
+    mono, _ = _levels(doc, "monolithic")
+    dd, _ = _levels(doc, "dd")
+    lam = np.array(mono.force_n)
+    assert lam[0].sum() == pytest.approx(1.0e5 * 1.0, rel=1e-6)       # the pressure on the 1 m top
     assert np.abs(np.array(dd.force_n) - lam).max() <= 100 * TOLERANCE * lam.max()
     u = np.array(mono.displacement)
     assert np.abs(np.array(dd.displacement) - u).max() <= 100 * TOLERANCE * np.abs(u).max()
