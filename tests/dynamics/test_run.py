@@ -110,6 +110,21 @@ def test_the_results_say_no_adjoint_gradient_was_used(serial):
     assert np.isnan(ds["grad"].values).all()
 
 
+def test_the_solver_choice_gives_the_reason_of_a_time_level(serial):
+    """`auto` on a dynamic study: the results file's `solver_choice` says what decides each
+    level's method (no adjoint through time) and the cost of one level's solve, never the
+    static search's adjoint-gradient rule; with friction, the friction rule decides."""
+    from tests.dynamics.test_friction import sliding
+    from wcs.results.dataset import provenance
+    choice = serial[2].attrs["solver_choice"]
+    assert choice.startswith("monolithic: each time level is one contact solve (no adjoint gradient through time")
+    assert "adjoint gradients, which need" not in choice and "one time level estimated at" in choice
+    assert "one evaluation" not in choice
+    study = load_study(sliding("seed"))
+    tresca = provenance(study, Evaluator(study))["solver_choice"]
+    assert tresca.startswith("monolithic: each time level is one contact solve") and "): friction: " in tresca
+
+
 def test_resume_answers_from_the_store_with_the_same_bits(serial, tmp_path):
     path, out, ds = serial
     folder = tmp_path / "resumed"
