@@ -135,10 +135,12 @@ def _start_tolerance(options, o: dict) -> float:
 
 def decomposition(model, options, heat: bool = False, level: Level | None = None) -> Decomposition:
     """The model's decomposition for these `solver` options, of the elastic problem, of a time
-    level's operator (`Level`: the cells' pieces, one decomposition by operator name) or
+    level's operator (`Level`: the cells' pieces, one decomposition by operator name and the
+    pieces' `key`, e.g. an absorbing layer's cells) or
     (`heat`) of the thermal step (built once, cached on the model)."""
     dd = Solver.of(options).dd
-    key = ("heat",) * heat + (() if level is None else ("level", level.name, getattr(level.local, "key", b""))) + (dd.subdomains, dd.pair_size)
+    held = () if level is None else ("level", level.name, getattr(level.local, "key", b""))   # the pieces' own key
+    key = ("heat",) * heat + held + (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
         with phase("DD set-up (heat)" if heat else "DD set-up"):
