@@ -50,13 +50,19 @@ class SolverFacts:
     memory: float = float("inf")        # bytes one evaluation may take (USABLE_SHARE of `machine_memory`)
     iterative_installed: bool = True    # PETSc (petsc4py and the wheel dolfinx-solver-real) importable
     floating: bool = False              # a body held by contact alone (its Newton steps are taken in the complement of its rigid modes)
+    dynamic: bool = False               # a dynamic study: the method solves each time level (no adjoint through time)
 
 
 def solver_method(f: SolverFacts) -> tuple[str, str]:
     """`solver.method: auto` -> "monolithic", "dd" or "iterative" (never "qp": the cvxpy reference,
     28-87x slower than the monolithic Newton for the same answer, forward_hertz.png). The reason
-    carries a P1-locking warning when some material has nu > NU_LOCKING."""
+    carries a P1-locking warning when some material has nu > NU_LOCKING. A dynamic study: the
+    rules decide the method of each time level's contact solve (its operator A with the mass:
+    no rigid modes), with no adjoint gradients (none runs through time) and no fallback."""
     method, why = _size_rule(f) or _solver_rule(f)
+    if f.dynamic:
+        why = ("each time level is one contact solve (no adjoint gradient through time: the search takes "
+               f"finite differences): {why}")
     if f.contact and f.costs is not None and method != "iterative":
         why += (f"; the iterative method{'' if f.iterative_installed else ' (not installed: PETSc, the wheel dolfinx-solver-real)'}"
                 f" estimated at {_cost(*f.costs['iterative'])}")
@@ -73,7 +79,7 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
     if not f.contact or f.costs is None or not f.iterative_installed:
         return None
     direct, iterative = f.costs["monolithic"], f.costs["iterative"]
-    words = (f"one evaluation estimated at {_cost(*direct)} by the monolithic method, "
+    words = (f"{'one time level' if f.dynamic else 'one evaluation'} estimated at {_cost(*direct)} by the monolithic method, "
              f"{_cost(*iterative)} by the iterative one")
     if direct[0] > f.memory and iterative[0] <= f.memory:
         return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
@@ -95,7 +101,7 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
         return "monolithic", "no contact: one sparse factorization and solve, nothing to iterate"
     if f.dimension == 3:
         return "monolithic", "3D: the monolithic solver (the domain decomposition is 4-12x slower on tetrahedra)"
-    if f.gradients:
+    if f.gradients and not f.dynamic:
         return "monolithic", ("the search asks adjoint gradients, which need the monolithic factorization "
                               "(a DD answer is polished by the monolithic solver anyway, wcs/model/model.py)")
     if f.friction != "none":
@@ -117,7 +123,8 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
         return "monolithic", "the DD has not been shown to converge on this scene family (run one dd solve first)"
     return "dd", (f"{f.unknowns} unknowns >= {DD_MIN_UNKNOWNS}, frictionless, no gradients, contrast <= "
                   f"{DD_MAX_CONTRAST:g}, nu <= {DD_MAX_NU:g} and known to converge: the decomposition "
-                  "(fallback to monolithic on failure)")
+                  + ("(a level it does not solve fails the evaluation)" if f.dynamic
+                     else "(fallback to monolithic on failure)"))
 
 
 # ---- search (search_convergence.png, search_solves_to_tolerance.csv)

@@ -110,6 +110,21 @@ def test_the_results_say_no_adjoint_gradient_was_used(serial):
     assert np.isnan(ds["grad"].values).all()
 
 
+def test_the_solver_choice_gives_the_reason_of_a_time_level(serial):
+    """`auto` on a dynamic study: the results file's `solver_choice` says what decides each
+    level's method (no adjoint through time) and the cost of one level's solve, never the
+    static search's adjoint-gradient rule; with friction, the friction rule decides."""
+    from tests.dynamics.test_friction import sliding
+    from wcs.results.dataset import provenance
+    choice = serial[2].attrs["solver_choice"]
+    assert choice.startswith("monolithic: each time level is one contact solve (no adjoint gradient through time")
+    assert "adjoint gradients, which need" not in choice and "one time level estimated at" in choice
+    assert "one evaluation" not in choice
+    study = load_study(sliding("seed"))
+    tresca = provenance(study, Evaluator(study))["solver_choice"]
+    assert tresca.startswith("monolithic: each time level is one contact solve") and "): friction: " in tresca
+
+
 def test_resume_answers_from_the_store_with_the_same_bits(serial, tmp_path):
     path, out, ds = serial
     folder = tmp_path / "resumed"
@@ -188,6 +203,39 @@ def test_check_says_what_an_evaluation_is_and_names_the_reductions(serial, capsy
     peak, total, first, level = map(float, words.groups())
     assert total == pytest.approx(first + 16 * level, rel=0.06)     # the printed figures' 2 digits
     assert 0.05 < peak < 64
+
+
+def test_check_prints_the_mesh_checks_cost_of_simulations(serial, capsys):
+    """Each solve of a dynamic study's mesh check is a whole simulation: `wcs check` prints its
+    cost from one evaluation's measured time and memory (4 extremes × the evaluation's time grown
+    as nodes^1.15 on the mesh split once and twice; memory the evaluation's peak grown as the
+    nodes of the mesh split twice)."""
+    from wcs.results.meshcheck import refined_nodes
+    path = serial[0]
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    first = re.search(r"one evaluation estimated at about ([\d.e+-]+) GB peak and ([\d.e+-]+) s", out)
+    line = next(row for row in out.splitlines() if row.startswith("  mesh check"))
+    words = re.search(r"up to 4 extreme data set\(s\) simulated again \(17 levels each\) on the mesh split once "
+                      r"and twice, (\d+) unknowns and (\d+) unknowns; about ([\d.e+-]+) s and ([\d.e+-]+) GB peak", line)
+    assert first and words, line
+    peak, seconds = map(float, first.groups())
+    mesh = Evaluator(load_study(tiny())).smesh.mesh
+    r = [refined_nodes(mesh, s) / mesh.p.shape[1] for s in (1, 2)]
+    assert [int(words[1]), int(words[2])] == [2 * refined_nodes(mesh, s) for s in (1, 2)]
+    assert float(words[3]) == pytest.approx(4 * seconds * sum(x ** 1.15 for x in r), rel=0.1)   # 2 digits each
+    assert float(words[4]) == pytest.approx(peak * r[1], rel=0.01)
+
+
+def test_check_refuses_a_mesh_check_that_would_not_fit(serial, capsys, monkeypatch):
+    """A machine too small for a simulation on the mesh split twice: exit 2, the way out named."""
+    monkeypatch.setattr("wcs.app.dynamics.machine_memory", lambda: 1.0e8)
+    capsys.readouterr()
+    assert main(["check", str(serial[0]), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "the mesh check would need about" in err and "beyond the 0.05 GB it may take" in err
+    assert "`wcs run --no-mesh-check`" in err and err.count("\n") == 1
 
 
 def test_a_failed_simulation_is_a_record_with_its_status_and_no_history(monkeypatch):

@@ -20,6 +20,8 @@ from wcs.model.evaluation import Evaluator
 from wcs.model.fields import fields_dataset
 from wcs.results.dataset import provenance, write_netcdf
 from wcs.results.dynamics import GRADIENTS
+from wcs.results.meshcheck import MEMORY_SHARE, SOLVE_GROWTH, SPLITS, planned, refined_nodes
+from wcs.scene.estimate import machine_memory
 from wcs.results.paraview import volume, vtu_text, _write
 from wcs.results.store import WriteError
 from wcs.status import Status
@@ -167,13 +169,13 @@ def history_bytes(hist: History) -> tuple[float, float]:
     return per_level / levels, out / max(len(hist.output_levels), 1)
 
 
-def evaluation_estimate(ev, x) -> str:
+def evaluation_estimate(ev, x) -> tuple[str, float, float]:
     """One evaluation's time and memory, measured on the first levels at data x: after one level
     run to build what every evaluation reuses (the released model, the caches), the set-up (the
     static state, the matrices) with the first level (which factors A) is timed alone, then with
     TIMED levels more; the evaluation is the first plus (levels − 1) × a later level's time. The
     memory is this process's peak over those levels (the model, both factors) plus what the
-    remaining levels add to the history (`history_bytes`)."""
+    remaining levels add to the history (`history_bytes`). Returns (the line, peak bytes, seconds)."""
     dyn = ev.study.dynamics
     k = min(TIMED, dyn.levels - 1)
 
@@ -193,7 +195,38 @@ def evaluation_estimate(ev, x) -> str:
     return (f"  one evaluation estimated at about {peak / 1e9:.3g} GB peak and {seconds:.2g} s: the static state "
             f"and the first level {first:.2g} s + {dyn.levels - 1} levels × {level:.2g} s (timed on {k} levels at "
             f"the nominal data); memory: this process's peak over them and the history of the other levels "
-            f"({rest / 1e6:.3g} MB)")
+            f"({rest / 1e6:.3g} MB)"), peak, seconds
+
+
+def mesh_check_estimate(study, ev, peak: float, seconds: float) -> tuple[str, str]:
+    """(the line, the fault or ""): what the mesh check of `wcs run` costs a dynamic study, each of
+    its solves a whole simulation: on each planned refined mesh (`planned`), up to one simulation
+    per extreme, its time one evaluation's `seconds` grown as nodes^SOLVE_GROWTH (as a static
+    solve's, level by level: the levels stay as many), its memory the evaluation's `peak` grown as
+    the nodes. The fault: the largest refined mesh's simulation beyond MEMORY_SHARE of the
+    machine's memory (the mesh check would not fit)."""
+    if study.scene.mesh.file is not None:
+        return "  mesh check: not available (a mesh read from a file has no geometry to refine on)", ""
+    mesh, zone = ev.smesh.mesh, ev.model.zone
+    splits, why = planned(study, mesh.t.shape[1], 0 if zone is None else len(zone.gap))
+    if not splits:
+        return f"  mesh check: will not run ({why})", ""
+    n_ext = sum(2 if c.sense == "both" else 1 for c in study.criteria)
+    growth = [refined_nodes(mesh, s) / mesh.p.shape[1] for s in splits]
+    total = sum(n_ext * seconds * r ** SOLVE_GROWTH[mesh.dim()] for r in growth)
+    need, memory = peak * growth[-1], MEMORY_SHARE * machine_memory()
+    meshes = "split once and twice" if splits == SPLITS else f"split once only ({why})"
+    line = (f"  mesh check (after the search; `run --no-mesh-check` skips it): up to {n_ext} extreme data set(s) "
+            f"simulated again ({study.dynamics.levels} levels each) on the mesh {meshes}, "
+            + " and ".join(f"{ev.model.dim * refined_nodes(mesh, s)} unknowns" for s in splits)
+            + f"; about {total:.2g} s and {need / 1e9:.3g} GB peak (one evaluation's time grown as "
+            f"nodes^{SOLVE_GROWTH[mesh.dim()]:g}, its memory as the nodes)")
+    fault = "" if need <= memory else (
+        f"the mesh check would need about {need / 1e9:.3g} GB for a simulation on the mesh split "
+        f"{'once' if splits[-1] == 1 else f'{splits[-1]} times'}, beyond the {memory / 1e9:.3g} GB it may take "
+        f"({MEMORY_SHARE:.0%} of this machine's {machine_memory() / 1e9:.3g} GB); run it with "
+        f"`wcs run --no-mesh-check`, or coarsen the mesh (`mesh.size`, `refine`)")
+    return line, fault
 
 
 def check_dynamic(study, ev, args, summary: str) -> int:
@@ -201,7 +234,8 @@ def check_dynamic(study, ev, args, summary: str) -> int:
     in the mesh at the nominal data and at the corners of their uncertain points (StudyError,
     exit 2) and, for `initial: static`, the static solve that starts them (exit 2 where the
     scene has no static solution); then one evaluation's time and memory, from its first levels
-    (`evaluation_estimate`)."""
+    (`evaluation_estimate`), and the mesh check's from them (`mesh_check_estimate`: exit 2 where
+    it would not fit in memory, even with --quiet)."""
     dyn = study.dynamics
     check_sources(ev, study.nominal())
     for w in study.warnings:
@@ -219,11 +253,18 @@ def check_dynamic(study, ev, args, summary: str) -> int:
         except SolveError as e:
             print(f"error: {study.file}: {e}", file=sys.stderr)
             return 2 if Status(e.status).scene_fault else 1
+    try:
+        line, peak, seconds = evaluation_estimate(ev, study.nominal())
+    except SolveError as e:
+        print(f"error: {study.file}: the nominal data set's first levels cannot be solved: {e}", file=sys.stderr)
+        return 2 if Status(e.status).scene_fault else 1
+    mesh_line, fault = mesh_check_estimate(study, ev, peak, seconds)
     if not args.quiet:
-        try:
-            print(evaluation_estimate(ev, study.nominal()))
-        except SolveError as e:
-            print(f"error: {study.file}: the nominal data set's first levels cannot be solved: {e}", file=sys.stderr)
-            return 2 if Status(e.status).scene_fault else 1
+        print(line)
+        print(mesh_line)
+    if fault:
+        print(f"error: {study.file}: {fault}", file=sys.stderr)
+        return 2
+    if not args.quiet:
         print("ok")
     return 0

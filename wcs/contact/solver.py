@@ -729,7 +729,8 @@ class _TrescaNewton:
 def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_iter=100,
                   warm: ContactResult | None = None, factor: ContactFactor | None = None,
                   factored: ContactFactor | None = None,
-                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True) -> ContactResult:
+                  tol_fp=1e-8, max_fp_iter=50, checked: bool = False, qp: bool = True,
+                  reference: float = 0.0) -> ContactResult:
     """Tresca (g) or Coulomb (F) contact by condensed semismooth Newton; see the module docstring.
 
     warm:   a previous result on the same mesh; its multipliers start the Newton
@@ -751,8 +752,10 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
             depends on f only through Rᵀf): the linear program is not run again.
     qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
             (CONTACT_NOT_CONVERGED).
+    reference: the size of the displacement u is an increment of (`ContactProblem.reference`).
     """
-    return solve_condensed(ContactProblem(K, f, Bn, Bt, d, w, g, F, R, warm), tol=tol, max_iter=max_iter,
+    return solve_condensed(ContactProblem(K, f, Bn, Bt, d, w, g, F, R, warm, reference=reference),
+                           tol=tol, max_iter=max_iter,
                            factor=factor, factored=factored, tol_fp=tol_fp, max_fp_iter=max_fp_iter,
                            checked=checked, qp=qp)
 

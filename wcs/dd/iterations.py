@@ -29,8 +29,9 @@ class Iteration:
     of the interface equation S0 U + S_con(U) = F [21, (4.32)], the zone rows' gaps d = gap − Bn u0,
     weights w, slip limits g and friction coefficients, the norm of the reduced load (`load`,
     a scale of Newton's residual), the DD's working options `o`, the `info` it reports into,
-    the ranks' `team`, and its `cache`: the last contact residual and linearisation
-    (`_contact_residual`, `_linearised`)."""
+    the ranks' `team`, its `cache`: the last contact residual and linearisation
+    (`_contact_residual`, `_linearised`), and `reference`: the size of the displacement the
+    solve's is an increment of (a time level's, the local solves' certificate scale)."""
     dec: Decomposition
     S0: InterfaceOperator
     S: InterfaceOperator
@@ -44,6 +45,7 @@ class Iteration:
     info: dict
     team: Team
     cache: dict = field(default_factory=dict)
+    reference: float = 0.0
 
     @property
     def slip_bounds(self) -> np.ndarray:
@@ -61,13 +63,13 @@ class Iteration:
         gaps, weights, slip limits and friction coefficients."""
         rows = p.rows
         return p.contact(V, self.d[rows], self.weight[rows], self.slip[rows], _coulomb(self.friction, rows),
-                         self.o["contact_tolerance"], LOCAL_MAX_ITERATIONS)
+                         self.o["contact_tolerance"], LOCAL_MAX_ITERATIONS, self.reference)
 
     def tresca(self, p, V: np.ndarray, bound: np.ndarray | None):
         """Pair p's local Tresca solve with interface values V (`PairUnit.tresca`) on its rows'
         gaps and slip bounds `bound` (None: all stick)."""
         return p.tresca(V, self.d[p.rows], None if bound is None else bound[p.rows], self.o["contact_tolerance"],
-                        LOCAL_MAX_ITERATIONS)
+                        LOCAL_MAX_ITERATIONS, self.reference)
 
 
 def _local_solves(it: Iteration, U: np.ndarray, solve) -> tuple[np.ndarray | None, str]:

@@ -37,7 +37,10 @@ class Decomposition:
         dd = model._solve_dd(c, Kr, rhs, u0)
         if dd.status is DDOutcome.CONVERGED and not adjoint:
             contact = model.contact_state(dd.lam_n, dd.lam_t, dd.u, dd.info.get("active"))
-            return Solved(dd.u, contact, int(dd.info.get("successive", 0)), f"dd: {dd.message}", krylov_steps=None)
+            iterations, message = int(dd.info.get("successive", 0)), f"dd: {dd.message}"
+            raw = ContactResult(dd.info["w"], dd.lam_n, dd.lam_t, Status.SOLVED, message, iterations=iterations,
+                                active=dd.info.get("active"))     # what a dynamic study starts its levels from
+            return Solved(dd.u, contact, iterations, message, w=dd.info["w"], raw=raw, krylov_steps=None)
         warm = None
         if dd.status is DDOutcome.CONVERGED:    # the adjoint needs the monolithic factorization: start from dd
             warm = ContactResult(None, dd.lam_n, dd.lam_t, Status.SOLVED, "", active=dd.info.get("active"))
@@ -57,7 +60,8 @@ class Decomposition:
         static solve (the decomposition keeps no answer between solves); a failure is the
         level's (status DD_FAILED): no fallback inside a simulation."""
         m = problem.m
-        level = Level(name, local, coefficients, problem.d, problem.g if problem.g is not None else np.zeros(m))
+        level = Level(name, local, coefficients, problem.d, problem.g if problem.g is not None else np.zeros(m),
+                      problem.reference)
         dd = solve_decomposed(model, c, problem.f, np.zeros(model.elim.T.shape[0]), model.options, model.comm, level)
         if dd.status is not DDOutcome.CONVERGED:
             return ContactResult(None, None, None, Status.DD_FAILED, f"domain decomposition: {dd.message}")

@@ -361,25 +361,27 @@ class PairUnit(Unit):
             raise SetupError(f"pair {self.index}: {exc}") from exc
         return ContactFactor(f, self._pinned_c, S, C[:, S].toarray(), f.congruence(C.toarray()), Kreg.data)
 
-    def contact(self, V: np.ndarray, d, w, g, F, tol: float, max_iter: int):
+    def contact(self, V: np.ndarray, d, w, g, F, tol: float, max_iter: int, reference: float = 0.0):
         """Nonlinear Schur complement S_p(V) ([21, (4.27)–(4.28)]) by the local contact solve.
 
         Returns (residual on B, ContactResult); the result's `u` holds the contact DOFs,
-        `solution(V)` the local solution."""
-        return self._solve(V, d, w, g, F, tol, max_iter, warm=self.warm)
+        `solution(V)` the local solution. reference: the size of the displacement the solve's is
+        an increment of (a time level's, `ContactProblem.reference`)."""
+        return self._solve(V, d, w, g, F, tol, max_iter, warm=self.warm, reference=reference)
 
-    def tresca(self, V: np.ndarray, d, bound, tol: float, max_iter: int):
+    def tresca(self, V: np.ndarray, d, bound, tol: float, max_iter: int, reference: float = 0.0):
         """S_p(V) ([21, (4.27)–(4.28)]) of the Tresca problem with nodal slip bounds `bound`
         (g·w, or a Coulomb fixed point's g·w + F λn); `bound` None: every node sticks (the
         fixed point's start, solve_contact's all-stick Coulomb step). Returns (residual on
         B, ContactResult) as `contact`; the result's `free` is the active set."""
         m = self.rows.size
         if bound is None:
-            r, res = self._solve(V, d, np.ones(m), None, np.ones(m), tol, max_iter, max_fp_iter=0)
+            r, res = self._solve(V, d, np.ones(m), None, np.ones(m), tol, max_iter, max_fp_iter=0,
+                                 reference=reference)
             if res.status is Status.FIXED_POINT_NOT_CONVERGED:     # no fixed-point step was asked for
                 res.status, res.message = Status.SOLVED, "converged (all stick)"
             return r, res
-        return self._solve(V, d, np.ones(m), bound, None, tol, max_iter, warm=self.warm)
+        return self._solve(V, d, np.ones(m), bound, None, tol, max_iter, warm=self.warm, reference=reference)
 
     def _full(self, res):
         """A result on the `live` nodes extended to all the pair's nodes: a node whose every

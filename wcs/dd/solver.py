@@ -93,12 +93,14 @@ class Level(NamedTuple):
     matrices made of the cells' pieces `local` (mass and stiffness: positive definite, no
     kernel) at `coefficients` (per region, one row a region), the level's gaps `d` (zone rows)
     and slip bounds `slip` (Tresca; Coulomb's taken from the last level's pressures); `name`: the
-    operator's (a scheme's 'step' and 'predictor' keep a decomposition each, factored once)."""
+    operator's (a scheme's 'step' and 'predictor' keep a decomposition each, factored once);
+    `reference`: the size of the displacement the level's answer is an increment of."""
     name: str
     local: object
     coefficients: np.ndarray
     d: np.ndarray
     slip: np.ndarray
+    reference: float = 0.0
 
 
 # ---- the elastic contact solve ------------------------------------------------------------------
@@ -133,10 +135,12 @@ def _start_tolerance(options, o: dict) -> float:
 
 def decomposition(model, options, heat: bool = False, level: Level | None = None) -> Decomposition:
     """The model's decomposition for these `solver` options, of the elastic problem, of a time
-    level's operator (`Level`: the cells' pieces, one decomposition by operator name) or
+    level's operator (`Level`: the cells' pieces, one decomposition by operator name and the
+    pieces' `key`, e.g. an absorbing layer's cells) or
     (`heat`) of the thermal step (built once, cached on the model)."""
     dd = Solver.of(options).dd
-    key = ("heat",) * heat + (() if level is None else ("level", level.name)) + (dd.subdomains, dd.pair_size)
+    held = () if level is None else ("level", level.name, getattr(level.local, "key", b""))   # the pieces' own key
+    key = ("heat",) * heat + held + (dd.subdomains, dd.pair_size)
     per_model = _CACHE.setdefault(model, {})
     if key not in per_model:
         with phase("DD set-up (heat)" if heat else "DD set-up"):
@@ -246,7 +250,8 @@ def solve_decomposed(model, c, rhs: np.ndarray, u0: np.ndarray, options=None, co
 
     # 2. the outer iteration: interface Newton, or the seed's successive approximations
     t = time.perf_counter()
-    it = Iteration(dec, S0, S, S0.load(), d, z.weight, g, F, float(np.linalg.norm(rhs)), o, info, team)
+    it = Iteration(dec, S0, S, S0.load(), d, z.weight, g, F, float(np.linalg.norm(rhs)), o, info, team,
+                   reference=0.0 if level is None else level.reference)
     step, prefix = o["step"], ""
     if singular and step == "seed":
         return _fail(info, DDOutcome.SETUP_FAILED, singular)

@@ -167,4 +167,57 @@ def dashpots(sm, names, rho_cell, lam_cell, mu_cell, path: str) -> sp.csr_matrix
     return dashpot_matrix(sm.mesh, facets, zp, zs)
 
 
+class AbsorbingCells:
+    """The layer and the dashpots as cell pieces (`wcs.fem.affine.CellMatrices`' protocol) for a
+    solve that assembles each subdomain itself (`dd`): piece 0 the consistent mass of unit density
+    on the layer's cells (zero elsewhere), pieces 1 and 2 the dashpots' n⊗n and I − n⊗n facet
+    terms of unit impedance, each facet's on its owning cell (a facet's nodes are among its
+    cell's). At per region (α ρ, ρ c_p, ρ c_s) (`absorbing_coefficients`) they sum to
+    `layer_damping` + `dashpots`. `key`: the layer's cells (what a held decomposition is made of)."""
+
+    npieces = 3
+
+    def __init__(self, mesh, layer, facets):
+        self.p, self.t = mesh.p, mesh.t
+        d = mesh.p.shape[0]
+        self.block = d
+        self.layer = np.zeros(mesh.t.shape[1], dtype=bool)
+        self.layer[np.asarray(layer, dtype=np.int64)] = True
+        self.key = np.flatnonzero(self.layer).tobytes()
+        facets = np.asarray(facets, dtype=np.int64)
+        self.owner = mesh.f2t[0, facets]
+        nodes, cell_nodes = mesh.facets[:, facets].T, mesh.t[:, self.owner].T     # (nf, d), (nf, d + 1)
+        self.position = np.argmax(cell_nodes[:, None, :] == nodes[:, :, None], axis=2)   # (nf, d)
+        if facets.size:
+            n, size = facet_geometry(mesh, facets)
+            nn = n[:, :, None] * n[:, None, :]
+            unit = size[:, None, None, None, None] * ((1.0 + np.eye(d)) / (d * (d + 1)))[None, :, :, None, None]
+            self.facet_blocks = (unit * nn[:, None, None], unit * (np.eye(d) - nn)[:, None, None])
+        else:
+            self.facet_blocks = (np.zeros((0, d, d, d, d)),) * 2
+
+    def of(self, cells) -> np.ndarray:
+        cells = np.asarray(cells, dtype=np.int64)
+        d = self.block
+        out = np.zeros((3, cells.size, d + 1, d + 1, d, d))
+        out[0] = mass_cell_matrices(self.p, self.t[:, cells])[0] * self.layer[cells][:, None, None, None, None]
+        where = np.full(self.t.shape[1], -1)
+        where[cells] = np.arange(cells.size)
+        k = where[self.owner]
+        mine = k >= 0
+        k, pos = k[mine], self.position[mine]
+        for piece, blocks in zip((1, 2), self.facet_blocks):
+            for a in range(d):
+                for b in range(d):
+                    np.add.at(out[piece], (k, pos[:, a], pos[:, b]), blocks[mine, a, b])
+        return out
+
+
+def absorbing_coefficients(alpha: float, rho, lam, mu) -> np.ndarray:
+    """(nregions, 3): per region (α ρ, ρ c_p, ρ c_s), the coefficients of `AbsorbingCells`' pieces
+    (α the layer's damping, 0 without a layer; ρ, λ, μ per region as the stiffness takes them)."""
+    zp, zs = impedances(rho, lam, mu)
+    return np.column_stack([alpha * np.asarray(rho, dtype=float), zp, zs])
+
+
 # What of the absorbing boundaries can be uncertain, with its physical range (the loader's address table).

@@ -22,7 +22,7 @@ from wcs.model.evaluation import Evaluation, Evaluator
 from wcs.status import Status
 
 from . import adjoint
-from .loading import at_time_zero, damping_matrix, load_function
+from .loading import at_time_zero, damping_cells, damping_matrix, load_function
 from .release import carried_over, reactions, released_dofs, released_model, released_names
 from .spec import InitialVelocity
 from .stepping import (dynamic_matrices, initial_state, level_solution, region_dynamics, rigid_velocity,
@@ -68,9 +68,11 @@ def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None, record: d
         load = lambda t: constant                       # noqa: E731 - constant in time
     elif names:
         load = lambda t, own=load: own(t) + held        # noqa: E731 - the released supports' reactions
+    cells = None
     if damping is None:
         damping = damping_matrix(model, scene, c, rho, s, pmap.index)
-    mats = dynamic_matrices(model, c, rho, visc, damping)
+        cells = damping_cells(model, scene, c, rho, s, pmap.index)
+    mats = dynamic_matrices(model, c, rho, visc, damping, cells)
     states = None
     if record is not None:
         states = []

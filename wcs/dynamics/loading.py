@@ -113,6 +113,24 @@ def damping_matrix(model, scene, c, rho, s, index) -> sp.csr_matrix | None:
     return sp.csr_matrix(C)
 
 
+def damping_cells(model, scene, c, rho, s, index) -> tuple[absorbing.AbsorbingCells, np.ndarray] | None:
+    """`damping_matrix` as cell pieces with their per-region coefficients (`AbsorbingCells`,
+    `absorbing_coefficients`): what a subdomain takes of it (`dd`); None without absorbing boundaries."""
+    spec = scene.absorbing
+    if spec is None:
+        return None
+    sm = model.smesh
+    layer, alpha = np.zeros(0, dtype=np.int64), 0.0
+    if spec.layer is not None:
+        facets = absorbing.named_facets(sm, spec.layer.boundaries, "scene.absorbing.layer.boundaries")
+        layer = absorbing.layer_cells(sm.mesh, facets, _at(spec.layer.thickness, s, index, "absorbing.layer.thickness"))
+        alpha = _at(spec.layer.damping, s, index, "absorbing.layer.damping")
+    facets = (absorbing.named_facets(sm, spec.dashpots, "scene.absorbing.dashpots") if spec.dashpots
+              else np.zeros(0, dtype=np.int64))
+    return (absorbing.AbsorbingCells(sm.mesh, layer, facets),
+            absorbing.absorbing_coefficients(alpha, rho, c.lam, c.mu))
+
+
 def check_sources(ev, x) -> None:
     """Each source located in the mesh (`wcs.dynamics.sources.source_vector`, StudyError naming
     it) at data vector x and at every corner of the box of its uncertain point coordinates."""

@@ -65,6 +65,6 @@ def released_model(ev):
         from wcs.model.coefficients import ParameterMap
         from wcs.model.model import Model
         scene = released_scene(ev.study.scene)
-        model = Model(scene, ev.smesh, ev.study.solver)
+        model = Model(scene, ev.smesh, ev.study.solver, dynamic=True)
         ev._released = (model, ParameterMap(model, scene, ev.study.uncertain))
     return ev._released

@@ -76,10 +76,6 @@ def check_dynamics(dynamics: Dynamics | None, scene, uncertain, criteria, solver
                         "is missing: a dynamic study needs the density [kg/m^3] of every material")
     if solver.method == "qp":
         raise error(("solver", "method"), "'qp' does not step in time yet; use monolithic, iterative, dd or auto")
-    if solver.method == "dd" and scene.absorbing is not None:
-        raise error(("solver", "method"), "'dd' steps in time without absorbing boundaries only (the layer's and "
-                                          "the dashpots' damping is not split over the subdomains); use "
-                                          "monolithic, iterative or auto")
     check_loads(scene, uncertain, error)
     if isinstance(dynamics.initial, InitialVelocity):
         for body, v in dynamics.initial.velocity.items():

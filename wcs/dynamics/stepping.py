@@ -13,8 +13,8 @@ seed does: "the frictional term is approximated by its value in the previous tim
 held per operator — its registered `solve_problem` factors the model's static stiffness by
 units with springs on the pinned DOFs of the floating bodies (exact for K R = 0 only, wrong
 for A); 'dd', which assembles each subdomain's matrix itself, by its `solve_level` with A's
-per-region coefficients over the cells' stiffness and mass pieces (`level_coefficients`; the
-absorbing layer and dashpots are not split over the subdomains: refused at load).
+per-region coefficients over the cells' stiffness, mass and absorbing pieces
+(`level_coefficients`; the layer's and the dashpots' `wcs.dynamics.absorbing.AbsorbingCells`).
 
 A level that fails stops the run with a SolveError naming the level and the time: the levels
 before it are never passed off as the answer.
@@ -67,47 +67,58 @@ def region_dynamics(model, pmap, x=(), others=None) -> tuple[np.ndarray, np.ndar
 @dataclass(frozen=True)
 class Assembled(schemes.Matrices):
     """The reduced matrices with the per-region data they are made of: density ρ, viscous Lamé
-    constants (λ₁, μ₁), and whether C holds an extra damping matrix (a layer, dashpots)."""
+    constants (λ₁, μ₁), whether C holds an extra damping matrix (a layer, dashpots) and that
+    matrix as cell pieces with their per-region coefficients (`wcs.dynamics.loading.damping_cells`)."""
     rho: np.ndarray | None = None
     visc: np.ndarray | None = None
     damped: bool = False
+    absorbing: tuple | None = None
 
 
-def dynamic_matrices(model, c, rho, visc, damping: sp.spmatrix | None = None) -> Assembled:
+def dynamic_matrices(model, c, rho, visc, damping: sp.spmatrix | None = None, absorbing=None) -> Assembled:
     """The reduced M (density ρ per region), C (viscous a⁽¹⁾ plus `damping`, an extra damping
-    matrix on the full DOFs such as an absorbing layer's α or dashpots) and K of data set c."""
+    matrix on the full DOFs such as an absorbing layer's α or dashpots) and K of data set c;
+    `absorbing`: `damping` as (cell pieces, per-region coefficients), for `dd`."""
     M = model.reduce(mass_operator(model)(rho))
     C = model.reduce(model.K(visc)) if np.any(visc) else None
     if damping is not None:
         extra = sp.csr_matrix(model.Tt @ damping @ model.elim.T)
         C = extra if C is None else sp.csr_matrix(C + extra)
     return Assembled(sp.csr_matrix(M), C, sp.csr_matrix(model.reduce(model.stiffness(c))),
-                     np.asarray(rho, float), np.asarray(visc, float), damping is not None)
+                     np.asarray(rho, float), np.asarray(visc, float), damping is not None, absorbing)
 
 
 class LevelCells:
     """The cells' matrices of a level operator as affine pieces (`wcs.fem.affine.CellMatrices`'
-    protocol): the stiffness's (λ, μ) and the consistent mass of unit density, per cell."""
+    protocol): the stiffness's (λ, μ), the consistent mass of unit density and, with absorbing
+    boundaries, their pieces (`wcs.dynamics.absorbing.AbsorbingCells`), per cell. `key`: what of
+    the pieces depends on the data set beyond the coefficients (the layer's cells)."""
 
-    def __init__(self, model):
+    def __init__(self, model, absorbing=None):
         self.stiffness, self.p, self.t = model.K.local, model.smesh.mesh.p, model.smesh.mesh.t
-        self.npieces, self.block = self.stiffness.npieces + 1, self.stiffness.block
+        self.absorbing = absorbing
+        self.npieces = self.stiffness.npieces + 1 + (absorbing.npieces if absorbing is not None else 0)
+        self.block = self.stiffness.block
+        self.key = absorbing.key if absorbing is not None else b""
 
     def of(self, cells) -> np.ndarray:
-        return np.concatenate([self.stiffness.of(cells), mass_cell_matrices(self.p, self.t[:, cells])])
+        extra = [self.absorbing.of(cells)] if self.absorbing is not None else []
+        return np.concatenate([self.stiffness.of(cells), mass_cell_matrices(self.p, self.t[:, cells])] + extra)
 
 
 def level_coefficients(model, c, mats: Assembled, dyn: Dynamics, key: str) -> np.ndarray:
     """Per region, the coefficients of `LevelCells` whose sum is the level operator A of
     `wcs.dynamics.schemes`: seed A = M/τ² + C/τ + K, stabilized A = 2M/τ² + C/τ + K/2 (C the
-    viscous a⁽¹⁾, the stiffness at (λ₁, μ₁)), the stabilized predictor's A = M."""
+    viscous a⁽¹⁾, the stiffness at (λ₁, μ₁), plus the absorbing boundaries' damping), the
+    stabilized predictor's A = M."""
     tau, kc = dyn.time_step, model.stiffness_coefficients(c)
     rho = mats.rho[:, None]
+    absorbing = [] if mats.absorbing is None else [mats.absorbing[1] * (key != "predictor") / tau]
     if key == "predictor":
-        return np.hstack([np.zeros_like(kc), rho])
+        return np.hstack([np.zeros_like(kc), rho] + absorbing)
     if dyn.scheme == "stabilized":
-        return np.hstack([kc / 2 + mats.visc / tau, 2 * rho / tau**2])
-    return np.hstack([kc + mats.visc / tau, rho / tau**2])
+        return np.hstack([kc / 2 + mats.visc / tau, 2 * rho / tau**2] + absorbing)
+    return np.hstack([kc + mats.visc / tau, rho / tau**2] + absorbing)
 
 
 def rigid_velocity(model, initial: InitialVelocity) -> np.ndarray:
@@ -325,9 +336,8 @@ def _decomposed(model, c, mats, dyn: Dynamics):
     coefficients, c), else None."""
     if not hasattr(model.method, "solve_level"):
         return None
-    if not isinstance(mats, Assembled) or mats.damped:
-        raise StudyError(f"'{model.solver_method}' steps in time without absorbing boundaries only (their "
-                         "damping is not split over the subdomains); use monolithic or iterative",
-                         path="solver.method")
-    cells = LevelCells(model)
+    if not isinstance(mats, Assembled) or (mats.damped and mats.absorbing is None):
+        raise StudyError(f"'{model.solver_method}' takes absorbing boundaries as cell pieces only (given a "
+                         "damping matrix alone); use monolithic or iterative", path="solver.method")
+    cells = LevelCells(model, None if mats.absorbing is None else mats.absorbing[0])
     return lambda key: (cells, level_coefficients(model, c, mats, dyn, key), c)

@@ -129,7 +129,8 @@ class Evaluator:
             raise StudyError(fault, path="scene.mesh")
         t1 = time.perf_counter()
         with phase("assembly"):
-            self.model = Model(study.scene, self.smesh, study.solver, comm=comm)
+            self.model = Model(study.scene, self.smesh, study.solver, comm=comm,
+                               dynamic=getattr(study, "dynamics", None) is not None)
         check_claims(study.scene, self.smesh, {e.path for e in study.uncertain}
                      | set(study.sweep.grid if study.sweep else ()))
         check_bonded_contrast(study.scene, study.uncertain, bonded_materials(self.smesh, self.model))

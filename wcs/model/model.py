@@ -91,8 +91,9 @@ class Model:
     options: the study's `solver` options (a mapping is validated); comm: the MPI
     communicator whose ranks share each DD solve (None: serial)."""
 
-    def __init__(self, scene, smesh: SceneMesh, options=None, comm=None):
+    def __init__(self, scene, smesh: SceneMesh, options=None, comm=None, dynamic: bool = False):
         self.options = Solver.of(options)             # the study's `solver` options (a mapping is validated)
+        self.dynamic = dynamic                        # a dynamic study's: `auto` chooses each time level's method
         self.scene = scene
         self.smesh = smesh
         mesh = smesh.mesh
@@ -197,7 +198,7 @@ class Model:
                    "install PETSc (the wheel dolfinx-solver-real) for the iterative method, or a coarser mesh "
                    "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"{evaluation_fault(facts, method)}; {out}", path="solver.method")
-        why += f"; one evaluation estimated at {cost_words(need, seconds)}"
+        why += f"; {'one time level' if self.dynamic else 'one evaluation'} estimated at {cost_words(need, seconds)}"
         return method, why
 
     def _solver_facts(self, scene, facts: EvaluationFacts, memory: float, installed: bool) -> SolverFacts:
@@ -215,7 +216,7 @@ class Model:
         return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
                            dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed,
-                           floating=self.zone is not None and self.R_r is not None)
+                           floating=self.zone is not None and self.R_r is not None, dynamic=self.dynamic)
 
     # ---- structure -----------------------------------------------------------------
     def _region_dofs(self) -> list[np.ndarray]:

@@ -27,6 +27,8 @@ plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9,
                      "legend.fontsize": 8, "figure.dpi": DPI})
 CONTACT_COLORS = ["#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf"]
 ROI_COLOR = "#000000"
+SOURCE_COLOR = "#ffd700"
+LABEL_OFFSETS = ((0, 0), (0, 12), (0, -12), (28, 0), (-28, 0), (28, 12), (-28, -12), (28, -12), (-28, 12))   # points
 
 
 def png(fig, tight: bool = True) -> bytes:
@@ -197,7 +199,50 @@ def _zoom(ax, box):
 
 # ---------------------------------------------------------------- the scene
 
+def point_sources(res: Results) -> list[tuple[str, float, float]]:
+    """(name, x, y) of the scene's point sources (`scene.sources`) at their nominal points."""
+    out = []
+    for name, src in (res.scene.get("sources") or {}).items():
+        point = src.get("point") if isinstance(src, dict) else None
+        if isinstance(point, (list, tuple)) and len(point) == 2 and all(isinstance(v, (int, float)) for v in point):
+            out.append((str(name), float(point[0]), float(point[1])))
+    return out
+
+
+def place_labels(ax, labels: list[tuple[str, float, float]], beside: int = 0) -> list[str]:
+    """Each label at its point or, where its box would overlap one already placed, at the first
+    of LABEL_OFFSETS where it does not (the first `beside` labels never on their point: it holds
+    a marker); a label whose point is outside the axes' view, or that
+    overlaps at every offset, is left out. Returns the names left out for overlapping. Call it
+    once the figure's layout is final (the boxes are measured in display units)."""
+    renderer = ax.figure.canvas.get_renderer()
+    (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+    placed, left_out = [], []
+    for i, (name, x, y) in enumerate(labels):
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            continue
+        for dx, dy in LABEL_OFFSETS[1:] if i < beside else LABEL_OFFSETS:
+            text = ax.annotate(name, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=7,
+                               ha="center", va="center", zorder=9, annotation_clip=False,
+                               bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75))
+            box = text.get_window_extent(renderer).expanded(1.05, 1.1)
+            if not any(box.overlaps(other) for other in placed):
+                placed.append(box)
+                break
+            text.remove()
+        else:
+            left_out.append(name)
+    return left_out
+
+
 def scene_figure(res: Results) -> bytes:
+    return png(scene_plot(res))
+
+
+def scene_plot(res: Results):
+    """The scene figure: bodies or regions, the mesh, contacts, regions of interest and point
+    sources; with regions of interest a zoom on them beside it; labels that would overlap
+    placed beside each other or left out and named in the axes' note (`place_labels`)."""
     mesh = res.mesh
     tri = Triangulation(mesh.coords[:, 0], mesh.coords[:, 1], mesh.cells)
     rois = list((res.scene.get("regions_of_interest") or {}).keys())
@@ -214,6 +259,8 @@ def scene_figure(res: Results) -> bytes:
     cmap = plt.get_cmap("Pastel1" if len(labels) <= 9 else "tab20")
     colours = [cmap(i % cmap.N) for i in range(len(labels))]
     lw_mesh = 0.15 if len(mesh.cells) > 3000 else 0.3
+    sources = point_sources(res)
+    names = [[] for _ in range(n_ax)]          # (name, x, y) to label, per axes
     for k, ax in enumerate(axes[0]):
         ax.tripcolor(tri, facecolors=colour_of.astype(float), cmap=matplotlib.colors.ListedColormap(colours),
                      vmin=-0.5, vmax=len(labels) - 0.5, edgecolors="none")
@@ -230,10 +277,11 @@ def scene_figure(res: Results) -> bytes:
                                 linestyles="--" if g[0] == "cells" else "-", zorder=6)
             ax.add_collection(lc)
             if k == n_ax - 1:
-                pts = mesh.coords[segs.ravel()]
-                cx, cy = pts.mean(axis=0)
-                ax.annotate(name, (cx, cy), fontsize=7, ha="center", va="center", zorder=7,
-                            bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75))
+                cx, cy = mesh.coords[segs.ravel()].mean(axis=0)
+                names[k].append((name, float(cx), float(cy)))
+        for name, x, y in sources:                  # labelled first: a source's name is never left out for a region's
+            ax.plot([x], [y], marker="*", ms=13, color=SOURCE_COLOR, mec="k", mew=0.8, ls="none", zorder=8)
+        names[k] = [*sources, *names[k]]
         _axes_m(ax, "the scene and its mesh" if k == 0 else "zoom: regions of interest")
         if k == 1:
             _zoom(ax, box)
@@ -244,10 +292,19 @@ def scene_figure(res: Results) -> bytes:
     if rois:
         handles += [matplotlib.lines.Line2D([], [], color=ROI_COLOR, lw=1.6, ls="--", label="region of interest (area)"),
                     matplotlib.lines.Line2D([], [], color=ROI_COLOR, lw=2.6, label="region of interest (boundary piece)")]
+    if sources:
+        handles += [matplotlib.lines.Line2D([], [], marker="*", ms=11, color=SOURCE_COLOR, mec="k", ls="none",
+                                            label="point source (its nominal point)")]
     fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)),
                bbox_to_anchor=(0.5, -0.02), frameon=False)
     fig.tight_layout(rect=(0, 0.08 + 0.03 * (len(handles) // 4), 1, 1))
-    return png(fig)
+    for ax, items in zip(axes[0], names):
+        left_out = place_labels(ax, items, beside=len(sources))
+        if left_out:
+            ax.text(0.01, 0.01, f"not labelled (overlapping): {', '.join(left_out)}", transform=ax.transAxes,
+                    fontsize=6.5, ha="left", va="bottom", zorder=10,
+                    bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="0.6", alpha=0.85))
+    return fig
 
 
 # ---------------------------------------------------------------- the worst case
