@@ -33,6 +33,13 @@ Measured (2 cores shared with other jobs, load 3–8, one thread; ratios in one 
               145 its; GAMG set-up 96 s, CG 186 s, elimination 32 s), warm 1.10× (171 s: 1 Newton, 96 its);
               peak 9.33 GB, the model's build 5.3 GB (5.11 GB resident with the first data set's K and
               reduced K): the build fits, the 8 GB goal still fails by the contact solve's ≈ 4.2 GB above it
+  session 27, one copy of K in the solve (no K + 0 per step, PETSc on the step's arrays, K(c) not held
+  beside Kr, Kr on the pattern's indices, no strain matrix), against the start commit in one session
+  (load 14-17):
+  0.07/0.02   6.6e4 unknowns, 3018 contact nodes, 108894 cells, 2.63e6 entries of K: the same counts
+              (linear 19 its; cold 2 Newton, 105 its; warm 1 Newton, 67 its); peak 0.77 → 0.59 GB,
+              resident once built 0.56 → 0.41 GB; the guard's estimate 0.75 GB, 0.64 GB (1.09×) refit
+  The 1e6 run was started and stopped: under load 15-18 it had 77 s of CPU in its first 19 minutes.
 The CG iterations of one linear solve grow 15 → 17 → 21 → 23 → 24 over a 380× refinement.
 
 WCS_BENCH_ITERATIVE="size face" sets the mesh size and the contact face's size (default

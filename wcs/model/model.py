@@ -325,8 +325,8 @@ class Model:
         return np.column_stack([c.lam, c.mu])
 
     def stiffness(self, c: Coefficients) -> sp.csr_matrix:
-        """K(c), the last one kept: a solve and its adjoint assemble it once (0.4 s at 1e5
-        unknowns in 3D)."""
+        """K(c), the last one kept for its callers (0.4 s at 1e5 unknowns in 3D); a solve and its
+        adjoint assemble it once without holding it (`reduced_system`)."""
         key = self.stiffness_coefficients(c).tobytes()
         held = self._cache.stiffness
         if held is None or held[0] != key:

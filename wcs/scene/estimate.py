@@ -32,7 +32,7 @@ DEFAULT_GRADING = 0.5                   # size growth per unit distance away fro
 BYTES_PER_CELL = {2: 5.2e3, 3: 1.6e4}
 # The same with the iterative method on a 3D contact scene (no dense W, no direct factor): the peak of
 # tests/bench/test_bench_iterative.py's measure (meshing, assembly, the cold and the warm contact solve),
-# 1.80 GB at 2.9e5 unknowns (0.045/0.01, ≈ 4.8e5 tetrahedra: 3.8 kB a cell; 5.2 kB before the solve held
+# 1.80 GB at 2.9e5 unknowns (0.045/0.01, 5.06e5 tetrahedra: 3.6 kB a cell; 5.2 kB before the solve held
 # one copy of K: 9.33 GB at 1.02e6 unknowns); 2D is not measured: the direct figure bounds it (the
 # iterative method holds O(nnz), below the direct factor's fill)
 ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.0e3}
@@ -411,8 +411,9 @@ DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of th
 ITERATIVE_BYTES = 0.05e9        # PETSc's libraries
 ITERATIVE_BYTES_PER_NNZ = 60.0    # a Newton step's eliminated operator (PETSc's matrix on its arrays), GAMG's
 #                                   hierarchy and its set-up, Krylov vectors: the peak of tests/bench/test_bench_iterative.py's
-#                                   measure is 0.25 GB + 129-133 bytes an entry of K in all (0.59 GB at 2.6e6 entries,
-#                                   0.07/0.02; 1.80 GB at ≈ 1.2e7, 0.045/0.01), MODEL_BYTES_PER_NNZ's share included
+#                                   measure is 0.25 GB + 128-129 bytes an entry of K in all (0.59 GB at 2.63e6 entries,
+#                                   0.07/0.02; 1.80 GB at 1.21e7, 0.045/0.01), MODEL_BYTES_PER_NNZ's share included:
+#                                   estimated 1.09x and 1.14x
 ITERATIVE_SECONDS = 1.2         # the iterative method's fixed part (PETSc set-up): fit of the three below
 ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
 #                                   0.7e-6 frictionless (block-on-block-3d at 0.1 and 0.05: 2 steps, 1.4 and 2.5 s;
