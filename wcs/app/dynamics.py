@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from wcs.dynamics.adjoint import refusal
 from wcs.dynamics.history import REDUCED, reduced, simulate
 from wcs.dynamics.loading import at_time_zero, check_sources
 from wcs.dynamics.stepping import initial_state, level_solution
@@ -138,9 +139,13 @@ def check_dynamic(study, ev, args, summary: str) -> int:
         if study.parameters.names:
             solves = ("one linear solve" if not study.scene.contacts else "two contact solves (predictor and step)"
                       if dyn.scheme == "stabilized" else "one contact solve")
+            why = refusal(study)
+            how = (f"no adjoint gradient through time ({why}): finite differences of the reduced criteria where the "
+                   "search asks for gradients") if why else \
+                ("gradients by the adjoint through time (one reverse sweep of the levels), finite differences of "
+                 "the reduced criteria where an evaluation is not differentiable")
             print(f"  search over time: one evaluation is one simulation ({dyn.levels} levels of {solves} each, "
-                  f"not the one solve estimated above); no adjoint gradient through time: finite differences of "
-                  f"the reduced criteria where the search asks for gradients")
+                  f"not the one solve estimated above); {how}")
     if dyn.initial == "static":
         try:
             x = study.nominal()

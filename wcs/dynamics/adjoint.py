@@ -108,7 +108,8 @@ def data_steps(study, x) -> np.ndarray:
 
 
 def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
-    """(c_n, why not differentiable or '') of a history phi reduced by `how`."""
+    """(c_n, why not differentiable or '') of a history phi reduced by `how`: a peak (least value)
+    is tied where another level comes within REL_TOL of the history's largest magnitude."""
     phi = np.asarray(phi, float)
     c = np.zeros(phi.size)
     if how == "mean":
@@ -118,7 +119,7 @@ def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
         c[-1] = 1.0
         return c, ""
     n = int(np.argmax(phi) if how == "max" else np.argmin(phi))
-    close = np.flatnonzero(np.abs(phi - phi[n]) <= REL_TOL * max(abs(phi[n]), 1e-300))
+    close = np.flatnonzero(np.abs(phi - phi[n]) <= REL_TOL * max(np.abs(phi).max(), 1e-300))
     c[n] = 1.0
     if close.size > 1:
         word = "peak" if how == "max" else "least value"
@@ -137,8 +138,13 @@ def _active(model, res):
     return closed, stick, slip, sigma, gw
 
 
-def level_switch(model, res, d, step) -> str:
-    """'' or where a contact node of a level sits at a switch of its active set (within REL_TOL)."""
+def level_switch(model, res, prev, d, step) -> str:
+    """'' or where a contact node of a level sits at a switch of its active set (within REL_TOL):
+    closed with λn ≈ 0, open with a zero gap, stuck at |λt| ≈ gw or slipping by ≈ 0 — the last two
+    only where the level changed the node's tangential force (prev: the last level's result). A
+    node that keeps its force, at rest at its limit as the static state left it before the
+    waves arrive, stays so under any small change of the data (the start is an equilibrium of
+    every data set), so the level is smooth there."""
     m = res.lam_n.size
     closed, stick, slip, _, gw = _active(model, res)
     moves = ~model.held[:m]
@@ -147,13 +153,15 @@ def level_switch(model, res, d, step) -> str:
     us = max(np.abs(d).max(initial=0.0), np.abs(step).max(initial=0.0), 1e-300)
     k = stick.size // m
     lam_t = np.linalg.norm(res.lam_t.reshape(k, m), axis=0)
+    before = prev.lam_t if prev is not None else np.zeros_like(res.lam_t)
+    changed = np.linalg.norm((res.lam_t - before).reshape(k, m), axis=0) > REL_TOL * max(gw.max(initial=0.0), 1e-300)
     ds = np.linalg.norm((model.Bt_r @ step).reshape(k, m), axis=0)
     stuck = stick.reshape(k, m).any(axis=0)
     slipping = slip.reshape(k, m).any(axis=0)
     checks = {"closed with a vanishing pressure": closed & (res.lam_n <= REL_TOL * fs),
               "open and touching": ~closed & (gap <= REL_TOL * us),
-              "stuck at its slip limit": stuck & (gw > 0) & (lam_t >= (1 - REL_TOL) * gw),
-              "slipping by nothing": slipping & closed & (ds <= REL_TOL * us)}
+              "stuck at its slip limit": stuck & changed & (gw > 0) & (lam_t >= (1 - REL_TOL) * gw),
+              "slipping by nothing": slipping & changed & closed & (ds <= REL_TOL * us)}
     for what, where in checks.items():
         hit = np.flatnonzero(where & moves)
         if hit.size:
@@ -222,11 +230,11 @@ def source_on_face(ev, x, others, steps) -> str:
     return ""
 
 
-def refusal(ev, record) -> str:
-    """'' or why the sweep does not cover this study."""
-    if ev.study.dynamics.scheme != "seed":
-        return f"the adjoint through time covers the seed scheme, not '{ev.study.dynamics.scheme}'"
-    if ev.model.thermal:
+def refusal(study) -> str:
+    """'' or why the sweep does not cover a dynamic study (its gradients are finite differences)."""
+    if study.dynamics.scheme != "seed":
+        return f"the adjoint through time covers the seed scheme, not '{study.dynamics.scheme}'"
+    if study.scene.thermal is not None:
         return "the adjoint through time does not cover a thermal scene"
     return ""
 
@@ -237,7 +245,7 @@ def gradients(ev, x, others, hist, record) -> TimeGradients:
     names = [c.name for c in ev.criteria]
     why = {n: "" for n in names}
     grad = {n: None for n in names}
-    reason = refusal(ev, record)
+    reason = refusal(ev.study)
     model, pmap, states = record["model"], record["map"], record["states"]
     steps = data_steps(ev.study, np.asarray(x, float))
     reason = reason or source_on_face(ev, x, others, steps)
@@ -267,16 +275,17 @@ def _switch_or_disc(model, record) -> str:
     w = record["start"][0].copy()
     u0 = model.elim.U0 @ record["c"].support_values
     z = model.zone
+    prev = record["start"][2]
     for n, (step, res) in enumerate(record["states"], start=1):
         if res.lam_t.size > res.lam_n.size:
             _, _, slip, _, _ = _active(model, res)
             if slip.any():
                 return f"at time level {n} a 3D contact node slips on its disc (not covered by the adjoint through time)"
         d = z.gap - z.Bn @ u0 - model.Bn_r @ w
-        where = level_switch(model, res, d, step)
+        where = level_switch(model, res, prev, d, step)
         if where:
             return f"at time level {n} {where}: the history is not differentiable there"
-        w = w + step
+        w, prev = w + step, res
     return ""
 
 

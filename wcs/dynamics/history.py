@@ -4,10 +4,10 @@ set is one simulation of its time levels, and each criterion's value is its hist
 
 `DynamicEvaluator` is the `Evaluator` of such a study: `evaluate(x)` runs the levels and returns
 an `Evaluation` whose `phi` are the reduced values, `history` the criteria at every level and
-`fields` the solution fields at the output levels (an `output_time` dimension). It has no
-`gradients` argument: there is no adjoint through time yet, so the search gets no adjoint
-gradient — the strategies that want one take finite differences of the reduced criterion
-(`wcs.search.ascent`), and the results file says so (`wcs.results.dynamics`).
+`fields` the solution fields at the output levels (an `output_time` dimension); with
+`gradients`, dΦ/dx by the adjoint through time (`wcs.dynamics.adjoint`), None for a criterion
+whose reduced history is not differentiable there (the evaluation's message says why; the
+strategies that want a gradient then take finite differences, `wcs.search.ascent`).
 """
 from __future__ import annotations
 
