@@ -141,9 +141,9 @@ class DynamicEvaluator(Evaluator):
         study = self.study
         x, others = study.data_set(values)
         names = [c.name for c in self.criteria]
-        record = {} if gradients else None
+        record = {}
         try:
-            hist = simulate(self, x, others, record=record)
+            hist = simulate(self, x, others, record=record) if gradients else simulate(self, x, others)
         except SolveError as e:
             nan = {n: float("nan") for n in names}
             return DynamicEvaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)
