@@ -19,6 +19,7 @@ import yaml
 from tests.dynamics.test_bars import DURATION, bars
 from tests.support.bad_studies import write_study
 from wcs.cli import main
+from wcs.dynamics.adjoint import reduction_weights
 from wcs.dynamics.history import DynamicEvaluator
 from wcs.study import load_study
 
@@ -86,6 +87,16 @@ def test_a_peak_tied_between_levels_is_not_differentiable_and_the_evaluation_say
     assert all(e.grad[c] is not None for c in ("peak", "travel", "average"))
 
 
+def test_each_reduction_weighs_its_levels_and_a_tie_is_named():
+    phi = np.array([0.0, 3.0, 1.0, 2.0])
+    for how, weights in (("max", [0, 1, 0, 0]), ("min", [1, 0, 0, 0]), ("final", [0, 0, 0, 1]),
+                         ("mean", [0.25] * 4)):
+        c, why = reduction_weights(how, phi)
+        assert np.array_equal(c, weights) and why == "", how
+    c, why = reduction_weights("max", np.array([1.0, 3.0, 3.0 - 1e-8, 0.0]))
+    assert why == "its peak over time is reached at levels 1 and 2 (within 1e-07)"
+
+
 def test_the_stabilized_scheme_is_not_covered_and_says_so(tmp_path):
     doc = yaml.safe_load(seed_bars(tmp_path).read_text())
     doc["dynamics"]["scheme"] = "stabilized"
@@ -96,7 +107,7 @@ def test_the_stabilized_scheme_is_not_covered_and_says_so(tmp_path):
 
 
 def test_wcs_run_takes_the_adjoint_and_its_results_say_so(tmp_path):
-    path = seed_bars(tmp_path, method="local", budget=8, local={"starts": 1}, sample={"design": "lhs", "n": 3, "seed": 1})
+    path = seed_bars(tmp_path, method="local", budget=6, local={"starts": 1}, sample={"design": "lhs", "n": 2, "seed": 1})
     out = tmp_path / "run.nc"
     assert main(["run", str(path), "-o", str(out), "--quiet", "--no-mesh-check"]) == 0
     with xr.open_dataset(out, engine="h5netcdf") as ds:

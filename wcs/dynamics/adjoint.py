@@ -57,11 +57,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from wcs.model.coefficients import flatten
-from wcs.model.criteria import REL_TOL
+from wcs.model.criteria import REL_TOL, Partials
 from wcs.model.sensitivity import coefficient_gradients, contact_nonsmooth, criterion_partials
-from wcs.model.criteria import Partials
 
-from .loading import at_time_zero, damping_matrix, load_function
+from .loading import at_time_zero, damping_matrix, load_function, source_at
 from .release import released_dofs, released_names
 from .sources import containing_cells
 from .stepping import dynamic_matrices, level_solution, region_dynamics
@@ -71,8 +70,8 @@ DATA_STEP = 1e-6            # the data's central-difference step, a fraction of 
 
 @dataclass
 class TimeGradients:
-    """dJ/dx per criterion (None: not differentiable there, `why` says so) and whether any level
-    has a contact switch within reach."""
+    """dJ/dx per criterion (None: not differentiable there or not covered) and why ('' where it is
+    the adjoint's)."""
     grad: dict
     why: dict
 
@@ -211,7 +210,6 @@ def _derivatives(ev, model, pmap, x, others, steps):
 def source_on_face(ev, x, others, steps) -> str:
     """'' or the source whose point lies within the data step of a cell face (its nodal loads are
     not differentiable in the point there)."""
-    from .loading import source_at
     pmap, sm = ev.map, ev.smesh
     box = {e.path: i for i, e in enumerate(ev.study.uncertain)}
     for name, source in ev.study.scene.sources.items():
@@ -300,11 +298,12 @@ class _Sweep:
         self.failure = ""
 
     def partials(self, n, u, res):
-        """(φ_w (reduced, ncrit), φ_λn (m, ncrit), φ_λt, explicit dJ/dx) of the weighted criteria at level n."""
+        """(φ_w (reduced), φ_λn, φ_λt, φ_u (full DOFs), the explicit dJ/dx), one column per criterion,
+        of the criteria at level n times their reductions' weights c_n."""
         model, c = self.model, self.data.c
-        nw, k = model.elim.T.shape[1], len(self.crits)
+        k = len(self.crits)
         m = model.zone.gap.size if model.zone is not None else 0
-        pw, pn = np.zeros((nw, k)), np.zeros((m, k))
+        pn = np.zeros((m, k))
         pt = np.zeros((model.Bt_r.shape[0] if model.zone is not None else 0, k))
         pu, coef = np.zeros((model.elim.T.shape[0], k)), np.zeros((len(self.x), k))
         state = None
@@ -401,8 +400,7 @@ class _Sweep:
         if self.ev.study.dynamics.initial == "static":
             grad += self.static_share(w_hat, l_hat, a_sum, u0_state, res0)
         else:
-            pw, _, _, _, coef = self.partials(0, u0_state, res0)
-            grad += coef
+            grad += self.partials(0, u0_state, res0)[4]
         return grad
 
     def static_share(self, w_hat, l_hat, a_sum, u_s, res0) -> np.ndarray:
