@@ -54,12 +54,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from wcs.model.coefficients import flatten
 from wcs.model.criteria import REL_TOL, Partials
 from wcs.model.sensitivity import coefficient_gradients, contact_nonsmooth, criterion_partials
 
+from . import schemes
 from .loading import at_time_zero, damping_matrix, load_function, source_at
 from .release import released_dofs, released_names
 from .sources import containing_cells
@@ -169,32 +171,61 @@ def level_switch(model, res, prev, d, step) -> str:
 
 
 class LevelSystem:
-    """The saddle-point matrix [A Gᵀ; G 0] of a level's active set, factored once per set."""
+    """Solves [A Gᵀ; G 0] [a; b] = [t; s] on a level's active set. With the forward's factor of A
+    and its Delassus operator W = C A⁻¹ Cᵀ (C = [Bn; Bt]; the monolithic method holds both):
+    b = W_GG⁻¹ (G A⁻¹ t − s), a = A⁻¹ (t − Gᵀ b) — two solves with A and a small dense one (W_GG's
+    LU once per active set); otherwise the sparse LU of the whole matrix, once per active set."""
 
-    def __init__(self, A, model):
-        self.A, self.model, self.cache = sp.csr_matrix(A), model, {}
+    def __init__(self, A, model, held=None):
+        A = sp.csr_matrix(A)
+        self.A, self.model, self.cache = A, model, {}
+        self.held = held if held is not None and held.W is not None and not len(held.pinned) \
+            and held.K_data is not None and np.array_equal(held.K_data, A.data) else None
+        self.C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr() if model.zone is not None else None
 
-    def of(self, res):
-        """(factor or None when singular, rows of Bn_r closed, rows of Bt_r stuck) of a level's
-        active set (res None: a scene without contacts, A alone)."""
+    def rows(self, res) -> tuple[np.ndarray, np.ndarray]:
+        """The closed normals and stuck tangents of a level (rows of Bn_r, Bt_r) that constrain:
+        a row held by supports on both sides is no constraint (res None: none)."""
+        if res is None:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        m = res.lam_n.size
+        n_rows, t_rows = np.flatnonzero(res.free[:m]), np.flatnonzero(res.free[m:])
+        live = abs(self.C[np.r_[n_rows, m + t_rows]]).max(axis=1).toarray().ravel() > 0
+        return n_rows[live[:n_rows.size]], t_rows[live[n_rows.size:]]
+
+    def _solve_A(self, rhs):
+        return np.column_stack([self.held.factor.solve(col) for col in rhs.T])
+
+    def solve(self, res, top, bottom):
+        """(a, b) of the level's system, or None where it is singular."""
+        n_rows, t_rows = self.rows(res)
         key = b"" if res is None else res.free.tobytes()
+        idx = np.r_[n_rows, (res.lam_n.size if res is not None else 0) + t_rows]
+        if self.held is not None:
+            if key not in self.cache:
+                W = self.held.W[np.ix_(idx, idx)]
+                self.cache[key] = sla.lu_factor(W) if idx.size and np.linalg.matrix_rank(W) == idx.size else \
+                    (None if idx.size else ())
+            lu = self.cache[key]
+            if lu is None:
+                return None
+            y = self._solve_A(top)
+            if not idx.size:
+                return y, np.zeros((0, top.shape[1]))
+            G = self.C[idx]
+            b = sla.lu_solve(lu, G @ y - bottom)
+            return self._solve_A(top - G.T @ b), b
         if key not in self.cache:
-            n_rows = t_rows = np.zeros(0, dtype=np.int64)
-            K = self.A
-            if res is not None:
-                m = res.lam_n.size
-                n_rows, t_rows = np.flatnonzero(res.free[:m]), np.flatnonzero(res.free[m:])
-                G = sp.vstack([self.model.Bn_r[n_rows], self.model.Bt_r[t_rows]]).tocsr()
-                live = abs(G).max(axis=1).toarray().ravel() > 0     # a row held by supports on both sides
-                n_rows, t_rows = n_rows[live[:n_rows.size]], t_rows[live[n_rows.size:]]
-                G = G[np.flatnonzero(live)]
-                K = sp.bmat([[self.A, G.T], [G, None]])
+            G = self.C[idx] if self.C is not None else None
+            K = sp.bmat([[self.A, G.T], [G, None]]) if idx.size else self.A
             try:
-                lu = spla.splu(sp.csc_matrix(K))
+                self.cache[key] = spla.splu(sp.csc_matrix(K))
             except RuntimeError:
-                lu = None
-            self.cache[key] = (lu, n_rows, t_rows)
-        return self.cache[key]
+                self.cache[key] = None
+        if self.cache[key] is None:
+            return None
+        sol = self.cache[key].solve(np.vstack([top, bottom]))
+        return sol[:top.shape[0]], sol[top.shape[0]:]
 
 
 def _derivatives(ev, model, pmap, x, others, steps):
@@ -335,10 +366,10 @@ class _Sweep:
     def run(self) -> np.ndarray | None:
         model, tau, data, rec = self.model, self.tau, self.data, self.record
         T, Tt, z = model.elim.T, model.Tt, model.zone
-        M, C, K = data.mats.M, data.mats.C, data.mats.K
-        A = M / tau**2 + (C / tau if C is not None else 0) + K
-        system = LevelSystem(A, model)
+        M, K = data.mats.M, data.mats.K
         states = rec["states"]
+        system = LevelSystem(schemes.seed_operator(data.mats, tau), model, states[-1][1].factor if states and
+                             states[-1][1] is not None else None)
         N, k, P = len(states), len(self.crits), len(self.x)
         w0, v0, res0 = rec["start"]
         ws = np.cumsum([w0] + [s for s, _ in states], axis=0)          # w_0 … w_N
@@ -363,15 +394,14 @@ class _Sweep:
             pw, pn, pt, _, coef = self.partials(n, u, res)
             grad += coef
             top = w_hat + pw + v_hat / tau
-            lu, n_rows, t_rows = system.of(res)
-            if lu is None:
+            n_rows, t_rows = system.rows(res)
+            bottom = np.vstack([(l_hat + pn)[n_rows], pt[t_rows]]) if z is not None else np.zeros((0, k))
+            out = system.solve(res, top, bottom)
+            if out is None:
                 self.failure = f"at time level {n} the active set's system is singular"
                 return None
-            if z is None:
-                a, b_n = lu.solve(top), None
-            else:
-                sol = lu.solve(np.vstack([top, (l_hat + pn)[n_rows], pt[t_rows]]))
-                a, b_n = sol[:top.shape[0]], sol[top.shape[0]:top.shape[0] + n_rows.size]
+            a, b_n = out[0], out[1][:n_rows.size]
+            if z is not None:
                 _, _, slip, sigma, _ = _active(model, res)
                 ghat = np.where(slip[:, None], sigma[:, None] * (pt - model.Bt_r @ a), 0.0)   # ∂J/∂gw per tangent row
                 m = res.lam_n.size
