@@ -46,7 +46,9 @@ stabilized scheme, a thermal scene, a 3D node slipping on its disc.
 Memory: the sweep keeps each level's increment and contact result (N vectors of the reduced
 size: the seismic study's 240 × 15,456 doubles, 30 MB); a 3D model of 1e6 unknowns over 1000
 levels would hold 8 GB, where checkpointing (every √N-th level stored, the rest recomputed)
-trades it for a second forward run.
+trades it for a second forward run. Each level's system is solved with the forward's factor of A
+and its Delassus operator (the monolithic method's); a method without them (iterative) gets a
+sparse LU of the level's saddle-point matrix per active set, for 2D and small 3D models only.
 """
 from __future__ import annotations
 
