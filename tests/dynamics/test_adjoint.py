@@ -97,6 +97,21 @@ def test_each_reduction_weighs_its_levels_and_a_tie_is_named():
     assert why == "its peak over time is reached at levels 1 and 2 (within 1e-07)"
 
 
+def test_a_source_point_on_a_cell_face_is_not_differentiable_and_the_evaluation_says_so(tmp_path):
+    """A point force at a mesh node (on the faces of the cells around it) whose position is
+    uncertain: its P1 nodal loads have a kink there, so every gradient is left to finite differences."""
+    doc = yaml.safe_load(seed_bars(tmp_path).read_text())
+    doc["scene"]["sources"] = {"quake": {"point": [0.5, 0.0], "force": [1e3, 0.0],
+                                         "wavelet": {"ricker": {"frequency": 2e4, "delay": 1e-4}}}}
+    doc["uncertain"] = {"sources.quake.point.0": [0.4, 0.6]}
+    ev = DynamicEvaluator(load_study(write_study(doc, tmp_path, "source.yaml")))
+    e = ev.evaluate(np.array([0.5]), gradients=True)
+    assert all(g is None for g in e.grad.values())
+    assert "the point of source 'quake' lies on a cell face" in e.message
+    assert all(g is not None for c, g in ev.evaluate(np.array([0.5 + 1e-3]), gradients=True).grad.items()
+               if c != "least")
+
+
 def test_the_stabilized_scheme_is_not_covered_and_says_so(tmp_path):
     doc = yaml.safe_load(seed_bars(tmp_path).read_text())
     doc["dynamics"]["scheme"] = "stabilized"
