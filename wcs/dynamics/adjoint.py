@@ -141,32 +141,32 @@ def _active(model, res):
     return closed, stick, slip, sigma, gw
 
 
-def level_switch(model, res, prev, d, step) -> str:
-    """'' or where a contact node of a level sits at a switch of its active set (within REL_TOL):
-    closed with λn ≈ 0, open with a zero gap, stuck at |λt| ≈ gw or slipping by ≈ 0 — the last two
-    only where the level changed the node's tangential force (prev: the last level's result). A
-    node that keeps its force, at rest at its limit as the static state left it before the
-    waves arrive, stays so under any small change of the data (the start is an equilibrium of
-    every data set), so the level is smooth there."""
+def level_switch(model, res, prev, d, step, fs, us) -> str:
+    """'' or where a contact node of a level sits at a switch of its active set, within REL_TOL of
+    the history's largest pressure fs and increment us: closed with λn ≈ 0, open with a zero gap,
+    stuck at |λt| ≈ gw or slipping by ≈ 0 — each only where the level moved the node (its gap or
+    its force changed; prev: the last level's result). A node that keeps its state, at a switch as
+    the static state left it (a fault node touching at zero pressure at the tunnel's wall, one at
+    rest at its slip limit) before the waves arrive, stays so under any small change of the data
+    (the start is an equilibrium of every data set), so the level is smooth there."""
     m = res.lam_n.size
     closed, stick, slip, _, gw = _active(model, res)
     moves = ~model.held[:m]
-    fs = max(np.abs(res.lam_n).max(initial=0.0), 1e-300)
-    gap = d - model.Bn_r @ step
-    us = max(np.abs(d).max(initial=0.0), np.abs(step).max(initial=0.0), 1e-300)
     k = stick.size // m
+    before_n = prev.lam_n if prev is not None else np.zeros(m)
+    before_t = prev.lam_t if prev is not None else np.zeros_like(res.lam_t)
+    moved = (np.abs(model.Bn_r @ step) > REL_TOL * us) | (np.abs(res.lam_n - before_n) > REL_TOL * fs) \
+        | (np.linalg.norm((res.lam_t - before_t).reshape(k, m), axis=0) > REL_TOL * fs)
     lam_t = np.linalg.norm(res.lam_t.reshape(k, m), axis=0)
-    before = prev.lam_t if prev is not None else np.zeros_like(res.lam_t)
-    changed = np.linalg.norm((res.lam_t - before).reshape(k, m), axis=0) > REL_TOL * max(gw.max(initial=0.0), 1e-300)
     ds = np.linalg.norm((model.Bt_r @ step).reshape(k, m), axis=0)
     stuck = stick.reshape(k, m).any(axis=0)
     slipping = slip.reshape(k, m).any(axis=0)
     checks = {"closed with a vanishing pressure": closed & (res.lam_n <= REL_TOL * fs),
-              "open and touching": ~closed & (gap <= REL_TOL * us),
-              "stuck at its slip limit": stuck & changed & (gw > 0) & (lam_t >= (1 - REL_TOL) * gw),
-              "slipping by nothing": slipping & changed & closed & (ds <= REL_TOL * us)}
+              "open and touching": ~closed & (d - model.Bn_r @ step <= REL_TOL * us),
+              "stuck at its slip limit": stuck & (gw > 0) & (lam_t >= (1 - REL_TOL) * gw),
+              "slipping by nothing": slipping & closed & (ds <= REL_TOL * us)}
     for what, where in checks.items():
-        hit = np.flatnonzero(where & moves)
+        hit = np.flatnonzero(where & moved & moves)
         if hit.size:
             return f"contact node {hit[0]} is {what}"
     return ""
@@ -307,13 +307,15 @@ def _switch_or_disc(model, record) -> str:
     u0 = model.elim.U0 @ record["c"].support_values
     z = model.zone
     prev = record["start"][2]
+    fs = max([np.abs(res.lam_n).max(initial=0.0) for _, res in record["states"]] + [1e-300])
+    us = max([np.abs(step).max(initial=0.0) for step, _ in record["states"]] + [1e-300])
     for n, (step, res) in enumerate(record["states"], start=1):
         if res.lam_t.size > res.lam_n.size:
             _, _, slip, _, _ = _active(model, res)
             if slip.any():
                 return f"at time level {n} a 3D contact node slips on its disc (not covered by the adjoint through time)"
         d = z.gap - z.Bn @ u0 - model.Bn_r @ w
-        where = level_switch(model, res, prev, d, step)
+        where = level_switch(model, res, prev, d, step, fs, us)
         if where:
             return f"at time level {n} {where}: the history is not differentiable there"
         w, prev = w + step, res
