@@ -37,9 +37,10 @@ criterion (`wcs.model.sensitivity.coefficient_gradients`).
 Not differentiable — the criterion's gradient is None and the search takes finite differences
 of the reduced criterion, which its record says (`Evaluation.message`, the certificate's
 "finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL`, a
-criterion's own kink or region switch at a weighted level, a contact node at a switch at any
-level (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a slipping one
-at zero slip increment), a singular active-set system, a point source within the data step of a
+criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
+that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
+slipping one at zero slip increment; within REL_TOL of the history's largest pressure and
+increment, `level_switch`), a singular active-set system, a point source within the data step of a
 cell face (its P1 shape functions' gradients jump there), and what the sweep does not cover: the
 stabilized scheme, a thermal scene, a 3D node slipping on its disc.
 
