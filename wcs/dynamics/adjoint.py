@@ -39,7 +39,7 @@ of the reduced criterion, which its record says (`Evaluation.message`, the certi
 "finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL`, a
 criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
 that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
-slipping one at zero slip increment; within REL_TOL of the history's largest pressure and
+slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
 increment, `level_switch`), a singular active-set system, a point source within the data step of a
 cell face (its P1 shape functions' gradients jump there), and what the sweep does not cover: the
 stabilized scheme, a thermal scene, a 3D node slipping on its disc.
@@ -142,11 +142,12 @@ def _active(model, res):
     return closed, stick, slip, sigma, gw
 
 
-def level_switch(model, res, prev, d, step, fs, us) -> str:
+def level_switch(model, res, prev, d, step, fs_all, us_all) -> str:
     """'' or where a contact node of a level sits at a switch of its active set, within REL_TOL of
-    the history's largest pressure fs and increment us: closed with λn ≈ 0, open with a zero gap,
-    stuck at |λt| ≈ gw or slipping by ≈ 0 — each only where the level moved the node (its gap or
-    its force changed; prev: the last level's result). A node that keeps its state, at a switch as
+    the level's largest pressure and increment: closed with λn ≈ 0, open with a zero gap, stuck at
+    |λt| ≈ gw or slipping by ≈ 0 — each only where the level moved the node (its gap or its force
+    changed by more than REL_TOL of the history's largest pressure fs_all and increment us_all;
+    prev: the last level's result). A node that keeps its state, at a switch as
     the static state left it (a fault node touching at zero pressure at the tunnel's wall, one at
     rest at its slip limit) before the waves arrive, stays so under any small change of the data
     (the start is an equilibrium of every data set), so the level is smooth there."""
@@ -156,8 +157,10 @@ def level_switch(model, res, prev, d, step, fs, us) -> str:
     k = stick.size // m
     before_n = prev.lam_n if prev is not None else np.zeros(m)
     before_t = prev.lam_t if prev is not None else np.zeros_like(res.lam_t)
-    moved = (np.abs(model.Bn_r @ step) > REL_TOL * us) | (np.abs(res.lam_n - before_n) > REL_TOL * fs) \
-        | (np.linalg.norm((res.lam_t - before_t).reshape(k, m), axis=0) > REL_TOL * fs)
+    moved = (np.abs(model.Bn_r @ step) > REL_TOL * us_all) | (np.abs(res.lam_n - before_n) > REL_TOL * fs_all) \
+        | (np.linalg.norm((res.lam_t - before_t).reshape(k, m), axis=0) > REL_TOL * fs_all)
+    fs = max(np.abs(res.lam_n).max(initial=0.0), 1e-300)
+    us = max(np.abs(d).max(initial=0.0), np.abs(step).max(initial=0.0), 1e-300)
     lam_t = np.linalg.norm(res.lam_t.reshape(k, m), axis=0)
     ds = np.linalg.norm((model.Bt_r @ step).reshape(k, m), axis=0)
     stuck = stick.reshape(k, m).any(axis=0)
