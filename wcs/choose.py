@@ -58,11 +58,12 @@ def solver_method(f: SolverFacts) -> tuple[str, str]:
     28-87x slower than the monolithic Newton for the same answer, forward_hertz.png). The reason
     carries a P1-locking warning when some material has nu > NU_LOCKING. A dynamic study: the
     rules decide the method of each time level's contact solve (its operator A with the mass:
-    no rigid modes), with no adjoint gradients (none runs through time) and no fallback."""
+    no rigid modes), without the adjoint-gradient rule (the adjoint through time solves its levels
+    with their own factors, whatever the method) and with no fallback."""
     method, why = _size_rule(f) or _solver_rule(f)
     if f.dynamic:
-        why = ("each time level is one contact solve (no adjoint gradient through time: the search takes "
-               f"finite differences): {why}")
+        why = ("each time level is one contact solve (the adjoint through time, where the search asks for "
+               f"gradients, solves the levels with their own factors whatever the method): {why}")
     if f.contact and f.costs is not None and method != "iterative":
         why += (f"; the iterative method{'' if f.iterative_installed else ' (not installed: PETSc, the wheel dolfinx-solver-real)'}"
                 f" estimated at {_cost(*f.costs['iterative'])}")

@@ -19,7 +19,7 @@ from wcs.model.criteria import in_words
 from wcs.model.evaluation import Evaluator
 from wcs.model.fields import fields_dataset
 from wcs.results.dataset import provenance, write_netcdf
-from wcs.results.dynamics import GRADIENTS
+from wcs.results.dynamics import gradients
 from wcs.results.meshcheck import MEMORY_SHARE, SOLVE_GROWTH, SPLITS, planned, refined_nodes
 from wcs.scene.estimate import machine_memory
 from wcs.results.paraview import volume, vtu_text, _write
@@ -146,13 +146,13 @@ def plan_line(study, ev) -> list[str]:
     ones): an evaluation is one simulation; each level's contact problem by the model's method
     (`wcs.dynamics.stepping.LevelSolver`), warm-started from the last level (the decomposition:
     from its glued start); the gradients as the results file records them
-    (`wcs.results.dynamics.GRADIENTS`)."""
+    (`wcs.results.dynamics.gradients`)."""
     s, dyn, method = study.search, study.dynamics, ev.model.solver_method
     chosen = f"{method} (auto)" if study.solver.method == "auto" else method
     how = (LEVEL_METHOD[method] if study.scene.contacts else "one sparse factor of {A}, kept across the levels"
            ).format(A=OPERATOR[dyn.scheme])
     return [f"  search: {s.method}, budget {s.budget} evaluations; one evaluation is one simulation "
-            f"({dyn.levels} levels of {level_solves(study)} each); gradients: {GRADIENTS}",
+            f"({dyn.levels} levels of {level_solves(study)} each); gradients: {gradients(study)}",
             f"  solver: each level ({dyn.scheme} scheme, Δt = {dyn.time_step:g} s) by {chosen}: {how}; "
             + WARM.get(method, "warm-started from the last level's contact forces")]
 

@@ -37,16 +37,19 @@ criterion (`wcs.model.sensitivity.coefficient_gradients`).
 Not differentiable — the criterion's gradient is None and the search takes finite differences
 of the reduced criterion, which its record says (`Evaluation.message`, the certificate's
 "finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL`, a
-criterion's own kink or region switch at a weighted level, a contact node at a switch at any
-level (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a slipping one
-at zero slip increment), a singular active-set system, a point source within the data step of a
+criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
+that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
+slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
+increment, `level_switch`), a singular active-set system, a point source within the data step of a
 cell face (its P1 shape functions' gradients jump there), and what the sweep does not cover: the
 stabilized scheme, a thermal scene, a 3D node slipping on its disc.
 
 Memory: the sweep keeps each level's increment and contact result (N vectors of the reduced
 size: the seismic study's 240 × 15,456 doubles, 30 MB); a 3D model of 1e6 unknowns over 1000
 levels would hold 8 GB, where checkpointing (every √N-th level stored, the rest recomputed)
-trades it for a second forward run.
+trades it for a second forward run. Each level's system is solved with the forward's factor of A
+and its Delassus operator (the monolithic method's); a method without them (iterative) gets a
+sparse LU of the level's saddle-point matrix per active set, for 2D and small 3D models only.
 """
 from __future__ import annotations
 
@@ -54,14 +57,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from wcs.model.coefficients import flatten
-from wcs.model.criteria import REL_TOL
+from wcs.model.criteria import REL_TOL, Partials
 from wcs.model.sensitivity import coefficient_gradients, contact_nonsmooth, criterion_partials
-from wcs.model.criteria import Partials
 
-from .loading import at_time_zero, damping_matrix, load_function
+from . import schemes
+from .loading import at_time_zero, damping_matrix, load_function, source_at
 from .release import released_dofs, released_names
 from .sources import containing_cells
 from .stepping import dynamic_matrices, level_solution, region_dynamics
@@ -71,8 +75,8 @@ DATA_STEP = 1e-6            # the data's central-difference step, a fraction of 
 
 @dataclass
 class TimeGradients:
-    """dJ/dx per criterion (None: not differentiable there, `why` says so) and whether any level
-    has a contact switch within reach."""
+    """dJ/dx per criterion (None: not differentiable there or not covered) and why ('' where it is
+    the adjoint's)."""
     grad: dict
     why: dict
 
@@ -108,7 +112,8 @@ def data_steps(study, x) -> np.ndarray:
 
 
 def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
-    """(c_n, why not differentiable or '') of a history phi reduced by `how`."""
+    """(c_n, why not differentiable or '') of a history phi reduced by `how`: a peak (least value)
+    is tied where another level comes within REL_TOL of the history's largest magnitude."""
     phi = np.asarray(phi, float)
     c = np.zeros(phi.size)
     if how == "mean":
@@ -118,7 +123,7 @@ def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
         c[-1] = 1.0
         return c, ""
     n = int(np.argmax(phi) if how == "max" else np.argmin(phi))
-    close = np.flatnonzero(np.abs(phi - phi[n]) <= REL_TOL * max(abs(phi[n]), 1e-300))
+    close = np.flatnonzero(np.abs(phi - phi[n]) <= REL_TOL * max(np.abs(phi).max(), 1e-300))
     c[n] = 1.0
     if close.size > 1:
         word = "peak" if how == "max" else "least value"
@@ -137,57 +142,96 @@ def _active(model, res):
     return closed, stick, slip, sigma, gw
 
 
-def level_switch(model, res, d, step) -> str:
-    """'' or where a contact node of a level sits at a switch of its active set (within REL_TOL)."""
+def level_switch(model, res, prev, d, step, fs_all, us_all) -> str:
+    """'' or where a contact node of a level sits at a switch of its active set, within REL_TOL of
+    the level's largest pressure and increment: closed with λn ≈ 0, open with a zero gap, stuck at
+    |λt| ≈ gw or slipping by ≈ 0 — each only where the level moved the node (its gap or its force
+    changed by more than REL_TOL of the history's largest pressure fs_all and increment us_all;
+    prev: the last level's result). A node that keeps its state, at a switch as
+    the static state left it (a fault node touching at zero pressure at the tunnel's wall, one at
+    rest at its slip limit) before the waves arrive, stays so under any small change of the data
+    (the start is an equilibrium of every data set), so the level is smooth there."""
     m = res.lam_n.size
     closed, stick, slip, _, gw = _active(model, res)
     moves = ~model.held[:m]
-    fs = max(np.abs(res.lam_n).max(initial=0.0), 1e-300)
-    gap = d - model.Bn_r @ step
-    us = max(np.abs(d).max(initial=0.0), np.abs(step).max(initial=0.0), 1e-300)
     k = stick.size // m
+    before_n = prev.lam_n if prev is not None else np.zeros(m)
+    before_t = prev.lam_t if prev is not None else np.zeros_like(res.lam_t)
+    moved = (np.abs(model.Bn_r @ step) > REL_TOL * us_all) | (np.abs(res.lam_n - before_n) > REL_TOL * fs_all) \
+        | (np.linalg.norm((res.lam_t - before_t).reshape(k, m), axis=0) > REL_TOL * fs_all)
+    fs = max(np.abs(res.lam_n).max(initial=0.0), 1e-300)
+    us = max(np.abs(d).max(initial=0.0), np.abs(step).max(initial=0.0), 1e-300)
     lam_t = np.linalg.norm(res.lam_t.reshape(k, m), axis=0)
     ds = np.linalg.norm((model.Bt_r @ step).reshape(k, m), axis=0)
     stuck = stick.reshape(k, m).any(axis=0)
     slipping = slip.reshape(k, m).any(axis=0)
     checks = {"closed with a vanishing pressure": closed & (res.lam_n <= REL_TOL * fs),
-              "open and touching": ~closed & (gap <= REL_TOL * us),
+              "open and touching": ~closed & (d - model.Bn_r @ step <= REL_TOL * us),
               "stuck at its slip limit": stuck & (gw > 0) & (lam_t >= (1 - REL_TOL) * gw),
               "slipping by nothing": slipping & closed & (ds <= REL_TOL * us)}
     for what, where in checks.items():
-        hit = np.flatnonzero(where & moves)
+        hit = np.flatnonzero(where & moved & moves)
         if hit.size:
             return f"contact node {hit[0]} is {what}"
     return ""
 
 
 class LevelSystem:
-    """The saddle-point matrix [A Gᵀ; G 0] of a level's active set, factored once per set."""
+    """Solves [A Gᵀ; G 0] [a; b] = [t; s] on a level's active set. With the forward's factor of A
+    and its Delassus operator W = C A⁻¹ Cᵀ (C = [Bn; Bt]; the monolithic method holds both):
+    b = W_GG⁻¹ (G A⁻¹ t − s), a = A⁻¹ (t − Gᵀ b) — two solves with A and a small dense one (W_GG's
+    LU once per active set); otherwise the sparse LU of the whole matrix, once per active set."""
 
-    def __init__(self, A, model):
-        self.A, self.model, self.cache = sp.csr_matrix(A), model, {}
+    def __init__(self, A, model, held=None):
+        A = sp.csr_matrix(A)
+        self.A, self.model, self.cache = A, model, {}
+        self.held = held if held is not None and held.W is not None and not len(held.pinned) \
+            and held.K_data is not None and np.array_equal(held.K_data, A.data) else None
+        self.C = sp.vstack([model.Bn_r, model.Bt_r]).tocsr() if model.zone is not None else None
 
-    def of(self, res):
-        """(factor or None when singular, rows of Bn_r closed, rows of Bt_r stuck) of a level's
-        active set (res None: a scene without contacts, A alone)."""
+    def rows(self, res) -> tuple[np.ndarray, np.ndarray]:
+        """The closed normals and stuck tangents of a level (rows of Bn_r, Bt_r) that constrain:
+        a row held by supports on both sides is no constraint (res None: none)."""
+        if res is None:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        m = res.lam_n.size
+        n_rows, t_rows = np.flatnonzero(res.free[:m]), np.flatnonzero(res.free[m:])
+        live = abs(self.C[np.r_[n_rows, m + t_rows]]).max(axis=1).toarray().ravel() > 0
+        return n_rows[live[:n_rows.size]], t_rows[live[n_rows.size:]]
+
+    def _solve_A(self, rhs):
+        return np.column_stack([self.held.factor.solve(col) for col in rhs.T])
+
+    def solve(self, res, top, bottom):
+        """(a, b) of the level's system, or None where it is singular."""
+        n_rows, t_rows = self.rows(res)
         key = b"" if res is None else res.free.tobytes()
+        idx = np.r_[n_rows, (res.lam_n.size if res is not None else 0) + t_rows]
+        if self.held is not None:
+            if key not in self.cache:
+                W = self.held.W[np.ix_(idx, idx)]
+                self.cache[key] = sla.lu_factor(W) if idx.size and np.linalg.matrix_rank(W) == idx.size else \
+                    (None if idx.size else ())
+            lu = self.cache[key]
+            if lu is None:
+                return None
+            y = self._solve_A(top)
+            if not idx.size:
+                return y, np.zeros((0, top.shape[1]))
+            G = self.C[idx]
+            b = sla.lu_solve(lu, G @ y - bottom)
+            return self._solve_A(top - G.T @ b), b
         if key not in self.cache:
-            n_rows = t_rows = np.zeros(0, dtype=np.int64)
-            K = self.A
-            if res is not None:
-                m = res.lam_n.size
-                n_rows, t_rows = np.flatnonzero(res.free[:m]), np.flatnonzero(res.free[m:])
-                G = sp.vstack([self.model.Bn_r[n_rows], self.model.Bt_r[t_rows]]).tocsr()
-                live = abs(G).max(axis=1).toarray().ravel() > 0     # a row held by supports on both sides
-                n_rows, t_rows = n_rows[live[:n_rows.size]], t_rows[live[n_rows.size:]]
-                G = G[np.flatnonzero(live)]
-                K = sp.bmat([[self.A, G.T], [G, None]])
+            G = self.C[idx] if self.C is not None else None
+            K = sp.bmat([[self.A, G.T], [G, None]]) if idx.size else self.A
             try:
-                lu = spla.splu(sp.csc_matrix(K))
+                self.cache[key] = spla.splu(sp.csc_matrix(K))
             except RuntimeError:
-                lu = None
-            self.cache[key] = (lu, n_rows, t_rows)
-        return self.cache[key]
+                self.cache[key] = None
+        if self.cache[key] is None:
+            return None
+        sol = self.cache[key].solve(np.vstack([top, bottom]))
+        return sol[:top.shape[0]], sol[top.shape[0]:]
 
 
 def _derivatives(ev, model, pmap, x, others, steps):
@@ -203,7 +247,6 @@ def _derivatives(ev, model, pmap, x, others, steps):
 def source_on_face(ev, x, others, steps) -> str:
     """'' or the source whose point lies within the data step of a cell face (its nodal loads are
     not differentiable in the point there)."""
-    from .loading import source_at
     pmap, sm = ev.map, ev.smesh
     box = {e.path: i for i, e in enumerate(ev.study.uncertain)}
     for name, source in ev.study.scene.sources.items():
@@ -222,11 +265,11 @@ def source_on_face(ev, x, others, steps) -> str:
     return ""
 
 
-def refusal(ev, record) -> str:
-    """'' or why the sweep does not cover this study."""
-    if ev.study.dynamics.scheme != "seed":
-        return f"the adjoint through time covers the seed scheme, not '{ev.study.dynamics.scheme}'"
-    if ev.model.thermal:
+def refusal(study) -> str:
+    """'' or why the sweep does not cover a dynamic study (its gradients are finite differences)."""
+    if study.dynamics.scheme != "seed":
+        return f"the adjoint through time covers the seed scheme, not '{study.dynamics.scheme}'"
+    if study.scene.thermal is not None:
         return "the adjoint through time does not cover a thermal scene"
     return ""
 
@@ -237,7 +280,7 @@ def gradients(ev, x, others, hist, record) -> TimeGradients:
     names = [c.name for c in ev.criteria]
     why = {n: "" for n in names}
     grad = {n: None for n in names}
-    reason = refusal(ev, record)
+    reason = refusal(ev.study)
     model, pmap, states = record["model"], record["map"], record["states"]
     steps = data_steps(ev.study, np.asarray(x, float))
     reason = reason or source_on_face(ev, x, others, steps)
@@ -267,16 +310,19 @@ def _switch_or_disc(model, record) -> str:
     w = record["start"][0].copy()
     u0 = model.elim.U0 @ record["c"].support_values
     z = model.zone
+    prev = record["start"][2]
+    fs = max([np.abs(res.lam_n).max(initial=0.0) for _, res in record["states"]] + [1e-300])
+    us = max([np.abs(step).max(initial=0.0) for step, _ in record["states"]] + [1e-300])
     for n, (step, res) in enumerate(record["states"], start=1):
         if res.lam_t.size > res.lam_n.size:
             _, _, slip, _, _ = _active(model, res)
             if slip.any():
                 return f"at time level {n} a 3D contact node slips on its disc (not covered by the adjoint through time)"
         d = z.gap - z.Bn @ u0 - model.Bn_r @ w
-        where = level_switch(model, res, d, step)
+        where = level_switch(model, res, prev, d, step, fs, us)
         if where:
             return f"at time level {n} {where}: the history is not differentiable there"
-        w = w + step
+        w, prev = w + step, res
     return ""
 
 
@@ -291,11 +337,12 @@ class _Sweep:
         self.failure = ""
 
     def partials(self, n, u, res):
-        """(φ_w (reduced, ncrit), φ_λn (m, ncrit), φ_λt, explicit dJ/dx) of the weighted criteria at level n."""
+        """(φ_w (reduced), φ_λn, φ_λt, φ_u (full DOFs), the explicit dJ/dx), one column per criterion,
+        of the criteria at level n times their reductions' weights c_n."""
         model, c = self.model, self.data.c
-        nw, k = model.elim.T.shape[1], len(self.crits)
+        k = len(self.crits)
         m = model.zone.gap.size if model.zone is not None else 0
-        pw, pn = np.zeros((nw, k)), np.zeros((m, k))
+        pn = np.zeros((m, k))
         pt = np.zeros((model.Bt_r.shape[0] if model.zone is not None else 0, k))
         pu, coef = np.zeros((model.elim.T.shape[0], k)), np.zeros((len(self.x), k))
         state = None
@@ -327,10 +374,10 @@ class _Sweep:
     def run(self) -> np.ndarray | None:
         model, tau, data, rec = self.model, self.tau, self.data, self.record
         T, Tt, z = model.elim.T, model.Tt, model.zone
-        M, C, K = data.mats.M, data.mats.C, data.mats.K
-        A = M / tau**2 + (C / tau if C is not None else 0) + K
-        system = LevelSystem(A, model)
+        M, K = data.mats.M, data.mats.K
         states = rec["states"]
+        system = LevelSystem(schemes.seed_operator(data.mats, tau), model, states[-1][1].factor if states and
+                             states[-1][1] is not None else None)
         N, k, P = len(states), len(self.crits), len(self.x)
         w0, v0, res0 = rec["start"]
         ws = np.cumsum([w0] + [s for s, _ in states], axis=0)          # w_0 … w_N
@@ -355,15 +402,14 @@ class _Sweep:
             pw, pn, pt, _, coef = self.partials(n, u, res)
             grad += coef
             top = w_hat + pw + v_hat / tau
-            lu, n_rows, t_rows = system.of(res)
-            if lu is None:
+            n_rows, t_rows = system.rows(res)
+            bottom = np.vstack([(l_hat + pn)[n_rows], pt[t_rows]]) if z is not None else np.zeros((0, k))
+            out = system.solve(res, top, bottom)
+            if out is None:
                 self.failure = f"at time level {n} the active set's system is singular"
                 return None
-            if z is None:
-                a, b_n = lu.solve(top), None
-            else:
-                sol = lu.solve(np.vstack([top, (l_hat + pn)[n_rows], pt[t_rows]]))
-                a, b_n = sol[:top.shape[0]], sol[top.shape[0]:top.shape[0] + n_rows.size]
+            a, b_n = out[0], out[1][:n_rows.size]
+            if z is not None:
                 _, _, slip, sigma, _ = _active(model, res)
                 ghat = np.where(slip[:, None], sigma[:, None] * (pt - model.Bt_r @ a), 0.0)   # ∂J/∂gw per tangent row
                 m = res.lam_n.size
@@ -392,8 +438,7 @@ class _Sweep:
         if self.ev.study.dynamics.initial == "static":
             grad += self.static_share(w_hat, l_hat, a_sum, u0_state, res0)
         else:
-            pw, _, _, _, coef = self.partials(0, u0_state, res0)
-            grad += coef
+            grad += self.partials(0, u0_state, res0)[4]
         return grad
 
     def static_share(self, w_hat, l_hat, a_sum, u_s, res0) -> np.ndarray:

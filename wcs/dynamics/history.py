@@ -4,10 +4,10 @@ set is one simulation of its time levels, and each criterion's value is its hist
 
 `DynamicEvaluator` is the `Evaluator` of such a study: `evaluate(x)` runs the levels and returns
 an `Evaluation` whose `phi` are the reduced values, `history` the criteria at every level and
-`fields` the solution fields at the output levels (an `output_time` dimension). It has no
-`gradients` argument: there is no adjoint through time yet, so the search gets no adjoint
-gradient — the strategies that want one take finite differences of the reduced criterion
-(`wcs.search.ascent`), and the results file says so (`wcs.results.dynamics`).
+`fields` the solution fields at the output levels (an `output_time` dimension); with
+`gradients`, dΦ/dx by the adjoint through time (`wcs.dynamics.adjoint`), None for a criterion
+whose reduced history is not differentiable there (the evaluation's message says why; the
+strategies that want a gradient then take finite differences, `wcs.search.ascent`).
 """
 from __future__ import annotations
 
@@ -146,9 +146,9 @@ class DynamicEvaluator(Evaluator):
         study = self.study
         x, others = study.data_set(values)
         names = [c.name for c in self.criteria]
-        record = {} if gradients else None
+        record = {}
         try:
-            hist = simulate(self, x, others, record=record)
+            hist = simulate(self, x, others, record=record) if gradients else simulate(self, x, others)
         except SolveError as e:
             nan = {n: float("nan") for n in names}
             return DynamicEvaluation(x, nan, e.status, str(e), 0, time.perf_counter() - t0, evaluator=self)

@@ -1,15 +1,30 @@
 """What a dynamic study adds to the results file of `wcs run` / `wcs sweep`:
 the `time` coordinate, `phi_history` (eval, criterion, time), each criterion's `over_time`, and
-that no adjoint gradient through time was used (`gradients`, `certificate_note`)."""
+where the gradients came from (`gradients`, `certificate_note`): the adjoint through time
+(`wcs.dynamics.adjoint`), finite differences where it is not differentiable or not covered."""
 from __future__ import annotations
 
 import numpy as np
 import xarray as xr
 
-NO_ADJOINT = ("no adjoint gradient through time was used (dynamic study): the search is derivative-free "
+from ..dynamics.adjoint import refusal
+
+NO_ADJOINT = ("no adjoint gradient through time was used ({why}): the search is derivative-free "
               "where it sampled and takes finite differences of the reduced criterion where it asked for "
               "gradients (stages `fd`, `gradient`)")
-GRADIENTS = "none: no adjoint through time (finite differences where the search asked for gradients)"
+ADJOINT = ("gradients through time by the adjoint (a reverse sweep over the levels' final active sets) where "
+           "the search asked for them; where an evaluation's reduced history is not differentiable (its "
+           "`message` says why: a peak tied between levels, a contact switch within reach, a source on a cell "
+           "face) the search took finite differences of the reduced criterion (stage `fd`)")
+
+
+def gradients(study) -> str:
+    """The results file's `gradients` attribute of a dynamic study (and `wcs check`'s line): the
+    adjoint through time, or why there is none (`wcs.dynamics.adjoint.refusal`)."""
+    why = refusal(study)
+    return (f"none: no adjoint through time, {why} (finite differences where the search asked for gradients)"
+            if why else "adjoint through time; finite differences of the reduced criterion where an "
+            "evaluation's message says it is not differentiable")
 
 
 def level_times(dyn) -> np.ndarray:
@@ -34,15 +49,17 @@ def history_variables(study, records: list[dict]) -> dict:
 
 def dynamic_results(ds: xr.Dataset, study, records: list[dict]) -> xr.Dataset:
     """A run's results file with what a dynamic study adds: `time`, `phi_history`, the reductions
-    (`over_time` per criterion) and that no adjoint gradient was used (`gradients`,
+    (`over_time` per criterion) and where the gradients came from (`gradients`,
     `certificate_note`)."""
     v = history_variables(study, records)
     ds = ds.assign_coords(time=v["time"]).assign(phi_history=v["phi_history"])
     ds["over_time"] = (("criterion",), np.array([c.over_time or "max" for c in study.criteria], dtype=object),
                        {"long_name": "reduction of each criterion's history: max | min | final | mean"})
-    notes = [f"{n}; {NO_ADJOINT}" if n else NO_ADJOINT for n in map(str, ds["certificate_note"].values)]
+    why = refusal(study)
+    note = NO_ADJOINT.format(why=why) if why else ADJOINT
+    notes = [f"{n}; {note}" if n else note for n in map(str, ds["certificate_note"].values)]
     ds["certificate_note"] = ("criterion", np.array(notes, dtype=object), ds["certificate_note"].attrs)
-    ds.attrs["gradients"] = GRADIENTS
+    ds.attrs["gradients"] = gradients(study)
     ds["iterations"].attrs["long_name"] += "; a dynamic study: their sum over the time levels of the evaluation"
     dyn = study.dynamics
     ds.attrs.update({"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time})
