@@ -7,8 +7,9 @@ and impact_schemes.png: error against CPU time (contact time, peak force, energy
 stability chart (h against Δt per scheme, each run marked solved or failed); and
 results/bench/impact_orders.csv: the observed orders in Δt and h with their Richardson limits.
 
-The peak force's floor (about −3 % at every h and Δt of the energy-conserving scheme) is
-Hertz's quasi-static assumption, not the discretisation: `tests/dynamics/test_impact.py`.
+The scene (a steel cylinder on a 5 cm aluminium block) is where Hertz's quasi-static theory holds
+(0.2 % of the energy left in vibration; on the former 10 cm steel block the peak force's floor of
+about −3 % was that vibration): `tests/dynamics/test_impact.py`.
 """
 import time
 
@@ -21,8 +22,8 @@ from wcs.errors import SolveError
 
 pytestmark = pytest.mark.bench
 
-MESHES = (4e-4, 2e-4, 1e-4)                 # h at the contact [m] (b_max = 0.93 mm)
-STEPS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)      # Δt [s] (t_c = 133 µs: 17 to 266 steps in contact)
+MESHES = (4e-4, 2e-4, 1e-4)                 # h at the contact [m] (b_max = 1.13 mm)
+STEPS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)      # Δt [s] (t_c = 174 µs: 22 to 348 steps in contact)
 SCHEMES = ("seed", "stabilized")
 HEADER = ["scheme", "h", "dt", "t_c error", "peak force error", "energy change", "status", "cpu seconds",
           "wall seconds"]
@@ -55,7 +56,7 @@ def test_impact_schemes_speed_against_accuracy():
     solved = [r for r in rows if r[6] == "solved"]
     assert len(solved) == len(rows), [r for r in rows if r[6] != "solved"]
     fine = [r for r in solved if r[2] <= 2e-6]
-    assert all(abs(r[3]) < 0.02 for r in fine), fine      # t_c to the step's ±Δt/t_c (1.5 % at 2 µs)
+    assert all(abs(r[3]) < 0.02 for r in fine), fine      # t_c to the step's ±Δt/t_c (1.15 % at 2 µs)
 
 
 def observed(e1: float, e2: float, e3: float) -> tuple:

@@ -9,7 +9,8 @@ half-width b.
   pressure balanced by a uniform body force; its centre of mass to the contact) has k1 ≈ −1.75 at
   ν = 0.3 (−1.70 at 0.2, −1.86 at 0.45).
 - A half-space to a point at depth d has k2 = −ν/(1−ν) (−0.43 at ν = 0.3); a block held at its
-  base with free sides has k2 ≈ 0.00 (W = 2H), −0.07 (W = 4H), +0.49 (W = H) at ν = 0.3.
+  base with free sides has k2 ≈ 0.00 (W = 2H), −0.07 (W = 4H), +0.49 (W = H) at ν = 0.3, and
+  k2 ≈ −0.054 (W = 2H) at ν = 0.33 (the aluminium block of the 2D impact).
 Each unit of k moves the contact time by ~2.5 % for steel on steel (`cylinder_impact`).
 Writes results/bench/line_law_constants.csv.
 """
@@ -82,8 +83,8 @@ def test_line_law_constants():
         diametral, inertia = disc_constants(nu, 0.05)
         assert diametral == pytest.approx(-1.0, abs=0.02)           # Johnson's cylinder, reproduced
         rows.append(["cylinder", nu, "", 0.05, round(diametral, 4), round(inertia, 4), ""])
-    for width in (1.0, 2.0, 4.0):
-        rows.append(["block", 0.3, width, 0.05, "", "", round(block_constant(0.3, width, 0.05), 4)])
+    for nu, width in ((0.3, 1.0), (0.3, 2.0), (0.3, 4.0), (0.33, 2.0)):
+        rows.append(["block", nu, width, 0.05, "", "", round(block_constant(nu, width, 0.05), 4)])
     path = write_table("line_law_constants", ["body", "nu", "W/H", "b/R or b/H", "k1 two loads",
                                               "k1 inertia", "k2 held base"], rows)
     print(path.read_text())

@@ -1,23 +1,32 @@
-"""A steel sphere and a steel cylinder dropped on a steel block (plane strain, half model) against Hertz's impact
-theory (`reference_forms.cylinder_impact`, the line law with the constants measured for these
-bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a cylinder decelerated by its
-inertia, k2 = 0.00 for a block of width 2H held at its base, ν = 0.3). The study at the finest
-mesh is studies/validation/cylinder-impact.yaml.
+"""A steel cylinder dropped on an aluminium block (plane strain, half model) and a steel sphere on a
+steel block against Hertz's impact theory (`reference_forms.cylinder_impact`, the line law with the
+constants measured for these bodies by `tests/bench/test_bench_line_law.py`: k1 = −1.75 for a
+steel cylinder decelerated by its inertia, k2 = −0.054 for an aluminium block (ν = 0.33) of width
+2D held at its base). The study at the finest mesh is studies/validation/cylinder-impact.yaml.
 
-Measured (`tests/bench/test_bench_impact.py`, results/bench/impact_schemes.csv and
-impact_orders.csv, h = 0.4, 0.2, 0.1 mm at the contact, Δt = 8 µs to 0.5 µs): both schemes keep
-the contact time within 0.7 % from Δt = 2 µs (the count of levels is Δt-quantised). The seed
-scheme [101, (10)] is first order: its peak force is −6.4, −4.8, −4.1 % at Δt = 2, 1, 0.5 µs
-(h = 0.1 mm; observed order 1.24, Richardson limit −3.55 %), its energy −15, −8.4, −4.5 % (order
-0.85). The energy-conserving stabilized scheme gives −2.8, −3.2, −3.2 % at Δt = 0.5 µs on the
-three meshes (h and Δt move it by 0.3 % at most; energy −4e-5), and its predictor steps on every
-mesh and step (on main 10 of these 15 runs stopped at a predictor:
-`test_stabilized_predictor_steps_on_a_finer_mesh`). The −3 % that remains is Hertz's
-quasi-static assumption, not the discretisation
-(`test_the_peak_force_deficit_is_hertz_quasi_static_assumption`): the dynamic impact's peak is
-3.3 % below Hertz's impact on the mesh's own static law, which is within 0.3 % of Hertz's peak
-(0.8 % of its t_c). Against Hertz the peak force misses the issue's 3 % by 0.2 % at the finest
-mesh; the contact time meets it.
+The scene is chosen where Hertz's theory holds: his impact is quasi-static, valid while the
+bodies' own vibration is negligible (the contact time long against the waves' transits; Love's and
+Hunter's estimate of the energy left in vibration). In 2D the approach is the whole bodies'
+deformation (the line law's logarithms), so the bodies' periods matter, not only the contact's.
+The energy left in vibration, 1 − (v_out/V)² from the cylinder's rebound (stabilized scheme,
+h = 0.4 mm, Δt = 1 µs, measured per variant; R = 5 cm, V = 1 m/s unless stated):
+steel on steel, D = 10 cm (the former scene, q_max −3.0 % against Hertz): 2.3 %; the same at
+V = 0.25 m/s: 1.6 % (the line contact is nearly linear: the share hardly depends on V); D = 5 cm:
+1.0 %; D = 2.5 cm: 0.6 %; steel on aluminium, D = 10 cm: 1.5 %; D = 5 cm: 0.20 %; D = 2.5 cm:
+0.18 %; steel on PMMA (E = 3 GPa), D = 10 cm: 1.2 %. The block held at its base rings at its
+quarter-wave period 4D/c (68 µs for 10 cm of steel against t_c = 133 µs: the former scene's
+vibration); aluminium's softer contact (E* = 58 against 110 GPa) lengthens t_c to 174 µs at a wave
+speed like steel's, so a 5 cm aluminium block (4D/c = 32 µs; the cylinder's 2R/c = 17 µs) is the
+deepest block measured with ≤ 0.5 % of the energy in vibration: the scene here.
+
+Measured (h = 0.4, 0.2, 0.1 mm at the contact, b_max = 1.13 mm, Δt = 0.5 µs): the
+energy-conserving stabilized scheme gives the peak force −0.41, −0.56, −0.55 % (−0.69 % at
+h = 0.05 mm, −0.74 % there at Δt = 0.25 µs; order 3.0 in Δt at h = 0.1 mm) and t_c −0.55, −0.26, −0.26 % against Hertz (energy
+within 1e-4; `test_stabilized_cylinder_impact_over_three_meshes`): the issue's 3 % met; the seed scheme
+[101, (10)] −1.15, −1.21, −1.26 % (its step's damping, first order in Δt: −3.5, −1.9, −1.15 % at
+Δt = 2, 1, 0.5 µs, h = 0.4 mm). The quasi-static check
+(`test_the_cylinder_impact_is_quasi_static_on_this_scene`): the dynamic impact's peak is 0.6 %
+below Hertz's impact on the mesh's own static law (3.3 % on the former scene).
 """
 import numpy as np
 import pytest
@@ -29,12 +38,14 @@ from wcs.dynamics.mass import mass_operator
 from wcs.model.evaluation import Evaluator
 from wcs.study import load_study
 
-E, NU, RHO = 2.0e11, 0.3, 7850.0
-R, H, V = 0.05, 0.1, 1.0          # cylinder radius, block height (width 2H), impact speed [m, m, m/s]
-K1, K2 = -1.75, 0.0               # the line law's constants measured for these bodies
+E, NU, RHO = 2.0e11, 0.3, 7850.0         # steel: the cylinder, the sphere and the sphere's block
+E_AL, NU_AL, RHO_AL = 7.0e10, 0.33, 2700.0  # aluminium: the cylinder's block
+R, H, V = 0.05, 0.1, 1.0          # radius, the sphere's block height (width 2H), impact speed [m, m, m/s]
+D = 0.05                          # the cylinder's block height (width 2D) [m]
+K1, K2 = -1.75, -0.054            # the line law's constants measured for these bodies
 
 
-def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 1.6e-4) -> dict:
+def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 2.2e-4) -> dict:
     """The half model (x >= 0) of the cylinder striking the block at V, mesh size h at the contact."""
     seg = lambda body, a, z: {"body": body, "segment": [a, z]}     # noqa: E731
     return {
@@ -46,15 +57,16 @@ def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 1.6e-4) -> 
             "mesh": {"size": R / 5, "grading": 0.3,
                      "refine": [{"box": [0.0, -0.002, 0.002, 0.002], "size": h},
                                 {"box": [0.0, -0.008, 0.008, 0.008], "size": 4 * h}]},
-            "materials": {"steel": {"E": E, "nu": NU, "density": RHO}},
+            "materials": {"steel": {"E": E, "nu": NU, "density": RHO},
+                          "aluminium": {"E": E_AL, "nu": NU_AL, "density": RHO_AL}},
             "bodies": {"cylinder": {"regions": [{"material": "steel", "shape": {
                            "disc": {"center": [0.0, R], "radius": R}, "intersect": [{"rectangle": [0.0, 0.0, R, 2 * R]}]}}]},
-                       "block": {"regions": [{"material": "steel", "shape": {"rectangle": [0.0, -H, H, 0.0]}}]}},
+                       "block": {"regions": [{"material": "aluminium", "shape": {"rectangle": [0.0, -D, D, 0.0]}}]}},
             "boundaries": {"cyl_sym": seg("cylinder", [0.0, 0.0], [0.0, 2 * R]),
                            "cyl_arc": {"body": "cylinder", "circle": {"center": [0.0, R], "radius": R}},
-                           "block_sym": seg("block", [0.0, -H], [0.0, 0.0]),
-                           "block_bottom": seg("block", [0.0, -H], [H, -H]),
-                           "block_top": seg("block", [0.0, 0.0], [H, 0.0])},
+                           "block_sym": seg("block", [0.0, -D], [0.0, 0.0]),
+                           "block_bottom": seg("block", [0.0, -D], [D, -D]),
+                           "block_top": seg("block", [0.0, 0.0], [D, 0.0])},
             "supports": {"cyl_sym": {"u": [0.0, None]}, "block_sym": {"u": [0.0, None]},
                          "block_bottom": {"u": [0.0, 0.0]}},
             "contacts": {"impact": {"slave": "cyl_arc", "master": "block_top"}},
@@ -64,7 +76,7 @@ def cylinder(h: float, dt: float, scheme: str = "seed", end: float = 1.6e-4) -> 
 
 def hertz() -> tuple[float, float]:
     """(t_c [s], q_max [N/m]) of the theory for the whole cylinder (mass ρπR² per unit length)."""
-    c, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
+    c, s = line_law(R, E, NU, E_AL, NU_AL, D, k1=K1, k2=K2)
     tc, q, _ = cylinder_impact(RHO * np.pi * R ** 2, V, c, s)
     return tc, q
 
@@ -86,14 +98,15 @@ def simulated(h: float, dt: float, scheme: str = "seed"):
 
 
 def test_coarse_cylinder_impact_follows_hertz_and_closes_with_the_step():
-    """Coarse mesh (h = 0.4 mm, b_max = 0.93 mm): t_c within 1 % (measured −0.9 %, −0.1 %); the
-    peak force's deficit shrinks as Δt halves (−6.0 % → −4.3 %: the seed scheme's damping)."""
+    """Coarse mesh (h = 0.4 mm, b_max = 1.13 mm): t_c within 1.5 % (measured −1.1 %, −0.55 %: the
+    count of levels, Δt = 2 µs is 1.1 % of t_c); the peak force's deficit shrinks as Δt halves
+    (−3.5 % → −1.9 %: the seed scheme's damping)."""
     tc_ref, q_ref = hertz()
     errors = []
     for dt in (2e-6, 1e-6):
         tc, q, kept, _ = impact(4e-4, dt)
-        assert tc == pytest.approx(tc_ref, rel=0.01)
-        assert q == pytest.approx(q_ref, rel=0.07)
+        assert tc == pytest.approx(tc_ref, rel=0.015)
+        assert q == pytest.approx(q_ref, rel=0.05)
         assert kept < 1.0                              # backward Euler in the velocity: it only loses
         errors.append(q / q_ref - 1.0)
     assert errors[0] < errors[1] < 0.0
@@ -135,7 +148,7 @@ def quasi_static(h: float) -> tuple[float, float, float]:
     δ = q (c − s ln q) fitted to δ (centre of mass to the block's base) against the contact force
     q, and m the mesh's mass of the cylinder. It is Hertz's theory on this finite geometry: what
     the dynamic FE impact differs from it by is dynamics alone (waves, vibration)."""
-    _, s = line_law(R, E, NU, E, NU, H, k1=K1, k2=K2)
+    _, s = line_law(R, E, NU, E_AL, NU_AL, D, k1=K1, k2=K2)
     doc = cylinder(h, 1e-6)
     doc.pop("dynamics")
     doc["scene"]["body_forces"] = {"cylinder": [0.0, -1.0]}
@@ -151,19 +164,14 @@ def quasi_static(h: float) -> tuple[float, float, float]:
 
 
 @pytest.mark.slow
-def test_the_peak_force_deficit_is_hertz_quasi_static_assumption():
-    """Where the cylinder's peak force deficit (−3 % against Hertz on every mesh and step of the
-    energy-conserving scheme) comes from, h = 0.4 mm, Δt = 2 µs (measured):
-    - the geometry: the mesh's body is 0.53 % lighter than ρπR² (its arc is chords of R/5) and
-      its static law is stiffer than the line law (δ 1.8 % less at q_max; 0.9 % at h = 0.1 mm):
-      Hertz's impact on the mesh's own law and mass gives q_max +0.27 %, t_c −0.76 %;
-    - the dynamics: the FE impact's peak force is 3.3 % below that quasi-static impact of the
-      same mesh. The bodies are not quasi-static: in 2D the approach is the whole bodies'
-      deformation (the line law's logarithms), set up by waves that cross them in 17–34 µs
-      against t_c = 133 µs. The cylinder leaves at 0.988 of its speed, vibrating with 2.3 % of
-      the energy (the theory: 1 and 0), and its force peaks 6 µs after its approach (the theory:
-      at once). Δt (−2.98 % at 1 µs), h (−3.2 % at 0.1 mm) and a bulk mesh of R/20 (−3.02 %) do
-      not move it: it is the reference's quasi-static assumption, not the discretisation."""
+def test_the_cylinder_impact_is_quasi_static_on_this_scene():
+    """Hertz's theory holds on this scene, h = 0.4 mm, Δt = 2 µs (measured):
+    - the geometry: the mesh's body is 0.53 % lighter than ρπR² (its arc is chords of R/5);
+      Hertz's impact on the mesh's own static law and mass gives q_max +0.39 %, t_c −0.86 %;
+    - the dynamics: the cylinder leaves at 0.9987 of its speed, 0.27 % of the energy left in
+      vibration (the regime: ≤ 0.5 %; 2.3 % on the former steel block 10 cm deep), and the FE
+      impact's peak force is 0.6 % below that quasi-static impact of the same mesh (3.3 % on the
+      former scene): what remains of the dynamics that Hertz's theory neglects."""
     tc_ref, q_ref = hertz()
     tc_qs, q_qs, mass = quasi_static(4e-4)
     assert mass / (RHO * np.pi * R ** 2) == pytest.approx(1.0 - 0.0053, abs=0.001)
@@ -174,23 +182,23 @@ def test_the_peak_force_deficit_is_hertz_quasi_static_assumption():
     _, vy = vertical_mean(model, hist.velocity[-1])
     print(f"mass {mass / (RHO * np.pi * R ** 2) - 1:+.4f}, quasi-static q {q_qs / q_ref - 1:+.4f} t_c "
           f"{tc_qs / tc_ref - 1:+.4f}; dynamic q {q.max() / q_ref - 1:+.4f}, {q.max() / q_qs - 1:+.4f} of the quasi-static; "
-          f"rebound {vy / V:.4f}, energy {energy[-1] / energy[0] - 1:+.2e}")
+          f"rebound {vy / V:.5f}, in vibration {1 - (vy / V) ** 2:.4f}, energy {energy[-1] / energy[0] - 1:+.2e}")
     assert abs(energy[-1] / energy[0] - 1.0) < 1e-4             # the scheme conserves the energy
-    assert -0.04 < q.max() / q_qs - 1.0 < -0.025
-    assert 0.98 < vy / V < 0.995                                # rebound (upwards) below the impact speed
+    assert 0.0 < 1.0 - (vy / V) ** 2 < 0.005                    # rebound below the impact speed, ≤ 0.5 % vibrating
+    assert q.max() == pytest.approx(q_qs, rel=0.01)
 
 
 @pytest.mark.slow
 def test_cylinder_impact_over_three_meshes():
-    """h = 0.4, 0.2, 0.1 mm at Δt = 0.5 µs: t_c within 1 %, the peak force within 5 % of Hertz
-    (measured −3.6, −4.1, −4.1 %), the changes between meshes shrinking (observed order
-    log2(|q₁ − q₂| / |q₂ − q₃|) = 4.3: the mesh has converged, the step's damping remains)."""
+    """The seed scheme, h = 0.4, 0.2, 0.1 mm at Δt = 0.5 µs: t_c within 1 % (measured −0.55, −0.26,
+    −0.26 %), the peak force within 3 % of Hertz (measured −1.15, −1.21, −1.26 %: the step's
+    damping, first order in Δt), the changes between meshes shrinking (0.057 % then 0.045 %)."""
     tc_ref, q_ref = hertz()
     q = []
     for h in (4e-4, 2e-4, 1e-4):
         tc, qmax, _, _ = impact(h, 5e-7)
         assert tc == pytest.approx(tc_ref, rel=0.01)
-        assert qmax == pytest.approx(q_ref, rel=0.05)
+        assert qmax == pytest.approx(q_ref, rel=0.03)
         q.append(qmax)
     order = np.log2(abs(q[0] - q[1]) / abs(q[1] - q[2]))
     print(f"peak force {[f'{x / q_ref - 1:+.2%}' for x in q]}, observed order {order:.2f}")
@@ -199,16 +207,20 @@ def test_cylinder_impact_over_three_meshes():
 
 @pytest.mark.slow
 def test_stabilized_cylinder_impact_over_three_meshes():
-    """The stabilized scheme at Δt = 0.5 µs, h = 0.4, 0.2, 0.1 mm (on main its predictor stopped
-    at the first level from 0.2 mm): t_c within 1 %, the peak force within 3.5 % of Hertz
-    (measured −2.83, −3.23, −3.22 %: the quasi-static assumption's −3.3 %), the energy within
-    1e-4, the changes between meshes shrinking (measured 0.40 % then 0.01 %)."""
+    """Issue 29's acceptance: the stabilized scheme at Δt = 0.5 µs, h = 0.4, 0.2, 0.1 mm: t_c within
+    1 % (measured −0.55, −0.26, −0.26 %: the count of levels, Δt is 0.29 % of t_c), the peak force
+    within 3 % of Hertz (measured −0.41, −0.56, −0.55 %; −2.83, −3.23, −3.22 % on the former steel
+    block 10 cm deep, its 2.3 % of the energy in vibration), the energy within 1e-4, the changes
+    between meshes shrinking (measured −0.16 % then +0.017 %: they alternate, so no observed
+    order in h; at h = 0.05 mm −0.69 %, −0.74 % at Δt = 0.25 µs: the meshes and steps scatter
+    by 0.35 %, a tenth of the tolerance). In Δt at h = 0.1 mm: −0.35, −0.53, −0.55 % at 2, 1, 0.5 µs, observed order 3.0,
+    Richardson limit −0.55 %."""
     tc_ref, q_ref = hertz()
     q = []
     for h in (4e-4, 2e-4, 1e-4):
         tc, qmax, kept, _ = impact(h, 5e-7, "stabilized")
         assert tc == pytest.approx(tc_ref, rel=0.01)
-        assert qmax == pytest.approx(q_ref, rel=0.035)
+        assert qmax == pytest.approx(q_ref, rel=0.03)
         assert abs(kept - 1.0) < 1e-4
         q.append(qmax)
     assert abs(q[1] - q[2]) < abs(q[0] - q[1])
@@ -285,7 +297,9 @@ def test_sphere_impact_over_two_meshes():
     F_max; a bulk of R/6 leaves that as it is: the contact mesh sets it). At h = 0.25 mm the mesh's
     quasi-static t_c is −3.7 % (`sphere_quasi_static(2.5e-4)`, 93 s): order 0.56, Richardson limit
     −2.3 %, of which the facets' 2 % lighter sphere is −0.8 % — the 3 % needs h ≤ 0.25 mm at the
-    contact and a finer sphere surface, not yet run dynamically. The force that was seen
+    contact and a finer sphere surface, not yet run dynamically. With the bodies' bulk at R/6
+(the sphere 0.82 % light) the quasi-static t_c at h = 0.25 mm is −3.19 %, F_max +3.2 % (35 s);
+h = 0.125 mm within the 4 mm ball is about 3e6 tetrahedra, above mesh.max_cells. The force that was seen
     "after the rebound" (9e-5 of the peak on one node at h = 0.5 mm) is the last level of the
     contact, its last node leaving: no level after it carries any force."""
     tc_ref, F_ref = hertz_sphere()
