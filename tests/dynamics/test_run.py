@@ -112,12 +112,12 @@ def test_the_results_say_no_adjoint_gradient_was_used(serial):
 
 def test_the_solver_choice_gives_the_reason_of_a_time_level(serial):
     """`auto` on a dynamic study: the results file's `solver_choice` says what decides each
-    level's method (no adjoint through time) and the cost of one level's solve, never the
+    level's method (the adjoint through time takes any method's levels) and the cost of one level's solve, never the
     static search's adjoint-gradient rule; with friction, the friction rule decides."""
     from tests.dynamics.test_friction import sliding
     from wcs.results.dataset import provenance
     choice = serial[2].attrs["solver_choice"]
-    assert choice.startswith("monolithic: each time level is one contact solve (no adjoint gradient through time")
+    assert choice.startswith("monolithic: each time level is one contact solve (the adjoint through time")
     assert "adjoint gradients, which need" not in choice and "one time level estimated at" in choice
     assert "one evaluation" not in choice
     study = load_study(sliding("seed"))
