@@ -109,7 +109,7 @@ def measure(size: float, face: float) -> list:
     t = time.perf_counter()          # the glued system of the first Newton step, solved once, fresh
     C = model.contact_rows
     step = _Stepper(P["K"], P["f"], C, np.r_[P["d"], np.zeros(2 * m)], _Rows(C, m, 2), N)
-    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8, np.zeros(n))
+    step.solve(np.ones(3 * m, dtype=bool), np.zeros(3 * m), np.zeros(m), np.ones(3 * m), 2, 1e-8, np.zeros(n), 1e-8)
     t_linear, linear_its = time.perf_counter() - t, step.krylov
     step.krylov_solver.close()
     del step

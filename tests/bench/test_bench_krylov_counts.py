@@ -114,7 +114,7 @@ def linear_krylov(model, rtol: float) -> int:
     k = Cr.shape[0] // m - 1
     rows = _Rows(Cr, m, k)
     step = _Stepper(Kr, rhs, Cr, np.r_[z.gap - z.Bn @ u0, np.zeros(k * m)], rows, model.near_nullspace)
-    step.solve(rows.acting.copy(), np.zeros((1 + k) * m), np.zeros(m), np.ones((1 + k) * m), k, rtol, np.zeros(Kr.shape[0]))
+    step.solve(rows.acting.copy(), np.zeros((1 + k) * m), np.zeros(m), np.ones((1 + k) * m), k, rtol, np.zeros(Kr.shape[0]), rtol)
     step.krylov_solver.close()
     return step.krylov
 
