@@ -15,7 +15,7 @@ import yaml
 import wcs
 from wcs.model import model as model_module
 from wcs.model import sensitivity
-from tests.model.test_gradients import TOL, check_against_fd
+from tests.model.test_gradients import TOL, check_against_fd, coulomb_pad
 
 ROOT = Path(__file__).resolve().parents[2]
 VALIDATION = ROOT / "studies" / "validation"
@@ -101,25 +101,6 @@ def test_2d_tunnel_agrees_with_the_monolithic_adjoint():
 @pytest.mark.slow
 def test_2d_tunnel_iterative_gradients_against_finite_differences():
     assert check_against_fd(load(ROOT / "studies" / "tunnel-fault.yaml", "iterative")) < 1e-5
-
-
-def coulomb_pad(method):
-    """The floating pad of tests/model/test_gradients.py with Coulomb friction F ∈ [0.3, 0.5]:
-    closed nodes slipping and sticking, the pressure at an edge and the pad's shift."""
-    doc = yaml.safe_load((VALIDATION / "tresca-pad.yaml").read_text())
-    doc["scene"]["mesh"] = {"size": 0.1, "refine": [{"box": [0.4, 0.9, 1.6, 1.1], "size": 0.04}]}
-    doc["scene"]["contacts"]["interface"]["friction"] = {"coefficient": 0.4}
-    doc["scene"]["regions_of_interest"]["edge"] = {"box": [1.3, 0.99, 1.5, 1.01]}
-    doc["uncertain"] = {"contacts.interface.friction.coefficient": [0.3, 0.5],
-                        "loads.pad_top.traction.0": [1.0e5, 3.0e5],
-                        "materials.rubber.nu": [0.40, 0.48]}
-    doc["criteria"] = [{"name": "edge_pressure", "kind": "contact_pressure", "regions": ["edge"]},
-                       {"name": "shift", "kind": "mean_normal_displacement", "regions": ["pad_top"],
-                        "direction": [1.0, 0.0]}]
-    doc["solver"] = {"method": method, "tolerance": TOL}
-    if method == "iterative":
-        doc["solver"]["iterative"] = {"tolerance": 1e-12}
-    return wcs.load_study(doc)
 
 
 def test_coulomb_slip_on_closed_nodes_agrees_with_the_monolithic_adjoint():
