@@ -1,4 +1,4 @@
-"""`wcs run` / `wcs sweep` on a dynamic study (issue 29, item 3): one evaluation is one
+"""`wcs run` / `wcs sweep` on a dynamic study: one evaluation is one
 simulation, each criterion's history reduced by its `over_time`; the results file holds
 `phi_history` (eval, criterion, time) and the worst cases' fields at the output times; resume
 and two MPI ranks give the serial run's bits; no adjoint through time, and the file says so."""
@@ -226,6 +226,20 @@ def test_check_prints_the_mesh_checks_cost_of_simulations(serial, capsys):
     assert [int(words[1]), int(words[2])] == [2 * refined_nodes(mesh, s) for s in (1, 2)]
     assert float(words[3]) == pytest.approx(4 * seconds * sum(x ** 1.15 for x in r), rel=0.1)   # 2 digits each
     assert float(words[4]) == pytest.approx(peak * r[1], rel=0.01)
+
+
+def test_check_does_not_count_what_the_process_held_before(serial, capsys):
+    """The evaluation's memory is measured from the levels (the high-water mark reset before
+    them): an earlier 0.8 GB array, freed, does not enter the estimate (it did, as this process's
+    peak, and a `wcs check` after a large study in the same process refused its mesh check)."""
+    capsys.readouterr()
+    big = np.ones(100_000_000)
+    big[::4096] = 2.0                               # touched: resident
+    del big
+    assert main(["check", str(serial[0])]) == 0
+    out = capsys.readouterr().out
+    peak = float(re.search(r"one evaluation estimated at about ([\d.e+-]+) GB peak", out)[1])
+    assert peak < 0.75
 
 
 def test_check_refuses_a_mesh_check_that_would_not_fit(serial, capsys, monkeypatch):

@@ -169,13 +169,28 @@ def history_bytes(hist: History) -> tuple[float, float]:
     return per_level / levels, out / max(len(hist.output_levels), 1)
 
 
+def peak_bytes(reset: bool = False) -> float:
+    """This process's resident high-water mark (Linux: VmHWM of /proc/self/status; 0.0 where it
+    cannot be read); reset=True first resets it to the resident set (writing 5 to
+    /proc/self/clear_refs), and gives 0.0 where that is not allowed."""
+    try:
+        if reset:
+            Path("/proc/self/clear_refs").write_text("5")
+        line = next(v for v in Path("/proc/self/status").read_text().splitlines() if v.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return 0.0
+    return float(line.split()[1]) * 1024.0
+
+
 def evaluation_estimate(ev, x) -> tuple[str, float, float]:
     """One evaluation's time and memory, measured on the first levels at data x: after one level
     run to build what every evaluation reuses (the released model, the caches), the set-up (the
     static state, the matrices) with the first level (which factors A) is timed alone, then with
     TIMED levels more; the evaluation is the first plus (levels − 1) × a later level's time. The
-    memory is this process's peak over those levels (the model, both factors) plus what the
-    remaining levels add to the history (`history_bytes`). Returns (the line, peak bytes, seconds)."""
+    memory is this process's peak over those levels (the model, both factors; its high-water mark
+    reset before them, `peak_bytes`, so that what the process did before does not count) plus
+    what the remaining levels add to the history (`history_bytes`). Returns (the line, peak
+    bytes, seconds)."""
     dyn = ev.study.dynamics
     k = min(TIMED, dyn.levels - 1)
 
@@ -184,13 +199,15 @@ def evaluation_estimate(ev, x) -> tuple[str, float, float]:
         hist = simulate(ev, x, dyn=dyn.model_copy(update={"end_time": levels * dyn.time_step}))
         return time.perf_counter() - t0, hist
     timed(1)
+    mark = peak_bytes(reset=True)
     first, _ = timed(1)
     more, hist = timed(k + 1)
     level = max(more - first, 0.0) / k if k else 0.0
     per_level, per_output = history_bytes(hist)
     outputs = dyn.levels // dyn.output_every + 1
     rest = per_level * (dyn.levels - k) + per_output * (outputs - len(hist.output_levels))
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0 + rest
+    peak = peak_bytes() if mark else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
+    peak += rest
     seconds = first + (dyn.levels - 1) * level
     return (f"  one evaluation estimated at about {peak / 1e9:.3g} GB peak and {seconds:.2g} s: the static state "
             f"and the first level {first:.2g} s + {dyn.levels - 1} levels × {level:.2g} s (timed on {k} levels at "
