@@ -1,4 +1,4 @@
-"""Speed against accuracy of the time-stepping schemes, and where each fails (issue 29's charts):
+"""Speed against accuracy of the time-stepping schemes, and where each fails (the charts):
 the cylinder impact of `tests/dynamics/test_impact.py` over the mesh size h at the contact and the
 time step Δt, per scheme — the errors of the contact time and the peak force against Hertz's
 impact theory, the energy kept at the end (after the rebound), against the CPU and wall time of

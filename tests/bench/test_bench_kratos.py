@@ -56,7 +56,7 @@ by classes of reach (criteria._distance_to_facets), it is gone: at a/16 (34,371 
 26, load 12) `wcs solve` iterative reports assembly 9.4 s, of which 7.5 s are the dual mortar's
 segment integrals (contact.mortar3d.mortar_integrals3d, a Python loop over 7,565 segments), and
 0.58 GB peak.
-Session 27 (issue 25): the segment integrals are computed for all facet pairs at once (bitwise the
+Since session 27 the segment integrals are computed for all facet pairs at once (bitwise the
 loop's). Kratos' Hertz load is ramped over 5 load steps (kratos_patch.py). The tables of this session (alternating, medians of 3, peak RSS; loads
 9.7-17, far above the 3-4 of the first table: read the ratios; at face 0.02 the spread is large,
 wall min-max 40-110 s for wcs iterative, 16-112 s for Kratos, and its first two rounds ran wcs

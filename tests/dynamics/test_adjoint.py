@@ -1,4 +1,4 @@
-"""Adjoint gradients through time (issue 29, item 3; `wcs.dynamics.adjoint`): the reverse sweep
+"""Adjoint gradients through time (`wcs.dynamics.adjoint`): the reverse sweep
 over the levels' final active sets agrees with central differences of the reduced criteria to
 1e-5 of each criterion's change across the box, for the max, final and mean reductions; where the
 reduced history is not differentiable the gradient is left to finite differences and the

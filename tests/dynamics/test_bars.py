@@ -1,4 +1,4 @@
-"""Issue 29's acceptance: two equal elastic bars in plane strain held by rollers on their long
+"""Two equal elastic bars in plane strain held by rollers on their long
 sides (a 1D wave problem), the striker at v0 onto the target at rest, frictionless.
 
 Reference (d'Alembert, nobody's code): with rollers the strain is uniaxial, σ_xx = (λ + 2μ) ε_xx,

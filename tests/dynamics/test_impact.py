@@ -207,7 +207,7 @@ def test_cylinder_impact_over_three_meshes():
 
 @pytest.mark.slow
 def test_stabilized_cylinder_impact_over_three_meshes():
-    """Issue 29's acceptance: the stabilized scheme at Δt = 0.5 µs, h = 0.4, 0.2, 0.1 mm: t_c within
+    """The stabilized scheme at Δt = 0.5 µs, h = 0.4, 0.2, 0.1 mm: t_c within
     1 % (measured −0.55, −0.26, −0.26 %: the count of levels, Δt is 0.29 % of t_c), the peak force
     within 3 % of Hertz (measured −0.41, −0.56, −0.55 %; −2.83, −3.23, −3.22 % on the former steel
     block 10 cm deep, its 2.3 % of the energy in vibration), the energy within 1e-4, the changes

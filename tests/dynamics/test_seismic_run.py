@@ -1,4 +1,4 @@
-"""The seismic tunnel study as a user runs it (`studies/tunnel-fault-seismic.yaml`, issue 29), at a
+"""The seismic tunnel study as a user runs it (`studies/tunnel-fault-seismic.yaml`), at a
 coarse time step and a short end time: a run killed midway and resumed, and a run on two MPI
 ranks, give the serial run's bits; the search as the study file sets it (auto, without adjoint
 gradients through time)."""

@@ -1,4 +1,4 @@
-r"""Adjoint gradients through time (issue 29, item 3): dJ/dx of each criterion's reduced history
+r"""Adjoint gradients through time: dJ/dx of each criterion's reduced history
 J = R(φ₀ … φ_N) by one reverse sweep over the levels' final active sets.
 
 The seed scheme [101, (10)] (`wcs.dynamics.schemes`) solves at level n, on its final active set

@@ -1,4 +1,4 @@
-"""The worst-scenario search over a dynamic study (issue 29, item 3): the evaluation of one data
+"""The worst-scenario search over a dynamic study: the evaluation of one data
 set is one simulation of its time levels, and each criterion's value is its history reduced by
 `over_time` (max, the peak, by default; `reduced`).
 
