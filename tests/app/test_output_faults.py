@@ -19,7 +19,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +32,7 @@ from wcs.cli import main
 from wcs.report.data import from_dataset, load
 from wcs.report.html import Report
 from wcs.results.store import store_path, writer
+from tests.support.processes import wait_for_records
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -113,15 +113,6 @@ def wcs_process(tmp_path, *args, preexec=None, **env):
     return subprocess.Popen([sys.executable, str(script), *map(str, args)], cwd=tmp_path,
                             env={**ENV, **{k: str(v) for k, v in env.items()}}, preexec_fn=preexec,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def wait_for_records(proc, out, n):
-    deadline = time.time() + 240          # generous: a loaded machine is slow, not wrong
-    while time.time() < deadline and proc.poll() is None:
-        if out.exists() and len(list(store_path(out).glob("*.npz"))) >= n:
-            return
-        time.sleep(0.01)
-    pytest.fail(f"the run did not store {n} evaluations: {proc.communicate()}")
 
 
 def assert_intact(folder: Path):

@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -25,6 +24,7 @@ from wcs.app.commands import solve_worst
 from wcs.app.problem import build_problem
 from wcs.search import Batch, Worst
 from wcs.results.store import Store, store_path
+from tests.support.processes import wait_for_records
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
@@ -195,11 +195,7 @@ def test_kill_9_then_resume(tresca, tmp_path):
     proc = subprocess.Popen([sys.executable, str(script), "run", str(path), "-o", str(out), "--quiet"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     store = store_path(out)
-    deadline = time.time() + 240          # generous: a loaded machine is slow, not wrong
-    while time.time() < deadline and proc.poll() is None:
-        if store.exists() and len(list(store.glob("*.npz"))) >= 6:
-            break
-        time.sleep(0.01)
+    wait_for_records(proc, out, 6)
     assert proc.poll() is None, proc.communicate()
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
