@@ -3,11 +3,12 @@
 Balancing domain decomposition by constraints (PETSc's PCBDDC) needs each subdomain's own
 (Neumann) stiffness matrix, not only the assembled one: K = Σ_s R_sᵀ K_s R_s, K_s assembled
 over the cells of subdomain s, R_s the restriction to its dofs. A Newton step's operator is
-Zᵀ K Z plus the diagonal of K on the eliminated pivots P (`wcs.contact.iterative._eliminated`);
-where every row of Z that a subdomain holds refers to that subdomain's dofs only (Z is
-node-local: a node's pivots are eliminated by its own unknowns), Zᵀ K Z = Σ_s R_sᵀ Z_sᵀ K_s Z_s R_s
-with Z_s = R_s Z R_sᵀ, and diag(K)_P = Σ_s diag(K_s)_P: each subdomain's part of the step is
-its own matrix transformed by its own part of Z (`local_step`). The interface dofs are held by
+Zᵀ K Z plus the diagonal of K on the eliminated pivots P (`wcs.contact.iterative._eliminated`),
+K itself Tᵀ K_dofs T after the supports' and glued interfaces' elimination T. Both are sums
+over the subdomains: Tᵀ K T = Σ_s T_sᵀ K_s T_s with T_s the rows of T on s's dofs, on the
+unknowns those rows touch (`transformed`; Z is node-local, a node's pivots eliminated by its own
+unknowns, so a subdomain's part of a step mostly keeps its own unknowns), and diag(K)_P =
+Σ_s diag(K_s)_P. The interface dofs are held by
 several subdomains: that is MATIS's local-to-global map with repeated entries, so all
 subdomains of this process are one local matrix (block diagonal, `setISAllowRepeated`).
 
@@ -51,23 +52,42 @@ def bisection(points: np.ndarray, parts: int) -> np.ndarray:
     return out
 
 
-def subdomain_dofs(cell_dofs: np.ndarray, part: np.ndarray) -> list[np.ndarray]:
-    """The sorted dofs of each part's cells (cell_dofs: (dofs per cell, cells))."""
-    return [np.unique(cell_dofs[:, part == s]) for s in range(int(part.max()) + 1)]
+def subdomain_stiffness(t: np.ndarray, local, group: np.ndarray, coefficients, cells: np.ndarray):
+    """(dofs, K_s): a subdomain's own stiffness Σ_cells c[group(cell)] · K_cell over its cells
+    only (`wcs.fem.affine.CellAffineOperator`'s sum restricted to them; local: its cell matrices,
+    made chunk by chunk), on the dofs of those cells."""
+    from wcs.fem.affine import CHUNK
+    c = np.asarray(coefficients, dtype=float).reshape(-1, local.npieces)[group]
+    b, n = local.block, t.shape[0]
+    rows, cols, vals = [], [], []
+    for s in range(0, len(cells), CHUNK):
+        e = cells[s:s + CHUNK]
+        cell = np.einsum("ek,keabij->eaibj", c[e], local.of(e))              # (e, n, b, n, b)
+        dof = (b * t[:, e].T[:, :, None] + np.arange(b)).reshape(len(e), n * b)   # (e, n·b)
+        rows.append(np.repeat(dof, n * b, axis=1).ravel())
+        cols.append(np.tile(dof, (1, n * b)).ravel())
+        vals.append(cell.ravel())
+    dofs, inverse = np.unique(np.concatenate(rows), return_inverse=True)
+    cols = np.searchsorted(dofs, np.concatenate(cols))
+    K_s = sp.csr_matrix((np.concatenate(vals), (inverse, cols)), shape=(len(dofs), len(dofs)))
+    K_s.sum_duplicates()
+    return dofs, K_s
 
 
-def local_step(K_s: sp.spmatrix, dofs: np.ndarray, Z: sp.spmatrix, P: np.ndarray) -> sp.csr_matrix:
-    """Z_sᵀ K_s Z_s + diag(K_s) on the pivots P the subdomain holds (module docstring); K_s the
-    subdomain's matrix on its dofs. ValueError where a row of Z on these dofs refers to
-    another subdomain's dofs (the step's elimination is not local to the subdomain)."""
-    Zr = sp.csr_matrix(Z)[dofs]
-    Zr.eliminate_zeros()
-    Z_s = Zr[:, dofs]
-    if Z_s.nnz != Zr.nnz:
-        raise ValueError("the contact elimination couples a subdomain's dofs to another subdomain's")
-    held = np.flatnonzero(np.isin(dofs, P))
-    d = sp.csr_matrix((sp.csr_matrix(K_s).diagonal()[held], (held, held)), shape=K_s.shape)
-    return (Z_s.T @ K_s @ Z_s + d).tocsr()
+def transformed(dofs: np.ndarray, K_s: sp.spmatrix, T: sp.spmatrix, diagonal=None):
+    """(dofs', T_sᵀ K_s T_s + diag(K_s) on `diagonal`): a subdomain's part of Tᵀ K T (+ diag(K)
+    on the unknowns `diagonal`, the step's pivots, `wcs.contact.iterative._eliminated`), T_s
+    the rows of T on its dofs, on the columns they touch (dofs'; a row of T that refers to
+    another subdomain's unknowns, a glued slave's master or a contact pivot's, adds that unknown
+    to this subdomain's: Σ_s of the parts is Tᵀ K T exactly). T square where diagonal is given."""
+    Ts = sp.csr_matrix(T)[dofs]
+    Ts.eliminate_zeros()
+    held = np.zeros(0, dtype=int) if diagonal is None else np.flatnonzero(np.isin(dofs, diagonal))
+    local = np.union1d(np.unique(Ts.indices), dofs[held])
+    out = Ts[:, local].T @ K_s @ Ts[:, local]
+    at = np.searchsorted(local, dofs[held])
+    out = out + sp.csr_matrix((sp.csr_matrix(K_s).diagonal()[held], (at, at)), shape=out.shape)
+    return local, out.tocsr()
 
 
 def _aij(A, PETSc):
@@ -79,7 +99,7 @@ def _aij(A, PETSc):
 class Bddc:
     """CG on the assembled operator A preconditioned by BDDC of its subdomain matrices (this
     process holds all subdomains). dofs: each subdomain's dofs; local: each subdomain's part of
-    A (`local_step`, Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid modes; block: dofs
+    A (`transformed`, Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid modes; block: dofs
     per node (the components PCBDDC constrains separately)."""
 
     def __init__(self, dofs, local, near_nullspace=None, block: int = 1):
