@@ -12,10 +12,11 @@ unknowns, so a subdomain's part of a step mostly keeps its own unknowns), and di
 several subdomains: that is MATIS's local-to-global map with repeated entries, so all
 subdomains of this process are one local matrix (block diagonal, `setISAllowRepeated`).
 
-Constraints: vertices, edge and face averages of each displacement component, imposed by a
-change of basis (PCBDDC's `use_change_of_basis`, `use_change_on_faces`; without it the floating
-subdomains' Neumann matrices are singular and the local LU fails), with the rigid-body modes as
-the matrices' near-nullspace.
+Constraints: vertices, edge and face averages of each displacement component (PCBDDC's fields,
+`components`), the edges' imposed by a change of basis (`use_change_of_basis`: without it a
+floating subdomain's Neumann matrix is singular and its LU fails), the interface weighted by
+deluxe scaling (`use_deluxe_scaling`: on the glued step of the 3D patch at 1.1e4 unknowns, 8
+parts, 43 CG iterations with the default multiplicity scaling, 14 with deluxe).
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 OPTIONS = {"pc_bddc_use_faces": "true", "pc_bddc_use_change_of_basis": "true",
-           "pc_bddc_use_change_on_faces": "true"}
+           "pc_bddc_use_change_on_faces": "true", "pc_bddc_use_deluxe_scaling": "true"}
 MAX_IT = 2000
 _PREFIX = itertools.count()
 
@@ -90,6 +91,13 @@ def transformed(dofs: np.ndarray, K_s: sp.spmatrix, T: sp.spmatrix, diagonal=Non
     return local, out.tocsr()
 
 
+def components(T: sp.spmatrix, dim: int) -> np.ndarray:
+    """The displacement component of each unknown w of u = T w (dof = dim·node + component):
+    the component of the first dof its column of T moves."""
+    T = sp.csc_matrix(T)
+    return T.indices[T.indptr[:-1]] % dim
+
+
 def _aij(A, PETSc):
     A = sp.csr_matrix(A)
     return PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
@@ -99,11 +107,11 @@ def _aij(A, PETSc):
 class Bddc:
     """CG on the assembled operator A preconditioned by BDDC of its subdomain matrices (this
     process holds all subdomains). dofs: each subdomain's dofs; local: each subdomain's part of
-    A (`transformed`, Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid modes; block: dofs
-    per node (the components PCBDDC constrains separately)."""
+    A (`transformed`, Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid modes; components:
+    each unknown's displacement component (PCBDDC's constraints are per component: its fields)."""
 
-    def __init__(self, dofs, local, near_nullspace=None, block: int = 1):
-        self.dofs, self.local, self.N, self.block = dofs, local, near_nullspace, block
+    def __init__(self, dofs, local, components, near_nullspace=None):
+        self.dofs, self.local, self.N, self.components = dofs, local, near_nullspace, np.asarray(components)
         self.timings = {"bddc_setup": 0.0, "cg": 0.0}
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
@@ -119,7 +127,6 @@ class Bddc:
         lg = PETSc.LGMap().create(np.concatenate(self.dofs).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         M = PETSc.Mat().create(comm=PETSc.COMM_SELF)
         M.setSizes((n, n))
-        M.setBlockSize(self.block)
         M.setType("is")
         M.setISAllowRepeated(True)
         M.setLGMap(lg, lg)
@@ -137,6 +144,10 @@ class Bddc:
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.getPC().setType("bddc")
+        held = self.components[np.concatenate(self.dofs)]
+        fields = [PETSc.IS().createGeneral(np.flatnonzero(held == k).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+                  for k in np.unique(held)]
+        ksp.getPC().setBDDCDofsSplittingLocal(fields)
         ksp.setOperators(Aa, M)
         ksp.setTolerances(rtol=rtol, atol=0.0, max_it=MAX_IT)
         ksp.setFromOptions()
@@ -155,7 +166,7 @@ class Bddc:
             self.timings["cg"] += time.perf_counter() - t
             return out, its, ok
         finally:
-            for o in (ksp, Aa, M, local, lg, *vecs):
+            for o in (ksp, Aa, M, local, lg, *vecs, *fields):
                 o.destroy()
             for key in OPTIONS:
                 del opts[prefix + key]
