@@ -1,6 +1,7 @@
 """BDDC against GAMG on the glued first Newton step of the 3D block-on-block patch
 (`test_bench_iterative.patch`): CG to the relative residual 1e-8, one process, the subdomains
-by coordinate bisection of the cells (`wcs.contact.bddc`). Per preconditioner: CG iterations,
+by coordinate bisection of the cells (`wcs.contact.bddc`). Per preconditioner: CG iterations
+(BDDC: and whether the set-up with the faces' change of basis was needed, `Bddc.faces`),
 set-up and solve seconds (BDDC's set-up includes making the subdomains' matrices from the cell
 matrices), the process's resident-set growth over the solve, and the answer's distance to the
 direct solve's.
@@ -78,9 +79,9 @@ def test_bench_bddc_against_amg():
     setup = t_parts + solver.timings.get("bddc_setup", 0.0) + solver.timings.get("gamg_setup", 0.0)
     assert ok
     err = np.linalg.norm(x - direct) / np.linalg.norm(direct)
-    row = [size, face, A.shape[0], which, parts if which == "bddc" else "", its, round(setup, 2),
+    row = [size, face, A.shape[0], which, parts if which == "bddc" else "", getattr(solver, "faces", ""), its, round(setup, 2),
            round(solver.timings["cg"], 2), round(peak_gb() - base, 3), f"{err:.1e}"]
     path = write_table(f"bench_bddc_{which}_{size}_{face}",
-                       ["size", "face", "unknowns", "preconditioner", "parts", "cg_its", "setup_s", "solve_s",
+                       ["size", "face", "unknowns", "preconditioner", "parts", "faces_setups", "cg_its", "setup_s", "solve_s",
                         "peak_growth_gb", "rel_err_vs_direct"], [row])
     print(path.read_text())
