@@ -1,0 +1,117 @@
+"""BDDC (`wcs.contact.bddc`): subdomain matrices assembled over each part's cells (the model's
+cell matrices), transformed by a step's elimination, precondition CG to the direct solve's answer."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import skfem as fem
+from scipy.sparse.linalg import spsolve
+
+from wcs.contact.bddc import Bddc, bisection, subdomain_stiffness, transformed
+from wcs.fem.affine import CellAffineOperator, elastic_cells
+from wcs.contact.iterative import _basis, _eliminated
+from wcs.fem.rigid import rigid_modes
+
+pytest.importorskip("dolfinx_solver")
+
+
+LAME = np.array([[0.6, 0.4], [1.2, 0.8]])       # (λ, μ) of two regions: the cells' halves x < 0.5, x > 0.5
+
+
+def _block(dim, cells):
+    """An elastic unit square/cube of two materials: its basis, K (the model's assembly:
+    `CellAffineOperator`) and the pieces to assemble a part of it."""
+    axes = [np.linspace(0.0, 1.0, cells + 1)] * dim
+    mesh = fem.MeshTri.init_tensor(*axes) if dim == 2 else fem.MeshTet.init_tensor(*axes)
+    element = fem.ElementVector(fem.ElementTriP1() if dim == 2 else fem.ElementTetP1())
+    group = (mesh.p[0, mesh.t].mean(axis=0) > 0.5).astype(int)
+    op = CellAffineOperator(mesh.t, mesh.nvertices, elastic_cells(mesh.p, mesh.t), group)
+    return fem.Basis(mesh, element), op(LAME), op
+
+
+def _parts(basis, op, parts):
+    """Each part's dofs and its own matrix, assembled over its cells only."""
+    mesh = basis.mesh
+    part = bisection(mesh.p[:, mesh.t].mean(axis=1), parts)
+    return zip(*[subdomain_stiffness(mesh.t, op.local, op.group, LAME, np.flatnonzero(part == s))
+                 for s in range(parts)])
+
+
+def _scatter(n, dofs, local):
+    return sum(sp.csr_matrix(sp.coo_matrix((L.tocoo().data, (d[L.tocoo().row], d[L.tocoo().col])), shape=(n, n)))
+               for d, L in zip(dofs, local))
+
+
+def _check(basis, K, op, C, rows_b, parts):
+    """The step u = Z x + u_b with C u = rows_b (one pivot per row, its own dof), solved by
+    BDDC and directly; the subdomains' parts sum to the step's operator."""
+    n = K.shape[0]
+    P = np.asarray(C.tocsr().indices[C.tocsr().indptr[:-1]])     # each row's first dof
+    Binv = sp.diags(1.0 / np.asarray(C.tocsr()[np.arange(C.shape[0]), P]).ravel())
+    Z, ub = _basis(C.tocsr(), np.arange(C.shape[0]), P, Binv, rows_b)
+    A = _eliminated(Z, K, K, P)
+    f = basis.doflocs.sum(axis=0) - 1.0
+    b = Z.T @ (f - K @ ub)
+    dofs, local = zip(*[transformed(d, L, Z, P) for d, L in zip(*_parts(basis, op, parts))])
+    assert abs(_scatter(n, dofs, local) - A).max() <= 1e-12 * abs(A).max()
+    dim = basis.mesh.dim()
+    nodes = np.arange(basis.mesh.nvertices)
+    R = rigid_modes(basis.mesh.p, nodes, len(nodes))
+    solver = Bddc(dofs, local, np.arange(n) % dim, R)
+    x, its, ok = solver.solve(A, b, 1e-10)
+    direct = spsolve(A.tocsc(), b)
+    assert ok
+    assert np.linalg.norm(x - direct) <= 1e-7 * np.linalg.norm(direct)
+    return its, solver.faces
+
+
+def _clamped(basis):
+    """Rows u_i = 0 at the dofs on x = 0 (the glued/supported step)."""
+    D = basis.get_dofs(lambda x: np.isclose(x[0], 0.0)).flatten()
+    n = basis.N
+    return sp.csr_matrix((np.ones(len(D)), (np.arange(len(D)), D)), shape=(len(D), n))
+
+
+@pytest.mark.parametrize("dim, cells, parts, faces", [(2, 16, 8, 0), (3, 6, 8, 0), (3, 6, 4, 1)])
+def test_bddc_glued_step_agrees_with_direct(dim, cells, parts, faces):
+    """Four columns of the cube (parts 4) float without a primal vertex: the faces' change of
+    basis is taken (`Bddc`); eight octants have vertices and do without."""
+    basis, K, op = _block(dim, cells)
+    its, took = _check(basis, K, op, _clamped(basis), np.zeros(_clamped(basis).shape[0]), parts)
+    assert took == faces
+    assert its < 30
+
+
+def test_bddc_contact_step_agrees_with_direct():
+    """Closed node-to-obstacle rows on x = 1 (u·(1, 1, 0)/√2 = gap: one node's two dofs) on top
+    of the clamp: the elimination ties each node's dofs, the subdomains' parts stay exact."""
+    basis, K, op = _block(3, 6)
+    clamp = _clamped(basis)
+    top = basis.nodal_dofs[:, np.flatnonzero(np.isclose(basis.mesh.p[0], 1.0))]
+    m = top.shape[1]
+    rows = sp.csr_matrix((np.full(2 * m, 2 ** -0.5), (np.repeat(np.arange(m), 2), top[:2].T.ravel())),
+                         shape=(m, basis.N))
+    C = sp.vstack([clamp, rows]).tocsr()
+    gap = np.r_[np.zeros(clamp.shape[0]), np.full(m, -0.01)]
+    assert _check(basis, K, op, C, gap, 8)[0] < 30
+
+
+def test_bddc_parts_sum_to_the_model_stiffness():
+    """Σ_s of the parts' own matrices is the model's K (`CellAffineOperator`), to round-off."""
+    basis, K, op = _block(3, 4)
+    assert abs(_scatter(K.shape[0], *_parts(basis, op, 5)) - K).max() <= 1e-13 * abs(K).max()
+
+
+def test_bddc_elimination_across_subdomains_stays_exact():
+    """A row of the elimination that ties a dof to another part's (a glued slave to its master
+    across the cut) adds that unknown to the part: the parts still sum to Tᵀ K T + diag(K)_P."""
+    basis, K, op = _block(2, 8)
+    dofs, mats = _parts(basis, op, 2)
+    a, b = np.setdiff1d(dofs[0], dofs[1])[0], np.setdiff1d(dofs[1], dofs[0])[0]
+    Z = sp.eye(basis.N, format="lil")
+    Z[a, a], Z[a, b] = 0.0, 1.0             # u_a = u_b: a follows the other part's b
+    Z = Z.tocsr()
+    P = np.array([a])
+    local, parts = zip(*[transformed(d, L, Z, P) for d, L in zip(dofs, mats)])
+    assert b in local[0]
+    A = _eliminated(Z, K, K, P)
+    assert abs(_scatter(K.shape[0], local, parts) - A).max() <= 1e-12 * abs(A).max()
