@@ -4,6 +4,7 @@ Pure functions of facts about a study; each returns (choice, reason) where the r
 chart that justifies the rule, so a caller can put it in the results file or a log line.
 
     solver_method(SolverFacts(...))  -> ("monolithic" | "dd" | "iterative", reason)
+    preconditioner(PreconditionerFacts(...)) -> ("amg" | "bddc", reason)
     search_method(SearchFacts(...))  -> ("auto" | "local" | "global" | "sample", reason)
     mesh_size(MeshFacts(...))        -> (size [m], reason)
 
@@ -126,6 +127,33 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
                   f"{DD_MAX_CONTRAST:g}, nu <= {DD_MAX_NU:g} and known to converge: the decomposition "
                   + ("(a level it does not solve fails the evaluation)" if f.dynamic
                      else "(fallback to monolithic on failure)"))
+
+
+# ---- preconditioner of the iterative method (bench_bddc.csv: the 3D patch's glued Newton step, CG to 1e-8,
+#      one process, CPU seconds; tests/bench/test_bench_bddc.py)
+BDDC_SETUP_RATIO = 14.0         # BDDC's set-up (subdomain matrices, factorizations, coarse space) over GAMG's, the
+#                                 least of the sizes measured (1.1e4: 2.16 s against 0.15 s); its CG iterations were
+#                                 fewer (11 against 17) but no cheaper (0.17 s against 0.03 s)
+
+
+@dataclass(frozen=True)
+class PreconditionerFacts:
+    unknowns: int                       # reduced displacement unknowns
+    ranks: int = 1                      # ranks each evaluation's solve spans (solver.ranks_per_evaluation)
+
+
+def preconditioner(f: PreconditionerFacts) -> tuple[str, str]:
+    """`solver.iterative.preconditioner: auto` -> "amg" or "bddc", with the measurement behind it.
+    BDDC's cost is its subdomains' factorizations and coarse space, GAMG's set-up a few sparse
+    products: on one process BDDC loses at every measured size (`BDDC_SETUP_RATIO`). It would win
+    where those factorizations run on many ranks at once (its iterations flat in the number of
+    subdomains) or where GAMG's iterations grow (a material contrast across aggregates); here
+    BDDC holds all its subdomains in one process (`wcs.contact.bddc`), so neither applies yet."""
+    where = (f"{f.ranks} ranks: bddc holds all its subdomains in one process" if f.ranks > 1 else
+             f"one process, {f.unknowns} unknowns")
+    return "amg", (f"{where}; BDDC's set-up took >= {BDDC_SETUP_RATIO:g}x GAMG's CPU time for fewer CG iterations "
+                   "on the 3D patch at 1.1e4-8e4 unknowns (bench_bddc.csv); it would win with its subdomains spread "
+                   "over many ranks or where GAMG's iterations grow with a material contrast")
 
 
 # ---- search (search_convergence.png, search_solves_to_tolerance.csv)

@@ -25,6 +25,7 @@ matrices alone; `faces` counts the solves that took the second.
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 
@@ -104,6 +105,82 @@ def components(T: sp.spmatrix, dim: int) -> np.ndarray:
     return T.indices[T.indptr[:-1]] % dim
 
 
+UNKNOWNS_PER_PART = 2500      # subdomain size: the 3D patch at 8e4 unknowns took 201 s of set-up with 16 parts, 72 s with 32
+
+
+def parts_of(unknowns: int) -> int:
+    """How many subdomains BDDC cuts `unknowns` into (`UNKNOWNS_PER_PART` each, at least 2)."""
+    return max(2, round(unknowns / UNKNOWNS_PER_PART))
+
+
+@dataclasses.dataclass(frozen=True)
+class Parts:
+    """A data set's subdomains: each one's reduced unknowns and its own part of the reduced
+    stiffness Kr = Tᵀ K(c) T (Σ_s R_sᵀ K_s R_s = Kr), each unknown's displacement component
+    and the near-nullspace (n, r)."""
+    dofs: tuple
+    stiffness: tuple
+    components: np.ndarray
+    near_nullspace: np.ndarray | None
+
+    def of(self, Z, P, springs=None, pin=None) -> Bddc:
+        """The BDDC of a Newton step's operator Zᵀ Kt Z + diag(Kr)_P (+ its own diagonal again on
+        the pinned unknowns `pin`: `wcs.contact.iterative._pinned`), Kt = Kr + Qᵀ diag(s) Q with
+        the disc springs (Q, s) (`springs`; None: Kt = Kr): `step_parts`."""
+        dofs, local = step_parts(self.dofs, self.stiffness, Z, P, springs, pin)
+        return Bddc(dofs, local, self.components, self.near_nullspace)
+
+
+def model_parts(mesh, operator, T: sp.spmatrix, coefficients, near_nullspace, parts: int) -> Parts:
+    """The `Parts` of K(c) (`operator`: the model's `CellAffineOperator`, coefficients c) on the
+    reduced unknowns of u = T w, the cells cut by `bisection` of their centroids."""
+    part = bisection(mesh.p[:, mesh.t].mean(axis=1), parts)
+    out = []
+    for s in range(parts):
+        dofs, K_s = subdomain_stiffness(mesh.t, operator.local, operator.group, coefficients, np.flatnonzero(part == s))
+        out.append(transformed(dofs, K_s, T))
+    dofs, stiffness = zip(*out)
+    return Parts(dofs, stiffness, components(T, mesh.p.shape[0]), near_nullspace)
+
+
+def step_parts(dofs, stiffness, Z, P, springs=None, pin=None):
+    """Each subdomain's unknowns and its part of a Newton step's operator (`Parts.of`): its
+    stiffness `transformed` by Z with diag(K_s) on the pivots P; each spring row of Q (a
+    slipping node's, `wcs.contact.iterative._Stepper._slip`) to the subdomain that holds the
+    first unknown its row of Q Z touches (the others it touches join that subdomain:
+    `_joined`); on the pinned unknowns each part's own diagonal again (Σ_s of them is A's)."""
+    out = [transformed(d, K_s, Z, P) for d, K_s in zip(dofs, stiffness)]
+    if springs is not None:
+        Q, s = springs
+        QZ = sp.csr_matrix(Q @ Z)
+        QZ.eliminate_zeros()
+        owner = np.full(Z.shape[1], -1)
+        for j, (d, _) in reversed(list(enumerate(out))):
+            owner[d] = j
+        first = owner[QZ.indices[QZ.indptr[:-1]]]
+        for j in np.unique(first):
+            rows = QZ[first == j]
+            cols = np.unique(rows.indices)
+            spring = rows[:, cols].T @ sp.diags(s[first == j]) @ rows[:, cols]
+            out[j] = _joined(*out[j], cols, spring)
+    if pin is not None and len(pin):
+        for j, (d, L) in enumerate(out):
+            held = np.flatnonzero(np.isin(d, pin))
+            out[j] = (d, (L + sp.csr_matrix((L.diagonal()[held], (held, held)), shape=L.shape)).tocsr())
+    return [o[0] for o in out], [o[1] for o in out]
+
+
+def _joined(dofs, A, more, B):
+    """(dofs ∪ more, A + B) of two matrices on the unknowns dofs and more (sorted, unique)."""
+    union = np.union1d(dofs, more)
+    a, b = np.searchsorted(union, dofs), np.searchsorted(union, more)
+    A, B = sp.coo_matrix(A), sp.coo_matrix(B)
+    out = sp.csr_matrix((np.r_[A.data, B.data], (np.r_[a[A.row], b[B.row]], np.r_[a[A.col], b[B.col]])),
+                        shape=(len(union), len(union)))
+    out.sum_duplicates()
+    return union, out
+
+
 def _aij(A, PETSc):
     A = sp.csr_matrix(A)
     return PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
@@ -111,10 +188,12 @@ def _aij(A, PETSc):
 
 
 class Bddc:
-    """CG on the assembled operator A preconditioned by BDDC of its subdomain matrices (this
-    process holds all subdomains). dofs: each subdomain's dofs; local: each subdomain's part of
-    A (`transformed`, Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid modes; components:
-    each unknown's displacement component (PCBDDC's constraints are per component: its fields)."""
+    """BDDC of an assembled SPD operator A from its subdomain matrices (this process holds all
+    subdomains). dofs: each subdomain's unknowns; local: each subdomain's part of A
+    (`transformed`, `step_parts`: Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid
+    modes; components: each unknown's displacement component (PCBDDC's constraints are per
+    component: its fields). `build` sets up CG + PCBDDC (`wcs.contact.iterative.Krylov` solves
+    with it), `solve` one CG solve."""
 
     def __init__(self, dofs, local, components, near_nullspace=None):
         self.dofs, self.local, self.N, self.components = dofs, local, near_nullspace, np.asarray(components)
@@ -125,17 +204,46 @@ class Bddc:
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
         import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
         from petsc4py import PETSc
-        x, its, reason = self._solve(A, b, rtol, OPTIONS, PETSc)
-        if reason == PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:     # singular Neumann matrix (docstring)
-            self.faces += 1
-            x, more, reason = self._solve(A, b, rtol, {**OPTIONS, **FACES}, PETSc)
-            its += more
-        return x, its, reason > 0
-
-    def _solve(self, A, b, rtol, options, PETSc):
-        """One set-up with these PCBDDC options and its CG: (x, iterations, converged reason)."""
         t = time.perf_counter()
-        n = A.shape[0]
+        Aa = _aij(A, PETSc)
+        ksp, M = self.build(Aa, PETSc)
+        self.timings["bddc_setup"] += time.perf_counter() - t
+        t = time.perf_counter()
+        ksp.setOperators(Aa, M)
+        ksp.setTolerances(rtol=rtol, atol=0.0, max_it=MAX_IT)
+        x, rhs = Aa.createVecs()
+        rhs.setArray(np.asarray(b, dtype=float))
+        try:
+            ksp.solve(rhs, x)
+            out = x.getArray().copy()
+            self.timings["cg"] += time.perf_counter() - t
+            return out, ksp.getIterationNumber(), ksp.getConvergedReason() > 0
+        finally:
+            for o in (ksp, M, Aa, x, rhs):
+                o.destroy()
+
+    def build(self, A, PETSc):
+        """(ksp, M): CG (unpreconditioned residual norm) with PCBDDC set up on M, the MATIS of
+        the subdomain matrices; A (PETSc AIJ) the operator. Where the set-up with `OPTIONS`
+        fails (a floating subdomain without primal vertices: module docstring) it is taken
+        again with the faces' change of basis (`FACES`, counted in `faces`). PCBDDC records a
+        local solver's failed factorization when it is first applied, not at its set-up: one
+        application to a vector of ones tells."""
+        ksp, M = self._build(A, OPTIONS, PETSc)
+        x, y = A.createVecs()
+        x.set(1.0)
+        ksp.getPC().apply(x, y)
+        for o in (x, y):
+            o.destroy()
+        if ksp.getPC().getFailedReason():
+            for o in (ksp, M):
+                o.destroy()
+            self.faces += 1
+            ksp, M = self._build(A, {**OPTIONS, **FACES}, PETSc)
+        return ksp, M
+
+    def _build(self, A, options, PETSc):
+        n = A.getSize()[0]
         prefix = f"wcs_bddc{next(_PREFIX)}_"
         opts = PETSc.Options()
         for key, value in options.items():
@@ -154,7 +262,6 @@ class Bddc:
             Q = np.linalg.qr(np.asarray(self.N, dtype=float))[0]
             vecs = [PETSc.Vec().createWithArray(Q[:, j].copy(), comm=PETSc.COMM_SELF) for j in range(Q.shape[1])]
             M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
-        Aa = _aij(A, PETSc)
         ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         ksp.setOptionsPrefix(prefix)
         ksp.setType("cg")
@@ -164,25 +271,14 @@ class Bddc:
         fields = [PETSc.IS().createGeneral(np.flatnonzero(held == k).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
                   for k in np.unique(held)]
         ksp.getPC().setBDDCDofsSplittingLocal(fields)
-        ksp.setOperators(Aa, M)
-        ksp.setTolerances(rtol=rtol, atol=0.0, max_it=MAX_IT)
+        ksp.setOperators(A, M)
         ksp.setFromOptions()
         try:
             ksp.setUp()
-            self.timings["bddc_setup"] += time.perf_counter() - t
-            t = time.perf_counter()
-            x, rhs = Aa.createVecs()
-            rhs.setArray(np.asarray(b, dtype=float))
-            ksp.solve(rhs, x)
-            reason = ksp.getConvergedReason()
-            its = ksp.getIterationNumber()
-            out = x.getArray().copy()
-            x.destroy()
-            rhs.destroy()
-            self.timings["cg"] += time.perf_counter() - t
-            return out, its, reason
         finally:
-            for o in (ksp, Aa, M, local, lg, *vecs, *fields):
+            for o in (local, lg, *vecs, *fields):
                 o.destroy()
             for key in options:
                 del opts[prefix + key]
+        ksp.getPC().setReusePreconditioner(True)
+        return ksp, M
