@@ -115,3 +115,80 @@ def test_bddc_elimination_across_subdomains_stays_exact():
     assert b in local[0]
     A = _eliminated(Z, K, K, P)
     assert abs(_scatter(K.shape[0], local, parts) - A).max() <= 1e-12 * abs(A).max()
+
+
+def _evaluate(source, preconditioner):
+    """The nominal evaluation (criteria and gradients) of a study with the iterative method and
+    this preconditioner (None: the monolithic method), CG to 1e-12."""
+    from tests.contact.test_iterative import study
+    from wcs.model.evaluation import Evaluator
+    from wcs import load_study
+    d = study(source, "monolithic" if preconditioner is None else "iterative")
+    if preconditioner is not None:
+        d["solver"]["iterative"] = {"preconditioner": preconditioner, "tolerance": 1e-12}
+    ev = Evaluator(load_study(d))
+    return ev.evaluate(ev.study.nominal(), gradients=True)
+
+
+def _floating():
+    from tests.contact.test_patch_3d import floating
+    return floating({"slip_limit": 3.0e5})
+
+
+@pytest.mark.parametrize("source", [pytest.param("tresca-shear-patch-3d.yaml", marks=pytest.mark.slow),
+                                    "floating", "contact-patch.yaml"])
+def test_bddc_study_agrees_with_direct_and_amg(source):
+    """`solver.iterative.preconditioner: bddc` end to end: a 3D block held by contact alone
+    (Tresca, disc springs across the slip: each spring row to its subdomain; its steps pin the
+    free rigid modes' unknowns), a 2D patch and the 3D shear patch (slow: 14 s); the answer and the adjoint
+    gradients those of the monolithic method and of GAMG to 1e-7 (the KKT system is the same,
+    CG's residual 1e-12: both iterative answers agree with the direct one to 1e-11)."""
+    from tests.contact.test_iterative import VALIDATION, rel
+    path = _floating() if source == "floating" else VALIDATION / source
+    direct, amg, bddc = (_evaluate(path, p) for p in (None, "amg", "bddc"))
+    assert bddc.status == 0, bddc.message
+    raw = bddc.state.raw
+    assert raw.timings["bddc_setup"] > 0 and "gamg_setup" not in raw.timings
+    for other in (direct, amg):
+        assert rel(raw.u, other.state.raw.u) <= 1e-7
+        for name, value in other.phi.items():
+            assert bddc.phi[name] == pytest.approx(value, rel=1e-7, abs=1e-7 * max(map(abs, other.phi.values())))
+    for name, g in amg.grad.items():
+        if g is not None:
+            assert np.linalg.norm(bddc.grad[name] - g) <= 1e-7 * max(np.linalg.norm(g), abs(amg.phi[name]))
+
+
+@pytest.mark.parametrize("source, key, value, reason", [
+    ("block-on-block-3d.yaml", "ranks_per_evaluation", 2, "one process"),
+    ("two-bars-impact.yaml", None, None, "dynamic study")])
+def test_bddc_is_refused_where_it_does_not_hold(source, key, value, reason):
+    """On a group of ranks (PCBDDC here holds all subdomains in one process) and in a dynamic
+    study (a time level's operator holds the mass, the subdomain matrices the stiffness only):
+    exit 2 naming the key, never a silent GAMG."""
+    from tests.contact.test_iterative import VALIDATION, study
+    from wcs.errors import StudyError
+    from wcs.model.evaluation import Evaluator
+    from wcs import load_study
+    d = study(VALIDATION / source, "iterative")
+    d["solver"]["iterative"] = {"preconditioner": "bddc"}
+    if key is not None:
+        d["solver"][key] = value
+    with pytest.raises(StudyError, match=reason) as info:
+        Evaluator(load_study(d))
+    assert info.value.path == "solver.iterative.preconditioner"
+
+
+def test_auto_chooses_amg_and_check_says_why():
+    """`preconditioner: auto` on one process and on a group of ranks: amg, by BDDC's measured
+    set-up cost (`wcs.choose.BDDC_SETUP_RATIO`, bench_bddc.csv); `wcs check`'s plan says so."""
+    from tests.contact.test_iterative import VALIDATION, study
+    from wcs.choose import BDDC_SETUP_RATIO, PreconditionerFacts, preconditioner
+    from wcs.cli import plan
+    from wcs.model.evaluation import Evaluator
+    from wcs import load_study
+    for ranks, where in ((1, "one process"), (4, "4 ranks")):
+        which, why = preconditioner(PreconditionerFacts(10 ** 6, ranks))
+        assert which == "amg" and why.startswith(where) and f"{BDDC_SETUP_RATIO:g}x" in why
+    ev = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
+    line = next(x for x in plan(ev.study, ev) if "solver:" in x)
+    assert "preconditioner: auto -> amg (one process" in line and "bench_bddc.csv" in line
