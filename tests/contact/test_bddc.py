@@ -192,3 +192,30 @@ def test_auto_chooses_amg_and_check_says_why():
     ev = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
     line = next(x for x in plan(ev.study, ev) if "solver:" in x)
     assert "preconditioner: auto -> amg (one process" in line and "bench_bddc.csv" in line
+
+
+def test_bddc_step_parts_with_springs_and_pins_sum_to_the_step():
+    """A step's parts (`step_parts`) with disc springs Qᵀ diag(s) Q whose rows span two
+    subdomains and pinned unknowns sum to the operator `_Stepper` solves:
+    Zᵀ (K + Qᵀ diag(s) Q) Z + diag(K)_P, plus its own diagonal on the pinned unknowns."""
+    from wcs.contact.bddc import step_parts
+    from wcs.contact.iterative import _pinned
+    basis, K, op = _block(3, 4)
+    C = _clamped(basis)
+    P = np.asarray(C.indices[C.indptr[:-1]])
+    Z, _ = _basis(C, np.arange(C.shape[0]), P, sp.eye(C.shape[0], format="csr"), np.zeros(C.shape[0]))
+    dofs, mats = _parts(basis, op, 4)
+    n = K.shape[0]
+    x = basis.mesh.p
+    right = basis.nodal_dofs[:, np.flatnonzero(np.isclose(x[0], 1.0))]
+    inner = basis.nodal_dofs[:, np.flatnonzero(np.isclose(x[0], 0.25))]      # the same (y, z), another part
+    m = right.shape[1]
+    Q = sp.csr_matrix((np.tile([0.6, 0.8, -1.0], m), (np.repeat(np.arange(m), 3),
+                       np.column_stack([right[1:].T, inner[1]]).ravel())), shape=(m, n))
+    s = np.linspace(1.0, 2.0, Q.shape[0])
+    pin = right[0, :3]
+    A = _pinned(lambda lo, hi: _eliminated(Z, (K + Q.T @ sp.diags(s) @ Q).tocsr(), K, P), pin)(0, n)
+    local_dofs, local = step_parts(dofs, mats, Z, P, (Q, s), pin)
+    plain = [transformed(d, L, Z, P)[0] for d, L in zip(dofs, mats)]
+    assert any(len(a) > len(b) for a, b in zip(local_dofs, plain))     # a spring row joined another part's unknowns
+    assert abs(_scatter(n, local_dofs, local) - A).max() <= 1e-12 * abs(A).max()
