@@ -219,3 +219,23 @@ def test_bddc_step_parts_with_springs_and_pins_sum_to_the_step():
     plain = [transformed(d, L, Z, P)[0] for d, L in zip(dofs, mats)]
     assert any(len(a) > len(b) for a, b in zip(local_dofs, plain))     # a spring row joined another part's unknowns
     assert abs(_scatter(n, local_dofs, local) - A).max() <= 1e-12 * abs(A).max()
+
+
+def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
+    """Subdomain matrices that cannot be factored (here zero: both set-ups, with and without the
+    faces' change of basis, fail) give a failed solve with the reason, never an exception or a
+    preconditioner of another kind."""
+    from wcs.contact.bddc import Parts
+    from wcs.contact.iterative import Krylov
+    basis, K, op = _block(2, 4)
+    C = _clamped(basis)
+    P = np.asarray(C.indices[C.indptr[:-1]])
+    Z, _ = _basis(C, np.arange(C.shape[0]), P, sp.eye(C.shape[0], format="csr"), np.zeros(C.shape[0]))
+    dofs, mats = _parts(basis, op, 2)
+    parts = Parts(dofs, tuple(0.0 * m for m in mats), np.arange(K.shape[0]) % 2, None)
+    solver = Krylov(parts=parts)
+    A = _eliminated(Z, K, K, P)
+    x, its, ok = solver.solve(A, np.ones(K.shape[0]), 1e-8, (Z, P, None, None))
+    assert not ok and its == 0 and "BDDC's set-up failed" in solver.failure
+    assert solver.builds == 0 and solver.ksp is None
+    solver.close()

@@ -187,6 +187,10 @@ def _aij(A, PETSc):
                                                 A.data), comm=PETSc.COMM_SELF)
 
 
+class SetupFailure(Exception):
+    """PCBDDC could not be set up on these subdomain matrices (`Bddc.build`)."""
+
+
 class Bddc:
     """BDDC of an assembled SPD operator A from its subdomain matrices (this process holds all
     subdomains). dofs: each subdomain's unknowns; local: each subdomain's part of A
@@ -206,7 +210,11 @@ class Bddc:
         from petsc4py import PETSc
         t = time.perf_counter()
         Aa = _aij(A, PETSc)
-        ksp, M = self.build(Aa, PETSc)
+        try:
+            ksp, M = self.build(Aa, PETSc)
+        except SetupFailure:
+            Aa.destroy()
+            return np.zeros(A.shape[0]), 0, False
         self.timings["bddc_setup"] += time.perf_counter() - t
         t = time.perf_counter()
         ksp.setOperators(Aa, M)
@@ -226,21 +234,31 @@ class Bddc:
         """(ksp, M): CG (unpreconditioned residual norm) with PCBDDC set up on M, the MATIS of
         the subdomain matrices; A (PETSc AIJ) the operator. Where the set-up with `OPTIONS`
         fails (a floating subdomain without primal vertices: module docstring) it is taken
-        again with the faces' change of basis (`FACES`, counted in `faces`). PCBDDC records a
-        local solver's failed factorization when it is first applied, not at its set-up: one
-        application to a vector of ones tells."""
-        ksp, M = self._build(A, OPTIONS, PETSc)
-        x, y = A.createVecs()
-        x.set(1.0)
-        ksp.getPC().apply(x, y)
-        for o in (x, y):
-            o.destroy()
-        if ksp.getPC().getFailedReason():
-            for o in (ksp, M):
-                o.destroy()
-            self.faces += 1
-            ksp, M = self._build(A, {**OPTIONS, **FACES}, PETSc)
-        return ksp, M
+        again with the faces' change of basis (`FACES`, counted in `faces`); SetupFailure where
+        that fails too. PCBDDC records a local solver's failed factorization when it is first
+        applied, not at its set-up: one application to a vector of ones tells. A PETSc error in
+        the set-up (MUMPS out of workspace for the deluxe scaling's Schur complements: error 76
+        at 20 parts of 2.6e4 unknowns) is a failed set-up too."""
+        why = ""
+        for options in (OPTIONS, {**OPTIONS, **FACES}):
+            try:
+                ksp, M = self._build(A, options, PETSc)
+            except PETSc.Error as exc:
+                why = f"PETSc error {exc.ierr}"
+            else:
+                x, y = A.createVecs()
+                x.set(1.0)
+                ksp.getPC().apply(x, y)
+                for o in (x, y):
+                    o.destroy()
+                failed = ksp.getPC().getFailedReason()
+                if not failed:
+                    return ksp, M
+                why = f"PC failed reason {failed}"
+                for o in (ksp, M):
+                    o.destroy()
+            self.faces += options is OPTIONS
+        raise SetupFailure(f"BDDC's set-up failed ({why}), with and without the faces' change of basis")
 
     def _build(self, A, options, PETSc):
         n = A.getSize()[0]

@@ -71,6 +71,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from wcs.contact.bddc import SetupFailure
 from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
@@ -451,7 +452,8 @@ class _Stepper:
         self.krylov += its
         self.krylov_steps.append(its)
         if not ok:
-            raise _KrylovFailure(f"CG did not reach the relative residual {tol:.1e} in {its} iterations")
+            raise _KrylovFailure(self.krylov_solver.failure
+                                 or f"CG did not reach the relative residual {tol:.1e} in {its} iterations")
         if len(pin):                # the free modes' amplitude kept: u − u_old vanishes on the pinned unknowns
             v = v + N @ np.linalg.solve(N[pin], u_old[pin] - v[pin])
         u = Z @ v + ub
@@ -624,6 +626,7 @@ class Krylov:
         self.ksp = self.P = self.layout = self.built = None    # built: A w of the operator the hierarchy was built for
         self.own = True             # this solver built the hierarchy it holds (and frees it)
         self.builds = 0             # hierarchies built
+        self.failure = ""           # why the last solve failed before its CG (BDDC's set-up: `SetupFailure`)
         self.rate = self.excess = 0.0
         if kept is not None and kept.ksp is not None:
             self.ksp, self.P, self.layout, self.built, self.rate = kept.ksp, kept.P, kept.layout, kept.built, kept.rate
@@ -653,14 +656,19 @@ class Krylov:
             kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
         else:
             kept = self.excess <= self.REBUILD_ITERATIONS
-        if not kept:
-            self._build(M, PETSc, step)
-        x, its, ok = self._cg(M, b, rtol)
-        if not ok and kept:         # the kept hierarchy failed: rebuild and solve again
-            self._build(M, PETSc, step)
-            x, more, ok = self._cg(M, b, rtol)
-            its += more
-            kept = False
+        self.failure = ""
+        try:
+            if not kept:
+                self._build(M, PETSc, step)
+            x, its, ok = self._cg(M, b, rtol)
+            if not ok and kept:         # the kept hierarchy failed: rebuild and solve again
+                self._build(M, PETSc, step)
+                x, more, ok = self._cg(M, b, rtol)
+                its += more
+                kept = False
+        except SetupFailure as exc:
+            self.failure = str(exc)
+            return np.zeros(n), 0, False
         self.inherited = False
         digits = -np.log10(rtol)
         if kept:
@@ -1013,7 +1021,8 @@ class IterativeAdjoint:
         x, its, ok = self.krylov.solve(self.A, self.Z0.T @ (rhs - self.Kt @ yb), self.rtol,
                                        (self.Z0, self.P, self.springs, None))
         if not ok:
-            self.failure = f"iterative adjoint: CG did not reach the relative residual {self.rtol:.1e} in {its} iterations"
+            self.failure = (f"iterative adjoint: {self.krylov.failure}" if self.krylov.failure else
+                            f"iterative adjoint: CG did not reach the relative residual {self.rtol:.1e} in {its} iterations")
             return None, None
         y = self.Z0 @ x + yb
         return y, self.Binv.T @ (rhs - self.Kt @ y)[self.P]
