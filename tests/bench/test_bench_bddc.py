@@ -1,22 +1,32 @@
 """BDDC against GAMG on the glued first Newton step of the 3D block-on-block patch
-(`test_bench_iterative.patch`): CG to the relative residual 1e-8, one process, the subdomains
-by coordinate bisection of the cells (`wcs.contact.bddc`). Per preconditioner: CG iterations
-(BDDC: and whether the set-up with the faces' change of basis was needed, `Bddc.faces`),
-set-up and solve seconds (BDDC's set-up includes making the subdomains' matrices from the cell
-matrices), the process's resident-set growth over the solve, and the answer's distance to the
-direct solve's.
+(`test_bench_iterative.patch`): CG to the relative residual 1e-8, one process, each through
+`Krylov` as the iterative method builds it (BDDC: the data set's subdomains by coordinate
+bisection of the cells, `wcs.contact.bddc.model_parts`, `parts_of` of them unless given). Per
+preconditioner: CG iterations, wall seconds of the first solve, CPU seconds of its set-up (the
+first solve's less a second solve's, which keeps the preconditioner: for BDDC the subdomain
+matrices included) and of a solve, the process's resident-set growth, the distance to the
+direct solve.
 
-Measured (2 cores shared, load ≈ 15; rows of this bench before the faces column was added):
-  0.1/0.05   1.1e4 unknowns: bddc 8 parts 10 its, set-up 5.6 s, CG 0.28 s, +0.20 GB;
-                             amg 17 its, set-up 0.4 s, CG 0.07 s
-  0.05/0.02  8.0e4 unknowns: bddc 16 parts 34 its, set-up 201 s, CG 13.4 s, +1.68 GB;
-                             bddc 32 parts 21 its, set-up 72 s, CG 8.3 s, +1.61 GB;
-                             amg 18 its, set-up 1.9 s, CG 0.59 s
-  all within 4e-10 of the direct solve. BDDC's set-up in one process (all subdomains' LU, the
-  change of basis) is 15–100× GAMG's: not yet a usable preconditioner here.
+Measured (2 cores shared by 6 engineers: CPU seconds, the wall column is load):
+  unknowns   preconditioner  parts  its  set-up CPU  solve CPU  +RSS
+  1.11e4     amg                    17     0.15       0.03      0.00 GB
+  1.11e4     bddc              4    11     2.16       0.17      0.09 GB
+  2.60e4     amg                    18     0.43       0.11      0.00 GB
+  2.60e4     bddc             10    14     7.43       0.51      0.23 GB
+  8.03e4     amg                    18     1.71       0.45      0.00 GB
+  8.03e4     bddc             32    21    61.5        3.27      1.60 GB
+  all within 5e-10 of the direct solve. BDDC's set-up is 14x, 17x, 36x GAMG's: it grows faster
+  than the unknowns because all subdomains are one MATIS local matrix in this process, so
+  PCBDDC's dense work (coarse basis functions, the deluxe scaling's Schur complements) spans
+  every subdomain at once (`wcs.contact.bddc` docstring); set-up options tried at 1.1e4 and
+  2.6e4 (Cholesky for the local solvers, no change of basis, plain scaling, 5/10/20 parts) change
+  it by at most 40% (plain scaling: 4x the iterations; no change of basis: CG failed indefinite at
+  5 parts; 20 parts: MUMPS out of workspace). `wcs.choose.preconditioner` reads this table.
 
-WCS_BENCH_BDDC="size face parts preconditioner" (default "0.1 0.05 8 bddc"); one preconditioner
-per process, so that the peak is its own. Table: results/bench/bench_bddc.csv.
+WCS_BENCH_BDDC="size face parts preconditioner" (default "0.1 0.05 auto bddc"; parts "auto":
+`parts_of`); one preconditioner per process, so that the peak is its own. Command:
+  cd tests/bench && WCS_BENCH_BDDC="0.05 0.02 auto bddc" python -m pytest test_bench_bddc.py -m bench -s
+Table: results/bench/bench_bddc_<preconditioner>_<size>_<face>.csv.
 """
 from __future__ import annotations
 

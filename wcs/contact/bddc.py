@@ -22,6 +22,16 @@ singular and PCBDDC's set-up fails (PC failed); the solve is then set up again w
 constraints by a change of basis too (`FACES`), which holds there but costs on the patch 27 s
 of set-up against 6 s (so it is not the first choice). The set-up taken depends on the
 matrices alone; `faces` counts the solves that took the second.
+
+In the iterative method (`solver.iterative.preconditioner: bddc`, `wcs.contact.iterative.Krylov`)
+the data set's subdomains (`model_parts`: K(c)'s over each part's cells, reduced by the supports'
+and glued interfaces' T) are made once a solve, and each Newton step's operator from them
+(`Parts.of`, `step_parts`). Cost: all subdomains are one local matrix of one MATIS in this
+process, so PCBDDC's dense work, the coarse basis functions (a Neumann solve for each primal
+constraint) and the deluxe scaling's Schur complements, spans all subdomains at once and its
+set-up grows faster than the unknowns: 14x, 17x, 36x GAMG's CPU time at 1.1e4, 2.6e4, 8.0e4
+unknowns of the 3D patch (tests/bench/test_bench_bddc.py); it is meant for one subdomain per
+rank, which this module does not yet do (bddc on a group of ranks is refused).
 """
 from __future__ import annotations
 
@@ -36,6 +46,8 @@ OPTIONS = {"pc_bddc_use_faces": "true", "pc_bddc_use_change_of_basis": "true",
            "pc_bddc_use_deluxe_scaling": "true"}
 FACES = {"pc_bddc_use_change_on_faces": "true"}     # the faces' constraints by a change of basis too
 MAX_IT = 2000
+REBUILD_ITERATIONS = 200      # a set-up's cost in CG iterations (`wcs.contact.iterative.Krylov`'s rule): 7.4 s against
+#                               0.036 s an iteration at 2.6e4 unknowns, 400 at 8.0e4 (tests/bench/test_bench_bddc.py)
 _PREFIX = itertools.count()
 
 

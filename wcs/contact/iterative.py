@@ -71,7 +71,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from wcs.contact.bddc import SetupFailure
+from wcs.contact.bddc import REBUILD_ITERATIONS, SetupFailure
 from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
@@ -611,7 +611,8 @@ class Krylov:
     parts: the data set's subdomains (`wcs.contact.bddc.Parts`): the preconditioner is then BDDC
     of the step's operator (`solver.iterative.preconditioner: bddc`), built from the subdomain
     matrices and the step's elimination each solve is given, and kept and rebuilt by the same
-    rule as GAMG's hierarchy (one process only).
+    rule as GAMG's hierarchy at its own set-up cost (`wcs.contact.bddc.REBUILD_ITERATIONS`; one
+    process only).
     The solves span the group of ranks `wcs.group.spanning` set when the solver was made
     (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
@@ -655,7 +656,7 @@ class Krylov:
         elif self.inherited:        # a hierarchy from another solve: is this its operator, up to a scalar?
             kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
         else:
-            kept = self.excess <= self.REBUILD_ITERATIONS
+            kept = self.excess <= (self.REBUILD_ITERATIONS if self.parts is None else REBUILD_ITERATIONS)
         self.failure = ""
         try:
             if not kept:
