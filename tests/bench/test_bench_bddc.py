@@ -15,13 +15,15 @@ Measured (2 cores shared by 6 engineers: CPU seconds, the wall column is load):
   2.60e4     bddc             10    14     7.43       0.51      0.23 GB
   8.03e4     amg                    18     1.71       0.45      0.00 GB
   8.03e4     bddc             32    21    61.5        3.27      1.60 GB
+  8.03e4     bddc             64    17    57.3        2.45      0.95 GB   (peak resident 4.3 GB)
   all within 5e-10 of the direct solve. BDDC's set-up is 14x, 17x, 36x GAMG's: it grows faster
   than the unknowns because all subdomains are one MATIS local matrix in this process, so
   PCBDDC's dense work (coarse basis functions, the deluxe scaling's Schur complements) spans
   every subdomain at once (`wcs.contact.bddc` docstring); set-up options tried at 1.1e4 and
-  2.6e4 (Cholesky for the local solvers, no change of basis, plain scaling, 5/10/20 parts) change
-  it by at most 40% (plain scaling: 4x the iterations; no change of basis: CG failed indefinite at
-  5 parts; 20 parts: MUMPS out of workspace). `wcs.choose.preconditioner` reads this table.
+  2.6e4 (Cholesky for the local solvers, no change of basis, plain scaling, no face or edge
+  constraints, 5/10/20 parts) and 64 parts at 8.0e4 change it by at most 40% (plain scaling or
+  no edges: 4x the iterations; no faces: 20 against 14; no change of basis: CG failed indefinite
+  at 5 parts; 20 parts of 2.6e4: MUMPS out of workspace, a failed set-up). `wcs.choose.preconditioner` reads this table.
 
 WCS_BENCH_BDDC="size face parts preconditioner" (default "0.1 0.05 auto bddc"; parts "auto":
 `parts_of`); one preconditioner per process, so that the peak is its own. Command:
