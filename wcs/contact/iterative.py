@@ -22,7 +22,8 @@ column pivoting), and with P the pivots, O the rest, C_A u = b_A gives
 u_P = C_AP⁻¹(b_A − C_AO u_O) with C_AP block diagonal (one block per node): u = Z u_O + u_b,
 Z = [−C_AP⁻¹ C_AO; I]. The step solves Zᵀ K Z u_O = Zᵀ(f − K u_b) by CG preconditioned by
 GAMG with the rigid-body near-nullspace restricted to O (the rows of C vanish on a rigid
-motion common to both sides). The multipliers of the active rows are the residual on the
+motion common to both sides), or by BDDC of the step's subdomain matrices (`wcs.contact.bddc`,
+`solver.iterative.preconditioner`). The multipliers of the active rows are the residual on the
 pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linearly dependent on its
 other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
 no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
@@ -71,15 +72,15 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from wcs.contact.bddc import REBUILD_ITERATIONS, SetupFailure
+from wcs.choose import PreconditionerFacts
+from wcs.choose import preconditioner as choose_preconditioner
+from wcs.contact.bddc import REBUILD_ITERATIONS, SetupFailure, model_parts, parts_of
 from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _first_free_set, _states,
                                 conditions_violated, free_rigid_motion, pinned_dofs, project)
-from wcs.choose import PreconditionerFacts
-from wcs.choose import preconditioner as choose_preconditioner
 from wcs.errors import StudyError
 from wcs.fem.rigid import rigid_modes
 from wcs.group import evaluation_comm, share, together
@@ -816,7 +817,6 @@ def _parts(model, coefficients):
         return None
     if coefficients is None:
         raise ValueError("BDDC needs the data set's stiffness coefficients (its subdomain matrices)")
-    from wcs.contact.bddc import model_parts, parts_of
     return model_parts(model.smesh.mesh, model.K, model.elim.T, coefficients, contact_modes(model),
                        parts_of(model.elim.T.shape[1]))
 
