@@ -40,6 +40,7 @@ import itertools
 import time
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 OPTIONS = {"pc_bddc_use_faces": "true", "pc_bddc_use_change_of_basis": "true",
@@ -289,8 +290,9 @@ class Bddc:
         M.assemble()
         vecs = []
         if self.N is not None and self.N.shape[1]:
-            Q = np.linalg.qr(np.asarray(self.N, dtype=float))[0]
-            vecs = [PETSc.Vec().createWithArray(Q[:, j].copy(), comm=PETSc.COMM_SELF) for j in range(Q.shape[1])]
+            Q, r, _ = sla.qr(np.asarray(self.N, dtype=float), mode="economic", pivoting=True)
+            rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))     # as GAMG's (`Krylov._build`)
+            vecs = [PETSc.Vec().createWithArray(Q[:, j].copy(), comm=PETSc.COMM_SELF) for j in range(rank)]
             M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
         ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         ksp.setOptionsPrefix(prefix)
