@@ -191,7 +191,8 @@ def test_bddc_is_refused_where_it_does_not_hold(source, key, value, reason):
 
 def test_auto_chooses_amg_and_check_says_why():
     """`preconditioner: auto` on one process and on a group of ranks: amg, by BDDC's measured
-    set-up cost (`wcs.choose.BDDC_SETUP_RATIO`, bench_bddc.csv); `wcs check`'s plan says so."""
+    set-up cost (`wcs.choose.BDDC_SETUP_RATIO`, bench_bddc.csv); `wcs check`'s plan says so, and
+    where the study chose bddc, that the evaluation's estimate is made for amg."""
     from tests.contact.test_iterative import VALIDATION, study
     from wcs.choose import BDDC_SETUP_RATIO, PreconditionerFacts, preconditioner
     from wcs.cli import plan
@@ -203,6 +204,11 @@ def test_auto_chooses_amg_and_check_says_why():
     ev = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
     line = next(x for x in plan(ev.study, ev) if "solver:" in x)
     assert "preconditioner: auto -> amg (one process" in line and "bench_bddc.csv" in line
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"]["iterative"] = {"preconditioner": "bddc"}
+    ev = Evaluator(load_study(d))
+    line = next(x for x in plan(ev.study, ev) if "solver:" in x)
+    assert "preconditioner: bddc (chosen in the study; the evaluation's estimate is the method's with amg" in line
 
 
 def test_bddc_step_parts_with_springs_and_pins_sum_to_the_step():
