@@ -4,6 +4,7 @@ Pure functions of facts about a study; each returns (choice, reason) where the r
 chart that justifies the rule, so a caller can put it in the results file or a log line.
 
     solver_method(SolverFacts(...))  -> ("monolithic" | "dd" | "iterative", reason)
+    preconditioner(PreconditionerFacts(...)) -> ("amg" | "bddc", reason)
     search_method(SearchFacts(...))  -> ("auto" | "local" | "global" | "sample", reason)
     mesh_size(MeshFacts(...))        -> (size [m], reason)
 
@@ -126,6 +127,38 @@ def _solver_rule(f: SolverFacts) -> tuple[str, str]:
                   f"{DD_MAX_CONTRAST:g}, nu <= {DD_MAX_NU:g} and known to converge: the decomposition "
                   + ("(a level it does not solve fails the evaluation)" if f.dynamic
                      else "(fallback to monolithic on failure)"))
+
+
+# ---- preconditioner of the iterative method (bench_bddc.csv: the 3D patch's glued Newton step, CG to 1e-8,
+#      one process, CPU seconds; tests/bench/test_bench_bddc.py)
+BDDC_SETUP_RATIO = 14.0         # BDDC's set-up (subdomain matrices, factorizations, coarse space) over GAMG's, the
+#                                 least of the sizes measured: 14x, 17x, 36x at 1.1e4, 2.6e4, 8.0e4 unknowns (61.5 s
+#                                 against 1.71 s at 8.0e4); CG iterations 11/14/21 against 17/18/18, each solve 4-7x
+#                                 GAMG's CPU time, and +1.6 GB against none at 8.0e4; ill-conditioned at 1.1e4 (the
+#                                 block's E 1e7 times softer, or its nu 0.499) GAMG's iterations grow more (29, 127
+#                                 against BDDC's 18, 62) but its whole solve still took 5-10x less CPU time
+
+
+@dataclass(frozen=True)
+class PreconditionerFacts:
+    unknowns: int                       # reduced displacement unknowns
+    ranks: int = 1                      # ranks each evaluation's solve spans (solver.ranks_per_evaluation)
+
+
+def preconditioner(f: PreconditionerFacts) -> tuple[str, str]:
+    """`solver.iterative.preconditioner: auto` -> "amg" or "bddc", with the measurement behind it.
+    BDDC's cost is its subdomains' factorizations and coarse space, GAMG's set-up a few sparse
+    products: on one process BDDC loses at every measured size (`BDDC_SETUP_RATIO`). It would win
+    where those factorizations run on many ranks at once (its iterations flat in the number of
+    subdomains); GAMG's iterations grow more with a material contrast or near incompressibility,
+    but on one process not to BDDC's cost (measured). Here BDDC holds all its subdomains in one
+    process (`wcs.contact.bddc`), so auto takes amg."""
+    where = (f"{f.ranks} ranks: bddc holds all its subdomains in one process" if f.ranks > 1 else
+             f"one process, {f.unknowns} unknowns")
+    return "amg", (f"{where}; BDDC's set-up took {BDDC_SETUP_RATIO:g}x GAMG's CPU time and more, growing with "
+                   "the size, for as many CG iterations on the 3D patch at 1.1e4-8e4 unknowns (bench_bddc.csv); "
+                   "a stiffness contrast of 1e7 or nu = 0.499 grew GAMG's iterations more but not to BDDC's cost; "
+                   "it would win with its subdomains spread over many ranks")
 
 
 # ---- search (search_convergence.png, search_solves_to_tolerance.csv)

@@ -124,6 +124,11 @@ def plan(study, ev) -> list[str]:
     method = study.solver.method
     solver = (f"{method} ({ev.model.solver_reason})" if method != "auto"
               else f"auto -> {ev.model.solver_method} ({ev.model.solver_reason})")
+    if ev.model.solver_method == "iterative" and scene.contacts:
+        from .contact.iterative import preconditioner
+        which, why = preconditioner(ev.model)
+        solver += (f"; preconditioner: {which} ({why})" if study.solver.iterative.preconditioner != "auto"
+                   else f"; preconditioner: auto -> {which} ({why})")
     k = study.solver.ranks_per_evaluation
     lines.append(f"  search: {s.method}, budget {s.budget} solves; solver: {solver}"
                  + ("" if scene.contacts else " (no contact: one direct solve per data set)")

@@ -224,13 +224,6 @@ def test_other_data_start_from_the_nominal_answer_and_gradients_are_those_of_the
         assert np.all(np.abs(adjoint.grad[name] - g) <= AGREE * (np.abs(g) + abs(direct.phi[name]) / np.abs(x)))
 
 
-def test_bddc_is_refused_until_it_exists():
-    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
-    d["solver"]["iterative"] = {"preconditioner": "bddc"}
-    with pytest.raises(StudyError, match="BDDC"):
-        Evaluator(load_study(d))
-
-
 def test_without_petsc_the_study_is_refused_with_the_way_out(monkeypatch):
     monkeypatch.setitem(sys.modules, "dolfinx_solver", None)       # import dolfinx_solver raises ImportError
     with pytest.raises(StudyError, match="dolfinx-solver-real") as info:

@@ -31,10 +31,10 @@ def cg_counts(monkeypatch):
         stepper_init(self, *args, **kw)
         solves.append([])
 
-    def solve(self, A, b, rtol):
+    def solve(self, A, b, rtol, step=None):
         depth[0] += 1
         try:
-            x, its, ok = krylov_solve(self, A, b, rtol)
+            x, its, ok = krylov_solve(self, A, b, rtol, step)
         finally:
             depth[0] -= 1
         if depth[0] == 0 and solves:

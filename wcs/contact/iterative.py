@@ -22,7 +22,8 @@ column pivoting), and with P the pivots, O the rest, C_A u = b_A gives
 u_P = C_AP⁻¹(b_A − C_AO u_O) with C_AP block diagonal (one block per node): u = Z u_O + u_b,
 Z = [−C_AP⁻¹ C_AO; I]. The step solves Zᵀ K Z u_O = Zᵀ(f − K u_b) by CG preconditioned by
 GAMG with the rigid-body near-nullspace restricted to O (the rows of C vanish on a rigid
-motion common to both sides). The multipliers of the active rows are the residual on the
+motion common to both sides), or by BDDC of the step's subdomain matrices (`wcs.contact.bddc`,
+`solver.iterative.preconditioner`). The multipliers of the active rows are the residual on the
 pivots, λ_A = C_AP⁻ᵀ (f − K u)_P. Active rows of one node that are linearly dependent on its
 other active rows (a tangent parallel to the normal: rollers on both sides of the node) carry
 no multiplier of their own (λ = 0 there, the constraint holds through the others); rows that
@@ -71,6 +72,9 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from wcs.choose import BDDC_SETUP_RATIO, PreconditionerFacts
+from wcs.choose import preconditioner as choose_preconditioner
+from wcs.contact.bddc import REBUILD_ITERATIONS, SetupFailure, model_parts, parts_of
 from wcs.contact.distributed import Layout, RowBlocks
 from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
@@ -440,14 +444,17 @@ class _Stepper:
         size = np.linalg.norm(r)
         tol = max(eta, MIN_TOLERANCE * np.linalg.norm(b) / size) if size > 0 else 1.0
         self.timings["eliminate"] += time.perf_counter() - t0
-        dv, its, ok = self.krylov_solver.solve(A, r, tol) if tol < 1.0 else (0.0, 0, True)
+        springs = None if self._springs is None else (self._springs[3], self._springs[2])
+        dv, its, ok = (self.krylov_solver.solve(A, r, tol, (Z, P, springs, pin)) if tol < 1.0
+                       else (0.0, 0, True))
         v = v + dv
         if k == 1 and np.array_equal(free, self.rows.acting):    # glued 2D step: not kept (`Krylov`)
             self.krylov_solver.expire()
         self.krylov += its
         self.krylov_steps.append(its)
         if not ok:
-            raise _KrylovFailure(f"CG did not reach the relative residual {tol:.1e} in {its} iterations")
+            raise _KrylovFailure(self.krylov_solver.failure
+                                 or f"CG did not reach the relative residual {tol:.1e} in {its} iterations")
         if len(pin):                # the free modes' amplitude kept: u − u_old vanishes on the pinned unknowns
             v = v + N @ np.linalg.solve(N[pin], u_old[pin] - v[pin])
         u = Z @ v + ub
@@ -602,6 +609,11 @@ class Krylov:
     same data give the same bits.
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate;
     kept: a solver whose hierarchy to start from (not freed by this one: `close`).
+    parts: the data set's subdomains (`wcs.contact.bddc.Parts`): the preconditioner is then BDDC
+    of the step's operator (`solver.iterative.preconditioner: bddc`), built from the subdomain
+    matrices and the step's elimination each solve is given, and kept and rebuilt by the same
+    rule as GAMG's hierarchy at its own set-up cost (`wcs.contact.bddc.REBUILD_ITERATIONS`; one
+    process only).
     The solves span the group of ranks `wcs.group.spanning` set when the solver was made
     (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
@@ -610,22 +622,25 @@ class Krylov:
     PROBE = 1e-10
     MAX_IT = 2000               # CG with GAMG takes 10–60 (1e-4 to 1e-12); beyond this it has failed
 
-    def __init__(self, near_nullspace=None, kept: "Krylov | None" = None):
-        self.N = near_nullspace
+    def __init__(self, near_nullspace=None, kept: "Krylov | None" = None, parts=None):
+        self.N, self.parts = near_nullspace, parts
         self.comm = evaluation_comm()
         self.ksp = self.P = self.layout = self.built = None    # built: A w of the operator the hierarchy was built for
         self.own = True             # this solver built the hierarchy it holds (and frees it)
         self.builds = 0             # hierarchies built
+        self.failure = ""           # why the last solve failed before its CG (BDDC's set-up: `SetupFailure`)
         self.rate = self.excess = 0.0
         if kept is not None and kept.ksp is not None:
             self.ksp, self.P, self.layout, self.built, self.rate = kept.ksp, kept.P, kept.layout, kept.built, kept.rate
             self.own = False
         self.inherited = not self.own           # a hierarchy from another solver, not yet compared
         # seconds (matrix: this rank's rows of A built and put in PETSc's form)
-        self.timings = {"gamg_setup": 0.0, "cg": 0.0, "matrix": 0.0}
+        self.timings = {"gamg_setup" if parts is None else "bddc_setup": 0.0, "cg": 0.0, "matrix": 0.0}
 
-    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
-        """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float, step=None):
+        """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged).
+        step: (Z, P, springs, pin) of A's elimination (`wcs.contact.bddc.Parts.of`), which BDDC
+        is built from (GAMG needs A alone)."""
         import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
         from petsc4py import PETSc
         n = A.shape[0]
@@ -642,15 +657,20 @@ class Krylov:
         elif self.inherited:        # a hierarchy from another solve: is this its operator, up to a scalar?
             kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
         else:
-            kept = self.excess <= self.REBUILD_ITERATIONS
-        if not kept:
-            self._build(M, PETSc)
-        x, its, ok = self._cg(M, b, rtol)
-        if not ok and kept:         # the kept hierarchy failed: rebuild and solve again
-            self._build(M, PETSc)
-            x, more, ok = self._cg(M, b, rtol)
-            its += more
-            kept = False
+            kept = self.excess <= (self.REBUILD_ITERATIONS if self.parts is None else REBUILD_ITERATIONS)
+        self.failure = ""
+        try:
+            if not kept:
+                self._build(M, PETSc, step)
+            x, its, ok = self._cg(M, b, rtol)
+            if not ok and kept:         # the kept hierarchy failed: rebuild and solve again
+                self._build(M, PETSc, step)
+                x, more, ok = self._cg(M, b, rtol)
+                its += more
+                kept = False
+        except SetupFailure as exc:
+            self.failure = str(exc)
+            return np.zeros(n), 0, False
         self.inherited = False
         digits = -np.log10(rtol)
         if kept:
@@ -704,9 +724,17 @@ class Krylov:
         from mpi4py import MPI
         return self.comm.allreduce(value, op=MPI.MAX if op == "max" else MPI.SUM)
 
-    def _build(self, M, PETSc):
+    def _build(self, M, PETSc, step):
         t = time.perf_counter()
         self.close()
+        if self.parts is not None:
+            Z, P, springs, pin = step
+            ksp, self.P = self.parts.of(Z, P, springs, pin).build(M, PETSc)
+            self.ksp, self.own, self.excess = ksp, True, 0.0
+            self.built = self._product(M, PETSc)
+            self.builds += 1
+            self.timings["bddc_setup"] += time.perf_counter() - t
+            return
         if self.N is not None and self.N.shape[1]:
             Q, r, _ = sla.qr(self.N, mode="economic", pivoting=True)
             rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))
@@ -762,7 +790,7 @@ def _solve_problem(model, p) -> ContactResult:
     anchor's only, never on the order of the data sets."""
     kept = _ANCHOR.get(model)
     from_anchor = kept is not None and p.warm is not None and p.warm.lam_n is kept[0]
-    krylov = Krylov(contact_modes(model), kept[1] if from_anchor else None)
+    krylov = Krylov(contact_modes(model), kept[1] if from_anchor else None, _parts(model, p.coefficients))
     res = solve_contact_iterative(p.K, p.f, p.Bn, p.Bt, p.d, p.w, g=p.g, F=p.F, R=p.R, warm=p.warm,
                                   near_nullspace=contact_modes(model), rtol=model.options.iterative.tolerance,
                                   reference=p.reference, krylov=krylov, **settings(model.options))
@@ -771,6 +799,29 @@ def _solve_problem(model, p) -> ContactResult:
     else:
         krylov.close()
     return res
+
+
+def preconditioner(model) -> tuple[str, str]:
+    """(amg | bddc, why): the model's `solver.iterative.preconditioner`, `auto` resolved by
+    `wcs.choose.preconditioner`."""
+    chosen = model.options.iterative.preconditioner
+    if chosen == "bddc":        # the evaluation's estimate (`wcs.scene.estimate`) is made for GAMG
+        return chosen, (f"chosen in the study; the evaluation's estimate is the method's with amg: BDDC's set-up took "
+                        f"{BDDC_SETUP_RATIO:g}x GAMG's CPU time and more (bench_bddc.csv)")
+    if chosen != "auto":
+        return chosen, "chosen in the study"
+    return choose_preconditioner(PreconditionerFacts(model.elim.T.shape[1], model.options.ranks_per_evaluation))
+
+
+def _parts(model, coefficients):
+    """The data set's subdomains (`wcs.contact.bddc.Parts`) where the preconditioner is BDDC,
+    from its stiffness coefficients (`ContactProblem.coefficients`); None: GAMG."""
+    if preconditioner(model)[0] != "bddc":
+        return None
+    if coefficients is None:
+        raise ValueError("BDDC needs the data set's stiffness coefficients (its subdomain matrices)")
+    return model_parts(model.smesh.mesh, model.K, model.elim.T, coefficients, contact_modes(model),
+                       parts_of(model.elim.T.shape[1]))
 
 
 _ANCHOR = weakref.WeakKeyDictionary()   # model → (its anchor's λn, the anchor solve's Krylov): `_solve_problem`
@@ -872,7 +923,8 @@ class IterativeAdjoint:
         Z0, Kt, P = self.Z0, self.Kt, self.P      # each rank of a group builds its rows, once for all criteria
         self.A = RowBlocks(K.shape[0], functools.lru_cache(maxsize=1)(lambda lo, hi: _eliminated(Z0, Kt, K, P, lo, hi)))
         self.rtol = model.options.iterative.tolerance
-        self.krylov = Krylov(contact_modes(model))
+        self.krylov = Krylov(contact_modes(model), parts=_parts(model, model.stiffness_coefficients(state.coefficients)))
+        self.springs = (Cd, 1.0 / self.compliance) if len(self.D) else None
 
     def solve(self, phi_w: np.ndarray, phi_lam_n: np.ndarray | None, phi_lam_t: np.ndarray | None = None):
         """(z, μ, σ) as `ContactAdjoint.solve` (μ in the slip frame), or None where refused (`refusal`)
@@ -970,9 +1022,11 @@ class IterativeAdjoint:
         """(y, μ_E) of Kt y + C_Eᵀ μ_E = rhs, C_E y = e by CG on the eliminated operator; (None,
         None) where CG fails (`failure` says so)."""
         yb = _basis(self.C, self.rows, self.P, self.Binv, e)[1]
-        x, its, ok = self.krylov.solve(self.A, self.Z0.T @ (rhs - self.Kt @ yb), self.rtol)
+        x, its, ok = self.krylov.solve(self.A, self.Z0.T @ (rhs - self.Kt @ yb), self.rtol,
+                                       (self.Z0, self.P, self.springs, None))
         if not ok:
-            self.failure = f"iterative adjoint: CG did not reach the relative residual {self.rtol:.1e} in {its} iterations"
+            self.failure = (f"iterative adjoint: {self.krylov.failure}" if self.krylov.failure else
+                            f"iterative adjoint: CG did not reach the relative residual {self.rtol:.1e} in {its} iterations")
             return None, None
         y = self.Z0 @ x + yb
         return y, self.Binv.T @ (rhs - self.Kt @ y)[self.P]
@@ -988,8 +1042,12 @@ class Iterative(Primal):
         return IterativeAdjoint(model, state)
 
     def check(self, model) -> None:
-        if model.options.iterative.preconditioner == "bddc":
-            raise StudyError("the BDDC preconditioner is not implemented yet: use amg or auto",
+        if model.options.iterative.preconditioner == "bddc" and model.options.ranks_per_evaluation > 1:
+            raise StudyError("bddc holds all its subdomains in one process: use amg (or auto) with "
+                             "solver.ranks_per_evaluation > 1", path="solver.iterative.preconditioner")
+        if model.options.iterative.preconditioner == "bddc" and model.dynamic:
+            raise StudyError("bddc is built from the stiffness's subdomain matrices, and a time level's operator "
+                             "holds the mass too: use amg (or auto) in a dynamic study",
                              path="solver.iterative.preconditioner")
         try:
             import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)

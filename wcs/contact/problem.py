@@ -38,6 +38,7 @@ class ContactProblem:
     warm: object = None             # a `wcs.contact.solver.ContactResult`
     scale: np.ndarray | float = 1.0
     reference: float = 0.0
+    coefficients: np.ndarray | None = None      # K(c)'s coefficients c where K is Tᵀ K(c) T itself (BDDC's subdomains)
 
     def __post_init__(self):
         for name in ("f", "d", "w"):

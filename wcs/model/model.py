@@ -520,7 +520,8 @@ class Model:
         F = c.coulomb
         problem = ContactProblem(Kr, rhs, self.Bn_r, self.Bt_r, z.gap - z.Bn @ u0, z.weight, c.slip,
                                  F if F.any() else None, self.R_r,
-                                 warm if warm is not None or nominal or not self._anchored else cache.anchor, scale)
+                                 warm if warm is not None or nominal or not self._anchored else cache.anchor, scale,
+                                 coefficients=self.stiffness_coefficients(c) if self.units is None else None)
         res = method.solve_problem(self, problem)
         anchor = nominal and self._anchored and warm is None
         cache.anchor_tried |= anchor            # a failure too: then every solve starts cold
