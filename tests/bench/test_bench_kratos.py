@@ -74,6 +74,33 @@ h5netcdf for the results file, PETSc, gmsh, scipy) hold more than Kratos' whole 
 which keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own
 estimate, which rates the iterative method ten times leaner and faster. At a/16 the bench
 (3 rounds) ran out of its 30 minutes: Kratos' Newton stalls in a load step there.
+Session 28: the tables above are wall times, which the load (10-22) makes a lottery; the CSV now
+gives each process's CPU time (user + system), the number compared below. Two costs were the
+bench's own: the shell's PYTHONDONTWRITEBYTECODE made every `wcs solve` compile wcs' 120 modules
+again (0.3 s; now compiled first and kept), and the previous rows ran wcs monolithic at 0.02
+under a load that made it 435 s. Changed this session: `auto` takes the iterative method on a
+body held by contact alone when frictionless (the patch at 0.02: estimated 29 s against 160 s);
+the overlap check of the .msh holds 2,000 tetrahedra's candidate pairs at a time (at 0.01 its
+batch of 100,000 was the run's peak, 0.99 GB); a node's one active row pivots without two QRs;
+Φ6's distances once a node; the .vtu at zlib's fastest level. Medians of 3 alternating rounds,
+CPU s and peak RSS (loads 8.8-17.3; 0.02 without wcs monolithic, which needs the memory lock;
+wcs at 8257f91):
+  case         unknowns  wcs iterative     wcs monolithic       Kratos (ALM, AMGCL)
+  patch 0.04     10,515  2.63 s 0.29 GB    3.68 s 0.60 GB       1.71 s 0.19 GB
+  patch 0.02     37,329  5.61 s 0.43 GB    -                    7.77 s 0.28 GB
+  patch 0.01    143,562  25.9 s 0.98 GB    refused (est. 75 GB)  31.9 s 0.78 GB
+  Hertz a/8       8,025  3.06 s 0.29 GB    1.86 s 0.28 GB       11.88 s 0.19 GB (5 load steps)
+wcs is ahead in time from 0.02 on (1.39x at 0.02, 1.23x at 0.01) and on the Hertz (6.4x by the
+monolithic method `auto` picks there), behind at 0.04 (1.5x) by about its imports, and heavier
+everywhere (1.5x at 0.04 and 0.02, 1.26x at 0.01). Where its CPU goes at 0.02:
+the imports 1.03-1.09 s alone (`import wcs.app.commands`; xarray and pandas, for the results
+file only, 0.45 s and 81 MB of the 0.17 GB the imports hold: at 0.04 that is Kratos' whole
+peak); under cProfile on process_time (its overhead inflates many small calls; main -> this
+branch) the .msh read and checks 1.15 s (the overlap check 0.96), the model 1.35 s (Φ6's
+functional 0.41 -> 0.17 unprofiled), two Newton steps 2.9 s (GAMG set-up 0.9, CG 1.0, the nodes'
+pivots 1.72 -> 0.46), the results and ParaView files 0.9 s (zlib 0.41 -> 0.1). At 0.01 the peak
+is now the solve's: the model holds 0.39 GB above the imports, the two Newton steps 0.36 GB more
+(K, the eliminated step matrix, GAMG's hierarchy).
 """
 from __future__ import annotations
 
