@@ -86,11 +86,16 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
     if direct[0] > f.memory and iterative[0] <= f.memory:
         return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
     # for speed only where the iterative method is shown to solve every case the scene can give: on a
-    # body held by contact alone its active set can cycle where the monolithic method's falls back to
-    # the dual QP (the 2D knee's femur under Coulomb friction; the iterative method has no such fallback)
-    if (f.dimension == 3 and not f.floating and ITERATIVE_MARGIN * iterative[1] < direct[1]
-            and iterative[0] <= f.memory):
-        return "iterative", f"{words}: the monolithic method would be more than {ITERATIVE_MARGIN:g}x slower"
+    # body held by contact alone with friction its stick/slip split can cycle where the monolithic
+    # method's falls back to the dual QP (the 2D knee's femur under Coulomb friction; the iterative
+    # method has no such fallback); frictionless, its rigid modes are projected and the normal active
+    # set settles (the 3D block patch of tests/bench/test_bench_kratos.py: 2 Newton steps at every face)
+    if f.dimension == 3 and ITERATIVE_MARGIN * iterative[1] < direct[1] and iterative[0] <= f.memory:
+        slower = f"{words}: the monolithic method would be more than {ITERATIVE_MARGIN:g}x slower"
+        if f.floating and f.friction != "none":
+            return "monolithic", (f"{slower}, but a body is held by contact alone with {f.friction} friction, where "
+                                  "the iterative stick/slip split can cycle (the monolithic method falls back to the dual QP)")
+        return "iterative", slower + ("; a body held by contact alone, frictionless" if f.floating else "")
     return None
 
 

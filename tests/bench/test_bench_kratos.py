@@ -3,7 +3,9 @@ patch (studies/validation/block-on-block-3d.yaml) read by both codes from ONE gm
 (tests/bench/kratos_mesh.py: contact band meshed at `face`, the rest at 0.2), frictionless,
 one thread each (OMP/OPENBLAS/MKL_NUM_THREADS=1), whole processes run alternately
 (wcs iterative, wcs monolithic, Kratos, ...; WCS_BENCH_KRATOS_REPEAT rounds, default 3), each
-timed by wall clock and its peak resident set (getrusage of the finished child).
+timed by its CPU time (user + system), wall clock and peak resident set (getrusage of the
+finished child; on the shared machine the CPU time is the one to compare), wcs' bytecode
+compiled first (`compile_wcs`).
 
 - wcs: `wcs solve` of the validation study with `mesh: {file: ...}` (the file's groups for its
   boundaries; the box region of interest and its von Mises criterion left out: a box cannot be
@@ -72,6 +74,33 @@ h5netcdf for the results file, PETSc, gmsh, scipy) hold more than Kratos' whole 
 which keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own
 estimate, which rates the iterative method ten times leaner and faster. At a/16 the bench
 (3 rounds) ran out of its 30 minutes: Kratos' Newton stalls in a load step there.
+Session 28: the tables above are wall times, which the load (10-22) makes a lottery; the CSV now
+gives each process's CPU time (user + system), the number compared below. Two costs were the
+bench's own: the shell's PYTHONDONTWRITEBYTECODE made every `wcs solve` compile wcs' 120 modules
+again (0.3 s; now compiled first and kept), and the previous rows ran wcs monolithic at 0.02
+under a load that made it 435 s. Changed this session: `auto` takes the iterative method on a
+body held by contact alone when frictionless (the patch at 0.02: estimated 29 s against 160 s);
+the overlap check of the .msh holds 2,000 tetrahedra's candidate pairs at a time (at 0.01 its
+batch of 100,000 was the run's peak, 0.99 GB); a node's one active row pivots without two QRs;
+Φ6's distances once a node; the .vtu at zlib's fastest level. Medians of 3 alternating rounds,
+CPU s and peak RSS (loads 8.8-17.3; 0.02 without wcs monolithic, which needs the memory lock;
+wcs at 8257f91):
+  case         unknowns  wcs iterative     wcs monolithic       Kratos (ALM, AMGCL)
+  patch 0.04     10,515  2.63 s 0.29 GB    3.68 s 0.60 GB       1.71 s 0.19 GB
+  patch 0.02     37,329  5.61 s 0.43 GB    -                    7.77 s 0.28 GB
+  patch 0.01    143,562  25.9 s 0.98 GB    refused (est. 75 GB)  31.9 s 0.78 GB
+  Hertz a/8       8,025  3.06 s 0.29 GB    1.86 s 0.28 GB       11.88 s 0.19 GB (5 load steps)
+wcs is ahead in time from 0.02 on (1.39x at 0.02, 1.23x at 0.01) and on the Hertz (6.4x by the
+monolithic method `auto` picks there), behind at 0.04 (1.5x) by about its imports, and heavier
+everywhere (1.5x at 0.04 and 0.02, 1.26x at 0.01). Where its CPU goes at 0.02:
+the imports 1.03-1.09 s alone (`import wcs.app.commands`; xarray and pandas, for the results
+file only, 0.45 s and 81 MB of the 0.17 GB the imports hold: at 0.04 that is Kratos' whole
+peak); under cProfile on process_time (its overhead inflates many small calls; main -> this
+branch) the .msh read and checks 1.15 s (the overlap check 0.96), the model 1.35 s (Φ6's
+functional 0.41 -> 0.17 unprofiled), two Newton steps 2.9 s (GAMG set-up 0.9, CG 1.0, the nodes'
+pivots 1.72 -> 0.46), the results and ParaView files 0.9 s (zlib 0.41 -> 0.1). At 0.01 the peak
+is now the solve's: the model holds 0.39 GB above the imports, the two Newton steps 0.36 GB more
+(K, the eliminated step matrix, GAMG's hierarchy).
 """
 from __future__ import annotations
 
@@ -115,15 +144,31 @@ def file_study(path: Path, msh: Path, bodies: list[str], method: str, drop_roi: 
     return d
 
 
-def run(cmd: list[str], cwd: Path) -> tuple[float, float, int, str, str]:
-    """Wall seconds, peak resident set (GB, the child's own rusage), exit code, stdout, stderr."""
+def child_env() -> dict:
+    """The children's environment: one thread each, and Python free to keep its bytecode (with
+    PYTHONDONTWRITEBYTECODE set, every `wcs solve` compiled wcs' 120 modules again: 0.3 s of CPU
+    that an installed wcs never spends; Kratos' site-packages are compiled at install)."""
+    env = {**os.environ, **ONE_THREAD}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    return env
+
+
+def compile_wcs() -> None:
+    """wcs' bytecode written before the first timed run, as an installed package has it."""
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(ROOT / "wcs")], env=child_env(), check=True)
+
+
+def run(cmd: list[str], cwd: Path) -> tuple[float, float, float, int, str, str]:
+    """Wall seconds, CPU seconds (user + system), peak resident set (GB; both the child's own
+    rusage), exit code, stdout, stderr."""
     out, err = cwd / "stdout.txt", cwd / "stderr.txt"
     with out.open("w") as fo, err.open("w") as fe:
         t = time.perf_counter()
-        p = subprocess.Popen(cmd, cwd=cwd, env={**os.environ, **ONE_THREAD}, stdout=fo, stderr=fe)
+        p = subprocess.Popen(cmd, cwd=cwd, env=child_env(), stdout=fo, stderr=fe)
         _, status, usage = os.wait4(p.pid, 0)
         wall = time.perf_counter() - t
-    return wall, usage.ru_maxrss / 1e6, os.waitstatus_to_exitcode(status), out.read_text(), err.read_text()
+    return (wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1e6, os.waitstatus_to_exitcode(status),
+            out.read_text(), err.read_text())
 
 
 def wcs_case(work: Path, study: dict, method: str) -> list[str]:
@@ -164,8 +209,8 @@ def check_hertz(answer: dict) -> str:
     return "" if ok else f"axis pressure {answer['p_centre']:.6g} != p0 {HERTZ_P0:.4g} (5 %)"
 
 
-HEADER = ["mesh", "code", "unknowns", "contact_nodes", "ok_runs", "runs", "wall_median_s", "wall_min_s",
-          "wall_max_s", "peak_gb", "p_centre", "p_min", "p_max", "top_uz_min", "newton", "failure"]
+HEADER = ["mesh", "code", "unknowns", "contact_nodes", "ok_runs", "runs", "cpu_median_s", "cpu_min_s", "cpu_max_s",
+          "wall_median_s", "wall_min_s", "wall_max_s", "peak_gb", "p_centre", "p_min", "p_max", "top_uz_min", "newton", "failure"]
 
 
 def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, top_z: float, centre) -> list:
@@ -175,26 +220,28 @@ def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, 
     if kratos:
         cases["kratos"] = kratos
     runs = {k: [] for k in cases}
+    compile_wcs()
     for _ in range(int(os.environ.get("WCS_BENCH_KRATOS_REPEAT", "3"))):
         for name, cmd in cases.items():          # alternating: A B C A B C ...
-            wall, peak, code, out, err = run(cmd, work)
+            wall, cpu, peak, code, out, err = run(cmd, work)
             answer, wrong = None, ""
             if code == 0:
                 answer = json_line(out) if name == "kratos" else wcs_answer(work / f"{name}.nc", top_z, centre)
                 wrong = check(answer)
-            runs[name].append((wall, peak, answer, (err.strip() or f"exit {code}").splitlines()[-1][:200], wrong))
+            runs[name].append((wall, cpu, peak, answer, (err.strip() or f"exit {code}").splitlines()[-1][:200], wrong))
     rows = []
     for name, rs in runs.items():
-        ok = [r for r in rs if r[2] is not None]
+        ok = [r for r in rs if r[3] is not None]
         if not ok:
-            rows.append([mesh, name, "", "", 0, len(rs), "failed"] + [""] * 8 + [rs[-1][3]])
+            rows.append([mesh, name, "", "", 0, len(rs), "failed"] + [""] * 11 + [rs[-1][4]])
             continue
-        walls, a = [r[0] for r in ok], ok[-1][2]
-        notes = {r[4] for r in ok if r[4]} | ({"Newton not converged"} if not all(
-            r[2].get("converged", True) for r in ok) else set())
+        walls, cpus, a = [r[0] for r in ok], [r[1] for r in ok], ok[-1][3]
+        notes = {r[5] for r in ok if r[5]} | ({"Newton not converged"} if not all(
+            r[3].get("converged", True) for r in ok) else set())
         rows.append([mesh, name, a["unknowns"], a["contact_nodes"], len(ok), len(rs),
+                     round(float(np.median(cpus)), 2), round(min(cpus), 2), round(max(cpus), 2),
                      round(float(np.median(walls)), 2), round(min(walls), 2), round(max(walls), 2),
-                     round(max(r[1] for r in ok), 3), f"{a['p_centre']:.6g}", f"{a['p_min']:.6g}",
+                     round(max(r[2] for r in ok), 3), f"{a['p_centre']:.6g}", f"{a['p_min']:.6g}",
                      f"{a['p_max']:.6g}", f"{a['top_uz_min']:.6g}", a.get("newton", ""), "; ".join(sorted(notes))])
         print(rows[-1], flush=True)
     return rows
@@ -224,7 +271,7 @@ def methods() -> list[str]:
 
 
 def absent_row(kratos) -> list:
-    return [] if kratos else [["", "kratos", "", "", 0, 0, "absent (WCS_KRATOS_PYTHON unset)"] + [""] * 9]
+    return [] if kratos else [["", "kratos", "", "", 0, 0, "absent (WCS_KRATOS_PYTHON unset)"] + [""] * 12]
 
 
 @pytest.mark.bench

@@ -190,6 +190,21 @@ def test_contact_pressure_is_the_exact_mean_of_the_p1_pressure(roi, centre, area
     assert ell @ (p * zone.weight) == pytest.approx(3.0e6 + 1.0e6 * centre[0] - 2.0e6 * centre[1], rel=1e-12)
 
 
+def test_a_boundary_region_measures_each_slave_node_once(monkeypatch):
+    """Φ6 over a boundary G_r: the distances to G_r's faces are taken once for each slave node and
+    triangle centroid, not once for each triangle's corner (~6 triangles share a node; the
+    patch's face 0.02: 0.41 s for 4 points a triangle, 0.17 s now, the functional bitwise the same)."""
+    scene, sm = _contact_mesh({"boundary": "base_top"})
+    zone, sel = _zone(sm), Selection("facets", sm.boundaries["base_top"])
+    points, distance = [], regions._distance_to_facets
+    monkeypatch.setattr(regions, "_distance_to_facets", lambda mesh, facets, x: points.append(len(x)) or
+                        distance(mesh, facets, x))
+    ell, meas = regions._pressure_functional(sm, scene, zone, "r", sel, "scene.regions_of_interest.r")
+    triangles = len(regions.slave_segments(zone, scene, sm))
+    assert points == [zone.gap.size + triangles] * 2       # the slave side and its master projection
+    assert meas == pytest.approx(1.0, rel=1e-12)            # the whole face (its values: the test above)
+
+
 def test_contact_pressure_refuses_a_region_that_cuts_slave_triangles():
     """A ball not embedded in the mesh (the mesh was built with another region) cuts slave
     triangles: refused, by the region's path, never integrated approximately."""

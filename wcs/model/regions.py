@@ -334,17 +334,19 @@ def _pressure_functional_3d(smesh, scene, zone, roi: str, sel: Selection, path: 
     projection) would need the integral over a curved cut and is refused."""
     tri = slave_segments(zone, scene, smesh)                    # (s, 3) rows of each slave triangle
     normal = np.concatenate([p.normal for p in zone.pairs])
-    sides = [zone.coords[tri], (zone.coords + zone.gap[:, None] * normal)[tri]]   # (s, 3, 3) each
+    ends = [zone.coords, zone.coords + zone.gap[:, None] * normal]     # slave nodes, their projections
+    sides = [a[tri] for a in ends]                                      # (s, 3, 3) each
     e = sides[0] - np.roll(sides[0], 1, axis=1)
     area = 0.5 * np.linalg.norm(np.cross(e[:, 1], e[:, 2]), axis=1)
     tol = 1e-6 * max(np.ptp(np.vstack([s.reshape(-1, 3) for s in sides]), axis=0).max(), 1e-300)
     inside = np.zeros(len(tri), dtype=bool)
     cut = np.zeros(len(tri), dtype=bool)
-    for x in sides:
+    nodes, corner = np.unique(tri, return_inverse=True)         # each node once (~6 triangles share one)
+    for a, x in zip(ends, sides):
         if sel.kind == "facets":
-            pts = np.concatenate([x, x.mean(axis=1, keepdims=True)], axis=1)     # vertices, centroid
             near = tol + 0.1 * np.linalg.norm(e, axis=2).max(axis=1)
-            d = _distance_to_facets(smesh.mesh, sel.index, pts.reshape(-1, 3)).reshape(len(tri), 4)
+            d = _distance_to_facets(smesh.mesh, sel.index, np.concatenate([a[nodes], x.mean(axis=1)]))
+            d = np.column_stack([d[corner.reshape(tri.shape)], d[len(nodes):]])   # vertices, centroid
             inside |= (d <= near[:, None]).all(axis=1)
         else:
             level = _region_level(scene.regions_of_interest[roi], x.reshape(-1, 3)).reshape(len(tri), 3)

@@ -33,6 +33,8 @@ VTK_LINE, VTK_TRIANGLE, VTK_TETRA = 3, 5, 10
 TENSOR = ("XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ")
 _TYPES = {"Float64": "<f8", "Int64": "<i8", "UInt8": "u1"}
 BLOCK = 1 << 15                  # bytes of each zlib block (VTK's default)
+LEVEL = 1                        # zlib's fastest level: 3.5x faster than its default 6, 4 % larger (the
+#                                  fields of the 3D block patch at face 0.02, 7.9 MB)
 
 
 def _lift(v: np.ndarray) -> np.ndarray:
@@ -93,8 +95,8 @@ def contact_surface(ds: xr.Dataset, zone, facets: np.ndarray) -> tuple:
 
 def _compressed(raw: bytes) -> str:
     """VTK's compressed binary: base64 of the header (blocks, block size, last block's size, each
-    block's compressed size; UInt64), then base64 of the zlib blocks."""
-    blocks = [zlib.compress(raw[i:i + BLOCK]) for i in range(0, len(raw), BLOCK)]
+    block's compressed size; UInt64), then base64 of the zlib blocks, at zlib's fastest level."""
+    blocks = [zlib.compress(raw[i:i + BLOCK], LEVEL) for i in range(0, len(raw), BLOCK)]
     last = len(raw) - (len(blocks) - 1) * BLOCK if blocks else 0
     header = np.array([len(blocks), BLOCK, last, *map(len, blocks)], dtype="<u8")
     return base64.b64encode(header.tobytes()).decode() + base64.b64encode(b"".join(blocks)).decode()
