@@ -203,7 +203,7 @@ def _scales(K, C, m, k):
     (`_Rows.acting`). A tangent held by supports (a row of round-off, w ≈ 0) is left out of the
     mean: in it, it halved w and doubled the node's c, so that on the 3D tunnel at 3.9e4
     unknowns the nodes on the rollers front and back predicted their slip reversed, then stuck
-    at 2–7 g w, then slipped again (24 Newton steps on a data set of the box; 10 without); with
+    at 2–7 g w, then slipped again (24 Newton steps on a data set of the box; 14 without); with
     c = 1/0 taken as 0 such a node predicted its stick/slip from λ alone and cycled."""
     CC = C.multiply(C)
     dW = CC @ (1.0 / K.diagonal())
