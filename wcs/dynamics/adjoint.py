@@ -267,8 +267,6 @@ def source_on_face(ev, x, others, steps) -> str:
 
 def refusal(study) -> str:
     """'' or why the sweep does not cover a dynamic study (its gradients are finite differences)."""
-    if study.dynamics.scheme != "seed":
-        return f"the adjoint through time covers the seed scheme, not '{study.dynamics.scheme}'"
     if study.scene.thermal is not None:
         return "the adjoint through time does not cover a thermal scene"
     return ""
@@ -313,12 +311,20 @@ def _switch_or_disc(model, record) -> str:
     prev = record["start"][2]
     fs = max([np.abs(res.lam_n).max(initial=0.0) for _, res in record["states"]] + [1e-300])
     us = max([np.abs(step).max(initial=0.0) for step, _ in record["states"]] + [1e-300])
+    projections = [p for _, p in record.get("predictors") or ()]
+    fp = max([np.abs(p.lam_n).max(initial=0.0) for p in projections] + [1e-300])
+    up = max([np.abs(p.u).max(initial=0.0) for p in projections] + [1e-300])
     for n, (step, res) in enumerate(record["states"], start=1):
         if res.lam_t.size > res.lam_n.size:
             _, _, slip, _, _ = _active(model, res)
             if slip.any():
                 return f"at time level {n} a 3D contact node slips on its disc (not covered by the adjoint through time)"
         d = z.gap - z.Bn @ u0 - model.Bn_r @ w
+        if projections:
+            where = level_switch(model, projections[n - 1], projections[n - 2] if n >= 2 else None, d,
+                                 projections[n - 1].u, fp, up)
+            if where:
+                return f"at time level {n} the predictor's projection: {where}: the history is not differentiable there"
         where = level_switch(model, res, prev, d, step, fs, us)
         if where:
             return f"at time level {n} {where}: the history is not differentiable there"
@@ -376,12 +382,22 @@ class _Sweep:
         T, Tt, z = model.elim.T, model.Tt, model.zone
         M, K = data.mats.M, data.mats.K
         states = rec["states"]
-        system = LevelSystem(schemes.seed_operator(data.mats, tau), model, states[-1][1].factor if states and
-                             states[-1][1] is not None else None)
+        stabilized = self.ev.study.dynamics.scheme == "stabilized"
+        last = states[-1][1] if states else None
+        operator = schemes.stabilized_operator if stabilized else schemes.seed_operator
+        system = LevelSystem(operator(data.mats, tau), model, last.factor if last is not None else None)
         N, k, P = len(states), len(self.crits), len(self.x)
         w0, v0, res0 = rec["start"]
         ws = np.cumsum([w0] + [s for s, _ in states], axis=0)          # w_0 … w_N
-        vs = [v0] + [s / tau for s, _ in states]                        # seed: v_n = Δ_n/τ
+        if stabilized:
+            preds = rec["predictors"]
+            projected = next((p for _, p in reversed(preds) if p is not None), None)
+            projection = LevelSystem(M, model, projected.factor if projected is not None else None)
+            vs = [v0]
+            for (step, _), (pred, _) in zip(states, preds):
+                vs.append(schemes.stabilized_velocity(tau, vs[-1], step, pred))
+        else:
+            vs = [v0] + [s / tau for s, _ in states]                    # seed: v_n = Δ_n/τ
         dK = [(hi.mats.K - lo.mats.K) / (2 * h) for hi, lo, h in self.deriv]
         dM = [(hi.mats.M - lo.mats.M) / (2 * h) for hi, lo, h in self.deriv]
         dC = [((hi.mats.C - lo.mats.C) / (2 * h)) if hi.mats.C is not None else None for hi, lo, h in self.deriv]
@@ -401,7 +417,7 @@ class _Sweep:
             u = T @ ws[n] + data.u0
             pw, pn, pt, _, coef = self.partials(n, u, res)
             grad += coef
-            top = w_hat + pw + v_hat / tau
+            top = w_hat + pw + (2 * v_hat if stabilized else v_hat) / tau
             n_rows, t_rows = system.rows(res)
             bottom = np.vstack([(l_hat + pn)[n_rows], pt[t_rows]]) if z is not None else np.zeros((0, k))
             out = system.solve(res, top, bottom)
@@ -415,11 +431,19 @@ class _Sweep:
                 m = res.lam_n.size
                 ghat_node = ghat.reshape(-1, m, k).sum(axis=0)
                 lam_prev = prev_res.lam_n if prev_res is not None else np.zeros(m)
-            # the data's share at this level
+            # the data's share at this level: ∂r − ∂A Δ (module docstring)
             t_n = n * tau
-            y_M = vs[n - 1] / tau - step / tau**2
+            if stabilized:
+                pred, proj = preds[n - 1]
+                y_M = 2 * (pred - step) / tau**2
+                y_K = ws[n - 1] + step / 2
+            else:
+                y_M, y_K = vs[n - 1] / tau - step / tau**2, ws[n]
             for i, (hi, lo, h) in enumerate(self.deriv):
-                r = (Tt @ ((hi.load(t_n) - lo.load(t_n)) / (2 * h)) - dk0[i] - dK[i] @ ws[n] + dM[i] @ y_M)
+                f_i = (hi.load(t_n) - lo.load(t_n)) / (2 * h)
+                if stabilized:
+                    f_i = (f_i + (hi.load(t_n - tau) - lo.load(t_n - tau)) / (2 * h)) / 2
+                r = (Tt @ f_i - dk0[i] - dK[i] @ y_K + dM[i] @ y_M)
                 if dC[i] is not None:
                     r = r - dC[i] @ (step / tau)
                 grad[i] += r @ a
@@ -432,7 +456,23 @@ class _Sweep:
             if z is not None:
                 w_hat -= model.Bn_r[n_rows].T @ b_n
                 l_hat = F[:, None] * ghat_node if F is not None and prev_res is not None else np.zeros_like(l_hat)
-            v_hat = M @ a / tau
+            if not stabilized:
+                v_hat = M @ a / tau
+                continue
+            # the predictor: [M Pᵀ; P 0] [ã; b̃] = [2 M a/τ² − 2 v̂/τ; 0]
+            p_rows, _ = projection.rows(proj)
+            out = projection.solve(proj, 2 * (M @ a) / tau**2 - 2 * v_hat / tau, np.zeros((p_rows.size, k)))
+            if out is None:
+                self.failure = f"at time level {n} the predictor's active-set system is singular"
+                return None
+            a_p, b_p = out
+            for i, (hi, lo, h) in enumerate(self.deriv):
+                grad[i] += (dM[i] @ (tau * vs[n - 1] - pred)) @ a_p
+                if z is not None:
+                    grad[i] += dd0[i][p_rows] @ b_p
+            if z is not None:
+                w_hat -= model.Bn_r[p_rows].T @ b_p
+            v_hat = v_hat + tau * (M @ a_p)
         # level 0 and the start
         u0_state = T @ ws[0] + data.u0
         if self.ev.study.dynamics.initial == "static":
