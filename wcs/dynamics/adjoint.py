@@ -21,6 +21,28 @@ then ŵ ← ŵ + c_{n−1}φ_w − K a − Bn_𝒜ᵀ b_𝒜, v̂ ← M a/τ, l�
 
     dJ/dx += aᵀ (∂f(t_n) − ∂k₀ − ∂K w_n + ∂M (v_{n−1}/τ − Δ_n/τ²) − ∂C Δ_n/τ) + b_𝒜ᵀ ∂d₀ + ĝwᵀ ∂gw.
 
+The stabilized scheme (`wcs.dynamics.schemes`, Deuflhard–Krause–Ertel) solves at level n two
+systems. The predictor's M-projection, frictionless, on its final closed normals 𝒫 (P = Bn_𝒫):
+
+    [M  Pᵀ] [δ̃_n]   [τ M v_{n−1}           ]
+    [P  0 ] [μ̃_n] = [(d₀ − Bn w_{n−1})_𝒫],
+
+then the step, with A = 2M/τ² + C/τ + K/2 and r_n = (f(t_{n−1}) + f(t_n))/2 − k₀ − K w_{n−1} +
+2M δ̃_n/τ² in the system above, and w_n = w_{n−1} + Δ_n, v_n = v_{n−1} + 2(Δ_n − δ̃_n)/τ (λ_n the
+step's mean contact force). Its sweep solves the step's system with the top [ŵ + c_n φ_w +
+2v̂/τ], then the predictor's
+
+    [M  Pᵀ; P  0] [ã; b̃] = [2 M a/τ² − 2 v̂/τ ; 0]
+
+(∂J/∂δ̃_n: through r_n and v_n), and carries ŵ ← ŵ + c_{n−1}φ_w − K a − Bn_𝒜ᵀ b_𝒜 − Pᵀ b̃,
+v̂ ← v̂ + τ M ã, l̂ as above; the data's share is
+
+    aᵀ ((∂f(t_{n−1}) + ∂f(t_n))/2 − ∂k₀ − ∂K (w_{n−1} + Δ_n/2) + 2 ∂M (δ̃_n − Δ_n)/τ² − ∂C Δ_n/τ)
+    + b_𝒜ᵀ ∂d₀ + ĝwᵀ ∂gw + ãᵀ ∂M (τ v_{n−1} − δ̃_n) + b̃ᵀ ∂d₀_𝒫.
+
+The predictor's active set is checked for switches as the step's (`level_switch`, against the
+predictors' own largest multiplier and increment).
+
 The data's derivatives ∂M, ∂C, ∂K, ∂f(t), ∂k₀, ∂d₀, ∂g, ∂F (the matrices with their dashpot
 impedances √(ρ(λ+2μ)), the sources' nodal loads and Ricker wavelets, …) are central differences
 of the data's assembly at the same solution — not of the simulation — with the step
@@ -40,11 +62,12 @@ of the reduced criterion, which its record says (`Evaluation.message`, the certi
 criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
 that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
 slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
-increment, `level_switch`), a singular active-set system, a point source within the data step of a
-cell face (its P1 shape functions' gradients jump there), and what the sweep does not cover: the
-stabilized scheme, a thermal scene, a 3D node slipping on its disc.
+increment, `level_switch`; the stabilized predictor's normals likewise), a singular active-set
+system, a point source within the data step of a cell face (its P1 shape functions' gradients jump
+there), and what the sweep does not cover: a thermal scene, a 3D node slipping on its disc.
 
-Memory: the sweep keeps each level's increment and contact result (N vectors of the reduced
+Memory: the sweep keeps each level's increment and contact result (stabilized: and its
+predictor's; N vectors of the reduced
 size: the seismic study's 240 × 15,456 doubles, 30 MB); a 3D model of 1e6 unknowns over 1000
 levels would hold 8 GB, where checkpointing (every √N-th level stored, the rest recomputed)
 trades it for a second forward run. Each level's system is solved with the forward's factor of A
