@@ -95,6 +95,8 @@ def test_each_reduction_weighs_its_levels_and_a_tie_is_named():
         assert np.array_equal(c, weights) and why == "", how
     c, why = reduction_weights("max", np.array([1.0, 3.0, 3.0 - 1e-8, 0.0]))
     assert why == "its peak over time is reached at levels 1 and 2 (within 1e-07)"
+    c, why = reduction_weights("max", np.array([1.0, 3.0 - 1e-8, 3.0, 2.0, 3.0, 3.0]))   # a plateau: all named
+    assert why == "its peak over time is reached at 4 levels from 1 to 5 (within 1e-07)" and c[2] == 1.0
 
 
 def test_a_source_point_on_a_cell_face_is_not_differentiable_and_the_evaluation_says_so(tmp_path):

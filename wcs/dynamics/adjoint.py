@@ -58,8 +58,10 @@ criterion (`wcs.model.sensitivity.coefficient_gradients`).
 
 Not differentiable — the criterion's gradient is None and the search takes finite differences
 of the reduced criterion, which its record says (`Evaluation.message`, the certificate's
-"finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL`, a
-criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
+"finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL` (a
+plateau: on the seismic study the fault's slip stops growing and holds to the end; its levels'
+gradients agree only to about the adjoint's own accuracy, and one sweep column per tied level
+would cost more than the search's differences), a criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
 that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
 slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
 increment, `level_switch`; the stabilized predictor's normals likewise), a singular active-set
@@ -150,7 +152,9 @@ def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
     c[n] = 1.0
     if close.size > 1:
         word = "peak" if how == "max" else "least value"
-        return c, f"its {word} over time is reached at levels {close[0]} and {close[1]} (within {REL_TOL:g})"
+        where = f"levels {close[0]} and {close[1]}" if close.size == 2 else \
+            f"{close.size} levels from {close[0]} to {close[-1]}"
+        return c, f"its {word} over time is reached at {where} (within {REL_TOL:g})"
     return c, ""
 
 
