@@ -126,6 +126,32 @@ def test_the_stabilized_schemes_adjoint_agrees_with_central_differences(tmp_path
     assert "finite-difference gradient" not in e.message.replace("least: finite-difference gradient", "")
 
 
+def test_a_thermal_scenes_adjoint_agrees_with_central_differences(tmp_path):
+    """The heated plate (studies/heated-plate.yaml, coarse) from its static thermal state, its top
+    loaded by a ramped pressure: the heave at the end, the mean shear intensity over time and the
+    core's temperature at the end against central differences over the modulus, the expansion and
+    the top's temperature (measured: ≤ 2e-8 of the change across the box; the temperature does
+    not depend on the modulus nor on the expansion: both 0)."""
+    doc = yaml.safe_load((ROOT / "studies/heated-plate.yaml").read_text())
+    doc.pop("include")
+    doc["scene"]["mesh"]["size"] = 0.1
+    doc["scene"]["materials"]["steel"]["density"] = 7850.0
+    doc["scene"]["loads"] = {"top": {"pressure": 1.0e8, "time": {"ramp": 2.0e-5}}}
+    doc["dynamics"] = {"end_time": 1.0e-4, "time_step": 1.0e-5, "scheme": "seed", "output_every": 5,
+                       "initial": "static"}
+    box = {"materials.steel.E": [1.9e11, 2.3e11], "materials.steel.expansion": [1.0e-5, 1.4e-5],
+           "thermal.temperature.top": [323.0, 363.0]}
+    doc["uncertain"] = box
+    doc["criteria"] = [dict(doc["criteria"][0], over_time="final"), dict(doc["criteria"][1], over_time="mean"),
+                       dict(doc["criteria"][2], over_time="final")]
+    ev = DynamicEvaluator(load_study(write_study(doc, tmp_path, "plate.yaml")))
+    lower, upper = (np.array(v, float) for v in zip(*box.values()))
+    x = lower + 0.37 * (upper - lower)
+    check_against_central_differences(ev, x, lower, upper, ["heave", "shear"])
+    e = check_against_central_differences(ev, x, lower, upper, ["temperature"], which=[2])
+    assert e.grad["temperature"][:2].tolist() == [0.0, 0.0]
+
+
 def cylinder(tmp_path, box):
     """studies/validation/cylinder-impact.yaml, coarse (1 mm at the contact, Δt = 4 µs, 55 levels
     through the whole impact), with one criterion per reduction and `box` uncertain."""

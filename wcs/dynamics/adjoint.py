@@ -66,7 +66,11 @@ that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one a
 slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
 increment, `level_switch`; the stabilized predictor's normals likewise), a singular active-set
 system, a point source within the data step of a cell face (its P1 shape functions' gradients jump
-there), and what the sweep does not cover: a thermal scene, a 3D node slipping on its disc.
+there), and what the sweep does not cover: a 3D node slipping on its disc.
+
+A thermal scene: the temperature θ is steady (one heat solve per data set, its load constant over
+the levels); its share, Σ_n c_n ∂φ_n/∂θ · ∂θ/∂x, takes ∂θ/∂x, like the other data, by central
+differences of the heat solve (linear in θ, smooth in x), and the thermal load enters ∂f.
 
 Memory: the sweep keeps each level's increment and contact result (stabilized: and its
 predictor's; N vectors of the reduced
@@ -109,11 +113,13 @@ class TimeGradients:
 @dataclass
 class LevelData:
     """What the levels' equations take from a data set: the coefficients, M, C, K, the load
-    f(t) on the full DOFs (without the released supports' reactions) and the supports' u₀."""
+    f(t) on the full DOFs (without the released supports' reactions), the supports' u₀ and the
+    steady temperature θ on the heat nodes (a thermal scene; else None; the nodal one is P θ)."""
     c: object
     mats: object
     load: object
     u0: np.ndarray
+    theta: np.ndarray | None = None
 
 
 def level_data(ev, model, pmap, x, others=None) -> LevelData:
@@ -122,12 +128,14 @@ def level_data(ev, model, pmap, x, others=None) -> LevelData:
     c = pmap.coefficients(x, others)
     s = pmap.slots(x, others)
     rho, visc = region_dynamics(model, pmap, x, others)
-    load = load_function(model, scene, c, s, pmap.index)
+    theta = model._heat_theta(c)[0] if model.thermal else None         # as `solve_heat`: P θ
+    heat = model.P @ theta if theta is not None else None
+    load = load_function(model, scene, c, s, pmap.index, heat)
     if load is None:
-        constant = model.mechanical_load(c, None)
+        constant = model.mechanical_load(c, heat)
         load = lambda t: constant                       # noqa: E731 - constant in time
     mats = dynamic_matrices(model, c, rho, visc, damping_matrix(model, scene, c, rho, s, pmap.index))
-    return LevelData(c, mats, load, model.elim.U0 @ c.support_values)
+    return LevelData(c, mats, load, model.elim.U0 @ c.support_values, theta)
 
 
 def data_steps(study, x) -> np.ndarray:
@@ -292,23 +300,15 @@ def source_on_face(ev, x, others, steps) -> str:
     return ""
 
 
-def refusal(study) -> str:
-    """'' or why the sweep does not cover a dynamic study (its gradients are finite differences)."""
-    if study.scene.thermal is not None:
-        return "the adjoint through time does not cover a thermal scene"
-    return ""
-
-
 def gradients(ev, x, others, hist, record) -> TimeGradients:
     """dJ/dx of every criterion of evaluator ev at data vector x, from the simulation `hist`
     (`wcs.dynamics.history.simulate` with `record`)."""
     names = [c.name for c in ev.criteria]
     why = {n: "" for n in names}
     grad = {n: None for n in names}
-    reason = refusal(ev.study)
     model, pmap, states = record["model"], record["map"], record["states"]
     steps = data_steps(ev.study, np.asarray(x, float))
-    reason = reason or source_on_face(ev, x, others, steps)
+    reason = source_on_face(ev, x, others, steps)
     if model.zone is not None and not reason:
         reason = _switch_or_disc(model, record)
     if reason:
@@ -383,7 +383,8 @@ class _Sweep:
             cn = self.weights[crit.name][n]
             if cn == 0.0:
                 continue
-            state = level_solution(model, c, u, res) if state is None else state
+            heat = model.P @ self.data.theta if self.data.theta is not None else None
+            state = level_solution(model, c, u, res, heat) if state is None else state
             P, kink = criterion_partials(crit, model, state)
             if kink and not self.why[crit.name]:
                 self.why[crit.name] = f"at time level {n} the criterion has a kink or its maximising region switches"
@@ -399,6 +400,8 @@ class _Sweep:
                 for name, v in P.coef.items():
                     g[sl[name]] += v
                 coef[:, j] = cn * (self.pmap.jacobian(self.x, self.others).T @ g)
+            if P.theta is not None:                         # the steady temperature θ(x)
+                coef[:, j] += cn * np.array([((hi.theta - lo.theta) / (2 * h)) @ P.theta for hi, lo, h in self.deriv])
         for i, (hi, lo, h) in enumerate(self.deriv):        # u_n = T w_n + u₀: the supports' share
             coef[i] += ((hi.u0 - lo.u0) / (2 * h)) @ pu
         pw = model.Tt @ pu
@@ -536,7 +539,8 @@ class _Sweep:
             for i, h in enumerate(data_steps(ev.study, np.asarray(x, float))):
                 e = np.zeros(len(x))
                 e[i] = h
-                R = [static.stiffness(ci) @ u_s - static.mechanical_load(ci, None)
+                R = [static.stiffness(ci) @ u_s - static.mechanical_load(ci, static.solve_heat(ci) if static.thermal
+                                                                          else None)
                      for ci in (at_time_zero(smap.coefficients(x + s * e, others), ev.study.scene,
                                              smap.slots(x + s * e, others), smap.index) for s in (1.0, -1.0))]
                 grad[i] += ((R[0] - R[1]) / (2 * h)) @ H
