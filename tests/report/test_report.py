@@ -424,3 +424,64 @@ def test_the_mesh_check_table_keeps_within_the_page_in_chromium(tmp_path):
                                 ".getBoundingClientRect().right]; })()")
         assert b.errors == []
     assert page <= window and table <= box, (page, window, table, box)
+
+
+def page_units(ds) -> dict:
+    """{criterion: units} of a results file's `phi`."""
+    return dict(piece.split(": ", 1) for piece in ds["phi"].attrs["units"].split(", "))
+
+
+def _solve_kinds():
+    """(name, study document) of each kind of file `wcs solve` writes besides a static one with
+    contact (`test_solve_file_report`): static thermal (the heated plate, coarse, without uncertain
+    numbers), dynamic (the two bars, coarse, with an uncertain modulus and a limit; the levels to
+    past the impact) and dynamic over a thermal scene (the plate from its static state)."""
+    import yaml
+    load = lambda name: yaml.safe_load((ROOT / name).read_text())        # noqa: E731
+    bars = load("studies/validation/two-bars-impact.yaml")
+    bars["dynamics"].update(end_time=3.0e-4, time_step=1.0e-5, output_every=5)
+    bars["scene"]["mesh"]["size"] = 0.05
+    bars["uncertain"] = {"materials.steel.E": [1.9e11, 2.3e11]}
+    bars["limits"] = {"peak_pressure": 1.0e8}
+    static = load("studies/heated-plate.yaml")
+    static.pop("include")
+    static.pop("uncertain")
+    static["scene"]["mesh"]["size"] = 0.1
+    plate = load("studies/heated-plate.yaml")
+    plate.pop("include")
+    plate["scene"]["mesh"]["size"] = 0.1
+    plate["scene"]["materials"]["steel"]["density"] = 7850.0
+    plate["dynamics"] = {"end_time": 4.0e-5, "time_step": 1.0e-5, "scheme": "seed", "output_every": 2,
+                         "initial": "static"}
+    return [("thermal", static), ("dynamic", bars), ("dynamic-thermal", plate)]
+
+
+@pytest.mark.parametrize("kind, doc", _solve_kinds(), ids=[k for k, _ in _solve_kinds()])
+def test_every_solve_file_makes_a_report(kind, doc, tmp_path):
+    """The file of `wcs solve` of every kind of study makes a report (a dynamic one had neither the
+    box nor the data set: "no param"): its values, its one data set (the nominal, in the box or
+    named as such without uncertain numbers), a dynamic study's histories drawn one per criterion."""
+    import yaml
+    from wcs.report.html import number
+    doc.pop("include", None)
+    study = tmp_path / "study.yaml"
+    study.write_text(yaml.safe_dump(doc, sort_keys=False))
+    nc, out = tmp_path / "solve.nc", tmp_path / "solve.html"
+    assert main(["solve", str(study), "-o", str(nc), "--quiet"]) == 0
+    assert main(["report", str(nc), "-o", str(out), "--quiet"]) == 0
+    text = out.read_text()
+    page = check_page(text)
+    assert "single forward solve" in text and "every evaluation failed" not in text
+    with xr.open_dataset(nc, engine="h5netcdf") as ds:
+        names, phi, units = [str(c) for c in ds["criterion"].values], ds["phi"].values, page_units(ds)
+        x, params = ds["x"].values, [str(p) for p in ds["param"].values]
+        assert np.array_equal(x, wcs.load_study(study).nominal())
+    for name, value in zip(names, phi):
+        assert page.limit_row(name)["worst"]["text"] == number(value, units[name]), name
+        assert f"{name}: worst value {number(value, units[name])}" in text, name
+    worst = text[text.index('id="worst-data"'):text.index('id="drivers"')]
+    assert worst.count("<tr>") == len(names) * (len(params) + 1) if params else \
+        worst.count("no uncertain numbers") == len(names)
+    if kind.startswith("dynamic"):
+        section = text[text.index('id="histories"'):text.index('id="scene"')]
+        assert section.count("<img") == len(names)

@@ -11,14 +11,14 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from wcs.dynamics.history import REDUCED, reduced, simulate
+from wcs.dynamics.history import REDUCED, DynamicEvaluation, reduced, simulate
 from wcs.dynamics.loading import at_time_zero, check_sources
 from wcs.dynamics.stepping import History, initial_state, level_solution
 from wcs.errors import SolveError
 from wcs.model.criteria import in_words
 from wcs.model.evaluation import Evaluator
 from wcs.model.fields import fields_dataset
-from wcs.results.dataset import provenance, write_netcdf
+from wcs.results.dataset import solve_dataset, write_netcdf
 from wcs.results.dynamics import gradients
 from wcs.results.meshcheck import MEMORY_SHARE, SOLVE_GROWTH, SPLITS, planned, refined_nodes
 from wcs.scene.estimate import machine_memory
@@ -27,9 +27,17 @@ from wcs.results.store import WriteError
 from wcs.status import Status
 
 
-def history_dataset(study, ev, hist) -> xr.Dataset:
-    """The results file of a dynamic solve."""
+def history_dataset(study, ev, hist, x, others, wall_time: float) -> xr.Dataset:
+    """The results file of a dynamic solve: the layout of every `wcs solve` file (`solve_dataset`:
+    the box, the data set x, the reduced criteria, status, limits, the mesh and the fields, here
+    at the output times) and the history of the levels (energies, contact forces, every
+    criterion at every level)."""
     model = ev.model
+    evaluation = DynamicEvaluation(np.asarray(x, float), reduced(study, hist), Status.SOLVED, "solved",
+                                   int(np.sum(hist.iterations)), wall_time, evaluator=ev,
+                                   levels=(ev.map.coefficients(x, others), hist))
+    solved = solve_dataset(study, ev, evaluation)
+    solved["iterations"].attrs["long_name"] += "; a dynamic study: their sum over the time levels"
     t = np.asarray(hist.time)
     crit = [c.name for c in study.criteria]
     units = {c.name: c.units for c in ev.criteria}
@@ -44,9 +52,6 @@ def history_dataset(study, ev, hist) -> xr.Dataset:
         "numerical_dissipation": (("time",), hist.numerical,
                                   {"long_name": "initial + work - viscous - friction - (kinetic + elastic)"}),
         "contact_iterations": (("time",), np.asarray(hist.iterations, np.int64), {}),
-        "coords": (("node", "dim"), model.smesh.mesh.p.T.copy(), {"units": "m"}),
-        "displacement": (("output_time", "node", "dim"),
-                         np.array(hist.displacement).reshape(nout, -1, model.dim), {"units": "m"}),
         "velocity": (("output_time", "node", "dim"),
                      np.array(hist.velocity).reshape(nout, -1, model.dim), {"units": "m s-1"}),
     }
@@ -58,15 +63,13 @@ def history_dataset(study, ev, hist) -> xr.Dataset:
     if crit:
         data["phi_history"] = (("criterion", "time"), np.array([hist.phi[c] for c in crit]),
                                {"units": ", ".join(f"{c}: {units[c]}" for c in crit)})
-        data["phi"] = (("criterion",), np.array([reduced(study, hist)[c] for c in crit]),
-                       {"over_time": ", ".join(f"{c.name}: {c.over_time or 'max'}" for c in study.criteria)})
+        solved["phi"].attrs["over_time"] = ", ".join(f"{c.name}: {c.over_time or 'max'}" for c in study.criteria)
     dyn = study.dynamics
     initial = dyn.initial if isinstance(dyn.initial, str) else str(dyn.initial.model_dump())
-    attrs = {**provenance(study, ev), "dynamics_scheme": dyn.scheme, "time_step": dyn.time_step,
-             "end_time": dyn.end_time, "initial": initial}
+    attrs = {"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time, "initial": initial}
     coords = {"time": ("time", t, {"units": "s"}),
               "output_time": ("output_time", t[hist.output_levels], {"units": "s"}), "criterion": crit}
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return solved.merge(xr.Dataset(data, coords=coords)).assign_attrs(attrs)
 
 
 def pvd_text(entries: list[tuple[float, str]]) -> str:
@@ -99,12 +102,13 @@ def solve_dynamic(study, out: Path, args, point=None) -> int:
     x, others = study.data_set(study.nominal() if point is None else point)
     try:
         hist = simulate(ev, x, others)
+        wall_time = time.perf_counter() - t0
     except SolveError as e:
         which = "nominal" if point is None else "given"
         print(f"error: {args.study}: the {which} data set cannot be solved: {e}", file=sys.stderr)
         return 2 if Status(e.status).scene_fault else 1
     try:
-        path = write_netcdf(history_dataset(study, ev, hist), out)
+        path = write_netcdf(history_dataset(study, ev, hist, x, others, wall_time), out)
         pvd = write_series(ev, hist, ev.map.coefficients(x, others), out)
     except WriteError as e:
         print(f"error: {e}", file=sys.stderr)

@@ -21,12 +21,39 @@ then ŵ ← ŵ + c_{n−1}φ_w − K a − Bn_𝒜ᵀ b_𝒜, v̂ ← M a/τ, l�
 
     dJ/dx += aᵀ (∂f(t_n) − ∂k₀ − ∂K w_n + ∂M (v_{n−1}/τ − Δ_n/τ²) − ∂C Δ_n/τ) + b_𝒜ᵀ ∂d₀ + ĝwᵀ ∂gw.
 
+The stabilized scheme (`wcs.dynamics.schemes`, Deuflhard–Krause–Ertel) solves at level n two
+systems. The predictor's M-projection, frictionless, on its final closed normals 𝒫 (P = Bn_𝒫):
+
+    [M  Pᵀ] [δ̃_n]   [τ M v_{n−1}           ]
+    [P  0 ] [μ̃_n] = [(d₀ − Bn w_{n−1})_𝒫],
+
+then the step, with A = 2M/τ² + C/τ + K/2 and r_n = (f(t_{n−1}) + f(t_n))/2 − k₀ − K w_{n−1} +
+2M δ̃_n/τ² in the system above, and w_n = w_{n−1} + Δ_n, v_n = v_{n−1} + 2(Δ_n − δ̃_n)/τ (λ_n the
+step's mean contact force). Its sweep solves the step's system with the top [ŵ + c_n φ_w +
+2v̂/τ], then the predictor's
+
+    [M  Pᵀ; P  0] [ã; b̃] = [2 M a/τ² − 2 v̂/τ ; 0]
+
+(∂J/∂δ̃_n: through r_n and v_n), and carries ŵ ← ŵ + c_{n−1}φ_w − K a − Bn_𝒜ᵀ b_𝒜 − Pᵀ b̃,
+v̂ ← v̂ + τ M ã, l̂ as above; the data's share is
+
+    aᵀ ((∂f(t_{n−1}) + ∂f(t_n))/2 − ∂k₀ − ∂K (w_{n−1} + Δ_n/2) + 2 ∂M (δ̃_n − Δ_n)/τ² − ∂C Δ_n/τ)
+    + b_𝒜ᵀ ∂d₀ + ĝwᵀ ∂gw + ãᵀ ∂M (τ v_{n−1} − δ̃_n) + b̃ᵀ ∂d₀_𝒫.
+
+The predictor's active set is checked for switches as the step's (`level_switch`, against the
+predictors' own largest multiplier and increment).
+
 The data's derivatives ∂M, ∂C, ∂K, ∂f(t), ∂k₀, ∂d₀, ∂g, ∂F (the matrices with their dashpot
 impedances √(ρ(λ+2μ)), the sources' nodal loads and Ricker wavelets, …) are central differences
 of the data's assembly at the same solution — not of the simulation — with the step
 `DATA_STEP` of the box's width: the data are smooth in x (affine in amplitudes and moduli,
-√ and exp elsewhere), so their truncation error is O(DATA_STEP²) ≈ 1e-12 of the data and the
-round-off ≈ 1e-16 / DATA_STEP ≈ 1e-10 of it, far below the 1e-5 this gradient is held to.
+√ and exp elsewhere), so their truncation error is O(DATA_STEP²) ≈ 1e-8 of the data and the
+round-off ≈ 3ε E/(2 DATA_STEP) over the width ≈ 1e-12 of it (measured on K: 1.9e-11 at this step,
+1.6e-9 at 1e-6). The round-off is what counts: the levels' shares aᵀ∂K w … nearly cancel where a
+criterion hardly depends on a datum (the mean contact pressure over an impact is its impulse,
+which the modulus does not change), and the sum keeps their absolute error — at 1e-6 the coarse
+cylinder impact's mean pressure had 3.4e-4 of its derivative along the modulus wrong (3.5 % of
+its change across the box), at 1e-4 it has 3e-7 (3e-5 of that change, 4e-6 of its value).
 
 The start: from rest or given rigid velocities, w₀ = 0 and v₀ do not depend on x. From the static
 state (`initial: static`), w₀ and λ₀ are a static contact solution: the sweep's ŵ₀ (and the
@@ -36,15 +63,22 @@ criterion (`wcs.model.sensitivity.coefficient_gradients`).
 
 Not differentiable — the criterion's gradient is None and the search takes finite differences
 of the reduced criterion, which its record says (`Evaluation.message`, the certificate's
-"finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL`, a
-criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
+"finite-difference gradient"): a peak (least) reached at two levels within `REL_TOL` (a
+plateau: on the seismic study the fault's slip stops growing and holds to the end; its levels'
+gradients agree only to about the adjoint's own accuracy, and one sweep column per tied level
+would cost more than the search's differences), a criterion's own kink or region switch at a weighted level, a contact node at a switch at a level
 that moves it (a closed node with λn ≈ 0, an open one touching, a stuck one at |λt| ≈ gw, a
 slipping one at zero slip increment; within REL_TOL of the level's largest pressure and
-increment, `level_switch`), a singular active-set system, a point source within the data step of a
-cell face (its P1 shape functions' gradients jump there), and what the sweep does not cover: the
-stabilized scheme, a thermal scene, a 3D node slipping on its disc.
+increment, `level_switch`; the stabilized predictor's normals likewise), a singular active-set
+system, a point source within the data step of a cell face (its P1 shape functions' gradients jump
+there), and what the sweep does not cover: a 3D node slipping on its disc.
 
-Memory: the sweep keeps each level's increment and contact result (N vectors of the reduced
+A thermal scene: the temperature θ is steady (one heat solve per data set, its load constant over
+the levels); its share, Σ_n c_n ∂φ_n/∂θ · ∂θ/∂x, takes ∂θ/∂x, like the other data, by central
+differences of the heat solve (linear in θ, smooth in x), and the thermal load enters ∂f.
+
+Memory: the sweep keeps each level's increment and contact result (stabilized: and its
+predictor's; N vectors of the reduced
 size: the seismic study's 240 × 15,456 doubles, 30 MB); a 3D model of 1e6 unknowns over 1000
 levels would hold 8 GB, where checkpointing (every √N-th level stored, the rest recomputed)
 trades it for a second forward run. Each level's system is solved with the forward's factor of A
@@ -70,7 +104,7 @@ from .release import released_dofs, released_names
 from .sources import containing_cells
 from .stepping import dynamic_matrices, level_solution, region_dynamics
 
-DATA_STEP = 1e-6            # the data's central-difference step, a fraction of the box's width
+DATA_STEP = 1e-4            # the data's central-difference step, a fraction of the box's width
 
 
 @dataclass
@@ -84,11 +118,13 @@ class TimeGradients:
 @dataclass
 class LevelData:
     """What the levels' equations take from a data set: the coefficients, M, C, K, the load
-    f(t) on the full DOFs (without the released supports' reactions) and the supports' u₀."""
+    f(t) on the full DOFs (without the released supports' reactions), the supports' u₀ and the
+    steady temperature θ on the heat nodes (a thermal scene; else None; the nodal one is P θ)."""
     c: object
     mats: object
     load: object
     u0: np.ndarray
+    theta: np.ndarray | None = None
 
 
 def level_data(ev, model, pmap, x, others=None) -> LevelData:
@@ -97,12 +133,14 @@ def level_data(ev, model, pmap, x, others=None) -> LevelData:
     c = pmap.coefficients(x, others)
     s = pmap.slots(x, others)
     rho, visc = region_dynamics(model, pmap, x, others)
-    load = load_function(model, scene, c, s, pmap.index)
+    theta = model._heat_theta(c)[0] if model.thermal else None         # as `solve_heat`: P θ
+    heat = model.P @ theta if theta is not None else None
+    load = load_function(model, scene, c, s, pmap.index, heat)
     if load is None:
-        constant = model.mechanical_load(c, None)
+        constant = model.mechanical_load(c, heat)
         load = lambda t: constant                       # noqa: E731 - constant in time
     mats = dynamic_matrices(model, c, rho, visc, damping_matrix(model, scene, c, rho, s, pmap.index))
-    return LevelData(c, mats, load, model.elim.U0 @ c.support_values)
+    return LevelData(c, mats, load, model.elim.U0 @ c.support_values, theta)
 
 
 def data_steps(study, x) -> np.ndarray:
@@ -127,7 +165,9 @@ def reduction_weights(how, phi) -> tuple[np.ndarray, str]:
     c[n] = 1.0
     if close.size > 1:
         word = "peak" if how == "max" else "least value"
-        return c, f"its {word} over time is reached at levels {close[0]} and {close[1]} (within {REL_TOL:g})"
+        where = f"levels {close[0]} and {close[1]}" if close.size == 2 else \
+            f"{close.size} levels from {close[0]} to {close[-1]}"
+        return c, f"its {word} over time is reached at {where} (within {REL_TOL:g})"
     return c, ""
 
 
@@ -265,25 +305,15 @@ def source_on_face(ev, x, others, steps) -> str:
     return ""
 
 
-def refusal(study) -> str:
-    """'' or why the sweep does not cover a dynamic study (its gradients are finite differences)."""
-    if study.dynamics.scheme != "seed":
-        return f"the adjoint through time covers the seed scheme, not '{study.dynamics.scheme}'"
-    if study.scene.thermal is not None:
-        return "the adjoint through time does not cover a thermal scene"
-    return ""
-
-
 def gradients(ev, x, others, hist, record) -> TimeGradients:
     """dJ/dx of every criterion of evaluator ev at data vector x, from the simulation `hist`
     (`wcs.dynamics.history.simulate` with `record`)."""
     names = [c.name for c in ev.criteria]
     why = {n: "" for n in names}
     grad = {n: None for n in names}
-    reason = refusal(ev.study)
     model, pmap, states = record["model"], record["map"], record["states"]
     steps = data_steps(ev.study, np.asarray(x, float))
-    reason = reason or source_on_face(ev, x, others, steps)
+    reason = source_on_face(ev, x, others, steps)
     if model.zone is not None and not reason:
         reason = _switch_or_disc(model, record)
     if reason:
@@ -313,12 +343,20 @@ def _switch_or_disc(model, record) -> str:
     prev = record["start"][2]
     fs = max([np.abs(res.lam_n).max(initial=0.0) for _, res in record["states"]] + [1e-300])
     us = max([np.abs(step).max(initial=0.0) for step, _ in record["states"]] + [1e-300])
+    projections = [p for _, p in record.get("predictors") or ()]
+    fp = max([np.abs(p.lam_n).max(initial=0.0) for p in projections] + [1e-300])
+    up = max([np.abs(p.u).max(initial=0.0) for p in projections] + [1e-300])
     for n, (step, res) in enumerate(record["states"], start=1):
         if res.lam_t.size > res.lam_n.size:
             _, _, slip, _, _ = _active(model, res)
             if slip.any():
                 return f"at time level {n} a 3D contact node slips on its disc (not covered by the adjoint through time)"
         d = z.gap - z.Bn @ u0 - model.Bn_r @ w
+        if projections:
+            where = level_switch(model, projections[n - 1], projections[n - 2] if n >= 2 else None, d,
+                                 projections[n - 1].u, fp, up)
+            if where:
+                return f"at time level {n} the predictor's projection: {where}: the history is not differentiable there"
         where = level_switch(model, res, prev, d, step, fs, us)
         if where:
             return f"at time level {n} {where}: the history is not differentiable there"
@@ -350,7 +388,8 @@ class _Sweep:
             cn = self.weights[crit.name][n]
             if cn == 0.0:
                 continue
-            state = level_solution(model, c, u, res) if state is None else state
+            heat = model.P @ self.data.theta if self.data.theta is not None else None
+            state = level_solution(model, c, u, res, heat) if state is None else state
             P, kink = criterion_partials(crit, model, state)
             if kink and not self.why[crit.name]:
                 self.why[crit.name] = f"at time level {n} the criterion has a kink or its maximising region switches"
@@ -366,6 +405,8 @@ class _Sweep:
                 for name, v in P.coef.items():
                     g[sl[name]] += v
                 coef[:, j] = cn * (self.pmap.jacobian(self.x, self.others).T @ g)
+            if P.theta is not None:                         # the steady temperature θ(x)
+                coef[:, j] += cn * np.array([((hi.theta - lo.theta) / (2 * h)) @ P.theta for hi, lo, h in self.deriv])
         for i, (hi, lo, h) in enumerate(self.deriv):        # u_n = T w_n + u₀: the supports' share
             coef[i] += ((hi.u0 - lo.u0) / (2 * h)) @ pu
         pw = model.Tt @ pu
@@ -376,12 +417,22 @@ class _Sweep:
         T, Tt, z = model.elim.T, model.Tt, model.zone
         M, K = data.mats.M, data.mats.K
         states = rec["states"]
-        system = LevelSystem(schemes.seed_operator(data.mats, tau), model, states[-1][1].factor if states and
-                             states[-1][1] is not None else None)
+        stabilized = self.ev.study.dynamics.scheme == "stabilized"
+        last = states[-1][1] if states else None
+        operator = schemes.stabilized_operator if stabilized else schemes.seed_operator
+        system = LevelSystem(operator(data.mats, tau), model, last.factor if last is not None else None)
         N, k, P = len(states), len(self.crits), len(self.x)
         w0, v0, res0 = rec["start"]
         ws = np.cumsum([w0] + [s for s, _ in states], axis=0)          # w_0 … w_N
-        vs = [v0] + [s / tau for s, _ in states]                        # seed: v_n = Δ_n/τ
+        if stabilized:
+            preds = rec["predictors"]
+            projected = next((p for _, p in reversed(preds) if p is not None), None)
+            projection = LevelSystem(M, model, projected.factor if projected is not None else None)
+            vs = [v0]
+            for (step, _), (pred, _) in zip(states, preds):
+                vs.append(schemes.stabilized_velocity(tau, vs[-1], step, pred))
+        else:
+            vs = [v0] + [s / tau for s, _ in states]                    # seed: v_n = Δ_n/τ
         dK = [(hi.mats.K - lo.mats.K) / (2 * h) for hi, lo, h in self.deriv]
         dM = [(hi.mats.M - lo.mats.M) / (2 * h) for hi, lo, h in self.deriv]
         dC = [((hi.mats.C - lo.mats.C) / (2 * h)) if hi.mats.C is not None else None for hi, lo, h in self.deriv]
@@ -401,7 +452,7 @@ class _Sweep:
             u = T @ ws[n] + data.u0
             pw, pn, pt, _, coef = self.partials(n, u, res)
             grad += coef
-            top = w_hat + pw + v_hat / tau
+            top = w_hat + pw + (2 * v_hat if stabilized else v_hat) / tau
             n_rows, t_rows = system.rows(res)
             bottom = np.vstack([(l_hat + pn)[n_rows], pt[t_rows]]) if z is not None else np.zeros((0, k))
             out = system.solve(res, top, bottom)
@@ -415,11 +466,19 @@ class _Sweep:
                 m = res.lam_n.size
                 ghat_node = ghat.reshape(-1, m, k).sum(axis=0)
                 lam_prev = prev_res.lam_n if prev_res is not None else np.zeros(m)
-            # the data's share at this level
+            # the data's share at this level: ∂r − ∂A Δ (module docstring)
             t_n = n * tau
-            y_M = vs[n - 1] / tau - step / tau**2
+            if stabilized:
+                pred, proj = preds[n - 1]
+                y_M = 2 * (pred - step) / tau**2
+                y_K = ws[n - 1] + step / 2
+            else:
+                y_M, y_K = vs[n - 1] / tau - step / tau**2, ws[n]
             for i, (hi, lo, h) in enumerate(self.deriv):
-                r = (Tt @ ((hi.load(t_n) - lo.load(t_n)) / (2 * h)) - dk0[i] - dK[i] @ ws[n] + dM[i] @ y_M)
+                f_i = (hi.load(t_n) - lo.load(t_n)) / (2 * h)
+                if stabilized:
+                    f_i = (f_i + (hi.load(t_n - tau) - lo.load(t_n - tau)) / (2 * h)) / 2
+                r = (Tt @ f_i - dk0[i] - dK[i] @ y_K + dM[i] @ y_M)
                 if dC[i] is not None:
                     r = r - dC[i] @ (step / tau)
                 grad[i] += r @ a
@@ -432,7 +491,23 @@ class _Sweep:
             if z is not None:
                 w_hat -= model.Bn_r[n_rows].T @ b_n
                 l_hat = F[:, None] * ghat_node if F is not None and prev_res is not None else np.zeros_like(l_hat)
-            v_hat = M @ a / tau
+            if not stabilized:
+                v_hat = M @ a / tau
+                continue
+            # the predictor: [M Pᵀ; P 0] [ã; b̃] = [2 M a/τ² − 2 v̂/τ; 0]
+            p_rows, _ = projection.rows(proj)
+            out = projection.solve(proj, 2 * (M @ a) / tau**2 - 2 * v_hat / tau, np.zeros((p_rows.size, k)))
+            if out is None:
+                self.failure = f"at time level {n} the predictor's active-set system is singular"
+                return None
+            a_p, b_p = out
+            for i, (hi, lo, h) in enumerate(self.deriv):
+                grad[i] += (dM[i] @ (tau * vs[n - 1] - pred)) @ a_p
+                if z is not None:
+                    grad[i] += dd0[i][p_rows] @ b_p
+            if z is not None:
+                w_hat -= model.Bn_r[p_rows].T @ b_p
+            v_hat = v_hat + tau * (M @ a_p)
         # level 0 and the start
         u0_state = T @ ws[0] + data.u0
         if self.ev.study.dynamics.initial == "static":
@@ -469,7 +544,8 @@ class _Sweep:
             for i, h in enumerate(data_steps(ev.study, np.asarray(x, float))):
                 e = np.zeros(len(x))
                 e[i] = h
-                R = [static.stiffness(ci) @ u_s - static.mechanical_load(ci, None)
+                R = [static.stiffness(ci) @ u_s - static.mechanical_load(ci, static.solve_heat(ci) if static.thermal
+                                                                          else None)
                      for ci in (at_time_zero(smap.coefficients(x + s * e, others), ev.study.scene,
                                              smap.slots(x + s * e, others), smap.index) for s in (1.0, -1.0))]
                 grad[i] += ((R[0] - R[1]) / (2 * h)) @ H

@@ -42,7 +42,7 @@ def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None, record: d
     static reactions (`wcs.dynamics.release`). dyn: the levels to run (None: the study's
     `dynamics:` block; `wcs check` times the first few levels with a shorter one). record: a dict
     that receives what the adjoint through time needs (`wcs.dynamics.adjoint`): the levels' model,
-    map and data, the start, the held reactions and every level's state."""
+    map and data, the start, the held reactions, every level's state and (stabilized) predictor."""
     model, pmap, scene = ev.model, ev.map, ev.study.scene
     dyn = ev.study.dynamics if dyn is None else dyn
     c = pmap.coefficients(x, others)
@@ -73,11 +73,13 @@ def simulate(ev, x=(), others=None, load=None, damping=None, dyn=None, record: d
         damping = damping_matrix(model, scene, c, rho, s, pmap.index)
         cells = damping_cells(model, scene, c, rho, s, pmap.index)
     mats = dynamic_matrices(model, c, rho, visc, damping, cells)
-    states = None
+    states = predictors = None
     if record is not None:
-        states = []
-        record.update(model=model, map=pmap, c=c, mats=mats, start=(w, v, res), held=held, states=states)
-    return step_levels(model, c, mats, dyn, load, ev.criteria, start=(w, v, res), states=states)
+        states, predictors = [], []
+        record.update(model=model, map=pmap, c=c, mats=mats, start=(w, v, res), held=held, states=states,
+                      predictors=predictors)
+    return step_levels(model, c, mats, dyn, load, ev.criteria, start=(w, v, res), states=states,
+                       predictors=predictors)
 
 
 def reduced(study, history) -> dict[str, float]:

@@ -232,12 +232,13 @@ def level_solution(model, c, u, res: ContactResult | None, T=None) -> Solution:
 
 def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
                 load: Callable[[float], np.ndarray] | None = None, criteria=(),
-                start: tuple | None = None, states: list | None = None) -> History:
+                start: tuple | None = None, states: list | None = None, predictors: list | None = None) -> History:
     """Run the levels of `dyn` on data set c. load(t): the load vector f(t) on the full DOFs at
     time t (time functions, point sources; None: the data set's own loads, constant in time);
     criteria: `wcs.criteria.Criterion`s measured at every level; start: (w₀, v₀, contact at
     t = 0), else `initial_state`; states: a list that receives each level's (Δ, contact result)
-    (what the adjoint through time sweeps back over, `wcs.dynamics.adjoint`)."""
+    (what the adjoint through time sweeps back over, `wcs.dynamics.adjoint`); predictors: one
+    that receives each stabilized level's predictor (δ̃, its projection's contact result or None)."""
     tau, N = dyn.time_step, dyn.levels
     T, zone = model.elim.T, model.zone
     u0 = model.elim.U0 @ c.support_values
@@ -291,8 +292,11 @@ def step_levels(model, c, mats: schemes.Matrices, dyn: Dynamics,
             predicted = None
             if stabilized:
                 rhs_p = schemes.predictor_load(mats, tau, v)
-                predicted = (_contact(solver, "predictor", mats.M, rhs_p, model, w, u0, None, None, res, n, t_next).u
-                             if zone is not None else tau * v)
+                projection = (_contact(solver, "predictor", mats.M, rhs_p, model, w, u0, None, None, res, n, t_next)
+                              if zone is not None else None)
+                predicted = projection.u if projection is not None else tau * v
+                if predictors is not None:
+                    predictors.append((predicted, projection))
                 rhs = schemes.stabilized_load(mats, tau, w, predicted, f_now, f_next)
             else:
                 rhs = schemes.seed_load(mats, tau, w, v, f_next)

@@ -372,8 +372,12 @@ class Report:
             if not c.searched_max:
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">{NOT_SEARCHED}</p>')
                 continue
-            if not np.isfinite(c.worst_x).any():
+            if not np.isfinite(c.worst):
                 out.append(f'<h3>{esc(c.name)}</h3><p class="note">No data set: every evaluation failed.</p>')
+                continue
+            if not r.params:
+                out.append(f'<h3>{esc(c.name)}: worst value {number(c.worst, c.units)}</h3><p class="note">'
+                           'The study has no uncertain numbers: its one data set is the nominal data.</p>')
                 continue
             rows = []
             for k, p in enumerate(r.params):

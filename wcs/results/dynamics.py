@@ -7,11 +7,6 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from ..dynamics.adjoint import refusal
-
-NO_ADJOINT = ("no adjoint gradient through time was used ({why}): the search is derivative-free "
-              "where it sampled and takes finite differences of the reduced criterion where it asked for "
-              "gradients (stages `fd`, `gradient`)")
 ADJOINT = ("gradients through time by the adjoint (a reverse sweep over the levels' final active sets) where "
            "the search asked for them; where an evaluation's reduced history is not differentiable (its "
            "`message` says why: a peak tied between levels, a contact switch within reach, a source on a cell "
@@ -20,10 +15,8 @@ ADJOINT = ("gradients through time by the adjoint (a reverse sweep over the leve
 
 def gradients(study) -> str:
     """The results file's `gradients` attribute of a dynamic study (and `wcs check`'s line): the
-    adjoint through time, or why there is none (`wcs.dynamics.adjoint.refusal`)."""
-    why = refusal(study)
-    return (f"none: no adjoint through time, {why} (finite differences where the search asked for gradients)"
-            if why else "adjoint through time; finite differences of the reduced criterion where an "
+    adjoint through time (`wcs.dynamics.adjoint`)."""
+    return ("adjoint through time; finite differences of the reduced criterion where an "
             "evaluation's message says it is not differentiable")
 
 
@@ -55,8 +48,7 @@ def dynamic_results(ds: xr.Dataset, study, records: list[dict]) -> xr.Dataset:
     ds = ds.assign_coords(time=v["time"]).assign(phi_history=v["phi_history"])
     ds["over_time"] = (("criterion",), np.array([c.over_time or "max" for c in study.criteria], dtype=object),
                        {"long_name": "reduction of each criterion's history: max | min | final | mean"})
-    why = refusal(study)
-    note = NO_ADJOINT.format(why=why) if why else ADJOINT
+    note = ADJOINT
     notes = [f"{n}; {note}" if n else note for n in map(str, ds["certificate_note"].values)]
     ds["certificate_note"] = ("criterion", np.array(notes, dtype=object), ds["certificate_note"].attrs)
     ds.attrs["gradients"] = gradients(study)
