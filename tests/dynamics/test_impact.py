@@ -36,10 +36,11 @@ grading 0.3, the sphere's surface at R/3: 2 % light) gave t_c −4.3 %; with gra
 converges slowly in h (−5.65, −4.13, −3.40 % at h = 1, 0.5, 0.25 mm, the sphere's surface at 4 mm):
 the cells of 0.3 r at the distance r from the contact are too stiff. At grading 0.15 it is −4.71,
 −3.13, −2.54 % (observed order 1.4, Richardson limit −2.2 %); at 0.075 −2.79, −2.17 % at h = 0.5,
-0.25 mm (112384 cells). Doubling the block's depth (H = 0.2 m) moves the error at h = 0.5 mm from
-−3.13 to −2.71 %, where the reference's +cF term (`sphere_on_block_force`) moves it by −0.25 %: the
-FE block held at its base is stiffer than the half-space, not more compliant, so part of what
-remains (about 1 % of t_c) is the reference's size term, whose sign is not the FE block's.
+0.25 mm (112384 cells). Doubling the block's depth (H = 0.2 m, each against its own reference)
+moves the error at h = 0.5 mm from −3.13 to −2.71 % (+0.42 %): were the reference's size term
+(+cF, `sphere_on_block_force`) the block's, the error would not move; were it −cF (the half-space's
+displacement at the depth where the block is held, removed), it would move by +0.5 %. So about
+1 % of the t_c deficit left is likely the reference's size term, not the mesh (not changed here).
 """
 import numpy as np
 import pytest
