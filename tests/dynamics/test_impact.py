@@ -336,12 +336,13 @@ def facet_areas(mesh, facets: np.ndarray) -> np.ndarray:
 
 
 def test_the_sphere_mesh_is_graded_around_the_contact():
-    """The quarter model at h = 1 mm: the cells within the ball of radius BALL around the first
-    contact point are of size h (the longest edge of a tetrahedron of size h is 1.2–1.5 h: measured
+    """The quarter model at h = 1 mm: the ball of radius BALL around the first contact point covers
+    the contact at the peak (a = 2.44 mm), its cells are of size h (their longest edges: measured
     median 1.37 h), and the size grows away from it (median longest edge 7.4 mm at 2–5 cm); the
     symmetry planes x = 0 and y = 0 carry the supports on both bodies' cut faces (the half disc
     πR²/2 of the sphere and the block's H × H face: measured −0.03 %, the disc's chords); the
     mesh's sphere is a polyhedron inscribed in it, 0.2 % lighter than ρπR³/3 (measured −0.21 %)."""
+    assert contact_radius(hertz_sphere()[1]) < BALL
     doc = sphere(1e-3, 1e-6)
     doc.pop("dynamics")
     model = Evaluator(load_study(doc)).model
