@@ -378,7 +378,7 @@ def test_coarse_sphere_impact_starts_as_hertz():
 @pytest.mark.slow
 def test_sphere_impact_meets_hertz_on_the_graded_mesh():
     """h = 0.25 mm (a_max/10) in the 3 mm ball, grading 0.15, the stabilized scheme at Δt = 2 µs
-    (39565 cells; 190 s of CPU under load): one contact, the energy kept (measured −7.6e-5), the
+    (39565 cells; the test 35 s of CPU, user time, one BLAS thread): one contact, the energy kept (measured −7.6e-5), the
     contact time and the peak force within 3 % of Hertz (measured −2.30 %, +2.93 %) and within 1 %
     of Hertz's impact on the same mesh's static law (`sphere_quasi_static`: t_c −2.54 %, F_max
     +2.99 %), so what remains is the mesh's law, not the dynamics. Over h = 1, 0.5, 0.25 mm
