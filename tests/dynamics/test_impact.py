@@ -35,8 +35,9 @@ static law (`sphere_quasi_static`) measures the mesh: the former mesh (h = 0.5 m
 grading 0.3, the sphere's surface at R/3: 2 % light) gave t_c −4.3 %; with grading 0.3 the law
 converges slowly in h (−5.65, −4.13, −3.40 % at h = 1, 0.5, 0.25 mm, the sphere's surface at 4 mm):
 the cells of 0.3 r at the distance r from the contact are too stiff. At grading 0.15 it is −4.71,
-−3.13, −2.54 % (observed order 1.4, Richardson limit −2.2 %); at 0.075 −2.79, −2.17 % at h = 0.5,
-0.25 mm (112384 cells). Doubling the block's depth (H = 0.2 m, each against its own reference)
+−3.13, −2.54, −2.30 % at h = 1, 0.5, 0.25, 0.125 mm (observed order 1.4 then 1.3, Richardson limit
+−2.1 %; 128651 cells at 0.125 mm); at 0.075 −2.79, −2.17 % at h = 0.5, 0.25 mm (112384 cells). No
+local size brings the law within 1 %: its limit is about −2 % of t_c (δ about 3 % short at F_max). Doubling the block's depth (H = 0.2 m, each against its own reference)
 moves the error at h = 0.5 mm from −3.13 to −2.71 % (+0.42 %): were the reference's size term
 (+cF, `sphere_on_block_force`) the block's, the error would not move; were it −cF (the half-space's
 displacement at the depth where the block is held, removed), it would move by +0.5 %. So about
@@ -386,7 +387,9 @@ def test_sphere_impact_meets_hertz_on_the_graded_mesh():
     −2.0 %), F_max +5.62, +3.06, +2.93 %. In Δt: at 4 µs F_max +2.92 %, t_c −2.86 % (the count of
     levels: Δt is 1.1 % of t_c), so 2 µs is converged to 0.01 % in the peak force. The seed scheme
     at 2 µs: t_c −2.30 %, F_max +0.96 % (its step's damping: 6.3 % of the energy lost, which
-    lowers the peak and happens to offset the mesh's stiffness). The law converges in h and in the grading:
+    lowers the peak and happens to offset the mesh's stiffness). The former scene (h = 0.25 mm in a
+    4 mm ball, grading 0.3, the sphere's surface at R/3) gives t_c −3.43 %, F_max +2.47 % here.
+    The law converges in h and in the grading:
     the quasi-static t_c error is −5.65, −4.13, −3.40 % at h = 1, 0.5, 0.25 mm with grading 0.3
     (the former scene's: its bulk cells of 0.3 r at the distance r from the contact are too stiff),
     −3.13, −2.54 % at h = 0.5, 0.25 mm with 0.15, −2.79, −2.17 % with 0.075 (112384 cells)."""
