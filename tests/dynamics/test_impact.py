@@ -265,7 +265,8 @@ def sphere(h: float, dt: float, scheme: str = "seed", end: float = 4e-4, grading
         "scene": {
             "dimension": 3, "mesh": {"size": R / 3, "grading": grading},
             "materials": {"steel": {"E": E, "nu": NU, "density": RHO}},
-            "bodies": {"sphere": {"mesh": {"size": R / 3, "refine": refine + [{"boundary": "sphere_surface", "size": SURFACE}]},
+            "bodies": {"sphere": {"mesh": {"size": R / 3,
+                                           "refine": refine + [{"boundary": "sphere_surface", "size": SURFACE}]},
                                   "regions": [{"material": "steel", "shape": {
                            "sphere": {"center": [0, 0, R], "radius": R}, "intersect": [{"box": [0, 0, 0, R, R, 2 * R]}]}}]},
                        "block": {"mesh": {"size": R / 3, "refine": refine},
@@ -379,8 +380,8 @@ def test_coarse_sphere_impact_starts_as_hertz():
 @pytest.mark.slow
 def test_sphere_impact_meets_hertz_on_the_graded_mesh():
     """h = 0.25 mm (a_max/10) in the 3 mm ball, grading 0.15, the stabilized scheme at Δt = 2 µs
-    (39565 cells; the test 35 s of CPU, user time, one BLAS thread): one contact, the energy kept (measured −7.6e-5), the
-    contact time and the peak force within 3 % of Hertz (measured −2.30 %, +2.93 %) and within 1 %
+    (39565 cells; the test 35 s of CPU, user time, one BLAS thread): one contact, the energy kept
+    (measured −7.6e-5), the contact time and the peak force within 3 % of Hertz (measured −2.30 %, +2.93 %) and within 1 %
     of Hertz's impact on the same mesh's static law (`sphere_quasi_static`: t_c −2.54 %, F_max
     +2.99 %), so what remains is the mesh's law, not the dynamics. Over h = 1, 0.5, 0.25 mm
     (13380, 20082, 39565 cells): t_c −4.55, −2.86, −2.30 % (observed order 1.6, Richardson limit
