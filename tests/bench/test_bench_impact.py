@@ -10,6 +10,11 @@ results/bench/impact_orders.csv: the observed orders in Δt and h with their Ric
 The scene (a steel cylinder on a 5 cm aluminium block) is where Hertz's quasi-static theory holds
 (0.2 % of the energy left in vibration; on the former 10 cm steel block the peak force's floor of
 about −3 % was that vibration): `tests/dynamics/test_impact.py`.
+
+The sphere (quarter model, graded mesh: size h in a 3 mm ball around the first contact point, growing
+by `GRADING` per unit distance): results/bench/sphere_impact.csv, the contact time and the peak force
+against `hertz_sphere` over h, with Hertz's impact on each mesh's own static law (`sphere_quasi_static`)
+beside them, and sphere_impact_orders.csv, their observed orders in h.
 """
 import time
 
@@ -17,7 +22,7 @@ import numpy as np
 import pytest
 
 from common import save_figure, write_table
-from tests.dynamics.test_impact import hertz, impact
+from tests.dynamics.test_impact import GRADING, hertz, hertz_sphere, impact, sphere_impact, sphere_quasi_static
 from wcs.errors import SolveError
 
 pytestmark = pytest.mark.bench
@@ -57,6 +62,49 @@ def test_impact_schemes_speed_against_accuracy():
     assert len(solved) == len(rows), [r for r in rows if r[6] != "solved"]
     fine = [r for r in solved if r[2] <= 2e-6]
     assert all(abs(r[3]) < 0.02 for r in fine), fine      # t_c to the step's ±Δt/t_c (1.15 % at 2 µs)
+
+
+SPHERE_MESHES = (1e-3, 5e-4, 2.5e-4, 1.25e-4)   # h at the contact [m] (a_max = 2.44 mm)
+SPHERE_STEP = 2e-6                         # Δt [s] (t_c = 354 µs: 177 levels in contact)
+SPHERE_HEADER = ["scheme", "h", "grading", "dt", "cells", "t_c error", "peak force error", "quasi-static t_c error",
+                 "quasi-static peak force error", "energy change", "status", "cpu seconds", "wall seconds"]
+
+
+def sphere_run(scheme: str, h: float, dt: float) -> list:
+    """One row of the sphere's table: the errors against Hertz and those of Hertz's impact on the
+    mesh's own static law, or the failure's message."""
+    tc_ref, F_ref = hertz_sphere()
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        r = sphere_impact(h, dt, scheme)
+        tc_qs, F_qs, _ = sphere_quasi_static(h)
+        status = "solved" if r["one contact"] else "solved: not one contact"
+        row = [scheme, h, GRADING, dt, r["cells"], round(r["t_c"] / tc_ref - 1, 5), round(r["F_max"] / F_ref - 1, 5),
+               round(tc_qs / tc_ref - 1, 5), round(F_qs / F_ref - 1, 5), float(f"{r['energy'] - 1:.3e}"), status]
+    except SolveError as e:
+        row = [scheme, h, GRADING, dt, "", "", "", "", "", "", f"failed: {e}"]
+    return row + [round(time.process_time() - c0, 2), round(time.perf_counter() - t0, 2)]
+
+
+def test_sphere_impact_on_graded_meshes():
+    """The stabilized scheme over SPHERE_MESHES and the seed scheme at the finest, Δt = SPHERE_STEP:
+    at the finest mesh the contact time and the peak force within 3 % of Hertz (issue 29)."""
+    rows = [sphere_run("stabilized", h, SPHERE_STEP) for h in SPHERE_MESHES]
+    rows.append(sphere_run("seed", SPHERE_MESHES[-1], SPHERE_STEP))
+    print(write_table("sphere_impact", SPHERE_HEADER, rows).read_text())
+    solved = [r for r in rows if r[10] == "solved"]
+    stabilized = [r for r in solved if r[0] == "stabilized"]
+    out = []
+    for i in range(len(stabilized) - 2):               # each three successive meshes
+        for k, quantity in ((5, "t_c error"), (6, "peak force error"), (7, "quasi-static t_c error")):
+            e = [r[k] for r in stabilized[i:i + 3]]
+            out.append(["stabilized", "h", f"h = {stabilized[i + 2][1]:g}, dt = {SPHERE_STEP:g}", quantity,
+                        " ".join(f"{x:.4g}" for x in e), *observed(*e)])
+    print(write_table("sphere_impact_orders", ["scheme", "refined", "at", "quantity", "last three", "observed order",
+                                               "Richardson limit"], out).read_text())
+    assert len(solved) == len(rows), [r for r in rows if r[10] != "solved"]
+    finest = [r for r in rows if r[1] == SPHERE_MESHES[-1]]
+    assert all(abs(r[5]) < 0.03 and abs(r[6]) < 0.03 for r in finest), finest
 
 
 def observed(e1: float, e2: float, e3: float) -> tuple:
