@@ -223,7 +223,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     def merit(u, lam):
         phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
         return phi @ phi
-    seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
+    seen, tight, eta, phi_old, damped = set(), set(), ETA_MAX, None, False
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
         phi = lam - project(z, lo, hi, k)
@@ -240,8 +240,9 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         else:
             free, eta = free0 & step.rows.acting, eta0
         key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
-        if it == max_iter or (k == 1 and key in tight):
+        if it == max_iter:
             break
+        damped = damped or (k == 1 and key in tight)     # full steps cycled: shortened from here on
         if key in seen:          # a pattern met again: solve it exactly (a loose step may have mispredicted)
             eta = rtol
         seen.add(key)
@@ -256,7 +257,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             step.failure, step.unsupported = str(exc), True
             break
         discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
-        if discs and (it > 0 or free0 is None):
+        if (discs or damped) and (it > 0 or free0 is None):
             u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
         else:
             u, lam = u1, lam1
