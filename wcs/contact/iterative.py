@@ -54,8 +54,9 @@ change, and the Coulomb fixed point over Tresca answers stalled at that noise (�
 own 1e-8). Loose steps, and steps that leave rigid motions free, are solved whole (from the
 iterate, the floating Tresca pad started all open took another path and ended at an answer
 with no stuck node, NOT_UNIQUE). A step
-with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
-Newton does).
+with nodes slipping on discs, and in 2D every step after a pattern met again at full
+accuracy (a cycle of full steps: the knee's floating femur), is shortened until ‖Φ‖²
+decreases (Armijo, as the condensed Newton does).
 
 Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
 which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
@@ -214,7 +215,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
     answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
     solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
-    pattern met again at full accuracy is a cycle (not converged). The force scale is max |Π_B(z)|:
+    pattern met again at full accuracy is a cycle of full steps, and the steps from it on are
+    shortened (`_step_length`). The force scale is max |Π_B(z)|:
     an open gap (z_n < 0) carries none (as `wcs.contact.solver._newton`)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
