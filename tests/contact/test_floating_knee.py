@@ -43,7 +43,7 @@ def corners(study_, n):
 
 @pytest.fixture(scope="module")
 def knee2d():
-    return Evaluator(load_study(study(KNEE)))
+    return Evaluator(load_study(study(KNEE), base_dir=KNEE.parent))
 
 
 def test_the_direct_method_solves_the_2d_knee_without_its_dual_qp(knee2d, monkeypatch):
@@ -58,3 +58,58 @@ def test_the_direct_method_solves_the_2d_knee_without_its_dual_qp(knee2d, monkey
         r = cs.solve_contact(**problem(ev, x), tol=1e-10)
         assert r.status == Status.SOLVED, r.message
         assert np.any(r.active == cs.STICK)         # what holds the femur sideways
+
+
+def agree(M, direct, iterative):
+    """Displacements and contact forces (normal, tangential) of the two methods to `AGREE`."""
+    assert direct.status == Status.SOLVED, direct.message
+    assert iterative.status == Status.SOLVED, iterative.message
+    states = [M.contact_state(r.lam_n, r.lam_t, M.elim.T @ r.u, r.active) for r in (direct, iterative)]
+    assert rel(iterative.u, direct.u) <= AGREE
+    assert rel(states[1].force_n, states[0].force_n) <= AGREE
+    assert rel(states[1].force_t, states[0].force_t) <= AGREE
+
+
+def both_at(ev, x):
+    """The direct and the iterative answer of data set x (contact and Krylov tolerances 1e-10,
+    1e-12: both answers within ~1e-10 of the exact one, three orders below `AGREE`)."""
+    P = problem(ev, x)
+    direct = cs.solve_contact(**P, tol=1e-10)
+    iterative = solve_contact_iterative(**P, tol=1e-10, rtol=1e-12, near_nullspace=ev.model.near_nullspace)
+    return direct, iterative
+
+
+@pytest.mark.slow
+def test_the_iterative_method_agrees_on_the_2d_knee(knee2d):
+    """Nominal and two corners: the iterative active set ends (its 2D cycle, like the direct
+    method's, by shortened steps) at the direct method's answer."""
+    ev = knee2d
+    for x in [ev.study.nominal()] + corners(ev.study, 2):
+        agree(ev.model, *both_at(ev, x))
+
+
+KNEE3D = ROOT / "studies" / "knee-replacement-3d.yaml"
+# the 3D knee with half the shipped mesh sizes' resolution (4 → 8 mm, 1.5 → 3 mm in the condyles'
+# spheres): 1.3e4 unknowns and 200 contact nodes against the shipped mesh's
+COARSE = {"size": 0.008, "refine": [{"ball": {"center": [-0.019, 0.0, 0.02], "radius": 0.021}, "size": 0.003},
+                                    {"ball": {"center": [0.019, 0.0, 0.02], "radius": 0.021}, "size": 0.003}]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mesh", [COARSE, {}], ids=["coarse", "shipped"])
+def test_the_iterative_method_agrees_on_the_3d_knee(mesh):
+    """The floating femur under Coulomb friction on discs (F = 0.05), nominal and three corners of
+    the box (tilted loads, both friction ends)."""
+    ev = Evaluator(load_study(study(KNEE3D, **mesh), base_dir=KNEE3D.parent))
+    for x in [ev.study.nominal()] + corners(ev.study, 3):
+        agree(ev.model, *both_at(ev, x))
+
+
+@pytest.mark.slow
+def test_the_3d_knee_iterative_gradients_against_finite_differences():
+    """Every parameter, central differences with the step 1e-4 of its range (O(h²) ~ 1e-8 of the
+    criterion against the rule's 1e-5, and the solves' noise 10·1e-13·|Φ|/h added to it, the rule
+    of tests/model/test_gradients.py)."""
+    from tests.contact.test_iterative_adjoint import load
+    from tests.model.test_gradients import check_against_fd
+    assert check_against_fd(load(KNEE3D, "iterative", **COARSE)) < 1e-5
