@@ -241,7 +241,9 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             free = _free(z, lo, hi, k, step.rows)
         else:
             free, eta = free0 & step.rows.acting, eta0
-        key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
+        # the pattern: the free set and the sign of each slip force (a stuck or frictionless tangent has none)
+        slip = np.where(free[m:] | ~carried[m:], 0, np.sign(z[m:]))
+        key = (free.tobytes(), slip.astype(np.int8).tobytes() if k == 1 else b"")
         if it == max_iter:
             break
         damped = damped or (k == 1 and key in tight)     # full steps cycled: shortened from here on

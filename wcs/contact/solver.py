@@ -388,7 +388,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         J, D = disc_slips(z, hi, k)
         slips = ~free[J[:, 0]]                                   # not stuck by the prescribed set
         J, D = J[slips], D[slips]
-        key = np.where(free, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()
+        key = np.where(free | ~carried, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()   # frictionless: no sign
         if it == max_iter:
             break
         damped = damped or (key in seen and not len(J))     # full steps cycled: shortened from here on
