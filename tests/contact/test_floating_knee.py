@@ -5,7 +5,9 @@ In 2D its sideways position is held by the few nodes that stick at the bottom of
 every closed node slipping puts the femur's sideways balance on the normals' small lateral
 components alone and slides it by ±1–2 mm (10⁴ times the answer's 2e-7 m), which turns every
 slip the other way, period 2. From a repeated pattern on, the steps are shortened (Armijo) in
-both methods; the direct method's end at the answer without its dual QP.
+both methods, and the iterative method's steps on a floating body in 2D always are (solved to
+its final tolerance: its loose steps wandered over ever new patterns); both end at the answer,
+the direct method without its dual QP.
 """
 from pathlib import Path
 
@@ -79,6 +81,16 @@ def both_at(ev, x):
     return direct, iterative
 
 
+@pytest.mark.slow
+def test_the_iterative_method_agrees_on_the_2d_knee(knee2d):
+    """Nominal and two corners: the iterative active set on the floating femur (exact steps,
+    shortened) ends at the direct method's answer; on main its loose full steps wandered to the
+    budget (121 Newton steps, status 1)."""
+    ev = knee2d
+    for x in [ev.study.nominal()] + corners(ev.study, 2):
+        agree(ev.model, *both_at(ev, x))
+
+
 KNEE3D = ROOT / "studies" / "knee-replacement-3d.yaml"
 # the 3D knee with half the shipped mesh sizes' resolution (4 → 8 mm, 1.5 → 3 mm in the condyles'
 # spheres): 1.3e4 unknowns and 200 contact nodes against the shipped mesh's 7.3e4 and 642
@@ -95,12 +107,3 @@ def test_the_iterative_method_agrees_on_the_3d_knee(mesh):
     for x in [ev.study.nominal()] + corners(ev.study, 1):
         agree(ev.model, *both_at(ev, x))
 
-
-@pytest.mark.slow
-def test_the_3d_knee_iterative_gradients_against_finite_differences():
-    """Every parameter, central differences with the step 1e-4 of its range (O(h²) ~ 1e-8 of the
-    criterion against the rule's 1e-5, and the solves' noise 10·1e-13·|Φ|/h added to it, the rule
-    of tests/model/test_gradients.py)."""
-    from tests.contact.test_iterative_adjoint import load
-    from tests.model.test_gradients import check_against_fd
-    assert check_against_fd(load(KNEE3D, "iterative", **COARSE)) < 1e-5

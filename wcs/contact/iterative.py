@@ -55,8 +55,12 @@ own 1e-8). Loose steps, and steps that leave rigid motions free, are solved whol
 iterate, the floating Tresca pad started all open took another path and ended at an answer
 with no stuck node, NOT_UNIQUE). A step
 with nodes slipping on discs, and in 2D every step after a pattern met again at full
-accuracy (a cycle of full steps: the knee's floating femur), is shortened until ‖Φ‖²
-decreases (Armijo, as the condensed Newton does).
+accuracy (a cycle of full steps) and every step on a floating body, is shortened until ‖Φ‖²
+decreases (Armijo, as the condensed Newton does); the 2D steps so shortened are solved to
+`rtol` (a loose step is no descent direction of ‖Φ‖²). On the 2D knee's floating femur,
+held sideways by the 2 of its 140 contact nodes that stick, full loose steps slid it sideways
+and wandered over ever new patterns (the Coulomb fixed point's second Tresca problem: 100
+steps, none repeated); loose steps shortened did not decrease ‖Φ‖².
 
 Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
 which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
@@ -225,7 +229,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     def merit(u, lam):
         phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
         return phi @ phi
-    seen, tight, eta, phi_old, damped = set(), set(), ETA_MAX, None, False
+    seen, tight, eta, phi_old, damped = set(), set(), ETA_MAX, None, k == 1 and step.R is not None
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
         phi = lam - project(z, lo, hi, k)
@@ -247,6 +251,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         if it == max_iter:
             break
         damped = damped or (k == 1 and key in tight)     # full steps cycled: shortened from here on
+        if damped:               # a shortened step is the exact one: a loose step is no descent direction
+            eta = rtol
         if key in seen:          # a pattern met again: solve it exactly (a loose step may have mispredicted)
             eta = rtol
         seen.add(key)
