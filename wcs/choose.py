@@ -86,9 +86,9 @@ def _size_rule(f: SolverFacts) -> tuple[str, str] | None:
         return "iterative", f"{words}: the monolithic method would not fit in the {f.memory / 1e9:.3g} GB this machine gives one evaluation"
     # for speed only where the iterative method is shown to solve every case the scene can give, and
     # not on a body held by contact alone: on the 3D knee's floating femur (Coulomb, 1.3e4 unknowns) it
-    # agrees with the monolithic answer to 3e-13 but its CG took ~380 iterations a Newton step (5691 in 15
-    # steps, 195 s of CPU against the monolithic 7.6 s, loaded machine), beyond what its cost estimate assumes; on the 2D
-    # knee (1.5e4 unknowns) 6235 CG iterations in 23 Newton steps, 129 s against 0.46 s (CPU, loaded machine)
+    # agrees with the monolithic answer to 3e-13 but its CG took ~380 iterations a Newton step (5691 in
+    # 15 steps, 195 s of CPU against the monolithic 7.6 s, loaded machine), beyond what its cost estimate
+    # assumes; on the 2D knee (1.5e4 unknowns) 6235 CG iterations in 23 Newton steps, 129 s against 0.46 s
     if (f.dimension == 3 and not f.floating and ITERATIVE_MARGIN * iterative[1] < direct[1]
             and iterative[0] <= f.memory):
         return "iterative", f"{words}: the monolithic method would be more than {ITERATIVE_MARGIN:g}x slower"
