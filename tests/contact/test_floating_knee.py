@@ -98,11 +98,11 @@ COARSE = {"size": 0.008, "refine": [{"ball": {"center": [-0.019, 0.0, 0.02], "ra
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mesh", [COARSE, {}], ids=["coarse", "shipped"])
-def test_the_iterative_method_agrees_on_the_3d_knee(mesh):
-    """The floating femur under Coulomb friction on discs (F = 0.05), nominal and a corner of the
-    box (a tilted load, friction at its ends)."""
-    ev = Evaluator(load_study(study(KNEE3D, **mesh), base_dir=KNEE3D.parent))
+def test_the_iterative_method_agrees_on_the_3d_knee():
+    """The floating femur under Coulomb friction on discs (F = 0.05), on the coarse mesh: nominal
+    and a corner of the box (a tilted load, friction at its ends); the nominal measured 3e-13 in u
+    and 8e-13 in the forces, 15 Newton steps and 5691 CG iterations."""
+    ev = Evaluator(load_study(study(KNEE3D, **COARSE), base_dir=KNEE3D.parent))
     for x in [ev.study.nominal()] + corners(ev.study, 1):
         agree(ev.model, *both_at(ev, x))
 
