@@ -63,7 +63,7 @@ def test_auto_keeps_monolithic_on_the_shipped_tunnel():
     method, why = solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE))
     assert method == "iterative" and why.endswith("the monolithic method would be more than 2x slower")
     # a body held by contact alone: for speed when frictionless (the block patch), not with friction
-    # (its stick/slip split can cycle; the monolithic method falls back to the dual QP); for memory it still is
+    # (its Krylov solves there take far more iterations than the estimate assumes: the knees); for memory it still is
     method, why = solver_method(SolverFacts(unknowns=10**5, dimension=3, costs=fast, memory=MACHINE, floating=True))
     assert method == "iterative" and why.endswith("2x slower; a body held by contact alone, frictionless")
     for friction in ("tresca", "coulomb"):

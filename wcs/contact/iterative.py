@@ -55,8 +55,13 @@ change, and the Coulomb fixed point over Tresca answers stalled at that noise (�
 own 1e-8). Loose steps, and steps that leave rigid motions free, are solved whole (from the
 iterate, the floating Tresca pad started all open took another path and ended at an answer
 with no stuck node, NOT_UNIQUE). A step
-with nodes slipping on discs is shortened until ‖Φ‖² decreases (Armijo, as the condensed
-Newton does).
+with nodes slipping on discs, and in 2D every step after a pattern met again at full
+accuracy (a cycle of full steps) and every step on a floating body, is shortened until ‖Φ‖²
+decreases (Armijo, as the condensed Newton does); the 2D steps so shortened are solved to
+`rtol` (a loose step is no descent direction of ‖Φ‖²). On the 2D knee's floating femur,
+held sideways by the 2 of its 140 contact nodes that stick, full loose steps slid it sideways
+and wandered over ever new patterns (the Coulomb fixed point's second Tresca problem: 100
+steps, none repeated); loose steps shortened did not decrease ‖Φ‖².
 
 Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
 which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
@@ -224,7 +229,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     (None: predicted from (u, λ)), solved to the forcing term eta0 (a warm set, usually the
     answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
     solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
-    pattern met again at full accuracy is a cycle (not converged). The force scale is max |Π_B(z)|:
+    pattern met again at full accuracy is a cycle of full steps, and the steps from it on are
+    shortened (`_step_length`). The force scale is max |Π_B(z)|:
     an open gap (z_n < 0) carries none (as `wcs.contact.solver._newton`)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
@@ -233,7 +239,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     def merit(u, lam):
         phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
         return phi @ phi
-    seen, tight, eta, phi_old = set(), set(), ETA_MAX, None
+    seen, tight, eta, phi_old, damped = set(), set(), ETA_MAX, None, k == 1 and step.R is not None
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
         phi = lam - project(z, lo, hi, k)
@@ -249,9 +255,14 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             free = _free(z, lo, hi, k, step.rows)
         else:
             free, eta = free0 & step.rows.acting, eta0
-        key = (free.tobytes(), np.sign(z[m:]).astype(np.int8).tobytes() if k == 1 else b"")
-        if it == max_iter or (k == 1 and key in tight):
+        # the pattern: the free set and the sign of each slip force (a stuck or frictionless tangent has none)
+        slip = np.where(free[m:] | ~carried[m:], 0, np.sign(z[m:]))
+        key = (free.tobytes(), slip.astype(np.int8).tobytes() if k == 1 else b"")
+        if it == max_iter:
             break
+        damped = damped or (k == 1 and key in tight)     # full steps cycled: shortened from here on
+        if damped:               # a shortened step is the exact one: a loose step is no descent direction
+            eta = rtol
         if key in seen:          # a pattern met again: solve it exactly (a loose step may have mispredicted)
             eta = rtol
         seen.add(key)
@@ -266,7 +277,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             step.failure, step.unsupported = str(exc), True
             break
         discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
-        if discs and (it > 0 or free0 is None):
+        if (discs or damped) and (it > 0 or free0 is None):
             u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
         else:
             u, lam = u1, lam1

@@ -39,9 +39,9 @@ is not, and a slipping node's row is the linearization with the generalized
 Jacobian of the disc projection, D = gw/|z| (I − z zᵀ/|z|²) (Hüeber, Stadler,
 Wohlmuth, SIAM J. Sci. Comput. 30 (2008), the 3D semismooth Newton). Full
 steps where the pattern determines the step (no slip on a disc), and an active
-pattern seen before there is a cycle; a step with nodes slipping on discs is
-shortened until the merit ‖Φ‖² decreases (Armijo). A cycle or `max_iter`
-restarts Newton from the dual QP's solution (`_newton`). The constants
+pattern seen before there is a cycle, after which every step is shortened until
+the merit ‖Φ‖² decreases (Armijo), as a step with nodes slipping on discs always
+is. `max_iter` restarts Newton from the dual QP's solution (`_newton`). The constants
 c = 1 / diag(W) (for the tangents of a node the mean of its d − 1 diagonal
 entries, one c per disc) turn displacements into forces node by node.
 
@@ -328,8 +328,14 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     slips on a disc; there the step is shortened until ‖Φ‖² + ‖Gλ − e‖² decreases
     (`_step_length`). Full steps cycled on the 3D tunnel at 3.9e4 unknowns with a slip
     limit varying over the fault: a dozen nodes flipping between stick at |λt| ≈ 13 gw and
-    slip with their direction reversed, period 2, in 5 of 16 data sets to `max_iter`. At a
-    cycle (and at `max_iter`) the convex dual QP min ½λᵀWλ − qᵀλ over B with Gλ = e is
+    slip with their direction reversed, period 2, in 5 of 16 data sets to `max_iter`. From a
+    cycle of full steps on, every step is shortened so: full steps cycled, period 2, on the 2D
+    knee's femur, a floating body held sideways only by the 2 of its 140 contact nodes that
+    stick at the bottom of the dishes — with every closed node slipping, its sideways balance
+    rests on the normals' small lateral components alone and the step slid it by ±1–2 mm
+    (10⁴ times the answer's), turning every slip the other way; the step is a descent
+    direction of the merit on its own pattern (Φ + Φ′δ = 0 there), so the shortened steps end
+    at the answer. At `max_iter` the convex dual QP min ½λᵀWλ − qᵀλ over B with Gλ = e is
     solved by an interior-point method and Newton restarts from it to polish the answer to
     `tol`. The prescribed first step (`free0`) is not a Newton step of Φ and is taken in
     full: shortened, it left the rigid amplitudes α of floating bodies at zero and the next
@@ -370,7 +376,7 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
     def in_b(lam):          # λ in B to tol·max|λ|
         return np.abs(lam - project(lam, lo, hi, k)).max(initial=0.0) <= tol * np.abs(lam).max(initial=0.0)
 
-    seen = set()
+    seen, damped = set(), False
     for it in range(max_iter + 1):
         z, phi, eq = residual(lam, alpha)
         scale = max(force, np.abs(lam).max(initial=0.0))
@@ -382,14 +388,15 @@ def _newton(W, q, G, e, lo, hi, lam, alpha, tol, max_iter, free0=None, fallback=
         J, D = disc_slips(z, hi, k)
         slips = ~free[J[:, 0]]                                   # not stuck by the prescribed set
         J, D = J[slips], D[slips]
-        key = np.where(free, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()
-        if it == max_iter or (key in seen and not len(J)):
+        key = np.where(free | ~carried, 0, np.where(z >= hi, 1, -1)).astype(np.int8).tobytes()   # frictionless: no sign
+        if it == max_iter:
             break
+        damped = damped or (key in seen and not len(J))     # full steps cycled: shortened from here on
         if free is predicted:   # the prescribed first set holds the others at warm values, not bounds
             seen.add(key)
         step = _newton_point(W, q, G, e, free, project(z, lo, hi, k), redundant, (J, D), c, acting)
         lam, alpha = (_step_length(residual, lam, alpha, *step, phi @ phi + eq @ eq)
-                      if len(J) and free is predicted else step)
+                      if (len(J) or damped) and free is predicted else step)
     if not fallback:
         return lam, alpha, free, it, False
     qp = _dual_qp(W, q, G, e, lo, hi, force, k)
