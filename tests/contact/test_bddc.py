@@ -158,7 +158,8 @@ def test_bddc_study_agrees_with_direct_and_amg(source, monkeypatch):
     bddc = _evaluate(path, "bddc")
     assert bddc.status == 0, bddc.message
     raw = bddc.state.raw
-    assert all(built) and len(built) - 1 < raw.iterations
+    steps = len(built) - 1           # set-ups of the Newton steps (the adjoint's one aside)
+    assert all(built) and (steps < raw.iterations if raw.iterations > 1 else steps == 1)
     assert raw.timings["bddc_setup"] > 0 and "gamg_setup" not in raw.timings
     for other in (direct, amg):
         assert rel(raw.u, other.state.raw.u) <= 1e-7
