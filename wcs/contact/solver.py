@@ -714,7 +714,7 @@ class _TrescaNewton:
     """The Tresca problems of one condensed system (W, q, G, e) by semismooth Newton
     (`_newton`), for the bounds a law gives (`wcs.contact.laws.TrescaSolve`): each started
     from the last one's (λ, α), projected onto the new bounds; the first from the warm
-    result's active set (`_first_free_set`). `qp`: a cycle restarts from the dual QP."""
+    result's active set (`_first_free_set`). `qp`: a Newton that reaches its step budget restarts from the dual QP."""
 
     def __init__(self, W, q, G, e, lam, alpha, warm, tol, max_iter, qp, k):
         self.W, self.q, self.G, self.e, self.lam, self.alpha = W, q, G, e, lam, alpha
@@ -757,7 +757,7 @@ def solve_contact(K, f, Bn, Bt, d, w, g=None, F=None, R=None, *, tol=1e-10, max_
     unique: status NOT_UNIQUE, `alpha` the free motion, no u.
     checked: the caller has already found the load balanced on R (`unbalanced_rigid_motion`
             depends on f only through Rᵀf): the linear program is not run again.
-    qp:     False: a Newton cycle is not restarted from the dual QP (cvxpy) but reported
+    qp:     False: a Newton at its step budget is not restarted from the dual QP (cvxpy) but reported
             (CONTACT_NOT_CONVERGED).
     reference: the size of the displacement u is an increment of (`ContactProblem.reference`).
     """
