@@ -2,6 +2,7 @@
 OCC surfaces), the extremes re-solved on h/2 and h/4, Richardson's order and error estimate;
 and, in 2D and 3D alike, the mesh split once only when the second split would pass
 `mesh.max_cells` or its dense contact condensation would not fit in the machine's memory."""
+import copy
 import math
 import os
 import subprocess
@@ -310,6 +311,27 @@ def test_the_dense_contact_condensation_bounds_the_splits(tmp_path, dimension, c
                         else _time_note(dimension, split, rows))
 
 
+def test_a_study_solved_iteratively_is_split_by_the_iterative_methods_cost(tmp_path):
+    """With `solver.method: iterative` the split mesh is solved without a dense condensation: a
+    split is bounded by that method's memory (4 kB a tetrahedron) and time (20 Newton steps of
+    1e-6 s an entry of K, 20 entries a tetrahedron), not by the k × k blocks. 1000 contact nodes
+    on 10 cells (12000 rows split once: 9.2 GB of blocks, refused above) are split twice; on
+    1e5 cells split once (8e5 cells: 3.2 GB, 321 s a solve) the note gives the iterative time, or
+    on a 4 GB machine its memory.
+    (Before: the fine 3D tunnel's check, 6987 fault nodes, said its split would need 450 GB for a
+    condensation the iterative method never forms.)"""
+    doc = copy.deepcopy(PRESSED)
+    doc["solver"] = {"method": "iterative"}
+    study = load_study(_write(tmp_path, doc, "s"))
+    assert planned(study, 10, 1000, memory=16e9) == ((1, 2), "")
+    assert planned(study, 10**5, 1000, memory=16e9) == ((), (
+        "the mesh split once would take about 321 s a solve by the iterative method (20 Newton steps of 1e-06 s "
+        "an entry of its 1.6e+07 stiffness entries), beyond the 120 s a solve of the check may take"))
+    assert planned(study, 10**5, 1000, memory=4e9) == ((), (
+        "the mesh split once would need about 3.2 GB for an evaluation by the iterative method (4 kB a cell), "
+        "beyond the 2 GB it may take (50% of this machine's 4 GB of memory)"))
+
+
 def test_the_shipped_3d_tunnel_is_split_once():
     """studies/tunnel-fault-3d.yaml (24822 tetrahedra, 529 fault nodes): split once it has 6348
     contact rows, 2.6 GB of dense blocks (within half of a 24.7 GB machine, and of an 8 GB one) and
@@ -358,15 +380,19 @@ def test_the_cost_has_the_dense_condensation_term():
     """cost(): on top of the study's solve grown with the nodes, the nominal state the contact
     solves start from and each of the n extremes pay the dense condensation of the refined mesh's
     k contact rows, as k³ from CONDENSATION (58 s at 6141 rows in 3D): the tunnel (529 fault nodes,
-    2 extremes) split once (6348 rows) about 3 × 64 s, split twice (25392 rows) 3 × 4100 s."""
+    2 extremes) split once (6348 rows) about 3 × 64 s, split twice (25392 rows) 3 × 4100 s; by the
+    iterative method, none."""
     x = np.linspace(0.0, 1.0, 3)
     mesh = skfem.MeshTet.init_tensor(x, x, x)
     ev = SimpleNamespace(smesh=SimpleNamespace(mesh=mesh), timings={"mesh": 0.0, "assembly": 0.0},
-                         model=SimpleNamespace(thermal=False, zone=SimpleNamespace(gap=np.zeros(529))))
+                         model=SimpleNamespace(thermal=False, zone=SimpleNamespace(gap=np.zeros(529)),
+                                               solver_method="monolithic"))
     (s1, n1, t1), (s2, n2, t2) = cost(ev, 0.0, 2)
     assert (s1, s2) == (1, 2) and (n1, n2) == (3 * refined_nodes(mesh, 1), 3 * refined_nodes(mesh, 2))
     assert t1 == pytest.approx(3 * 58.0 * (6348 / 6141) ** 3, rel=1e-12)
     assert t2 == pytest.approx(3 * 58.0 * (25392 / 6141) ** 3, rel=1e-12)
+    ev.model.solver_method = "iterative"        # no dense condensation: the solves grown with the nodes alone
+    assert [t for _, _, t in cost(ev, 0.0, 2)] == [0.0, 0.0]
 
 
 # ---------------------------------------------------------------- the CLI

@@ -45,7 +45,8 @@ from ..errors import StudyError
 from ..dynamics.history import evaluator_for
 from .extremes import Extreme, kinds, pairs
 from ..progress import phase
-from ..scene.estimate import BYTES_PER_CELL, DEFAULT_MAX_CELLS, machine_memory
+from ..scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, ITERATIVE_BYTES_PER_CELL, ITERATIVE_SECONDS,
+                              ITERATIVE_STEP_SECONDS, ITERATIVE_STEPS, machine_memory)
 from .store import key
 from .verdict import CLOSE
 
@@ -72,6 +73,8 @@ CONDENSATION = {2: (40.0, 2692),    # (seconds, k) of a cold contact solve on k 
                                     # bordered factorization; 141 s at k = 9456 on a quieter one)
 MAX_SOLVE_SECONDS = 120.0       # the condensation's estimated time a solve of a refined mesh may take (the 3D tunnel
                                 # split once: 64 s; hertz-3d split twice, 570 s, is not made)
+NNZ_PER_CELL = {2: 12.0,       # entries of the stiffness K a cell (P1 elasticity on scikit-fem's tensor meshes:
+                3: 20.0}        # 12.1 a triangle, 19.9 a tetrahedron): the iterative method's cost is O(nnz)
 FIRST_SOLVE_EXTRA = 4           # a new mesh's first solve: its nominal state and analysis, about 4 solves more
 
 
@@ -175,6 +178,12 @@ def condensation_bytes(d: int, k: int) -> float:
     return DENSE_BLOCKS[d] * 8.0 * k * k
 
 
+def iterative_seconds(d: int, cells: int) -> float:
+    """Estimated seconds of a contact solve by the iterative method on a mesh of `cells` cells:
+    `wcs.scene.estimate.evaluation_cost`'s, its stiffness entries NNZ_PER_CELL a cell."""
+    return ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * NNZ_PER_CELL[d] * cells
+
+
 def condensation_seconds(d: int, k: int) -> float:
     """Estimated seconds of a contact solve's dense condensation on k contact rows: CONDENSATION's
     measured solve grown as k³."""
@@ -190,7 +199,8 @@ def planned(study, cells: int, contact_nodes: int, memory: float | None = None,
     split beyond mesh.max_cells within MEMORY_SHARE of `memory`: the 3D knee split once, 1.08e6
     tetrahedra, grew to 17.5 GB) and with the dense contact condensation
     of the split mesh within MEMORY_SHARE of `memory` bytes (None: `machine_memory()`) and
-    MAX_SOLVE_SECONDS a solve; and why no more are made, or why one beyond mesh.max_cells is ("" when neither)."""
+    MAX_SOLVE_SECONDS a solve (a study solved by `solver.method: iterative`: that method's memory
+    and time of the split mesh instead, `iterative_seconds`); and why no more are made, or why one beyond mesh.max_cells is ("" when neither)."""
     d = study.scene.dimension
     memory = machine_memory() if memory is None else memory
     done: list[int] = []
@@ -207,12 +217,24 @@ def planned(study, cells: int, contact_nodes: int, memory: float | None = None,
             return tuple(done), why(f"{split} have {n:.3g} cells, beyond "
                                     + (f"{STRETCH:g} × " if allowed > max_cells(study) else "")
                                     + f"mesh.max_cells = {max_cells(study):g}")
-        if condensation_bytes(d, k) > MEMORY_SHARE * memory:
+        if study.solver.method == "iterative" and k:     # the split study is solved so: no dense condensation
+            need, seconds = n * ITERATIVE_BYTES_PER_CELL[d], iterative_seconds(d, n)
+            if need > MEMORY_SHARE * memory:
+                return tuple(done), why(f"{split} need about {need / 1e9:.3g} GB for an evaluation by the iterative "
+                                        f"method ({ITERATIVE_BYTES_PER_CELL[d] / 1e3:g} kB a cell), beyond the "
+                                        f"{MEMORY_SHARE * memory / 1e9:.3g} GB it may take ({MEMORY_SHARE:.0%} of "
+                                        f"this machine's {memory / 1e9:.3g} GB of memory)")
+            if seconds > MAX_SOLVE_SECONDS:
+                return tuple(done), why(f"{split} take about {seconds:.3g} s a solve by the iterative method "
+                                        f"({ITERATIVE_STEPS} Newton steps of {ITERATIVE_STEP_SECONDS:g} s an entry of "
+                                        f"its {NNZ_PER_CELL[d] * n:.3g} stiffness entries), beyond the "
+                                        f"{MAX_SOLVE_SECONDS:g} s a solve of the check may take")
+        elif condensation_bytes(d, k) > MEMORY_SHARE * memory:
             return tuple(done), why(f"{split} need about {condensation_bytes(d, k) / 1e9:.3g} GB for its dense "
                                     f"contact condensation ({k} contact rows: {DENSE_BLOCKS[d]} blocks of {k} × {k} "
                                     f"float64), beyond the {MEMORY_SHARE * memory / 1e9:.3g} GB it may take "
                                     f"({MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB of memory)")
-        if condensation_seconds(d, k) > MAX_SOLVE_SECONDS:
+        elif condensation_seconds(d, k) > MAX_SOLVE_SECONDS:
             return tuple(done), why(f"{split} take about {condensation_seconds(d, k):.3g} s a solve for its dense "
                                     f"contact condensation ({k} contact rows, as k³ from {CONDENSATION[d][0]:g} s at "
                                     f"{CONDENSATION[d][1]}), beyond the {MAX_SOLVE_SECONDS:g} s a solve of the check "
@@ -243,8 +265,8 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     reused): meshing as the study's (the geometry dominates), assembly growing as
     nodes^ASSEMBLY_GROWTH, a solve as nodes^SOLVE_GROWTH (of the dimension), a new mesh's first
     solve FIRST_SOLVE_EXTRA solves dearer; and the dense contact condensation on the split mesh's
-    k contact rows (`condensation_seconds`), paid by the nominal state the contact solves start
-    from and by each extreme. Measured (knee, tunnel, Hertz: both refined
+    k contact rows (`condensation_seconds`; none by the iterative method), paid by the nominal
+    state the contact solves start from and by each extreme. Measured (knee, tunnel, Hertz: both refined
     meshes, one solve per extreme): 12, 8.8 and 10 s estimated against about 17, 13 and 19 s
     taken: the estimate is good to a factor 2. In 3D (block-on-block-3d split once and twice,
     hertz-3d split once, on a loaded machine): 170 and 230 s estimated against 166 and 324 s
@@ -252,7 +274,8 @@ def cost(evaluator, warm_solve: float, n_extremes: int, splits=SPLITS) -> list[t
     mesh = evaluator.smesh.mesh
     d, n = mesh.dim(), mesh.p.shape[1]
     per_node = d + evaluator.model.thermal
-    m = 0 if evaluator.model.zone is None else evaluator.model.zone.gap.size
+    dense = evaluator.model.zone is not None and evaluator.model.solver_method != "iterative"
+    m = evaluator.model.zone.gap.size if dense else 0
     out = []
     for s in splits:
         r = refined_nodes(mesh, s) / n
