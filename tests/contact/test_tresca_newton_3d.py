@@ -111,16 +111,23 @@ CYCLED = [4.8866125148e+09, 1.6324667118e-01, 2.4261815764e+04, 4.7049122825e+06
           1.4449984485e+06, 1.4549266063e+06]
 
 
+def finer_tunnel(monkeypatch) -> dict:
+    """studies/tunnel-fault-3d.yaml meshed at 0.55 m near the tunnel and 1.6 m along the fault
+    (3.9e4 unknowns), run from the studies folder (its material library is named relative to it)."""
+    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
+    refine = doc["scene"]["mesh"]["refine"]
+    refine[0]["size"], refine[1]["size"] = 0.55, 1.6
+    monkeypatch.chdir(STUDIES)
+    return doc
+
+
 @pytest.mark.slow
 def test_the_finer_3d_tunnel_with_a_varying_slip_limit_converges_in_newton(monkeypatch):
     """studies/tunnel-fault-3d.yaml at 0.55 m near the tunnel and 1.6 m along the fault (3.9e4
     unknowns, 1060 fault nodes): from a fresh evaluator (the nominal solve first, then this data
     set warm from it) Newton converges with no dual-QP restart (`qp` off: a cycle or the budget
     would be status 1) in 10 iterations, against 200 and a refused answer before."""
-    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
-    refine = doc["scene"]["mesh"]["refine"]
-    refine[0]["size"], refine[1]["size"] = 0.55, 1.6
-    monkeypatch.chdir(STUDIES)                   # the material library is named relative to it
+    doc = finer_tunnel(monkeypatch)
     ev = Evaluator(load_study(doc))
     monkeypatch.setattr(cs, "_newton", functools.partial(cs._newton, fallback=False))
     res = ev.evaluate(np.array(CYCLED))
@@ -156,10 +163,7 @@ def test_the_finer_3d_tunnel_on_rollers_converges_in_fewer_iterative_newton_step
     iterative method, fresh evaluator, the nominal, `CYCLED` and `REVERSED` in turn: `REVERSED`
     in 14 Newton steps (24 with the held tangents in the discs' scale), its criteria those of
     the monolithic method."""
-    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
-    refine = doc["scene"]["mesh"]["refine"]
-    refine[0]["size"], refine[1]["size"] = 0.55, 1.6
-    monkeypatch.chdir(STUDIES)
+    doc = finer_tunnel(monkeypatch)
     ev = Evaluator(load_study({**doc, "solver": {"method": "iterative"}}))
     for x in (ev.study.nominal(), CYCLED):
         assert ev.evaluate(np.array(x), gradients=False).status == Status.SOLVED

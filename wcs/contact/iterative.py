@@ -206,6 +206,12 @@ def _left_free(C, R, r, lam, free, m, k, tol):
     return free_rigid_motion(np.c_[G, _across_slip(G, lam[m:], free, k)], np.r_[held, np.ones(m * (k > 1), bool)])
 
 
+def _acting(C: sp.csr_matrix) -> np.ndarray:
+    """The rows of C that act: ‖C_i‖ > NULL max‖C_j‖ (the others act on round-off only)."""
+    norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
+    return norms > NULL * max(norms.max(initial=0.0), 1e-300)
+
+
 def _scales(K, C, m, k):
     """c ≈ 1 / diag(W) without W, as `wcs.contact.solver.scales` takes it: 1 / w_i with the
     estimate w_i = Σ_j C_ij² / K_jj of W_ii, on a node's k tangents the mean w of those that act
@@ -214,10 +220,8 @@ def _scales(K, C, m, k):
     unknowns the nodes on the rollers front and back predicted their slip reversed, then stuck
     at 2–7 g w, then slipped again (24 Newton steps on a data set of the box; 14 without); with
     c = 1/0 taken as 0 such a node predicted its stick/slip from λ alone and cycled."""
-    CC = C.multiply(C)
-    dW = CC @ (1.0 / K.diagonal())
-    norms = np.sqrt(np.asarray(CC.sum(axis=1)).ravel())
-    acting = (norms > NULL * max(norms.max(initial=0.0), 1e-300))[m:].reshape(k, m)
+    dW = C.multiply(C) @ (1.0 / K.diagonal())
+    acting = _acting(C)[m:].reshape(k, m)
     dW[m:] = np.tile(np.sum(dW[m:].reshape(k, m) * acting, axis=0) / np.maximum(acting.sum(axis=0), 1), k)
     return 1.0 / np.where(dW > 0, dW, 1.0)
 
@@ -332,8 +336,7 @@ class _Rows:
 
     def __init__(self, C: sp.csr_matrix, m: int, k: int):
         self.m, self.k = m, k
-        norms = np.sqrt(np.asarray(C.multiply(C).sum(axis=1)).ravel())
-        self.acting = norms > NULL * max(norms.max(initial=0.0), 1e-300)
+        self.acting = _acting(C)
         self.disc = self.acting[m:].reshape(k, m).any(axis=0)     # nodes with a tangent that acts
         Cc = C.tocoo()
         node = Cc.row % m if m else Cc.row

@@ -45,8 +45,8 @@ from ..errors import StudyError
 from ..dynamics.history import evaluator_for
 from .extremes import Extreme, kinds, pairs
 from ..progress import phase
-from ..scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, ITERATIVE_BYTES_PER_CELL, ITERATIVE_SECONDS,
-                              ITERATIVE_STEP_SECONDS, ITERATIVE_STEPS, machine_memory)
+from ..scene.estimate import (BYTES_PER_CELL, DEFAULT_MAX_CELLS, ITERATIVE_BYTES_PER_CELL, ITERATIVE_STEP_SECONDS,
+                              ITERATIVE_STEPS, EvaluationFacts, evaluation_cost, machine_memory)
 from .store import key
 from .verdict import CLOSE
 
@@ -178,10 +178,11 @@ def condensation_bytes(d: int, k: int) -> float:
     return DENSE_BLOCKS[d] * 8.0 * k * k
 
 
-def iterative_seconds(d: int, cells: int) -> float:
-    """Estimated seconds of a contact solve by the iterative method on a mesh of `cells` cells:
-    `wcs.scene.estimate.evaluation_cost`'s, its stiffness entries NNZ_PER_CELL a cell."""
-    return ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * NNZ_PER_CELL[d] * cells
+def iterative_seconds(d: int, cells: int, k: int) -> float:
+    """Estimated seconds of a contact solve by the iterative method on a mesh of `cells` cells and
+    k contact rows: `wcs.scene.estimate.evaluation_cost`'s, its stiffness entries NNZ_PER_CELL a cell."""
+    facts = EvaluationFacts(dimension=d, unknowns=0, stiffness_nnz=int(NNZ_PER_CELL[d] * cells), contact_rows=k)
+    return evaluation_cost(facts, "iterative")[1]       # (the unknowns size only a heat step's factor)
 
 
 def condensation_seconds(d: int, k: int) -> float:
@@ -218,7 +219,7 @@ def planned(study, cells: int, contact_nodes: int, memory: float | None = None,
                                     + (f"{STRETCH:g} × " if allowed > max_cells(study) else "")
                                     + f"mesh.max_cells = {max_cells(study):g}")
         if study.solver.method == "iterative" and k:     # the split study is solved so: no dense condensation
-            need, seconds = n * ITERATIVE_BYTES_PER_CELL[d], iterative_seconds(d, n)
+            need, seconds = n * ITERATIVE_BYTES_PER_CELL[d], iterative_seconds(d, n, k)
             if need > MEMORY_SHARE * memory:
                 return tuple(done), why(f"{split} need about {need / 1e9:.3g} GB for an evaluation by the iterative "
                                         f"method ({ITERATIVE_BYTES_PER_CELL[d] / 1e3:g} kB a cell), beyond the "
