@@ -51,3 +51,94 @@ def test_dd_study_on_two_ranks_matches_serial(tmp_path):
     assert "dd" in a.attrs["solver"]
     for v in ("x", "phi", "status", "worst_value", "worst_x", "worst_displacement"):
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
+
+
+
+KILLED_RUN = """
+import os
+import sys
+import time
+
+sys.path.insert(0, {root!r})
+import wcs.app.runner
+from wcs.search import Batch, Worst
+
+
+def one_batch(problem, config, rng):
+    # the centre, then one batch of 12 samples: the kill lands inside it
+    lo, hi = problem.lower, problem.upper
+    seen = list((yield Batch((0.5 * (lo + hi))[None, :], "centre", True)))
+    seen += (yield Batch(lo + (hi - lo) * rng.random((12, len(lo))), "sample", False))
+    best = {{c: max(seen, key=lambda o: o.phi[c]) for c in problem.criteria}}
+    return Worst(x={{c: o.x for c, o in best.items()}}, value={{c: o.phi[c] for c, o in best.items()}},
+                 certificate={{c: "heuristic" for c in best}})
+
+
+wcs.app.runner.get_strategy = lambda name: one_batch
+evaluate, samples = wcs.app.runner.Runner.evaluate, []
+hang = int(os.environ.get("HANG_AT_SAMPLE", "0"))
+
+
+def held(self, point, gradients, stage):
+    # HANG_AT_SAMPLE=n: this rank stops at its n-th sample (it has solved n - 1 of them), saying so
+    samples.extend([stage] if stage == "sample" else [])
+    if hang and len(samples) >= hang:
+        open(f"held.{{os.getpid()}}", "w").close()
+        while True:
+            time.sleep(1)
+    return evaluate(self, point, gradients, stage)
+
+
+wcs.app.runner.Runner.evaluate = held
+from wcs.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_run_killed_mid_batch_on_two_ranks_keeps_what_it_solved_and_resumes_bitwise(tmp_path):
+    """Under mpiexec -n 2 each rank stores an evaluation as soon as it is solved, not at the
+    batch's gather: each rank held at its 4th sample of a batch of 12 (3 solved), the store holds
+    the centre and those 6; killed there (SIGKILL to the launcher and both ranks), `--resume` on
+    two ranks solves only the other 6 and writes the uninterrupted run's file (x, phi, grad,
+    status, the worst cases and their fields) bit for bit."""
+    import signal
+    import time
+
+    from wcs.results.store import store_path
+    mpiexec = BIN / "mpiexec"
+    if not mpiexec.exists():
+        pytest.fail("mpiexec is missing from the environment (the mpich wheel provides it)")
+    shutil.copy(STUDY.parent / "tresca-pad.yaml", tmp_path / "study.yaml")
+    script = tmp_path / "killed_run.py"
+    script.write_text(KILLED_RUN.format(root=str(ROOT)))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+
+    def launch(out, *more, hang=0):
+        return subprocess.Popen([str(mpiexec), "-n", "2", sys.executable, str(script), "run", "study.yaml", "-o", out,
+                                 "--quiet", *more], cwd=tmp_path, env={**env, "HANG_AT_SAMPLE": str(hang)},
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+    def finish(proc):
+        out, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err + out
+
+    finish(launch("clean.nc"))
+    out = tmp_path / "killed.nc"
+    proc = launch("killed.nc", hang=4)
+    deadline = time.time() + 600              # generous: a loaded machine is slow, not wrong
+    while len(list(tmp_path.glob("held.*"))) < 2 and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)       # mpiexec and both ranks (one session), in the middle of the batch
+    said = proc.communicate()
+    assert len(list(tmp_path.glob("held.*"))) == 2, said
+    assert len(list(store_path(out).glob("*.npz"))) == 7
+    finish(launch("killed.nc", "--resume"))
+    clean = xr.open_dataset(tmp_path / "clean.nc", engine="h5netcdf")
+    resumed = xr.open_dataset(out, engine="h5netcdf")
+    assert clean.sizes["eval"] == resumed.sizes["eval"] == 13 and resumed.attrs["complete"] == "yes"
+    assert resumed.attrs["answered_from_store"] == 7 and resumed.attrs["solves_this_session"] == 6
+    worst = [v for v in clean.data_vars if v.startswith("worst_")]
+    assert "worst_contact_pressure" in worst and "worst_displacement" in worst
+    for v in ("x", "phi", "grad", "status", *worst):
+        assert np.array_equal(clean[v].values, resumed[v].values, equal_nan=True), v

@@ -5,8 +5,9 @@ every rank meshes and assembles its own copy of the model (deterministic, so
 identical), drives the same deterministic search, and solves every N-th point
 of each batch — with the DD solver too, serially on each rank (a whole `dd` study
 on the tunnel: 1.5× on 2 ranks, against 0.5× with each DD solve spread over them);
-the outcomes are gathered to all ranks in batch order, so every rank sees exactly
-what a serial run sees (bitwise), and rank 0 alone writes.
+each rank stores each of its evaluations as soon as it is solved (so a crash mid-batch
+loses only those in flight), the outcomes are gathered to all ranks in batch order, so every
+rank sees exactly what a serial run sees (bitwise), and rank 0 alone writes the results file.
 
 `solver.ranks_per_evaluation: k` splits the N ranks into N/k groups of k consecutive ranks
 (`groups`): group g solves points g, g + N/k, ... of each batch, every rank of the group the

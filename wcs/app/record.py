@@ -116,8 +116,8 @@ def open_store(comm, output, study_sha256: str, kind: str, resume: bool) -> Stor
 class Ledger:
     """The records of this run in order, the row of each key, the best of each criterion.
 
-    store: the evaluation store (None: nothing is kept beyond this run); `writes`: whether this
-    process writes to it (rank 0)."""
+    store: the evaluation store (None: nothing is kept beyond this run); `writes`: whether `append`
+    writes solved records to it (rank 0; under MPI each group's rank 0 `keep`s what it solves)."""
 
     def __init__(self, criteria: list[str], store: Store | None = None, writes: bool = True):
         self.criteria = criteria
@@ -144,11 +144,17 @@ class Ledger:
             return None
         return from_store(stored, stage)
 
-    def append(self, k: str, rec: Record, ev=None) -> int:
-        """Add a record under key `k` (a solved one goes to the store first); its row. `ev`: the
-        Evaluation it came from, whose fields are kept while it is a criterion's best."""
-        if self.store is not None and self.writes and not rec.get("from_store"):
+    def keep(self, k: str, rec: Record) -> None:
+        """Store a solved record under key `k` (WriteError where it cannot be written)."""
+        if self.store is not None:
             self.store.put(k, to_store(rec))
+
+    def append(self, k: str, rec: Record, ev=None, kept: bool = False) -> int:
+        """Add a record under key `k` (a solved one goes to the store first, unless `kept` there
+        already by the rank that solved it); its row. `ev`: the Evaluation it came from, whose
+        fields are kept while it is a criterion's best."""
+        if self.writes and not kept and not rec.get("from_store"):
+            self.keep(k, rec)
         row = len(self.records)
         self.records.append(rec)
         self.memo.setdefault(k, row)

@@ -9,7 +9,8 @@ through `wcs.search.ranges` (the ends of each criterion's range its `sense` asks
 included (status code, NaN criteria); the budget is a hard cap on records.
 
 Incremental writing: each finished evaluation goes at once to the evaluation store (one
-atomically renamed file per evaluation), and the results file is rewritten while the run
+atomically renamed file per evaluation; under MPI written by the rank that solved it, before
+the batch's gather), and the results file is rewritten while the run
 goes (`wcs/app/writer.py`). A kill -9 loses the evaluation in flight only; the NetCDF file on
 disk is always a complete, readable file of the evaluations up to its last rewrite
 (`complete: no` until the run ends; `wcs report` and `wcs solve --worst` say so).
@@ -181,8 +182,8 @@ class Runner:
         self._report(Event("evaluate", time.perf_counter() - t0, stage))
         return ev
 
-    def _append(self, k: str, rec: dict, ev=None) -> int:
-        row = self.ledger.append(k, rec, ev)
+    def _append(self, k: str, rec: dict, ev=None, kept: bool = False) -> int:
+        row = self.ledger.append(k, rec, ev, kept)
         if self.progress is not None:
             self.progress.update(len(self.ledger.records), rec, self.ledger.best)
         if self.writer.due():
@@ -209,28 +210,42 @@ class Runner:
             batch = list(pending)
             pending.clear()
 
-            def done(i, ev, rec=None):
+            def done(i, ev, rec=None, kept=False):
                 k, _, sv = batch[i]
                 rec = rec or from_evaluation(ev, self.criteria, len(self.names), stage, gradients, sv)
                 self.stats["solved"] += 1
                 self.stats["solve_time"] += rec["wall_time"]
-                rows.append(self._append(k, rec, ev))
+                rows.append(self._append(k, rec, ev, kept))
 
             if self.comm is None:             # serial
                 for i, (_, p, _) in enumerate(batch):
                     done(i, self.evaluate(p, gradients, stage))
                 return
             # MPI: group g solves points g, g+G, ... (G groups; each rank its own group where
-            # ranks_per_evaluation is 1); all ranks then append every record (its group's rank 0's) in batch order
+            # ranks_per_evaluation is 1) and its rank 0 stores each record as soon as it is solved
+            # (a crash mid-batch loses only the evaluations in flight); all ranks then append every
+            # record in batch order
+            keeper = self.group is None or self.group.rank == 0
+            mine, fault = [], None
             with spanning(self.group):
-                mine = [(i, from_evaluation(self.evaluate(batch[i][1], gradients, stage), self.criteria,
-                                            len(self.names), stage, gradients, batch[i][2]))
-                        for i in range(self.group_index, len(batch), self.groups)]
+                for i in range(self.group_index, len(batch), self.groups):
+                    k, p, sv = batch[i]
+                    rec = from_evaluation(self.evaluate(p, gradients, stage), self.criteria, len(self.names),
+                                          stage, gradients, sv)
+                    if keeper and fault is None:
+                        try:
+                            self.ledger.keep(k, rec)
+                        except WriteError as e:     # told to every rank after the gather
+                            fault = str(e)
+                    mine.append((i, rec))
             t = time.perf_counter()
-            parts = self.comm.allgather(mine if self.group is None or self.group.rank == 0 else [])
+            parts = self.comm.allgather((mine, fault) if keeper else ([], None))
             self._report(Event("gather", time.perf_counter() - t, stage))
-            for i, rec in sorted((r for part in parts for r in part), key=lambda t: t[0]):
-                done(i, None, rec)
+            faults = [f for _, f in parts if f is not None]
+            if faults:
+                raise WriteError(faults[0])
+            for i, rec in sorted((r for part, _ in parts for r in part), key=lambda t: t[0]):
+                done(i, None, rec, kept=True)
 
         used = len(ledger.records)
         for i, p in enumerate(points):

@@ -212,7 +212,9 @@ def write_atomic(path: Path, write) -> None:
 
 
 class Store:
-    """Append-only records keyed by `key(...)`; `get` answers, `put` adds."""
+    """Append-only records keyed by `key(...)`; `put` adds, `get` answers from the records held
+    when the store was opened and those this process put: under MPI every rank stores what it
+    solves while the others read, and each rank must find the same answers in the same order."""
 
     def __init__(self, folder: str | Path, study_sha256: str, kind: str = "run", fresh: bool = False):
         self.folder = Path(folder)
@@ -234,6 +236,7 @@ class Store:
         else:
             text = json.dumps({"study_sha256": study_sha256, "kind": kind}).encode()
             write_atomic(meta, lambda fh: fh.write(text))
+        self.keys = {f.stem for f in self.folder.glob("*.npz")}
 
     def __len__(self) -> int:
         return sum(1 for _ in self.folder.glob("*.npz"))
@@ -243,7 +246,7 @@ class Store:
 
     def get(self, k: str) -> dict | None:
         f = self._file(k)
-        if not f.exists():
+        if k not in self.keys or not f.exists():
             return None
         try:
             with np.load(f, allow_pickle=False) as z:
@@ -253,3 +256,4 @@ class Store:
 
     def put(self, k: str, record: dict) -> None:
         write_atomic(self._file(k), lambda fh: np.savez(fh, **record))
+        self.keys.add(k)
