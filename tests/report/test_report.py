@@ -485,3 +485,48 @@ def test_every_solve_file_makes_a_report(kind, doc, tmp_path):
     if kind.startswith("dynamic"):
         section = text[text.index('id="histories"'):text.index('id="scene"')]
         assert section.count("<img") == len(names)
+
+
+def test_a_uniform_temperature_is_drawn_in_one_colour_with_its_value(tmp_path):
+    """The heated plate with one temperature prescribed (bottom) and no heat source: T equals it
+    everywhere, up to the heat solve's round-off (a few 1e-13 K). The report states that value
+    and draws one colour, not a colour scale spanning the round-off; a field varying by 1 mK
+    keeps its scale. On the report's data: the drawn values, their colour limits, the colour
+    bars and the words."""
+    import matplotlib.pyplot as plt
+    import yaml
+    from matplotlib.tri import Triangulation
+
+    from wcs.report.data import from_dataset, uniform_value
+    from wcs.report.html import number
+    from wcs.report.plots import temperature_panel
+    doc = yaml.safe_load((ROOT / "studies/heated-plate.yaml").read_text())
+    doc["scene"]["thermal"]["temperature"] = {"bottom": 343.0}
+    del doc["uncertain"]["thermal.temperature.top"]
+    (tmp_path / "plate.yaml").write_text(yaml.safe_dump(doc))
+    ds = synthetic_run(tmp_path / "plate.yaml", n=2)
+    res = from_dataset(ds)
+    bottom = list(res.params).index("thermal.temperature.bottom")
+    for j, f in enumerate(res.worst_fields):
+        prescribed = float(ds["worst_x"].values[j, bottom])
+        assert uniform_value(f.temperature) == pytest.approx(prescribed, rel=1e-12)
+    text = render_report(ds, strict=True)
+    assert f"temperature uniform, {number(prescribed, 'K')}." in text
+    assert re.search(r"temperature [0-9.]+ K[^<]*…", text) is None          # no range of round-off
+    tri = Triangulation(res.mesh.coords[:, 0], res.mesh.coords[:, 1], res.mesh.cells)
+    T = res.worst_fields[0].temperature
+    noise = T + 1e-12 * np.random.default_rng(1).standard_normal(len(T))  # round-off of 343 K: 3e-15 relative
+    fig, ax = plt.subplots()
+    temperature_panel(fig, ax, tri, noise)
+    drawn = ax.collections[0]
+    lo, hi = drawn.get_clim()
+    assert np.ptp(drawn.get_array()) == 0 and lo < float(drawn.get_array()[0]) < hi and hi - lo >= 1.0
+    assert len(fig.axes) == 1 and ax.get_title() == f"temperature: uniform, {uniform_value(noise):.6g} K"
+    plt.close(fig)
+    varying = T + 1e-3 * res.mesh.coords[:, 0]                              # 1 mK across the 1 m plate
+    assert uniform_value(varying) is None
+    fig, ax = plt.subplots()
+    temperature_panel(fig, ax, tri, varying)
+    assert np.array_equal(ax.collections[0].get_array(), varying) and len(fig.axes) == 2
+    assert ax.get_title() == "temperature"
+    plt.close(fig)

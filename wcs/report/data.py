@@ -17,6 +17,7 @@ import xarray as xr
 from ..model.criteria import KINDS
 from ..errors import StudyError
 from ..results.dataset import widest
+from ..results.drivers import IDLE
 from ..status import Status
 from ..model.validity import warnings as validity_warnings
 from ..results.verdict import Verdict, failures, verdict
@@ -223,6 +224,18 @@ def order_along(points: np.ndarray) -> np.ndarray:
         order.append(k)
         seen[k] = True
     return np.array(order)
+
+
+def uniform_value(values: np.ndarray) -> float | None:
+    """The value of a field that is uniform up to its solve's round-off (its spread at most IDLE
+    times its largest magnitude, eps times a condition number of 1e6–1e8, `wcs.results.drivers`),
+    their mean; None where it varies or has no finite value. A colour scale over such a field
+    spans the round-off and draws noise."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0 or np.ptp(v) > IDLE * float(np.max(np.abs(v))):
+        return None
+    return float(np.mean(v))
 
 
 def _get(ds: xr.Dataset, name: str):

@@ -22,7 +22,7 @@ from ..progress import phase
 from ..model.validity import MAX_DISPLACEMENT, MAX_GRADIENT
 from ..results.verdict import CLOSE
 from . import plots, plots3d, timeline, view3d
-from .data import KIND_LABEL, Results
+from .data import KIND_LABEL, Results, uniform_value
 
 SECTIONS = [
     ("summary", "Summary"),
@@ -433,7 +433,9 @@ class Report:
                              f"σ₂ min {number(float(np.nanmin(f.principal_stress[:, -1])), 'Pa')}")
             if f.displacement is not None:
                 extra.append(f"max |u| {number(float(np.nanmax(np.linalg.norm(f.displacement, axis=1))), 'm')}")
-            if f.temperature is not None:
+            if f.temperature is not None and uniform_value(f.temperature) is not None:
+                extra.append(f"temperature uniform, {number(uniform_value(f.temperature), 'K')}")
+            elif f.temperature is not None:
                 extra.append(f"temperature {number(float(np.nanmin(f.temperature)), 'K')} … "
                              f"{number(float(np.nanmax(f.temperature)), 'K')}")
             out.append(f'<h3>{esc(c.name)}: {label}</h3>'

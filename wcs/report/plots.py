@@ -19,7 +19,7 @@ from matplotlib.path import Path as MplPath  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
-from .data import Contact, Mesh, Results, order_along  # noqa: E402
+from .data import Contact, Mesh, Results, order_along, uniform_value  # noqa: E402
 from .timeline import Histories, defining_level, output_index  # noqa: E402
 
 DPI = 100
@@ -375,11 +375,23 @@ def worst_case_figure(res: Results, j: int) -> tuple[bytes, float]:
             _axes_m(ax, "principal stress directions" + (" (zoom)" if box is not None else ""))
             _zoom(ax, view)
         else:
-            pc = ax.tripcolor(tri0, f.temperature, shading="gouraud", cmap="inferno")
-            fig.colorbar(pc, ax=ax, shrink=0.85, label="temperature [K]")
-            _axes_m(ax, "temperature")
+            temperature_panel(fig, ax, tri0, f.temperature)
     fig.tight_layout()
     return png(fig), mag
+
+
+def temperature_panel(fig, ax, tri: Triangulation, temperature: np.ndarray) -> None:
+    """The temperature on the undeformed mesh with its colour bar; a field uniform up to round-off
+    (`uniform_value`) in one colour, its value in the title and no colour bar."""
+    flat = uniform_value(temperature)
+    if flat is None:
+        pc = ax.tripcolor(tri, temperature, shading="gouraud", cmap="inferno")
+        fig.colorbar(pc, ax=ax, shrink=0.85, label="temperature [K]")
+        _axes_m(ax, "temperature")
+        return
+    ax.tripcolor(tri, np.full(len(temperature), flat), shading="gouraud", cmap="inferno", vmin=flat - 1.0,
+                 vmax=flat + 1.0)
+    _axes_m(ax, f"temperature: uniform, {flat:.6g} K")
 
 
 def _principal_crosses(ax, mesh: Mesh, stress: np.ndarray, view, n=22):
