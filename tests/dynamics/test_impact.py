@@ -256,7 +256,7 @@ def sphere(h: float, dt: float, scheme: str = "seed", end: float = 4e-4, grading
     held at its base) at V: mesh size h in the ball of radius BALL around the first contact point
     (in both bodies), growing by `grading` per unit distance away from it up to R/3, the sphere's
     surface at SURFACE. `mesh.max_cells` admits the resource guard's estimate for h = 0.125 mm
-    (2.3e6 tetrahedra; gmsh makes 128651: the estimate's graded halo of a ball is an upper bound)."""
+    (3.0e5 tetrahedra; gmsh makes 128651)."""
     refine = [{"ball": {"center": [0, 0, 0], "radius": BALL}, "size": h}]
     plane = lambda z, n: {"plane": {"point": z, "normal": n}}       # noqa: E731
     return {

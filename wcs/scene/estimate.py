@@ -1,14 +1,14 @@
 """The size of a scene's mesh, estimated from the study before any meshing (the resource guard).
 
 A triangle of side h has area sqrt(3)/4 h^2, so a surface of area A meshed at size h has
-about A / (sqrt(3)/4 h^2) = 2.31 A / h^2 cells. A refine zone of size s < h (area A_r,
-perimeter P_r) adds its own cells plus the graded halo around it, where the size grows
-as s + g d (g = `mesh.grading`) until it reaches h at d = (h - s) / g; integrating
-(P_r + 2 pi d) / (s + g d)^2 over that halo gives
-    (P_r / g) (1/s - 1/h) + (2 pi / g^2) (ln(h/s) + s/h - 1)
-(with g = 0, one layer of cells along the perimeter, P_r / s). Shape areas are those of the
-primitives (a `minus` is not subtracted), so the count is an upper estimate; nodes are about
-half the cells, and a P1 vector field has two unknowns per node.
+about A / (sqrt(3)/4 h^2) = 2.31 A / h^2 cells, and a mesh whose size varies as h(x) about
+2.31 times the integral of 1 / h(x)^2. A refine zone of size s < h (area A_r, perimeter P_r)
+sets h(x) = s + g d(x) (g = `mesh.grading`, d the distance to the zone) until it reaches h at
+d = (h - s) / g, so it adds the integral of 1/h(x)^2 - 1/h^2 over the zone and that halo:
+A_r (1/s^2 - 1/h^2) and the integral over d of (P_r + 2 pi d) (1/(s + g d)^2 - 1/h^2), each
+counted for the share of it inside the body (`_refined`: a zone at a body's corner has three
+quarters of its halo outside). Shape areas are those of the primitives (a `minus` is not
+subtracted); nodes are about half the cells, and a P1 vector field has two unknowns per node.
 """
 from __future__ import annotations
 
@@ -23,6 +23,12 @@ import numpy as np
 from . import spec3d
 
 CELLS_PER_H2 = 4.0 / math.sqrt(3.0)     # cells per unit area at size 1
+HALO_POINTS = 65                        # distances a halo's integral is summed at (`_halo`)
+# The share of a zone (and of its halo's curve or surface at distance d) inside a body:
+# deterministic samples of the zone's area or volume and of its boundary with outward normals,
+# each boundary sample moved out by d; a sample counts where it lies in a bounding box of one of
+# the body's regions (a superset of the body: the share is not under-counted)
+SAMPLES = 16                            # samples along a side or an axis (a circle: 4x, a sphere: 4x^2)
 CURVATURE_ELEMENTS = 24                 # Mesh.MeshSizeFromCurvature (the mesher's): elements per 2*pi of arc
 DEFAULT_MAX_CELLS = 1_000_000           # `mesh.max_cells` when the study gives none
 DEFAULT_GRADING = 0.5                   # size growth per unit distance away from a refine zone (the mesher's)
@@ -44,11 +50,12 @@ ITERATIVE_BYTES_PER_CELL = {2: BYTES_PER_CELL[2], 3: 4.0e3}
 # estimated after assembly (`evaluation_cost`)
 MODEL_BYTES_PER_CELL = {2: 3.5e3, 3: 3.5e3}
 # How far beyond the machine's memory an estimate may go before meshing: the cells made are held
-# to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so a 2D
-# estimate (0.84-2.95x the cells made on the shipped studies) is refused at the memory; a 3D
-# one may exceed the cells gmsh makes by ~15x (3D Hertz's refined ball, whose validation run at
-# an estimate of 43 GB fits), and is refused beyond 4x the memory.
-ESTIMATE_EXCESS = {2: 1.0, 3: 4.0}
+# to the memory itself (`memory_fault`), but meshing 5.8e6 triangles takes 5 min, so an estimate
+# is refused at the memory. It is at least 0.65x the cells gmsh makes in 2D and 0.9x in 3D
+# (tests/scene/test_estimate.py), and a cell takes at least 5.2 kB in 2D and 4 kB in 3D
+# (ITERATIVE_BYTES_PER_CELL): a scene admitted has at most memory / 3.4 kB cells, whose meshing
+# fits (`memory_fault` then holds the cells made to MODEL_BYTES_PER_CELL before assembly).
+ESTIMATE_EXCESS = {2: 1.0, 3: 1.0}
 
 
 def machine_memory() -> float:
@@ -152,14 +159,75 @@ def _zone(selector, scene) -> tuple[float, float]:
     return 0.0, 4 * ((x1 - x0) + (y1 - y0))
 
 
-def _refined(area: float, perimeter: float, s: float, h: float, g: float, body_area: float) -> float:
-    """Cells a zone of size s adds to a body meshed at h (area clipped to the body's)."""
-    inside = min(area, body_area) / s**2
+def _halo(s: float, h: float, g: float) -> np.ndarray:
+    """The distances at which a halo's integrand is summed (trapezoids): where the size s + g d
+    takes HALO_POINTS values from s to h in geometric progression, so that the integrand, which
+    falls as 1/(s + g d)^dim, is resolved where it is large (uniform steps of (h - s) / g put
+    one step across it where s << h)."""
+    return (np.geomspace(s, h, HALO_POINTS) - s) / g
+
+
+def _refined(selector, scene, s: float, h: float, g: float, body_area: float, boxes) -> float:
+    """Cells a zone of size s adds to a body meshed at h (whose own count at h is the body's):
+    2.31 times the integral over the body of 1/h(x)^2 - 1/h^2, h(x) = s + g d(x): the zone's area
+    at s, and the halo 0 < d < (h - s) / g whose curve at distance d is P + 2 pi d long, each the
+    share of it inside the body's bounding `boxes` (`_samples2d`: a zone at a corner of the body
+    has most of its halo outside); clipped to the body's area at s. With g = 0, one layer of
+    cells along the perimeter, P / s."""
+    area, perimeter = _zone(selector, scene)
+    surface, interior = _samples2d(selector, scene)
+    inside = min(area * _share(interior, boxes), body_area) * (1 / s**2 - 1 / h**2)
     if g > 0:
-        halo = perimeter / g * (1 / s - 1 / h) + 2 * math.pi / g**2 * (math.log(h / s) + s / h - 1)
+        d = _halo(s, h, g)
+        share = _offset_share(surface, d, boxes)
+        halo = float(np.trapezoid((perimeter + 2 * math.pi * d) * share * (1 / (s + g * d) ** 2 - 1 / h**2), d))
     else:
-        halo = perimeter / s
+        halo = perimeter * float(_offset_share(surface, np.zeros(1), boxes)[0]) / s
     return CELLS_PER_H2 * min(inside + halo, body_area / s**2)
+
+
+def _samples2d(selector, scene):
+    """((boundary points, outward normals, weights), interior points) of a 2D refine zone (as
+    `_samples3d`); a boundary piece is both its sides; a polygon's interior without samples."""
+    t = (np.arange(SAMPLES) + 0.5) / SAMPLES
+    circle = selector.disc
+    if selector.boundary is not None:
+        spec = scene.boundaries[selector.boundary]
+        circle = spec.circle
+        if spec.segment is not None:
+            corners = [spec.segment[0], spec.segment[1]]
+        elif spec.box is not None:
+            x0, y0, x1, y1 = spec.box
+            corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    elif selector.box is not None:
+        x0, y0, x1, y1 = selector.box
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    elif selector.polygon is not None:
+        corners = list(selector.polygon) + [selector.polygon[0]]
+    if circle is not None:
+        angle = 2 * math.pi * (np.arange(4 * SAMPLES) + 0.5) / (4 * SAMPLES)
+        u = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        c, r = np.asarray(circle.center, float), circle.radius
+        surface = (c + r * u, u, np.ones(len(u)))
+        interior = (c + r * np.sqrt(t)[:, None, None] * u[None]).reshape(-1, 2)
+    else:
+        c = np.asarray(corners, float)
+        sign = 1.0 if _shoelace(corners[:-1] or corners) >= 0 else -1.0      # counter-clockwise: outward is right
+        a, b = c[:-1], c[1:]
+        edge = b - a
+        length = np.linalg.norm(edge, axis=1)
+        normal = sign * np.stack([edge[:, 1], -edge[:, 0]], axis=1) / length[:, None]
+        points = (a[:, None] + t[None, :, None] * edge[:, None]).reshape(-1, 2)
+        surface = (points, np.repeat(normal, SAMPLES, axis=0), np.repeat(length / SAMPLES, SAMPLES))
+        interior = None
+        if selector.box is not None:
+            grid = np.stack(np.meshgrid(t, t, indexing="ij"), axis=-1).reshape(-1, 2)
+            interior = c[0] + grid * (c[2] - c[0])
+    if selector.boundary is not None:
+        points, normals, weights = surface
+        surface = (np.concatenate([points, points]), np.concatenate([normals, -normals]), np.concatenate([weights] * 2))
+        interior = None
+    return surface, interior
 
 
 def estimate_cells(scene) -> tuple[float, str]:
@@ -182,10 +250,8 @@ def estimate_cells(scene) -> tuple[float, str]:
                               f"bodies.{body}.regions.{i}.mesh.size"))
         zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(mesh.refine)]
         zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(own.refine if own else [])]
-        for ref, path in zones:
-            if ref.size < h:
-                a, p = _zone(ref, scene)
-                parts.append((_refined(a, p, ref.size, h, grading, area), path))
+        boxes = [shape_box(r.shape) for r in spec.regions]
+        parts += [(_refined(ref, scene, ref.size, h, grading, area, boxes), path) for ref, path in zones if ref.size < h]
     return sum(c for c, _ in parts), max(parts)[1]
 
 
@@ -201,8 +267,10 @@ def estimate_cells(scene) -> tuple[float, str]:
 # faces into the neighbouring volumes at about that rate (measured: the estimate is 1.2-2.5x
 # the meshed count with a box, slab, ball or cylinder region at s = h/2.5 to h/5, whatever
 # `mesh.grading`; tests/fem/test_glue_3d.py checks it).
+# A refine zone's halo is counted for the share of it inside the body, as in 2D (`_refined3d`).
+# Regular tetrahedra are 1.8x the cells gmsh makes (its Delaunay edges are 1.2-1.3x the target:
+# 6.8e4 against 37105 in a unit cube at 0.05), so on fine meshes the estimate is an upper one.
 CELLS_PER_H3 = 6.0 * math.sqrt(2.0)
-HALO_POINTS = 65
 REGION_GRADING = DEFAULT_GRADING
 
 
@@ -260,7 +328,7 @@ def _curved_cells(solid, h: float) -> float:
     if s >= h:
         return 0.0
     volume = 4 / 3 * math.pi * r**3 if length is None else math.pi * r**2 * length
-    d = np.linspace(0.0, h - s, HALO_POINTS)
+    d = _halo(s, h, 1.0)
     area = 4 * math.pi * (r + d) ** 2 if length is None else 2 * math.pi * (r + d) * length
     return CELLS_PER_H3 * (volume * (1 / s**3 - 1 / h**3) + float(np.trapezoid(area / (s + d) ** 3, d)))
 
@@ -317,18 +385,116 @@ def plane_box_area(point, normal, box) -> float:
     return 0.5 * float(np.abs(sum(np.cross(p[i] - c, p[(i + 1) % len(p)] - c) @ n for i in range(len(p)))))
 
 
-def _refined3d(ref, scene, h: float, g: float, body_volume: float) -> float:
-    """Tetrahedra a refine zone of size s < h adds to a body meshed at h: the zone at s, and the
-    halo where the size grows as s + g d up to h (clipped to the body's volume at s)."""
+def _refined3d(ref, scene, h: float, g: float, body_volume: float, boxes) -> float:
+    """Tetrahedra a refine zone of size s < h adds to a body meshed at h (the body's own count
+    at h is the scene's): 8.49 times the integral over the body of 1/h(x)^3 - 1/h^3, h(x) =
+    s + g d(x) the graded size: the zone's volume at s, and the halo 0 < d < (h - s) / g whose
+    surface at distance d has area A(d) (`_zone3d`), each the share of it inside the body's
+    bounding `boxes` (`_share3d`: a zone at a corner of the body has most of its halo outside),
+    clipped to the body's volume at s."""
     s = ref.size
     volume, A = _zone3d(ref, scene)
-    inside = min(volume, body_volume) * (1 / s**3 - 1 / h**3)
+    surface, interior = _samples3d(ref, scene)
+    inside = min(volume * _share(interior, boxes), body_volume) * (1 / s**3 - 1 / h**3)
     if g > 0:
-        d = np.linspace(0.0, (h - s) / g, HALO_POINTS)
-        halo = float(np.trapezoid(A(d) * (1 / (s + g * d) ** 3 - 1 / h**3), d))
+        d = _halo(s, h, g)
+        share = _offset_share(surface, d, boxes)
+        halo = float(np.trapezoid(A(d) * share * (1 / (s + g * d) ** 3 - 1 / h**3), d))
     else:
         halo = 0.0
     return CELLS_PER_H3 * min(inside + halo, body_volume / s**3)
+
+
+
+
+def _share(points: np.ndarray | None, boxes) -> float:
+    """The share of `points` (k, dim) inside any of `boxes` ((lo..., hi...) each); 1 without points."""
+    if points is None:
+        return 1.0
+    return float(_in_boxes(points, boxes).mean())
+
+
+def _in_boxes(points: np.ndarray, boxes) -> np.ndarray:
+    b = np.asarray(boxes, float)
+    dim = points.shape[-1]
+    lo, hi = b[:, :dim], b[:, dim:]
+    return ((points[..., None, :] >= lo) & (points[..., None, :] <= hi)).all(axis=-1).any(axis=-1)
+
+
+def _offset_share(surface, d: np.ndarray, boxes) -> np.ndarray:
+    """At each distance d: the weighted share of the surface samples (points, outward normals,
+    weights) moved out by d that lie in `boxes` (1 everywhere without samples)."""
+    if surface is None:
+        return np.ones_like(d)
+    points, normals, weights = surface
+    moved = points[None, :, :] + d[:, None, None] * normals[None, :, :]
+    return (_in_boxes(moved, boxes) * weights).sum(axis=1) / weights.sum()
+
+
+def _sphere_directions(n: int) -> np.ndarray:
+    """n nearly uniform unit vectors (a Fibonacci lattice)."""
+    k = np.arange(n) + 0.5
+    z = 1 - 2 * k / n
+    phi = math.pi * (1 + math.sqrt(5)) * k
+    r = np.sqrt(1 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _axis_frame(a, b):
+    """Unit axis of the segment a -> b and two unit vectors normal to it."""
+    axis = np.asarray(b, float) - np.asarray(a, float)
+    axis /= np.linalg.norm(axis)
+    e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return axis, e1, np.cross(axis, e1)
+
+
+def _samples3d(ref, scene):
+    """((surface points, outward normals, weights), interior points) of a 3D refine zone; a
+    face's surface is both its sides, a plane or a flat box face without samples (share 1)."""
+    t = (np.arange(SAMPLES) + 0.5) / SAMPLES
+    if ref.ball is not None or ref.boundary is not None and scene.boundaries[ref.boundary].sphere is not None:
+        sphere = ref.ball or scene.boundaries[ref.boundary].sphere
+        c, r, u = np.asarray(sphere.center, float), sphere.radius, _sphere_directions(4 * SAMPLES**2)
+        surface = (c + r * u, u, np.ones(len(u)))
+        interior = (c + r * np.cbrt(t)[:, None, None] * u[None]).reshape(-1, 3)
+    elif ref.cylinder is not None or ref.boundary is not None and scene.boundaries[ref.boundary].cylinder is not None:
+        cyl = ref.cylinder or scene.boundaries[ref.boundary].cylinder
+        a, b, r = np.asarray(cyl.start, float), np.asarray(cyl.end, float), cyl.radius
+        axis, e1, e2 = _axis_frame(a, b)
+        angle = 2 * math.pi * (np.arange(2 * SAMPLES) + 0.5) / (2 * SAMPLES)
+        radial = np.cos(angle)[:, None] * e1 + np.sin(angle)[:, None] * e2            # (2S, 3)
+        along = a + t[:, None] * (b - a)                                               # (S, 3)
+        side = (along[:, None] + r * radial[None]).reshape(-1, 3)
+        normals = np.tile(radial, (SAMPLES, 1))
+        length = float(np.linalg.norm(b - a))
+        weights = np.full(len(side), 2 * math.pi * r * length / len(side))
+        disc = (r * np.sqrt(t)[:, None, None] * radial[None]).reshape(-1, 3)         # a cap's points about its centre
+        caps = np.concatenate([a + disc, b + disc])
+        cap_normals = np.concatenate([np.tile(-axis, (len(disc), 1)), np.tile(axis, (len(disc), 1))])
+        surface = (np.concatenate([side, caps]), np.concatenate([normals, cap_normals]),
+                   np.concatenate([weights, np.full(len(caps), math.pi * r * r / len(disc))]))
+        interior = (along[:, None, None] + r * np.sqrt(t)[None, :, None, None] * radial[None, None]).reshape(-1, 3)
+    elif ref.box is not None:
+        lo, hi = np.asarray(ref.box[:3], float), np.asarray(ref.box[3:], float)
+        grid = np.stack(np.meshgrid(t, t, t, indexing="ij"), axis=-1).reshape(-1, 3)
+        interior = lo + grid * (hi - lo)
+        points, normals, weights = [], [], []
+        for k in range(3):
+            for end, sign in ((lo, -1.0), (hi, 1.0)):
+                face = interior[np.isclose(grid[:, k], t[0])].copy()
+                face[:, k] = end[k]
+                points.append(face)
+                normals.append(np.tile(sign * np.eye(3)[k], (len(face), 1)))
+                weights.append(np.full(len(face), np.prod(np.delete(hi - lo, k)) / len(face)))
+        surface = (np.concatenate(points), np.concatenate(normals), np.concatenate(weights))
+    else:
+        return None, None
+    if ref.boundary is not None:                      # a face: both sides, no volume
+        points, normals, weights = surface
+        surface = (np.concatenate([points, points]), np.concatenate([normals, -normals]), np.concatenate([weights] * 2))
+        interior = None
+    return surface, interior
 
 
 def estimate_cells3d(scene, size: float) -> tuple[float, str]:
@@ -345,7 +511,9 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
     # halo on either side, counted in each body as before
     once = [r.body is None and r.boundary is None for r in scene.mesh.refine]
     coarsest = max([size] + [spec.mesh.size for spec in scene.bodies.values() if spec.mesh is not None])
-    parts += [(_refined3d(r, scene, coarsest, grading, sum(volumes.values())), f"mesh.refine.{i}.size")
+    boxes = {body: [solid_box(r.shape) for r in spec.regions] for body, spec in scene.bodies.items()}
+    everywhere = sum(boxes.values(), [])
+    parts += [(_refined3d(r, scene, coarsest, grading, sum(volumes.values()), everywhere), f"mesh.refine.{i}.size")
               for i, r in enumerate(scene.mesh.refine) if once[i] and r.size < coarsest]
     for body, spec in scene.bodies.items():
         h, path = (size, "mesh.size") if spec.mesh is None else (spec.mesh.size, f"bodies.{body}.mesh.size")
@@ -358,9 +526,9 @@ def estimate_cells3d(scene, size: float) -> tuple[float, str]:
         zones = [(r, f"mesh.refine.{i}.size") for i, r in enumerate(scene.mesh.refine)
                  if not once[i] and r.body in (None, body)]
         zones += [(r, f"bodies.{body}.mesh.refine.{i}.size") for i, r in enumerate(spec.mesh.refine if spec.mesh else [])]
-        parts += [(_refined3d(ref, scene, h, grading, volume), p) for ref, p in zones
+        parts += [(_refined3d(ref, scene, h, grading, volume, boxes[body]), p) for ref, p in zones
                   if ref.size < h and (ref.boundary is None or ref.boundary in scene.boundaries)]
-        parts += [(_refined3d(_region_zone(r.shape, r.mesh.size), scene, h, REGION_GRADING, volume),
+        parts += [(_refined3d(_region_zone(r.shape, r.mesh.size), scene, h, REGION_GRADING, volume, boxes[body]),
                    f"bodies.{body}.regions.{i}.mesh.size") for i, r in enumerate(spec.regions)
                   if r.mesh is not None and r.mesh.size < h]
     return sum(c for c, _ in parts), max(parts)[1]
