@@ -170,24 +170,22 @@ def test_bddc_study_agrees_with_direct_and_amg(source, monkeypatch):
             assert np.linalg.norm(bddc.grad[name] - g) <= 1e-7 * max(np.linalg.norm(g), abs(amg.phi[name]))
 
 
-@pytest.mark.parametrize("source, key, value, reason", [
-    ("block-on-block-3d.yaml", "ranks_per_evaluation", 2, "one process"),
-    ("two-bars-impact.yaml", None, None, "dynamic study")])
-def test_bddc_is_refused_where_it_does_not_hold(source, key, value, reason):
-    """On a group of ranks (PCBDDC here holds all subdomains in one process) and in a dynamic
-    study (a time level's operator holds the mass, the subdomain matrices the stiffness only):
-    exit 2 naming the key, never a silent GAMG."""
+def test_bddc_is_refused_in_a_dynamic_study_and_taken_on_a_group():
+    """In a dynamic study (a time level's operator holds the mass, the subdomain matrices the
+    stiffness only) bddc is exit 2 naming the key, never a silent GAMG; on a group of ranks it
+    is taken (each rank its share of the subdomains)."""
     from tests.contact.test_iterative import VALIDATION, study
     from wcs.errors import StudyError
     from wcs.model.evaluation import Evaluator
     from wcs import load_study
-    d = study(VALIDATION / source, "iterative")
+    d = study(VALIDATION / "two-bars-impact.yaml", "iterative")
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
-    if key is not None:
-        d["solver"][key] = value
-    with pytest.raises(StudyError, match=reason) as info:
+    with pytest.raises(StudyError, match="dynamic study") as info:
         Evaluator(load_study(d))
     assert info.value.path == "solver.iterative.preconditioner"
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"].update(ranks_per_evaluation=2, iterative={"preconditioner": "bddc"})
+    assert Evaluator(load_study(d)).model.options.iterative.preconditioner == "bddc"
 
 
 def test_auto_chooses_amg_and_check_says_why():
@@ -257,3 +255,73 @@ def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
     assert not ok and its == 0 and "BDDC's set-up failed" in solver.failure
     assert solver.builds == 0 and solver.ksp is None
     solver.close()
+
+
+@pytest.fixture(scope="module")
+def spread_runs(tmp_path_factory) -> dict:
+    """`spread` under mpiexec -n 2: what rank 0 saved."""
+    import json
+    import sys
+    from tests.app.test_ranks_per_evaluation import mpiexec
+    out = tmp_path_factory.mktemp("bddc") / "spread.json"
+    done = mpiexec(2, sys.executable, __file__, out, timeout=600)
+    assert done.returncode == 0, done.stderr + done.stdout
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("name", ["floating", "patch"])
+def test_bddc_on_two_ranks_agrees_with_one_rank_and_direct(spread_runs, name):
+    """BDDC with the subdomains shared over a group of 2 ranks (a distributed MATIS) is the
+    same preconditioner as on one rank (the same cut, `parts_of`): the same CG iterations to
+    ±2 (round-off), the answer within 1e-10 of the one-rank answer (CG's residual 1e-12 on
+    both: the two differ by rounding only), within 1e-8 of the monolithic method's (the KKT
+    system is the same; 1e-12 of CG's residual is amplified by the operator's condition); the
+    same layout gives the same bits."""
+    a, b, one, direct = (spread_runs[f"{name}_{r}"] for r in ("a", "b", "one", "direct"))
+    for r in (a, one, direct):
+        assert r["status"] == 0, r["message"]
+    assert a["bddc"] and one["bddc"] and abs(a["krylov"] - one["krylov"]) <= 2
+    assert a == b
+    u = np.array(a["u"])
+    for other, tol in ((one, 1e-10), (direct, 1e-8)):
+        assert np.linalg.norm(u - other["u"]) <= tol * np.linalg.norm(other["u"])
+        scale = max(map(abs, other["phi"].values()))
+        for c, v in other["phi"].items():
+            assert a["phi"][c] == pytest.approx(v, rel=tol, abs=tol * scale)
+    assert not np.array_equal(u, one["u"])          # two layouts, two roundings: a real comparison
+    for c, g in one["grad"].items():
+        assert np.linalg.norm(np.subtract(a["grad"][c], g)) <= 1e-10 * max(np.linalg.norm(g), abs(one["phi"][c]))
+
+
+def spread(out: str) -> None:
+    """Under mpiexec -n 2 (one group of 2 ranks): the nominal evaluation (criteria, gradients,
+    displacement, CG iterations) of the floating Tresca block and of the 3D shear patch with
+    bddc, CG to 1e-12, each twice on the group (`solver.ranks_per_evaluation: 2`, each rank its
+    share of the subdomains) and once on each rank alone (k = 1); rank 0 saves them to `out`."""
+    import json
+    from tests.contact.test_iterative import VALIDATION, study
+    from wcs.app.parallel import world
+    from wcs.group import spanning
+    from wcs.model.evaluation import Evaluator
+    from wcs import load_study
+    comm, saved = world(), {}
+    for name, source in (("floating", _floating()), ("patch", VALIDATION / "tresca-shear-patch-3d.yaml")):
+        for run, k in (("a", 2), ("b", 2), ("one", 1), ("direct", 1)):
+            d = study(source, "monolithic" if run == "direct" else "iterative")
+            if run != "direct":
+                d["solver"].update(ranks_per_evaluation=k, iterative={"preconditioner": "bddc", "tolerance": 1e-12})
+            ev = Evaluator(load_study(d))
+            with spanning(comm if k == 2 else None):
+                r = ev.evaluate(ev.study.nominal(), gradients=True)
+            saved[f"{name}_{run}"] = {"status": int(r.status), "message": r.message, "phi": r.phi,
+                                      "grad": {c: np.asarray(g).tolist() for c, g in r.grad.items() if g is not None},
+                                      "u": r.state.raw.u.tolist(), "krylov": int(getattr(r.state.raw, "krylov_iterations", 0)),
+                                      "bddc": r.state.raw.timings.get("bddc_setup", 0.0) > 0}
+    if comm.rank == 0:
+        Path(out).write_text(json.dumps(saved))
+
+
+if __name__ == "__main__":
+    import sys
+    from pathlib import Path
+    spread(sys.argv[1])
