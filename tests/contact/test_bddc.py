@@ -190,19 +190,26 @@ def test_bddc_is_refused_in_a_dynamic_study_and_taken_on_a_group():
 
 def test_auto_chooses_amg_and_check_says_why():
     """`preconditioner: auto` on one process and on a group of ranks: amg, by BDDC's measured
-    set-up cost (`wcs.choose.BDDC_SETUP_RATIO`, bench_bddc.csv); `wcs check`'s plan says so, and
-    where the study chose bddc, that the evaluation's estimate is made for amg."""
+    set-up cost on one rank and on two (`wcs.choose.BDDC_SETUP_RATIO`, `BDDC_SETUP_RATIO_RANKS`,
+    bench_bddc_*.csv); `wcs check`'s plan says so, and where the study chose bddc, that the
+    evaluation's estimate is made for amg."""
     from tests.contact.test_iterative import VALIDATION, study
-    from wcs.choose import BDDC_SETUP_RATIO, PreconditionerFacts, preconditioner
+    from wcs.choose import BDDC_SETUP_RATIO, BDDC_SETUP_RATIO_RANKS, PreconditionerFacts, preconditioner
     from wcs.cli import plan
     from wcs.model.evaluation import Evaluator
     from wcs import load_study
-    for ranks, where in ((1, "one process"), (4, "4 ranks")):
+    for ranks, where, ratio in ((1, "one process", BDDC_SETUP_RATIO), (4, "4 ranks: on 2 ranks", BDDC_SETUP_RATIO_RANKS)):
         which, why = preconditioner(PreconditionerFacts(10 ** 6, ranks))
-        assert which == "amg" and why.startswith(where) and f"{BDDC_SETUP_RATIO:g}x" in why
+        assert which == "amg" and why.startswith(where) and f"took {ratio:g}x GAMG's CPU time" in why
     ev = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
     line = next(x for x in plan(ev.study, ev) if "solver:" in x)
-    assert "preconditioner: auto -> amg (one process" in line and "bench_bddc.csv" in line
+    assert "preconditioner: auto -> amg (one process" in line and "bench_bddc_*.csv" in line
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"]["ranks_per_evaluation"] = 2
+    ev = Evaluator(load_study(d))
+    line = next(x for x in plan(ev.study, ev) if "solver:" in x)
+    assert f"preconditioner: auto -> amg (2 ranks: on 2 ranks, each its share of the subdomains, BDDC's set-up took " \
+           f"{BDDC_SETUP_RATIO_RANKS:g}x" in line
     d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
     ev = Evaluator(load_study(d))

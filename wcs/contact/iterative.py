@@ -831,7 +831,7 @@ def preconditioner(model) -> tuple[str, str]:
     chosen = model.options.iterative.preconditioner
     if chosen == "bddc":        # the evaluation's estimate (`wcs.scene.estimate`) is made for GAMG
         return chosen, (f"chosen in the study; the evaluation's estimate is the method's with amg: BDDC's set-up took "
-                        f"{BDDC_SETUP_RATIO:g}x GAMG's CPU time and more (bench_bddc.csv)")
+                        f"{BDDC_SETUP_RATIO:g}x GAMG's CPU time and more (bench_bddc_*.csv)")
     if chosen != "auto":
         return chosen, "chosen in the study"
     return choose_preconditioner(PreconditionerFacts(model.elim.T.shape[1], model.options.ranks_per_evaluation))
