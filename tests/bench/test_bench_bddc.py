@@ -29,7 +29,22 @@ Measured (2 cores shared by 6 engineers: CPU seconds, the wall column is load):
   bddc 62 its, 3.14 s. GAMG's iterations grow more, BDDC's set-up still costs more. `wcs.choose.preconditioner` reads this table.
 
 On 2 ranks (one group, each rank its share of the subdomains: a distributed MATIS, or GAMG on
-the rows, `wcs.contact.distributed`) the same step, the CPU seconds summed over the ranks.
+the rows, `wcs.contact.distributed`) the same step, the CPU seconds summed over the ranks, the
+resident-set growth the largest of a rank's. Measured (wcs 3ecf00a, load 7-19; 1.1e4: medians
+of three runs):
+  unknowns  ranks  preconditioner  parts  its  set-up CPU  solve CPU  +RSS a rank
+  1.11e4    1      amg                    17     0.17       0.04      0.00 GB
+  1.11e4    1      bddc               4   11     2.46       0.18      0.14 GB
+  1.11e4    2      amg                    16     0.65       0.27      0.00 GB
+  1.11e4    2      bddc               4   11     2.37       0.27      0.05 GB
+  8.03e4    1      amg                    18     1.66       0.46      0.06 GB
+  8.03e4    1      bddc              32   21    68.8        3.82      4.38 GB
+  8.03e4    2      amg                    17     2.52       0.78      0.16 GB
+  8.03e4    2      bddc              32   21    68.4        4.27      2.26 GB
+  BDDC's iterations and answer (within 2e-10 of the direct solve) are the same on 1 and 2 ranks;
+  its set-up's CPU time is shared out by the second rank, not reduced (3.0-6.6x GAMG's at 1.1e4
+  in three runs, 27x at 8.0e4); GAMG's grows on 2 ranks of a loaded machine (MPI's waits count
+  as CPU time). `wcs.choose.preconditioner` reads these tables.
 
 WCS_BENCH_BDDC="size face parts [E nu]" (default "0.1 0.05 auto"; parts "auto": `parts_of`; E nu:
 the block's material), WCS_BENCH_BDDC_RANKS (default "1 2"); each preconditioner on each rank

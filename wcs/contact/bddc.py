@@ -26,12 +26,18 @@ matrices alone; `faces` counts the solves that took the second.
 In the iterative method (`solver.iterative.preconditioner: bddc`, `wcs.contact.iterative.Krylov`)
 the data set's subdomains (`model_parts`: K(c)'s over each part's cells, reduced by the supports'
 and glued interfaces' T) are made once a solve, and each Newton step's operator from them
-(`Parts.of`, `step_parts`). Cost: all subdomains are one local matrix of one MATIS in this
-process, so PCBDDC's dense work, the coarse basis functions (a Neumann solve for each primal
-constraint) and the deluxe scaling's Schur complements, spans all subdomains at once and its
-set-up grows faster than the unknowns: 14x, 17x, 36x GAMG's CPU time at 1.1e4, 2.6e4, 8.0e4
-unknowns of the 3D patch (tests/bench/test_bench_bddc.py); it is meant for one subdomain per
-rank, which this module does not yet do (bddc on a group of ranks is refused).
+(`Parts.of`, `step_parts`). On a group of ranks (`solver.ranks_per_evaluation`) rank r of k
+holds the subdomains `wcs.group.rows(parts, k, r)` (the same cut as on one rank: `parts_of`),
+the matrices of those alone, and the unknowns of every subdomain (a spring row goes to the same
+subdomain on every layout); the MATIS spans the group's communicator, its rows A's
+(`wcs.contact.distributed.Layout`), each rank's subdomains its local matrix. The preconditioner
+is the same on every layout, so the answers agree to CG's tolerance. Cost: each rank's
+subdomains are one local matrix, so PCBDDC's dense work, the coarse basis functions (a Neumann
+solve for each primal constraint) and the deluxe scaling's Schur complements, spans them at
+once and its set-up grows faster than the unknowns: 14x, 17x, 36x GAMG's CPU time at 1.1e4,
+2.6e4, 8.0e4 unknowns of the 3D patch on one process; on two ranks the same CPU time summed
+over them (68 s at 8.0e4 on one and on two; GAMG 1.7 s and 2.5 s), each rank half the memory
+(tests/bench/test_bench_bddc.py).
 """
 from __future__ import annotations
 
