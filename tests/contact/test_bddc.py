@@ -244,24 +244,43 @@ def test_bddc_step_parts_with_springs_and_pins_sum_to_the_step():
     assert abs(_scatter(n, local_dofs, local) - A).max() <= 1e-12 * abs(A).max()
 
 
-def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
-    """Subdomain matrices that cannot be factored (here zero: both set-ups, with and without the
-    faces' change of basis, fail) give a failed solve with the reason, never an exception or a
-    preconditioner of another kind."""
+def _failed_set_up(comm=None):
+    """A solve whose subdomain matrices are zero (spanning `comm`, each rank its share of the two
+    subdomains; None: this process alone): (ok, its, failure, builds, ksp is None)."""
     from wcs.contact.bddc import Parts
     from wcs.contact.iterative import Krylov
+    from wcs.group import share, spanning
     basis, K, op = _block(2, 4)
     C = _clamped(basis)
     P = np.asarray(C.indices[C.indptr[:-1]])
     Z, _ = _basis(C, np.arange(C.shape[0]), P, sp.eye(C.shape[0], format="csr"), np.zeros(C.shape[0]))
     dofs, mats = _parts(basis, op, 2)
-    parts = Parts(dofs, tuple(0.0 * m for m in mats), np.arange(K.shape[0]) % 2, None)
-    solver = Krylov(parts=parts)
-    A = _eliminated(Z, K, K, P)
-    x, its, ok = solver.solve(A, np.ones(K.shape[0]), 1e-8, (Z, P, None, None))
-    assert not ok and its == 0 and "BDDC's set-up failed" in solver.failure
-    assert solver.builds == 0 and solver.ksp is None
-    solver.close()
+    with spanning(comm):
+        owned = range(*share(2))
+        parts = Parts(dofs, tuple(0.0 * mats[j] for j in owned), np.arange(K.shape[0]) % 2, None, owned)
+        solver = Krylov(parts=parts)
+        A = _eliminated(Z, K, K, P)
+        x, its, ok = solver.solve(A, np.ones(K.shape[0]), 1e-8, (Z, P, None, None))
+        out = (ok, its, solver.failure, solver.builds, solver.ksp is None)
+        solver.close()
+    return out
+
+
+def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
+    """Subdomain matrices that cannot be factored (here zero: both set-ups, with and without the
+    faces' change of basis, fail) give a failed solve with the reason, never an exception or a
+    preconditioner of another kind."""
+    ok, its, failure, builds, empty = _failed_set_up()
+    assert not ok and its == 0 and "BDDC's set-up failed" in failure
+    assert builds == 0 and empty
+
+
+def test_a_failed_bddc_set_up_on_two_ranks_fails_on_both(spread_runs):
+    """On a group the ranks agree on the failed set-up (the worst rank's reason): each records
+    the failed solve and its reason, none waits for another."""
+    for ok, its, failure, builds, empty in spread_runs["failed"]:
+        assert not ok and its == 0 and "BDDC's set-up failed" in failure
+        assert builds == 0 and empty
 
 
 @pytest.fixture(scope="module")
@@ -324,8 +343,9 @@ def spread(out: str) -> None:
                                       "grad": {c: np.asarray(g).tolist() for c, g in r.grad.items() if g is not None},
                                       "u": r.state.raw.u.tolist(), "krylov": int(getattr(r.state.raw, "krylov_iterations", 0)),
                                       "bddc": r.state.raw.timings.get("bddc_setup", 0.0) > 0}
+    failed = comm.gather(_failed_set_up(comm))
     if comm.rank == 0:
-        Path(out).write_text(json.dumps(saved))
+        Path(out).write_text(json.dumps({**saved, "failed": failed}))
 
 
 if __name__ == "__main__":
