@@ -137,7 +137,7 @@ class DomainDecomposition(Options):
 class Iterative(Options):
     preconditioner: Literal["auto", "amg", "bddc"] = Field(
         "auto", description="preconditioner of the contact steps' Krylov solves and their adjoint (auto: by the "
-                "measured cost, `wcs check` says which and why; bddc: on one process, not in a dynamic study)")
+                "measured cost, `wcs check` says which and why; bddc: not in a dynamic study)")
     tolerance: Tolerance = Field(1e-8, gt=0, le=1e-2, description="relative residual each Krylov solve is driven to")
 
 

@@ -28,26 +28,50 @@ Measured (2 cores shared by 6 engineers: CPU seconds, the wall column is load):
   (E 2e3): amg 29 its, 0.24 s CPU in all, bddc 18 its, 2.33 s; ν = 0.499: amg 127 its, 0.42 s,
   bddc 62 its, 3.14 s. GAMG's iterations grow more, BDDC's set-up still costs more. `wcs.choose.preconditioner` reads this table.
 
-WCS_BENCH_BDDC="size face parts preconditioner [E nu]" (default "0.1 0.05 auto bddc"; parts
-"auto": `parts_of`; E nu: the block's material); one preconditioner per process, so that the peak is its own. Command:
-  cd tests/bench && WCS_BENCH_BDDC="0.05 0.02 auto bddc" python -m pytest test_bench_bddc.py -m bench -s
-Table: results/bench/bench_bddc_<preconditioner>_<size>_<face>.csv.
+On 2 ranks (one group, each rank its share of the subdomains: a distributed MATIS, or GAMG on
+the rows, `wcs.contact.distributed`) the same step, the CPU seconds summed over the ranks, the
+resident-set growth the largest of a rank's. Measured (wcs 3ecf00a, load 7-19; 1.1e4: medians
+of three runs):
+  unknowns  ranks  preconditioner  parts  its  set-up CPU  solve CPU  +RSS a rank
+  1.11e4    1      amg                    17     0.17       0.04      0.00 GB
+  1.11e4    1      bddc               4   11     2.46       0.18      0.14 GB
+  1.11e4    2      amg                    16     0.65       0.27      0.00 GB
+  1.11e4    2      bddc               4   11     2.37       0.27      0.05 GB
+  8.03e4    1      amg                    18     1.66       0.46      0.06 GB
+  8.03e4    1      bddc              32   21    68.8        3.82      4.38 GB
+  8.03e4    2      amg                    17     2.52       0.78      0.16 GB
+  8.03e4    2      bddc              32   21    68.4        4.27      2.26 GB
+  BDDC's iterations and answer (within 2e-10 of the direct solve) are the same on 1 and 2 ranks;
+  its set-up's CPU time is shared out by the second rank, not reduced (3.0-6.6x GAMG's at 1.1e4
+  in three runs, 27x at 8.0e4); GAMG's grows on 2 ranks of a loaded machine (MPI's waits count
+  as CPU time). `wcs.choose.preconditioner` reads these tables.
+
+WCS_BENCH_BDDC="size face parts [E nu]" (default "0.1 0.05 auto"; parts "auto": `parts_of`; E nu:
+the block's material), WCS_BENCH_BDDC_RANKS (default "1 2"); each preconditioner on each rank
+count in its own `mpiexec -n` launch, so that the peak is its own. Command:
+  cd tests/bench && WCS_BENCH_BDDC="0.05 0.02 auto" python -m pytest test_bench_bddc.py -m bench -s
+Table: results/bench/bench_bddc_<size>_<face>[_E_nu].csv (a row per preconditioner and rank count).
 """
 from __future__ import annotations
 
+import json
 import os
 import resource
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.sparse.linalg import spsolve
 
-from common import write_table
+from common import ROOT, write_table
 from test_bench_iterative import patch, problem
 
 import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
 from petsc4py import PETSc  # noqa: F401
+from mpi4py import MPI
 
 from wcs.contact.bddc import model_parts, parts_of
 from wcs.contact.iterative import Krylov, _Rows, _basis, _eliminated, _pivots
@@ -70,40 +94,88 @@ def glued_step(model, c):
     return _eliminated(Z, K, K, P), Z.T @ (f - K @ ub), Z, P
 
 
-def bddc_parts(model, c, parts):
-    """The data set's subdomains (`model_parts`, as the iterative method makes them)."""
+def bddc_parts(model, c, parts, owned=None):
+    """The data set's subdomains (`model_parts`, as the iterative method makes them; this rank's: `owned`)."""
     return model_parts(model.smesh.mesh, model.K, model.elim.T, model.stiffness_coefficients(c),
-                       model.near_nullspace, parts)
+                       model.near_nullspace, parts, owned)
 
 
-@pytest.mark.bench
-def test_bench_bddc_against_amg():
-    size, face, parts, which, *soft = os.environ.get("WCS_BENCH_BDDC", "0.1 0.05 auto bddc").split()
-    size, face = float(size), float(face)
-    study = patch(size, face)
+def run(ranks: int, out: Path, *args) -> dict:
+    """This file's `main(ARGS OUT)` under `mpiexec -n ranks`: rank 0's JSON."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = str(ROOT)
+    done = subprocess.run([str(Path(sys.executable).parent / "mpiexec"), "-n", str(ranks), sys.executable, __file__,
+                           *map(str, args), str(out)], env=env, capture_output=True, text=True, timeout=7200,
+                          cwd=Path(__file__).parent)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(out.read_text())
+
+
+def main(size, face, parts, which, *rest) -> None:
+    """The glued step by CG with `which` (amg | bddc) on the ranks of this launch (one group):
+    iterations, wall seconds of the first solve, CPU seconds (summed over the ranks) of its
+    set-up (the first solve's less a second's, which keeps the preconditioner) and of a solve,
+    the largest resident-set growth of a rank, the distance to the direct solve (rank 0)."""
+    from wcs.app.parallel import world
+    from wcs.group import share, spanning
+    *soft, out = rest
+    comm = world()
+    study = patch(float(size), float(face))
     if soft:            # the block's material: a stiffness contrast to the base (E 2e10), or near incompressible
         E, nu = map(float, soft)
         study["scene"]["materials"]["soft"] = {"E": E, "nu": nu}
         study["uncertain"] = {"materials.soft.E": [0.8 * E, 1.2 * E]}
+    ranks = 1 if comm is None else comm.size
+    study["solver"]["ranks_per_evaluation"] = ranks
     model = Evaluator(load_study(study)).model
     c = model.nominal
     A, b, Z, P = glued_step(model, c)
-    direct = spsolve(A.tocsc(), b)
-    parts = parts_of(A.shape[0]) if parts == "auto" else int(parts)
+    parts = parts_of(A.shape[0], ranks) if parts == "auto" else int(parts)
+    total = (lambda v: v) if comm is None else (lambda v: comm.allreduce(v))
     base = peak_gb()
+    if comm is not None:
+        comm.Barrier()
     t, cpu = time.perf_counter(), time.process_time()
-    solver = Krylov(model.near_nullspace, parts=bddc_parts(model, c, parts) if which == "bddc" else None)
-    step = (Z, P, None, None)
-    x, its, ok = solver.solve(A, b, 1e-8, step)
-    wall, cpu = time.perf_counter() - t, time.process_time() - cpu
-    assert ok
-    err = np.linalg.norm(x - direct) / np.linalg.norm(direct)
-    again = time.process_time()
-    assert solver.solve(A, b, 1e-8, step)[1] == its and solver.builds == 1     # the kept preconditioner
-    cg_cpu = time.process_time() - again
-    row = [size, face, " ".join(soft), A.shape[0], which, parts if which == "bddc" else "", its, round(wall, 2),
-           round(cpu - cg_cpu, 2), round(cg_cpu, 2), round(peak_gb() - base, 3), f"{err:.1e}"]
-    path = write_table(f"bench_bddc_{which}_{size}_{face}{'_' + '_'.join(soft) if soft else ''}",
-                       ["size", "face", "soft_E_nu", "unknowns", "preconditioner", "parts", "cg_its", "wall_s",
-                        "setup_cpu_s", "solve_cpu_s", "peak_growth_gb", "rel_err_vs_direct"], [row])
+    with spanning(comm):
+        solver = Krylov(model.near_nullspace, parts=bddc_parts(model, c, parts, range(*share(parts)))
+                        if which == "bddc" else None)
+        step = (Z, P, None, None)
+        x, its, ok = solver.solve(A, b, 1e-8, step)
+        cpu = time.process_time() - cpu
+        if comm is not None:
+            comm.Barrier()
+        wall = time.perf_counter() - t
+        assert ok
+        again = time.process_time()
+        assert solver.solve(A, b, 1e-8, step)[1] == its and solver.builds == 1     # the kept preconditioner
+        cg_cpu = time.process_time() - again
+        solver.close()
+    growth = peak_gb() - base
+    cpu, cg_cpu, growth = total(cpu), total(cg_cpu), growth if comm is None else comm.allreduce(growth, op=MPI.MAX)
+    if comm is None or comm.rank == 0:
+        direct = spsolve(A.tocsc(), b)
+        err = np.linalg.norm(x - direct) / np.linalg.norm(direct)
+        Path(out).write_text(json.dumps(
+            {"unknowns": A.shape[0], "parts": parts if which == "bddc" else "", "its": its, "wall": wall,
+             "setup_cpu": cpu - cg_cpu, "solve_cpu": cg_cpu, "growth": growth, "err": err}))
+
+
+@pytest.mark.bench
+def test_bench_bddc_against_amg(tmp_path):
+    size, face, parts, *soft = os.environ.get("WCS_BENCH_BDDC", "0.1 0.05 auto").split()
+    rows = []
+    for ranks in map(int, os.environ.get("WCS_BENCH_BDDC_RANKS", "1 2").split()):
+        for which in ("amg", "bddc"):
+            r = run(ranks, tmp_path / f"{which}{ranks}.json", size, face, parts, which, *soft)
+            assert r["err"] <= 1e-6
+            rows.append([size, face, " ".join(soft), r["unknowns"], ranks, which, r["parts"], r["its"],
+                         round(r["wall"], 2), round(r["setup_cpu"], 2), round(r["solve_cpu"], 2),
+                         round(r["growth"], 3), f"{r['err']:.1e}", round(os.getloadavg()[0], 1)])
+    path = write_table(f"bench_bddc_{size}_{face}{'_' + '_'.join(soft) if soft else ''}",
+                       ["size", "face", "soft_E_nu", "unknowns", "ranks", "preconditioner", "parts", "cg_its",
+                        "wall_s", "setup_cpu_s", "solve_cpu_s", "peak_growth_gb", "rel_err_vs_direct", "load"], rows)
     print(path.read_text())
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])

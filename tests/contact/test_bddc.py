@@ -170,41 +170,46 @@ def test_bddc_study_agrees_with_direct_and_amg(source, monkeypatch):
             assert np.linalg.norm(bddc.grad[name] - g) <= 1e-7 * max(np.linalg.norm(g), abs(amg.phi[name]))
 
 
-@pytest.mark.parametrize("source, key, value, reason", [
-    ("block-on-block-3d.yaml", "ranks_per_evaluation", 2, "one process"),
-    ("two-bars-impact.yaml", None, None, "dynamic study")])
-def test_bddc_is_refused_where_it_does_not_hold(source, key, value, reason):
-    """On a group of ranks (PCBDDC here holds all subdomains in one process) and in a dynamic
-    study (a time level's operator holds the mass, the subdomain matrices the stiffness only):
-    exit 2 naming the key, never a silent GAMG."""
+def test_bddc_is_refused_in_a_dynamic_study_and_taken_on_a_group():
+    """In a dynamic study (a time level's operator holds the mass, the subdomain matrices the
+    stiffness only) bddc is exit 2 naming the key, never a silent GAMG; on a group of ranks it
+    is taken (each rank its share of the subdomains)."""
     from tests.contact.test_iterative import VALIDATION, study
     from wcs.errors import StudyError
     from wcs.model.evaluation import Evaluator
     from wcs import load_study
-    d = study(VALIDATION / source, "iterative")
+    d = study(VALIDATION / "two-bars-impact.yaml", "iterative")
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
-    if key is not None:
-        d["solver"][key] = value
-    with pytest.raises(StudyError, match=reason) as info:
+    with pytest.raises(StudyError, match="dynamic study") as info:
         Evaluator(load_study(d))
     assert info.value.path == "solver.iterative.preconditioner"
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"].update(ranks_per_evaluation=2, iterative={"preconditioner": "bddc"})
+    assert Evaluator(load_study(d)).model.options.iterative.preconditioner == "bddc"
 
 
 def test_auto_chooses_amg_and_check_says_why():
     """`preconditioner: auto` on one process and on a group of ranks: amg, by BDDC's measured
-    set-up cost (`wcs.choose.BDDC_SETUP_RATIO`, bench_bddc.csv); `wcs check`'s plan says so, and
-    where the study chose bddc, that the evaluation's estimate is made for amg."""
+    set-up cost on one rank and on two (`wcs.choose.BDDC_SETUP_RATIO`, `BDDC_SETUP_RATIO_RANKS`,
+    bench_bddc_*.csv); `wcs check`'s plan says so, and where the study chose bddc, that the
+    evaluation's estimate is made for amg."""
     from tests.contact.test_iterative import VALIDATION, study
-    from wcs.choose import BDDC_SETUP_RATIO, PreconditionerFacts, preconditioner
+    from wcs.choose import BDDC_SETUP_RATIO, BDDC_SETUP_RATIO_RANKS, PreconditionerFacts, preconditioner
     from wcs.cli import plan
     from wcs.model.evaluation import Evaluator
     from wcs import load_study
-    for ranks, where in ((1, "one process"), (4, "4 ranks")):
+    for ranks, where, ratio in ((1, "one process", BDDC_SETUP_RATIO), (4, "4 ranks: on 2 ranks", BDDC_SETUP_RATIO_RANKS)):
         which, why = preconditioner(PreconditionerFacts(10 ** 6, ranks))
-        assert which == "amg" and why.startswith(where) and f"{BDDC_SETUP_RATIO:g}x" in why
+        assert which == "amg" and why.startswith(where) and f"took {ratio:g}x GAMG's CPU time" in why
     ev = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative")))
     line = next(x for x in plan(ev.study, ev) if "solver:" in x)
-    assert "preconditioner: auto -> amg (one process" in line and "bench_bddc.csv" in line
+    assert "preconditioner: auto -> amg (one process" in line and "bench_bddc_*.csv" in line
+    d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
+    d["solver"]["ranks_per_evaluation"] = 2
+    ev = Evaluator(load_study(d))
+    line = next(x for x in plan(ev.study, ev) if "solver:" in x)
+    assert f"preconditioner: auto -> amg (2 ranks: on 2 ranks, each its share of the subdomains, BDDC's set-up took " \
+           f"{BDDC_SETUP_RATIO_RANKS:g}x" in line
     d = study(VALIDATION / "block-on-block-3d.yaml", "iterative")
     d["solver"]["iterative"] = {"preconditioner": "bddc"}
     ev = Evaluator(load_study(d))
@@ -239,21 +244,111 @@ def test_bddc_step_parts_with_springs_and_pins_sum_to_the_step():
     assert abs(_scatter(n, local_dofs, local) - A).max() <= 1e-12 * abs(A).max()
 
 
-def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
-    """Subdomain matrices that cannot be factored (here zero: both set-ups, with and without the
-    faces' change of basis, fail) give a failed solve with the reason, never an exception or a
-    preconditioner of another kind."""
+def _failed_set_up(comm=None):
+    """A solve whose subdomain matrices are zero (spanning `comm`, each rank its share of the two
+    subdomains; None: this process alone): (ok, its, failure, builds, ksp is None)."""
     from wcs.contact.bddc import Parts
     from wcs.contact.iterative import Krylov
+    from wcs.group import share, spanning
     basis, K, op = _block(2, 4)
     C = _clamped(basis)
     P = np.asarray(C.indices[C.indptr[:-1]])
     Z, _ = _basis(C, np.arange(C.shape[0]), P, sp.eye(C.shape[0], format="csr"), np.zeros(C.shape[0]))
     dofs, mats = _parts(basis, op, 2)
-    parts = Parts(dofs, tuple(0.0 * m for m in mats), np.arange(K.shape[0]) % 2, None)
-    solver = Krylov(parts=parts)
-    A = _eliminated(Z, K, K, P)
-    x, its, ok = solver.solve(A, np.ones(K.shape[0]), 1e-8, (Z, P, None, None))
-    assert not ok and its == 0 and "BDDC's set-up failed" in solver.failure
-    assert solver.builds == 0 and solver.ksp is None
-    solver.close()
+    with spanning(comm):
+        owned = range(*share(2))
+        parts = Parts(dofs, tuple(0.0 * mats[j] for j in owned), np.arange(K.shape[0]) % 2, None, owned)
+        solver = Krylov(parts=parts)
+        A = _eliminated(Z, K, K, P)
+        x, its, ok = solver.solve(A, np.ones(K.shape[0]), 1e-8, (Z, P, None, None))
+        out = (ok, its, solver.failure, solver.builds, solver.ksp is None)
+        solver.close()
+    return out
+
+
+def test_a_failed_bddc_set_up_is_a_failed_solve_that_says_why():
+    """Subdomain matrices that cannot be factored (here zero: both set-ups, with and without the
+    faces' change of basis, fail) give a failed solve with the reason, never an exception or a
+    preconditioner of another kind."""
+    ok, its, failure, builds, empty = _failed_set_up()
+    assert not ok and its == 0 and "BDDC's set-up failed" in failure
+    assert builds == 0 and empty
+
+
+def test_a_failed_bddc_set_up_on_two_ranks_fails_on_both(spread_runs):
+    """On a group the ranks agree on the failed set-up (the worst rank's reason): each records
+    the failed solve and its reason, none waits for another."""
+    for ok, its, failure, builds, empty in spread_runs["failed"]:
+        assert not ok and its == 0 and "BDDC's set-up failed" in failure
+        assert builds == 0 and empty
+
+
+@pytest.fixture(scope="module")
+def spread_runs(tmp_path_factory) -> dict:
+    """`spread` under mpiexec -n 2: what rank 0 saved."""
+    import json
+    import sys
+    from tests.app.test_ranks_per_evaluation import mpiexec
+    out = tmp_path_factory.mktemp("bddc") / "spread.json"
+    done = mpiexec(2, sys.executable, __file__, out, timeout=600)
+    assert done.returncode == 0, done.stderr + done.stdout
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("name", ["floating", "patch"])
+def test_bddc_on_two_ranks_agrees_with_one_rank_and_direct(spread_runs, name):
+    """BDDC with the subdomains shared over a group of 2 ranks (a distributed MATIS) is the
+    same preconditioner as on one rank (the same cut, `parts_of`): the same CG iterations to
+    ±2 (round-off), the answer within 1e-10 of the one-rank answer (CG's residual 1e-12 on
+    both: the two differ by rounding only), within 1e-8 of the monolithic method's (the KKT
+    system is the same; 1e-12 of CG's residual is amplified by the operator's condition); the
+    same layout gives the same bits."""
+    a, b, one, direct = (spread_runs[f"{name}_{r}"] for r in ("a", "b", "one", "direct"))
+    for r in (a, one, direct):
+        assert r["status"] == 0, r["message"]
+    assert a["bddc"] and one["bddc"] and abs(a["krylov"] - one["krylov"]) <= 2
+    assert a == b
+    u = np.array(a["u"])
+    for other, tol in ((one, 1e-10), (direct, 1e-8)):
+        assert np.linalg.norm(u - other["u"]) <= tol * np.linalg.norm(other["u"])
+        scale = max(map(abs, other["phi"].values()))
+        for c, v in other["phi"].items():
+            assert a["phi"][c] == pytest.approx(v, rel=tol, abs=tol * scale)
+    assert not np.array_equal(u, one["u"])          # two layouts, two roundings: a real comparison
+    for c, g in one["grad"].items():
+        assert np.linalg.norm(np.subtract(a["grad"][c], g)) <= 1e-10 * max(np.linalg.norm(g), abs(one["phi"][c]))
+
+
+def spread(out: str) -> None:
+    """Under mpiexec -n 2 (one group of 2 ranks): the nominal evaluation (criteria, gradients,
+    displacement, CG iterations) of the floating Tresca block and of the 3D shear patch with
+    bddc, CG to 1e-12, each twice on the group (`solver.ranks_per_evaluation: 2`, each rank its
+    share of the subdomains) and once on each rank alone (k = 1); rank 0 saves them to `out`."""
+    import json
+    from tests.contact.test_iterative import VALIDATION, study
+    from wcs.app.parallel import world
+    from wcs.group import spanning
+    from wcs.model.evaluation import Evaluator
+    from wcs import load_study
+    comm, saved = world(), {}
+    for name, source in (("floating", _floating()), ("patch", VALIDATION / "tresca-shear-patch-3d.yaml")):
+        for run, k in (("a", 2), ("b", 2), ("one", 1), ("direct", 1)):
+            d = study(source, "monolithic" if run == "direct" else "iterative")
+            if run != "direct":
+                d["solver"].update(ranks_per_evaluation=k, iterative={"preconditioner": "bddc", "tolerance": 1e-12})
+            ev = Evaluator(load_study(d))
+            with spanning(comm if k == 2 else None):
+                r = ev.evaluate(ev.study.nominal(), gradients=True)
+            saved[f"{name}_{run}"] = {"status": int(r.status), "message": r.message, "phi": r.phi,
+                                      "grad": {c: np.asarray(g).tolist() for c, g in r.grad.items() if g is not None},
+                                      "u": r.state.raw.u.tolist(), "krylov": int(getattr(r.state.raw, "krylov_iterations", 0)),
+                                      "bddc": r.state.raw.timings.get("bddc_setup", 0.0) > 0}
+    failed = comm.gather(_failed_set_up(comm))
+    if comm.rank == 0:
+        Path(out).write_text(json.dumps({**saved, "failed": failed}))
+
+
+if __name__ == "__main__":
+    import sys
+    from pathlib import Path
+    spread(sys.argv[1])

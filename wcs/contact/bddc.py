@@ -26,12 +26,18 @@ matrices alone; `faces` counts the solves that took the second.
 In the iterative method (`solver.iterative.preconditioner: bddc`, `wcs.contact.iterative.Krylov`)
 the data set's subdomains (`model_parts`: K(c)'s over each part's cells, reduced by the supports'
 and glued interfaces' T) are made once a solve, and each Newton step's operator from them
-(`Parts.of`, `step_parts`). Cost: all subdomains are one local matrix of one MATIS in this
-process, so PCBDDC's dense work, the coarse basis functions (a Neumann solve for each primal
-constraint) and the deluxe scaling's Schur complements, spans all subdomains at once and its
-set-up grows faster than the unknowns: 14x, 17x, 36x GAMG's CPU time at 1.1e4, 2.6e4, 8.0e4
-unknowns of the 3D patch (tests/bench/test_bench_bddc.py); it is meant for one subdomain per
-rank, which this module does not yet do (bddc on a group of ranks is refused).
+(`Parts.of`, `step_parts`). On a group of ranks (`solver.ranks_per_evaluation`) rank r of k
+holds the subdomains `wcs.group.rows(parts, k, r)` (the same cut as on one rank: `parts_of`),
+the matrices of those alone, and the unknowns of every subdomain (a spring row goes to the same
+subdomain on every layout); the MATIS spans the group's communicator, its rows A's
+(`wcs.contact.distributed.Layout`), each rank's subdomains its local matrix. The preconditioner
+is the same on every layout, so the answers agree to CG's tolerance. Cost: each rank's
+subdomains are one local matrix, so PCBDDC's dense work, the coarse basis functions (a Neumann
+solve for each primal constraint) and the deluxe scaling's Schur complements, spans them at
+once and its set-up grows faster than the unknowns: 14x, 17x, 36x GAMG's CPU time at 1.1e4,
+2.6e4, 8.0e4 unknowns of the 3D patch on one process; on two ranks the same CPU time summed
+over them (68 s at 8.0e4 on one and on two; GAMG 1.7 s and 2.5 s), each rank half the memory
+(tests/bench/test_bench_bddc.py).
 """
 from __future__ import annotations
 
@@ -101,14 +107,20 @@ def transformed(dofs: np.ndarray, K_s: sp.spmatrix, T: sp.spmatrix, diagonal=Non
     the rows of T on its dofs, on the columns they touch (dofs'; a row of T that refers to
     another subdomain's unknowns, a glued slave's master or a contact pivot's, adds that unknown
     to this subdomain's: Σ_s of the parts is Tᵀ K T exactly). T square where diagonal is given."""
-    Ts = sp.csr_matrix(T)[dofs]
-    Ts.eliminate_zeros()
-    held = np.zeros(0, dtype=int) if diagonal is None else np.flatnonzero(np.isin(dofs, diagonal))
-    local = np.union1d(np.unique(Ts.indices), dofs[held])
+    Ts, held, local = _touched(dofs, T, diagonal)
     out = Ts[:, local].T @ K_s @ Ts[:, local]
     at = np.searchsorted(local, dofs[held])
     out = out + sp.csr_matrix((sp.csr_matrix(K_s).diagonal()[held], (at, at)), shape=out.shape)
     return local, out.tocsr()
+
+
+def _touched(dofs, T, diagonal=None):
+    """(T_s, held, dofs'): the rows T_s of T on `dofs`, the positions in dofs of the unknowns
+    `diagonal`, and the unknowns `transformed` puts its part on."""
+    Ts = sp.csr_matrix(T)[dofs]
+    Ts.eliminate_zeros()
+    held = np.zeros(0, dtype=int) if diagonal is None else np.flatnonzero(np.isin(dofs, diagonal))
+    return Ts, held, np.union1d(np.unique(Ts.indices), dofs[held])
 
 
 def components(T: sp.spmatrix, dim: int) -> np.ndarray:
@@ -121,66 +133,83 @@ def components(T: sp.spmatrix, dim: int) -> np.ndarray:
 UNKNOWNS_PER_PART = 2500      # subdomain size: the 3D patch at 8e4 unknowns took 201 s of set-up with 16 parts, 72 s with 32
 
 
-def parts_of(unknowns: int) -> int:
-    """How many subdomains BDDC cuts `unknowns` into (`UNKNOWNS_PER_PART` each, at least 2)."""
-    return max(2, round(unknowns / UNKNOWNS_PER_PART))
+def parts_of(unknowns: int, ranks: int = 1) -> int:
+    """How many subdomains BDDC cuts `unknowns` into (`UNKNOWNS_PER_PART` each, at least 2 and
+    at least one a rank: the same cut on one rank and on a group of fewer ranks than parts)."""
+    return max(2, ranks, round(unknowns / UNKNOWNS_PER_PART))
 
 
 @dataclasses.dataclass(frozen=True)
 class Parts:
-    """A data set's subdomains: each one's reduced unknowns and its own part of the reduced
-    stiffness Kr = Tᵀ K(c) T (Σ_s R_sᵀ K_s R_s = Kr), each unknown's displacement component
-    and the near-nullspace (n, r)."""
+    """A data set's subdomains: each one's reduced unknowns (`dofs`, all subdomains), the
+    subdomains this process holds (`owned`, a range; None: all) with their own parts of the
+    reduced stiffness Kr = Tᵀ K(c) T (`stiffness`, in that order; Σ_s R_sᵀ K_s R_s = Kr over
+    all s), each unknown's displacement component and the near-nullspace (n, r)."""
     dofs: tuple
     stiffness: tuple
     components: np.ndarray
     near_nullspace: np.ndarray | None
+    owned: range | None = None
 
     def of(self, Z, P, springs=None, pin=None) -> Bddc:
         """The BDDC of a Newton step's operator Zᵀ Kt Z + diag(Kr)_P (+ its own diagonal again on
         the pinned unknowns `pin`: `wcs.contact.iterative._pinned`), Kt = Kr + Qᵀ diag(s) Q with
-        the disc springs (Q, s) (`springs`; None: Kt = Kr): `step_parts`."""
-        dofs, local = step_parts(self.dofs, self.stiffness, Z, P, springs, pin)
+        the disc springs (Q, s) (`springs`; None: Kt = Kr), on the owned subdomains: `step_parts`."""
+        dofs, local = step_parts(self.dofs, self.stiffness, Z, P, springs, pin, self.owned)
         return Bddc(dofs, local, self.components, self.near_nullspace)
 
 
-def model_parts(mesh, operator, T: sp.spmatrix, coefficients, near_nullspace, parts: int) -> Parts:
+def model_parts(mesh, operator, T: sp.spmatrix, coefficients, near_nullspace, parts: int, owned=None) -> Parts:
     """The `Parts` of K(c) (`operator`: the model's `CellAffineOperator`, coefficients c) on the
-    reduced unknowns of u = T w, the cells cut by `bisection` of their centroids."""
+    reduced unknowns of u = T w, the cells cut by `bisection` of their centroids; the matrices
+    of the `owned` parts only (a range; None: all), the unknowns of every part."""
     part = bisection(mesh.p[:, mesh.t].mean(axis=1), parts)
-    out = []
+    owned = range(parts) if owned is None else owned
+    dofs, stiffness = [], []
     for s in range(parts):
-        dofs, K_s = subdomain_stiffness(mesh.t, operator.local, operator.group, coefficients, np.flatnonzero(part == s))
-        out.append(transformed(dofs, K_s, T))
-    dofs, stiffness = zip(*out)
-    return Parts(dofs, stiffness, components(T, mesh.p.shape[0]), near_nullspace)
+        cells = np.flatnonzero(part == s)
+        if s in owned:
+            d, K_s = transformed(*subdomain_stiffness(mesh.t, operator.local, operator.group, coefficients, cells), T)
+            stiffness.append(K_s)
+        else:
+            b = operator.local.block
+            d = _touched(np.unique(b * mesh.t[:, cells][..., None] + np.arange(b)), T)[2]
+        dofs.append(d)
+    return Parts(tuple(dofs), tuple(stiffness), components(T, mesh.p.shape[0]), near_nullspace, owned)
 
 
-def step_parts(dofs, stiffness, Z, P, springs=None, pin=None):
-    """Each subdomain's unknowns and its part of a Newton step's operator (`Parts.of`): its
-    stiffness `transformed` by Z with diag(K_s) on the pivots P; each spring row of Q (a
-    slipping node's, `wcs.contact.iterative._Stepper._slip`) to the subdomain that holds the
-    first unknown its row of Q Z touches (the others it touches join that subdomain:
-    `_joined`); on the pinned unknowns each part's own diagonal again (Σ_s of them is A's)."""
-    out = [transformed(d, K_s, Z, P) for d, K_s in zip(dofs, stiffness)]
+def step_parts(dofs, stiffness, Z, P, springs=None, pin=None, owned=None):
+    """The owned subdomains' unknowns and parts of a Newton step's operator (`Parts.of`; owned:
+    a range of the subdomains, None: all; stiffness: theirs): each one's stiffness `transformed`
+    by Z with diag(K_s) on the pivots P; each spring row of Q (a slipping node's,
+    `wcs.contact.iterative._Stepper._slip`) to the subdomain that holds the first unknown its
+    row of Q Z touches, the first such subdomain of all (the others it touches join that
+    subdomain: `_joined`); on the pinned unknowns each part's own diagonal again (Σ_s of them
+    is A's)."""
+    owned = range(len(dofs)) if owned is None else owned
+    out = {j: transformed(dofs[j], K_s, Z, P) for j, K_s in zip(owned, stiffness)}
     if springs is not None:
         Q, s = springs
         QZ = sp.csr_matrix(Q @ Z)
         QZ.eliminate_zeros()
         owner = np.full(Z.shape[1], -1)
-        for j, (d, _) in reversed(list(enumerate(out))):
-            owner[d] = j
+        for j in reversed(range(len(dofs))):
+            owner[out[j][0] if j in out else _touched(dofs[j], Z, P)[2]] = j
         first = owner[QZ.indices[QZ.indptr[:-1]]]
+        if np.any(first < 0):
+            raise ValueError("a spring row of the step touches no subdomain's unknowns")
         for j in np.unique(first):
+            if j not in out:
+                continue
             rows = QZ[first == j]
             cols = np.unique(rows.indices)
             spring = rows[:, cols].T @ sp.diags(s[first == j]) @ rows[:, cols]
             out[j] = _joined(*out[j], cols, spring)
     if pin is not None and len(pin):
-        for j, (d, L) in enumerate(out):
+        for j, (d, L) in out.items():
             held = np.flatnonzero(np.isin(d, pin))
             out[j] = (d, (L + sp.csr_matrix((L.diagonal()[held], (held, held)), shape=L.shape)).tocsr())
-    return [o[0] for o in out], [o[1] for o in out]
+    return [out[j][0] for j in owned], [out[j][1] for j in owned]
 
 
 def _joined(dofs, A, more, B):
@@ -205,12 +234,13 @@ class SetupFailure(Exception):
 
 
 class Bddc:
-    """BDDC of an assembled SPD operator A from its subdomain matrices (this process holds all
-    subdomains). dofs: each subdomain's unknowns; local: each subdomain's part of A
-    (`transformed`, `step_parts`: Σ_s R_sᵀ local_s R_s = A); near_nullspace: (n, r) rigid
-    modes; components: each unknown's displacement component (PCBDDC's constraints are per
-    component: its fields). `build` sets up CG + PCBDDC (`wcs.contact.iterative.Krylov` solves
-    with it), `solve` one CG solve."""
+    """BDDC of an assembled SPD operator A from its subdomain matrices. dofs: the unknowns of
+    each subdomain this process holds; local: each one's part of A (`transformed`,
+    `step_parts`: Σ_s R_sᵀ local_s R_s = A over the subdomains of all the processes);
+    near_nullspace: (n, r) rigid modes; components: each unknown's displacement component
+    (PCBDDC's constraints are per component: its fields). `build` sets up CG + PCBDDC on one
+    process or over the ranks of a group (`wcs.contact.iterative.Krylov` solves with it),
+    `solve` one CG solve on this process (all subdomains its own)."""
 
     def __init__(self, dofs, local, components, near_nullspace=None):
         self.dofs, self.local, self.N, self.components = dofs, local, near_nullspace, np.asarray(components)
@@ -243,19 +273,23 @@ class Bddc:
             for o in (ksp, M, Aa, x, rhs):
                 o.destroy()
 
-    def build(self, A, PETSc):
+    def build(self, A, PETSc, layout=None):
         """(ksp, M): CG (unpreconditioned residual norm) with PCBDDC set up on M, the MATIS of
-        the subdomain matrices; A (PETSc AIJ) the operator. Where the set-up with `OPTIONS`
+        the subdomain matrices; A (PETSc AIJ) the operator, its rows split over the group by
+        `layout` (`wcs.contact.distributed.Layout`; None: this process alone). Each process's
+        subdomains are one local matrix of M (block diagonal), its local-to-global map their
+        unknowns (repeated where subdomains share one), M's rows A's. Where the set-up with `OPTIONS`
         fails (a floating subdomain without primal vertices: module docstring) it is taken
         again with the faces' change of basis (`FACES`, counted in `faces`); SetupFailure where
         that fails too. PCBDDC records a local solver's failed factorization when it is first
-        applied, not at its set-up: one application to a vector of ones tells. A PETSc error in
+        applied, not at its set-up: one application to a vector of ones tells (on a group, the
+        worst of its ranks' reasons, so that all of them take the same way). A PETSc error in
         the set-up (MUMPS out of workspace for the deluxe scaling's Schur complements: error 76
         at 20 parts of 2.6e4 unknowns) is a failed set-up too."""
         why = ""
         for options in (OPTIONS, {**OPTIONS, **FACES}):
             try:
-                ksp, M = self._build(A, options, PETSc)
+                ksp, M = self._build(A, options, PETSc, layout)
             except PETSc.Error as exc:
                 why = f"PETSc error {exc.ierr}"
             else:
@@ -264,7 +298,10 @@ class Bddc:
                 ksp.getPC().apply(x, y)
                 for o in (x, y):
                     o.destroy()
-                failed = ksp.getPC().getFailedReason()
+                failed = int(ksp.getPC().getFailedReason())
+                if layout is not None and layout.comm is not None:
+                    from mpi4py import MPI
+                    failed = layout.comm.allreduce(failed, op=MPI.MAX)
                 if not failed:
                     return ksp, M
                 why = f"PC failed reason {failed}"
@@ -273,15 +310,17 @@ class Bddc:
             self.faces += options is OPTIONS
         raise SetupFailure(f"BDDC's set-up failed ({why}), with and without the faces' change of basis")
 
-    def _build(self, A, options, PETSc):
-        n = A.getSize()[0]
+    def _build(self, A, options, PETSc, layout):
+        comm = PETSc.COMM_SELF if layout is None else layout.petsc
+        sizes = A.getSizes()
         prefix = f"wcs_bddc{next(_PREFIX)}_"
         opts = PETSc.Options()
         for key, value in options.items():
             opts[prefix + key] = value
-        lg = PETSc.LGMap().create(np.concatenate(self.dofs).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-        M = PETSc.Mat().create(comm=PETSc.COMM_SELF)
-        M.setSizes((n, n))
+        held = np.concatenate(self.dofs) if self.dofs else np.zeros(0, dtype=int)
+        lg = PETSc.LGMap().create(held.astype(PETSc.IntType), comm=comm)
+        M = PETSc.Mat().create(comm=comm)
+        M.setSizes(sizes)
         M.setType("is")
         M.setISAllowRepeated(True)
         M.setLGMap(lg, lg)
@@ -292,16 +331,18 @@ class Bddc:
         if self.N is not None and self.N.shape[1]:
             Q, r, _ = sla.qr(np.asarray(self.N, dtype=float), mode="economic", pivoting=True)
             rank = int(np.sum(np.abs(np.diag(r)) > 1e-10 * abs(r[0, 0])))     # as GAMG's (`Krylov._build`)
-            vecs = [PETSc.Vec().createWithArray(Q[:, j].copy(), comm=PETSc.COMM_SELF) for j in range(rank)]
-            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+            lo, hi = A.getOwnershipRange()
+            vecs = [PETSc.Vec().createWithArray(Q[lo:hi, j].copy(), size=(hi - lo, sizes[0][1]), comm=comm)
+                    for j in range(rank)]
+            M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=comm))
+        ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix(prefix)
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.getPC().setType("bddc")
-        held = self.components[np.concatenate(self.dofs)]
+        held = self.components[held]
         fields = [PETSc.IS().createGeneral(np.flatnonzero(held == k).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-                  for k in np.unique(held)]
+                  for k in np.unique(self.components)]
         ksp.getPC().setBDDCDofsSplittingLocal(fields)
         ksp.setOperators(A, M)
         ksp.setFromOptions()

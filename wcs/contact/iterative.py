@@ -636,8 +636,8 @@ class Krylov:
     parts: the data set's subdomains (`wcs.contact.bddc.Parts`): the preconditioner is then BDDC
     of the step's operator (`solver.iterative.preconditioner: bddc`), built from the subdomain
     matrices and the step's elimination each solve is given, and kept and rebuilt by the same
-    rule as GAMG's hierarchy at its own set-up cost (`wcs.contact.bddc.REBUILD_ITERATIONS`; one
-    process only).
+    rule as GAMG's hierarchy at its own set-up cost (`wcs.contact.bddc.REBUILD_ITERATIONS`; on a
+    group of ranks each holds its share of the subdomains).
     The solves span the group of ranks `wcs.group.spanning` set when the solver was made
     (rows distributed: `wcs.contact.distributed`; None: this process alone)."""
 
@@ -753,7 +753,7 @@ class Krylov:
         self.close()
         if self.parts is not None:
             Z, P, springs, pin = step
-            ksp, self.P = self.parts.of(Z, P, springs, pin).build(M, PETSc)
+            ksp, self.P = self.parts.of(Z, P, springs, pin).build(M, PETSc, self.layout)
             self.ksp, self.own, self.excess = ksp, True, 0.0
             self.built = self._product(M, PETSc)
             self.builds += 1
@@ -831,7 +831,7 @@ def preconditioner(model) -> tuple[str, str]:
     chosen = model.options.iterative.preconditioner
     if chosen == "bddc":        # the evaluation's estimate (`wcs.scene.estimate`) is made for GAMG
         return chosen, (f"chosen in the study; the evaluation's estimate is the method's with amg: BDDC's set-up took "
-                        f"{BDDC_SETUP_RATIO:g}x GAMG's CPU time and more (bench_bddc.csv)")
+                        f"{BDDC_SETUP_RATIO:g}x GAMG's CPU time and more (bench_bddc_*.csv)")
     if chosen != "auto":
         return chosen, "chosen in the study"
     return choose_preconditioner(PreconditionerFacts(model.elim.T.shape[1], model.options.ranks_per_evaluation))
@@ -844,8 +844,9 @@ def _parts(model, coefficients):
         return None
     if coefficients is None:
         raise ValueError("BDDC needs the data set's stiffness coefficients (its subdomain matrices)")
-    return model_parts(model.smesh.mesh, model.K, model.elim.T, coefficients, contact_modes(model),
-                       parts_of(model.elim.T.shape[1]))
+    parts = parts_of(model.elim.T.shape[1], model.options.ranks_per_evaluation)
+    return model_parts(model.smesh.mesh, model.K, model.elim.T, coefficients, contact_modes(model), parts,
+                       range(*share(parts)))
 
 
 _ANCHOR = weakref.WeakKeyDictionary()   # model → (its anchor's λn, the anchor solve's Krylov): `_solve_problem`
@@ -1066,9 +1067,6 @@ class Iterative(Primal):
         return IterativeAdjoint(model, state)
 
     def check(self, model) -> None:
-        if model.options.iterative.preconditioner == "bddc" and model.options.ranks_per_evaluation > 1:
-            raise StudyError("bddc holds all its subdomains in one process: use amg (or auto) with "
-                             "solver.ranks_per_evaluation > 1", path="solver.iterative.preconditioner")
         if model.options.iterative.preconditioner == "bddc" and model.dynamic:
             raise StudyError("bddc is built from the stiffness's subdomain matrices, and a time level's operator "
                              "holds the mass too: use amg (or auto) in a dynamic study",
