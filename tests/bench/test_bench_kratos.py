@@ -111,7 +111,7 @@ Held no more: the reduction's map TᵀKT as a gather index (178 -> 45 MB at 0.01
 mapping of every cell and facet (75 MB), the anchor's last Newton operator (67 MB); made in blocks of
 cells: G u and the small-strain gradients. At 0.01 the peak is now GAMG's set-up in the first Newton
 step: 0.60 GB resident before it (of which imports 0.19, petsc4py's libraries 0.04, the model and
-mesh 0.29 with the heap the .msh read left, K and the step's operator 0.13), 0.84 GB during it
+mesh 0.25 with the heap the .msh read left, K and the step's operator 0.13), 0.84 GB during it
 (its graph, A P0, PtAP), 0.68 GB after; at 0.02 the same set-up adds 0.04 GB. What is left above
 the imports (0.65 GB at 0.01, 0.24 GB at 0.02) misses this issue's 0.5 and 0.12 GB.
 """
