@@ -8,9 +8,8 @@ reduced operators Tᵀ K T stay affine in the data and keep one pattern.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
