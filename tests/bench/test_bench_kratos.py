@@ -101,6 +101,19 @@ functional 0.41 -> 0.17 unprofiled), two Newton steps 2.9 s (GAMG set-up 0.9, CG
 pivots 1.72 -> 0.46), the results and ParaView files 0.9 s (zlib 0.41 -> 0.1). At 0.01 the peak
 is now the solve's: the model holds 0.39 GB above the imports, the two Newton steps 0.36 GB more
 (K, the eliminated step matrix, GAMG's hierarchy).
+Session 29, the model's and the Newton steps' memory: `wcs solve` iterative of this bench's study
+files, main (664361f) and this branch alternating, CPU s and peak RSS (loads 17-19; the same bits in
+every field of the results file):
+  face  main              branch
+  0.02  6.16 s 0.47 GB    6.13 s 0.43 GB    (3 rounds, medians)
+  0.01  29.2 s 1.01 GB    27.9 s 0.84 GB    (2 rounds, means)
+Held no more: the reduction's map TᵀKT as a gather index (178 -> 45 MB at 0.01), scikit-fem's
+mapping of every cell and facet (75 MB), the anchor's last Newton operator (67 MB); made in blocks of
+cells: G u and the small-strain gradients. At 0.01 the peak is now GAMG's set-up in the first Newton
+step: 0.60 GB resident before it (of which imports 0.19, petsc4py's libraries 0.04, the model and
+mesh 0.25 with the heap the .msh read left, K and the step's operator 0.13), 0.84 GB during it
+(its graph, A P0, PtAP), 0.68 GB after; at 0.02 the same set-up adds 0.04 GB. What is left above
+the imports (0.65 GB at 0.01, 0.24 GB at 0.02) misses this issue's 0.5 and 0.12 GB.
 """
 from __future__ import annotations
 

@@ -177,6 +177,56 @@ def test_reduction_with_rows_of_several_entries():
     assert red.M.has_canonical_format
 
 
+def _whole_map(K, T):
+    """The map of K's values to Tᵀ K T's on the pattern as ONE sparse matrix, built from the terms
+    T_ki K_kl T_lj enumerated entry by entry: row (i, j) holds the weights T_ki T_lj at the columns
+    e = (k, l), by increasing e (the order its product sums them in)."""
+    K, T = sp.csr_matrix(K), sp.csr_matrix(T)
+    K.sort_indices()
+    T.sort_indices()
+    terms = {}
+    rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+    for e, (k, l) in enumerate(zip(rows, K.indices)):
+        for a in range(T.indptr[k], T.indptr[k + 1]):
+            for b in range(T.indptr[l], T.indptr[l + 1]):
+                terms.setdefault((T.indices[a], T.indices[b]), []).append((e, T.data[a] * T.data[b]))
+    keys = sorted(terms)
+    r = np.repeat(np.arange(len(keys)), [len(terms[key]) for key in keys])
+    e, w = np.array([t for key in keys for t in terms[key]]).T
+    return sp.csr_matrix((w, (r, e.astype(int))), shape=(len(keys), K.nnz)), keys
+
+
+def test_reduction_gives_the_whole_maps_bits_holding_a_gather_for_its_unit_rows():
+    """Kr.data of the reduction is bitwise the product of the whole map (`_whole_map`) with K's
+    values, −0 included (M's row sums 0 + 1·(−0) = +0), though it holds that map only on the rows
+    of several terms or a weight other than 1 (supports: T's rows of a roller; gluing) and a
+    4-byte index of K's entry for every other row; K of another structure is refused."""
+    from wcs.fem.constraints import Reduction
+    m, region = two_region(6)
+    op = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)
+    nodes = m.boundary_nodes()
+    el = eliminate(m.p.shape[1], 2, [Constraint(nodes[:5], np.tile([0.6, 0.8], (5, 1)), 0),
+                                      Constraint(nodes[5:9], np.tile([1.0, 0.0], (4, 1)), 0)], 1)
+    K = op([[2.0, 1.0], [3.0, 0.5]])
+    red = Reduction(K, el.T)
+    whole, keys = _whole_map(K, el.T)
+    n = el.T.shape[1]
+    assert [(i, j) for i in range(n) for j in red.indices[red.indptr[i]:red.indptr[i + 1]]] == keys
+    assert 0 < red.rest.size < 0.5 * red.nnz and red.source.dtype == np.int32
+    rng = np.random.default_rng(7)
+    K.data = rng.normal(size=K.nnz) * 1e9
+    K.data[rng.random(K.nnz) < 0.2] = -0.0
+    Kr = red(K)
+    assert np.array_equal(Kr.data.view(np.int64), (whole @ K.data).view(np.int64))
+    assert np.signbit(whole @ K.data).sum() < np.signbit(K.data).sum()        # −0 met and made +0
+    other = K.copy()
+    other.indices = other.indices.copy()
+    row0 = other.indices[:other.indptr[1]]
+    other.indices[0] = np.setdiff1d(np.arange(K.shape[1]), row0)[-1]     # same counts, another column
+    with pytest.raises(ValueError):
+        red(other)
+
+
 @pytest.mark.parametrize("dim", [2, 3])
 def test_cell_matrices_made_chunk_by_chunk_give_the_held_ones_bits(dim, monkeypatch):
     """The model's operators make their cell matrices chunk by chunk from the cells' gradients

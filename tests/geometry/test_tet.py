@@ -210,10 +210,13 @@ def test_manufactured_convergence_rates_3d():
     assert abs(r_en[-1] - 1.0) < 0.15, r_en
 
 
-def test_the_strain_operator_from_the_gradients_gives_the_matrix_products_bits():
+@pytest.mark.parametrize("cells", [tet.CELLS, 7])
+def test_the_strain_operator_from_the_gradients_gives_the_matrix_products_bits(cells, monkeypatch):
     """G u and Gᵀ e applied from the cells' gradients (what the model keeps instead of G's matrix,
     432 bytes a cell) are bitwise the CSR products: node numbers shuffled and each cell's nodes in
-    random order, so that the sorted order of a row's dofs is not the cell's."""
+    random order, so that the sorted order of a row's dofs is not the cell's; G u made `CELLS`
+    cells at a time (7: many blocks) too."""
+    monkeypatch.setattr(tet, "CELLS", cells)
     rng = np.random.default_rng(5)
     m = distorted_cube(4)
     new = rng.permutation(m.nvertices)

@@ -190,6 +190,21 @@ def test_displacement_gradients_and_ratios_of_known_fields():
     assert ratio == pytest.approx(0.5 / np.sqrt(5)) and grad == pytest.approx(0.0, abs=1e-15)
 
 
+def test_the_largest_gradient_is_found_block_by_block(monkeypatch):
+    """|∇u| made `CELLS` cells at a time (1: each its own block, a flat cell's NaN gradient left
+    out in its block) is the one of all cells at once, to the bit, and the largest of the cells'."""
+    rng = np.random.default_rng(2)
+    coords = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0], [4.0, 0.0]])
+    cells = np.array([[0, 1, 2], [0, 2, 3], [1, 4, 4], [1, 4, 2]])       # the third has no area
+    u = 0.01 * rng.standard_normal((5, 2))
+    whole = validity.measures(coords, cells, None, u)
+    monkeypatch.setattr(validity, "CELLS", 1)
+    assert validity.measures(coords, cells, None, u) == whole
+    g = validity.gradients(coords, cells, u)
+    largest = max(np.linalg.norm(g[c], 2) for c in (0, 1, 3))         # by an SVD: to round-off
+    assert whole[1] == pytest.approx(largest, rel=1e-12) and largest > 1.01 * min(np.linalg.norm(g[c], 2) for c in (0, 1, 3))
+
+
 def _gpa(doc):
     """Both moduli given in GPa where the study means Pa (210, not 2.1e11)."""
     doc["scene"]["materials"] = {"steel": {"E": 210.0, "nu": 0.3}, "rubber": {"E": 210.0, "nu": 0.3}}

@@ -718,6 +718,12 @@ class Krylov:
         self.timings["cg"] += time.perf_counter() - t
         return out, its, ok
 
+    def release_operator(self):
+        """Let go of the last solve's operator (a matrix of K's size), keeping the hierarchy and
+        the operator it was built for: a solve sets its own operator before its CG."""
+        if self.ksp is not None:
+            self.ksp.setOperators(self.P, self.P)
+
     def expire(self):
         """The next solve builds a fresh hierarchy."""
         self.excess = np.inf
@@ -819,6 +825,7 @@ def _solve_problem(model, p) -> ContactResult:
                                   near_nullspace=contact_modes(model), rtol=model.options.iterative.tolerance,
                                   reference=p.reference, krylov=krylov, **settings(model.options))
     if kept is None and p.warm is None and res.status == Status.SOLVED:
+        krylov.release_operator()
         _ANCHOR[model] = (res.lam_n, krylov)
     else:
         krylov.close()

@@ -192,8 +192,8 @@ class Unit:
         data = c[g, k] * D
         for g, k, D in self._pieces[1:]:
             data += c[g, k] * D
-        P = self._reduce.pattern
-        return sp.csr_matrix((data, P.indices, P.indptr), shape=P.shape)
+        R = self._reduce
+        return sp.csr_matrix((data, R.indices, R.indptr), shape=R.shape)
 
     def _dense(self):
         self.S = self._schur0

@@ -8,6 +8,7 @@ reduced operators Tᵀ K T stay affine in the data and keep one pattern.
 """
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,14 +132,20 @@ class Reduction:
     (each entry K_kl contributes T_ki T_lj to Kr_ij: M has nnz(T_k) · nnz(T_l)
     entries per entry of K — up to four for supports, more where mortar gluing ties a
     slave dof to several master dofs). Every Kr shares the pattern's index arrays (read-only:
-    one copy of the structure however many Kr are alive)."""
+    one copy of the structure however many Kr are alive).
+
+    Held: most entries of Tᵀ K T are one entry of K with weight 1 (the dofs no support or glue
+    touches: T's identity rows), and M's row there sums 0 + 1·K_kl; those rows are kept as the
+    index of their entry of K (`source`, 4 bytes an entry, not M's 12–16), and M only for the
+    other rows (`rest`): the same sums, the same bits. K's structure is checked by its row
+    pointers and a CRC-32 of its column indices (a copy of them took 4 bytes an entry of K)."""
 
     def __init__(self, K: sp.csr_matrix, T: sp.csr_matrix):
         K = sp.csr_matrix(K)
         K.sort_indices()
         T = sp.csr_matrix(T)
         T.sort_indices()
-        self.K_indptr, self.K_indices = K.indptr.copy(), K.indices.copy()
+        self.K_indptr, self.K_nnz, self.K_crc = K.indptr.copy(), K.nnz, _crc(K.indices)
         n = T.shape[1]
         keys, weights, e = _products(K, T)
         # a stable sort by key: M's rows (the entries of Tᵀ K T, in CSR order), each row's terms
@@ -152,16 +159,40 @@ class Reduction:
         first[:1] = True
         np.not_equal(keys[1:], keys[:-1], out=first[1:])
         uniq = keys[first]
+        del keys
+        ptr = np.r_[np.flatnonzero(first), first.size]
+        del first
         indptr = np.searchsorted(uniq, np.arange(n + 1, dtype=np.int64) * n)   # sorted keys: rows in order
-        self.pattern = sp.csr_matrix((np.zeros(uniq.size), uniq % n, indptr), shape=(n, n))
-        self.pattern.sort_indices()
-        self.pattern.indices.flags.writeable = self.pattern.indptr.flags.writeable = False
-        self.M = sp.csr_matrix((weights, e, np.r_[np.flatnonzero(first), keys.size]), shape=(uniq.size, K.nnz))
+        index = np.int32 if max(uniq.size, n) < 2**31 else np.int64
+        self.indices, self.indptr = (uniq % n).astype(index), indptr.astype(index)
+        del uniq
+        self.indices.flags.writeable = self.indptr.flags.writeable = False
+        self.shape, self.nnz = (n, n), self.indices.size
+        single = (np.diff(ptr) == 1) & (weights[ptr[:-1]] == 1.0)
+        self.source = e[ptr[:-1]].astype(np.int32 if K.nnz < 2**31 else np.int64)
+        self.rest = np.flatnonzero(~single)
+        starts = ptr[self.rest]
+        count = ptr[self.rest + 1] - starts
+        terms = np.repeat(starts - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+        self.M = sp.csr_matrix((weights[terms], e[terms], np.r_[0, np.cumsum(count)]), shape=(self.rest.size, K.nnz))
+
+    @property
+    def pattern(self) -> sp.csr_matrix:
+        """The structural pattern of Tᵀ K T with zero values (made when asked: its values took 8
+        bytes an entry held), over the index arrays every Kr shares."""
+        return sp.csr_matrix((np.zeros(self.nnz), self.indices, self.indptr), shape=self.shape)
 
     def __call__(self, K: sp.csr_matrix) -> sp.csr_matrix:
         K = sp.csr_matrix(K)
         K.sort_indices()
-        if not (np.array_equal(K.indptr, self.K_indptr) and np.array_equal(K.indices, self.K_indices)):
+        if not (K.nnz == self.K_nnz and np.array_equal(K.indptr, self.K_indptr) and _crc(K.indices) == self.K_crc):
             raise ValueError("K does not have the structural pattern the reduction was built for")
-        P = self.pattern
-        return sp.csr_matrix((self.M @ K.data, P.indices, P.indptr), shape=P.shape)
+        data = K.data[self.source]
+        data += 0.0                     # M's row sums 0 + 1·K_kl: −0 becomes +0 there too
+        data[self.rest] = self.M @ K.data
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+
+def _crc(a: np.ndarray) -> int:
+    """CRC-32 of an array's bytes (and its dtype)."""
+    return zlib.crc32(np.ascontiguousarray(a).view(np.uint8), zlib.crc32(a.dtype.str.encode()))

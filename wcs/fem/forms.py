@@ -47,12 +47,22 @@ def component_form(i: int) -> LinearForm:
     return form
 
 
+def release_mapping(mesh) -> None:
+    """Drop the affine mapping scikit-fem caches on the mesh when a first basis is made: every
+    cell's A, A⁻¹, b, det A and every facet's B, c, det B (350 bytes a tetrahedron: 75 MB at
+    1.4e5 unknowns), which the forms need only while they assemble; a later basis makes it again."""
+    mesh.__dict__.pop("_cached_mapping", None)
+
+
 def region_basis(mesh, element, cells: np.ndarray, intorder: int = 2) -> Basis:
-    return Basis(mesh, element, elements=cells, intorder=intorder)
+    """The basis on the cells given; without the global dof locations scikit-fem maps for every
+    cell of the mesh (288 bytes a tetrahedron), which no form here reads."""
+    return Basis(mesh, element, elements=cells, intorder=intorder, disable_doflocs=True)
 
 
 def facet_basis(mesh, element, facets: np.ndarray, intorder: int = 2) -> FacetBasis:
-    return FacetBasis(mesh, element, facets=facets, intorder=intorder)
+    """The basis on the facets given, without the global dof locations (`region_basis`)."""
+    return FacetBasis(mesh, element, facets=facets, intorder=intorder, disable_doflocs=True)
 
 
 def coupling_piece(mesh, cells: np.ndarray) -> sp.csr_matrix:

@@ -150,6 +150,7 @@ class Model:
         self.G = tet.StrainOperator(mesh.t, self.K.local.g, self.nnodes) if d == 3 else strain_operator(mesh.p, mesh.t)
         self.cell_area = self.K.local.measure        # areas or volumes (elasticity's own: not made again)
         self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
+        forms.release_mapping(mesh)                  # the load and coupling forms are assembled
         # caches: they change the speed of a solve, never its answer (see `solve`)
         self._cache = SimpleNamespace(
             elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
@@ -173,7 +174,9 @@ class Model:
     @functools.cached_property
     def body_force_vectors(self) -> np.ndarray:
         """(nregions, d, ndof): ∫_region e_i · v dx, built on first use (a load with body forces)."""
-        return np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
+        out = np.array([forms.body_force_vectors(self.smesh.mesh, c) for c in self.region_cells])
+        forms.release_mapping(self.smesh.mesh)
+        return out
 
     def _choose_solver(self, scene) -> tuple[str, str]:
         """The study's `solver.method`, `auto` resolved by the benchmark-derived rule
