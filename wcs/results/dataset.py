@@ -48,7 +48,7 @@ def provenance(study, evaluator, layout: tuple[int, int] = (1, 1)) -> dict:
         "git_commit": git_commit(),
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.backend()})"
+        "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.direct_backend_used()})"
                    if evaluator.model.solver_method == "iterative" else f"{study.solver.method} ({linalg.backend()})"),
         "solver_choice": f"{evaluator.model.solver_method}: {evaluator.model.solver_reason}",   # auto's reason, the estimate
         "ranks": layout[0],                     # MPI ranks of the run
