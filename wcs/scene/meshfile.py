@@ -44,6 +44,7 @@ import dataclasses
 import io
 import itertools
 import math
+import mmap
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -159,6 +160,116 @@ def _read_gmsh(path: Path, kind: Kind):
     return xyz, groups
 
 
+def _msh_header(path: Path) -> list[bytes]:
+    """A .msh file's format line: [version, file type (0 ASCII, 1 binary), data size], or []."""
+    with path.open("rb") as f:
+        head = f.read(64).split()
+    return head[1:4] if len(head) > 3 and head[0] == b"$MeshFormat" else []
+
+
+def _read_msh(path: Path, kind: Kind):
+    """`_read_gmsh`'s answer read by meshio (gmsh's library and its OpenMP runtime, 87 MB, not
+    loaded), for an MSH 4.1 file or an ASCII MSH 2.2 one whose groups of dimensions d and d - 1
+    hold only the supported cells; None for any other file (gmsh reads it, and words what is
+    wrong with it).
+
+    gmsh's answer, as it reads these files (tests/scene/test_meshfile_read.py compares the
+    two): a physical group is a set of entities (4.1: as the file's entities name them; 2.2:
+    the elementary tags of its elements), the groups in the order of (dimension, tag), each
+    group's elements those of its entities (ascending tags) in the file's order, so that in
+    2.2 an element is in every group of its entity (gmsh writes an element of two groups
+    twice: it comes twice). The nodes: 4.1 in the file's order; 2.2 entity by entity, each
+    node in the lowest (dimension, tag) entity of the elements that use it, by ascending tag.
+    An unnamed group is called by its tag."""
+    head = _msh_header(path)
+    if head[:2] not in ([b"4.1", b"0"], [b"4.1", b"1"], [b"2.2", b"0"]):
+        return None
+    if head[0] == b"4.1" and not _dense_tags(path, head):
+        return None                 # meshio indexes node tags by an array of the largest tag's length
+    import meshio                   # ~3 MB
+    from meshio._mesh import topological_dimension
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+    sink = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            m = meshio.read(str(path), file_format="gmsh")
+    except (Exception, SystemExit):  # noqa: BLE001 - gmsh reads it again, with its own message
+        return None
+    names = {(int(dim), int(tag)): name for name, (tag, dim) in (m.field_data or {}).items()}
+    blocks = [(topological_dimension[b.type], b.type, np.asarray(b.data, np.int64)) for b in m.cells]
+    entity = [np.asarray(e, np.int64) for e in m.cell_data.get("gmsh:geometrical", [])]
+    if not blocks or len(entity) != len(blocks):
+        return None
+    members: dict[tuple[int, int], set] = {}        # group -> its entities
+    if head[0] == b"4.1":
+        named = [k for k in m.cell_sets if k in m.field_data]
+        grouped = [b for b in range(len(blocks)) if any(len(m.cell_sets[k][b]) for k in named)]
+        if len(m.cell_data.get("gmsh:physical", [])) != len(grouped):
+            return None             # a block of an unnamed group only: meshio does not say which
+        for key, name in names.items():
+            members[key] = {int(entity[b][0]) for b, rows in enumerate(m.cell_sets[name]) if len(rows)}
+        xyz, new = np.asarray(m.points, dtype=float), None
+    else:
+        physical = m.cell_data["gmsh:physical"]
+        for b, (dim, _, _) in enumerate(blocks):
+            for tag in np.unique(physical[b]):
+                members.setdefault((dim, int(tag)), set()).update(np.unique(entity[b][physical[b] == tag]).tolist())
+        order = _msh22_order(path, m, blocks, entity)
+        if order is None:
+            return None
+        xyz, new = np.asarray(m.points, dtype=float)[order], np.empty(len(order), np.int64)
+        new[order] = np.arange(len(order))
+    groups = []
+    for dim, tag in sorted(members):
+        if dim not in (kind.dim - 1, kind.dim):
+            continue
+        want = kind.cell_type if dim == kind.dim else kind.facet_type
+        conn = []
+        for e in sorted(members[(dim, tag)]):
+            for b, (d, ctype, cells) in enumerate(blocks):     # the entity's elements, block by block
+                if d != dim or not (entity[b] == e).any():
+                    continue
+                if _meshio_to_gmsh_type.get(ctype) != want:
+                    return None     # gmsh names the element type in its message
+                conn.append(cells[entity[b] == e])
+        conn = np.concatenate(conn) if conn else np.zeros((0, dim + 1), np.int64)
+        groups.append((names.get((dim, tag), str(tag)), dim, conn if new is None else new[conn]))
+    return xyz, groups
+
+
+def _dense_tags(path: Path, head: list[bytes]) -> bool:
+    """Whether an MSH 4.1 file's largest node tag is below twice its node count (plus 1,000)."""
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+        at = mm.find(b"$Nodes")
+        if at < 0:
+            return False
+        at = mm.find(b"\n", at) + 1
+        if head[1] == b"0":
+            counts = [int(v) for v in mm[at:mm.find(b"\n", at)].split()]
+        else:
+            counts = np.frombuffer(mm[at:at + 4 * int(head[2])], dtype=f"u{int(head[2])}").tolist()
+    return len(counts) == 4 and counts[3] < 2 * counts[1] + 1000
+
+
+def _msh22_order(path: Path, m, blocks, entity) -> np.ndarray | None:
+    """The positions of the file's nodes in gmsh's order (`_read_msh`), or None where one is used
+    by no element (gmsh's place for it is not known here)."""
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+        at = mm.find(b"\n", mm.find(b"$Nodes")) + 1
+        mm.seek(at)
+        n = int(mm.readline())
+        tags = np.array([int(mm.readline().split(None, 1)[0]) for _ in range(n)], dtype=np.int64)
+    if len(tags) != len(m.points):
+        return None
+    big = np.iinfo(np.int64).max
+    home = np.full(len(tags), big, dtype=np.int64)          # dimension * 2**40 + entity tag
+    for (dim, _, cells), ent in zip(blocks, entity):
+        np.minimum.at(home, cells.ravel(), np.repeat(dim * 2**40 + ent, cells.shape[1]))
+    if (home == big).any():
+        return None
+    return np.lexsort((tags, home))
+
+
 def _node_indices(tags: np.ndarray, refs: np.ndarray) -> np.ndarray:
     """The positions in `tags` of the node tags `refs` (-1 for a tag not among them), through the
     sorted tags: gmsh's node tags may be sparse (a tag of 1e12 is valid), so no array of the
@@ -219,7 +330,7 @@ def load_raw(path, dim: int = 2) -> RawMesh:
         raise _fail(path, "not a file")
     kind = KINDS[dim]
     if path.suffix.lower() == ".msh":
-        xyz, groups = _read_gmsh(path, kind)
+        xyz, groups = _read_msh(path, kind) or _read_gmsh(path, kind)
     else:
         xyz, groups = _read_meshio(path, kind)
     raw = _assemble(path, xyz, groups, kind)
