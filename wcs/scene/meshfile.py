@@ -126,7 +126,7 @@ def _read_gmsh(path: Path, kind: Kind):
     d - 1, via the gmsh API."""
     import gmsh                     # gmsh loads only to read a gmsh file
 
-    from .session import Session    # (it loads gmsh)
+    from .session import Session
     with Session():
         try:
             gmsh.merge(str(path))
