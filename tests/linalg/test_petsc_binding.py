@@ -61,3 +61,12 @@ def test_petsc_answers_do_not_depend_on_mkl_being_loaded():
     assert probe("mkl-first") == alone
     assert probe("mkl-late") == alone
     assert probe("control") != alone, "the probe no longer tells MKL's BLAS from OpenBLAS's"
+
+
+def test_petsc_loaded_before_says_its_bindings_are_not_wcs_own():
+    """petsc4py imported directly first: `petsc()` cannot bind its libraries any more, and warns."""
+    code = ("import warnings, dolfinx_solver\nfrom petsc4py import PETSc\nfrom wcs import linalg\n"
+            "with warnings.catch_warnings(record=True) as w:\n    warnings.simplefilter('always')\n"
+            "    assert linalg.petsc() is PETSc\nprint([str(x.message) for x in w if x.category is RuntimeWarning])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert "was loaded before wcs.linalg.petsc()" in out, out
