@@ -5,8 +5,13 @@ CG solve of a 2D Laplacian (GAMG's set-up calls LAPACK, CG's dot products and no
 dense PETSc matrix times a vector (BLAS dgemv) and a dot product, their bits hashed. The
 control imports petsc4py directly after MKL has run a PARDISO factor: its BLAS and LAPACK
 are then MKL's, and its bits differ, so the probe does see which library computed."""
+import os
 import subprocess
 import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
 
 PROBE = r'''
 import hashlib, sys
@@ -52,7 +57,7 @@ print(hashlib.sha256(x.getArray().tobytes() + y.getArray().tobytes()).hexdigest(
 
 
 def probe(order: str) -> str:
-    out = subprocess.run([sys.executable, "-c", PROBE, order], capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", PROBE, order], capture_output=True, text=True, check=True, env=ENV)
     return out.stdout.strip()
 
 
@@ -68,5 +73,5 @@ def test_petsc_loaded_before_says_its_bindings_are_not_wcs_own():
     code = ("import warnings, dolfinx_solver\nfrom petsc4py import PETSc\nfrom wcs import linalg\n"
             "with warnings.catch_warnings(record=True) as w:\n    warnings.simplefilter('always')\n"
             "    assert linalg.petsc() is PETSc\nprint([str(x.message) for x in w if x.category is RuntimeWarning])")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=ENV).stdout
     assert "was loaded before wcs.linalg.petsc()" in out, out
