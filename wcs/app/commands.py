@@ -27,7 +27,7 @@ from ..group import spanning
 from .parallel import groups, rank, world
 from ..contact.methods import krylov_counts
 from ..progress import INTERRUPTED, current, phase
-from ..results.dataset import widest, write_netcdf, write_solution
+from ..results.dataset import open_results, scalars, widest, write_netcdf, write_solution
 from ..results.summary import limits_broken, summary_table
 from .runner import Runner
 from ..status import Status, describe
@@ -110,8 +110,7 @@ def previous_run(out: Path) -> str | None:
     kept = [] if store is None else [f"its evaluation store {store_path(out)} holds {store}"]
     if out.exists():
         try:
-            import xarray as xr
-            with xr.open_dataset(out, engine="h5netcdf") as ds:
+            with open_results(out) as ds:
                 state = "complete" if str(ds.attrs.get("complete", "yes")) == "yes" else "partial"
                 kept.insert(0, f"a {state} results file of {int(ds.sizes.get('eval', 0))} evaluations")
         except (OSError, ValueError):
@@ -201,10 +200,9 @@ class CheckedRunner(Runner):
         (NaN where it fails: its status is the search's business)."""
         ev = self.evaluate(self.study.nominal(), False, "nominal")
         ok = ev.status == 0
-        import xarray as xr
-        return xr.Dataset({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
-                                               dict(ev.fields[name].attrs) if ok else {})
-                           for name in ("small_strain_displacement", "small_strain_gradient")})
+        return scalars({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
+                                 dict(ev.fields[name].attrs) if ok else {})
+                 for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def _command(args, kind: str) -> int:
@@ -245,8 +243,7 @@ def solve_worst(args) -> int:
     if not Path(run_file).is_file():
         raise StudyError("results file not found", file=str(run_file))
     try:
-        import xarray as xr
-        with xr.open_dataset(run_file, engine="h5netcdf") as whole:
+        with open_results(run_file) as whole:
             ds = widest(whole)                      # a fuzzy run: the worst case over its widest level
             crits = [str(c) for c in ds["criterion"].values]
             params = [str(p) for p in ds["param"].values]

@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import StudyError
 from .parallel import agree, rank
 from .record import Ledger
-from ..results.dataset import provenance, run_dataset, write_netcdf
+from ..results.dataset import open_results, provenance, run_dataset, write_netcdf
 from ..search.ranges import Extreme
 from ..results.store import OutputLock, check_output
 from ..study.fuzzy import alpha_cut
@@ -45,8 +45,7 @@ def check_resumable(output: Path, study_sha256: str) -> None:
     if not output.exists():
         return
     try:
-        import xarray as xr
-        with xr.open_dataset(output, engine="h5netcdf") as old:
+        with open_results(output) as old:
             sha = old.attrs.get("study_sha256")
     except (OSError, ValueError) as e:
         raise StudyError(f"cannot read the results file to resume it: {e}", file=str(output)) from None

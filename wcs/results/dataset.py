@@ -64,6 +64,19 @@ def provenance(study, evaluator, layout: tuple[int, int] = (1, 1)) -> dict:
     }
 
 
+def open_results(path: str | Path) -> xr.Dataset:
+    """The results file at `path`, opened (a context manager); xarray (with pandas, 43 MB)
+    loads here, where a results file is read, not at the commands' import."""
+    import xarray as xr
+    return xr.open_dataset(path, engine="h5netcdf")
+
+
+def scalars(values: dict) -> xr.Dataset:
+    """A dataset of scalar variables {name: ((), value, attrs)} (xarray loaded here)."""
+    import xarray as xr
+    return xr.Dataset(values)
+
+
 def parameter_variables(study) -> dict:
     params = study.parameters
     names = list(params.names)
