@@ -325,7 +325,7 @@ def main(argv=None) -> int:
     try:
         with held_back(verbose), reporting(progress):
             if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
-                from .linalg import configure_threads     # loads PARDISO, which `wcs report` does not need
+                from .linalg import configure_threads
                 configure_threads()
             if getattr(args, "output", None):
                 output_folder(args.output)

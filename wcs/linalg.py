@@ -33,6 +33,7 @@ import ctypes
 import functools
 import os
 from importlib import metadata
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -59,11 +60,46 @@ def _mkl_rt_hint() -> None:
                 return
 
 
-try:  # pragma: no cover - depends on the platform
-    _mkl_rt_hint()
-    import pypardiso as _pardiso
-except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
-    _pardiso = None
+@functools.cache
+def _pardiso():
+    """pypardiso, loaded at the first direct factor (or `backend()`), not at import: MKL is
+    25 MB and 0.3 s that an iterative solve, a check or a report never use; None where it does
+    not load. What PETSc computes does not depend on it (`petsc`)."""
+    try:  # pragma: no cover - depends on the platform
+        _mkl_rt_hint()
+        import pypardiso
+    except Exception:  # noqa: BLE001 - any import failure means: no PARDISO here
+        return None
+    return pypardiso
+
+
+@functools.cache
+def petsc():
+    """petsc4py's PETSc, its libraries bound to the BLAS and LAPACK they ship with.
+
+    libpetsc (and the libopenblas and libscalapack it loads) leave their BLAS and LAPACK
+    symbols (ddot_, dgemv_, dpotrf_, ...) to the dynamic linker, which searches the process'
+    global scope first. MKL puts its own there once mkl_rt is first called (PARDISO, or
+    threadpoolctl asking its thread count), so PETSc's products ran on MKL's kernels or
+    OpenBLAS's depending on whether, and when, MKL had been loaded: the iterative method's
+    answers moved at round-off with the order of the imports. Loading libpetsc first with
+    RTLD_DEEPBIND puts its own dependency tree ahead of the global scope, for it and every
+    library that load brings in; RTLD_NOW binds them all at once. If libpetsc was loaded
+    before (petsc4py imported without this function), the bindings cannot be changed: a
+    RuntimeWarning says so."""
+    import warnings
+
+    import dolfinx_solver  # the wheel's bootstrap: mpi4py.MPI (libmpi) loaded before any PETSc library
+    (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
+    try:
+        ctypes.CDLL(str(lib), mode=os.RTLD_NOLOAD)
+        warnings.warn(f"{lib.name} was loaded before wcs.linalg.petsc(): PETSc's BLAS and LAPACK may be MKL's "
+                      "or OpenBLAS's depending on the order of the imports (answers may differ at round-off)",
+                      RuntimeWarning, stacklevel=2)
+    except OSError:                                     # not loaded yet: bind it to its own libraries
+        ctypes.CDLL(str(lib), mode=os.RTLD_NOW | os.RTLD_DEEPBIND)
+    from petsc4py import PETSc
+    return PETSc
 
 
 class FactorizationError(RuntimeError):
@@ -99,9 +135,18 @@ def configure_threads() -> int:
 
 
 def backend() -> str:
-    if os.environ.get("WCS_SOLVER", "").lower() == "superlu" or _pardiso is None:
+    if os.environ.get("WCS_SOLVER", "").lower() == "superlu" or _pardiso() is None:
         return "superlu"
     return "pardiso"
+
+
+_MADE: set[str] = set()           # the backends of the direct factors this process made
+
+
+def direct_backend_used() -> str:
+    """The backends of the direct factors this process made, or "none" (an iterative solve may
+    make none, and then loads no direct solver)."""
+    return ", ".join(sorted(_MADE)) or "none"
 
 
 def _csr(A) -> sp.csr_matrix:
@@ -181,7 +226,7 @@ PARDISO_ERRORS = {
 @functools.cache
 def _mkl_pardiso():
     """The `pardiso` entry point of the mkl_rt library that pypardiso locates."""
-    return _pardiso.PyPardisoSolver()._mkl_pardiso
+    return _pardiso().PyPardisoSolver()._mkl_pardiso
 
 
 class PardisoFactor:
@@ -330,6 +375,7 @@ def factorize(A: sp.spmatrix, kind: str | None = None, *, spd: bool = False, blo
     border: a sparse C (k × n) for which `.delassus()` returns the dense C A⁻¹ Cᵀ (spd only).
     """
     kind = kind or backend()
+    _MADE.add(kind)
     if kind == "pardiso":
         return PardisoFactor(A, spd=spd, block=block, border=border)
     return SuperLUFactor(A, spd=spd, block=block, border=border)

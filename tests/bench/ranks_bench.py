@@ -19,8 +19,9 @@ import time
 import numpy as np
 
 import cvxpy  # noqa: F401  (the floating block's solvability check imports it on first use: 3 s once a process)
-import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
-from petsc4py import PETSc  # noqa: F401
+from wcs import linalg  # noqa: E402
+
+PETSc = linalg.petsc()      # loaded before the timings, bound to its own BLAS as wcs loads it
 
 from test_bench_iterative import patch, peak_gb
 from wcs.model.evaluation import Evaluator

@@ -69,9 +69,10 @@ from scipy.sparse.linalg import spsolve
 from common import ROOT, write_table
 from test_bench_iterative import patch, problem
 
-import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
-from petsc4py import PETSc  # noqa: F401
-from mpi4py import MPI
+from wcs import linalg  # noqa: E402
+
+linalg.petsc()      # PETSc loaded before the timings, bound to its own BLAS as wcs loads it
+from mpi4py import MPI  # noqa: E402
 
 from wcs.contact.bddc import model_parts, parts_of
 from wcs.contact.iterative import Krylov, _Rows, _basis, _eliminated, _pivots

@@ -64,8 +64,9 @@ import yaml
 
 from common import ROOT, write_table
 
-import dolfinx_solver  # noqa: F401  (PETSc loaded before the timings)
-from petsc4py import PETSc  # noqa: F401
+from wcs import linalg  # noqa: E402
+
+linalg.petsc()      # PETSc loaded before the timings, bound to its own BLAS as wcs loads it
 
 from wcs.contact.iterative import _Rows, _Stepper, solve_contact_iterative
 from wcs.scene.estimate import EvaluationFacts, evaluation_cost

@@ -1,119 +1,39 @@
-"""wcs against Kratos Multiphysics 10.4.4 (ahead of the peer or not): the 3D block-on-block
-patch (studies/validation/block-on-block-3d.yaml) read by both codes from ONE gmsh file
-(tests/bench/kratos_mesh.py: contact band meshed at `face`, the rest at 0.2), frictionless,
-one thread each (OMP/OPENBLAS/MKL_NUM_THREADS=1), whole processes run alternately
-(wcs iterative, wcs monolithic, Kratos, ...; WCS_BENCH_KRATOS_REPEAT rounds, default 3), each
-timed by its CPU time (user + system), wall clock and peak resident set (getrusage of the
-finished child; on the shared machine the CPU time is the one to compare), wcs' bytecode
-compiled first (`compile_wcs`).
+"""wcs against Kratos Multiphysics 10.4.4 on the same gmsh file, whole processes, one thread each.
 
-- wcs: `wcs solve` of the validation study with `mesh: {file: ...}` (the file's groups for its
-  boundaries; the box region of interest and its von Mises criterion left out: a box cannot be
-  cut from a file's cells) and `solver.method` iterative, then monolithic.
-- Kratos: tests/bench/kratos_patch.py run by the interpreter in WCS_KRATOS_PYTHON (Kratos in
-  its own venv: KratosMultiphysics, -StructuralMechanics-, -ContactStructuralMechanics-,
-  -LinearSolversApplication 10.4.4 from PyPI); mortar ALM frictionless contact, AMGCL.
-Each answer read back: the contact pressure at the contact node nearest the centre, the extreme
-ones, the lowest displacement of the loaded face (and Kratos' Newton iterations).
-The patch test's exact answer: contact pressure 2 MPa, the top lowered by
-0.5·2e6/5e9 + 0.5·2e6/2e10 = 2.5e-4 m (uniaxial stress, sides free). Both codes must give the
-top displacement to 0.1 % and the contact pressure at the face's centre to 5 % for the
-comparison to count (checked after the table is written). wcs gives both to 1e-7. Kratos gives
-the displacement to 4e-4 and the total reaction to 3e-4, but its nodal multipliers
-(|LAGRANGE_MULTIPLIER_CONTACT_PRESSURE| x SCALE_FACTOR) are off by more as the face is refined:
-at the centre +0.45 %, +0.9 %, +1.8 % at faces 0.04, 0.02, 0.01, and up to +4.8 % at the face's
-edges (measured 2026-12-06): the table reports them.
-Without WCS_KRATOS_PYTHON the Kratos
-rows say "absent". WCS_BENCH_KRATOS_FACES picks the face sizes (default "0.04 0.02 0.01"),
-WCS_BENCH_KRATOS_METHODS wcs' methods (default "iterative monolithic").
-Tables: results/bench/bench_kratos_face{FACE}.csv, one a face (the large faces run alone, under
-the memory lock: wcs monolithic needs 5.5 GB at 0.02).
+Cases (tests/bench/kratos_mesh.py writes the .msh, MSH 2.2 ASCII, which both codes read):
+- the 3D block-on-block patch (studies/validation/block-on-block-3d.yaml), its contact band
+  meshed at each face size of WCS_BENCH_KRATOS_FACES (default "0.04 0.02 0.01"), the rest at 0.2;
+- the 3D Hertz quarter model (studies/validation/hertz-3d.yaml) meshed at WCS_BENCH_KRATOS_HERTZ
+  (default a/24 = 0.00417 near the contact point; a/8 = 0.0125 runs in minutes).
 
-Measured 2026-12-06 (2 shared cores, load 3-4; medians of 3 alternating rounds; peak RSS):
-  face  unknowns  contact  wcs iterative     wcs monolithic          Kratos (ALM, AMGCL)
-  0.04   10,515      788    4.6 s 0.45 GB     4.5 s 0.74 GB           1.7 s 0.23 GB (3 Newton)
-  0.02   37,329    3,015    7.1 s 0.72 GB    48.4 s 5.54 GB           7.8 s 0.28 GB (3 Newton)
-  0.01  143,562   11,820   30.4 s 1.87 GB    refused (est. 76 GB)    29.5 s 0.78 GB (2 Newton)
-wcs iterative at 0.02 (cProfile, 10.5 s): PETSc GAMG set-up 1.8 s + CG 1.9 s (2 Newton steps);
-the rest is fixed cost: imports ≈ 2-4 s (cvxpy alone 1.9 s, imported for the floating block's
-solvability check), the .msh overlap check 2.2 s, the NetCDF/VTU written ≈ 1 s.
-After the fixed costs went (issue 25, session 26: cvxpy no longer imported for the solvability SOCP,
-scipy.optimize no longer by the command layer, the model built without its cell matrices), wcs
-iterative from this branch against main's and Kratos, alternating as above (compare() of this
-file; 2 cores shared with 7 other sessions' jobs, load 11-13: every wall time ≈ 2-3x the table
-above's, so the ratios are what to read; medians of 3 rounds, peak RSS):
-  face  branch            main              Kratos
-  0.04  6.9 s 0.32 GB     8.9 s 0.39 GB     4.0 s 0.15 GB
-  0.02  20.7 s 0.51 GB    24.2 s 0.67 GB    24.6 s 0.28 GB
-wcs is faster than Kratos at 0.02 but not at 0.04, and leaner at neither: its imports alone hold
-0.2 GB (numpy, scipy, PETSc, skfem, gmsh, xarray/pandas) and take 1.3-3.5 s under this load.
-3D Hertz at a/24 (94,593 unknowns, 1 round): wcs iterative 144 s, monolithic 108 s, both
-8.9 GB; Kratos diverged (Newton residual 1e107, "Zero pivot in ILU"; at a/8 it stopped
-unconverged after 30 Newton steps). wcs' time and memory there go to building the contact
-pressure criterion (cProfile of monolithic: 64 of 72 s "assembly" in
-criteria._distance_to_facets): its KD-tree prune uses ONE reach, the largest
-vertex-centroid distance over all facets of block_top (0.157 m on the graded face, median
-0.0024 m), so each query point gathers ≈ 2,200 of the 2,438 facets: all pairs. Since searched
-by classes of reach (criteria._distance_to_facets), it is gone: at a/16 (34,371 unknowns, session
-26, load 12) `wcs solve` iterative reports assembly 9.4 s, of which 7.5 s are the dual mortar's
-segment integrals (contact.mortar3d.mortar_integrals3d, a Python loop over 7,565 segments), and
-0.58 GB peak.
-Since session 27 the segment integrals are computed for all facet pairs at once (bitwise the
-loop's). Kratos' Hertz load is ramped over 5 load steps (kratos_patch.py). The tables of this session (alternating, medians of 3, peak RSS; loads
-9.7-17, far above the 3-4 of the first table: read the ratios; at face 0.02 the spread is large,
-wall min-max 40-110 s for wcs iterative, 16-112 s for Kratos, and its first two rounds ran wcs
-with PARDISO loaded lazily, a change reverted before the third):
-  case             unknowns  wcs iterative     wcs monolithic       Kratos (ALM, AMGCL)
-  patch 0.04         10,515  25.3 s 0.30 GB    35.2 s 0.61 GB       13.2 s 0.19 GB
-  patch 0.02         37,329  89.7 s 0.49 GB    435 s 5.33 GB        38.4 s 0.28 GB
-  Hertz a/8           8,025  24.3 s 0.30 GB    16.5 s 0.29 GB       64.5 s 0.19 GB (5 load steps)
-wcs is ahead on the Hertz only (4x faster by its monolithic method, the axis pressure 3.4 % below
-p0 against Kratos' 1.3 %), behind on the patch, and heavier everywhere: its imports alone (pandas, xarray and
-h5netcdf for the results file, PETSc, gmsh, scipy) hold more than Kratos' whole run at 0.04.
-`auto` takes the monolithic method at both patch faces (the block is held by the contact alone,
-which keeps `wcs.choose` from choosing the iterative one for speed), at 0.02 against its own
-estimate, which rates the iterative method ten times leaner and faster. At a/16 the bench
-(3 rounds) ran out of its 30 minutes: Kratos' Newton stalls in a load step there.
-Session 28: the tables above are wall times, which the load (10-22) makes a lottery; the CSV now
-gives each process's CPU time (user + system), the number compared below. Two costs were the
-bench's own: the shell's PYTHONDONTWRITEBYTECODE made every `wcs solve` compile wcs' 120 modules
-again (0.3 s; now compiled first and kept), and the previous rows ran wcs monolithic at 0.02
-under a load that made it 435 s. Changed this session: `auto` takes the iterative method on a
-body held by contact alone when frictionless (the patch at 0.02: estimated 29 s against 160 s);
-the overlap check of the .msh holds 2,000 tetrahedra's candidate pairs at a time (at 0.01 its
-batch of 100,000 was the run's peak, 0.99 GB); a node's one active row pivots without two QRs;
-Φ6's distances once a node; the .vtu at zlib's fastest level. Medians of 3 alternating rounds,
-CPU s and peak RSS (loads 8.8-17.3; 0.02 without wcs monolithic, which needs the memory lock;
-wcs at 8257f91):
-  case         unknowns  wcs iterative     wcs monolithic       Kratos (ALM, AMGCL)
-  patch 0.04     10,515  2.63 s 0.29 GB    3.68 s 0.60 GB       1.71 s 0.19 GB
-  patch 0.02     37,329  5.61 s 0.43 GB    -                    7.77 s 0.28 GB
-  patch 0.01    143,562  25.9 s 0.98 GB    refused (est. 75 GB)  31.9 s 0.78 GB
-  Hertz a/8       8,025  3.06 s 0.29 GB    1.86 s 0.28 GB       11.88 s 0.19 GB (5 load steps)
-wcs is ahead in time from 0.02 on (1.39x at 0.02, 1.23x at 0.01) and on the Hertz (6.4x by the
-monolithic method `auto` picks there), behind at 0.04 (1.5x) by about its imports, and heavier
-everywhere (1.5x at 0.04 and 0.02, 1.26x at 0.01). Where its CPU goes at 0.02:
-the imports 1.03-1.09 s alone (`import wcs.app.commands`; xarray and pandas, for the results
-file only, 0.45 s and 81 MB of the 0.17 GB the imports hold: at 0.04 that is Kratos' whole
-peak); under cProfile on process_time (its overhead inflates many small calls; main -> this
-branch) the .msh read and checks 1.15 s (the overlap check 0.96), the model 1.35 s (Φ6's
-functional 0.41 -> 0.17 unprofiled), two Newton steps 2.9 s (GAMG set-up 0.9, CG 1.0, the nodes'
-pivots 1.72 -> 0.46), the results and ParaView files 0.9 s (zlib 0.41 -> 0.1). At 0.01 the peak
-is now the solve's: the model holds 0.39 GB above the imports, the two Newton steps 0.36 GB more
-(K, the eliminated step matrix, GAMG's hierarchy).
-Session 29, the model's and the Newton steps' memory: `wcs solve` iterative of this bench's study
-files, main (664361f) and this branch alternating, CPU s and peak RSS (loads 17-19; the same bits in
-every field of the results file):
-  face  main              branch
-  0.02  6.16 s 0.47 GB    6.13 s 0.43 GB    (3 rounds, medians)
-  0.01  29.2 s 1.01 GB    27.9 s 0.84 GB    (2 rounds, means)
-Held no more: the reduction's map TᵀKT as a gather index (178 -> 45 MB at 0.01), scikit-fem's
-mapping of every cell and facet (75 MB), the anchor's last Newton operator (67 MB); made in blocks of
-cells: G u and the small-strain gradients. At 0.01 the peak is now GAMG's set-up in the first Newton
-step: 0.60 GB resident before it (of which imports 0.19, petsc4py's libraries 0.04, the model and
-mesh 0.25 with the heap the .msh read left, K and the step's operator 0.13), 0.84 GB during it
-(its graph, A P0, PtAP), 0.68 GB after; at 0.02 the same set-up adds 0.04 GB. What is left above
-the imports (0.65 GB at 0.01, 0.24 GB at 0.02) misses this issue's 0.5 and 0.12 GB.
+wcs runs `wcs solve` of the validation study with `mesh: {file: ...}` (the file's groups for its
+boundaries; the box region of interest and its criterion left out: a box cannot be cut from a
+file's cells) once for each method of WCS_BENCH_KRATOS_METHODS (default "auto iterative":
+`auto` the method wcs picks itself; `monolithic` may be added). Kratos runs
+tests/bench/kratos_patch.py under the interpreter in WCS_KRATOS_PYTHON (a venv with
+KratosMultiphysics and its Structural-, ContactStructural- and LinearSolvers- applications):
+mortar ALM frictionless contact, AMGCL, the Hertz load in 5 load steps. Without WCS_KRATOS_PYTHON the Kratos row says "absent".
+
+The cases run alternately (wcs method 1, method 2, Kratos, method 1, ...), WCS_BENCH_KRATOS_REPEAT
+rounds (default 3), with OMP/OPENBLAS/MKL_NUM_THREADS=1 and wcs' bytecode compiled first (as an
+installed package has it). Each process is measured by the getrusage of the finished child:
+CPU time (user + system), wall time and peak resident set. On a shared machine the wall time
+depends on the load: compare CPU times and peaks, and medians over the rounds.
+
+Each answer is read back and checked after the table is written: the contact pressure at the
+contact node nearest the face's centre (Hertz: the axis), the extreme ones, the lowest
+z-displacement of the loaded face (Kratos also reports its Newton iterations). The patch's
+exact answer: pressure 2 MPa, the top lowered by 0.5·2e6/5e9 + 0.5·2e6/2e10 = 2.5e-4 m
+(uniaxial stress, sides free); a row counts only with the displacement to 0.1 % and the centre
+pressure to 5 % (Hertz: the axis pressure to 5 % of p0). Kratos' nodal multipliers
+(|LAGRANGE_MULTIPLIER_CONTACT_PRESSURE| x SCALE_FACTOR) drift from 2 MPa as the face is refined,
+most at the face's edges: the table's p_min and p_max show by how much. A method that refuses
+(wcs monolithic where its memory estimate is too large: exit 2 with the estimate) keeps its
+refusal in the failure column.
+
+Tables (CSV, results/bench/): bench_kratos_face{FACE}.csv, one a face (a face may be run alone:
+the finer faces under the memory lock), and bench_kratos_hertz.csv; the columns are HEADER
+(cpu_median_s, peak_gb, ... per code and method).
 """
 from __future__ import annotations
 
@@ -278,9 +198,9 @@ def kratos_python() -> str | None:
 
 
 def methods() -> list[str]:
-    """wcs' methods to run: WCS_BENCH_KRATOS_METHODS (default "iterative monolithic"; iterative
+    """wcs' methods to run: WCS_BENCH_KRATOS_METHODS (default "auto iterative"; iterative
     alone keeps a large face under 1 GB, off the memory lock)."""
-    return os.environ.get("WCS_BENCH_KRATOS_METHODS", "iterative monolithic").split()
+    return os.environ.get("WCS_BENCH_KRATOS_METHODS", "auto iterative").split()
 
 
 def absent_row(kratos) -> list:

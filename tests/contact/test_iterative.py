@@ -308,8 +308,8 @@ def test_a_newton_step_without_disc_springs_works_on_k_itself_not_a_copy(monkeyp
 def test_petsc_holds_a_steps_matrix_in_its_own_arrays_not_a_copy():
     """On one process the PETSc matrix of a step is the rows' CSR arrays themselves (a copy beside
     them doubled the largest matrix of the solve): a change to them is seen by PETSc."""
-    import dolfinx_solver  # noqa: F401
-    from petsc4py import PETSc
+    from wcs import linalg
+    PETSc = linalg.petsc()
     from wcs.contact.distributed import Layout, RowBlocks
     A = (sp.random(40, 40, density=0.1, random_state=1, format="csr") + 4 * sp.eye(40)).tocsr()
     A = (A + A.T).tocsr()

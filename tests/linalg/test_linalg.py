@@ -5,7 +5,7 @@ import scipy.sparse as sp
 
 from wcs import linalg
 
-pytestmark = pytest.mark.skipif(linalg._pardiso is None, reason="PARDISO not available")
+pytestmark = pytest.mark.skipif(linalg._pardiso() is None, reason="PARDISO not available")
 
 
 def laplacian_2d(k, shift=0.0):

@@ -9,6 +9,7 @@ import yaml
 
 from wcs.cli import main
 from wcs.errors import StudyError
+from wcs.scene import meshfile
 from wcs.scene.mesher2d import build_mesh
 from wcs.scene.spec import GroupBoundary
 from wcs import load_study
@@ -199,6 +200,7 @@ def test_gmsh_failing_without_a_reason_is_said_so(tmp_path, capsys, monkeypatch)
     def merge(name):
         raise Exception("")
     monkeypatch.setattr(gmsh, "merge", merge)
+    monkeypatch.setattr(meshfile, "_read_msh", lambda path, kind: None)     # a file meshio leaves to gmsh
     write_msh(tmp_path / "m.msh", NODES, GOOD_GROUPS, ELEMENTS)
     (tmp_path / "s.yaml").write_text(study_text())
     err = run_bad(tmp_path / "s.yaml", capsys)

@@ -8,13 +8,14 @@ data set has no equilibrium; `wcs/results/verdict.py`); bad input raises StudyEr
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import shlex
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from ..results import meshcheck
 from ..model.criteria import KINDS, in_words
@@ -26,7 +27,7 @@ from ..group import spanning
 from .parallel import groups, rank, world
 from ..contact.methods import krylov_counts
 from ..progress import INTERRUPTED, current, phase
-from ..results.dataset import widest, write_netcdf, write_solution
+from ..results.dataset import open_results, scalars, widest, write_netcdf, write_solution
 from ..results.summary import limits_broken, summary_table
 from .runner import Runner
 from ..status import Status, describe
@@ -37,6 +38,9 @@ from ..results.verdict import attributes as verdict_attributes
 from ..report.timeline import in_time
 from ..results.verdict import verdict
 from .dynamics import solve_dynamic
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
@@ -106,7 +110,7 @@ def previous_run(out: Path) -> str | None:
     kept = [] if store is None else [f"its evaluation store {store_path(out)} holds {store}"]
     if out.exists():
         try:
-            with xr.open_dataset(out, engine="h5netcdf") as ds:
+            with open_results(out) as ds:
                 state = "complete" if str(ds.attrs.get("complete", "yes")) == "yes" else "partial"
                 kept.insert(0, f"a {state} results file of {int(ds.sizes.get('eval', 0))} evaluations")
         except (OSError, ValueError):
@@ -196,9 +200,9 @@ class CheckedRunner(Runner):
         (NaN where it fails: its status is the search's business)."""
         ev = self.evaluate(self.study.nominal(), False, "nominal")
         ok = ev.status == 0
-        return xr.Dataset({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
-                                               dict(ev.fields[name].attrs) if ok else {})
-                           for name in ("small_strain_displacement", "small_strain_gradient")})
+        return scalars({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
+                                 dict(ev.fields[name].attrs) if ok else {})
+                 for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def _command(args, kind: str) -> int:
@@ -239,7 +243,7 @@ def solve_worst(args) -> int:
     if not Path(run_file).is_file():
         raise StudyError("results file not found", file=str(run_file))
     try:
-        with xr.open_dataset(run_file, engine="h5netcdf") as whole:
+        with open_results(run_file) as whole:
             ds = widest(whole)                      # a fuzzy run: the worst case over its widest level
             crits = [str(c) for c in ds["criterion"].values]
             params = [str(p) for p in ds["param"].values]

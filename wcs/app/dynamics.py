@@ -3,13 +3,14 @@ results file (a `time` coordinate: `phi_history` (criterion, time), contact forc
 the fields at the output times) and a ParaView time series, OUT.pvd over OUT-k.vtu."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import resource
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from wcs.dynamics.history import REDUCED, DynamicEvaluation, reduced, simulate
 from wcs.dynamics.loading import at_time_zero, check_sources
@@ -25,6 +26,9 @@ from wcs.scene.estimate import machine_memory
 from wcs.results.paraview import volume, vtu_text, _write
 from wcs.results.store import WriteError
 from wcs.status import Status
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 
 def history_dataset(study, ev, hist, x, others, wall_time: float) -> xr.Dataset:
@@ -69,6 +73,7 @@ def history_dataset(study, ev, hist, x, others, wall_time: float) -> xr.Dataset:
     attrs = {"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time, "initial": initial}
     coords = {"time": ("time", t, {"units": "s"}),
               "output_time": ("output_time", t[hist.output_levels], {"units": "s"}), "criterion": crit}
+    import xarray as xr
     return solved.merge(xr.Dataset(data, coords=coords)).assign_attrs(attrs)
 
 

@@ -41,6 +41,8 @@ write of the results file ("write").
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import contextlib
 import inspect
 import itertools
@@ -50,7 +52,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from ..errors import StudyError
 from ..model.evaluation import Evaluation
@@ -68,6 +69,10 @@ from ..study.fuzzy import alpha_cut
 from ..study.load import load_study
 from ..dynamics.history import evaluator_for
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 def get_strategy(name: str):
     """The strategy factory registered under `name` (search.method)."""

@@ -15,22 +15,27 @@ certificates are the search's and the worst fields are re-solved.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import datetime as _dt
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from ..errors import StudyError
 from .parallel import agree, rank
 from .record import Ledger
-from ..results.dataset import provenance, run_dataset, write_netcdf
+from ..results.dataset import open_results, provenance, run_dataset, write_netcdf
 from ..search.ranges import Extreme
 from ..results.store import OutputLock, check_output
 from ..study.fuzzy import alpha_cut
 from ..results.verdict import attributes as verdict_attributes
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 WRITE_OVERHEAD = 0.04        # NetCDF rewrites take at most this share of the time between them (< 5% of solve time)
 
@@ -40,7 +45,7 @@ def check_resumable(output: Path, study_sha256: str) -> None:
     if not output.exists():
         return
     try:
-        with xr.open_dataset(output, engine="h5netcdf") as old:
+        with open_results(output) as old:
             sha = old.attrs.get("study_sha256")
     except (OSError, ValueError) as e:
         raise StudyError(f"cannot read the results file to resume it: {e}", file=str(output)) from None

@@ -49,6 +49,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from wcs import linalg
+
 OPTIONS = {"pc_bddc_use_faces": "true", "pc_bddc_use_change_of_basis": "true",
            "pc_bddc_use_deluxe_scaling": "true"}
 FACES = {"pc_bddc_use_change_on_faces": "true"}     # the faces' constraints by a change of basis too
@@ -249,8 +251,7 @@ class Bddc:
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float):
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged)."""
-        import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
-        from petsc4py import PETSc
+        PETSc = linalg.petsc()
         t = time.perf_counter()
         Aa = _aij(A, PETSc)
         try:

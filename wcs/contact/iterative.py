@@ -89,6 +89,7 @@ from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _
 from wcs.errors import StudyError
 from wcs.fem.rigid import rigid_modes
 from wcs.group import evaluation_comm, share, together
+from wcs import linalg
 from wcs.options import MIN_TOLERANCE
 from wcs.status import Status
 
@@ -665,8 +666,7 @@ class Krylov:
         """x with ‖b − A x‖ ≤ rtol ‖b‖ (unpreconditioned norm): (x, iterations, converged).
         step: (Z, P, springs, pin) of A's elimination (`wcs.contact.bddc.Parts.of`), which BDDC
         is built from (GAMG needs A alone)."""
-        import dolfinx_solver  # noqa: F401  (loads the PETSc libraries petsc4py binds to)
-        from petsc4py import PETSc
+        PETSc = linalg.petsc()
         n = A.shape[0]
         if n == 0:
             return np.zeros(0), 0, True

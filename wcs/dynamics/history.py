@@ -11,11 +11,12 @@ strategies that want a gradient then take finite differences, `wcs.search.ascent
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import xarray as xr
 
 from wcs.errors import SolveError
 from wcs.model.evaluation import Evaluation, Evaluator
@@ -27,6 +28,10 @@ from .release import carried_over, reactions, released_dofs, released_model, rel
 from .spec import InitialVelocity
 from .stepping import (dynamic_matrices, initial_state, level_solution, region_dynamics, rigid_velocity,
                        step_levels)
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 REDUCTIONS = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
 REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "at the end time",
@@ -124,6 +129,7 @@ def output_fields(model, c, hist) -> xr.Dataset:
     first = parts[0]
     fixed = ("coords", "cells", "cell_body", "cell_region", "contact_coords", "contact_pair")
     moving = [v for v in first.data_vars if v not in fixed]
+    import xarray as xr
     out = xr.concat([p[moving] for p in parts], dim="output_time", data_vars="all")
     for v in moving:
         if "small_strain" in v:

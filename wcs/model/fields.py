@@ -3,12 +3,16 @@ triangles with stress (xx, yy, zz, xy) in 2D, tetrahedra with (xx, yy, zz, yz, x
 and how far they leave small-strain theory (`small_strain_*`, wcs/model/validity.py)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
 
 from . import validity
 from ..fem import stress
 from ..geometry import tet
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 
 def fields_dataset(model, state) -> xr.Dataset:
@@ -37,6 +41,7 @@ def fields_dataset(model, state) -> xr.Dataset:
         data["temperature"] = (("node",), state.T, {"units": "K", "long_name": "temperature"})
     if state.contact is not None:
         data.update(state.contact.fields())
+    import xarray as xr
     ds = xr.Dataset(data, coords={"dim": ["x", "y", "z"][:d], "component": list(law.COMPONENTS),
                                   "principal": list(range(1, d + 1)),
                                   "body": model.smesh.bodies,

@@ -9,10 +9,15 @@ whose nearest output time the worst-case fields are drawn at.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 PHRASE = {"max": "the peak over time of {}", "min": "the least over time of {}",
           "final": "{} at the end time", "mean": "the mean over time of {}"}

@@ -8,12 +8,13 @@ A file is encoded in memory and written with one plain write + rename
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import datetime as _dt
 import subprocess
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from .. import linalg
 from ..version import __version__
@@ -23,6 +24,9 @@ from ..model.dynamic_numbers import DYNAMIC_UNITS
 from ..status import Status, flag_attrs
 from ..study.fuzzy import alpha_cut
 from .dynamics import dynamic_results
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 
 def git_commit() -> str:
@@ -48,7 +52,7 @@ def provenance(study, evaluator, layout: tuple[int, int] = (1, 1)) -> dict:
         "git_commit": git_commit(),
         "seed": study.search.sample.seed,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.backend()})"
+        "solver": (f"{study.solver.method} (contact: PETSc CG + GAMG; direct solves: {linalg.direct_backend_used()})"
                    if evaluator.model.solver_method == "iterative" else f"{study.solver.method} ({linalg.backend()})"),
         "solver_choice": f"{evaluator.model.solver_method}: {evaluator.model.solver_reason}",   # auto's reason, the estimate
         "ranks": layout[0],                     # MPI ranks of the run
@@ -58,6 +62,19 @@ def provenance(study, evaluator, layout: tuple[int, int] = (1, 1)) -> dict:
         "mesh_cells": int(mesh.t.shape[1]),
         "warnings": "\n".join(getattr(study, "warnings", None) or []),   # what `wcs check` warns of, one a line
     }
+
+
+def open_results(path: str | Path) -> xr.Dataset:
+    """The results file at `path`, opened (a context manager); xarray (with pandas, 43 MB)
+    loads here, where a results file is read, not at the commands' import."""
+    import xarray as xr
+    return xr.open_dataset(path, engine="h5netcdf")
+
+
+def scalars(values: dict) -> xr.Dataset:
+    """A dataset of scalar variables {name: ((), value, attrs)} (xarray loaded here)."""
+    import xarray as xr
+    return xr.Dataset(values)
 
 
 def parameter_variables(study) -> dict:
@@ -84,6 +101,7 @@ KRYLOV_STEP_MAX = ("the most Krylov iterations of one outer step (iterative: one
 
 def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> xr.Dataset:
     """The file of `wcs solve`: the fields of one evaluation, its data set and criteria."""
+    import xarray as xr
     ds = ev.fields.copy()
     pvars, pcoords = parameter_variables(study)
     for k, v in pvars.items():
@@ -178,6 +196,7 @@ def worst_field_variables(criteria: list[str], fields: dict) -> dict:
 
     `fields`: criterion -> xarray.Dataset of its worst case (None where no data set was solved).
     """
+    import xarray as xr
     template = next((f for f in fields.values() if f is not None), None)
     if template is None:
         return {}
@@ -215,6 +234,7 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
     extremes: every end of every range (`wcs.search.ranges.Extreme`; `range_variables`): the
     minima as best_*, and a fuzzy study's worst_*/best_* per α-level.
     """
+    import xarray as xr
     names = list(study.parameters.names)
     lower = np.asarray(study.parameters.lower, float)
     upper = np.asarray(study.parameters.upper, float)
@@ -311,6 +331,7 @@ def run_dataset(study, evaluator, records: list[dict], *, worst: dict, certifica
 
 def range_coords(study) -> dict:
     """The `level` coordinate of a fuzzy study (ascending α), else none."""
+    import xarray as xr
     if study.levels is None:
         return {}
     return {"level": xr.Variable(("level",), np.array(study.levels, float),
@@ -323,6 +344,7 @@ def range_variables(study, crit: list[str], extremes: list, unit_text: str) -> d
     (best − lower limit) when some criterion asks for its minimum; in a fuzzy study both ends
     per α-level (leading `level` dimension, replacing the crisp worst_*, certificate and
     margin) and each level's α-cut `level_lower`, `level_upper` (level, param)."""
+    import xarray as xr
     names = list(study.parameters.names)
     levels = [None] if study.levels is None else list(study.levels)
     dims = ("criterion",) if study.levels is None else ("level", "criterion")

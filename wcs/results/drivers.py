@@ -26,13 +26,18 @@ stiffness, 1e6–1e8 on these meshes, is 1e-10–1e-8 of Φ), such as the 6e-10 
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from collections.abc import Callable
 
 import numpy as np
-import xarray as xr
 
 from .extremes import Extreme, kinds
 from ..search.scaling import FD_STEP
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 IDLE = 1e-9                     # d_i at most this share of the largest or of |Φ|: the parameter does not move Φ
 
@@ -102,6 +107,7 @@ def drivers(ds: xr.Dataset, found: list[Extreme], evaluate: Callable) -> xr.Data
     sign = np.nan_to_num(np.where(rough, common, np.sign(grad)))
     dims = ("extreme", "criterion", "param")
     side_attrs = "a one-sided difference (the criterion is not differentiable at the extreme): "
+    import xarray as xr
     return xr.Dataset({
         "drivers": (dims, d,
                     {"long_name": "what drives each extreme: |dPhi/dx_i| (u_i - l_i), the first-order change of "

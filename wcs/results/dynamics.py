@@ -4,8 +4,13 @@ where the gradients came from (`gradients`, `certificate_note`): the adjoint thr
 (`wcs.dynamics.adjoint`), finite differences where it is not differentiable or not covered."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 ADJOINT = ("gradients through time by the adjoint (a reverse sweep over the levels' final active sets) where "
            "the search asked for them; where an evaluation's reduced history is not differentiable (its "

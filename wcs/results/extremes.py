@@ -17,6 +17,7 @@ from ..search.ranges import Extreme
 if TYPE_CHECKING:
     import xarray as xr
 
+
 KINDS = ("worst", "best")
 
 

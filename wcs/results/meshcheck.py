@@ -53,6 +53,7 @@ from .verdict import CLOSE
 if TYPE_CHECKING:
     import xarray as xr
 
+
 SPLITS = (1, 2)                 # the refined meshes: split once (h/2) and twice (h/4)
 LEVELS = ("h", "h/2", "h/4")    # the study's mesh and the refined meshes
 ORDER_RANGE = (0.5, 4.0)        # observed orders outside it: the extrapolation is not to be trusted

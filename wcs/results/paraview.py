@@ -20,6 +20,8 @@ names.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import base64
 import os
 import zlib
@@ -27,7 +29,10 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 VTK_LINE, VTK_TRIANGLE, VTK_TETRA = 3, 5, 10
 TENSOR = ("XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ")

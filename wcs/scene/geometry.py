@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import math
 
-import gmsh
 
 from ..errors import StudyError
+from .session import gmsh
 
 DimTags = list[tuple[int, int]]
 

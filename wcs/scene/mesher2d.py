@@ -54,7 +54,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import gmsh
 import numpy as np
 import scipy.sparse as sp
 import skfem
@@ -69,7 +68,7 @@ from .geometry import make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
 from .pieces import fragment_pieces, piece_owners, refuse_roi_apart, region_entity_sizes, region_names
-from .session import OPTIONS, Session
+from .session import OPTIONS, Session, gmsh
 from .spec import Shape
 
 ROI_SHAPES = {"box": "rectangle", "disc": "disc", "polygon": "polygon"}   # region of interest -> shape

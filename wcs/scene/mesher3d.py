@@ -53,7 +53,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import gmsh
 import numpy as np
 import scipy.sparse as sp
 import skfem
@@ -66,7 +65,7 @@ from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
 from .meshfile import read_mesh_file
 from .pieces import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
-from .session import Session
+from .session import Session, gmsh
 from .estimate import DEFAULT_GRADING
 from .spec3d import Boundary, Plane, Refinement, RegionOfInterest, Scene, Solid
 

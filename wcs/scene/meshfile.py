@@ -44,6 +44,7 @@ import dataclasses
 import io
 import itertools
 import math
+import mmap
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -125,7 +126,7 @@ def _read_gmsh(path: Path, kind: Kind):
     d - 1, via the gmsh API."""
     import gmsh                     # gmsh loads only to read a gmsh file
 
-    from .session import Session    # (it loads gmsh)
+    from .session import Session
     with Session():
         try:
             gmsh.merge(str(path))
@@ -157,6 +158,152 @@ def _read_gmsh(path: Path, kind: Kind):
         raise _fail(path, "the file holds no mesh nodes")
     groups = [(n, d, _node_indices(ntags, c)) for n, d, c in groups]
     return xyz, groups
+
+
+def _msh_header(path: Path) -> list[bytes]:
+    """A .msh file's format line: [version, file type (0 ASCII, 1 binary), data size], or []."""
+    with path.open("rb") as f:
+        head = f.read(64).split()
+    return head[1:4] if len(head) > 3 and head[0] == b"$MeshFormat" else []
+
+
+def _read_msh(path: Path, kind: Kind):
+    """`_read_gmsh`'s answer without gmsh (its library and OpenMP runtime, 87 MB, not loaded),
+    for an MSH 4.1 file (read by meshio) or an ASCII MSH 2.2 one (`_read_msh22`) whose groups
+    of dimensions d and d - 1 hold only the supported cells; None for any other file (gmsh
+    reads it, and words what is wrong with it).
+
+    gmsh's answer, as it reads these files (tests/scene/test_meshfile_read.py compares the
+    two): a physical group is a set of entities (4.1: as the file's entities name them; 2.2:
+    the elementary tags of its elements), the groups in the order of (dimension, tag), each
+    group's elements those of its entities (ascending tags) in the file's order, so that in
+    2.2 an element is in every group of its entity (gmsh writes an element of two groups
+    twice: it comes twice). The nodes: 4.1 in the file's order; 2.2 entity by entity, each
+    node in the lowest (dimension, tag) entity of the elements that use it, by ascending tag.
+    An unnamed group is called by its tag."""
+    head = _msh_header(path)
+    if head[:2] == [b"2.2", b"0"]:
+        read = _read_msh22(path)
+    elif head[:1] == [b"4.1"] and _dense_tags(path, head):    # meshio indexes node tags by an array
+        read = _read_msh41(path)                              # of the largest tag's length
+    else:
+        return None
+    if read is None:
+        return None
+    xyz, names, blocks, members = read
+    groups = []
+    for dim, tag in sorted(members):
+        if dim not in (kind.dim - 1, kind.dim):
+            continue
+        want = kind.cell_type if dim == kind.dim else kind.facet_type
+        conn = []
+        for e in sorted(members[(dim, tag)]):
+            for d, gtype, cells, entity in blocks:          # the entity's elements, block by block
+                if d != dim or not (entity == e).any():
+                    continue
+                if gtype != want:
+                    return None     # gmsh names the element type in its message
+                conn.append(cells[entity == e])
+        groups.append((names.get((dim, tag), str(tag)), dim,
+                       np.concatenate(conn) if conn else np.zeros((0, dim + 1), np.int64)))
+    return xyz, groups
+
+
+def _read_msh41(path: Path):
+    """(nodes, {(dim, tag): name}, [(dim, gmsh type, cells, their entities)], {group: its
+    entities}) of an MSH 4.1 file, by meshio; None where meshio fails or a group is unnamed."""
+    import meshio
+    from meshio._mesh import topological_dimension
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+    sink = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            m = meshio.read(str(path), file_format="gmsh")
+    except (Exception, SystemExit):  # noqa: BLE001 - gmsh reads it again, with its own message
+        return None
+    names = {(int(dim), int(tag)): name for name, (tag, dim) in (m.field_data or {}).items()}
+    entity = m.cell_data.get("gmsh:geometrical", [])
+    if not m.cells or len(entity) != len(m.cells):
+        return None
+    blocks = [(topological_dimension[b.type], _meshio_to_gmsh_type.get(b.type), np.asarray(b.data, np.int64),
+               np.asarray(e, np.int64)) for b, e in zip(m.cells, entity)]
+    named = [k for k in m.cell_sets if k in m.field_data]
+    grouped = [b for b in range(len(blocks)) if any(len(m.cell_sets[k][b]) for k in named)]
+    if len(m.cell_data.get("gmsh:physical", [])) != len(grouped):
+        return None                 # a block of an unnamed group only: meshio does not say which
+    members = {key: {int(entity[b][0]) for b, rows in enumerate(m.cell_sets[name]) if len(rows)}
+               for key, name in names.items()}
+    return np.asarray(m.points, dtype=float), names, blocks, members
+
+
+MSH22_CELLS = {15: (0, 1), 1: (1, 2), 2: (2, 3), 4: (3, 4)}     # gmsh type -> (dimension, nodes)
+
+
+def _read_msh22(path: Path):
+    """`_read_msh41`'s answer for an ASCII MSH 2.2 file (points, lines, triangles and tetrahedra
+    only, each element with its physical and elementary tags), the nodes in gmsh's order; None
+    for any other, or a node no element uses (gmsh's place for it is not known here)."""
+    text = path.read_bytes()
+
+    def section(name: bytes) -> list[bytes]:
+        at = text.find(b"$" + name + b"\n")
+        end = text.find(b"$End" + name, at)
+        return text[at:end].splitlines()[1:] if 0 <= at < end else []
+    try:
+        names = {}
+        for line in section(b"PhysicalNames")[1:]:
+            dim, tag, name = line.split(None, 2)
+            names[(int(dim), int(tag))] = name.strip().strip(b'"').decode()
+        nodes = section(b"Nodes")
+        n = int(nodes[0])
+        table = np.array(b" ".join(nodes[1:n + 1]).split(), dtype=float).reshape(n, 4)
+        lines = section(b"Elements")
+        rows: dict[int, list] = {}
+        for line in lines[1:int(lines[0]) + 1]:
+            v = line.split()
+            if int(v[1]) not in MSH22_CELLS or int(v[2]) != 2:
+                return None
+            rows.setdefault(int(v[1]), []).append(v[3:])
+        tags = table[:, 0].astype(np.int64)
+        if not np.array_equal(tags, table[:, 0]) or not rows:
+            return None
+        blocks = []
+        for gtype, r in rows.items():
+            dim, k = MSH22_CELLS[gtype]
+            a = np.array(r, dtype=np.int64).reshape(len(r), 2 + k)
+            blocks.append((dim, gtype, _node_indices(tags, a[:, 2:]), a[:, 0], a[:, 1]))
+    except (ValueError, IndexError, UnicodeDecodeError):
+        return None                 # gmsh reads it again, with its own message
+    if any((b[2] < 0).any() for b in blocks):
+        return None
+    home = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)      # dimension * 2**40 + entity tag
+    for dim, _, cells, _, entity in blocks:
+        np.minimum.at(home, cells.ravel(), np.repeat(dim * 2**40 + entity, cells.shape[1]))
+    if (home == np.iinfo(np.int64).max).any():
+        return None
+    order = np.lexsort((tags, home))
+    new = np.empty(n, np.int64)
+    new[order] = np.arange(n)
+    members: dict[tuple[int, int], set] = {}
+    for dim, _, _, physical, entity in blocks:
+        for tag in np.unique(physical[physical != 0]):          # 0: in no physical group
+            members.setdefault((dim, int(tag)), set()).update(np.unique(entity[physical == tag]).tolist())
+    return (table[order, 1:], names, [(dim, gtype, new[cells], entity) for dim, gtype, cells, _, entity in blocks],
+            members)
+
+
+def _dense_tags(path: Path, head: list[bytes]) -> bool:
+    """Whether an MSH 4.1 file's largest node tag is below twice its node count (plus 1,000)."""
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+        at = mm.find(b"$Nodes")
+        if at < 0:
+            return False
+        at = mm.find(b"\n", at) + 1
+        if head[1] == b"0":
+            counts = [int(v) for v in mm[at:mm.find(b"\n", at)].split()]
+        else:
+            counts = np.frombuffer(mm[at:at + 4 * int(head[2])], dtype=f"u{int(head[2])}").tolist()
+    return len(counts) == 4 and counts[3] < 2 * counts[1] + 1000
 
 
 def _node_indices(tags: np.ndarray, refs: np.ndarray) -> np.ndarray:
@@ -219,7 +366,7 @@ def load_raw(path, dim: int = 2) -> RawMesh:
         raise _fail(path, "not a file")
     kind = KINDS[dim]
     if path.suffix.lower() == ".msh":
-        xyz, groups = _read_gmsh(path, kind)
+        xyz, groups = _read_msh(path, kind) or _read_gmsh(path, kind)
     else:
         xyz, groups = _read_meshio(path, kind)
     raw = _assemble(path, xyz, groups, kind)

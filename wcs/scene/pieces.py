@@ -5,11 +5,11 @@ the refusal of a region of interest meshed apart from its body. `dim` is 2 (surf
 (volumes)."""
 from __future__ import annotations
 
-import gmsh
 import numpy as np
 
 from ..errors import StudyError
 from .meshdata import SceneMesh
+from .session import gmsh
 
 
 def region_names(scene) -> list[tuple[str, str]]:

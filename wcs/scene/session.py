@@ -2,11 +2,22 @@
 model if it is already running, set wcs's options, and undo all of it on exit."""
 from __future__ import annotations
 
+import importlib
 import threading
 
-import gmsh
-
 from .estimate import CURVATURE_ELEMENTS
+
+
+class _Gmsh:
+    """The gmsh module, loaded at its first use (`gmsh.model...`): its library and OpenMP
+    runtime hold 87 MB that a scene read from a mesh file never uses. The scene's modules
+    take `gmsh` from here."""
+
+    def __getattr__(self, name):
+        return getattr(importlib.import_module("gmsh"), name)
+
+
+gmsh = _Gmsh()
 ALGORITHM_2D = 6                # Frontal-Delaunay
 
 _lock = threading.Lock()        # gmsh is a process-wide singleton

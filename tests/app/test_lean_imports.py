@@ -1,0 +1,74 @@
+"""`wcs solve` of a file-mesh study by the iterative method loads what its path needs: at the
+solve's start neither the results file's libraries (xarray, pandas, h5py) nor gmsh (a .msh is
+read by meshio) nor PARDISO (MKL); by its end, with the results written, still no gmsh and no
+MKL (the iterative method makes no direct factor). Guarded by what the process imported and
+mapped, not by its time or memory."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests" / "bench"))
+from kratos_mesh import write_patch_msh  # noqa: E402
+
+STUDY = """study: lean
+scene:
+  dimension: 3
+  mesh: {file: mesh.msh}
+  materials:
+    soft: {E: 5.0e9, nu: 0.35}
+    stiff: {E: 2.0e10, nu: 0.25}
+  bodies:
+    base: {regions: [{material: stiff}]}
+    block: {regions: [{material: soft}]}
+  contacts:
+    interface: {master: base_top, slave: block_bottom}
+  loads:
+    block_top: {pressure: 2.0e6}
+  supports:
+    base_bottom: {u: [null, null, 0.0]}
+    x0: {u: [0.0, null, null]}
+    y0: {normal: 0.0}
+  regions_of_interest:
+    interface: {boundary: base_top}
+criteria:
+- {kind: contact_pressure, name: pressure, regions: [interface]}
+uncertain:
+  loads.block_top.pressure: [1.0e6, 3.0e6]
+solver: {method: iterative}
+"""
+
+HEAVY = ["xarray", "pandas", "h5py", "gmsh", "pypardiso", "matplotlib", "cvxpy"]
+
+PROBE = r"""
+import json, sys
+import wcs.model.evaluation as evaluation
+HEAVY = json.loads(sys.argv[1])
+seen = {}
+evaluate = evaluation.Evaluator.evaluate
+def at_start(self, *args, **kwargs):
+    seen.setdefault("solve", [m for m in HEAVY if m in sys.modules])
+    return evaluate(self, *args, **kwargs)
+evaluation.Evaluator.evaluate = at_start
+from wcs.cli import main
+seen["code"] = main(["solve", "-q", "-o", "out.nc", "lean.yaml"])
+seen["end"] = [m for m in HEAVY if m in sys.modules]
+maps = open("/proc/self/maps").read()
+seen["mapped"] = [lib for lib in ("libgmsh", "libmkl", "libpetsc") if lib in maps]
+print(json.dumps(seen))
+"""
+
+
+def test_an_iterative_file_mesh_solve_loads_no_results_library_before_its_solve_and_no_gmsh_or_mkl(tmp_path):
+    write_patch_msh(tmp_path / "mesh.msh", 0.25)
+    (tmp_path / "lean.yaml").write_text(STUDY)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", PROBE, json.dumps(HEAVY)], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, check=True)
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert seen["code"] == 0, out.stderr
+    assert seen["solve"] == [], f"loaded before the solve: {seen['solve']}"
+    assert seen["end"] == ["xarray", "pandas", "h5py"], f"loaded by the end: {seen['end']}"
+    assert seen["mapped"] == ["libpetsc"], f"libraries mapped: {seen['mapped']}"
