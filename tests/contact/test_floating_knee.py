@@ -113,8 +113,9 @@ def test_the_3d_knee_iterative_gradients_are_the_monolithic_ones():
     """The adjoint gradients of the coarse 3D knee's criterion by the iterative method (CG on the
     final active set, the Coulomb slipping rows by GMRES) against the monolithic adjoint's, per
     parameter to 1e-6 relative or below the resolution floor 1e-9 |Φ| / range (the rule of
-    tests/contact/test_iterative_adjoint.py); measured ≤ 2.4e-8. Contact tolerance 1e-10: at its
-    1e-13 the Coulomb fixed point did not settle in 100 Tresca problems."""
+    tests/contact/test_iterative_adjoint.py); measured ≤ 2.4e-8. Contact tolerance 1e-10: at 1e-13 the
+    iterative method's Coulomb fixed point does not settle (its λ, a residual f − K u, carries round-off
+    ~1e-12 of itself: `test_the_3d_knee_gradients_against_finite_differences`)."""
     evs = {}
     for method in ("monolithic", "iterative"):
         doc = study(KNEE3D, method, **COARSE)
