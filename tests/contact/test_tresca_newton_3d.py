@@ -147,6 +147,14 @@ def test_a_tangent_held_by_supports_is_left_out_of_its_discs_scale():
     np.testing.assert_allclose(c, [2.0, 4.0, 10.0, 2.0 / (1 / 8 + 1 / 1), 10.0, 2.0 / (1 / 8 + 1 / 1)], rtol=1e-12)
 
 
+def test_the_monolithic_discs_scale_leaves_out_a_tangent_held_by_supports_too():
+    """`solve_contact`'s c from the exact diag(W) by the same rule (`disc_scales`): node 0's first
+    tangent a row of round-off (W_ii 1e-40 against 16), its c that of its second tangent alone,
+    not 2 / (W_ii + 8) = 1/4."""
+    W = np.diag([1.0, 2.0, 1e-40, 4.0, 8.0, 16.0])       # n0, n1, t1 (node 0 held), t1, t2, t2
+    np.testing.assert_allclose(cs.scales(W, 2), [1.0, 0.5, 1 / 8, 2 / 20, 1 / 8, 2 / 20], rtol=1e-12)
+
+
 # A data set of the 3D tunnel's box (a Latin hypercube point, slip limits between 0.53 and 1.48 MPa over the
 # 8 x 2 grid): evaluated after `CYCLED`, the iterative method took 24 Newton steps, the nodes on the rollers front
 # and back switching between a reversed slip and stick at 2-7 g w.

@@ -94,7 +94,7 @@ from wcs.contact.laws import law_of
 from wcs.contact.methods import Primal, Solved, settings
 from wcs.contact.solvability import unbalanced
 from wcs.contact.solver import (ARMIJO, MIN_STEP, ContactResult, _across_slip, _first_free_set, _states,
-                                conditions_violated, free_rigid_motion, pinned_dofs, project)
+                                conditions_violated, disc_scales, free_rigid_motion, pinned_dofs, project)
 from wcs.errors import StudyError
 from wcs.fem.rigid import rigid_modes
 from wcs.group import evaluation_comm, share, together
@@ -222,17 +222,10 @@ def _acting(C: sp.csr_matrix) -> np.ndarray:
 
 
 def _scales(K, C, m, k):
-    """c ≈ 1 / diag(W) without W, as `wcs.contact.solver.scales` takes it: 1 / w_i with the
-    estimate w_i = Σ_j C_ij² / K_jj of W_ii, on a node's k tangents the mean w of those that act
-    (`_Rows.acting`). A tangent held by supports (a row of round-off, w ≈ 0) is left out of the
-    mean: in it, it halved w and doubled the node's c, so that on the 3D tunnel at 3.9e4
-    unknowns the nodes on the rollers front and back predicted their slip reversed, then stuck
-    at 2–7 g w, then slipped again (24 Newton steps on a data set of the box; 14 without); with
-    c = 1/0 taken as 0 such a node predicted its stick/slip from λ alone and cycled."""
-    dW = C.multiply(C) @ (1.0 / K.diagonal())
-    acting = _acting(C)[m:].reshape(k, m)
-    dW[m:] = np.tile(np.sum(dW[m:].reshape(k, m) * acting, axis=0) / np.maximum(acting.sum(axis=0), 1), k)
-    return 1.0 / np.where(dW > 0, dW, 1.0)
+    """c ≈ 1 / diag(W) without W (`wcs.contact.solver.disc_scales`, one c per disc over the
+    tangents that act, `_acting`), with the estimate w_i = Σ_j C_ij² / K_jj of W_ii; with c = 1/0
+    taken as 0 a tangent held by supports predicted its stick/slip from λ alone and cycled."""
+    return disc_scales(C.multiply(C) @ (1.0 / K.diagonal()), _acting(C), k)
 
 
 def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):
