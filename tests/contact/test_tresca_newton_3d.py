@@ -147,6 +147,14 @@ def test_a_tangent_held_by_supports_is_left_out_of_its_discs_scale():
     np.testing.assert_allclose(c, [2.0, 4.0, 10.0, 2.0 / (1 / 8 + 1 / 1), 10.0, 2.0 / (1 / 8 + 1 / 1)], rtol=1e-12)
 
 
+def test_the_monolithic_discs_scale_leaves_out_a_tangent_held_by_supports_too():
+    """`solve_contact`'s c from the exact diag(W) by the same rule (`disc_scales`): node 0's first
+    tangent a row of round-off (W_ii 1e-40 against 16), its c that of its second tangent alone,
+    not 2 / (W_ii + 8) = 1/4."""
+    W = np.diag([1.0, 2.0, 1e-40, 4.0, 8.0, 16.0])       # n0, n1, t1 (node 0 held), t1, t2, t2
+    np.testing.assert_allclose(cs.scales(W, 2), [1.0, 0.5, 1 / 8, 2 / 20, 1 / 8, 2 / 20], rtol=1e-12)
+
+
 # A data set of the 3D tunnel's box (a Latin hypercube point, slip limits between 0.53 and 1.48 MPa over the
 # 8 x 2 grid): evaluated after `CYCLED`, the iterative method took 24 Newton steps, the nodes on the rollers front
 # and back switching between a reversed slip and stick at 2-7 g w.
@@ -171,5 +179,31 @@ def test_the_finer_3d_tunnel_on_rollers_converges_in_fewer_iterative_newton_step
     assert res.status == Status.SOLVED, res.message
     assert res.state.raw.iterations <= 16
     ref = Evaluator(load_study(doc)).evaluate(np.array(REVERSED), gradients=False)
+    for name, value in ref.phi.items():
+        assert res.phi[name] == pytest.approx(value, rel=1e-7)
+
+
+@pytest.mark.slow
+def test_a_full_step_that_only_sticks_more_nodes_is_taken_on_trial(monkeypatch):
+    """studies/tunnel-fault-3d.yaml (1.6e4 unknowns, 529 fault nodes) by the iterative method at a
+    corner of its box (E, weight and the west pressure low, ν and the east pressure high, the
+    right side pushed 3 cm, the slip limit 1.5 MPa everywhere), warm from the nominal answer. The
+    full step from the pattern one node short of the answer's stick set ended with that node
+    sticking, its slip reversed: ‖Φ‖² 259 times the start's (c times the reversed slip), so
+    Armijo shortened it to t = 2⁻⁵ … 2⁻⁷ for four steps: 12 Newton steps. Taken on trial (the
+    watchdog), the next step on the predicted pattern ended at 2 % of the start's ‖Φ‖²: 8 steps
+    (measured, deterministic: the same data give the same steps). The criteria are those of the
+    monolithic method."""
+    monkeypatch.chdir(STUDIES)
+    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
+    study = load_study({**doc, "solver": {"method": "iterative"}})
+    lo, hi = study.parameters.lower, study.parameters.upper
+    corner = lo + np.r_[0, 1, 0, 0, 1, 0, np.ones(len(lo) - 6)] * (hi - lo)
+    ev = Evaluator(study)
+    assert ev.evaluate(study.nominal(), gradients=False).status == Status.SOLVED
+    res = ev.evaluate(corner, gradients=False)
+    assert res.status == Status.SOLVED, res.message
+    assert res.state.raw.iterations <= 8
+    ref = Evaluator(load_study(doc)).evaluate(corner, gradients=False)
     for name, value in ref.phi.items():
         assert res.phi[name] == pytest.approx(value, rel=1e-7)
