@@ -147,6 +147,18 @@ def test_a_tangent_held_by_supports_is_left_out_of_its_discs_scale():
     np.testing.assert_allclose(c, [2.0, 4.0, 10.0, 2.0 / (1 / 8 + 1 / 1), 10.0, 2.0 / (1 / 8 + 1 / 1)], rtol=1e-12)
 
 
+def test_a_normal_held_by_supports_gets_c_one_as_the_monolithic_null_rows():
+    """A row that does not act (node 0's normal and first tangent of round-off, a fault node held
+    by supports on both sides) gets c = 1, as `solve_contact`'s exactly null rows, not
+    1/w_i = 2e34: its gap's round-off times that c made ‖Φ‖ ~ 1e18 on the finer 3D tunnel."""
+    from wcs.contact.iterative import _scales
+    K = sp.diags([2.0, 4.0, 5.0, 8.0, 10.0, 1.0])
+    Bn = sp.csr_matrix(np.r_[[1e-17 * np.eye(6)[0]], [np.eye(6)[1]]])  # normals: node 0 held, node 1
+    Bt = sp.csr_matrix(np.r_[[1e-17 * np.eye(6)[2]], np.eye(6)[3:6]])   # t1: node 0 held, node 1; t2: nodes 0, 1
+    c = _scales(K, sp.vstack([Bn, Bt]).tocsr(), 2, 2)
+    np.testing.assert_allclose(c, [1.0, 4.0, 10.0, 2.0 / (1 / 8 + 1 / 1), 10.0, 2.0 / (1 / 8 + 1 / 1)], rtol=1e-12)
+
+
 def test_the_monolithic_discs_scale_leaves_out_a_tangent_held_by_supports_too():
     """`solve_contact`'s c from the exact diag(W) by the same rule (`disc_scales`): node 0's first
     tangent a row of round-off (W_ii 1e-40 against 16), its c that of its second tangent alone,
@@ -204,6 +216,29 @@ def test_a_full_step_that_only_sticks_more_nodes_is_taken_on_trial(monkeypatch):
     res = ev.evaluate(corner, gradients=False)
     assert res.status == Status.SOLVED, res.message
     assert res.state.raw.iterations <= 8
+    ref = Evaluator(load_study(doc)).evaluate(corner, gradients=False)
+    for name, value in ref.phi.items():
+        assert res.phi[name] == pytest.approx(value, rel=1e-7)
+
+
+@pytest.mark.slow
+def test_a_normal_held_by_supports_leaves_the_merit_at_the_finer_tunnels_corner(monkeypatch):
+    """studies/tunnel-fault-3d.yaml at 0.55 m / 1.6 m (3.9e4 unknowns) by the iterative method at a
+    corner of its box (E, ν, the east pressure and the push high, the rest low, the slip limit
+    0.5 MPa everywhere), warm from the nominal answer. A fault node held by supports on both sides
+    has a normal row of round-off (not acting, λn = 0); with c = 1/w_i ~ 4e39 there its gap's
+    round-off (1e-21) made ‖Φ‖ ~ 1e18, Armijo found no decrease and the full step reproduced
+    itself: 200 Newton steps, status 1. With c = 1 on that row: 11 steps (measured,
+    deterministic), the criteria those of the monolithic method."""
+    doc = finer_tunnel(monkeypatch)
+    study = load_study({**doc, "solver": {"method": "iterative"}})
+    lo, hi = study.parameters.lower, study.parameters.upper
+    corner = lo + np.r_[1, 1, 0, 0, 1, 1, np.zeros(len(lo) - 6)] * (hi - lo)
+    ev = Evaluator(study)
+    assert ev.evaluate(study.nominal(), gradients=False).status == Status.SOLVED
+    res = ev.evaluate(corner, gradients=False)
+    assert res.status == Status.SOLVED, res.message
+    assert res.state.raw.iterations <= 12
     ref = Evaluator(load_study(doc)).evaluate(corner, gradients=False)
     for name, value in ref.phi.items():
         assert res.phi[name] == pytest.approx(value, rel=1e-7)
