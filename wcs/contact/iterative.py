@@ -69,8 +69,8 @@ linearises Π at z on the slip branch, and where its slip reverses at a node tha
 answer, ‖Φ‖ there is c times that reversed slip, however close the step came; the next step,
 on the predicted pattern, is kept if it ends below the Armijo target of the point the trial
 started from, else the iterate goes back there and the step is shortened (one step lost).
-Shortened, such steps crept at t = 2⁻⁵ … 2⁻⁷ (a corner of the 3D tunnel's box: 12 Newton steps,
-8 with the trial); trials whose end also unsticks or opens nodes failed there as a rule.
+Shortened, such steps crept at t = 2⁻⁵ … 2⁻⁷ until the budget of the loose steps changed the
+prediction.
 
 Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
 which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
