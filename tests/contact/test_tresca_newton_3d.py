@@ -196,32 +196,6 @@ def test_the_finer_3d_tunnel_on_rollers_converges_in_fewer_iterative_newton_step
 
 
 @pytest.mark.slow
-def test_a_full_step_that_only_sticks_more_nodes_is_taken_on_trial(monkeypatch):
-    """studies/tunnel-fault-3d.yaml (1.6e4 unknowns, 529 fault nodes) by the iterative method at a
-    corner of its box (E, weight and the west pressure low, ν and the east pressure high, the
-    right side pushed 3 cm, the slip limit 1.5 MPa everywhere), warm from the nominal answer. The
-    full step from the pattern one node short of the answer's stick set ended with that node
-    sticking, its slip reversed: ‖Φ‖² 259 times the start's (c times the reversed slip), so
-    Armijo shortened it to t = 2⁻⁵ … 2⁻⁷ for four steps: 12 Newton steps. Taken on trial (the
-    watchdog), the next step on the predicted pattern ended at 2 % of the start's ‖Φ‖²: 8 steps
-    (measured, deterministic: the same data give the same steps). The criteria are those of the
-    monolithic method."""
-    monkeypatch.chdir(STUDIES)
-    doc = yaml.safe_load((STUDIES / "tunnel-fault-3d.yaml").read_text())
-    study = load_study({**doc, "solver": {"method": "iterative"}})
-    lo, hi = study.parameters.lower, study.parameters.upper
-    corner = lo + np.r_[0, 1, 0, 0, 1, 0, np.ones(len(lo) - 6)] * (hi - lo)
-    ev = Evaluator(study)
-    assert ev.evaluate(study.nominal(), gradients=False).status == Status.SOLVED
-    res = ev.evaluate(corner, gradients=False)
-    assert res.status == Status.SOLVED, res.message
-    assert res.state.raw.iterations <= 8
-    ref = Evaluator(load_study(doc)).evaluate(corner, gradients=False)
-    for name, value in ref.phi.items():
-        assert res.phi[name] == pytest.approx(value, rel=1e-7)
-
-
-@pytest.mark.slow
 def test_a_normal_held_by_supports_leaves_the_merit_at_the_finer_tunnels_corner(monkeypatch):
     """studies/tunnel-fault-3d.yaml at 0.55 m / 1.6 m (3.9e4 unknowns) by the iterative method at a
     corner of its box (E, ν, the east pressure and the push high, the rest low, the slip limit
