@@ -62,15 +62,6 @@ decreases (Armijo, as the condensed Newton does); the 2D steps so shortened are 
 held sideways by the 2 of its 140 contact nodes that stick, full loose steps slid it sideways
 and wandered over ever new patterns (the Coulomb fixed point's second Tresca problem: 100
 steps, none repeated); loose steps shortened did not decrease ‖Φ‖².
-A step on discs whose full end fails Armijo's test but predicts the step's own pattern with
-slipping nodes stuck, and nothing else changed, is taken in full on trial (the watchdog of
-Chamberlain, Powell, Lemaréchal, Pedersen, Math. Programming Study 16 (1982)): the step
-linearises Π at z on the slip branch, and where its slip reverses at a node that sticks at the
-answer, ‖Φ‖ there is c times that reversed slip, however close the step came; the next step,
-on the predicted pattern, is kept if it ends below the Armijo target of the point the trial
-started from, else the iterate goes back there and the step is shortened (one step lost).
-Shortened, such steps crept at t = 2⁻⁵ … 2⁻⁷ until the budget of the loose steps changed the
-prediction.
 
 Over 500 lines for one method: the Krylov active-set solve and its adjoint (`IterativeAdjoint`),
 which reuses the method's rows (`_Rows`), its PETSc operator and its CG.
@@ -242,8 +233,7 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
     answer's: to `rtol`, so that it can end Newton at once). Stops when the answer of a step
     solved to `rtol` satisfies ‖λ − Π_B(z)‖∞ ≤ tol · max(max|λ|, force scale) and λ ∈ B to tol max|λ|; a 2D
     pattern met again at full accuracy is a cycle of full steps, and the steps from it on are
-    shortened (`_step_length`); a step on discs whose full end only sticks more nodes is taken
-    on trial (the watchdog of the module docstring). The force scale is max |Π_B(z)|:
+    shortened (`_step_length`). The force scale is max |Π_B(z)|:
     an open gap (z_n < 0) carries none (as `wcs.contact.solver._newton`)."""
     lo = np.r_[np.zeros(m), -np.tile(gw, k)]
     hi = np.r_[np.full(m, np.inf), np.tile(gw, k)]
@@ -253,7 +243,6 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
         phi = lam - project(lam + c * (step.C @ u - step.b), lo, hi, k)
         return phi @ phi
     seen, tight, eta, phi_old, damped = set(), set(), ETA_MAX, None, k == 1 and step.R is not None
-    held = None             # the watchdog's (u, λ, full step, θ) of the point a full step on trial left
     for it in range(max_iter + 1):
         z = lam + c * (step.C @ u - step.b)
         phi = lam - project(z, lo, hi, k)
@@ -291,21 +280,8 @@ def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX)
             step.failure, step.unsupported = str(exc), True
             break
         discs = k > 1 and np.any(~_stuck(free, m, k) & (gw > 0) & step.rows.disc)
-        if held is not None:        # a full step on trial: kept if this step ends below the held point's target
-            u0, lam0, full, theta0 = held
-            held = None
-            if merit(u1, lam1) > (1.0 - 2.0 * ARMIJO) * theta0:
-                u, lam = _step_length(merit, u0, lam0, *full, theta0)     # back to the held point, shortened
-                continue
-            u, lam = u1, lam1
-        elif (discs or damped) and (it > 0 or free0 is None):
-            theta = phi @ phi
-            if not damped and merit(u1, lam1) > (1.0 - 2.0 * ARMIJO) * theta and _sticks_more(
-                    free, _free(lam1 + c * (step.C @ u1 - step.b), lo, hi, k, step.rows), m, k):
-                held = (u, lam, (u1, lam1), theta)
-                u, lam = u1, lam1
-            else:
-                u, lam = _step_length(merit, u, lam, u1, lam1, theta)
+        if (discs or damped) and (it > 0 or free0 is None):
+            u, lam = _step_length(merit, u, lam, u1, lam1, phi @ phi)
         else:
             u, lam = u1, lam1
     return u, lam, _by_node(_free(lam + c * (step.C @ u - step.b), lo, hi, k, step.rows), m, k), it, False
@@ -324,12 +300,6 @@ def _step_length(merit, u, lam, u1, lam1, theta):
             return ut, lt
         t *= 0.5
     return u1, lam1
-
-
-def _sticks_more(free, free1, m, k):
-    """Whether the free set free1 is free's with more nodes stuck and nothing else changed."""
-    s0, s1 = _stuck(free, m, k), _stuck(free1, m, k)
-    return np.array_equal(free[:m], free1[:m]) and not np.any(s0 & ~s1) and bool(np.any(s1 & ~s0))
 
 
 def _stuck(free, m, k):
