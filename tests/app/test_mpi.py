@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from tests.support.processes import wait_until
+
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = ROOT / "studies" / "validation" / "stacked-layers.yaml"
 BIN = Path(sys.executable).parent
@@ -56,8 +58,8 @@ def test_dd_study_on_two_ranks_matches_serial(tmp_path):
 
 KILLED_RUN = """
 import os
+import signal
 import sys
-import time
 
 sys.path.insert(0, {root!r})
 import wcs.app.runner
@@ -84,8 +86,7 @@ def held(self, point, gradients, stage):
     samples.extend([stage] if stage == "sample" else [])
     if hang and len(samples) >= hang:
         open(f"held.{{os.getpid()}}", "w").close()
-        while True:
-            time.sleep(1)
+        signal.pause()                      # until the test kills it
     return evaluate(self, point, gradients, stage)
 
 
@@ -102,7 +103,6 @@ def test_a_run_killed_mid_batch_on_two_ranks_keeps_what_it_solved_and_resumes_bi
     two ranks solves only the other 6 and writes the uninterrupted run's file (x, phi, grad,
     status, the worst cases and their fields) bit for bit."""
     import signal
-    import time
 
     from wcs.results.store import store_path
     mpiexec = BIN / "mpiexec"
@@ -126,9 +126,7 @@ def test_a_run_killed_mid_batch_on_two_ranks_keeps_what_it_solved_and_resumes_bi
     finish(launch("clean.nc"))
     out = tmp_path / "killed.nc"
     proc = launch("killed.nc", hang=4)
-    deadline = time.time() + 600              # generous: a loaded machine is slow, not wrong
-    while len(list(tmp_path.glob("held.*"))) < 2 and proc.poll() is None and time.time() < deadline:
-        time.sleep(0.05)
+    wait_until(proc, lambda: len(list(tmp_path.glob("held.*"))) >= 2, seconds=600, poll=0.05)
     os.killpg(proc.pid, signal.SIGKILL)       # mpiexec and both ranks (one session), in the middle of the batch
     said = proc.communicate()
     assert len(list(tmp_path.glob("held.*"))) == 2, said

@@ -214,15 +214,10 @@ def _acting(C: sp.csr_matrix) -> np.ndarray:
 
 
 def _scales(K, C, m, k):
-    """c ≈ 1 / diag(W) without W (`wcs.contact.solver.disc_scales`, one c per disc over the
-    tangents that act, `_acting`), with the estimate w_i = Σ_j C_ij² / K_jj of W_ii; with c = 1/0
-    taken as 0 a tangent held by supports predicted its stick/slip from λ alone and cycled. A
-    row that does not act gets c = 1, as the monolithic method's exactly null rows
-    (`wcs.contact.solver.null_rows`): with c = 1/w_i ~ 4e39 on the normal of a fault node held
-    by supports on both sides, its gap's round-off (1e-21) made z_n ~ 1e18 and ‖Φ‖ with it, and
-    Newton never stopped (a corner of the 3D tunnel at 3.9e4 unknowns, 200 steps)."""
-    acting = _acting(C)
-    return disc_scales(np.where(acting, C.multiply(C) @ (1.0 / K.diagonal()), 0.0), acting, k)
+    """c ≈ 1 / diag(W) without W (`wcs.contact.solver.disc_scales` over the rows that act,
+    `_acting`), with the estimate w_i = Σ_j C_ij² / K_jj of W_ii; with c = 1/0 taken as 0 a
+    tangent held by supports predicted its stick/slip from λ alone and cycled."""
+    return disc_scales(C.multiply(C) @ (1.0 / K.diagonal()), _acting(C), k)
 
 
 def _newton(step, c, u, lam, free0, gw, m, k, tol, max_iter, rtol, eta0=ETA_MAX):

@@ -308,17 +308,21 @@ def null_rows(W) -> np.ndarray:
 
 def scales(W, k=1):
     """c = 1 / diag(W), one c per disc (`disc_scales`; the rows that act: not `null_rows`)."""
-    return disc_scales(np.diag(W).copy(), ~null_rows(W), k)
+    return disc_scales(np.diag(W), ~null_rows(W), k)
 
 
 def disc_scales(dW, acting, k):
     """c = 1 / dW (dW: diag(W) or an estimate of it), on a node's k tangents 1 / the mean dW of
-    those that act (one c per disc; c = 1 where none acts: its rows carry nothing). A tangent held
-    by supports (a row of round-off, dW ≈ 0) is left out of the mean: in it, it halved dW and
-    doubled the node's c, so that on the 3D tunnel at 3.9e4 unknowns the nodes on the rollers
-    front and back predicted their slip reversed, then stuck at 2–7 g w, then slipped again
-    (24 Newton steps of the iterative method on a data set of the box; 14 without)."""
+    those that act (one c per disc), and c = 1 on a row that does not act (its rows carry
+    nothing). A tangent held by supports (a row of round-off, dW ≈ 0) is left out of the mean:
+    in it, it halved dW and doubled the node's c, so that on the 3D tunnel at 3.9e4 unknowns the
+    nodes on the rollers front and back predicted their slip reversed, then stuck at 2–7 g w,
+    then slipped again (24 Newton steps of the iterative method on a data set of the box; 14
+    without). A normal of round-off kept as c = 1/dW ~ 4e39 turned its gap's round-off (1e-21)
+    into z_n ~ 1e18 and ‖Φ‖ with it, and the iterative Newton never stopped (a corner of the same
+    tunnel, 200 steps)."""
     m = len(dW) // (1 + k)
+    dW = np.where(acting, dW, 0.0)
     on = acting[m:].reshape(k, m)
     dW[m:] = np.tile(np.sum(dW[m:].reshape(k, m) * on, axis=0) / np.maximum(on.sum(axis=0), 1), k)
     return 1.0 / np.where(dW > 0, dW, 1.0)

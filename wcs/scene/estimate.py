@@ -224,10 +224,15 @@ def _samples2d(selector, scene):
             grid = np.stack(np.meshgrid(t, t, indexing="ij"), axis=-1).reshape(-1, 2)
             interior = c[0] + grid * (c[2] - c[0])
     if selector.boundary is not None:
-        points, normals, weights = surface
-        surface = (np.concatenate([points, points]), np.concatenate([normals, -normals]), np.concatenate([weights] * 2))
-        interior = None
+        return _both_sides(surface), None
     return surface, interior
+
+
+def _both_sides(surface):
+    """A boundary's surface samples (points, outward normals, weights) on both its sides: a
+    boundary piece or face bounds no volume of its own."""
+    points, normals, weights = surface
+    return np.concatenate([points, points]), np.concatenate([normals, -normals]), np.concatenate([weights] * 2)
 
 
 def estimate_cells(scene) -> tuple[float, str]:
@@ -405,8 +410,6 @@ def _refined3d(ref, scene, h: float, g: float, body_volume: float, boxes) -> flo
     return CELLS_PER_H3 * min(inside + halo, body_volume / s**3)
 
 
-
-
 def _share(points: np.ndarray | None, boxes) -> float:
     """The share of `points` (k, dim) inside any of `boxes` ((lo..., hi...) each); 1 without points."""
     if points is None:
@@ -491,9 +494,7 @@ def _samples3d(ref, scene):
     else:
         return None, None
     if ref.boundary is not None:                      # a face: both sides, no volume
-        points, normals, weights = surface
-        surface = (np.concatenate([points, points]), np.concatenate([normals, -normals]), np.concatenate([weights] * 2))
-        interior = None
+        return _both_sides(surface), None
     return surface, interior
 
 
