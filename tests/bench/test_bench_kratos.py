@@ -16,8 +16,9 @@ mortar ALM frictionless contact, AMGCL, the Hertz load in 5 load steps. Without 
 
 The cases run alternately (wcs method 1, method 2, Kratos, method 1, ...), WCS_BENCH_KRATOS_REPEAT
 rounds (default 3), with OMP/OPENBLAS/MKL_NUM_THREADS=1 and wcs' bytecode compiled first (as an
-installed package has it). Each process is measured by the getrusage of the finished child:
-CPU time (user + system), wall time and peak resident set. On a shared machine the wall time
+installed package has it). Each process is measured by the getrusage of the finished child
+(`common.run_measured`: started from a small launcher, so that the peak is the child's own and not
+the pytest process' it would inherit): CPU time (user + system), wall time and peak resident set. On a shared machine the wall time
 depends on the load: compare CPU times and peaks, and medians over the rounds.
 
 Each answer is read back and checked after the table is written: the contact pressure at the
@@ -41,7 +42,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +49,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from common import ROOT, write_table
+from common import ROOT, run_measured, write_table
 from kratos_mesh import write_hertz_msh, write_patch_msh
 
 PATCH = ROOT / "studies" / "validation" / "block-on-block-3d.yaml"
@@ -89,19 +89,6 @@ def child_env() -> dict:
 def compile_wcs() -> None:
     """wcs' bytecode written before the first timed run, as an installed package has it."""
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(ROOT / "wcs")], env=child_env(), check=True)
-
-
-def run(cmd: list[str], cwd: Path) -> tuple[float, float, float, int, str, str]:
-    """Wall seconds, CPU seconds (user + system), peak resident set (GB; both the child's own
-    rusage), exit code, stdout, stderr."""
-    out, err = cwd / "stdout.txt", cwd / "stderr.txt"
-    with out.open("w") as fo, err.open("w") as fe:
-        t = time.perf_counter()
-        p = subprocess.Popen(cmd, cwd=cwd, env=child_env(), stdout=fo, stderr=fe)
-        _, status, usage = os.wait4(p.pid, 0)
-        wall = time.perf_counter() - t
-    return (wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1e6, os.waitstatus_to_exitcode(status),
-            out.read_text(), err.read_text())
 
 
 def wcs_case(work: Path, study: dict, method: str) -> list[str]:
@@ -156,7 +143,8 @@ def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, 
     compile_wcs()
     for _ in range(int(os.environ.get("WCS_BENCH_KRATOS_REPEAT", "3"))):
         for name, cmd in cases.items():          # alternating: A B C A B C ...
-            wall, cpu, peak, code, out, err = run(cmd, work)
+            r = run_measured(cmd, work, child_env())
+            wall, cpu, peak, code, out, err = r["wall"], r["cpu"], r["peak_gb"], r["code"], r["stdout"], r["stderr"]
             answer, wrong = None, ""
             if code == 0:
                 answer = json_line(out) if name == "kratos" else wcs_answer(work / f"{name}.nc", top_z, centre)
