@@ -33,7 +33,7 @@ most at the face's edges: the table's p_min and p_max show by how much. A method
 refusal in the failure column.
 
 Tables (CSV, results/bench/): bench_kratos_face{FACE}.csv, one a face (a face may be run alone:
-the finer faces under the memory lock), and bench_kratos_hertz.csv; the columns are HEADER
+the finer faces under the memory lock), and bench_kratos_hertz{H}.csv, one a mesh size; the columns are HEADER
 (cpu_median_s, peak_gb, ... per code and method).
 """
 from __future__ import annotations
@@ -218,12 +218,12 @@ def test_bench_kratos_hertz(tmp_path):
     WCS_BENCH_KRATOS_HERTZ (default a/24 = 0.00417 within 0.13 of the contact point: ≈ 9.5e4
     unknowns; a/8 = 0.0125 runs in minutes); wcs takes the dual mortar (nonmatching faces),
     Kratos its mortar ALM in 5 load steps.
-    Table: results/bench/bench_kratos_hertz.csv."""
+    Table: results/bench/bench_kratos_hertz{H}.csv (H the mesh size: a size may be run alone)."""
     h = float(os.environ.get("WCS_BENCH_KRATOS_HERTZ", "0.00417"))
     kratos = kratos_python()
     write_hertz_msh(tmp_path / "mesh.msh", h)
     studies = {m: file_study(HERTZ, tmp_path / "mesh.msh", ["sphere", "block"], m, "below") for m in methods()}
     cmd = kratos and [kratos, str(DRIVER), "hertz", str(tmp_path / "mesh.msh"), str(tmp_path / "kratos")]
     rows = compare(tmp_path, h, studies, cmd, check_hertz, 1.0, (0.0, 0.0))
-    print(write_table("bench_kratos_hertz", HEADER, rows + absent_row(kratos)).read_text())
+    print(write_table(f"bench_kratos_hertz{h:g}", HEADER, rows + absent_row(kratos)).read_text())
     assert_fair(rows)
