@@ -148,3 +148,33 @@ def test_data_sets_whose_moduli_all_scale_by_one_factor_keep_the_nominal_hierarc
         for name, value in want.phi.items():
             assert got.phi[name] == pytest.approx(value, rel=1e-7)
     assert iterative._ANCHOR[ev.model][1].builds >= 1
+
+
+def test_a_solve_lets_go_of_what_its_operator_replaces_before_building_it(monkeypatch):
+    """Each operator is a matrix of K's size: when a kept hierarchy's next operator is built, the
+    last solve's operator is already released (the KSP holds only the hierarchy's own), and when
+    the hierarchy is to be rebuilt, it and its operator are gone too — so at most one operator
+    besides the hierarchy's is alive, not three."""
+    from wcs.contact.distributed import Layout
+    n = 30
+    A0, A1 = laplacian(n), laplacian(n, cut=True)
+    b = np.random.default_rng(2).standard_normal(n * n)
+    k = Krylov()
+    seen = []
+    build = Layout.matrix
+
+    def matrix(layout, A, PETSc):
+        if k.ksp is None:
+            seen.append("none")
+        else:
+            op, pre = k.ksp.getOperators()
+            seen.append("hierarchy's own" if op.handle == pre.handle == k.P.handle else "last operator held")
+        return build(layout, A, PETSc)
+
+    monkeypatch.setattr(Layout, "matrix", matrix)
+    solved(A0, b, k)
+    while k.builds == 1:            # kept solves of the changed operator, until the rebuild
+        solved(A1, b, k)
+    assert seen[0] == "none" and seen[-1] == "none"     # before the rebuild's operator: nothing kept
+    assert seen[1:-1] and set(seen[1:-1]) == {"hierarchy's own"}
+    k.close()

@@ -667,6 +667,14 @@ class Krylov:
         if self.layout is None or self.layout.n != n:
             self.close()
             self.layout = Layout(self.comm, n, PETSc)
+        # what a new operator replaces goes before it is built (each a matrix of K's size): the last
+        # solve's operator, and the hierarchy with its operator where it is to be built again
+        rebuild = self.ksp is not None and not self.inherited and self.excess > (
+            self.REBUILD_ITERATIONS if self.parts is None else REBUILD_ITERATIONS)
+        if rebuild:
+            self.close()
+        else:
+            self.release_operator()
         M = self.layout.matrix(A, PETSc)
         self.timings["matrix"] += time.perf_counter() - t
         if self.ksp is None:
@@ -674,7 +682,7 @@ class Krylov:
         elif self.inherited:        # a hierarchy from another solve: is this its operator, up to a scalar?
             kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
         else:
-            kept = self.excess <= (self.REBUILD_ITERATIONS if self.parts is None else REBUILD_ITERATIONS)
+            kept = True
         self.failure = ""
         try:
             if not kept:
