@@ -200,7 +200,7 @@ class CheckedRunner(Runner):
         (NaN where it fails: its status is the search's business)."""
         ev = self.evaluate(self.study.nominal(), False, "nominal")
         ok = ev.status == 0
-        return scalars({f"nominal_{name}": ((), float(ev.fields[name]) if ok else np.nan,
+        return scalars({f"nominal_{name}": ((), float(ev.fields[name].values) if ok else np.nan,
                                  dict(ev.fields[name].attrs) if ok else {})
                  for name in ("small_strain_displacement", "small_strain_gradient")})
 

@@ -13,6 +13,7 @@ import numpy as np
 from .coefficients import ParameterMap
 from ..contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
+from .fields import fields_dataset
 from ..errors import SolveError, StudyError
 from ..fem.gluing import glued_clusters
 from ..group import together
@@ -43,9 +44,8 @@ class Evaluation:
 
     @property
     def fields(self):
-        """xarray.Dataset of the solution fields (built on first access)."""
+        """The solution fields (`wcs.model.fields.Data`, built on first access)."""
         if self._fields is None and self.state is not None:
-            from .fields import fields_dataset   # xarray loads when fields are asked for (`wcs check` never does)
             self._fields = fields_dataset(self.evaluator.model, self.state)
         return self._fields
 
