@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 import wcs
-from wcs.app.commands import CheckedRunner
+from wcs.app.runner import CheckedRunner
 from wcs.app.dynamics import history_dataset
 from wcs.dynamics.history import DynamicEvaluator, simulate
 from wcs.model.evaluation import Evaluator

@@ -8,8 +8,6 @@ data set has no equilibrium; `wcs/results/verdict.py`); bad input raises StudyEr
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import shlex
 import sys
 import time
@@ -17,33 +15,24 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results import meshcheck
-from ..model.criteria import KINDS, in_words
-from ..results.drivers import drivers
-from ..errors import StudyError
-from ..model.evaluation import Evaluator
-from ..results.extremes import support_extremes
-from ..group import spanning
-from .parallel import groups, rank, world
 from ..contact.methods import krylov_counts
-from ..progress import INTERRUPTED, current, phase
-from ..results.dataset import open_results, scalars, widest, write_netcdf, write_solution
-from ..results.summary import limits_broken, summary_table
-from .runner import Runner
-from ..status import Status, describe
-from ..results.store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
-from ..study.load import load_study
+from ..errors import StudyError
+from ..group import spanning
+from ..model.criteria import KINDS, in_words
+from ..model.evaluation import Evaluator
 from ..model.validity import warnings as validity_warnings
-from ..results.verdict import attributes as verdict_attributes
-from ..report.timeline import in_time
-from ..results.verdict import verdict
-from .dynamics import solve_dynamic
-
-if TYPE_CHECKING:
-    import xarray as xr
+from ..progress import INTERRUPTED, current, phase
+from ..results.dataset import open_results, widest, write_solution
+from ..results.store import WriteError, check_output, incomplete_run, store_path, stored_count, writer
+from ..status import Status, describe
+from ..study.load import load_study
+from .parallel import groups, rank, world
 
 
 def _finish_command(args, study, ds, out: Path) -> int:
+    from ..results import meshcheck
+    from ..results.summary import limits_broken, summary_table
+    from ..results.verdict import verdict
     n, failed = int(ds.sizes.get("eval", 0)), int(ds.attrs.get("failed_evaluations", 0))
     if not getattr(args, "quiet", False):
         print(f"{study.name}: {n} evaluations ({failed} failed), "
@@ -158,54 +147,8 @@ def _write_failure(e: WriteError, args, out: Path) -> int:
     return 1
 
 
-class CheckedRunner(Runner):
-    """A run whose results file also says how far its nominal case leaves small-strain theory
-    (`wcs/model/validity.py`), what drives each extreme (`wcs/results/drivers.py`) and, unless
-    `mesh_check` is False, how much of it is the mesh (`wcs/results/meshcheck.py`): all are added after
-    the search, under the run's lock, and the file is written again."""
-
-    def __init__(self, *args, mesh_check: bool = True, **kw):
-        self.mesh_check = mesh_check
-        super().__init__(*args, **kw)
-
-    def finish(self, result) -> xr.Dataset:
-        ds = super().finish(result)
-        if self.kind != "run" or not self.lead:
-            return ds
-        with spanning(self.group):      # rank 0's group solves them, as the worst cases' fields
-            return self._checked(ds)
-
-    def _checked(self, ds) -> xr.Dataset:
-        found = support_extremes(ds)
-        with phase("drivers") as progress:              # solves: as many as the extremes need
-            def solve(x, gradients=True):
-                progress.step()
-                return self.evaluate(x, gradients, "drivers")
-            parts = [drivers(ds, found, solve)]
-        with phase("nominal case"):
-            parts.append(self.nominal())
-        parts.append(meshcheck.mesh_check(self.study, ds, found)
-                     if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
-        for part in parts:
-            ds = ds.assign_coords(part.coords).assign(part.data_vars)
-            ds.attrs.update(part.attrs)
-        ds.attrs["small_strain"] = "\n".join(validity_warnings(ds))    # with the nominal case
-        ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
-        if self.output is not None and self.root:
-            write_netcdf(ds, self.output)
-        return ds
-
-    def nominal(self) -> xr.Dataset:
-        """`nominal_small_strain_*` (wcs/model/validity.py) of the nominal data set, solved once more
-        (NaN where it fails: its status is the search's business)."""
-        ev = self.evaluate(self.study.nominal(), False, "nominal")
-        ok = ev.status == 0
-        return scalars({f"nominal_{name}": ((), float(ev.fields[name].values) if ok else np.nan,
-                                 dict(ev.fields[name].attrs) if ok else {})
-                 for name in ("small_strain_displacement", "small_strain_gradient")})
-
-
 def _command(args, kind: str) -> int:
+    from .runner import CheckedRunner
     study = load_study(args.study)
     if rank(world()) == 0:
         for w in study.warnings:          # also in the results file and the report
@@ -280,6 +223,7 @@ def solve_worst(args) -> int:
         point.update(extra)
     group = solve_group(study)
     if study.dynamics is not None:              # the levels at the worst data, as `wcs solve` writes them
+        from .dynamics import solve_dynamic
         return solve_dynamic(study, out, args, point)
     t0 = time.perf_counter()
     ev = Evaluator(study)
@@ -303,6 +247,7 @@ def solve_nominal(args) -> int:
     check_output(out, *((None, "-o") if args.output else (str(study.file), "output")))
     group = solve_group(study)
     if study.dynamics is not None:
+        from .dynamics import solve_dynamic
         return solve_dynamic(study, out, args)
     t0 = time.perf_counter()
     ev = Evaluator(study)

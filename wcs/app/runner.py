@@ -68,6 +68,12 @@ from ..study.data import parameter_vector
 from ..study.fuzzy import alpha_cut
 from ..study.load import load_study
 from ..dynamics.history import evaluator_for
+from ..model.validity import warnings as validity_warnings
+from ..results import meshcheck
+from ..results.dataset import scalars, write_netcdf
+from ..results.drivers import drivers
+from ..results.extremes import support_extremes
+from ..results.verdict import attributes as verdict_attributes
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 if TYPE_CHECKING:
@@ -406,6 +412,53 @@ class Runner:
 
 def _as_study(study):
     return load_study(study) if isinstance(study, (str, Path)) else study
+
+
+class CheckedRunner(Runner):
+    """A run whose results file also says how far its nominal case leaves small-strain theory
+    (`wcs/model/validity.py`), what drives each extreme (`wcs/results/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/results/meshcheck.py`): all are added after
+    the search, under the run's lock, and the file is written again."""
+
+    def __init__(self, *args, mesh_check: bool = True, **kw):
+        self.mesh_check = mesh_check
+        super().__init__(*args, **kw)
+
+    def finish(self, result) -> xr.Dataset:
+        ds = super().finish(result)
+        if self.kind != "run" or not self.lead:
+            return ds
+        with spanning(self.group):      # rank 0's group solves them, as the worst cases' fields
+            return self._checked(ds)
+
+    def _checked(self, ds) -> xr.Dataset:
+        found = support_extremes(ds)
+        with phase("drivers") as progress:              # solves: as many as the extremes need
+            def solve(x, gradients=True):
+                progress.step()
+                return self.evaluate(x, gradients, "drivers")
+            parts = [drivers(ds, found, solve)]
+        with phase("nominal case"):
+            parts.append(self.nominal())
+        parts.append(meshcheck.mesh_check(self.study, ds, found)
+                     if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
+        for part in parts:
+            ds = ds.assign_coords(part.coords).assign(part.data_vars)
+            ds.attrs.update(part.attrs)
+        ds.attrs["small_strain"] = "\n".join(validity_warnings(ds))    # with the nominal case
+        ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
+        if self.output is not None and self.root:
+            write_netcdf(ds, self.output)
+        return ds
+
+    def nominal(self) -> xr.Dataset:
+        """`nominal_small_strain_*` (wcs/model/validity.py) of the nominal data set, solved once more
+        (NaN where it fails: its status is the search's business)."""
+        ev = self.evaluate(self.study.nominal(), False, "nominal")
+        ok = ev.status == 0
+        return scalars({f"nominal_{name}": ((), float(ev.fields[name].values) if ok else np.nan,
+                                 dict(ev.fields[name].attrs) if ok else {})
+                 for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def run(study, output=None, resume=False, progress=None, *, strategy=None, on_event=None) -> xr.Dataset:
