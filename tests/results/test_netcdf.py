@@ -80,6 +80,7 @@ def test_solve_file_is_what_xarray_writes(path, tmp_path):
     ev = Evaluator(study)
     res = ev.evaluate(study.nominal())
     assert res.status == 0
+    assert isinstance(res.fields, xr.Dataset)                 # the Python API's fields (docs/study-format.md §3)
     ds = solve_dataset(study, ev, res)
     out = write_netcdf(ds, tmp_path / "solve.nc")
     assert_same_file(out.read_bytes(), reference(ds))

@@ -394,7 +394,7 @@ class Runner:
                         point.update(zip(self.sweep_paths, map(float, rec["sweep"])))
                     ev = self.evaluate(point, False, "worst-fields")
                     self.stats["field_solves"] += 1
-                    by_key[k] = ev.fields if ev.status == 0 else None
+                    by_key[k] = ev.field_data if ev.status == 0 else None
                     progress.step()
                 fields[c] = by_key[k]
         return fields
@@ -456,8 +456,8 @@ class CheckedRunner(Runner):
         (NaN where it fails: its status is the search's business)."""
         ev = self.evaluate(self.study.nominal(), False, "nominal")
         ok = ev.status == 0
-        return scalars({f"nominal_{name}": ((), float(ev.fields[name].values) if ok else np.nan,
-                                 dict(ev.fields[name].attrs) if ok else {})
+        return scalars({f"nominal_{name}": ((), float(ev.field_data[name].values) if ok else np.nan,
+                                 dict(ev.field_data[name].attrs) if ok else {})
                  for name in ("small_strain_displacement", "small_strain_gradient")})
 
 

@@ -100,12 +100,12 @@ class DynamicEvaluation(Evaluation):
     levels: object = field(default=None, repr=False)    # (coefficients, History) of the simulation
 
     @property
-    def fields(self):
-        """The fields at the output levels (`Data`, `output_time` first); the
-        small-strain measures are their largest over those times (built on first access)."""
-        if self._fields is None and self.levels is not None:
-            self._fields = output_fields(self.evaluator.model, *self.levels)
-        return self._fields
+    def field_data(self):
+        """The fields at the output levels (`Data`, `output_time` first); the small-strain
+        measures are their largest over those times (built on first access)."""
+        if self._data is None and self.levels is not None:
+            self._data = output_fields(self.evaluator.model, *self.levels)
+        return self._data
 
 
 def output_fields(model, c, hist) -> Data:

@@ -5,7 +5,7 @@ leave small-strain theory (`small_strain_*`, wcs/model/validity.py).
 They are held as a `Data`: named variables over named dimensions, coordinates and attributes —
 what an xarray.Dataset would hold, without xarray (and pandas, 40 MB and half a second of a
 solve): `wcs.results.netcdf` writes it as NetCDF-4, `to_xarray()` gives the Dataset where one
-is wanted (the results file of a run)."""
+is wanted (`Evaluation.fields`, the Python API's)."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING

@@ -102,7 +102,7 @@ KRYLOV_STEP_MAX = ("the most Krylov iterations of one outer step (iterative: one
 
 def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> Data:
     """The file of `wcs solve`: the fields of one evaluation, its data set and criteria."""
-    ds = ev.fields.copy()
+    ds = ev.field_data.copy()
     pvars, pcoords = parameter_variables(study)
     for k, v in pvars.items():
         ds[k] = v
@@ -132,6 +132,18 @@ def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> Dat
     ds.attrs.update(provenance(study, evaluator, layout))
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
     return ds
+
+
+def release_heap() -> None:
+    """Return the C heap's free pages to the OS (glibc's `malloc_trim`; without glibc nothing):
+    the arrays a solve freed stay resident in the heap otherwise (tens of MB on a 3D model), and
+    what the results phase adds would stack on them."""
+    import ctypes
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return
+    trim(0)
 
 
 def write_netcdf(ds, path: str | Path) -> Path:
@@ -415,6 +427,7 @@ def write_solution(study, evaluator, evaluation, out: str | Path, layout: tuple[
     from .paraview import write_paraview
     ds = solve_dataset(study, evaluator, evaluation, layout)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})
+    release_heap()                  # before h5py's libraries load: the peak is the max over the phases
     out = write_netcdf(ds, out)
     zone = evaluator.model.zone
     facets = None if zone is None else slave_segments(zone, study.scene, evaluator.smesh)
