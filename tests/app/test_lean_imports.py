@@ -42,9 +42,10 @@ solver: {method: iterative}
 """
 
 HEAVY = ["xarray", "pandas", "h5py", "gmsh", "pypardiso", "matplotlib", "cvxpy"]
-# what a static solve does not use: the time stepping, the run's machinery, the search
+# what a static solve does not use: the time stepping, the run's machinery, the search; ssl
+# (8 MB with urllib.request, which xml.sax.saxutils loads)
 UNUSED = ["wcs.dynamics.history", "wcs.dynamics.stepping", "wcs.app.dynamics", "wcs.app.runner",
-          "wcs.results.meshcheck", "wcs.search"]
+          "wcs.results.meshcheck", "wcs.search", "ssl"]
 
 PROBE = r"""
 import json, sys
