@@ -38,6 +38,9 @@ Timing: `on_event(Event)` is told what the run spends its time on — building t
 ("prepare"), each evaluation ("evaluate", with its stage), each batch answered ("batch",
 with its stage and the records it added), each MPI gather of a batch ("gather") and each
 write of the results file ("write").
+
+`CheckedRunner`, the run of `wcs run`, adds to the results file after the search what drives
+each extreme, how far the nominal case leaves small-strain theory and the mesh's share.
 """
 from __future__ import annotations
 

@@ -87,8 +87,7 @@ def encode(ds) -> memoryview:
             else:
                 raise TypeError(f"variable {name!r}: values of dtype {values.dtype} are not written "
                                 f"(integers, floats and strings are)")
-            var = f.create_variable(name, dimensions=v.dims, dtype=dtype, fillvalue=fill)
+            var = f.create_variable(name, dimensions=v.dims, dtype=dtype, fillvalue=fill, data=values)
             for k, a in var_attrs.items():
                 var.attrs[k] = a
-            var[...] = values
     return buf.getbuffer()
