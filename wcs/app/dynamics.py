@@ -26,7 +26,6 @@ from wcs.results.store import WriteError
 from wcs.status import Status
 
 
-
 def history_dataset(study, ev, hist, x, others, wall_time: float) -> Data:
     """The results file of a dynamic solve: the layout of every `wcs solve` file (`solve_dataset`:
     the box, the data set x, the reduced criteria, status, limits, the mesh and the fields, here
