@@ -1,6 +1,7 @@
 """wcs/results/netcdf.py writes what xarray's `to_netcdf(engine="h5netcdf")` writes: for the
 solve files of shipped and validation studies (2D, 3D, thermal, contact, mortar, dynamic) and
-the results file of a run (failed evaluations, worst-case fields, drivers, mesh check), the
+the results files of runs (failed evaluations, worst-case fields, drivers, mesh check; fuzzy
+levels and both ends; a dynamic run's histories), the
 file reads back identical with xarray (values, dtypes, attributes, coordinates, strings, NaN)
 and holds the same HDF5 datasets (dtype, shape, fill value, every attribute but the object
 references of the dimension scales)."""
@@ -13,6 +14,8 @@ import pytest
 import xarray as xr
 
 import wcs
+from tests.dynamics.test_run import tiny
+from tests.support.bad_studies import write_study
 from wcs.app.runner import CheckedRunner
 from wcs.app.dynamics import history_dataset
 from wcs.dynamics.history import DynamicEvaluator, simulate
@@ -20,6 +23,7 @@ from wcs.model.evaluation import Evaluator
 from wcs.model.fields import Data
 from wcs.results.dataset import run_dataset, solve_dataset, write_netcdf
 from wcs.results.netcdf import encode
+from wcs.study.source import _read_yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 REFERENCES = ("DIMENSION_LIST", "REFERENCE_LIST")      # HDF5 object references: compared as dims by xarray
@@ -118,6 +122,24 @@ def test_run_file_is_what_xarray_writes(tmp_path):
     ds = run_dataset(study, ev, [rec, failed], worst=worst, certificate={names[0]: "corner-kkt"},
                      worst_fields={names[0]: res.fields, names[1]: None})
     assert np.isnan(ds["worst_displacement"].values[1]).all()
+    assert_same_file(encode(ds), reference(ds))
+
+
+def test_fuzzy_and_dynamic_run_files_are_what_xarray_writes(tmp_path):
+    """A fuzzy run of both ends (the `level` coordinate, best_* and α-cuts) and a dynamic run
+    (the `time` coordinate, histories, worst-case fields over the output times)."""
+    doc = _read_yaml(ROOT / "studies/validation/cooled-layer.yaml")[0]
+    doc["uncertain"]["materials.polymer.nu"] = {"support": [0.05, 0.45], "core": [0.25, 0.35]}
+    doc["fuzzy"] = {"levels": [0.0, 1.0]}
+    doc["criteria"][0]["sense"] = "both"
+    doc["search"] = {"method": "auto", "budget": 30}
+    ds = wcs.run(wcs.load_study(doc, base_dir=ROOT / "studies/validation"), output=False)
+    assert "level" in ds.coords and "best_value" in ds
+    assert_same_file(encode(ds), reference(ds))
+
+    study = wcs.load_study(write_study(tiny(budget=2), tmp_path, "dynamic.yaml"))
+    ds = wcs.run(study, output=False)
+    assert "time" in ds.coords and "worst_displacement" in ds
     assert_same_file(encode(ds), reference(ds))
 
 
