@@ -3,8 +3,8 @@ verdict NOT ESTABLISHED), 2 bad input, 3 verdict FAIL with --fail-on-limit (a li
 data set without equilibrium; `wcs/results/verdict.py`), 4 `compare`: the files differ, 130 interrupted
 (Ctrl-C; `run` and `sweep` say how to resume).
 
-Each command imports what it needs when it runs (`wcs/app/commands.py` for run, sweep and
-solve --worst, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
+Each command imports what it needs when it runs (`wcs/app/commands.py` for run and sweep,
+`wcs/app/solve.py` for solve, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
 solvers."""
 from __future__ import annotations
 
@@ -195,7 +195,7 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
 
 
 def cmd_solve(args) -> int:
-    from .app.commands import solve_nominal, solve_worst
+    from .app.solve import solve_nominal, solve_worst
     return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 

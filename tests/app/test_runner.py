@@ -20,7 +20,7 @@ import yaml
 import wcs
 import wcs.app.runner as runner
 from wcs.cli import main
-from wcs.app.commands import solve_worst
+from wcs.app.solve import solve_worst
 from wcs.app.problem import build_problem
 from wcs.search import Batch, Worst
 from wcs.results.store import Store, store_path

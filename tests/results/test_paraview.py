@@ -149,3 +149,14 @@ def test_blocks_are_compressed_at_zlibs_fastest_level():
     parts = [data[a:b] for a, b in zip(np.r_[0, ends[:-1]], ends)]
     assert [p[1] >> 6 for p in parts] == [0] * 4
     assert b"".join(map(zlib.decompress, parts)) == raw
+
+
+@pytest.mark.parametrize("text", ["body: rock", "a & b < c > d", "say \"hi\"", "it's", "both \" and '",
+                                  "tab\there\nnew line\rreturn", "", "&amp; already"])
+def test_attribute_quoting_is_the_standard_librarys(text):
+    """The names written into the .vtu/.vtm quote as xml.sax.saxutils.quoteattr quotes them (the
+    files stay byte for byte what they were); the escaped text parses back to the name."""
+    from xml.sax.saxutils import quoteattr as standard
+    from wcs.results.paraview import quoteattr
+    assert quoteattr(text) == standard(text)
+    assert ET.fromstring(f"<a n={quoteattr(text)}/>").get("n") == text

@@ -70,7 +70,7 @@ def run_job(job: dict, folder: str, timeout: float = TIMEOUT) -> dict:
 
 
 def main(jobs_file: str, results_file: str) -> None:
-    import wcs.cli, wcs.app.commands, wcs.model.evaluation, wcs.study   # noqa: E401,F401 - imported once, before forking
+    import wcs.cli, wcs.app.commands, wcs.app.solve, wcs.model.evaluation, wcs.study   # noqa: E401,F401 - imported once, before forking
     with open(jobs_file, encoding="utf-8") as f:
         jobs = json.load(f)
     folder = os.path.dirname(os.path.abspath(results_file))

@@ -3,8 +3,6 @@ results file (a `time` coordinate: `phi_history` (criterion, time), contact forc
 the fields at the output times) and a ParaView time series, OUT.pvd over OUT-k.vtu."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import resource
 import sys
 import time
@@ -18,7 +16,7 @@ from wcs.dynamics.stepping import History, initial_state, level_solution
 from wcs.errors import SolveError
 from wcs.model.criteria import in_words
 from wcs.model.evaluation import Evaluator
-from wcs.model.fields import fields_dataset
+from wcs.model.fields import Data, fields_dataset
 from wcs.results.dataset import solve_dataset, write_netcdf
 from wcs.results.dynamics import gradients
 from wcs.results.meshcheck import MEMORY_SHARE, SOLVE_GROWTH, SPLITS, planned, refined_nodes
@@ -27,11 +25,8 @@ from wcs.results.paraview import volume, vtu_text, _write
 from wcs.results.store import WriteError
 from wcs.status import Status
 
-if TYPE_CHECKING:
-    import xarray as xr
 
-
-def history_dataset(study, ev, hist, x, others, wall_time: float) -> xr.Dataset:
+def history_dataset(study, ev, hist, x, others, wall_time: float) -> Data:
     """The results file of a dynamic solve: the layout of every `wcs solve` file (`solve_dataset`:
     the box, the data set x, the reduced criteria, status, limits, the mesh and the fields, here
     at the output times) and the history of the levels (energies, contact forces, every
@@ -73,8 +68,13 @@ def history_dataset(study, ev, hist, x, others, wall_time: float) -> xr.Dataset:
     attrs = {"dynamics_scheme": dyn.scheme, "time_step": dyn.time_step, "end_time": dyn.end_time, "initial": initial}
     coords = {"time": ("time", t, {"units": "s"}),
               "output_time": ("output_time", t[hist.output_levels], {"units": "s"}), "criterion": crit}
-    import xarray as xr
-    return solved.merge(xr.Dataset(data, coords=coords)).assign_attrs(attrs)
+    for k, v in data.items():
+        solved[k] = v
+    for k, v in coords.items():
+        if k not in solved.coords:      # output_time and criterion: the fields' and solve_dataset's
+            solved.set_coord(k, v)
+    solved.attrs.update(attrs)
+    return solved
 
 
 def pvd_text(entries: list[tuple[float, str]]) -> str:

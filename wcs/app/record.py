@@ -166,7 +166,7 @@ class Ledger:
                     fields = None
                     if ev is not None and getattr(ev, "state", None) is not None:
                         try:
-                            fields = ev.fields
+                            fields = ev.field_data
                         except Exception:  # noqa: BLE001 - fields are a convenience during the run
                             fields = None
                     self.live_fields[c] = fields

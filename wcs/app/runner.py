@@ -38,6 +38,9 @@ Timing: `on_event(Event)` is told what the run spends its time on — building t
 ("prepare"), each evaluation ("evaluate", with its stage), each batch answered ("batch",
 with its stage and the records it added), each MPI gather of a batch ("gather") and each
 write of the results file ("write").
+
+`CheckedRunner`, the run of `wcs run`, adds to the results file after the search what drives
+each extreme, how far the nominal case leaves small-strain theory and the mesh's share.
 """
 from __future__ import annotations
 
@@ -68,6 +71,12 @@ from ..study.data import parameter_vector
 from ..study.fuzzy import alpha_cut
 from ..study.load import load_study
 from ..dynamics.history import evaluator_for
+from ..model.validity import warnings as validity_warnings
+from ..results import meshcheck
+from ..results.dataset import scalars, write_netcdf
+from ..results.drivers import drivers
+from ..results.extremes import support_extremes
+from ..results.verdict import attributes as verdict_attributes
 from .writer import Final, Writer, claim_output, extremes_of, widest_maxima
 
 if TYPE_CHECKING:
@@ -388,7 +397,7 @@ class Runner:
                         point.update(zip(self.sweep_paths, map(float, rec["sweep"])))
                     ev = self.evaluate(point, False, "worst-fields")
                     self.stats["field_solves"] += 1
-                    by_key[k] = ev.fields if ev.status == 0 else None
+                    by_key[k] = ev.field_data if ev.status == 0 else None
                     progress.step()
                 fields[c] = by_key[k]
         return fields
@@ -406,6 +415,53 @@ class Runner:
 
 def _as_study(study):
     return load_study(study) if isinstance(study, (str, Path)) else study
+
+
+class CheckedRunner(Runner):
+    """A run whose results file also says how far its nominal case leaves small-strain theory
+    (`wcs/model/validity.py`), what drives each extreme (`wcs/results/drivers.py`) and, unless
+    `mesh_check` is False, how much of it is the mesh (`wcs/results/meshcheck.py`): all are added after
+    the search, under the run's lock, and the file is written again."""
+
+    def __init__(self, *args, mesh_check: bool = True, **kw):
+        self.mesh_check = mesh_check
+        super().__init__(*args, **kw)
+
+    def finish(self, result) -> xr.Dataset:
+        ds = super().finish(result)
+        if self.kind != "run" or not self.lead:
+            return ds
+        with spanning(self.group):      # rank 0's group solves them, as the worst cases' fields
+            return self._checked(ds)
+
+    def _checked(self, ds) -> xr.Dataset:
+        found = support_extremes(ds)
+        with phase("drivers") as progress:              # solves: as many as the extremes need
+            def solve(x, gradients=True):
+                progress.step()
+                return self.evaluate(x, gradients, "drivers")
+            parts = [drivers(ds, found, solve)]
+        with phase("nominal case"):
+            parts.append(self.nominal())
+        parts.append(meshcheck.mesh_check(self.study, ds, found)
+                     if self.mesh_check else meshcheck.skipped("skipped (--no-mesh-check)"))
+        for part in parts:
+            ds = ds.assign_coords(part.coords).assign(part.data_vars)
+            ds.attrs.update(part.attrs)
+        ds.attrs["small_strain"] = "\n".join(validity_warnings(ds))    # with the nominal case
+        ds.attrs.update(verdict_attributes(ds))      # read again with the mesh's share
+        if self.output is not None and self.root:
+            write_netcdf(ds, self.output)
+        return ds
+
+    def nominal(self) -> xr.Dataset:
+        """`nominal_small_strain_*` (wcs/model/validity.py) of the nominal data set, solved once more
+        (NaN where it fails: its status is the search's business)."""
+        ev = self.evaluate(self.study.nominal(), False, "nominal")
+        ok = ev.status == 0
+        return scalars({f"nominal_{name}": ((), float(ev.field_data[name].values) if ok else np.nan,
+                                 dict(ev.field_data[name].attrs) if ok else {})
+                 for name in ("small_strain_displacement", "small_strain_gradient")})
 
 
 def run(study, output=None, resume=False, progress=None, *, strategy=None, on_event=None) -> xr.Dataset:

@@ -11,8 +11,6 @@ strategies that want a gradient then take finite differences, `wcs.search.ascent
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import time
 from dataclasses import dataclass, field
 
@@ -20,6 +18,7 @@ import numpy as np
 
 from wcs.errors import SolveError
 from wcs.model.evaluation import Evaluation, Evaluator
+from wcs.model.fields import Data, fields_dataset
 from wcs.status import Status
 
 from . import adjoint
@@ -28,10 +27,6 @@ from .release import carried_over, reactions, released_dofs, released_model, rel
 from .spec import InitialVelocity
 from .stepping import (dynamic_matrices, initial_state, level_solution, region_dynamics, rigid_velocity,
                        step_levels)
-
-if TYPE_CHECKING:
-    import xarray as xr
-
 
 REDUCTIONS = {"max": np.max, "min": np.min, "final": lambda h: h[-1], "mean": np.mean}
 REDUCED = {"max": "the peak over time", "min": "the least over time", "final": "at the end time",
@@ -105,20 +100,19 @@ class DynamicEvaluation(Evaluation):
     levels: object = field(default=None, repr=False)    # (coefficients, History) of the simulation
 
     @property
-    def fields(self):
-        """xarray.Dataset of the fields at the output levels (`output_time` first); the
-        small-strain measures are their largest over those times (built on first access)."""
-        if self._fields is None and self.levels is not None:
-            self._fields = output_fields(self.evaluator.model, *self.levels)
-        return self._fields
+    def field_data(self):
+        """The fields at the output levels (`Data`, `output_time` first); the small-strain
+        measures are their largest over those times (built on first access)."""
+        if self._data is None and self.levels is not None:
+            self._data = output_fields(self.evaluator.model, *self.levels)
+        return self._data
 
 
-def output_fields(model, c, hist) -> xr.Dataset:
-    """The fields (`wcs.fields.fields_dataset`) of each output level of a `History`, stacked along
-    `output_time`; the mesh (with its bodies' and regions' names) once; `small_strain_*` the
-    largest over the output times."""
+def output_fields(model, c, hist) -> Data:
+    """The fields (`wcs.model.fields.fields_dataset`) of each output level of a `History`, stacked
+    along `output_time` (its first dimension); the mesh (with its bodies' and regions' names)
+    once; `small_strain_*` the largest over the output times."""
     from wcs.contact.solver import ContactResult
-    from wcs.model.fields import fields_dataset
     heat = model.solve_heat(c) if model.thermal else None
     parts = []
     for n, u in zip(hist.output_levels, hist.displacement):
@@ -128,16 +122,20 @@ def output_fields(model, c, hist) -> xr.Dataset:
         parts.append(fields_dataset(model, level_solution(model, c, u, res, heat)))
     first = parts[0]
     fixed = ("coords", "cells", "cell_body", "cell_region", "contact_coords", "contact_pair")
-    moving = [v for v in first.data_vars if v not in fixed]
-    import xarray as xr
-    out = xr.concat([p[moving] for p in parts], dim="output_time", data_vars="all")
-    for v in moving:
-        if "small_strain" in v:
-            out[v] = out[v].max("output_time").assign_attrs(
-                {**first[v].attrs, "long_name": f"{first[v].attrs.get('long_name', v)}, the largest over the output times"})
-    out = out.assign({v: first[v] for v in fixed if v in first}).assign_coords(body=first["body"], region=first["region"])
+    out = Data(coords=first.coords)
+    for name, v in first.data_vars.items():
+        if name in fixed:
+            out[name] = v
+            continue
+        stack = np.stack([p[name].values for p in parts])
+        if "small_strain" in name:      # fmax: a level's NaN skipped
+            out[name] = (v.dims, np.fmax.reduce(stack, axis=0),
+                         {**v.attrs, "long_name": f"{v.attrs.get('long_name', name)}, the largest over the output times"})
+        else:
+            out[name] = (("output_time",) + v.dims, stack, v.attrs)
     t = np.asarray(hist.time)[hist.output_levels]
-    return out.assign_coords(output_time=("output_time", t, {"units": "s", "long_name": "time of the output level"}))
+    out.set_coord("output_time", ("output_time", t, {"units": "s", "long_name": "time of the output level"}))
+    return out
 
 
 class DynamicEvaluator(Evaluator):

@@ -13,6 +13,7 @@ import numpy as np
 from .coefficients import ParameterMap
 from ..contact.methods import METHODS
 from .criteria import build_criteria, embedded_rois
+from .fields import fields_dataset
 from ..errors import SolveError, StudyError
 from ..fem.gluing import glued_clusters
 from ..group import together
@@ -39,14 +40,22 @@ class Evaluation:
     nonsmooth: bool = False           # an active-set change or a switch of the max within reach
     krylov_steps: tuple | None = None  # Krylov iterations per outer step (() none, None not counted or failed)
     evaluator: "Evaluator | None" = field(default=None, repr=False)
+    _data: object = field(default=None, repr=False)
     _fields: object = field(default=None, repr=False)
 
     @property
+    def field_data(self):
+        """The solution fields as a `wcs.model.fields.Data` (built on first access; None when
+        the evaluation failed): what the results files hold, without xarray."""
+        if self._data is None and self.state is not None:
+            self._data = fields_dataset(self.evaluator.model, self.state)
+        return self._data
+
+    @property
     def fields(self):
-        """xarray.Dataset of the solution fields (built on first access)."""
-        if self._fields is None and self.state is not None:
-            from .fields import fields_dataset   # xarray loads when fields are asked for (`wcs check` never does)
-            self._fields = fields_dataset(self.evaluator.model, self.state)
+        """The solution fields as an xarray.Dataset (`field_data` converted on first access)."""
+        if self._fields is None and self.field_data is not None:
+            self._fields = self.field_data.to_xarray()
         return self._fields
 
 

@@ -99,8 +99,8 @@ def warnings(ds) -> list[str]:
     out = []
     for prefix, where in (("", "the solved case"), ("nominal_", "the nominal case")):
         if f"{prefix}small_strain_gradient" in ds:
-            w = warning(float(ds[f"{prefix}small_strain_displacement"]), float(ds[f"{prefix}small_strain_gradient"]),
-                        where)
+            w = warning(float(ds[f"{prefix}small_strain_displacement"].values),
+                        float(ds[f"{prefix}small_strain_gradient"].values), where)
             out += [w] if w else []
     if "worst_small_strain_gradient" in ds:
         done = set()

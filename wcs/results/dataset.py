@@ -21,6 +21,7 @@ from ..version import __version__
 from ..contact.methods import krylov_counts
 from ..model import validity
 from ..model.dynamic_numbers import DYNAMIC_UNITS
+from ..model.fields import Data
 from ..status import Status, flag_attrs
 from ..study.fuzzy import alpha_cut
 from .dynamics import dynamic_results
@@ -99,43 +100,56 @@ KRYLOV_STEP_MAX = ("the most Krylov iterations of one outer step (iterative: one
                    "their mean is krylov_iterations / iterations); 0 and -1 as krylov_iterations")
 
 
-def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> xr.Dataset:
+def solve_dataset(study, evaluator, ev, layout: tuple[int, int] = (1, 1)) -> Data:
     """The file of `wcs solve`: the fields of one evaluation, its data set and criteria."""
-    import xarray as xr
-    ds = ev.fields.copy()
+    ds = ev.field_data.copy()
     pvars, pcoords = parameter_variables(study)
     for k, v in pvars.items():
-        ds[k] = xr.Variable(*v)
-    ds = ds.assign_coords(pcoords)
-    ds["x"] = xr.Variable(("param",), ev.x, {"long_name": "the evaluated data set"})
+        ds[k] = v
+    for k, v in pcoords.items():
+        ds.set_coord(k, v)
+    ds["x"] = (("param",), ev.x, {"long_name": "the evaluated data set"})
     names = [c.name for c in evaluator.criteria]
-    ds = ds.assign_coords(criterion=names)
-    ds["phi"] = xr.Variable(("criterion",), np.array([ev.phi[n] for n in names], float),
-                            {"long_name": "criterion values",
-                             "units": ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)})
-    ds["status"] = xr.Variable((), np.int32(ev.status), flag_attrs())
-    ds["iterations"] = xr.Variable((), np.int32(ev.iterations), {"long_name": ITERATIONS})
+    ds.set_coord("criterion", names)
+    ds["phi"] = (("criterion",), np.array([ev.phi[n] for n in names], float),
+                 {"long_name": "criterion values",
+                  "units": ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)})
+    ds["status"] = ((), np.int32(ev.status), flag_attrs())
+    ds["iterations"] = ((), np.int32(ev.iterations), {"long_name": ITERATIONS})
     total, most = krylov_counts(ev.krylov_steps)
-    ds["krylov_iterations"] = xr.Variable((), np.int32(total), {"long_name": KRYLOV_ITERATIONS})
-    ds["krylov_step_max"] = xr.Variable((), np.int32(most), {"long_name": KRYLOV_STEP_MAX})
+    ds["krylov_iterations"] = ((), np.int32(total), {"long_name": KRYLOV_ITERATIONS})
+    ds["krylov_step_max"] = ((), np.int32(most), {"long_name": KRYLOV_STEP_MAX})
     if ev.krylov_steps:
-        ds["krylov_steps"] = xr.Variable(("outer_step",), np.asarray(ev.krylov_steps, np.int32),
-                                         {"long_name": "Krylov (CG) iterations of each outer (Newton) step, in order"})
-    ds["wall_time"] = xr.Variable((), float(ev.wall_time), {"units": "s"})
+        ds["krylov_steps"] = (("outer_step",), np.asarray(ev.krylov_steps, np.int32),
+                              {"long_name": "Krylov (CG) iterations of each outer (Newton) step, in order"})
+    ds["wall_time"] = ((), float(ev.wall_time), {"units": "s"})
     units = ", ".join(f"{c.name}: {c.units}" for c in evaluator.criteria)
-    ds["limit"] = xr.Variable(("criterion",), np.array([float(study.limits.get(n, np.nan)) for n in names]),
-                              {"long_name": "limit of each criterion (NaN where none)", "units": units})
+    ds["limit"] = (("criterion",), np.array([float(study.limits.get(n, np.nan)) for n in names]),
+                   {"long_name": "limit of each criterion (NaN where none)", "units": units})
     if study.lower_limits:
-        ds["limit_lower"] = xr.Variable(("criterion",), np.array([float(study.lower_limits.get(n, np.nan))
-                                                                  for n in names]),
-                                        {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
+        ds["limit_lower"] = (("criterion",), np.array([float(study.lower_limits.get(n, np.nan)) for n in names]),
+                             {"long_name": "lower limit of each criterion (NaN where none)", "units": units})
     ds.attrs.update(provenance(study, evaluator, layout))
     ds.attrs["small_strain"] = "\n".join(validity.warnings(ds))
     return ds
 
 
-def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
-    """NetCDF-4 file of `ds` at `path`, whole or not at all (WriteError on an I/O fault)."""
+def release_heap() -> None:
+    """Return the C heap's free pages to the OS (glibc's `malloc_trim`; without glibc nothing):
+    the arrays a solve freed stay resident in the heap otherwise (tens of MB on a 3D model), and
+    what the results phase adds would stack on them."""
+    import ctypes
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return
+    trim(0)
+
+
+def write_netcdf(ds, path: str | Path) -> Path:
+    """NetCDF-4 file of `ds` (a `Data` or an xarray.Dataset: `wcs.results.netcdf`) at `path`,
+    whole or not at all (WriteError on an I/O fault)."""
+    from .netcdf import encode
     from .store import WriteError, uninterrupted, write_atomic
     path = Path(path)
     try:
@@ -143,7 +157,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     except OSError as e:
         raise WriteError(f"cannot create the folder of {path}: {e.strerror or e}") from None
     with uninterrupted():                           # a Ctrl-C waits for the end of the encoding
-        data = ds.to_netcdf(engine="h5netcdf")      # bytes in memory: HDF5 never meets the disk's faults
+        data = encode(ds)                           # bytes in memory: HDF5 never meets the disk's faults
         write_atomic(path, lambda fh: fh.write(data))
     return path
 
@@ -194,7 +208,7 @@ _GEOMETRY = ("coords", "cells", "cell_body", "cell_region", "contact_coords", "c
 def worst_field_variables(criteria: list[str], fields: dict) -> dict:
     """`worst_<field>` (criterion, ...) for every solution field, plus the mesh variables once.
 
-    `fields`: criterion -> xarray.Dataset of its worst case (None where no data set was solved).
+    `fields`: criterion -> the fields of its worst case (`Data`; None where no data set was solved).
     """
     import xarray as xr
     template = next((f for f in fields.values() if f is not None), None)
@@ -413,6 +427,7 @@ def write_solution(study, evaluator, evaluation, out: str | Path, layout: tuple[
     from .paraview import write_paraview
     ds = solve_dataset(study, evaluator, evaluation, layout)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})
+    release_heap()                  # before h5py's libraries load: the peak is the max over the phases
     out = write_netcdf(ds, out)
     zone = evaluator.model.zone
     facets = None if zone is None else slave_segments(zone, study.scene, evaluator.smesh)

@@ -20,18 +20,14 @@ names.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import base64
 import os
 import zlib
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-if TYPE_CHECKING:
-    import xarray as xr
+from ..model.fields import Data
 
 
 VTK_LINE, VTK_TRIANGLE, VTK_TETRA = 3, 5, 10
@@ -40,6 +36,21 @@ _TYPES = {"Float64": "<f8", "Int64": "<i8", "UInt8": "u1"}
 BLOCK = 1 << 15                  # bytes of each zlib block (VTK's default)
 LEVEL = 1                        # zlib's fastest level: 3.5x faster than its default 6, 4 % larger (the
 #                                  fields of the 3D block patch at face 0.02, 7.9 MB)
+
+
+_ESCAPES = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"})
+
+
+def quoteattr(text: str) -> str:
+    """`text` as a quoted XML attribute value, by the rule of xml.sax.saxutils.quoteattr (whose
+    import loads urllib, http and ssl, 8 MB): in double quotes, in single ones when it holds a
+    double quote and no single one, else with the double quotes escaped."""
+    text = text.translate(_ESCAPES)
+    if '"' not in text:
+        return f'"{text}"'
+    if "'" not in text:
+        return f"'{text}'"
+    return '"' + text.replace('"', "&quot;") + '"'
 
 
 def _lift(v: np.ndarray) -> np.ndarray:
@@ -61,7 +72,7 @@ def _names(kind: str, names) -> dict[str, np.ndarray]:
     return {f"{kind}: {n}": np.array([i]) for i, n in enumerate(map(str, names))}
 
 
-def volume(ds: xr.Dataset) -> tuple:
+def volume(ds: Data) -> tuple:
     """(points, cells, VTK cell type, point data, cell data, field data) of the volume mesh."""
     points = _lift(ds["coords"].values)
     point_data = {"displacement [m]": _lift(ds["displacement"].values)}
@@ -78,7 +89,7 @@ def volume(ds: xr.Dataset) -> tuple:
     return points, cells, VTK_TETRA if cells.shape[1] == 4 else VTK_TRIANGLE, point_data, cell_data, field_data
 
 
-def contact_surface(ds: xr.Dataset, zone, facets: np.ndarray) -> tuple:
+def contact_surface(ds: Data, zone, facets: np.ndarray) -> tuple:
     """(points, cells, VTK cell type, point data, cell data, field data) of the contact surface:
     `facets` (s, 2 or 3) the contact rows at the corners of each slave facet
     (`wcs.contact.zone.slave_segments`), the rows' fields those of the results file `ds`."""
@@ -166,7 +177,7 @@ def _write(path: Path, text: str) -> None:
         raise WriteError(f"cannot write {path}: {e.strerror or e}") from None
 
 
-def write_paraview(ds: xr.Dataset, path: str | Path, zone=None, facets: np.ndarray | None = None) -> Path:
+def write_paraview(ds: Data, path: str | Path, zone=None, facets: np.ndarray | None = None) -> Path:
     """OUT.vtm with OUT.vtu (the volume) and, with a contact `zone` and its slave `facets`,
     OUT-contact.vtu beside it (without: an OUT-contact.vtu of an earlier solve is removed, not
     left to be read as this one's); returns the .vtm."""
