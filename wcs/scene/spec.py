@@ -358,8 +358,6 @@ class Refinement(RegionSelector):
     size: float = Field(**FEATURE)
 
 
-BodyMesh.model_rebuild()
-Body.model_rebuild()
 
 
 class Mesh(Frozen):
@@ -545,5 +543,3 @@ class Absorbing(Frozen):
 ABSORBING_ADDRESSES = {"absorbing.layer.thickness": FEATURE, "absorbing.layer.damping": DAMPING}
 
 
-Load.model_rebuild()
-Scene.model_rebuild()

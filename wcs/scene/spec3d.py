@@ -222,4 +222,3 @@ class Scene(Frozen):
     absorbing: Optional[Absorbing] = None          # its absorbing boundaries
 
 
-Solid.model_rebuild()
