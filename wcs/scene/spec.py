@@ -358,8 +358,6 @@ class Refinement(RegionSelector):
     size: float = Field(**FEATURE)
 
 
-
-
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)
     grading: Optional[float] = Field(None, ge=0, le=1e3)
@@ -541,5 +539,3 @@ class Absorbing(Frozen):
 
 
 ABSORBING_ADDRESSES = {"absorbing.layer.thickness": FEATURE, "absorbing.layer.damping": DAMPING}
-
-
