@@ -4,8 +4,8 @@ data set without equilibrium; `wcs/results/verdict.py`), 4 `compare`: the files 
 (Ctrl-C; `run` and `sweep` say how to resume).
 
 Each command imports what it needs when it runs (`wcs/app/commands.py` for run, sweep and
-solve --worst, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
-solvers."""
+solve, `wcs/report/` for report, `wcs/results/compare.py` for compare; `importing`), so `wcs --help`
+loads no numerical library and `wcs report` no solver."""
 from __future__ import annotations
 
 import argparse
