@@ -143,7 +143,7 @@ def cmd_check(args) -> int:
     """Load, mesh and assemble the study, and solve its nominal data set once: what the nominal
     solve refuses as bad input (status 3, the solvability condition) `check` refuses too (exit 2);
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
-    with importing():
+    with importing(args):
         from .model.evaluation import Evaluator
         from .status import Status
         from .results.store import check_output
@@ -198,48 +198,45 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
 
 
 def cmd_solve(args) -> int:
-    with importing():
+    with importing(args):
         from .app.commands import solve_nominal, solve_worst
     return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 
 def cmd_run(args) -> int:
-    with importing():
+    with importing(args):
         from .app.commands import cmd_run as run
     return run(args)
 
 
 def cmd_sweep(args) -> int:
-    with importing():
+    with importing(args):
         from .app.commands import cmd_sweep as sweep
     return sweep(args)
 
 
 def cmd_report(args) -> int:
-    with importing():
+    with importing(args):
         from .report import cmd_report as report
     return report(args)
 
 
 def cmd_compare(args) -> int:
-    with importing():
+    with importing(args):
         from .results.compare import cmd_compare as compare
     return compare(args)
 
 
-_OWN_PROCESS = False    # `main` runs as the process' own command (it read sys.argv)
-
-
 @contextlib.contextmanager
-def importing():
-    """A command's imports, in a process that is the command: without the cyclic garbage collector,
-    their objects then frozen out of its passes (`gc.freeze`). The imports create some 1e5 objects
-    that live as long as the process (functions, classes, pydantic validators): each collection
-    during the imports traced those made so far again, and each full one after them all of them,
-    a tenth of a second of CPU in a 1e4-unknown solve. What the imports leave in reference cycles
-    stays (some hundred objects). Called by a host process (`main(argv)`: a test, a script), the
-    host's collector is left as it is."""
-    if not _OWN_PROCESS:
+def importing(args):
+    """A command's imports, in a process that is the command (`main` read sys.argv: `args.process`):
+    without the cyclic garbage collector, their objects then frozen out of its passes (`gc.freeze`).
+    The imports create some 1e5 objects that live as long as the process (functions, classes,
+    pydantic validators): each collection during the imports traced those made so far again, and
+    each full one after them all of them, a tenth of a second of CPU in a 1e4-unknown solve. What
+    the imports leave in reference cycles stays (some hundred objects). Called by a host process
+    (`main(argv)`: a test, a script), the host's collector is left as it is."""
+    if not args.process:
         yield
         return
     gc.disable()
@@ -352,15 +349,14 @@ def held_back(verbose: bool):
 def main(argv=None) -> int:
     """The `wcs` command on `argv` (None: this process' command line, the process being the
     command: `importing`)."""
-    global _OWN_PROCESS
-    _OWN_PROCESS = argv is None
     args = build_parser().parse_args(argv)
+    args.process = argv is None
     verbose = getattr(args, "verbose", False)
     progress = Progress.from_args(args) if rank(world()) == 0 else Progress("quiet")
     try:
         with held_back(verbose), reporting(progress):
             if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
-                with importing():
+                with importing(args):
                     from .linalg import configure_threads
                 configure_threads()
             if getattr(args, "output", None):
