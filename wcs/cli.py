@@ -4,19 +4,18 @@ data set without equilibrium; `wcs/results/verdict.py`), 4 `compare`: the files 
 (Ctrl-C; `run` and `sweep` say how to resume).
 
 Each command imports what it needs when it runs (`wcs/app/commands.py` for run and sweep,
-`wcs/app/solve.py` for solve, `wcs/report/` for report, `wcs/results/compare.py` for compare), so `wcs --help` and `wcs report` do not load the
-solvers."""
+`wcs/app/solve.py` for solve, `wcs/report/` for report, `wcs/results/compare.py` for compare;
+`importing`), so `wcs --help` loads no numerical library and `wcs report` no solver."""
 from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import logging
 import sys
 import traceback
 import warnings
 from pathlib import Path
-
-import numpy as np
 
 from .version import __version__
 from .errors import StudyError
@@ -25,11 +24,13 @@ from .progress import INTERRUPTED, Progress, phase, reporting
 
 
 def _fmt(v) -> str:
+    import numpy as np
     return f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v)
 
 
 def _cell_sizes(mesh) -> tuple[float, float]:
     """Smallest and largest cell diameter (longest edge) of the mesh."""
+    import numpy as np
     p, t = mesh.p, mesh.t
     edges = [np.hypot(*(p[:, t[a]] - p[:, t[b]])) for a, b in ((0, 1), (1, 2), (2, 0))]
     h = np.max(edges, axis=0)
@@ -43,6 +44,7 @@ def _words(value):
 
 def summary(study, ev) -> str:
     """What the study will do, in the words of the study file."""
+    import numpy as np
     from .scene.estimate import DEFAULT_MAX_CELLS
     scene, sm = study.scene, ev.smesh
     mesh = sm.mesh
@@ -141,11 +143,12 @@ def cmd_check(args) -> int:
     """Load, mesh and assemble the study, and solve its nominal data set once: what the nominal
     solve refuses as bad input (status 3, the solvability condition) `check` refuses too (exit 2);
     any other failure there is a solver failure, not the input's (exit 1, as `solve`)."""
-    from .model.evaluation import Evaluator
-    from .status import Status
-    from .results.store import check_output
-    from .study.load import load_study
-    from .scene.summary3d import summary3d
+    with importing(args):
+        from .model.evaluation import Evaluator
+        from .status import Status
+        from .results.store import check_output
+        from .study.load import load_study
+        from .scene.summary3d import summary3d
     study = load_study(args.study)
     check_output(study.output, str(study.file), "output", create=False)   # what `run` refuses before solving
     ev = Evaluator(study)
@@ -195,28 +198,53 @@ def mesh_check_cost(study, ev, warm_solve: float) -> str:
 
 
 def cmd_solve(args) -> int:
-    from .app.solve import solve_nominal, solve_worst
+    with importing(args):
+        from .app.solve import solve_nominal, solve_worst
     return solve_worst(args) if getattr(args, "worst", None) else solve_nominal(args)
 
 
 def cmd_run(args) -> int:
-    from .app.commands import cmd_run as run
+    with importing(args):
+        from .app.commands import cmd_run as run
     return run(args)
 
 
 def cmd_sweep(args) -> int:
-    from .app.commands import cmd_sweep as sweep
+    with importing(args):
+        from .app.commands import cmd_sweep as sweep
     return sweep(args)
 
 
 def cmd_report(args) -> int:
-    from .report import cmd_report as report
+    with importing(args):
+        from .report import cmd_report as report
     return report(args)
 
 
 def cmd_compare(args) -> int:
-    from .results.compare import cmd_compare as compare
+    with importing(args):
+        from .results.compare import cmd_compare as compare
     return compare(args)
+
+
+@contextlib.contextmanager
+def importing(args):
+    """A command's imports, in a process that is the command (`main` read sys.argv: `args.process`):
+    without the cyclic garbage collector, their objects then frozen out of its passes (`gc.freeze`).
+    The imports create some 1e5 objects that live as long as the process (functions, classes,
+    pydantic validators): each collection during the imports traced those made so far again, and
+    each full one after them all of them, a tenth of a second of CPU in a 1e4-unknown solve. What
+    the imports leave in reference cycles stays (some hundred objects). Called by a host process
+    (`main(argv)`: a test, a script), the host's collector is left as it is."""
+    if not args.process:
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        gc.enable()
 
 
 QUIET = "print nothing but warnings and errors (no progress, no summary)"
@@ -319,13 +347,17 @@ def held_back(verbose: bool):
 
 
 def main(argv=None) -> int:
+    """The `wcs` command on `argv` (None: this process' command line, the process being the
+    command: `importing`)."""
     args = build_parser().parse_args(argv)
+    args.process = argv is None
     verbose = getattr(args, "verbose", False)
     progress = Progress.from_args(args) if rank(world()) == 0 else Progress("quiet")
     try:
         with held_back(verbose), reporting(progress):
             if args.func is not cmd_report:               # a command that solves: one BLAS thread per process
-                from .linalg import configure_threads
+                with importing(args):
+                    from .linalg import configure_threads
                 configure_threads()
             if getattr(args, "output", None):
                 output_folder(args.output)

@@ -9,7 +9,11 @@ from typing import Annotated, Literal, Optional
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+# defer_build: a model's validator is built when it first validates, with the models it holds
+# inside its own, not when its class is defined: a study validates with its top level and one
+# scene (2D or 3D), and the other models' validators were never used (forward references
+# resolve then, from the module's names)
+CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, defer_build=True)
 
 
 def did_you_mean(word: str, choices) -> str:

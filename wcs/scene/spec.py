@@ -358,10 +358,6 @@ class Refinement(RegionSelector):
     size: float = Field(**FEATURE)
 
 
-BodyMesh.model_rebuild()
-Body.model_rebuild()
-
-
 class Mesh(Frozen):
     size: Optional[float] = Field(None, **FEATURE)
     grading: Optional[float] = Field(None, ge=0, le=1e3)
@@ -543,7 +539,3 @@ class Absorbing(Frozen):
 
 
 ABSORBING_ADDRESSES = {"absorbing.layer.thickness": FEATURE, "absorbing.layer.damping": DAMPING}
-
-
-Load.model_rebuild()
-Scene.model_rebuild()

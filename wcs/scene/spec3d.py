@@ -220,6 +220,3 @@ class Scene(Frozen):
     regions_of_interest: dict[Name, RegionOfInterest] = {}
     sources: dict[Name, Source] = {}               # a dynamic study's point sources
     absorbing: Optional[Absorbing] = None          # its absorbing boundaries
-
-
-Solid.model_rebuild()
