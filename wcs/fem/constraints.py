@@ -221,15 +221,20 @@ class Reduction:
         index = np.int32 if max(size, n) < 2**31 else np.int64
         self.source = np.empty(size, dtype=np.int32 if K.nnz < 2**31 else np.int64)
         self.indices = np.empty(size, dtype=index)
-        below = np.zeros(other.size, dtype=np.int64)        # unit keys below each other key
+        # unit keys below each other key: counted where a chunk's keys span it, else a step at the chunk's end
+        below, step = np.zeros(other.size, dtype=np.int64), np.zeros(other.size + 1, dtype=np.int64)
         done = 0
         for key, entry in _unit_keys(K, col, unit, n):
+            if not key.size:
+                continue
             at = done + np.arange(key.size) + np.searchsorted(other, key)
             self.source[at] = entry
             self.indices[at] = key % n
-            below += np.searchsorted(key, other)
+            lo, hi = np.searchsorted(other, [key[0], key[-1]], side="right")    # the others within the chunk's keys
+            below[lo:hi] += np.searchsorted(key, other[lo:hi])
+            step[hi] += key.size
             done += key.size
-        self.rest = np.arange(other.size) + below
+        self.rest = np.arange(other.size) + below + np.cumsum(step[:-1])
         self.source[self.rest] = e[ptr[:-1]]               # in range; M's rows overwrite these
         self.indices[self.rest] = other % n
         count = np.bincount(other // n, minlength=n)        # entries in each row of Tᵀ K T
