@@ -188,9 +188,11 @@ class Reduction:
     glue touches — is the one term of Kr_ij), and M's row there sums 0 + 1·K_kl; those rows are
     kept as the index of their entry of K (`source`, 4 bytes an entry, not M's 12–16), and M
     only for the other rows (`rest`): the same sums, the same bits. Only the other entries' terms
-    are enumerated; the unit entries give their keys i·n + j alone (8 bytes an entry of K while
-    the pattern is sorted out; the terms of every entry took 48). K's structure is checked by its
-    row pointers and a CRC-32 of its column indices (a copy of them took 4 bytes an entry of K)."""
+    are enumerated and sorted; the unit entries are placed by their keys i·n + j, made a chunk at
+    a time (a byte an entry of K beside the results while the pattern is built; the terms of every
+    entry, made and sorted at once, took 70: 1.06 GB against 0.30 GB traced at 6.3e5 unknowns).
+    K's structure is checked by its row pointers and a CRC-32 of its column indices (a copy of
+    them took 4 bytes an entry of K)."""
 
     def __init__(self, K: sp.csr_matrix, T: sp.csr_matrix):
         K = sp.csr_matrix(K)
