@@ -227,6 +227,29 @@ def test_reduction_gives_the_whole_maps_bits_holding_a_gather_for_its_unit_rows(
         red(other)
 
 
+@pytest.mark.parametrize("permuted", [False, True])
+def test_reduction_places_the_unit_entries_in_any_column_order(permuted, monkeypatch):
+    """The entries of K whose rows of T are unit rows of their own columns are placed by their
+    keys alone, in K's order where T's columns follow the dofs (`eliminate`'s numbering) and
+    sorted where they do not (columns permuted): the whole map's pattern and bits either way,
+    with chunks of 64 entries of K (keys ordered across chunks)."""
+    from wcs.fem import constraints
+    monkeypatch.setattr(constraints, "PRODUCTS_CHUNK", 64)
+    m, region = two_region(6)
+    op = CellAffineOperator(m.t, m.nvertices, elastic_cell_matrices(m.p, m.t), region)
+    nodes = m.boundary_nodes()
+    T = eliminate(m.p.shape[1], 2, [Constraint(nodes[:5], np.tile([0.6, 0.8], (5, 1)), 0)], 1).T
+    if permuted:
+        T = sp.csr_matrix(T[:, np.random.default_rng(2).permutation(T.shape[1])])
+    K = op([[2.0, 1.0], [3.0, 0.5]])
+    red = constraints.Reduction(K, T)
+    whole, keys = _whole_map(K, T)
+    assert [(i, j) for i in range(T.shape[1]) for j in red.indices[red.indptr[i]:red.indptr[i + 1]]] == keys
+    assert red.rest.size < 0.1 * red.nnz
+    K.data = np.random.default_rng(5).normal(size=K.nnz)
+    assert np.array_equal(red(K).data.view(np.int64), (whole @ K.data).view(np.int64))
+
+
 @pytest.mark.parametrize("dim", [2, 3])
 def test_cell_matrices_made_chunk_by_chunk_give_the_held_ones_bits(dim, monkeypatch):
     """The model's operators make their cell matrices chunk by chunk from the cells' gradients

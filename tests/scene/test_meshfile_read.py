@@ -82,3 +82,31 @@ def test_meshio_reads_what_gmsh_reads(tmp_path, name):
     assert [(n, d) for n, d, _ in groups] == [(n, d) for n, d, _ in ggroups]
     for (n, _, c), (_, _, gc) in zip(groups, ggroups):
         assert c.dtype == gc.dtype and np.array_equal(c, gc), n
+
+
+@pytest.mark.parametrize("kind", ["tri", "tet"])
+def test_facets_made_by_keys_are_scikit_fems(kind):
+    """A mesh file's facets and cell-to-facet map, made from one int64 key a facet, are the
+    arrays scikit-fem's `build_entities` makes (values, dtypes, shapes), cells in any order."""
+    from skfem import MeshTet, MeshTri
+    from wcs.scene.meshfile import _made_facets
+    m = MeshTet().refined(2) if kind == "tet" else MeshTri().refined(3)
+    t = m.t[:, np.random.default_rng(1).permutation(m.t.shape[1])]
+    ours, theirs = type(m)(m.p, t, sort_t=False), type(m)(m.p, t, sort_t=False)
+    _made_facets(ours)
+    for a, b in ((ours._facets, theirs.facets), (ours._t2f, theirs.t2f)):
+        assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_rows_in_by_keys_and_by_rows_agree(monkeypatch):
+    """Which sorted rows of a are rows of b: by int64 keys, and by np.unique over rows where
+    the keys would not fit (`_row_keys` None), the same answer, rows of b beyond a's indices too."""
+    from wcs.scene import meshfile
+    rng = np.random.default_rng(2)
+    a = np.sort(rng.integers(0, 40, (500, 3)), axis=1)
+    b = np.r_[a[rng.random(500) < 0.3], np.sort(rng.integers(0, 60, (50, 3)), axis=1)]
+    expected = np.array([tuple(r) in set(map(tuple, b)) for r in a])
+    assert 0 < expected.sum() < len(a)
+    assert np.array_equal(meshfile._rows_in(a, b), expected)
+    monkeypatch.setattr(meshfile, "_row_keys", lambda rows: None)
+    assert np.array_equal(meshfile._rows_in(a, b), expected)
