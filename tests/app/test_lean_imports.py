@@ -1,6 +1,6 @@
 """`wcs solve` of a file-mesh study by the iterative method loads what its path needs: at the
-solve's start neither the results file's libraries (xarray, pandas, h5py) nor gmsh (a .msh is
-read by meshio) nor PARDISO (MKL); by its end, with the results written, h5py alone of them
+solve's start neither the results file's libraries (xarray, pandas, h5py) nor gmsh (a MSH 2.2 file is
+read by wcs' own reader, `wcs.scene.meshfile`) nor PARDISO (MKL); by its end, with the results written, h5py alone of them
 (`wcs.results.netcdf`: no xarray, no pandas), still no gmsh and no MKL (the iterative method
 makes no direct factor). Guarded by what the process imported and
 mapped, not by its time or memory."""
