@@ -89,11 +89,11 @@ def test_facets_made_by_keys_are_scikit_fems(kind):
     """A mesh file's facets and cell-to-facet map, made from one int64 key a facet, are the
     arrays scikit-fem's `build_entities` makes (values, dtypes, shapes), cells in any order."""
     from skfem import MeshTet, MeshTri
-    from wcs.scene.meshfile import _made_facets
+    from wcs.scene.meshfile import made_facets
     m = MeshTet().refined(2) if kind == "tet" else MeshTri().refined(3)
     t = m.t[:, np.random.default_rng(1).permutation(m.t.shape[1])]
     ours, theirs = type(m)(m.p, t, sort_t=False), type(m)(m.p, t, sort_t=False)
-    _made_facets(ours)
+    made_facets(ours)
     for a, b in ((ours._facets, theirs.facets), (ours._t2f, theirs.t2f)):
         assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)
 

@@ -44,6 +44,17 @@ def as_variable(v) -> Variable:
     return v if isinstance(v, Variable) else Variable(*v)
 
 
+def dimension_sizes(variables: dict) -> dict:
+    """The length of each dimension of the variables {name: (anything with `dims` and `values`)},
+    in the order the variables meet them (ValueError where two variables disagree)."""
+    out = {}
+    for name, v in variables.items():
+        for d, n in zip(v.dims, np.shape(v.values)):
+            if out.setdefault(d, n) != n:
+                raise ValueError(f"dimension {d!r} of {name!r} has length {n}, elsewhere {out[d]}")
+    return out
+
+
 class Data:
     """Data variables and coordinates (name -> Variable) and attributes: the content of a
     NetCDF file. Variables are given as Variables or (dims, values[, attrs]) tuples; a
@@ -77,13 +88,8 @@ class Data:
 
     @property
     def sizes(self) -> dict:
-        """The length of each dimension (ValueError where two variables disagree)."""
-        out = {}
-        for name, v in self.variables.items():
-            for d, n in zip(v.dims, v.shape):
-                if out.setdefault(d, n) != n:
-                    raise ValueError(f"dimension {d!r} of {name!r} has length {n}, elsewhere {out[d]}")
-        return out
+        """The length of each dimension (`dimension_sizes`)."""
+        return dimension_sizes(self.variables)
 
     def copy(self) -> Data:
         """A new Data of the same variables (new mappings, the variables shared)."""

@@ -184,7 +184,7 @@ class Model:
         StudyError (exit 2) where that estimate exceeds the machine's memory."""
         rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
         units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
-        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.pattern.nnz,
+        facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.nnz,
                                 contact_rows=rows, units=units, thermal=self.thermal)
         memory = evaluation_memory()
         method = self.options.method

@@ -433,8 +433,9 @@ class Report:
                              f"σ₂ min {number(float(np.nanmin(f.principal_stress[:, -1])), 'Pa')}")
             if f.displacement is not None:
                 extra.append(f"max |u| {number(float(np.nanmax(np.linalg.norm(f.displacement, axis=1))), 'm')}")
-            if f.temperature is not None and uniform_value(f.temperature) is not None:
-                extra.append(f"temperature uniform, {number(uniform_value(f.temperature), 'K')}")
+            flat = None if f.temperature is None else uniform_value(f.temperature)
+            if flat is not None:
+                extra.append(f"temperature uniform, {number(flat, 'K')}")
             elif f.temperature is not None:
                 extra.append(f"temperature {number(float(np.nanmin(f.temperature)), 'K')} … "
                              f"{number(float(np.nanmax(f.temperature)), 'K')}")

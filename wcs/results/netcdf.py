@@ -23,6 +23,8 @@ import io
 
 import numpy as np
 
+from ..model.fields import dimension_sizes
+
 
 def _strings(name: str, values: np.ndarray) -> np.ndarray:
     """An object array of str (TypeError for anything else in an object array)."""
@@ -61,11 +63,7 @@ def encode(ds) -> memoryview:
             raise ValueError(f"coordinates {global_coords} belong to no variable and the file already has "
                              f"a 'coordinates' attribute")
         attrs["coordinates"] = global_coords
-    sizes = {}
-    for name, v in variables.items():
-        for d, n in zip(v.dims, np.shape(v.values)):
-            if sizes.setdefault(d, n) != n:
-                raise ValueError(f"dimension {d!r} of {name!r} has length {n}, elsewhere {sizes[d]}")
+    sizes = dimension_sizes(variables)
     buf = io.BytesIO()
     with h5netcdf.File(buf, "w") as f:
         for k, a in attrs.items():

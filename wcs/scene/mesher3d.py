@@ -63,7 +63,7 @@ from ..errors import StudyError
 from . import selectors
 from .geometry import kernel, make_shape
 from .meshdata import SceneMesh
-from .meshfile import read_mesh_file
+from .meshfile import made_facets, read_mesh_file
 from .pieces import closure, region_entity_sizes, fragment_pieces, piece_owners, refuse_roi_apart, region_names
 from .session import Session, gmsh
 from .estimate import DEFAULT_GRADING
@@ -353,8 +353,10 @@ def build_mesh3d(scene: Scene, splits: int = 0) -> SceneMesh:
     negative = np.einsum("ie,ie->e", e[:, 0], np.cross(e[:, 1], e[:, 2], axis=0)) < 0
     t[1, negative], t[2, negative] = t[2, negative], t[1, negative].copy()
 
-    sm = check_connected(SceneMesh(mesh=skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False), bodies=bodies,
-                                   regions=regions, cell_body=cell_body, cell_region=cell_region),
+    mesh = skfem.MeshTet(p, np.ascontiguousarray(t), sort_t=False)
+    made_facets(mesh)
+    sm = check_connected(SceneMesh(mesh=mesh, bodies=bodies, regions=regions, cell_body=cell_body,
+                                   cell_region=cell_region),
                          {name: np.flatnonzero(in_roi[j]) for j, name in enumerate(embed)})
     bnd = {name: select_faces(sm, spec, f"scene.boundaries.{name}")
            for name, spec in scene.boundaries.items()}

@@ -640,12 +640,13 @@ def _row_keys(rows: np.ndarray) -> np.ndarray | None:
     return rows.astype(np.int64) @ base ** np.arange(rows.shape[1] - 1, -1, -1, dtype=np.int64)
 
 
-def _made_facets(mesh) -> None:
+def made_facets(mesh) -> None:
     """scikit-fem's facets and cell-to-facet map of ``mesh`` (`Mesh.build_entities`: the sorted
     node tuples of every cell's facets, their lexicographically sorted unique columns and each
     cell facet's column), made from one int64 key a facet (`_row_keys`): its np.unique over
-    columns sorts structured rows, the 3D meshes' slowest step of a read; the same arrays.
-    Left to scikit-fem where the keys do not fit."""
+    columns sorts structured rows, the slowest step of a 3D mesh once it is made (read from a
+    file or meshed, `wcs.scene.mesher3d`); the same arrays. Left to scikit-fem where the keys
+    do not fit."""
     faces = mesh.elem.refdom.facets
     sorted_nodes = np.sort(np.hstack([mesh.t[ix] for ix in faces]), axis=0)
     key = _row_keys(sorted_nodes.T)
@@ -700,7 +701,7 @@ def read_mesh_file(path, scene, keypath: str = "scene.mesh.file", dim: int = 2,
     orig = uniq % nn
     p = np.ascontiguousarray(raw.x[orig].T)
     mesh = kind.mesh_type(p, np.ascontiguousarray(t), sort_t=False)
-    _made_facets(mesh)
+    made_facets(mesh)
     sm = SceneMesh(mesh=mesh, bodies=bodies, regions=regions,
                    cell_body=cell_body, cell_region=cell_region, boundaries={})
 
