@@ -350,3 +350,45 @@ def test_a_nodes_one_active_row_pivots_on_its_largest_entry_without_a_qr(monkeyp
     for (i, j), want in expected.items():
         got = R.pivots(i, np.arange(1 + k) == j)
         assert all(np.array_equal(g, w) for g, w in zip(got, want)), (i, j)
+
+
+@pytest.mark.parametrize("ranks", [1, 3])
+def test_the_eliminated_operator_is_z_transpose_kt_z_built_without_products_of_k_size(ranks):
+    """`_eliminated` (Kt without the pivots' rows and columns plus a correction near them,
+    spliced row by row) equals the product Zᵀ Kt Z + diag(K)_P it stands for, entry by entry
+    to round-off, on each rank's rows: a 3D elastic block (K from scikit-fem), contact-like
+    rows of four unknowns each (their pivots' inverse blocks dense), disc springs in Kt, and
+    chunks of a few rows so that the copy crosses its chunk borders."""
+    import skfem as fem
+    from wcs.contact.iterative import _basis, _block_diagonal, _eliminated, _spliced
+    mesh = fem.MeshTet.init_tensor(*[np.linspace(0.0, 1.0, 5)] * 3)
+    basis = fem.Basis(mesh, fem.ElementVector(fem.ElementTetP1()))
+    K = fem.asm(fem.models.elasticity.linear_elasticity(1.0, 0.7), basis).tocsr()
+    n = K.shape[0]
+    rng = np.random.default_rng(3)
+    top = basis.get_dofs(lambda x: np.isclose(x[2], 1.0)).nodal["u^3"]
+    far = basis.get_dofs(lambda x: np.isclose(x[2], 0.0)).nodal["u^1"]
+    rows = len(top)
+    cols = np.column_stack([top, far[rng.integers(0, len(far), rows)], rng.integers(0, n, (rows, 2))])
+    C = sp.csr_matrix((rng.uniform(0.5, 1.5, cols.size), (np.repeat(np.arange(rows), 4), cols.ravel())), shape=(rows, n))
+    P = top                                                     # each row's pivot: its top dof
+    Binv = _block_diagonal([np.array([[1.0 / C[i, P[i]]]]) for i in range(rows)])
+    Z, _ = _basis(C, np.arange(rows), P, Binv, np.zeros(rows))
+    Q = sp.csr_matrix(rng.uniform(-1, 1, (6, n)) * (rng.uniform(0, 1, (6, n)) < 0.02))
+    Kt = (K + Q.T @ sp.diags(rng.uniform(1.0, 2.0, 6)) @ Q).tocsr()
+    full = (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    edges = np.linspace(0, n, ranks + 1).astype(int)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        A = _eliminated(Z, Kt, K, P, lo, hi)
+        assert A.shape == (hi - lo, n) and A.has_sorted_indices
+        assert abs(A - full[lo:hi]).max() <= 1e-13 * abs(full).max()
+        assert np.array_equal(np.diff(A.indptr)[np.isin(np.arange(lo, hi), P)], np.ones(np.sum((P >= lo) & (P < hi))))
+    pivot = np.zeros(n, dtype=bool)
+    pivot[P] = True
+    touched = np.array([0, 7, n - 1])
+    T = sp.csr_matrix(np.eye(n)[touched] * 5.0)
+    A = _spliced(Kt, 0, n, pivot, touched, T, chunk=5)          # the copy across chunks of 5 rows
+    kept = sp.diags((~pivot).astype(float)) @ Kt @ sp.diags((~pivot).astype(float))
+    kept = sp.lil_matrix(kept)
+    kept[touched] = T.toarray()
+    assert abs(A - kept.tocsr()).max() == 0.0

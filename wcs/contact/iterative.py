@@ -574,14 +574,70 @@ def _basis(C, rows, P, Binv, b_rows):
 
 def _eliminated(Z, Kt, K, P, lo=0, hi=None):
     """Zᵀ Kt Z on the unknowns O, kept at K's size (rows P: diag K, so the solve gives x_P = 0);
-    its rows lo:hi only where given (a rank's share, `wcs.contact.distributed`)."""
+    its rows lo:hi only where given (a rank's share, `wcs.contact.distributed`).
+
+    Z is the identity on O but on its rows P (u_P = W u_O, W = Z_P, `_basis`), so with
+    D = diag(1_O) and G = Kt_{:P} W (= Kt_Pᵀ W: Kt is symmetric)
+        Zᵀ Kt Z = D Kt D + D G + (D G)ᵀ + Wᵀ G_P:
+    Kt without its rows and columns P, plus a correction S on the rows next to the pivots. The
+    rows are built that way, Kt's copied once straight into the answer: no product of K's size
+    (Zᵀ Kt Z as two sparse products held three matrices of K's size at once; the same entries
+    up to the order of their sums)."""
     n = K.shape[0]
     hi = n if hi is None else hi
-    if (lo, hi) == (0, n):
-        return (Z.T @ Kt @ Z + sp.csr_matrix((K.diagonal()[P], (P, P)), shape=(n, n))).tocsr()
+    pivot = np.zeros(n, dtype=bool)
+    pivot[P] = True
+    W = Z[P]
+    G = (Kt[P].T @ W).tocsr()
+    DG = sp.diags((~pivot).astype(float)) @ G
+    S = (DG + DG.T + W.T @ G[P]).tocsr()[lo:hi]
     Pr = P[(P >= lo) & (P < hi)]
-    return (sp.csr_matrix(Z.T)[lo:hi] @ Kt @ Z + sp.csr_matrix((K.diagonal()[Pr], (Pr - lo, Pr)),
-                                                                shape=(hi - lo, n))).tocsr()
+    S = (S + sp.csr_matrix((K.diagonal()[Pr], (Pr - lo, Pr)), shape=(hi - lo, n))).tocsr()
+    touched = np.flatnonzero(np.diff(S.indptr))
+    sub = Kt[lo + touched].tocsr()
+    sub.data[pivot[sub.indices] | pivot[lo + touched].repeat(np.diff(sub.indptr))] = 0.0
+    T = (sub + S[touched]).tocsr()
+    del S, sub
+    return _spliced(Kt, lo, hi, pivot, touched, T)
+
+
+def _spliced(Kt, lo, hi, out, touched, T, chunk=4096):
+    """Rows lo:hi of Kt without the rows and columns `out`, but the rows `touched` (local) those
+    of T (CSR, one row each): Kt's rows copied `chunk` rows at a time into arrays allocated
+    once (nothing else of Kt's size held)."""
+    m, n = hi - lo, Kt.shape[1]
+    T.sort_indices()
+    plain = np.ones(m, dtype=bool)      # rows copied from Kt
+    plain[touched] = False
+    plain &= ~out[lo:hi]
+
+    def kept(a, b):     # Kt's entries of the local rows a:b that stay, and where they start
+        seg = Kt.indptr[lo + a:lo + b + 1]
+        keep = np.repeat(plain[a:b], np.diff(seg))
+        keep &= ~out[Kt.indices[seg[0]:seg[-1]]]
+        return slice(seg[0], seg[-1]), seg - seg[0], keep
+
+    counts = np.zeros(m, dtype=np.int64)
+    for a in range(0, m, chunk):
+        b = min(a + chunk, m)
+        _, seg, keep = kept(a, b)
+        counts[a:b] = np.diff(np.r_[0, np.cumsum(keep)][seg])
+    counts[touched] = np.diff(T.indptr)
+    indptr = np.r_[0, np.cumsum(counts)]
+    index = np.int32 if max(indptr[-1], n) < np.iinfo(np.int32).max else np.int64
+    indices, data = np.empty(indptr[-1], dtype=index), np.empty(indptr[-1])
+    for a in range(0, m, chunk):
+        b = min(a + chunk, m)
+        span, _, keep = kept(a, b)
+        c = np.where(plain[a:b], counts[a:b], 0)
+        at = np.arange(c.sum()) + np.repeat(indptr[a:b] - np.r_[0, np.cumsum(c)[:-1]], c)
+        indices[at] = Kt.indices[span][keep]
+        data[at] = Kt.data[span][keep]
+    c = np.diff(T.indptr)
+    at = np.arange(T.nnz) + np.repeat(indptr[touched] - T.indptr[:-1], c)
+    indices[at] = T.indices
+    data[at] = T.data
+    return sp.csr_matrix((data, indices, indptr.astype(index)), shape=(m, n))
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:
