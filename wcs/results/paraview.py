@@ -137,23 +137,27 @@ def _components(name: str, data: np.ndarray) -> str:
     return ""
 
 
-def vtu_text(points, cells, cell_type: int, point_data: dict, cell_data: dict, field_data: dict) -> str:
-    """A VTK XML UnstructuredGrid of one cell type."""
+def vtu_text(points, cells, cell_type: int, point_data: dict, cell_data: dict, field_data: dict):
+    """A VTK XML UnstructuredGrid of one cell type, piece by piece (each DataArray compressed
+    when its turn comes: `_write` streams them, so no more than one array's text is held)."""
     n, nc, nv = len(points), len(cells), cells.shape[1]
-    out = ['<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" '
-           'header_type="UInt64" compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n<FieldData>\n']
-    out += [_array(k, v, f' NumberOfTuples="{len(v)}"') for k, v in field_data.items()]
-    out.append(f'</FieldData>\n<Piece NumberOfPoints="{n}" NumberOfCells="{nc}">\n<Points>\n')
-    out.append(_array("Points", points))
-    out.append("</Points>\n<Cells>\n")
-    out += [_array("connectivity", cells.ravel()), _array("offsets", nv * np.arange(1, nc + 1)),
-            _array("types", np.full(nc, cell_type), vtk_type="UInt8")]
-    out.append("</Cells>\n<PointData>\n")
-    out += [_array(k, v, _components(k, v)) for k, v in point_data.items()]
-    out.append("</PointData>\n<CellData>\n")
-    out += [_array(k, v, _components(k, v)) for k, v in cell_data.items()]
-    out.append("</CellData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n")
-    return "".join(out)
+    yield ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" '
+           'header_type="UInt64" compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n<FieldData>\n')
+    for k, v in field_data.items():
+        yield _array(k, v, f' NumberOfTuples="{len(v)}"')
+    yield f'</FieldData>\n<Piece NumberOfPoints="{n}" NumberOfCells="{nc}">\n<Points>\n'
+    yield _array("Points", points)
+    yield "</Points>\n<Cells>\n"
+    yield _array("connectivity", cells.ravel())
+    yield _array("offsets", nv * np.arange(1, nc + 1))
+    yield _array("types", np.full(nc, cell_type), vtk_type="UInt8")
+    yield "</Cells>\n<PointData>\n"
+    for k, v in point_data.items():
+        yield _array(k, v, _components(k, v))
+    yield "</PointData>\n<CellData>\n"
+    for k, v in cell_data.items():
+        yield _array(k, v, _components(k, v))
+    yield "</CellData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n"
 
 
 def vtm_text(blocks: list[tuple[str, str]]) -> str:
@@ -164,17 +168,22 @@ def vtm_text(blocks: list[tuple[str, str]]) -> str:
             f"<vtkMultiBlockDataSet>\n{items}</vtkMultiBlockDataSet>\n</VTKFile>\n")
 
 
-def _write(path: Path, text: str) -> None:
-    """`text` to `path` whole or not at all (WriteError on an I/O fault)."""
+def _write(path: Path, text) -> None:
+    """`text` (a str, or str pieces written as they come) to `path` whole or not at all
+    (WriteError on an I/O fault)."""
     from .store import WriteError
     tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(text, encoding="ascii")
+        with open(tmp, "w", encoding="ascii") as fh:
+            fh.writelines([text] if isinstance(text, str) else text)
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
         raise WriteError(f"cannot write {path}: {e.strerror or e}") from None
+    except BaseException:       # a piece that failed to make (or a Ctrl-C) leaves no partial file
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_paraview(ds: Data, path: str | Path, zone=None, facets: np.ndarray | None = None) -> Path:
