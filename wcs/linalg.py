@@ -32,7 +32,6 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
-from importlib import metadata
 from pathlib import Path
 from typing import Protocol
 
@@ -48,6 +47,7 @@ def _mkl_rt_hint() -> None:
     globs all of sys.prefix when ldconfig does not know the library (0.6 s at every import)."""
     if "PYPARDISO_MKL_RT" in os.environ:
         return
+    from importlib import metadata      # here: 2 MB and 30 ms an iterative solve does not spend
     try:
         files = metadata.files("mkl") or []
     except metadata.PackageNotFoundError:
@@ -73,6 +73,25 @@ def _pardiso():
     return pypardiso
 
 
+def bootstrap_mpi():
+    """The PETSc wheel's bootstrap `dolfinx_solver` imported (it loads mpi4py.MPI, which starts
+    MPI, before any PETSc library); ImportError where it is not installed. A process that no MPI
+    launcher started is MPI's singleton: it talks to no other process, so UCX (MPICH's transport
+    layer) is given its loop-back transport alone (UCX_TLS=self, unless set) while MPI starts,
+    not the shared-memory segments and network transports it maps otherwise (4 MB resident);
+    the variable is gone again before anything could pass it on to a launched child."""
+    from .app.parallel import launched
+    if launched() or "UCX_TLS" in os.environ:
+        import dolfinx_solver
+        return dolfinx_solver
+    os.environ["UCX_TLS"] = "self"
+    try:
+        import dolfinx_solver
+    finally:
+        del os.environ["UCX_TLS"]
+    return dolfinx_solver
+
+
 @functools.cache
 def petsc():
     """petsc4py's PETSc, its libraries bound to the BLAS and LAPACK they ship with.
@@ -89,7 +108,7 @@ def petsc():
     RuntimeWarning says so."""
     import warnings
 
-    import dolfinx_solver  # the wheel's bootstrap: mpi4py.MPI (libmpi) loaded before any PETSc library
+    dolfinx_solver = bootstrap_mpi()
     (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
     try:
         ctypes.CDLL(str(lib), mode=os.RTLD_NOLOAD)

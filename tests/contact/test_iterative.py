@@ -360,10 +360,11 @@ def test_the_eliminated_operator_is_z_transpose_kt_z_built_without_products_of_k
     rows of four unknowns each (their pivots' inverse blocks dense), disc springs in Kt, and
     chunks of a few rows so that the copy crosses its chunk borders."""
     import skfem as fem
+    from skfem.models.elasticity import linear_elasticity
     from wcs.contact.iterative import _basis, _block_diagonal, _eliminated, _spliced
     mesh = fem.MeshTet.init_tensor(*[np.linspace(0.0, 1.0, 5)] * 3)
     basis = fem.Basis(mesh, fem.ElementVector(fem.ElementTetP1()))
-    K = fem.asm(fem.models.elasticity.linear_elasticity(1.0, 0.7), basis).tocsr()
+    K = fem.asm(linear_elasticity(1.0, 0.7), basis).tocsr()
     n = K.shape[0]
     rng = np.random.default_rng(3)
     top = basis.get_dofs(lambda x: np.isclose(x[2], 1.0)).nodal["u^3"]

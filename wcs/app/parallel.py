@@ -22,8 +22,13 @@ import os
 _LAUNCHER_VARIABLES = ("PMI_SIZE", "PMI_RANK", "OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS")
 
 
+def launched() -> bool:
+    """Whether an MPI launcher (mpiexec) started this process."""
+    return any(v in os.environ for v in _LAUNCHER_VARIABLES)
+
+
 def world():
-    if not any(v in os.environ for v in _LAUNCHER_VARIABLES):
+    if not launched():
         return None
     from mpi4py import MPI
     comm = MPI.COMM_WORLD

@@ -150,7 +150,12 @@ def solver_counts(res) -> str:
 
 
 def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
-    """Write one solved scenario (results file + .vtu) and say what it gave."""
+    """Write one solved scenario (results file + .vtu) and say what it gave. The solve's
+    matrices go first (its state, once the fields are made from it, and the model's caches):
+    the files' arrays and HDF5's libraries would otherwise stack on them."""
+    res.field_data
+    res.state = None
+    ev.model.release()
     try:
         out, vtu = write_solution(study, ev, res, out, **kw)
     except WriteError as e:

@@ -1136,11 +1136,18 @@ class Iterative(Primal):
                              "holds the mass too: use amg (or auto) in a dynamic study",
                              path="solver.iterative.preconditioner")
         try:
-            import dolfinx_solver  # noqa: F401  (the PETSc libraries petsc4py binds to)
+            linalg.bootstrap_mpi()      # the PETSc libraries petsc4py binds to
             import petsc4py  # noqa: F401
         except ImportError as exc:
             raise StudyError(f"the iterative method needs PETSc ({exc}): install the wheel dolfinx-solver-real "
                              "(Python >= 3.12), or use monolithic", path="solver.method") from None
+
+    def release(self, model) -> None:
+        """Free the anchor's GAMG hierarchy (`_solve_problem`) and the contact modes."""
+        kept = _ANCHOR.pop(model, None)
+        if kept is not None:
+            kept[1].close()
+        _MODES.pop(model, None)
 
     def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
         out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)

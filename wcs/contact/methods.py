@@ -66,6 +66,9 @@ class ContactMethod(Protocol):
         """Solve data set c (reduced stiffness Kr, load rhs, support displacement u0); with
         `adjoint`, a solution whose factorization and active set the adjoint can use."""
 
+    def release(self, model) -> None:
+        """Free what the method keeps of the model's solves for later ones (`Model.release`)."""
+
 
 def settings(options) -> dict:
     """The study's tolerances as the keywords of `wcs.contact.solver.solve_contact`."""
@@ -98,6 +101,9 @@ class Primal:
         return None
 
     def heat(self, model, c) -> None:
+        return None
+
+    def release(self, model) -> None:
         return None
 
     def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:

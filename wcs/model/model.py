@@ -85,6 +85,19 @@ class Solution:
         return model.factored(self.stiffness, self.scale)
 
 
+def _fresh_cache() -> SimpleNamespace:
+    """A model's caches: they change the speed of a solve, never its answer (`Model.solve`)."""
+    return SimpleNamespace(
+        elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
+        heat=linalg.HeldFactor(spd=True),        # Cholesky of the reduced conduction matrix
+        contact=None,                            # the contact factorization (`UnitFactors`; method qp: a `ContactFactor`), refactored in place
+        anchor=None,                             # contact state at the nominal data: other solves start from it
+        anchor_tried=False,
+        stiffness=None,                          # (coefficients, K) of the last K(c) `stiffness` assembled
+        support=None,                            # (coefficients, K U0) of the last reduced system
+        direction=None)                          # (c*, K*, its units' blocks) of the last contact stiffness
+
+
 class Model:
     """The assembled model of a scene (read-only once built: setting an attribute raises).
 
@@ -151,20 +164,19 @@ class Model:
         self.cell_area = self.K.local.measure        # areas or volumes (elasticity's own: not made again)
         self.nominal = self.coefficients(scene)      # the coefficients of the scene's own data
         forms.release_mapping(mesh)                  # the load and coupling forms are assembled
-        # caches: they change the speed of a solve, never its answer (see `solve`)
-        self._cache = SimpleNamespace(
-            elastic=linalg.HeldFactor(spd=True),     # Cholesky of the reduced stiffness (no contact)
-            heat=linalg.HeldFactor(spd=True),        # Cholesky of the reduced conduction matrix
-            contact=None,                            # the contact factorization (`UnitFactors`; method qp: a `ContactFactor`), refactored in place
-            anchor=None,                             # contact state at the nominal data: other solves start from it
-            anchor_tried=False,
-            stiffness=None,                          # (coefficients, K) of the last K(c) `stiffness` assembled
-            support=None,                            # (coefficients, K U0) of the last reduced system
-            direction=None)                          # (c*, K*, its units' blocks) of the last contact stiffness
+        self._cache = _fresh_cache()
         for name, value in vars(self).items():
             if name != "_cache":
                 _read_only(value)
         self._frozen = True
+
+    def release(self) -> None:
+        """Free what the solves keep for later ones (the caches: factorizations, the last K, the
+        anchor and the method's own, `ContactMethod.release`): the next solve starts cold, to
+        the same answer (a results file is written after this: its arrays and libraries do not
+        stack on the solve's)."""
+        vars(self._cache).update(vars(_fresh_cache()))
+        self.method.release(self)
 
     def __setattr__(self, name, value):
         if getattr(self, "_frozen", False):
