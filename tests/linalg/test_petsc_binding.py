@@ -75,3 +75,24 @@ def test_petsc_loaded_before_says_its_bindings_are_not_wcs_own():
             "    assert linalg.petsc() is PETSc\nprint([str(x.message) for x in w if x.category is RuntimeWarning])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=ENV).stdout
     assert "was loaded before wcs.linalg.petsc()" in out, out
+
+
+SINGLETON = r'''
+import os, sys
+from wcs import linalg
+PETSc = linalg.petsc()
+from mpi4py import MPI
+print(MPI.COMM_WORLD.size, "UCX_TLS" in os.environ, os.environ.get("UCX_TLS"))
+'''
+
+
+def test_a_singleton_starts_mpi_with_ucx_loopback_alone_and_passes_no_variable_on():
+    """A process no launcher started starts MPI with UCX_TLS=self (`linalg.bootstrap_mpi`) and
+    unsets it again: a child it launches (mpiexec) gets the environment it had; a user's own
+    UCX_TLS is left as it is."""
+    env = {k: v for k, v in ENV.items() if k != "UCX_TLS"}
+    out = subprocess.run([sys.executable, "-c", SINGLETON], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "False", "None"], out.stderr
+    out = subprocess.run([sys.executable, "-c", SINGLETON], env={**env, "UCX_TLS": "self,tcp"}, capture_output=True,
+                         text=True, check=True)
+    assert out.stdout.split() == ["1", "True", "self,tcp"], out.stderr

@@ -96,3 +96,19 @@ def test_a_contact_solve_holds_no_unreduced_stiffness_and_the_adjoint_assembles_
     assert out.status == 0, out.message
     assert all(np.all(np.isfinite(g)) for g in out.grad.values())
     assert alive == [0] and len(assembled) == 1
+
+
+def test_release_frees_the_solves_caches_and_the_next_solve_gives_the_same_bits():
+    """`Model.release` (what `wcs solve` calls before it writes its files) lets go of the anchor's
+    GAMG hierarchy and the cached K U0; the next evaluation starts cold and gives the same bits as
+    the first (a solve's answer never depends on the caches: `Model.solve`)."""
+    ev = Evaluator(patch())
+    first = ev.evaluate({})
+    assert first.status == 0 and ev.model in iterative._ANCHOR and ev.model._cache.support is not None
+    krylov = iterative._ANCHOR[ev.model][1]
+    ev.model.release()
+    assert ev.model not in iterative._ANCHOR and krylov.ksp is None
+    assert ev.model._cache.support is None and ev.model._cache.anchor is None
+    again = ev.evaluate({})
+    assert again.status == 0
+    assert np.array_equal(again.state.u, first.state.u) and again.phi == first.phi

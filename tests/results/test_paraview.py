@@ -160,3 +160,20 @@ def test_attribute_quoting_is_the_standard_librarys(text):
     from wcs.results.paraview import quoteattr
     assert quoteattr(text) == standard(text)
     assert ET.fromstring(f"<a n={quoteattr(text)}/>").get("n") == text
+
+
+def test_a_vtu_whose_piece_fails_leaves_no_file(tmp_path):
+    """The .vtu is written piece by piece (`vtu_text`: each array compressed when written); a
+    piece that fails to make leaves neither a partial file nor the temporary one."""
+    from wcs.results.paraview import _write
+
+    def pieces():
+        yield "<VTKFile>"
+        raise ValueError("a field that cannot be written")
+
+    path = tmp_path / "out.vtu"
+    with pytest.raises(ValueError):
+        _write(path, pieces())
+    assert list(tmp_path.iterdir()) == []
+    _write(path, iter(["<a>", "</a>"]))
+    assert path.read_text() == "<a></a>" and [p.name for p in tmp_path.iterdir()] == ["out.vtu"]
