@@ -6,8 +6,15 @@ failure of one rank reaches them all (`together`)."""
 from __future__ import annotations
 
 import contextlib
+import os
 
+_LAUNCHER_VARIABLES = ("PMI_SIZE", "PMI_RANK", "OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS")
 _evaluation = None                # the group the solves of the current evaluation span (None: this rank)
+
+
+def launched() -> bool:
+    """Whether an MPI launcher (mpiexec) started this process (else MPI, where started, is a singleton)."""
+    return any(v in os.environ for v in _LAUNCHER_VARIABLES)
 
 
 class GroupFailure(RuntimeError):

@@ -80,7 +80,7 @@ def bootstrap_mpi():
     layer) is given its loop-back transport alone (UCX_TLS=self, unless set) while MPI starts,
     not the shared-memory segments and network transports it maps otherwise (4 MB resident);
     the variable is gone again before anything could pass it on to a launched child."""
-    from .app.parallel import launched
+    from .group import launched
     if launched() or "UCX_TLS" in os.environ:
         import dolfinx_solver
         return dolfinx_solver

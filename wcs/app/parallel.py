@@ -17,14 +17,7 @@ above.
 """
 from __future__ import annotations
 
-import os
-
-_LAUNCHER_VARIABLES = ("PMI_SIZE", "PMI_RANK", "OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS")
-
-
-def launched() -> bool:
-    """Whether an MPI launcher (mpiexec) started this process."""
-    return any(v in os.environ for v in _LAUNCHER_VARIABLES)
+from ..group import launched
 
 
 def world():
