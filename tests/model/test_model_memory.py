@@ -112,3 +112,16 @@ def test_release_frees_the_solves_caches_and_the_next_solve_gives_the_same_bits(
     again = ev.evaluate({})
     assert again.status == 0
     assert np.array_equal(again.state.u, first.state.u) and again.phi == first.phi
+
+
+def test_the_mesh_files_arrays_are_not_kept_beside_the_mesh_made_of_them(tmp_path):
+    """A mesh file is read once for the study's check and its mesh (`meshfile.load_raw`'s cache),
+    and the cache lets go of the file's arrays once the mesh is made (8 MB at 1e5 unknowns)."""
+    from tests.scene.test_meshfile_3d import FILE, write_block_msh
+    from wcs.scene import meshfile
+    write_block_msh(tmp_path / "block.msh")
+    (tmp_path / "study.yaml").write_text(FILE)
+    study = load_study(tmp_path / "study.yaml")
+    assert len(meshfile._CACHE) == 1
+    Evaluator(study)
+    assert meshfile._CACHE == {}

@@ -833,6 +833,8 @@ class Krylov:
         ksp.getPC().setType("gamg")
         ksp.setOperators(M, M)
         ksp.setUp()
+        if self.N is not None and self.N.shape[1]:      # GAMG copied the near-nullspace at its set-up
+            M.setNearNullSpace(PETSc.NullSpace().create(comm=self.layout.petsc))
         ksp.getPC().setReusePreconditioner(True)
         self.ksp, self.P, self.own, self.excess = ksp, M, True, 0.0
         self.built = self._product(M, PETSc)

@@ -668,6 +668,7 @@ def read_mesh_file(path, scene, keypath: str = "scene.mesh.file", dim: int = 2,
         raw = load_raw(path, dim)
     except StudyError as exc:
         raise StudyError(exc.fault, file=exc.file, path=keypath) from None
+    _CACHE.clear()      # the file's arrays go with the mesh made of them (another mesh of it reads it again)
     kind = raw.kind
     fregs = file_regions(raw)
     bodies = list(scene.bodies)
