@@ -180,33 +180,3 @@ def test_a_solve_lets_go_of_what_its_operator_replaces_before_building_it(monkey
     assert seen[0] == "none" and seen[-1] == "none"     # before the rebuild's operator: nothing kept
     assert seen[1:-1] and set(seen[1:-1]) == {"hierarchy's own"}
     k.close()
-
-
-def test_gamg_coarsens_by_mis2_and_reads_no_option_but_its_own(tmp_path):
-    """The preconditioner is GAMG with MIS-2 aggressive coarsening, not the square graph
-    (`iterative._gamg`), set under wcs' own options prefix and removed again: a PETSc option
-    in the global database without that prefix (here -pc_type jacobi, -pc_gamg_threshold)
-    changes nothing, and none is left behind."""
-    from wcs import linalg
-    from wcs.contact.iterative import GAMG_PREFIX, Krylov
-    PETSc = linalg.petsc()
-    options = PETSc.Options()
-    options["pc_type"] = "jacobi"
-    options["pc_gamg_threshold"] = 0.5
-    try:
-        solver = Krylov()
-        A = laplacian(30)
-        x, its, ok = solver.solve(A, np.ones(A.shape[0]), 1e-8)
-        view = tmp_path / "pc.txt"
-        viewer = PETSc.Viewer().createASCII(str(view), comm=PETSc.COMM_SELF)
-        solver.ksp.getPC().view(viewer)
-        viewer.destroy()
-        text = view.read_text()
-    finally:
-        del options["pc_type"], options["pc_gamg_threshold"]
-    assert ok and np.linalg.norm(A @ x - 1.0) <= 1e-8 * np.sqrt(A.shape[0])
-    assert "type: gamg" in text and "MIS-2 coarsening on aggressive levels" in text
-    threshold = next(line for line in text.splitlines() if "Threshold for dropping" in line)
-    assert set(threshold.split("=")[1].split()) == {"-1."}           # PETSc's default, not the 0.5
-    assert not any(k.startswith(GAMG_PREFIX) for k in PETSc.Options().getAll())
-    solver.close()

@@ -652,9 +652,6 @@ def _block_diagonal(blocks) -> sp.csr_matrix:
     return sp.csr_matrix((np.concatenate(data), (np.concatenate(r), np.concatenate(c))), shape=(start[-1], start[-1]))
 
 
-GAMG_PREFIX = "wcs_gamg_"       # PETSc options prefix of the GAMG preconditioner (`_gamg`)
-
-
 class Krylov:
     """CG preconditioned by GAMG, the hierarchy kept while it costs less than building a new one.
 
@@ -833,7 +830,7 @@ class Krylov:
         ksp = PETSc.KSP().create(self.layout.petsc)
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        _gamg(ksp.getPC(), PETSc)
+        ksp.getPC().setType("gamg")
         ksp.setOperators(M, M)
         ksp.setUp()
         if self.N is not None and self.N.shape[1]:      # GAMG copied the near-nullspace at its set-up
@@ -853,24 +850,6 @@ class Krylov:
         elif self.ksp is not None:
             self.ksp.setOperators(self.P, self.P)
         self.ksp = self.P = self.built = None
-
-
-def _gamg(pc, PETSc) -> None:
-    """GAMG with its aggressive coarsening of the first level by MIS-2 on the operator's graph,
-    not on the graph's square (PETSc's -pc_gamg_aggressive_square_graph false): the square's
-    pattern, several times the operator's, was the iterative solve's memory peak. On the 3D Hertz
-    at a/24 (9e4 unknowns, tests/bench/test_bench_kratos.py) the whole solve's peak went from 587
-    to 449 MB and its CPU time from 54 to 42 s, with 22 Newton steps and 615 CG iterations against
-    23 and 623. Set through the options of a prefix of wcs' own, read once and removed: nothing
-    else of PETSc's options database reaches the solver."""
-    pc.setType("gamg")
-    pc.setOptionsPrefix(GAMG_PREFIX)
-    options = PETSc.Options(GAMG_PREFIX)
-    options["pc_gamg_aggressive_square_graph"] = False
-    try:
-        pc.setFromOptions()
-    finally:
-        del options["pc_gamg_aggressive_square_graph"]
 
 
 def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
