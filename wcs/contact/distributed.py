@@ -26,14 +26,16 @@ class RowBlocks:
 
 
 class Layout:
-    """The row split of n unknowns over `comm` (an mpi4py communicator; None: one process)."""
+    """The row split of n unknowns over `comm` (an mpi4py communicator; None: one process), in
+    whole blocks of `block` consecutive unknowns (a node's: PETSc's block size)."""
 
-    def __init__(self, comm, n: int, PETSc):
-        self.comm, self.n = comm, n
+    def __init__(self, comm, n: int, PETSc, block: int = 1):
+        self.comm, self.n, self.block = comm, n, block
         self.petsc = PETSc.COMM_SELF if comm is None else PETSc.Comm(comm)
         size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
-        self.counts = np.diff([rows(n, size, r)[0] for r in range(size)] + [n])     # rows of each rank
-        self.lo, self.hi = rows(n, size, rank)
+        starts = [block * rows(n // block, size, r)[0] for r in range(size)]
+        self.counts = np.diff(starts + [n])     # rows of each rank
+        self.lo, self.hi = starts[rank], n if rank == size - 1 else starts[rank + 1]
 
     def matrix(self, A, PETSc):
         """The SPD A (scipy CSR, replicated, or `RowBlocks`) as a PETSc AIJ matrix holding this rank's rows
@@ -48,6 +50,7 @@ class Layout:
                                             csr=(A.indptr.astype(PETSc.IntType, copy=False),
                                                  A.indices.astype(PETSc.IntType, copy=False), A.data),
                                             comm=self.petsc)
+        M.setBlockSize(self.block)      # (createAIJWithArrays' own bsize is not applied)
         M.setOption(PETSc.Mat.Option.SPD, True)
         return M
 
