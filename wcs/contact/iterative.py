@@ -694,14 +694,17 @@ class NodeBlocks:
 
 
 def node_blocks(model, K) -> NodeBlocks | None:
-    """The `NodeBlocks` of the model's reduced unknowns (K: the data set's reduced stiffness, its
+    """The `NodeBlocks` of a 3D model's reduced unknowns (K: the data set's reduced stiffness, its
     diagonal's median the blocks' `scale`), or None where an unknown is no one component's (the
     column of the elimination T — u = T w + u0 — of unknown i has its largest entry at the
     component home[i]; these must increase with i: supports and ties drop components, and a
-    combination, an inclined support's, keeps one of its node's)."""
+    combination, an inclined support's, keeps one of its node's). 2D models keep GAMG on the
+    unknowns: there the nodes' aggregates cost the contact steps more CG iterations (the 2D
+    tunnel at 2.3e5 unknowns: 42.7 a Newton step against 24.2, tests/bench/test_bench_krylov_counts.py)
+    and their set-up's memory is small."""
     T = model.elim.T.tocsc()
     size = T.shape[0]
-    if size != model.dim * model.nnodes or T.shape[1] == 0:
+    if model.dim != 3 or size != model.dim * model.nnodes or T.shape[1] == 0:
         return None
     home = np.asarray(abs(T).argmax(axis=0)).ravel()
     if np.any(np.diff(home) <= 0):
