@@ -78,7 +78,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import STUDIES, write_table  # noqa: E402
 from dd_common import build, run  # noqa: E402
 
-from wcs.contact.iterative import _Rows, _Stepper  # noqa: E402
+from wcs.contact.iterative import Krylov, _Rows, _Stepper, node_blocks  # noqa: E402
 from wcs.model.evaluation import Evaluator  # noqa: E402
 from wcs.app.record import krylov_counts  # noqa: E402
 from wcs.scene import estimate  # noqa: E402
@@ -106,14 +106,17 @@ def study(name: str, coarsen: float) -> dict:
 
 def linear_krylov(model, rtol: float) -> int:
     """CG iterations of one GAMG-preconditioned solve of the glued bodies' elasticity (every
-    contact row closed and stuck: the first Newton step's elimination), fresh hierarchy."""
+    contact row closed and stuck: the first Newton step's elimination), fresh hierarchy, GAMG on
+    the nodes as the method's (`node_blocks`)."""
     c = model.nominal
     _, Kr, rhs, u0 = model.reduced_system(c, None)
     z, Cr = model.zone, model.contact_rows
     m = z.gap.size
     k = Cr.shape[0] // m - 1
     rows = _Rows(Cr, m, k)
-    step = _Stepper(Kr, rhs, Cr, np.r_[z.gap - z.Bn @ u0, np.zeros(k * m)], rows, model.near_nullspace)
+    N = model.near_nullspace
+    step = _Stepper(Kr, rhs, Cr, np.r_[z.gap - z.Bn @ u0, np.zeros(k * m)], rows, N,
+                    krylov=Krylov(np.reshape(N, (Kr.shape[0], -1)), blocks=node_blocks(model, Kr)))   # as the method's own
     step.solve(rows.acting.copy(), np.zeros((1 + k) * m), np.zeros(m), np.ones((1 + k) * m), k, rtol, np.zeros(Kr.shape[0]), rtol)
     step.krylov_solver.close()
     return step.krylov

@@ -695,21 +695,25 @@ class NodeBlocks:
 
 def node_blocks(model, K) -> NodeBlocks | None:
     """The `NodeBlocks` of a 3D model's reduced unknowns (K: the data set's reduced stiffness, its
-    diagonal's median the blocks' `scale`), or None where an unknown is no one component's (the
-    column of the elimination T — u = T w + u0 — of unknown i has its largest entry at the
-    component home[i]; these must increase with i: supports and ties drop components, and a
-    combination, an inclined support's, keeps one of its node's). 2D models keep GAMG on the
+    diagonal's median the blocks' `scale`): unknown i belongs to the node of the largest entry of
+    its column of the elimination T (u = T w + u0; supports and ties drop components, an
+    inclined support's unknowns combine its node's), the unknowns of a node in order at its first
+    places; None where the nodes do not follow the unknowns' order. 2D models keep GAMG on the
     unknowns: there the nodes' aggregates cost the contact steps more CG iterations (the 2D
     tunnel at 2.3e5 unknowns: 42.7 a Newton step against 24.2, tests/bench/test_bench_krylov_counts.py)
     and their set-up's memory is small."""
-    T = model.elim.T.tocsc()
+    T, d = model.elim.T.tocsc(), model.dim
     size = T.shape[0]
-    if model.dim != 3 or size != model.dim * model.nnodes or T.shape[1] == 0:
+    if d != 3 or size != d * model.nnodes or T.shape[1] == 0:
         return None
-    home = np.asarray(abs(T).argmax(axis=0)).ravel()
-    if np.any(np.diff(home) <= 0):
+    node = np.asarray(abs(T).argmax(axis=0)).ravel() // d      # each unknown's node: its largest entry's
+    if np.any(np.diff(node) < 0):
         return None
-    return NodeBlocks(home, size, model.dim, float(np.median(K.diagonal())))
+    first = np.r_[0, np.flatnonzero(np.diff(node)) + 1]
+    slot = np.arange(len(node)) - np.repeat(first, np.diff(np.r_[first, len(node)]))
+    if slot.max() >= d:
+        return None
+    return NodeBlocks(d * node + slot, size, d, float(np.median(K.diagonal())))
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:
