@@ -10,8 +10,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-PAIRS = 1 << 16         # candidate pairs made and measured at once (their arrays: ~4 MB)
-QUERIES = 4096          # queries whose cell runs are listed at once
+PAIRS = 1 << 15         # candidate pairs made and measured at once (their arrays: ~2 MB)
+QUERIES = 1024          # queries whose runs of cells are listed at once
 CELLS = 2               # cells per largest radius of a class
 MAX_CELLS = 1 << 20     # cells along an axis at most (the cell keys stay within int64)
 MARGIN = 2.0 ** -40     # of the coordinates' magnitude: a ball's box widened past rounding
