@@ -1,11 +1,12 @@
 """Which points lie near which queries: a uniform grid of cells, one grid for each class of query
-radii. The points are sorted by their cell; a query reads the runs of cells its ball's bounding
-box covers (a run of cells along the last axis is one range of the sorted points) and keeps the
-points within its radius. Queries are classed by radius within a factor 2, each class on a grid
-of cells as wide as half its largest radius, over the points in its reach: a graded mesh (cells
-of sizes 100x apart) costs each query a few dozen candidates of its own size, not the fine
-points under a coarse radius nor the coarse cells of a fine one. The candidate pairs are made
-PAIRS at a time, so no array of (queries x candidates) is held at once."""
+radii. The points are sorted by their cell, so a run of cells along the last axis is one range of
+them; a query reads the runs its ball reaches, each cut to the ball's chord, and keeps the points
+within its radius. Queries are classed by radius within a factor 2, each class on a grid of cells
+half its largest radius wide over the points in its reach: a query of radius r reads only cells
+within (1 + √3) r of it, so a graded mesh (cells of sizes 100x apart) costs each query candidates
+of its own size, not the fine points under a coarse radius nor the coarse cells of a fine one.
+The candidate pairs are made PAIRS at a time, so no array of (queries x candidates) is held at
+once."""
 from collections.abc import Iterator
 
 import numpy as np
@@ -13,7 +14,7 @@ import numpy as np
 PAIRS = 1 << 15         # candidate pairs made and measured at once (their arrays: ~2 MB)
 QUERIES = 1024          # queries whose runs of cells are listed at once
 CELLS = 2               # cells per largest radius of a class
-MAX_CELLS = 1 << 20     # cells along an axis at most (the cell keys stay within int64)
+MAX_CELLS = 1 << 20     # cells along an axis at most (the cell keys of up to 3 axes stay within int64)
 MARGIN = 2.0 ** -40     # of the coordinates' magnitude: a ball's box widened past rounding
 
 
