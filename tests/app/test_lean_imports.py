@@ -2,7 +2,7 @@
 solve's start neither the results file's libraries (xarray, pandas, h5py) nor gmsh (a MSH 2.2 file is
 read by wcs' own reader, `wcs.scene.meshfile`) nor PARDISO (MKL); by its end, with the results written, h5py alone of them
 (`wcs.results.netcdf`: no xarray, no pandas), still no gmsh and no MKL (the iterative method
-makes no direct factor). Guarded by what the process imported and
+makes no direct factor), and never scipy.spatial. Guarded by what the process imported and
 mapped, not by its time or memory."""
 import json
 import os
@@ -43,9 +43,11 @@ solver: {method: iterative}
 
 HEAVY = ["xarray", "pandas", "h5py", "gmsh", "pypardiso", "matplotlib", "cvxpy"]
 # what a static solve does not use: the time stepping, the run's machinery, the search; ssl
-# (8 MB with urllib.request, which xml.sax.saxutils loads)
+# (8 MB with urllib.request, which xml.sax.saxutils loads); scipy.spatial (8 MB: the mesh file's
+# overlap check, the matching faces' pairs and the pressure region's facets search near points
+# by `wcs.geometry.near`)
 UNUSED = ["wcs.dynamics.history", "wcs.dynamics.stepping", "wcs.app.dynamics", "wcs.app.runner",
-          "wcs.results.meshcheck", "wcs.search", "ssl"]
+          "wcs.results.meshcheck", "wcs.search", "ssl", "scipy.spatial"]
 
 PROBE = r"""
 import json, sys

@@ -197,8 +197,8 @@ def test_a_boundary_region_measures_each_slave_node_once(monkeypatch):
     scene, sm = _contact_mesh({"boundary": "base_top"})
     zone, sel = _zone(sm), Selection("facets", sm.boundaries["base_top"])
     points, distance = [], regions._distance_to_facets
-    monkeypatch.setattr(regions, "_distance_to_facets", lambda mesh, facets, x: points.append(len(x)) or
-                        distance(mesh, facets, x))
+    monkeypatch.setattr(regions, "_distance_to_facets", lambda mesh, facets, x, cap: points.append(len(x)) or
+                        distance(mesh, facets, x, cap))
     ell, meas = regions._pressure_functional(sm, scene, zone, "r", sel, "scene.regions_of_interest.r")
     triangles = len(regions.slave_segments(zone, scene, sm))
     assert points == [zone.gap.size + triangles] * 2       # the slave side and its master projection
@@ -239,9 +239,10 @@ def test_contact_pressure_over_an_embedded_ball_or_cylinder(roi, exact):
 
 
 def test_the_distance_to_facets_is_the_minimum_over_every_triangle():
-    """The candidates near each point (`_distance_to_facets`'s centroid tree) give the same
-    minimum, to the bit, as the distance to every triangle: random triangles of all sizes, points
-    inside and around their cloud."""
+    """The candidates near each point (`_distance_to_facets`'s centroids within its cap and a
+    triangle's reach) give the same minimum, to the bit, as the distance to every triangle, where
+    it is within the cap (half, exactly or twice the minimum; inf elsewhere): random triangles of
+    all sizes, points inside and around their cloud."""
     from types import SimpleNamespace
     from wcs.model.regions import _distance_to_facets, _triangle_distances
     rng = np.random.default_rng(0)
@@ -249,4 +250,7 @@ def test_the_distance_to_facets_is_the_minimum_over_every_triangle():
     x = rng.random((200, 3)) * 3 - 1
     every = np.array([_triangle_distances(np.repeat(p[None], len(tri), 0), tri).min() for p in x])
     mesh = SimpleNamespace(p=tri.reshape(-1, 3).T, facets=np.arange(900).reshape(300, 3).T)
-    assert np.array_equal(_distance_to_facets(mesh, np.arange(300), x), every)
+    cap = every * rng.choice([0.5, 1.0, 2.0], len(x))
+    expected = np.where(cap >= every, every, np.inf)
+    assert np.isfinite(expected).sum() > 100 and np.isinf(expected).sum() > 30
+    assert np.array_equal(_distance_to_facets(mesh, np.arange(300), x, cap), expected)

@@ -352,8 +352,9 @@ def _cube_tets(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def test_the_overlap_check_holds_its_candidate_pairs_a_small_batch_at_a_time():
     """The overlap check of 24,576 tetrahedra allocates under 30 MB at its peak (tracemalloc; the
-    per-cell arrays take 5 MB, a batch of candidate pairs ~10 MB): with all of them in one batch it
-    took 101 MB here, and 0.99 GB, the peak of the whole `wcs solve`, at the patch's face 0.01."""
+    per-cell arrays take 5 MB, a batch of candidate pairs and the runs of cells of a block of
+    queries (`wcs.geometry.near`) a few MB): with all of them in one batch it took 101 MB here,
+    and 0.99 GB, the peak of the whole `wcs solve`, at the patch's face 0.01."""
     import tracemalloc
     from types import SimpleNamespace
     from wcs.scene.meshfile import _check_overlap3d
@@ -365,3 +366,35 @@ def test_the_overlap_check_holds_its_candidate_pairs_a_small_batch_at_a_time():
     finally:
         tracemalloc.stop()
     assert len(cells) == 24576 and peak < 30e6
+
+
+@pytest.mark.parametrize("pairs", [None, 7])
+def test_the_overlap_check_names_the_first_overlap_of_several(pairs, monkeypatch):
+    """Of several overlaps the check names the first tetrahedron (by index) holding another's
+    centroid, and the first centroid in it, whatever order its candidate pairs come in (by
+    classes of size, the small cells first; in batches of 7 pairs): brute force over all pairs
+    of a cube of 384 tetrahedra (group 'a') with halved copies of cells 300 and 50 (cells 384 in
+    group 'c' and 385 in group 'b', each inside its original and holding its centroid)."""
+    from types import SimpleNamespace
+
+    from wcs.errors import StudyError
+    from wcs.geometry import near
+    from wcs.scene.meshfile import INSIDE_TOL, _at, _check_overlap3d
+    if pairs:
+        monkeypatch.setattr(near, "PAIRS", pairs)
+    x, cells = _cube_tets(4)
+    halves = [0.5 * x[cells[c]] + 0.5 * x[cells[c]].mean(axis=0) for c in (300, 50)]
+    cells = np.concatenate([cells, len(x) + np.arange(8).reshape(2, 4)])
+    x = np.concatenate([x, *halves])
+    corners = x[cells]
+    cent = corners.mean(axis=1)
+    inv = np.linalg.inv(np.transpose(corners[:, 1:] - corners[:, :1], (0, 2, 1)))
+    lam = np.einsum("oab,oib->oia", inv, cent[None, :, :] - corners[:, None, 0, :])    # (outer, inner, 3)
+    inside = (lam > INSIDE_TOL).all(axis=2) & (lam.sum(axis=2) < 1 - INSIDE_TOL)
+    np.fill_diagonal(inside, False)
+    assert sorted(zip(*np.nonzero(inside))) == [(50, 385), (300, 384), (384, 300), (385, 50)]
+    raw = SimpleNamespace(x=x, cells=cells, cell_group=np.r_[np.zeros(384, int), 2, 1], groups=["a", "b", "c"],
+                          file="cube.msh")
+    with pytest.raises(StudyError) as e:
+        _check_overlap3d(raw)
+    assert f"groups 'a' and 'b' overlap (a cell of 'b' at {_at(cent[385])} lies inside 'a')" in str(e.value)

@@ -50,6 +50,7 @@ import scipy.sparse as sp
 from ..errors import StudyError
 from ..geometry import tet
 from ..geometry.facets import facet_lengths, facet_normals, nodal_normals
+from ..geometry.near import nearest_within
 
 SNAP = 1e-9             # |s| (facet parameter) below this -> the projection is the master node
 OUTSIDE = 1e-6          # projection parameter beyond an end of the master side by more -> dropped
@@ -294,13 +295,13 @@ def tangents(normal: np.ndarray) -> np.ndarray:
 
 
 def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> FacePairs | None:
-    """Pair each slave node of a ``MeshTet`` with the master node at the same point (within
-    COINCIDENT × the mean slave edge); None when the faces do not match: a match needs the slave
-    triangles whose three nodes pair onto a master triangle to cover the smaller of the two
-    faces (to 1e-9 of its area). Those triangles are the contact surface: a slave node is kept
-    when it is a corner of one, with one third of the area of each as its tributary area; the
-    others (off a smaller master face) are dropped. A kept node whose slave and master normals do
-    not oppose is a StudyError."""
+    """Pair each slave node of a ``MeshTet`` with the nearest master node within COINCIDENT × the
+    mean slave edge (the same point; of master nodes at one distance, the first); None when the
+    faces do not match: a match needs the slave triangles whose three nodes pair onto a master
+    triangle to cover the smaller of the two faces (to 1e-9 of its area). Those triangles are the
+    contact surface: a slave node is kept when it is a corner of one, with one third of the area
+    of each as its tributary area; the others (off a smaller master face) are dropped. A kept node
+    whose slave and master normals do not oppose is a StudyError."""
     slave_facets = np.unique(np.asarray(slave_facets, dtype=np.int64))
     master_facets = np.unique(np.asarray(master_facets, dtype=np.int64))
     if slave_facets.size == 0 or master_facets.size == 0:
@@ -314,9 +315,8 @@ def match_faces(mesh, slave_facets, master_facets, path: str = "contact") -> Fac
     sf, mf = mesh.facets[:, slave_facets], mesh.facets[:, master_facets]
     edges = np.concatenate([np.linalg.norm(p[:, sf[a]] - p[:, sf[(a + 1) % 3]], axis=0) for a in range(3)])
     h = float(edges.mean())
-    from scipy.spatial import cKDTree     # scipy.spatial (~0.1 s) loads only for 3D faces
-    dist, j = cKDTree(p[:, mnodes].T).query(p[:, snodes].T)
-    paired = dist <= COINCIDENT * h
+    _, j = nearest_within(p[:, mnodes].T, p[:, snodes].T, COINCIDENT * h)
+    paired = j >= 0
     partner = np.full(p.shape[1], -1)
     partner[snodes[paired]] = mnodes[j[paired]]
     _, sarea = tet.face_normals(mesh, slave_facets)

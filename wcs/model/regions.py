@@ -11,6 +11,7 @@ from ..contact.zone import slave_segments
 from ..errors import StudyError
 from ..geometry import tet
 from ..geometry.facets import boundary_facets, facet_lengths, facet_normals
+from ..geometry.near import within
 from ..scene.selectors import Selection, dist_segments, distance_function, select_region
 
 CORNER = np.cos(np.radians(30.0))   # boundary edges nearest X_r turning by more: a corner, n(X_r) undefined
@@ -76,34 +77,34 @@ def _triangle_distances(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(inside, np.abs(h) * np.sqrt(nn), edge)
 
 
-def _distance_to_facets(mesh, facets, x: np.ndarray) -> np.ndarray:
-    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets. 3D: the
+def _distance_to_facets(mesh, facets, x: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """(k,) distance of the points x (k, d) to the nearest of the given boundary facets where it
+    is at most cap (k,), inf where it is more (the callers compare it with cap or less). 3D: the
     triangles near each point only — a triangle lies within r (its vertices' largest distance
-    from its centroid) of its centroid, so with u the distance to the triangle of the nearest
-    centroid, no triangle whose centroid is farther than u + r can be nearer (exact: the same
-    minimum as over every triangle; over all pairs, 6e7 of them on a 1e5 shear patch's contact
-    criteria, it took 25 s). The triangles are searched in classes of r within a factor 2, each
-    with its own largest r: with one r for all, a graded face (3D Hertz from a .msh: r from
-    0.0024 to 0.157 m) made every point collect ~2,200 of 2,438 triangles, 64 of a 72 s solve."""
+    from its centroid) of its centroid, so one within cap of a point has its centroid within
+    cap + r of it (`wcs.geometry.near.within`; the same minimum as over every triangle, which over
+    all pairs, 6e7 of them on a 1e5 shear patch's contact criteria, took 25 s). The triangles are
+    searched in classes of r within a factor 2, each with its own largest r: with one r for all, a
+    graded face (3D Hertz from a .msh: r from 0.0024 to 0.157 m) made every point collect ~2,200
+    of 2,438 triangles, 64 of a 72 s solve."""
+    cap = np.broadcast_to(np.asarray(cap, float), (len(x),))
     if mesh.p.shape[0] == 2:
         a, b = mesh.p[:, mesh.facets[0, facets]].T, mesh.p[:, mesh.facets[1, facets]].T
-        return dist_segments(x[:, 0], x[:, 1], a, b)
-    from scipy.spatial import cKDTree
+        d = dist_segments(x[:, 0], x[:, 1], a, b)
+        return np.where(d <= cap, d, np.inf)
     tri = np.moveaxis(mesh.p[:, mesh.facets[:, facets]], 0, -1).transpose(1, 0, 2)   # (n, 3, 3)
+    out = np.full(len(x), np.inf)
     if len(x) == 0 or len(tri) == 0:
-        return np.full(len(x), np.inf)
+        return out
     centroid = tri.mean(axis=1)
     reach = np.linalg.norm(tri - centroid[:, None], axis=2).max(axis=1)
-    _, nearest = cKDTree(centroid).query(x)
-    bound = _triangle_distances(x, tri[nearest])
     level = np.floor(np.log2(np.maximum(reach, 1e-300) / max(reach.max(), 1e-300))).astype(int)
-    out = np.full(len(x), np.inf)
-    for L in np.unique(np.maximum(level, -60)):
-        members = np.flatnonzero(np.maximum(level, -60) == L)
-        near = cKDTree(centroid[members]).query_ball_point(x, bound + reach[members].max())
-        point = np.repeat(np.arange(len(x)), [len(j) for j in near])
-        cand = members[np.concatenate([np.asarray(j, dtype=np.int64) for j in near])]
-        np.minimum.at(out, point, _triangle_distances(x[point], tri[cand]))
+    level = np.maximum(level, -60)
+    for L in np.unique(level):
+        members = np.flatnonzero(level == L)
+        for q, k, _ in within(centroid[members], x, cap + reach[members].max()):
+            d = _triangle_distances(x[q], tri[members[k]])
+            np.minimum.at(out, q, np.where(d <= cap[q], d, np.inf))
     return out
 
 
@@ -220,13 +221,14 @@ def _contact_rows_in(smesh, scene, zone, roi: str, sel: Selection, path: str) ->
     or not, catches the same rows. A boundary G_r is its facets; an area (volume) one its shape."""
     normal = np.concatenate([p.normal for p in zone.pairs])
     pts = np.vstack([zone.coords, zone.coords + zone.gap[:, None] * normal])
-    if sel.kind == "facets":
-        dist = _distance_to_facets(smesh.mesh, sel.index, pts)
-    else:
-        dist = _region_distance(scene.regions_of_interest[roi], path, pts)
     scale = max(np.ptp(pts, axis=0).max(), 1e-300)
     size = zone.weight if pts.shape[1] == 2 else np.sqrt(zone.weight)    # a length: the row's extent
-    near = dist <= 1e-6 * scale + 1e-3 * np.tile(size, 2)
+    tol = 1e-6 * scale + 1e-3 * np.tile(size, 2)
+    if sel.kind == "facets":
+        dist = _distance_to_facets(smesh.mesh, sel.index, pts, tol)
+    else:
+        dist = _region_distance(scene.regions_of_interest[roi], path, pts)
+    near = dist <= tol
     mask = near[:zone.gap.size] | near[zone.gap.size:]
     if not mask.any():
         raise StudyError(f"region of interest '{roi}' holds no contact node nor its master "
@@ -345,7 +347,10 @@ def _pressure_functional_3d(smesh, scene, zone, roi: str, sel: Selection, path: 
     for a, x in zip(ends, sides):
         if sel.kind == "facets":
             near = tol + 0.1 * np.linalg.norm(e, axis=2).max(axis=1)
-            d = _distance_to_facets(smesh.mesh, sel.index, np.concatenate([a[nodes], x.mean(axis=1)]))
+            cap = np.zeros(len(nodes))                          # a node: the widest of its triangles'
+            np.maximum.at(cap, corner.ravel(), np.repeat(near, 3))
+            d = _distance_to_facets(smesh.mesh, sel.index, np.concatenate([a[nodes], x.mean(axis=1)]),
+                                    np.concatenate([cap, near]))
             d = np.column_stack([d[corner.reshape(tri.shape)], d[len(nodes):]])   # vertices, centroid
             inside |= (d <= near[:, None]).all(axis=1)
         else:

@@ -42,7 +42,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
-import itertools
 import math
 import mmap
 import os
@@ -54,15 +53,13 @@ import skfem
 
 from ..errors import StudyError
 from ..geometry.facets import boundary_facets
+from ..geometry.near import within
 from . import selectors
 from .meshdata import SceneMesh
 from .spec import MAX_NAME, GroupBoundary, _valid_name
 
 AREA_TOL = 1e-12            # |area| (|volume|) <= AREA_TOL * (bounding-box diagonal)^d -> degenerate
 INSIDE_TOL = 1e-9           # a point is inside a tetrahedron when its barycentric coordinates exceed this
-CHUNK = 2_000               # tetrahedra per batch of the overlap check: its candidate pairs (~40 a tetrahedron
-#                             on a graded mesh, ~200 bytes each) held a batch at a time; 100,000 made the
-#                             check the peak of `wcs solve` at the patch's face 0.01 (0.99 GB, 0.30 GB now)
 
 
 @dataclass(frozen=True)
@@ -478,28 +475,29 @@ def _check_overlap3d(raw: RawMesh) -> None:
     to hold either one's centroid are caught (one inside another, a repeated cell, two groups
     meshing the same volume, cells crossing each other deeply); a sliver-thin overlap that holds
     neither centroid is not. Touching cells (a shared face, edge or node) never are. The
-    candidates of a tetrahedron are the centroids (a `cKDTree`) within the distance of its
-    farthest vertex from its own centroid; each is tested by its barycentric coordinates."""
+    candidates of a tetrahedron are the centroids within the distance of its farthest vertex
+    from its own centroid (`wcs.geometry.near.within`); each is tested by its barycentric
+    coordinates. Of several overlaps, the one of the first tetrahedron and its first centroid
+    inside is named."""
     x, tet = raw.x, raw.cells
     corners = x[tet]                                            # (m, 4, 3)
     cent = corners.mean(axis=1)
     reach = np.linalg.norm(corners - cent[:, None], axis=2).max(axis=1)
     inverse = np.linalg.inv(np.transpose(corners[:, 1:] - corners[:, :1], (0, 2, 1)))  # edges as columns
-    from scipy.spatial import cKDTree     # scipy.spatial (~0.1 s) loads only for 3D mesh files
-    tree = cKDTree(cent)
-    for lo in range(0, len(tet), CHUNK):
-        near = tree.query_ball_point(cent[lo:lo + CHUNK], reach[lo:lo + CHUNK], return_sorted=False)
-        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
-        outer = np.repeat(np.arange(lo, lo + len(near)), counts)
-        inner = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=int(counts.sum()))
+    base = corners[:, 0].copy()
+    first = None
+    for outer, inner, _ in within(cent, cent, reach):
         other = inner != outer
         outer, inner = outer[other], inner[other]
-        lam = np.einsum("kij,kj->ki", inverse[outer], cent[inner] - corners[outer, 0])
+        lam = np.einsum("kij,kj->ki", inverse.take(outer, axis=0), cent.take(inner, axis=0) - base.take(outer, axis=0))
         inside = (lam > INSIDE_TOL).all(axis=1) & (lam.sum(axis=1) < 1 - INSIDE_TOL)
         if inside.any():
-            k = np.nonzero(inside)[0]
+            k = np.flatnonzero(inside)
             k = k[np.lexsort((inner[k], outer[k]))[0]]
-            raise _overlap(raw, inner[k], outer[k])
+            pair = (int(outer[k]), int(inner[k]))
+            first = pair if first is None else min(first, pair)
+    if first is not None:
+        raise _overlap(raw, first[1], first[0])
 
 
 # ---------------------------------------------------------------------------
