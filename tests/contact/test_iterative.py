@@ -393,3 +393,42 @@ def test_the_eliminated_operator_is_z_transpose_kt_z_built_without_products_of_k
     kept = sp.lil_matrix(kept)
     kept[touched] = T.toarray()
     assert abs(A - kept.tocsr()).max() == 0.0
+
+
+def test_the_node_blocks_operator_is_the_eliminated_one_at_its_nodes_places():
+    """With `NodeBlocks` the step's operator is the reduced one with each unknown's row and
+    column moved to its place (home) in the mesh's node-major numbering and the scale alone on
+    the places of no unknown, on each rank's rows (whole nodes); the 3D patch's model places its
+    unknowns in increasing order, a node's at its own three places."""
+    from skfem.models.elasticity import linear_elasticity
+    import skfem as fem
+    from wcs.contact.iterative import NodeBlocks, _basis, _block_diagonal, _eliminated, node_blocks
+    mesh = fem.MeshTet.init_tensor(*[np.linspace(0.0, 1.0, 4)] * 3)
+    basis = fem.Basis(mesh, fem.ElementVector(fem.ElementTetP1()))
+    full = fem.asm(linear_elasticity(1.0, 0.7), basis).tocsr()
+    rng = np.random.default_rng(5)
+    home = np.sort(rng.choice(full.shape[0], full.shape[0] - 7, replace=False))       # 7 components dropped
+    K = full[home][:, home].tocsr()
+    n = K.shape[0]
+    top = np.flatnonzero(np.isin(home, basis.get_dofs(lambda x: np.isclose(x[2], 1.0)).nodal["u^3"]))
+    C = sp.csr_matrix((np.ones(len(top)), (np.arange(len(top)), top)), shape=(len(top), n)) + \
+        sp.csr_matrix((np.full(len(top), 0.5), (np.arange(len(top)), (top + 5) % n)), shape=(len(top), n))
+    P = top
+    Binv = _block_diagonal([np.array([[1.0 / C[i, P[i]]]]) for i in range(len(top))])
+    Z, _ = _basis(C.tocsr(), np.arange(len(top)), P, Binv, np.zeros(len(top)))
+    blocks = NodeBlocks(home, full.shape[0], 3, 2.5)
+    A = _eliminated(Z, K, K, P)
+    E = sp.csr_matrix((np.ones(n), (home, np.arange(n))), shape=(blocks.size, n))
+    pad = np.ones(blocks.size)
+    pad[home] = 0.0
+    want = (E @ A @ E.T + sp.diags(2.5 * pad)).tocsr()
+    for lo, hi in ((0, blocks.size), (0, 27), (27, blocks.size)):       # whole nodes: 9 and the rest
+        got = _eliminated(Z, K, K, P, lo, hi, blocks)
+        assert got.shape == (hi - lo, blocks.size) and got.has_sorted_indices
+        assert abs(got - want[lo:hi]).max() <= 1e-14 * abs(want).max()
+    np.testing.assert_array_equal(blocks.embed(np.arange(n, dtype=float))[home], np.arange(n))
+    model = Evaluator(load_study(study(VALIDATION / "block-on-block-3d.yaml", "iterative"))).model
+    b = node_blocks(model, model.stiffness(model.nominal))
+    T = model.elim.T.tocsc()
+    assert b.size == 3 * model.nnodes and np.all(np.diff(b.home) > 0)
+    assert np.all(b.home // 3 == np.asarray(abs(T).argmax(axis=0)).ravel() // 3)
