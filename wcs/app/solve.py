@@ -82,6 +82,7 @@ def solve_worst(args) -> int:
         if rank(group) == 0:
             print(f"error: the worst data set of '{criterion}' cannot be solved: {res.message}", file=sys.stderr)
         return 1
+    _release(ev, res, group)
     if rank(group) != 0:                        # the group's other ranks helped solve; rank 0 writes
         return 0
     return _write_scenario(study, ev, res, out, args, [
@@ -106,6 +107,7 @@ def solve_nominal(args) -> int:
         if rank(group) == 0:
             print(f"error: {args.study}: the nominal data set cannot be solved: {res.message}", file=sys.stderr)
         return 2 if Status(res.status).scene_fault else 1
+    _release(ev, res, group)
     if rank(group) != 0:                        # the group's other ranks helped solve; rank 0 writes
         return 0
     m = ev.smesh.mesh
@@ -149,13 +151,20 @@ def solver_counts(res) -> str:
     return f"  solver: {res.iterations} outer steps, {krylov}"
 
 
-def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
-    """Write one solved scenario (results file + .vtu) and say what it gave. The solve's
-    matrices go first (its state, once the fields are made from it, and the model's caches):
-    the files' arrays and HDF5's libraries would otherwise stack on them."""
-    res.field_data
+def _release(ev, res, group) -> None:
+    """The solve's matrices go before its files are written (the evaluation's state, once rank 0
+    made its fields from it, and the model's caches, on every rank of the group: PETSc's
+    objects are freed together): the files' arrays and HDF5's libraries would otherwise stack
+    on them."""
+    if rank(group) == 0:
+        res.field_data
     res.state = None
-    ev.model.release()
+    with spanning(group):
+        ev.model.release()
+
+
+def _write_scenario(study, ev, res, out, args, header: list[str], **kw) -> int:
+    """Write one solved scenario (results file + .vtu) and say what it gave."""
     try:
         out, vtu = write_solution(study, ev, res, out, **kw)
     except WriteError as e:
