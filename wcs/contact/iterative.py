@@ -695,25 +695,38 @@ class NodeBlocks:
 
 def node_blocks(model, K) -> NodeBlocks | None:
     """The `NodeBlocks` of a 3D model's reduced unknowns (K: the data set's reduced stiffness, its
-    diagonal's median the blocks' `scale`): unknown i belongs to the node of the largest entry of
-    its column of the elimination T (u = T w + u0; supports and ties drop components, an
-    inclined support's unknowns combine its node's), the unknowns of a node in order at its first
-    places; None where the nodes do not follow the unknowns' order. 2D models keep GAMG on the
-    unknowns: there the nodes' aggregates cost the contact steps more CG iterations (the 2D
-    tunnel at 2.3e5 unknowns: 42.7 a Newton step against 24.2, tests/bench/test_bench_krylov_counts.py)
-    and their set-up's memory is small."""
-    T, d = model.elim.T.tocsc(), model.dim
-    size = T.shape[0]
-    if d != 3 or size != d * model.nnodes or T.shape[1] == 0:
+    diagonal's median the blocks' `scale`; the places are the model's, `_node_places`), or None
+    where they have none. 2D models keep GAMG on the unknowns: there the nodes' aggregates cost
+    the contact steps more CG iterations (the 2D tunnel at 2.3e5 unknowns: 42.7 a Newton step
+    against 24.2, tests/bench/test_bench_krylov_counts.py) and their set-up's memory is small."""
+    if model.dim != 3:
         return None
-    node = np.asarray(abs(T).argmax(axis=0)).ravel() // d      # each unknown's node: its largest entry's
+    if model not in _PLACES:
+        _PLACES[model] = _node_places(model.elim.T, model.dim, model.nnodes)
+    home = _PLACES[model]
+    return None if home is None else NodeBlocks(home, model.dim * model.nnodes, model.dim,
+                                                 float(np.median(K.diagonal())))
+
+
+def _node_places(T, d: int, nodes: int) -> np.ndarray | None:
+    """Each reduced unknown's place among the d·nodes components: unknown i belongs to the node
+    of the largest entry of its column of the elimination T (u = T w + u0; supports and ties drop
+    components, an inclined support's unknowns combine its node's; of equal entries the first),
+    the unknowns of a node in order at its first places; None where the nodes do not follow the
+    unknowns' order or a column is empty."""
+    T = sp.csc_matrix(T)
+    T.sort_indices()
+    counts = np.diff(T.indptr)
+    if T.shape != (d * nodes, T.shape[1]) or T.shape[1] == 0 or counts.min() == 0:
+        return None
+    column = np.repeat(np.arange(T.shape[1]), counts)
+    largest = np.lexsort((-np.abs(T.data), column))[T.indptr[:-1]]     # each column's, stable: the first
+    node = T.indices[largest] // d
     if np.any(np.diff(node) < 0):
         return None
     first = np.r_[0, np.flatnonzero(np.diff(node)) + 1]
     slot = np.arange(len(node)) - np.repeat(first, np.diff(np.r_[first, len(node)]))
-    if slot.max() >= d:
-        return None
-    return NodeBlocks(d * node + slot, size, d, float(np.median(K.diagonal())))
+    return None if slot.max() >= d else d * node + slot
 
 
 def _block_diagonal(blocks) -> sp.csr_matrix:
@@ -1001,6 +1014,7 @@ def _parts(model, coefficients):
 
 _ANCHOR = weakref.WeakKeyDictionary()   # model → (its anchor's λn, the anchor solve's Krylov): `_solve_problem`
 _MODES = weakref.WeakKeyDictionary()    # model → `contact_modes`
+_PLACES = weakref.WeakKeyDictionary()   # model → its unknowns' places at their nodes (`node_blocks`)
 
 
 def contact_modes(model) -> np.ndarray:
@@ -1229,11 +1243,12 @@ class Iterative(Primal):
                              "(Python >= 3.12), or use monolithic", path="solver.method") from None
 
     def release(self, model) -> None:
-        """Free the anchor's GAMG hierarchy (`_solve_problem`) and the contact modes."""
+        """Free the anchor's GAMG hierarchy (`_solve_problem`), the contact modes and the node places."""
         kept = _ANCHOR.pop(model, None)
         if kept is not None:
             kept[1].close()
         _MODES.pop(model, None)
+        _PLACES.pop(model, None)
 
     def solve(self, model, c, Kr, rhs, u0, nominal, adjoint, warm=None, used=None) -> Solved:
         out = super().solve(model, c, Kr, rhs, u0, nominal, adjoint, warm, used)
