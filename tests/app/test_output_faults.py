@@ -79,7 +79,6 @@ SCRIPT = """
 import os, signal, sys, time, functools
 sys.path.insert(0, {root!r})
 import numpy as np
-import xarray as xr
 import wcs.model.evaluation, wcs.app.runner
 from tests.app.test_runner import tiny
 wcs.app.runner.get_strategy = lambda name: tiny
@@ -100,8 +99,9 @@ def interrupting(real):
     return write
 if where == "store":
     np.savez = interrupting(np.savez)
-elif where == "netcdf":
-    xr.Dataset.to_netcdf = interrupting(xr.Dataset.to_netcdf)
+elif where == "netcdf":                  # every results file is encoded here (`write_netcdf`)
+    import wcs.results.netcdf
+    wcs.results.netcdf.encode = interrupting(wcs.results.netcdf.encode)
 from wcs.cli import main
 sys.exit(main(sys.argv[1:]))
 """
