@@ -121,6 +121,31 @@ def petsc():
     return PETSc
 
 
+@functools.cache
+def petsc_c():
+    """libpetsc's C functions that petsc4py does not wrap, on the library `petsc()` loaded:
+    `PCMGSetResidual(pc, level, residual, mat)` (the matrix a multigrid level computes its
+    residual with; residual None keeps the level's function) and `MatProductClear(mat)` (a
+    product's record of its factors, which holds a reference to each). Arguments are petsc4py
+    objects' `handle`s; each returns PETSc's error code (0: success), `petsc_call` checks it."""
+    import dolfinx_solver
+    PETSc = petsc()
+    (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
+    c = ctypes.CDLL(str(lib), mode=os.RTLD_NOLOAD)
+    integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+    c.PCMGSetResidual.argtypes = [ctypes.c_void_p, integer, ctypes.c_void_p, ctypes.c_void_p]
+    c.MatProductClear.argtypes = [ctypes.c_void_p]
+    for f in (c.PCMGSetResidual, c.MatProductClear):
+        f.restype = ctypes.c_int
+    return c
+
+
+def petsc_call(name: str, code: int) -> None:
+    """RuntimeError where a C function of `petsc_c` returned an error code."""
+    if code:
+        raise RuntimeError(f"PETSc's {name} failed with error code {code}")
+
+
 class FactorizationError(RuntimeError):
     """The backend could not factor the matrix (singular, not positive definite, ...)."""
 

@@ -149,20 +149,23 @@ def test_data_sets_whose_moduli_all_scale_by_one_factor_keep_the_nominal_hierarc
             assert got.phi[name] == pytest.approx(value, rel=1e-7)
     kept = iterative._ANCHOR[ev.model][1]
     assert kept.builds >= 1
-    assert kept.P.getNearNullSpace().getVecs() == []     # GAMG copied its near-nullspace: the operator holds none
+    pc, level = kept.fine                   # between solves the hierarchy holds no operator of K's size
+    held, _ = pc.getMGSmoother(level).getOperators()
+    assert kept.P is None and held.getInfo()["nz_used"] == held.getSize()[0]
 
 
 def test_a_solve_lets_go_of_what_its_operator_replaces_before_building_it(monkeypatch):
     """Each operator is a matrix of K's size: when a kept hierarchy's next operator is built, the
-    last solve's operator is already released (the KSP holds only the hierarchy's own), and when
-    the hierarchy is to be rebuilt, it and its operator are gone too — so at most one operator
-    besides the hierarchy's is alive, not three."""
+    last solve's operator is already freed (the KSP and the hierarchy's finest level hold a
+    diagonal in its place, PETSc no reference to it), and when the hierarchy is to be rebuilt,
+    it is gone too — so no operator but the one being built is alive (two had been: the kept
+    hierarchy's and the step's)."""
     from wcs.contact.distributed import Layout
     n = 30
     A0, A1 = laplacian(n), laplacian(n, cut=True)
     b = np.random.default_rng(2).standard_normal(n * n)
     k = Krylov()
-    seen = []
+    seen, made = [], []
     build = Layout.matrix
 
     def matrix(layout, A, PETSc):
@@ -170,13 +173,19 @@ def test_a_solve_lets_go_of_what_its_operator_replaces_before_building_it(monkey
             seen.append("none")
         else:
             op, pre = k.ksp.getOperators()
-            seen.append("hierarchy's own" if op.handle == pre.handle == k.P.handle else "last operator held")
-        return build(layout, A, PETSc)
+            pc, level = k.fine
+            fine, _ = pc.getMGSmoother(level).getOperators()
+            seen.append("a diagonal" if op.handle == pre.handle == fine.handle and op.getInfo()["nz_used"] == n * n
+                        else "an operator")
+        assert [M.getRefCount() for M in made] == [1] * len(made)     # PETSc holds none of the earlier ones
+        made.append(build(layout, A, PETSc))
+        return made[-1]
 
     monkeypatch.setattr(Layout, "matrix", matrix)
     solved(A0, b, k)
     while k.builds == 1:            # kept solves of the changed operator, until the rebuild
         solved(A1, b, k)
     assert seen[0] == "none" and seen[-1] == "none"     # before the rebuild's operator: nothing kept
-    assert seen[1:-1] and set(seen[1:-1]) == {"hierarchy's own"}
+    assert seen[1:-1] and set(seen[1:-1]) == {"a diagonal"}
     k.close()
+    assert [M.getRefCount() for M in made] == [1] * len(made)

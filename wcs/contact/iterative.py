@@ -770,6 +770,13 @@ class Krylov:
     median of (A w)_i / (A* w)_i (most rows do not change; on a group of ranks the mean of
     their medians). Every decision is on iteration counts and matrices, never on timings: the
     same data give the same bits.
+    A kept GAMG hierarchy keeps its coarse levels; its finest level (the Chebyshev smoother with
+    its Jacobi diagonal, and the residual) takes each solve's own operator (`_attach`), and
+    between solves holds a diagonal in its place (`release_operator`): no matrix of K's size is
+    held besides the one being solved, and a new step's operator is built after the last one is
+    freed (two had been alive at once, the kept hierarchy's and the step's: the 3D patch at
+    1e4 unknowns peaked 9 MB above its first step). The V-cycle then smooths the operator it
+    preconditions (the eigenvalue bounds of its Chebyshev smoother stay the hierarchy's).
     near_nullspace: (n, r) columns (orthonormalised here) that the matrices nearly annihilate;
     kept: a solver whose hierarchy to start from (not freed by this one: `close`).
     parts: the data set's subdomains (`wcs.contact.bddc.Parts`): the preconditioner is then BDDC
@@ -790,12 +797,15 @@ class Krylov:
         self.blocks = None if parts is not None else blocks
         self.comm = evaluation_comm()
         self.ksp = self.P = self.layout = self.built = None    # built: A w of the operator the hierarchy was built for
+        self.fine = None            # the GAMG hierarchy's finest level (pc, level) that takes each solve's operator
+        self.scale = 1.0            # s: the operators are s times (a few rows aside) the one the hierarchy was built for
         self.own = True             # this solver built the hierarchy it holds (and frees it)
         self.builds = 0             # hierarchies built
         self.failure = ""           # why the last solve failed before its CG (BDDC's set-up: `SetupFailure`)
         self.rate = self.excess = 0.0
         if kept is not None and kept.ksp is not None:
             self.ksp, self.P, self.layout, self.built, self.rate = kept.ksp, kept.P, kept.layout, kept.built, kept.rate
+            self.fine = kept.fine
             self.own = False
         self.inherited = not self.own           # a hierarchy from another solver, not yet compared
         # seconds (matrix: this rank's rows of A built and put in PETSc's form)
@@ -826,9 +836,12 @@ class Krylov:
         if self.ksp is None:
             kept = False
         elif self.inherited:        # a hierarchy from another solve: is this its operator, up to a scalar?
-            kept = self._changed(self._product(M, PETSc)) <= self.REBUILD_ROWS
+            changed, self.scale = self._changed(self._product(M, PETSc))
+            kept = changed <= self.REBUILD_ROWS
         else:
             kept = True
+            if self.fine is not None:       # the finest level's operator at the coarse levels' scale (`_attach`)
+                self.scale = self._changed(self._product(M, PETSc))[1]
         self.failure = ""
         try:
             if not kept:
@@ -852,7 +865,7 @@ class Krylov:
 
     def _cg(self, M, b, rtol):
         t = time.perf_counter()
-        self.ksp.setOperators(M, self.P)
+        self._attach(M)
         self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self.MAX_IT)
         x, rhs = M.createVecs()
         rhs.setArray(b[self.layout.lo:self.layout.hi])
@@ -865,11 +878,47 @@ class Krylov:
         self.timings["cg"] += time.perf_counter() - t
         return out, its, ok
 
+    def _attach(self, M):
+        """The solve's operator M into the preconditioner: GAMG's finest level smooths and takes
+        its residual with M / s (s: `scale`, 1 but for an inherited hierarchy); BDDC (and a
+        one-level GAMG, a direct solve) keeps the operator it was built for, `P`."""
+        if self.fine is None:
+            self.ksp.setOperators(M, self.P)
+            return
+        F = M if self.scale == 1.0 else _scaled(M, 1.0 / self.scale)   # at the coarse levels' scale
+        self._finest(F)
+        self.ksp.setOperators(M, F)
+        if F is not M:
+            F.destroy()             # (the level holds it)
+
+    def _finest(self, F):
+        """F the operator of GAMG's finest level: its Chebyshev smoother's, with F's Jacobi
+        diagonal, and its residual's."""
+        pc, level = self.fine
+        smoother = pc.getMGSmoother(level)
+        smoother.setOperators(F, F)
+        smoother.getPC().setReusePreconditioner(False)     # (the hierarchy's reuse reaches its levels)
+        linalg.petsc_call("PCMGSetResidual", linalg.petsc_c().PCMGSetResidual(pc.handle, level, None, F.handle))
+
     def release_operator(self):
-        """Let go of the last solve's operator (a matrix of K's size), keeping the hierarchy and
-        the operator it was built for: a solve sets its own operator before its CG."""
-        if self.ksp is not None:
+        """Let go of the last solve's operator (a matrix of K's size), keeping the hierarchy: a
+        solve sets its own operator before its CG (`_attach`). GAMG's finest level holds an
+        identity of the operator's layout meanwhile; BDDC the operator it was built for."""
+        if self.ksp is None:
+            return
+        if self.fine is None:
             self.ksp.setOperators(self.P, self.P)
+            return
+        PETSc = linalg.petsc()
+        ones = self.layout.vector(np.ones(self.layout.n), PETSc)
+        hold = PETSc.Mat().createAIJ(size=((self.layout.hi - self.layout.lo, self.layout.n),) * 2, nnz=1,
+                                     comm=self.layout.petsc)
+        hold.setDiagonal(ones)
+        hold.assemble()
+        self._finest(hold)
+        self.ksp.setOperators(hold, hold)
+        for o in (hold, ones):
+            o.destroy()
 
     def expire(self):
         """The next solve builds a fresh hierarchy."""
@@ -885,9 +934,9 @@ class Krylov:
         out.destroy()
         return Mw
 
-    def _changed(self, Mw: np.ndarray) -> int:
-        """The rows of the operator (product Mw with the probe) that differ from a multiple of
-        the one the hierarchy was built for (class docstring), over the group."""
+    def _changed(self, Mw: np.ndarray) -> tuple[int, float]:
+        """The rows of the operator (product Mw with the probe) that differ from a multiple s of
+        the one the hierarchy was built for (class docstring), over the group, and s."""
         old = self.built
         if self.blocks is not None:     # the unknowns' rows (the diagonal's alone are the blocks' own)
             real = np.zeros(self.layout.n, dtype=bool)
@@ -897,7 +946,7 @@ class Krylov:
         ratio = np.divide(Mw, old, out=np.zeros_like(Mw), where=old != 0)
         s = self._reduce(float(np.median(ratio))) / (1 if self.comm is None else self.comm.size)
         scale = self._reduce(float(np.abs(Mw).max(initial=0.0)), "max")
-        return int(self._reduce(int(np.sum(np.abs(Mw - s * old) > self.PROBE * scale))))
+        return int(self._reduce(int(np.sum(np.abs(Mw - s * old) > self.PROBE * scale)))), s
 
     def _reduce(self, value, op="sum"):
         """value summed (or its max) over the group."""
@@ -933,6 +982,10 @@ class Krylov:
             M.setNearNullSpace(PETSc.NullSpace().create(comm=self.layout.petsc))
         ksp.getPC().setReusePreconditioner(True)
         self.ksp, self.P, self.own, self.excess = ksp, M, True, 0.0
+        levels = ksp.getPC().getMGLevels()
+        if levels > 1:          # the finest level takes each solve's operator (`_attach`): nothing else holds M
+            self.fine, self.P = (ksp.getPC(), levels - 1), None
+            _forget_products(ksp.getPC(), levels)
         self.built = self._product(M, PETSc)
         self.builds += 1
         self.timings["gamg_setup"] += time.perf_counter() - t
@@ -942,10 +995,47 @@ class Krylov:
         solver's last operator)."""
         if self.ksp is not None and self.own:
             self.ksp.destroy()
-            self.P.destroy()
+            if self.P is not None:
+                self.P.destroy()
         elif self.ksp is not None:
-            self.ksp.setOperators(self.P, self.P)
-        self.ksp = self.P = self.built = None
+            self.release_operator()
+        self.ksp = self.P = self.built = self.fine = None
+        self.scale = 1.0
+
+
+class _Scale:
+    """t·M for PETSc's python-context matrix (`_scaled`): its products and its diagonal."""
+
+    def __init__(self, M, t: float):
+        self.M, self.t = M, t
+
+    def mult(self, mat, x, y):
+        self.M.mult(x, y)
+        y.scale(self.t)
+
+    def getDiagonal(self, mat, d):
+        self.M.getDiagonal(d)
+        d.scale(self.t)
+
+
+def _scaled(M, t: float):
+    """t·M as a PETSc matrix without a copy of M (its products and its diagonal)."""
+    PETSc = linalg.petsc()
+    S = PETSc.Mat().createPython(M.getSizes(), context=_Scale(M, t), comm=M.getComm())
+    S.setUp()
+    return S
+
+
+def _forget_products(pc, levels: int) -> None:
+    """GAMG's coarse operators PᵀAP and smoothed prolongators are products that keep a
+    reference to their factors, the finest operator among them, for a recomputation this
+    solver never asks (a new hierarchy is built instead): dropped, so that the finest
+    operator is freed once no level holds it (`Krylov.release_operator`)."""
+    c = linalg.petsc_c()
+    for level in range(levels - 1):
+        linalg.petsc_call("MatProductClear", c.MatProductClear(pc.getMGSmoother(level).getOperators()[0].handle))
+    for level in range(1, levels):
+        linalg.petsc_call("MatProductClear", c.MatProductClear(pc.getMGInterpolation(level).handle))
 
 
 def krylov_solve(A: sp.csr_matrix, b: np.ndarray, rtol: float, near_nullspace=None):
