@@ -53,14 +53,18 @@ def test_the_model_holds_no_cell_matrices_and_builds_lean():
     assert red.source.nbytes == 4 * red.nnz and red.M.shape[0] == red.rest.size < 0.1 * red.nnz
 
 
-def test_the_anchor_keeps_its_hierarchy_without_its_last_operator():
+def test_the_anchor_keeps_its_hierarchy_without_an_operator():
     """After the nominal solve, the anchor's GAMG hierarchy is kept for the data sets started from
-    its answer with the operator it was built for only: its last Newton step's operator, another
-    matrix of K's size, is not held by the solver (each solve sets its own before its CG)."""
+    its answer without any matrix of K's size: neither the operator it was built for nor its last
+    Newton step's is held (the KSP and the finest level hold a diagonal; each solve sets its own
+    operator before its CG)."""
     ev = Evaluator(patch())
     assert ev.evaluate({}).status == 0
     krylov = iterative._ANCHOR[ev.model][1]
-    assert krylov.ksp.getOperators()[0].handle == krylov.P.handle
+    held, pre = krylov.ksp.getOperators()
+    pc, level = krylov.fine
+    assert krylov.P is None and held.handle == pre.handle == pc.getMGSmoother(level).getOperators()[0].handle
+    assert held.getInfo()["nz_used"] == held.getSize()[0]
 
 
 def test_the_strain_operator_is_applied_from_the_gradients_the_stiffness_holds():
