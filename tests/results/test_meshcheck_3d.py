@@ -316,7 +316,7 @@ def test_a_study_solved_iteratively_is_split_by_the_iterative_methods_cost(tmp_p
     split is bounded by that method's memory (4 kB a tetrahedron) and time (20 Newton steps of
     1e-6 s an entry of K, 20 entries a tetrahedron), not by the k × k blocks. 1000 contact nodes
     on 10 cells (12000 rows split once: 9.2 GB of blocks, refused above) are split twice; on
-    1e5 cells split once (8e5 cells: 3.2 GB, 321 s a solve) the note gives the iterative time, or
+    1e5 cells split once (8e5 cells: 3.2 GB, 320 s a solve) the note gives the iterative time, or
     on a 4 GB machine its memory.
     (Before: the fine 3D tunnel's check, 6987 fault nodes, said its split would need 450 GB for a
     condensation the iterative method never forms.)"""
@@ -325,7 +325,7 @@ def test_a_study_solved_iteratively_is_split_by_the_iterative_methods_cost(tmp_p
     study = load_study(_write(tmp_path, doc, "s"))
     assert planned(study, 10, 1000, memory=16e9) == ((1, 2), "")
     assert planned(study, 10**5, 1000, memory=16e9) == ((), (
-        "the mesh split once would take about 321 s a solve by the iterative method (20 Newton steps of 1e-06 s "
+        "the mesh split once would take about 320 s a solve by the iterative method (20 Newton steps of 1e-06 s "
         "an entry of its 1.6e+07 stiffness entries), beyond the 120 s a solve of the check may take"))
     assert planned(study, 10**5, 1000, memory=4e9) == ((), (
         "the mesh split once would need about 3.2 GB for an evaluation by the iterative method (4 kB a cell), "

@@ -572,7 +572,11 @@ FACTOR_BYTES_PER_NNZ = 170.0    # the factor, per entry of K at 1e5 unknowns (3D
 W_COPIES = {2: 23.0, 3: 5.3}    # dense m x m arrays alive at the peak besides the units' own (2D: the dense inverse
 #                                 block (K⁺)_SS on about 2m DOFs instead of the bordered factor: 22-25 in all measured
 #                                 on the one-unit 2D tunnel at m = 1348 and 2692, wcs/results/meshcheck.py DENSE_BLOCKS)
-EVALUATION_SECONDS = {2: 0.0, 3: 4.5}   # the direct method's fixed part (the 3D fit's intercept)
+EVALUATION_SECONDS = {2: 0.0, 3: 0.0}   # the direct method's fixed part: none measured (the block patch at 924
+#                                         unknowns evaluates in 0.0 s; an earlier fit's intercept of 4.5 s made every
+#                                         small 3D estimate 5-17x the measured time). With the constants below the
+#                                         estimate is 1.5-2.4x the measured evaluate on the shipped tunnel (1.6 s),
+#                                         hertz-3d (0.3 s) and the 3D patch at 1e4 unknowns with 2364 rows (2.8 s)
 FACTOR_SECONDS_PER_NNZ = 2.85e-6  # factor and solves, per entry of K at 1e5 unknowns (fill as above)
 SCHUR_SECONDS = 3.7e-9          # per contact row and factor entry: forming W
 DENSE_SECONDS = {2: 2.0e-9,     # per m³: the Newton steps' dense factors of the active rows (2D: on the ~2m DOFs
@@ -583,7 +587,8 @@ ITERATIVE_BYTES_PER_NNZ = 60.0    # a Newton step's eliminated operator (PETSc's
 #                                   measure is 0.25 GB + 128-129 bytes an entry of K in all (0.59 GB at 2.63e6 entries,
 #                                   0.07/0.02; 1.80 GB at 1.21e7, 0.045/0.01), MODEL_BYTES_PER_NNZ's share included:
 #                                   estimated 1.09x and 1.14x
-ITERATIVE_SECONDS = 1.2         # the iterative method's fixed part (PETSc set-up): fit of the three below
+ITERATIVE_SECONDS = 0.1         # the iterative method's fixed part (PETSc set-up): the block patch at 924 unknowns
+#                                 evaluates in 0.1 s (2 Newton steps)
 ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hierarchy's products) per entry of K:
 #                                   0.7e-6 frictionless (block-on-block-3d at 0.1 and 0.05: 2 steps, 1.4 and 2.5 s;
 #                                   hertz-3d: 19 steps, 4.9 s), 1.3e-6 with Tresca friction (the shipped tunnel)
