@@ -35,9 +35,8 @@ CASES = {
 MAX_NEWTON = 30             # per load step
 # The load is ramped over `steps` equal load steps (time 0 to 1). The patch is linear: 1 step. Hertz
 # (the sphere held along z by the contact alone, touching at one point) in 1 step diverged (a/24:
-# Newton residual 1e107, "Zero pivot in ILU"; a/8: 30 Newton steps unconverged); in 5 steps it
-# converges at a/8 (`newton`: 5 in the last step, the axis pressure 1.3 % below Hertz's p0; measured
-# 2026-12-06).
+# the Newton residual blew up, "Zero pivot in ILU"; a/8: unconverged after MAX_NEWTON steps); in 5
+# steps it converges at a/8 (the Newton steps and the axis pressure: bench_kratos_hertz*'s Kratos rows).
 
 
 def read_msh22(path: Path):

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-import cvxpy  # noqa: F401  (the floating block's solvability check imports it on first use: 3 s once a process)
+import cvxpy  # noqa: F401  (the floating block's solvability check imports it on first use: seconds, once a process)
 from wcs import linalg  # noqa: E402
 
 PETSc = linalg.petsc()      # loaded before the timings, bound to its own BLAS as wcs loads it

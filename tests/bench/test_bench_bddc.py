@@ -7,50 +7,37 @@ first solve's less a second solve's, which keeps the preconditioner: for BDDC th
 matrices included) and of a solve, the process's resident-set growth, the distance to the
 direct solve.
 
-Measured (2 cores shared by 6 engineers: CPU seconds, the wall column is load):
-  unknowns   preconditioner  parts  its  set-up CPU  solve CPU  +RSS
-  1.11e4     amg                    17     0.15       0.03      0.00 GB
-  1.11e4     bddc              4    11     2.16       0.17      0.09 GB
-  2.60e4     amg                    18     0.43       0.11      0.00 GB
-  2.60e4     bddc             10    14     7.43       0.51      0.23 GB
-  8.03e4     amg                    18     1.71       0.45      0.00 GB
-  8.03e4     bddc             32    21    61.5        3.27      1.60 GB
-  8.03e4     bddc             64    17    57.3        2.45      0.95 GB   (peak resident 4.3 GB)
-  all within 5e-10 of the direct solve. BDDC's set-up is 14x, 17x, 36x GAMG's: it grows faster
-  than the unknowns because all subdomains are one MATIS local matrix in this process, so
-  PCBDDC's dense work (coarse basis functions, the deluxe scaling's Schur complements) spans
-  every subdomain at once (`wcs.contact.bddc` docstring); set-up options tried at 1.1e4 and
-  2.6e4 (Cholesky for the local solvers, no change of basis, plain scaling, no face or edge
-  constraints, 5/10/20 parts) and 64 parts at 8.0e4 change it by at most 40% (plain scaling or
-  no edges: 4x the iterations; no faces: 20 against 14; no change of basis: CG failed indefinite
-  at 5 parts; 20 parts of 2.6e4: MUMPS out of workspace, a failed set-up).
-  Ill-conditioned at 1.1e4 (the block's E and ν, "0.1 0.05 auto amg 2e3 0.35"): contrast 1e7
-  (E 2e3): amg 29 its, 0.24 s CPU in all, bddc 18 its, 2.33 s; ν = 0.499: amg 127 its, 0.42 s,
-  bddc 62 its, 3.14 s. GAMG's iterations grow more, BDDC's set-up still costs more. `wcs.choose.preconditioner` reads this table.
+What the measurements showed (the numbers are the tables'): both preconditioners agree with the
+direct solve; BDDC's CG iterations are of GAMG's order (fewer on the smaller meshes), but its
+set-up costs many times GAMG's and grows faster than the unknowns, because all subdomains are
+one MATIS local matrix in this process, so PCBDDC's dense work (coarse basis functions, the
+deluxe scaling's Schur complements) spans every subdomain at once (`wcs.contact.bddc`
+docstring). The set-up options
+tried (Cholesky for the local solvers, no change of basis, plain scaling, no face or edge
+constraints, other part counts) did not change that order: plain scaling or no edges multiplied
+the iterations, no faces raised them, no change of basis made CG fail (indefinite), and many
+parts of a small mesh ran MUMPS out of workspace (a failed set-up). Ill-conditioned (the block's
+E and ν given: a stiffness contrast, or ν near 1/2), GAMG's iterations grow more than BDDC's, but
+BDDC's set-up still costs more than GAMG's whole solve. `wcs.choose.preconditioner` (its
+BDDC_SETUP_RATIO, BDDC_SETUP_RATIO_RANKS) rests on these tables.
 
 On 2 ranks (one group, each rank its share of the subdomains: a distributed MATIS, or GAMG on
 the rows, `wcs.contact.distributed`) the same step, the CPU seconds summed over the ranks, the
-resident-set growth the largest of a rank's. Measured (wcs 3ecf00a, load 7-19; 1.1e4: medians
-of three runs):
-  unknowns  ranks  preconditioner  parts  its  set-up CPU  solve CPU  +RSS a rank
-  1.11e4    1      amg                    17     0.17       0.04      0.00 GB
-  1.11e4    1      bddc               4   11     2.46       0.18      0.14 GB
-  1.11e4    2      amg                    16     0.65       0.27      0.00 GB
-  1.11e4    2      bddc               4   11     2.37       0.27      0.05 GB
-  8.03e4    1      amg                    18     1.66       0.46      0.06 GB
-  8.03e4    1      bddc              32   21    68.8        3.82      4.38 GB
-  8.03e4    2      amg                    17     2.52       0.78      0.16 GB
-  8.03e4    2      bddc              32   21    68.4        4.27      2.26 GB
-  BDDC's iterations and answer (within 2e-10 of the direct solve) are the same on 1 and 2 ranks;
-  its set-up's CPU time is shared out by the second rank, not reduced (3.0-6.6x GAMG's at 1.1e4
-  in three runs, 27x at 8.0e4); GAMG's grows on 2 ranks of a loaded machine (MPI's waits count
-  as CPU time). `wcs.choose.preconditioner` reads these tables.
+resident-set growth the largest of a rank's. BDDC's iterations and answer are the same on 1 and
+2 ranks; its set-up's CPU time is shared out by the second rank, not reduced; GAMG's grows on 2
+ranks of a loaded machine (MPI's waits count as CPU time).
+
+Columns: the mesh size and face, the block's E and ν if given, unknowns, ranks, preconditioner,
+parts (BDDC), CG iterations, wall seconds of the first solve, CPU seconds of the set-up and of a
+solve, the peak resident-set growth (GB, the largest of a rank's), the relative distance to the
+direct solve, and the machine's load (the wall column follows it: compare CPU seconds).
 
 WCS_BENCH_BDDC="size face parts [E nu]" (default "0.1 0.05 auto"; parts "auto": `parts_of`; E nu:
 the block's material), WCS_BENCH_BDDC_RANKS (default "1 2"); each preconditioner on each rank
 count in its own `mpiexec -n` launch, so that the peak is its own. Command:
   cd tests/bench && WCS_BENCH_BDDC="0.05 0.02 auto" python -m pytest test_bench_bddc.py -m bench -s
-Table: results/bench/bench_bddc_<size>_<face>[_E_nu].csv (a row per preconditioner and rank count).
+Table: results/bench/bench_bddc_<size>_<face>[_E_nu].csv (docs/benchmarks.md; a row per
+preconditioner and rank count).
 """
 from __future__ import annotations
 

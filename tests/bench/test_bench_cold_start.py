@@ -8,7 +8,7 @@ at ~8.6e4 unknowns (the contact pad): the median over three fresh processes. Tim
 process's CPU seconds: every step runs on one thread (gmsh's General.NumThreads 1, one
 BLAS/OpenMP thread as the test session sets, SuperLU sequential), so on a quiet machine they
 are its wall seconds, and on the shared machine they do not count the waits for a core
-(wall ratios of one process swing 2x-6x there; they are printed too). The breakdown
+(wall ratios of one process swing several-fold there; they are printed too). The breakdown
 (imports, mesh, assembly, first solve) and the modules the first evaluation loaded are
 printed and written to results/bench/cold_start.csv; the 9.4e3-unknown Hertz case is
 reported alongside."""
@@ -70,7 +70,7 @@ COLD = textwrap.dedent("""
 def bytecode():
     """Start-up as after an install: pip compiles every module, so the package's bytecode is
     there (PYTHONDONTWRITEBYTECODE, set on some machines, would otherwise make each fresh
-    process compile wcs from source: 0.1-0.2 s of every measurement here)."""
+    process compile wcs from source, a share of every measurement here that an install never pays)."""
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(ROOT / "wcs")], check=True)
 
 

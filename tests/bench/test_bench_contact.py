@@ -84,7 +84,7 @@ def run(N=150, with_qp=True):
 def test_bench_contact():
     rows = run()
     # the speed goals (first solve <= 3x, re-solve <= 0.5x one SuperLU factor+solve) are recorded in the
-    # table, not asserted: on a shared 2-core machine a busy neighbour moves these ratios by 2-3x
+    # table, not asserted: on a shared 2-core machine a busy neighbour moves these ratios several-fold
     assert rows["newton_iterations_resolve"] <= rows["newton_iterations_cold_data1"]
     assert rows.get("qp_vs_newton_rel_diff_u", 0.0) < 1e-6
 

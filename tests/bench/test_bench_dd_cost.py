@@ -1,74 +1,54 @@
 """Serial cost of one DD solve against a warm monolithic evaluation of the same scene
-(goal ≤ 3×), measured in one run: the tunnel (studies/tunnel-fault.yaml with its
-mesh sizes × 0.33: ≈ 1.04e5 unknowns, 12 subdomains, tolerance 1e-6) and Hertz (studies/validation/hertz.yaml with its mesh sizes
-× 0.53: ≈ 1.05e5 unknowns, 12 subdomains, tolerance 1e-6), both with the default outer
-iteration (step auto: interface Newton on both).
+(goal ≤ 3×), measured in one run: the tunnel (studies/tunnel-fault.yaml with its mesh sizes
+× 0.33: ≈ 1.04e5 unknowns, 12 subdomains, tolerance 1e-6) and Hertz
+(studies/validation/hertz.yaml with its mesh sizes × 0.53: ≈ 1.05e5 unknowns, 12 subdomains,
+tolerance 1e-6), both with the default outer iteration (step auto: interface Newton on both).
 
 Both solvers are warmed first (the DD's partition and symbolic analyses, the monolithic
 factor's pattern), then each is timed `REPEAT` times on the nominal data (both keep their
 factors: `ratio`) and on new material data each time (every Young modulus × 1.01, 1.02, …:
 numeric refactors in both, as in a study that samples materials: `ratio_new`); the best
 time is kept (the machine is shared), and the ratios of the best CPU times of the process
-(`ratio_cpu`, `ratio_new_cpu`: less sensitive to other jobs on the machine). Also printed: the DD's phases (assembly = the local
-factorizations, Dirichlet and Neumann applications, contact solves) and the agreement with
-the monolithic answer.
+(`ratio_cpu`, `ratio_new_cpu`: less sensitive to other jobs on the machine). Also printed: the
+DD's phases (assembly = the local factorizations, Dirichlet and Neumann applications, contact
+solves) and the agreement with the monolithic answer.
 
-Measured (one BLAS thread, the shared 2 cores; `python tests/bench/test_bench_dd_cost.py`
-on the branch and on its base in one session), ratio same data / new data:
-tunnel 7.7× / 6.3× → 3.0× / 4.2× (DD 0.27 s → 0.10 s), Hertz 11.1× / 5.9× → 7.0× / 3.7×
-(DD 1.61 s → 0.72 s; interface Newton's PCG 71 → 49). What went: the ρ estimate stops at
-the first lower bound ≥ seed_rho (5 power steps → 1 here), a pair's linearisation is an
-update of its glued Schur complement (no QR per active set), its Neumann solve the glued
-one (no eigendecomposition per active set), J the glued coarse basis.
-Then (issue 12, ranks and serial cost; 6 runs, other jobs on the machine at load 3–7:
-CPU-time ratios, steadier than wall): tunnel 2.7–3.2 / 3.0–3.7 → 1.8–2.7 / 2.8–3.2, Hertz
-6.0–7.5 / 3.0–4.1 → 3.9–5.0 / 3.1–3.9. What went: PCG1 of Newton's start to the first forcing (29 → 10
-on Hertz, 32 → 8 on the tunnel), the ρ estimate from the pairs' interface (0 power steps),
-dsymv for the dense products, J_k's coarse image from the glued one, no product for a PCG's
-zero and balanced start, the tunnel pair's
-node held on both sides out of its local contact problem (no least squares). What is left
-on Hertz (cProfile): the dense Dirichlet and Neumann products of ≈ 60 PCG iterations (60 %).
-Then (3 runs each, main and the branch alternating in one session at load 9 on the 2 cores;
-medians [range], same / new data): Hertz 4.22 [3.40–4.39] / 4.06 [3.56–4.40] → 3.05
-[2.57–3.06] / 2.98 [2.72–5.03] (CPU 3.96 / 3.91 → 2.89 / 2.77), tunnel 5.89 [5.42–6.60] /
-3.44 [3.21–3.76] → 4.08 [3.68–4.21] / 2.96 [2.79–4.05] (CPU 5.64 / 3.25 → 4.16 / 3.01); an
-earlier session at load 7: Hertz 3.58 / 3.76 → 2.91 / 3.31, tunnel 4.15 / 3.90 → 3.73 / 2.65.
-What went: every local contact solve done twice (the ρ
-estimate's at U⁰ is Newton's first, the last residual's gives the solution), the pair's glue
-null basis per data set (geometry: kept), its G and T from one triangular solve and dsyrk, its
-Delassus operator without a dense inverse, Nᵀ Σ⁰_cc N by products with W (N = Π [−W; I]
-from a pivoted QR of the glue rows, not an orthonormal basis), a new symbolic analysis of the pair at every new
-Young modulus (Tᵀ K T on the structural pattern), and, while the stiffness data stay, the coarse
-spaces of S and S0, the pairs' linearisations and the loads' condensations (kept, as the
-monolithic factor is). What is left on Hertz: the products of 53 PCG iterations (≈ 45 % on
-the same data), on new data the numeric refactors (≈ 15 %), the Neumann inverses and the
-pair's dense algebra (≈ 25 %); the tunnel: its 2 pairs' local contact solves (≈ 40 %).
-Then (issue 12, serial cost, the tunnel at mesh scale 0.33 from here on; 3 runs each, the
-branch and its base alternating in one session at load 1.2 on the 2 cores, one BLAS thread,
-`python tests/bench/test_bench_dd_cost.py`; ratio same / new data): Hertz 3.00–3.19 /
-2.85–2.90 → 1.98–2.10 / 2.13–2.26 (DD 0.27–0.28 / 0.86–0.89 s → 0.19 / 0.66–0.67 s, the
-monolithic 0.09 / 0.30 s), tunnel 2.40–2.45 / 1.43–1.57 → 1.84–1.98 / 1.11–1.16 (DD
-0.31–0.33 / 1.05–1.15 s → 0.23–0.26 / 0.83–0.86 s). What went: PCG's dense products by
-dspmv on packed triangles (Hertz's 11 units' S and S† then fit the cache: 3.3–4.1 → 1.8–2.1
-ms an iteration), a unit's matrix as the sum of its reduced affine pieces (21 → 2.5 ms a
-data set), the pair's glued operators from the halves L⁻¹Nᵀ Σ⁰_cB and L⁻¹Nᵀ Σ⁰_cc C⁺
-(G, T and E never formed) with C⁺ from the sparse glue rows (the pair's dense algebra
-120–137 → 73–79 ms), Σ taken from PARDISO's buffer as it is (ascending block: no gather;
-symmetric to the bit: no symmetrisation), a copy of the pair's Σ at every load condensation
-((−Σ) x), and, while the data and the load stay, PCG1's answer (same data: 10 PCG
-iterations). The answers moved at round-off (dspmv sums in another order; err_u on the
-tunnel 2.4e-7 → 1.6e-7, Hertz 4.9e-9 unchanged). What is left on Hertz's new data: the units'
-numeric refactors with their Schur complements (≈ 0.19 s), the Neumann inverses (potrf +
-potri, ≈ 0.1 s), the products of 53 PCG iterations (≈ 0.1 s), the pair's dense algebra
-(≈ 0.07 s); on the same data the products of 43 PCG iterations (≈ half the DD's own time)
-and 4 local contact solves per pair; the global assembly in `reduced_system` (0.04–0.06 s,
-its cell-matrix einsum) is in both times.
+Columns: the case, its unknowns (`ndof`), the DD's units and the largest's share of the
+unknowns, the status, PCG1 iterations, outer steps and PCG2 iterations, the best seconds of
+each solver and their ratio on the same data and on new data, the CPU-time ratios, the DD's
+phases (seconds) and the relative distances of u and of the normal contact forces to the
+monolithic answer.
 
-At the merge (quiet machine): tunnel 1.83 / 1.16, Hertz 1.96 / 2.17; the tunnel's λn against the
-monolithic one 4.3e-7 relative once both are read as the model reports them (the canonical split
-at the roller-held fault end; 2.2e-3 when the DD's raw split was compared).
+What brought the ratio down (`wcs.dd`, found by profiling):
+- no work done twice: the ρ estimate stops at the first lower bound ≥ seed_rho, and on the
+  pairs' interface needs no power steps; every local contact solve is done once (the ρ
+  estimate's at U⁰ is Newton's first, the last residual's gives the solution); PCG1 of Newton's
+  start stops at the first forcing, and while the data and the load stay PCG1's answer is kept;
+- a pair's algebra from its glued state: its linearisation an update of its glued Schur
+  complement (no QR per active set), its Neumann solve the glued one (no eigendecomposition per
+  active set), J and J_k's coarse image from the glued coarse basis, the glue null basis kept
+  per geometry, N = Π [−W; I] from a pivoted QR of the glue rows (Nᵀ Σ⁰_cc N by products with W,
+  no orthonormal basis, no dense Delassus inverse), the glued operators from the halves
+  L⁻¹Nᵀ Σ⁰_cB and L⁻¹Nᵀ Σ⁰_cc C⁺ (G, T and E never formed) with C⁺ from the sparse glue rows;
+- kept while the stiffness data stay, as the monolithic factor is: the coarse spaces of S and
+  S0, the pairs' linearisations, the loads' condensations; a new Young modulus takes numeric
+  refactors only (the pair's Tᵀ K T on the structural pattern: no new symbolic analysis), a
+  unit's matrix the sum of its reduced affine pieces;
+- dense algebra that fits the cache and no copies: PCG's products by dspmv on packed triangles,
+  Σ taken from PARDISO's buffer as it is (ascending block: no gather; symmetric to the bit: no
+  symmetrisation), no copy of the pair's Σ at a load condensation (it applies (−Σ) x), no product for a
+  PCG's zero and balanced start, the tunnel pair's node held on both sides out of its local
+  contact problem (no least squares).
+What is left (cProfile): on Hertz the PCG products, on new data the units' numeric refactors
+with their Schur complements, the Neumann inverses (potrf + potri) and the pair's dense algebra;
+on the tunnel its pairs' local contact solves; the global assembly in `reduced_system` is in
+both times.
 
-Writes results/bench/dd_cost.csv (stamped). Run by `make bench`, or
+The tunnel's λn is compared with the monolithic one as the model reports both (the canonical
+split at the roller-held fault end): the DD's raw split there differs by far more than the
+solvers' agreement.
+
+Table: results/bench/dd_cost.csv (docs/benchmarks.md). Run by `make bench`, or
 .venv/bin/python tests/bench/test_bench_dd_cost.py
 """
 import dataclasses
@@ -156,7 +136,7 @@ def test_one_dd_solve_against_a_warm_monolithic_evaluation():
     for r in rows:
         assert r["status"] == "converged", r
         assert r["err_u"] <= 1e-4, r
-        assert r["err_lam_n"] <= 1e-4, r        # the tunnel's roller-held fault end: 2e-3 before the canonical split
+        assert r["err_lam_n"] <= 1e-4, r        # the tunnel's roller-held fault end: the canonical split
     hertz = next(r for r in rows if r["case"] == "hertz")
     assert hertz["ndof"] >= 1e5
     for r in rows:
@@ -165,5 +145,5 @@ def test_one_dd_solve_against_a_warm_monolithic_evaluation():
 
 
 if __name__ == "__main__":
-    configure_threads()          # one BLAS/MKL thread, as a test session (measured: two threads on the
-    main()                       # shared 2 cores made both solvers 5-10x slower, and the ratios random)
+    configure_threads()          # one BLAS/MKL thread, as a test session (two threads on the shared
+    main()                       # 2 cores made both solvers slower many times over, and the ratios random)

@@ -24,8 +24,8 @@ from common import STUDIES, measure, save_figure, write_table
 pytestmark = pytest.mark.bench
 METHODS = [("monolithic", {}), ("qp", {}), ("dd", {"subdomains": 4}), ("dd", {"subdomains": 8})]
 SLOW = 3.0                 # seconds: above this an evaluation is timed once
-# finest Hertz size per method: the generic QP (cvxpy) and the DD cost 30+ s per evaluation at
-# h = 0.002 (1.2e5 unknowns; measured once: dd-4 29 s after stagnating and falling back, dd-8 30 s)
+# finest Hertz size per method: the generic QP (cvxpy) and the DD cost tens of seconds an evaluation
+# at h = 0.002 (1.2e5 unknowns; dd-4 stagnated there and fell back)
 FINEST = {"monolithic": 0.002, "qp": 0.004, "dd": 0.004}
 
 

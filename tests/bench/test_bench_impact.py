@@ -8,8 +8,8 @@ stability chart (h against Δt per scheme, each run marked solved or failed); an
 results/bench/impact_orders.csv: the observed orders in Δt and h with their Richardson limits.
 
 The scene (a steel cylinder on a 5 cm aluminium block) is where Hertz's quasi-static theory holds
-(0.2 % of the energy left in vibration; on the former 10 cm steel block the peak force's floor of
-about −3 % was that vibration): `tests/dynamics/test_impact.py`.
+(little of the energy left in vibration; on the former 10 cm steel block that vibration set a floor
+under the peak force's error): `tests/dynamics/test_impact.py` says how much.
 
 The sphere (quarter model, graded mesh: size h in a 3 mm ball around the first contact point, growing
 by `GRADING` per unit distance): results/bench/sphere_impact.csv, the contact time and the peak force

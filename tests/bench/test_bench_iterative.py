@@ -1,6 +1,6 @@
 """solver.method iterative at scale: the 3D block-on-block patch
 (studies/validation/block-on-block-3d.yaml) with its contact face refined, frictionless, one
-thread. Measured in one run, as ratios:
+thread. Measured in one run, as ratios to the linear solve:
 
 - `linear`: one CG + GAMG solve (set-up + solve, to the relative residual 1e-8) of the first
   Newton step's system — the linear elasticity of the same mesh with the two bodies glued;
@@ -13,43 +13,25 @@ thread. Measured in one run, as ratios:
   the entries of the reduced K and the guard's estimate of one evaluation's peak
   (`wcs.scene.estimate.evaluation_cost`).
 
-Measured (2 cores shared with other jobs, load 3–8, one thread; ratios in one run):
-  0.2/0.1     2.7e3 unknowns,   144 contact nodes: linear 15 CG its; cold 2 Newton, 43 CG its
-  0.08/0.02   6.1e4 unknowns,  3019 contact nodes: linear 17 its; cold 2.1×, warm 1.8×, peak 1.1 GB
-  0.022/0.01  6.0e5 unknowns, 11826 contact nodes: linear 70 s (21 its); cold 1.1× (2 Newton, 136 its),
-              warm 1.4×; peak 8.1 GB, of which the model (mesh, assembly, criteria) 7.2 GB before any solve
-  0.018/0.01  8.0e5 unknowns, 11822 contact nodes: linear 56 s (23 its); cold 2.6× (2 Newton, 145 its),
-              warm 2.5× (1 Newton, 93 its); peak 10.8 GB (the model's build ≈ 9.4 GB)
-  0.0165/0.01 9.1e5 unknowns, 11821 contact nodes: linear 50 s (23 its); cold 2.1× (2 Newton, 149 its:
-              GAMG set-up 32 s, CG 63 s, elimination 8.6 s), warm 1.5× (1 Newton, 94 its); peak 12.3 GB,
-              the model's build 10.1 GB (8.5 GB resident once built)
-  0.0155/0.01 1.02e6 unknowns, 11821 contact nodes: linear 104 s (24 its); cold 1.2× (124 s: 2 Newton,
-              145 its; GAMG set-up 36 s, CG 72 s, elimination 13 s), warm 0.85× (88 s: 1 Newton, 96 its);
-              peak 13.8 GB, the model's build 11.4 GB (9.6 GB resident once built): the 8 GB goal fails
-              in the model's build, the contact method adds ≈ 2.4 GB
-  session 26, the model built without its cell matrices (made chunk by chunk from the gradients), the
-  reduction's terms made chunk by chunk, the strain operator without COO triplets (load 4-13, shared):
-  0.0155/0.01 1.02e6 unknowns, 11821 contact nodes: linear 156 s (24 its); cold 2.03× (318 s: 2 Newton,
-              145 its; GAMG set-up 96 s, CG 186 s, elimination 32 s), warm 1.10× (171 s: 1 Newton, 96 its);
-              peak 9.33 GB, the model's build 5.3 GB (5.11 GB resident with the first data set's K and
-              reduced K): the build fits, the 8 GB goal still fails by the contact solve's ≈ 4.2 GB above it
-  session 27, one copy of K in the solve (no K + 0 per step, PETSc on the step's arrays, K(c) not held
-  beside Kr, Kr on the pattern's indices, no strain matrix), against the start commit in one session
-  (load 14-17):
-  0.07/0.02   6.6e4 unknowns, 3018 contact nodes, 108894 cells, 2.63e6 entries of K: the same counts
-              (linear 19 its; cold 2 Newton, 105 its; warm 1 Newton, 67 its); peak 0.77 → 0.59 GB,
-              resident once built 0.56 → 0.41 GB; the guard's estimate 0.75 GB, 0.64 GB (1.09×) refit
-  and with the session's other changes merged (the GAMG hierarchy's keep rule, steps solved for their
-  correction), load 3.3, one thread:
-  0.0155/0.01 1.02e6 unknowns, 11821 contact nodes, 1.97e6 cells, 4.48e7 entries of K: linear 55 s
-              (24 its); cold 2.14× (119 s: 2 Newton, 151 its; GAMG set-up 36 s, CG 69 s, matrices 9.9 s,
-              elimination 2.8 s), warm 1.67× (93 s: 1 Newton, 96 its); peak 6.12 GB (the guard's
-              estimate 6.97 GB), the model's build 4.71 GB (3.38 GB resident once built): the 8 GB,
-              10× and 3× goals hold in one run
-The CG iterations of one linear solve grow 15 → 17 → 21 → 23 → 24 over a 380× refinement.
+Columns: the mesh size and the contact face's size, unknowns, contact nodes, the seconds of the
+model's build (`model_s`), of the linear solve and its CG iterations, of the cold solve with its
+Newton steps and CG iterations (and its phases, `cold_timings_s`: rows, elimination, matrix,
+GAMG set-up, CG), of the warm solve likewise, the two ratios to the linear solve, the peak and
+the resident set once the model is built (`model_peak_gb`, `model_rss_gb`), the process's peak
+(`peak_gb`), the cells, the entries of the reduced K and the guard's estimate (`estimate_gb`).
+Each ratio's two times are taken in one run; the seconds carry the run's load (its stamp).
+
+What the measurements taught (`wcs.fem`, `wcs.model`, `wcs.contact.iterative`): at 1e6 unknowns the
+memory goal failed in the model's build before any solve, until the cell matrices were made chunk
+by chunk from the gradients, the reduction's terms chunk by chunk and the strain operator without
+COO triplets; the contact solve then still added more than the goal left, until the solve held
+one copy of K (no K + 0 a step, PETSc on the step's arrays, K(c) not held beside the reduced K,
+the reduced K on the pattern's indices, no strain matrix). The CG iterations of one linear solve
+grow slowly under refinement (test_bench_krylov_counts.py asserts the growth).
 
 WCS_BENCH_ITERATIVE="size face" sets the mesh size and the contact face's size (default
-"0.0155 0.01": ≈ 1e6 unknowns, ≈ 1.2e4 contact nodes, 8 minutes). Table: results/bench/bench_iterative.csv.
+"0.0155 0.01": ≈ 1e6 unknowns, ≈ 1.2e4 contact nodes; above 3 GB: run it under the big-memory
+lock). Table: results/bench/bench_iterative.csv (docs/benchmarks.md), one row a run.
 """
 from __future__ import annotations
 

@@ -79,8 +79,8 @@ def file_study(path: Path, msh: Path, bodies: list[str], method: str, drop_roi: 
 
 def child_env() -> dict:
     """The children's environment: one thread each, and Python free to keep its bytecode (with
-    PYTHONDONTWRITEBYTECODE set, every `wcs solve` compiled wcs' 120 modules again: 0.3 s of CPU
-    that an installed wcs never spends; Kratos' site-packages are compiled at install)."""
+    PYTHONDONTWRITEBYTECODE set, every `wcs solve` compiled wcs' modules again: CPU time that an
+    installed wcs never spends; Kratos' site-packages are compiled at install)."""
     env = {**os.environ, **ONE_THREAD}
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
@@ -171,8 +171,8 @@ def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, 
 def assert_fair(rows: list) -> None:
     """Every answer given is right (the failure column of a row that ran says only that Kratos'
     Newton stopped unconverged) and wcs' iterative method solved every round. The monolithic
-    method may refuse (exit 2 with its memory and time estimate: face 0.01 needs ≈ 76 GB):
-    that is its result, kept in the table."""
+    method may refuse (exit 2 with its memory and time estimate, far beyond this machine at the
+    finest default face): that is its result, kept in the table."""
     wrong = [r for r in rows if r[4] and r[-1] not in ("", "Newton not converged")]
     assert not wrong, f"an answer is off (the failure column): {wrong}"
     assert all(r[4] == r[5] for r in rows if r[1] == "iterative"), "wcs' iterative method failed: see the table"
@@ -187,7 +187,7 @@ def kratos_python() -> str | None:
 
 def methods() -> list[str]:
     """wcs' methods to run: WCS_BENCH_KRATOS_METHODS (default "auto iterative"; iterative
-    alone keeps a large face under 1 GB, off the memory lock)."""
+    alone keeps a large face's runs off the memory lock: the table's peaks)."""
     return os.environ.get("WCS_BENCH_KRATOS_METHODS", "auto iterative").split()
 
 

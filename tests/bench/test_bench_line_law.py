@@ -5,14 +5,16 @@ q(1−ν²)/(πE) (2 ln(2H/b) + k2) for a block of height H held at its base, un
 half-width b.
 
 - Johnson's k1 = −1 is the cylinder between two opposite line loads (its axis to a contact): this
-  bench reproduces it (the check of the method). A cylinder decelerated by its own inertia (the
-  pressure balanced by a uniform body force; its centre of mass to the contact) has k1 ≈ −1.75 at
-  ν = 0.3 (−1.70 at 0.2, −1.86 at 0.45).
-- A half-space to a point at depth d has k2 = −ν/(1−ν) (−0.43 at ν = 0.3); a block held at its
-  base with free sides has k2 ≈ 0.00 (W = 2H), −0.07 (W = 4H), +0.49 (W = H) at ν = 0.3, and
-  k2 ≈ −0.054 (W = 2H) at ν = 0.33 (the aluminium block of the 2D impact).
-Each unit of k moves the contact time by ~2.5 % for steel on steel (`cylinder_impact`).
-Writes results/bench/line_law_constants.csv.
+  bench reproduces it (asserted to 0.02: the check of the method). A cylinder decelerated by its
+  own inertia (the pressure balanced by a uniform body force; its centre of mass to the contact)
+  has its own k1, measured at ν = 0.2, 0.3, 0.45.
+- A half-space to a point at depth d has k2 = −ν/(1−ν); a block held at its base with free sides
+  has its own k2, which depends on its width W: measured at W = H, 2H, 4H (ν = 0.3) and W = 2H
+  (ν = 0.33, the aluminium block of the 2D impact).
+How far a unit of k moves the contact time: `cylinder_impact`'s docstring. Table:
+results/bench/line_law_constants.csv (docs/benchmarks.md); tests/dynamics/test_impact.py's K1,
+K2 are its rows of the inertia-decelerated cylinder at ν = 0.3 and the block of width 2H at
+ν = 0.33.
 """
 import numpy as np
 import pytest

@@ -10,26 +10,18 @@ diag_pivot_thresh=0, SymmetricMode) of the same reduced stiffness, taken between
 evaluations (interleaved, so that both see the same load on the shared machine). Times are
 the process's CPU seconds (one thread: see test_bench_cold_start), medians over the
 evaluations and the reference's repeats. Goal at ~8.6e4: warm ≤ 0.45×. A fresh evaluator's
-answer on the last data set is the warm one to the bit. Table: results/bench/warm_2d.csv (one
-row per size).
+answer on the last data set is the warm one to the bit. Table: results/bench/warm_2d.csv
+(docs/benchmarks.md; one row per size: unknowns, contact nodes, the medians of the warm
+evaluation's and of SuperLU's CPU seconds, their ratio and its extremes, the warm evaluation's
+median wall seconds, the evaluations timed).
 
-Measured (2 cores, shared; this bench run alternately on 1a9c467 and on issue 26's branch,
-four rounds each): at 9.6e3 unknowns 0.52–0.63× before (0.57–0.63× on a quiet machine, the
-issue's 0.55–0.57×), 0.46–0.54× after (0.49–0.51× quiet); at 8.6e4 0.22–0.25× before,
-0.21–0.24× after. Where a warm evaluation goes at 9.6e3 (wall, quiet): the numeric refactor
-with the Schur complement on the contact DOFs 8.9 ms and two solves 2.4 ms of 21, K(c) 2.5,
-W from the Schur complement 1.4, Newton 1.3, the solvability LP 1.0 ms; at 8.6e4 the
-refactor is ~0.15 of the ~0.21 s. The 12-01 snapshots (cc4a698, d7aa2b8) measure as 1a9c467
-on both sizes: no regression of this case since then; what the branch took back is per-solve
-work of the trust checks and of Newton's 2D steps (see the commits).
-
-2D contact on the units of the stiffness (the pad and the base factored each on its own, the
-rubber's E a scale on the pad's factor and W, no refactor), alternately on 1627508 and after,
-two rounds each, plus one: at 9.6e3 unknowns 0.535–0.536× before, 0.18–0.22× after (7.1 ms
-against SuperLU's 37–40 ms); at 8.6e4 0.235–0.240× before, 0.050–0.057× after (47–49 ms
-against 0.83–0.90 s). Where a warm evaluation goes now at 9.6e3 (cProfile, 7.7 ms): the
-units' solves 2.1 ms (two solves, two units), Newton 1.4, K(c) u0 over the supports' cells
-0.9, the solvability LP 0.8, the units' W (their holds check and the sum) 0.6, stresses 0.4."""
+What the profiles taught (`wcs.contact.units`, `wcs.contact.solver`): before the units, the
+numeric refactor with the Schur complement on the contact DOFs was the largest part of a warm
+evaluation; on the units (the pad and the base factored each on its own, the rubber's E a scale
+on the pad's factor and W) what is left is the units' solves, Newton, K(c) u0 over the supports'
+cells, the solvability LP, the units' W (their holds check and the sum) and the stresses.
+Per-solve work of the trust checks and of Newton's 2D steps was cut as well.
+"""
 from __future__ import annotations
 
 import statistics
