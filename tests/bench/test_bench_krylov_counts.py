@@ -20,7 +20,7 @@ The growth goal (issue 25: Krylov iterations grow at most logarithmically under 
 refinements), asserted for the linear solve's count and for the mean CG iterations of a Newton
 step of the evaluation's cold solve (its first, from no contact state: the steps that find the
 active set; the nominal evaluation may then be answered from its answer in a step or two, as the
-3D tunnel's is, in one step of 0–1 CG iterations: no base to grow from) from level 0 to the
+3D tunnel's is, in one step with next to no CG iterations: no base to grow from) from level 0 to the
 finest level measured: its ≤ its₀ · (1 + C · ln(n / n₀)), n the unknowns. Smoothed aggregation
 AMG bounds the condition number of the preconditioned operator by c (1 + ln(H/h))² (Vaněk,
 Brezina, Mandel, Numer. Math. 88 (2001)), so CG needs O(1 + ln(H/h)) iterations, with
@@ -36,8 +36,8 @@ aggregates span the fault), and in 2D each body has its own rigid modes in the n
 fault; in 3D the bodies' 12 columns doubled the CPU time, so 3D keeps one set).
 
 WCS_BENCH_KRYLOV="2d:3 3d:2" sets the finest level of each case (the default; both above 3 GB:
-run under the big-memory lock; the 3D level 3, ≈ 1.5e6 unknowns, would need ≈ 20 GB at the
-7.5 kB a cell test_bench_iterative.py measured). Table: results/bench/bench_krylov_counts.csv.
+run under the big-memory lock; the 3D level 3, ≈ 1.5e6 unknowns, would not fit this machine at the
+peak a cell of results/bench/bench_iterative.csv). Table: results/bench/bench_krylov_counts.csv.
 """
 from __future__ import annotations
 
