@@ -162,7 +162,7 @@ def compare(work: Path, mesh: float, studies: dict, kratos: list | None, check, 
         rows.append([mesh, name, a["unknowns"], a["contact_nodes"], len(ok), len(rs),
                      round(float(np.median(cpus)), 2), round(min(cpus), 2), round(max(cpus), 2),
                      round(float(np.median(walls)), 2), round(min(walls), 2), round(max(walls), 2),
-                     round(max(r[2] for r in ok), 3), f"{a['p_centre']:.6g}", f"{a['p_min']:.6g}",
+                     round(max(r[2] for r in ok), 4), f"{a['p_centre']:.6g}", f"{a['p_min']:.6g}",
                      f"{a['p_max']:.6g}", f"{a['top_uz_min']:.6g}", a.get("newton", ""), "; ".join(sorted(notes))])
         print(rows[-1], flush=True)
     return rows
