@@ -43,8 +43,8 @@ from ..fem.rigid import rigid_modes
 from ..fem.stress import cell_mean, strain_operator, stresses
 from .heat import heat_by_krylov
 from .materials import lame
-from ..scene.estimate import (EvaluationFacts, cost_words, evaluation_cost, evaluation_fault, evaluation_memory,
-                              iterative_installed)
+from ..scene.estimate import (CLOSED_START_STEPS, ITERATIVE_STEPS, EvaluationFacts, cost_words, evaluation_cost,
+                              evaluation_fault, evaluation_memory, iterative_installed)
 from ..scene.meshdata import SceneMesh
 from ..geometry.facets import nodal_normals
 from ..status import Status
@@ -196,8 +196,12 @@ class Model:
         StudyError (exit 2) where that estimate exceeds the machine's memory."""
         rows = self.Bn_r.shape[0] + self.Bt_r.shape[0] if self.zone is not None else 0
         units = min(len(set(self.region_material)), len(self.smesh.bodies))   # units share no material, hold whole bodies
+        p = self.smesh.mesh.p
+        closed = (self.zone is not None and not self.dynamic and _friction(scene) == "none"
+                  and bool(np.all(self.zone.gap <= 1e-12 * np.linalg.norm(p.max(axis=1) - p.min(axis=1)))))
         facts = EvaluationFacts(dimension=self.dim, unknowns=self.elim.T.shape[1], stiffness_nnz=self.reduce.nnz,
-                                contact_rows=rows, units=units, thermal=self.thermal)
+                                contact_rows=rows, units=units, thermal=self.thermal,
+                                newton_steps=CLOSED_START_STEPS if closed else ITERATIVE_STEPS)
         memory = evaluation_memory()
         method = self.options.method
         installed = iterative_installed()                     # the iterative method's PETSc
@@ -214,6 +218,9 @@ class Model:
                    "(`mesh.size`, `refine`)" if direct and not installed else "a coarser mesh (`mesh.size`, `refine`)")
             raise StudyError(f"{evaluation_fault(facts, method)}; {out}", path="solver.method")
         why += f"; {'one time level' if self.dynamic else 'one evaluation'} estimated at {cost_words(need, seconds)}"
+        if closed and (self.options.method == "auto" or method == "iterative"):
+            why += (f"; the iterative method's estimate assumes {CLOSED_START_STEPS} Newton steps (frictionless, every "
+                    "contact node starts closed)")
         return method, why
 
     def _solver_facts(self, scene, facts: EvaluationFacts, memory: float, installed: bool) -> SolverFacts:
@@ -223,12 +230,8 @@ class Model:
         moduli = [mu for _, mu in pairs]
         nus = [lam / (2 * (lam + mu)) for lam, mu in pairs]
         contacts = scene.contacts
-        laws = [c.friction for c in contacts.values() if c.friction is not None]
-        friction = ("coulomb" if any(f.coefficient for f in laws)
-                    else "tresca" if any(f.slip_limit for f in laws)
-                    else "none")
         costs = {m: evaluation_cost(facts, m) for m in ("monolithic", "iterative")}
-        return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=friction,
+        return SolverFacts(unknowns=self.dim * self.nnodes, contact=bool(contacts), friction=_friction(scene),
                            stiffness_contrast=max(moduli) / min(moduli), max_nu=max(nus),
                            dimension=self.dim, costs=costs, memory=memory, iterative_installed=installed,
                            floating=self.zone is not None and self.R_r is not None, dynamic=self.dynamic)
@@ -663,6 +666,14 @@ class Model:
             return tet.stresses((self.G @ u).reshape(6, -1), c.lam[reg], c.mu[reg], c.beta[reg], dT)
         strain = (self.G @ u).reshape(3, -1)
         return stresses(strain, c.lam[reg], c.mu[reg], c.beta[reg], dT, self.plane)
+
+
+def _friction(scene) -> str:
+    """The scene's friction law: "coulomb" where a contact has a coefficient, else "tresca" where
+    one has a slip limit, else "none"."""
+    laws = [c.friction for c in scene.contacts.values() if c.friction is not None]
+    return ("coulomb" if any(f.coefficient for f in laws) else "tresca" if any(f.slip_limit for f in laws)
+            else "none")
 
 
 def _factor(held: linalg.HeldFactor, A) -> linalg.Factor:

@@ -594,6 +594,10 @@ ITERATIVE_STEP_SECONDS = 1.0e-6   # one Newton step (its CG iterations, the hier
 #                                   hertz-3d: 19 steps, 4.9 s), 1.3e-6 with Tresca friction (the shipped tunnel)
 ITERATIVE_STEPS = 20            # Newton steps of an evaluation, not known before solving: assumed (hertz-3d took
 #                                 19, the patch 2: its time estimate is an upper one, up to 10x there)
+CLOSED_START_STEPS = 2          # the same, frictionless, where every contact node starts closed (zero initial gap):
+#                                 the glued first step has the active set unless the load opens some contact (the
+#                                 block patch: 2 at every face, 0.04 to 0.01, and at 1e6 unknowns; its time estimate
+#                                 at 20 steps was 7.4 s against a measured 0.4 s: bench_kratos_face0.04)
 # the other direct methods' time against the monolithic one's, at least: qp (the cvxpy reference) 28-87x
 # (forward_hertz.png), dd 1.1-2.3x in 2D at 1e5-4e5 unknowns (dd_cost.csv), 4-12x on tetrahedra
 SLOWER = {"qp": {2: 28.0, 3: 28.0}, "dd": {2: 1.1, 3: 4.0}}
@@ -610,6 +614,7 @@ class EvaluationFacts:
     contact_rows: int = 0       # rows m of the contact operator C = [Bn; Bt] (0: no contact)
     units: int = 1              # units of the stiffness (wcs/contact/units.py), or an upper bound of them
     thermal: bool = False       # a heat step first (a scalar conduction factor: n/d unknowns)
+    newton_steps: int = ITERATIVE_STEPS     # the iterative method's Newton steps, assumed (CLOSED_START_STEPS)
 
 
 def _fill(f: EvaluationFacts) -> float:
@@ -629,7 +634,7 @@ def evaluation_cost(f: EvaluationFacts, method: str) -> tuple[float, float]:
     seconds = FACTOR_SECONDS_PER_NNZ * heat
     if method == "iterative" and m > 0:
         return (memory + ITERATIVE_BYTES + ITERATIVE_BYTES_PER_NNZ * nnz,
-                seconds + ITERATIVE_SECONDS + ITERATIVE_STEPS * ITERATIVE_STEP_SECONDS * nnz)
+                seconds + ITERATIVE_SECONDS + f.newton_steps * ITERATIVE_STEP_SECONDS * nnz)
     factor, d = fill * nnz, f.dimension
     slower = SLOWER[method][d] if method in SLOWER and m > 0 else 1.0
     return (memory + FACTOR_BYTES + FACTOR_BYTES_PER_NNZ * factor + (W_COPIES[d] + f.units) * 8.0 * m * m,
