@@ -92,6 +92,12 @@ def bootstrap_mpi():
     return dolfinx_solver
 
 
+def _libpetsc(dolfinx_solver) -> Path:
+    """The libpetsc the PETSc wheel ships (beside its bootstrap module)."""
+    (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
+    return lib
+
+
 @functools.cache
 def petsc():
     """petsc4py's PETSc, its libraries bound to the BLAS and LAPACK they ship with.
@@ -108,8 +114,7 @@ def petsc():
     RuntimeWarning says so."""
     import warnings
 
-    dolfinx_solver = bootstrap_mpi()
-    (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
+    lib = _libpetsc(bootstrap_mpi())
     try:
         ctypes.CDLL(str(lib), mode=os.RTLD_NOLOAD)
         warnings.warn(f"{lib.name} was loaded before wcs.linalg.petsc(): PETSc's BLAS and LAPACK may be MKL's "
@@ -130,8 +135,7 @@ def petsc_c():
     objects' `handle`s; each returns PETSc's error code (0: success), `petsc_call` checks it."""
     import dolfinx_solver
     PETSc = petsc()
-    (lib,) = (Path(dolfinx_solver.__file__).parent / "lib").glob("libpetsc.so.*")
-    c = ctypes.CDLL(str(lib), mode=os.RTLD_NOLOAD)
+    c = ctypes.CDLL(str(_libpetsc(dolfinx_solver)), mode=os.RTLD_NOLOAD)
     integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
     c.PCMGSetResidual.argtypes = [ctypes.c_void_p, integer, ctypes.c_void_p, ctypes.c_void_p]
     c.MatProductClear.argtypes = [ctypes.c_void_p]
