@@ -227,6 +227,36 @@ def cmd_compare(args) -> int:
     return compare(args)
 
 
+DEFERRED = ("numpy.random", "numpy.testing", "numpy.f2py")
+
+
+def defer_unused_imports() -> None:
+    """numpy's submodules of `DEFERRED` loaded on their first use, not by scipy's import.
+
+    scipy's array-API layer copies numpy's namespace (`scipy._external.array_api_compat.numpy`,
+    on `import scipy.linalg`): `from numpy import *` reads each of numpy's lazily loaded
+    submodules, which imports them and what they import in turn (unittest, secrets, hmac). A
+    solve calls none of them; they were the largest part of scipy's import, in time and in
+    resident memory, of every wcs process and every rank. Each is registered instead as a lazy
+    module (`importlib.util.LazyLoader`, the standard library's deferred import) and bound on
+    numpy as its import would bind it: the same module, executed when an attribute of it is
+    first read (`np.random.default_rng` in a search) or when it is imported by name. A module
+    already imported is left as it is."""
+    import importlib.util
+
+    for name in DEFERRED:
+        if name in sys.modules:
+            continue
+        package, _, short = name.rpartition(".")
+        spec = importlib.util.find_spec(name)      # imports the package first
+        spec.loader = importlib.util.LazyLoader(spec.loader)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+        if package:
+            setattr(sys.modules[package], short, module)    # as an import binds a submodule on its package
+
+
 @contextlib.contextmanager
 def importing(args):
     """A command's imports, in a process that is the command (`main` read sys.argv: `args.process`):
@@ -235,10 +265,12 @@ def importing(args):
     pydantic validators): each collection during the imports traced those made so far again, and
     each full one after them all of them, a tenth of a second of CPU in a 1e4-unknown solve. What
     the imports leave in reference cycles stays (some hundred objects). Called by a host process
-    (`main(argv)`: a test, a script), the host's collector is left as it is."""
+    (`main(argv)`: a test, a script), the host's collector is left as it is; so are its modules
+    (`defer_unused_imports` is for the process alone)."""
     if not args.process:
         yield
         return
+    defer_unused_imports()
     gc.disable()
     try:
         yield

@@ -3,7 +3,10 @@ solve's start neither the results file's libraries (xarray, pandas, h5py) nor gm
 read by wcs' own reader, `wcs.scene.meshfile`) nor PARDISO (MKL); by its end, with the results written, h5py alone of them
 (`wcs.results.netcdf`: no xarray, no pandas), still no gmsh and no MKL (the iterative method
 makes no direct factor), and never scipy.spatial. Guarded by what the process imported and
-mapped, not by its time or memory."""
+mapped, not by its time or memory.
+
+A `wcs` process of its own (`main()` on sys.argv) defers numpy's submodules that scipy's import
+would load (`wcs.cli.DEFERRED`): its solve loads none of them, and each works on first use."""
 import json
 import os
 import subprocess
@@ -81,3 +84,33 @@ def test_an_iterative_file_mesh_solve_loads_no_results_library_before_its_solve_
     assert seen["end"] == ["h5py"], f"loaded by the end: {seen['end']}"     # the file written without xarray
     assert seen["mapped"] == ["libpetsc"], f"libraries mapped: {seen['mapped']}"
     assert seen["unused"] == [], f"a static solve loaded: {seen['unused']}"
+
+
+OWN_PROCESS = r"""
+import json, sys, types
+from wcs.cli import DEFERRED, main
+sys.argv = ["wcs", "solve", "-q", "-o", "out.nc", "lean.yaml"]
+seen = {"code": main()}
+seen["executed"] = [m for m in DEFERRED + ("unittest",) if type(sys.modules.get(m)) is types.ModuleType]
+import numpy as np
+import numpy.testing
+seen["draw"] = np.random.default_rng(7).uniform(1.0, 2.0, 3).tolist()     # the deferred modules, used
+numpy.testing.assert_array_equal(np.arange(3), [0, 1, 2])
+seen["after"] = [m for m in ("numpy.random", "numpy.testing") if type(sys.modules.get(m)) is types.ModuleType]
+print(json.dumps(seen))
+"""
+
+
+def test_a_wcs_process_solves_without_numpys_random_testing_and_f2py_and_they_work_when_used(tmp_path):
+    write_patch_msh(tmp_path / "mesh.msh", 0.25)
+    (tmp_path / "lean.yaml").write_text(STUDY)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", OWN_PROCESS], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         check=True)
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert seen["code"] == 0, out.stderr
+    assert seen["executed"] == [], f"a solve executed {seen['executed']}"
+    plain = subprocess.run([sys.executable, "-c", "import numpy as np; print(np.random.default_rng(7).uniform(1.0, 2.0, 3)"
+                            ".tolist())"], capture_output=True, text=True, check=True)
+    assert seen["draw"] == json.loads(plain.stdout)          # the same generator, the same draws
+    assert seen["after"] == ["numpy.random", "numpy.testing"]

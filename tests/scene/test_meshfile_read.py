@@ -110,3 +110,60 @@ def test_rows_in_by_keys_and_by_rows_agree(monkeypatch):
     assert np.array_equal(meshfile._rows_in(a, b), expected)
     monkeypatch.setattr(meshfile, "_row_keys", lambda rows: None)
     assert np.array_equal(meshfile._rows_in(a, b), expected)
+
+
+def _msh22_text(tmp_path) -> str:
+    write_msh22(tmp_path / "clean.msh", NODES, SHUFFLED, SHUFFLED_NAMES)
+    return (tmp_path / "clean.msh").read_text()
+
+
+def _element_line(text: str, i: int) -> str:
+    return text.split("$Elements\n")[1].splitlines()[1 + i]
+
+
+MALFORMED = {   # a mutation of a valid MSH 2.2 file -> its text; each is left to gmsh (None)
+    "three tags": lambda t: t.replace(_element_line(t, 1), _element_line(t, 1).replace(" 2 2 2 ", " 2 3 2 2 2 ", 1)),
+    "a node short": lambda t: t.replace(_element_line(t, 1), _element_line(t, 1).rsplit(" ", 1)[0]),
+    "a node too many": lambda t: t.replace(_element_line(t, 1), _element_line(t, 1) + " 10"),
+    "blank line among the elements": lambda t: t.replace(_element_line(t, 2) + "\n", _element_line(t, 2) + "\n\n"),
+    "not a number": lambda t: t.replace(_element_line(t, 3), _element_line(t, 3)[:-1] + "x"),
+    "a fraction for a node": lambda t: t.replace(_element_line(t, 3), _element_line(t, 3) + ".5"),
+    "more elements counted": lambda t: t.replace(f"$Elements\n{len(SHUFFLED)}\n", f"$Elements\n{len(SHUFFLED) + 1}\n"),
+    "fewer nodes counted": lambda t: t.replace(f"$Nodes\n{len(NODES)}\n", f"$Nodes\n{len(NODES) - 1}\n"),
+    "a quadrangle": lambda t: t.replace(_element_line(t, 1), _element_line(t, 1).replace(" 2 2 2 ", " 3 2 2 2 ", 1)
+                                        + " 10"),
+    "no elements": lambda t: t.split("$Elements")[0] + "$Elements\n0\n$EndElements\n",
+}
+
+HARMLESS = {    # the same file written otherwise -> the clean file's read
+    "CRLF line ends": lambda t: t.replace("\n", "\r\n"),
+    "spaces and tabs": lambda t: t.replace(" ", " \t "),
+    "blank lines before the ends": lambda t: t.replace("$EndElements", "\n\n$EndElements").replace("$EndNodes",
+                                                                                                    "\n$EndNodes"),
+}
+
+
+@pytest.mark.parametrize("name", list(MALFORMED))
+def test_a_malformed_msh22_file_is_left_to_gmsh(tmp_path, name):
+    """The MSH 2.2 reader's numbers come from numpy's parse of whole sections: a line it cannot
+    place (a tag count other than 2, a node short or too many, a gap, a word, a count that does
+    not match, an unsupported cell) makes it say None, and gmsh reads the file with its message."""
+    from wcs.scene.meshfile import _read_msh22
+    text = MALFORMED[name](_msh22_text(tmp_path))
+    assert text != _msh22_text(tmp_path)
+    (tmp_path / "m.msh").write_text(text)
+    assert _read_msh22(tmp_path / "m.msh") is None
+
+
+@pytest.mark.parametrize("name", list(HARMLESS))
+def test_an_msh22_file_written_otherwise_reads_the_same(tmp_path, name):
+    from wcs.scene.meshfile import _read_msh22
+    text = _msh22_text(tmp_path)
+    clean = _read_msh22(tmp_path / "clean.msh")
+    (tmp_path / "m.msh").write_bytes(HARMLESS[name](text).encode())
+    other = _read_msh22(tmp_path / "m.msh")
+    assert clean is not None and other is not None
+    assert np.array_equal(clean[0], other[0]) and clean[1] == other[1] and clean[3] == other[3]
+    assert len(clean[2]) == len(other[2])
+    for a, b in zip(clean[2], other[2]):
+        assert a[:2] == b[:2] and np.array_equal(a[2], b[2]) and np.array_equal(a[3], b[3])

@@ -925,8 +925,8 @@ class Krylov:
         self.excess = np.inf
 
     def _product(self, M, PETSc) -> np.ndarray:
-        """This rank's rows of M w, w the fixed probe (uniform in [1, 2], the same on every layout)."""
-        w = np.random.default_rng(0).uniform(1.0, 2.0, self.layout.n)
+        """This rank's rows of M w, w the fixed probe `probe(n)`."""
+        w = probe(self.layout.n)
         wv, out = self.layout.vector(w, PETSc), M.createVecLeft()
         M.mult(wv, out)
         Mw = out.getArray().copy()
@@ -1024,6 +1024,15 @@ def _scaled(M, t: float):
     S = PETSc.Mat().createPython(M.getSizes(), context=_Scale(M, t), comm=M.getComm())
     S.setUp()
     return S
+
+
+def probe(n: int) -> np.ndarray:
+    """The probe vector of `Krylov`'s change test: w_i = 1 + frac((i + 1) φ), φ = (√5 − 1)/2, a
+    Weyl sequence equidistributed in [1, 2) with no structure a finite element operator shares
+    (a row r with (M − A)_r w = 0 while (M − A)_r ≠ 0 is as unlikely as for random entries). It
+    is the same on every layout and every machine (an integer times a double, rounded once),
+    and needs no random generator: numpy.random is not loaded by a solve (`wcs.cli.defer_unused_imports`)."""
+    return 1.0 + np.modf(np.arange(1, n + 1) * ((5.0 ** 0.5 - 1.0) / 2.0))[0]
 
 
 def _forget_products(pc, levels: int) -> None:

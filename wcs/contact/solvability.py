@@ -7,12 +7,12 @@ fᵀRα − j(Rα) over the admissible α in a bounded set is 0 exactly when the
 and positive otherwise, at an unbalanced motion.
 
 Both problems are solved by Clarabel directly (no modelling layer: importing cvxpy alone took
-1.9 s of a 7 s `wcs solve`), on data scaled to O(1) by s = max(Σ|Rᵀf|, max gw): the linear
+1.9 s of a 7 s `wcs solve`; Clarabel itself is imported by the first check that runs, so a solve
+with no floating body loads none of it), on data scaled to O(1) by s = max(Σ|Rᵀf|, max gw): the linear
 program in 2D, the second-order-cone program in 3D.
 """
 from __future__ import annotations
 
-import clarabel
 import numpy as np
 import scipy.sparse as sp
 
@@ -76,12 +76,14 @@ def _unbalanced_lp(BnR, BtR, e, gw):
     b = np.zeros(3 * m + 2 * r)
     b[3 * m:] = 1.0
     s = _scale(e, gw)
+    import clarabel
     return _clarabel(np.r_[-e / s, gw / s], sp.csc_matrix(A), b, [clarabel.NonnegativeConeT(A.shape[0])], s, r, "LP")
 
 
 def _clarabel(q, A, b, cones, s: float, r: int, kind: str):
     """(value, α) of min qᵀx subject to A x + z = b, z in the cones (Clarabel at CLARABEL_TIGHT),
     the value −s times the minimum, α the first r entries of x."""
+    import clarabel
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     for k, v in CLARABEL_TIGHT.items():
@@ -108,5 +110,6 @@ def _unbalanced_socp(BnR, BtR, e, gw):
     b = np.zeros(A.shape[0])
     b[m + (k + 1) * m] = 1.0
     s = _scale(e, gw)
+    import clarabel
     cones = [clarabel.NonnegativeConeT(m)] + [clarabel.SecondOrderConeT(k + 1)] * m + [clarabel.SecondOrderConeT(r + 1)]
     return _clarabel(np.r_[-e / s, gw / s], A, b, cones, s, r, "SOCP")

@@ -239,35 +239,56 @@ MSH22_CELLS = {15: (0, 1), 1: (1, 2), 2: (2, 3), 4: (3, 4)}     # gmsh type -> (
 def _read_msh22(path: Path):
     """`_read_msh41`'s answer for an ASCII MSH 2.2 file (points, lines, triangles and tetrahedra
     only, each element with its physical and elementary tags), the nodes in gmsh's order; None
-    for any other, or a node no element uses (gmsh's place for it is not known here)."""
+    for any other, or a node no element uses (gmsh's place for it is not known here).
+
+    Sections are parsed by numpy (`_numbers`, `_line_starts`), not token by token: a Python
+    object per number left a 1e4-element file's reading megabytes of resident memory behind."""
     text = path.read_bytes()
 
-    def section(name: bytes) -> list[bytes]:
+    def section(name: bytes) -> tuple[int, bytes]:
+        """A section's count (its first line) and the lines after it; (-1, b"") where absent."""
         at = text.find(b"$" + name + b"\n")
+        if at < 0:
+            at = text.find(b"$" + name + b"\r\n")             # a file written with CRLF line ends
         end = text.find(b"$End" + name, at)
-        return text[at:end].splitlines()[1:] if 0 <= at < end else []
+        if not 0 <= at < end:
+            return -1, b""
+        head = text.find(b"\n", at) + 1
+        line = text.find(b"\n", head, end)
+        if line < 0:
+            return -1, b""
+        return int(text[head:line]), text[line + 1:end]
     try:
+        count, body = section(b"PhysicalNames")
         names = {}
-        for line in section(b"PhysicalNames")[1:]:
+        for line in body.splitlines()[:max(count, 0)]:
             dim, tag, name = line.split(None, 2)
             names[(int(dim), int(tag))] = name.strip().strip(b'"').decode()
-        nodes = section(b"Nodes")
-        n = int(nodes[0])
-        table = np.array(b" ".join(nodes[1:n + 1]).split(), dtype=float).reshape(n, 4)
-        lines = section(b"Elements")
-        rows: dict[int, list] = {}
-        for line in lines[1:int(lines[0]) + 1]:
-            v = line.split()
-            if int(v[1]) not in MSH22_CELLS or int(v[2]) != 2:
-                return None
-            rows.setdefault(int(v[1]), []).append(v[3:])
+        n, body = section(b"Nodes")
+        table = _numbers(body, float)
+        if n < 0 or table.size != 4 * n:
+            return None
+        table = table.reshape(n, 4)
+        count, body = section(b"Elements")
+        values, first = _numbers(body, np.int64), _line_starts(body)
+        if count < 0 or first is None or first.size - 1 != count or values.size != first[-1]:
+            return None
+        first, width = first[:-1], np.diff(first)
+        if count and ((width < 3).any() or (values[first + 2] != 2).any()):
+            return None                                     # each element with its two tags
+        kinds = values[first + 1] if count else np.zeros(0, np.int64)
         tags = table[:, 0].astype(np.int64)
-        if not np.array_equal(tags, table[:, 0]) or not rows:
+        if not np.array_equal(tags, table[:, 0]) or not count:
             return None
         blocks = []
-        for gtype, r in rows.items():
+        for gtype in dict.fromkeys(kinds.tolist()):         # the types in the order the file meets them
+            if gtype not in MSH22_CELLS:
+                return None
             dim, k = MSH22_CELLS[gtype]
-            a = np.array(r, dtype=np.int64).reshape(len(r), 2 + k)
+            mine = first[kinds == gtype]
+            if (width[kinds == gtype] != 5 + k).any():
+                return None
+            a = values[mine[:, None] + np.arange(3, 5 + k)]     # physical, elementary, nodes
             blocks.append((dim, gtype, _node_indices(tags, a[:, 2:]), a[:, 0], a[:, 1]))
     except (ValueError, IndexError, UnicodeDecodeError):
         return None                 # gmsh reads it again, with its own message
@@ -287,6 +308,29 @@ def _read_msh22(path: Path):
             members.setdefault((dim, int(tag)), set()).update(np.unique(entity[physical == tag]).tolist())
     return (table[order, 1:], names, [(dim, gtype, new[cells], entity) for dim, gtype, cells, _, entity in blocks],
             members)
+
+
+def _numbers(body: bytes, dtype) -> np.ndarray:
+    """The whitespace-separated numbers of `body` (ValueError where one is not of `dtype`)."""
+    return np.fromstring(body, dtype=dtype, sep=" ") if body.strip() else np.zeros(0, dtype)
+
+
+def _line_starts(body: bytes) -> np.ndarray | None:
+    """Where each non-empty line's numbers start among `_numbers(body)`, and their count last
+    (None where an empty line lies between two others)."""
+    b = np.frombuffer(body, np.uint8)
+    if not b.size:
+        return np.zeros(1, np.int64)
+    blank = (b == 32) | (b == 9) | (b == 13) | (b == 10)
+    starts = np.flatnonzero(~blank & np.r_[True, blank[:-1]])    # each number's first byte
+    ends = np.flatnonzero(b == 10)
+    if b.size and b[-1] != 10:
+        ends = np.r_[ends, b.size]
+    per_line = np.bincount(np.searchsorted(ends, starts), minlength=ends.size)
+    used = np.flatnonzero(per_line)
+    if used.size and (per_line[used[0]:used[-1] + 1] == 0).any():
+        return None
+    return np.r_[0, np.cumsum(per_line[used])]
 
 
 def _dense_tags(path: Path, head: list[bytes]) -> bool:
