@@ -236,8 +236,8 @@ def defer_unused_imports() -> None:
     scipy's array-API layer copies numpy's namespace (`scipy._external.array_api_compat.numpy`,
     on `import scipy.linalg`): `from numpy import *` reads each of numpy's lazily loaded
     submodules, which imports them and what they import in turn (unittest, secrets, hmac). A
-    solve calls none of them; they were the largest part of scipy's import, in time and in
-    resident memory, of every wcs process and every rank. Each is registered instead as a lazy
+    solve calls none of them; they were a large part of scipy's import, in time and in resident
+    memory, of every wcs process and every rank. Each is registered instead as a lazy
     module (`importlib.util.LazyLoader`, the standard library's deferred import) and bound on
     numpy as its import would bind it: the same module, executed when an attribute of it is
     first read (`np.random.default_rng` in a search) or when it is imported by name. A module

@@ -241,8 +241,8 @@ def _read_msh22(path: Path):
     only, each element with its physical and elementary tags), the nodes in gmsh's order; None
     for any other, or a node no element uses (gmsh's place for it is not known here).
 
-    Sections are parsed by numpy (`_numbers`, `_line_starts`), not token by token: a Python
-    object per number left a 1e4-element file's reading megabytes of resident memory behind."""
+    Sections are parsed by numpy (`_numbers`, `_line_starts`), not into a Python object a number
+    (a slower reading, with a higher high-water mark of memory)."""
     text = path.read_bytes()
 
     def section(name: bytes) -> tuple[int, bytes]:
@@ -324,7 +324,7 @@ def _line_starts(body: bytes) -> np.ndarray | None:
     blank = (b == 32) | (b == 9) | (b == 13) | (b == 10)
     starts = np.flatnonzero(~blank & np.r_[True, blank[:-1]])    # each number's first byte
     ends = np.flatnonzero(b == 10)
-    if b.size and b[-1] != 10:
+    if b[-1] != 10:
         ends = np.r_[ends, b.size]
     per_line = np.bincount(np.searchsorted(ends, starts), minlength=ends.size)
     used = np.flatnonzero(per_line)
