@@ -247,14 +247,12 @@ def defer_unused_imports() -> None:
     for name in DEFERRED:
         if name in sys.modules:
             continue
-        package, _, short = name.rpartition(".")
-        spec = importlib.util.find_spec(name)      # imports the package first
+        spec = importlib.util.find_spec(name)      # imports numpy first
         spec.loader = importlib.util.LazyLoader(spec.loader)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
-        if package:
-            setattr(sys.modules[package], short, module)    # as an import binds a submodule on its package
+        setattr(sys.modules["numpy"], name.split(".")[1], module)   # as an import binds a submodule on its package
 
 
 @contextlib.contextmanager

@@ -271,24 +271,24 @@ def _read_msh22(path: Path):
         table = table.reshape(n, 4)
         count, body = section(b"Elements")
         values, first = _numbers(body, np.int64), _line_starts(body)
-        if count < 0 or first is None or first.size - 1 != count or values.size != first[-1]:
+        if count < 1 or first is None or first.size - 1 != count or values.size != first[-1]:
             return None
         first, width = first[:-1], np.diff(first)
-        if count and ((width < 3).any() or (values[first + 2] != 2).any()):
+        if (width < 3).any() or (values[first + 2] != 2).any():
             return None                                     # each element with its two tags
-        kinds = values[first + 1] if count else np.zeros(0, np.int64)
+        kinds = values[first + 1]
         tags = table[:, 0].astype(np.int64)
-        if not np.array_equal(tags, table[:, 0]) or not count:
+        if not np.array_equal(tags, table[:, 0]):
             return None
         blocks = []
         for gtype in dict.fromkeys(kinds.tolist()):         # the types in the order the file meets them
             if gtype not in MSH22_CELLS:
                 return None
             dim, k = MSH22_CELLS[gtype]
-            mine = first[kinds == gtype]
-            if (width[kinds == gtype] != 5 + k).any():
+            mine = kinds == gtype
+            if (width[mine] != 5 + k).any():
                 return None
-            a = values[mine[:, None] + np.arange(3, 5 + k)]     # physical, elementary, nodes
+            a = values[first[mine][:, None] + np.arange(3, 5 + k)]     # physical, elementary, nodes
             blocks.append((dim, gtype, _node_indices(tags, a[:, 2:]), a[:, 0], a[:, 1]))
     except (ValueError, IndexError, UnicodeDecodeError):
         return None                 # gmsh reads it again, with its own message
